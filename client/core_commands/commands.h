@@ -1,0 +1,20 @@
+// Registration of the in-process `totalgrad` subcommands (no service needed).
+//
+// Each Add*Command adds one subcommand to `app`; the subcommand's callback
+// runs it and stores the process exit code in *exit_code (0 = success,
+// 1 = the run failed, 2 = bad usage/input). Errors go to stderr with the
+// cause named; results go to stdout.
+#ifndef TOTALGRAD_CLIENT_CORE_COMMANDS_COMMANDS_H_
+#define TOTALGRAD_CLIENT_CORE_COMMANDS_COMMANDS_H_
+
+#include <CLI/CLI.hpp>
+
+namespace totalgrad::cli {
+
+void AddSimulateCommand(CLI::App* app, int* exit_code);  // simulate_command.cc
+void AddTrialCommand(CLI::App* app, int* exit_code);     // trial_command.cc
+void AddBenchCommand(CLI::App* app, int* exit_code);     // bench_command.cc
+
+}  // namespace totalgrad::cli
+
+#endif  // TOTALGRAD_CLIENT_CORE_COMMANDS_COMMANDS_H_

@@ -1,0 +1,98 @@
+// Gaussian-process dynamics model: one independent GP per output dimension,
+// squared-exponential ARD kernel, Gaussian likelihood.
+//
+//   k_a(z, z') = sf_a^2 exp(-1/2 sum_m (z_m - z'_m)^2 / l_{a,m}^2)
+//   y_a = f_a(z) + noise, noise ~ N(0, sn_a^2)
+//
+// For the cart-pole the inputs are z = [observed state (4), force (N)] (E = 5)
+// and the targets are observed state differences (D = 4).
+//
+// GpModel caches everything that does not change while a policy is optimised
+// (K^-1 with K = K_a(X, X) + sn_a^2 I, beta_a = K^-1 y_a, the length-scale-
+// scaled inputs), so that predicting P particles costs one P x N by N x N
+// matrix product per output (BLAS-3) plus O(P N E) element-wise work.
+//
+// Thread safety: a constructed GpModel is immutable; Predict is thread-safe.
+#ifndef TOTALGRAD_CORE_GP_GP_H_
+#define TOTALGRAD_CORE_GP_GP_H_
+
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "core/common/types.h"
+
+namespace totalgrad::gp {
+
+// Hyperparameters of all outputs, in log space.
+struct GpHyperparameters {
+  RowMatrix log_lengthscales;  // D x E: row a holds log l_{a,m}
+  Vector log_signal_std;       // D: log sf_a
+  Vector log_noise_std;        // D: log sn_a
+
+  int num_outputs() const { return static_cast<int>(log_lengthscales.rows()); }
+  int num_inputs() const { return static_cast<int>(log_lengthscales.cols()); }
+  // Packs output a as [log l_{a,1..E}, log sf_a, log sn_a] (E + 2 entries).
+  Vector Packed(int a) const;
+  void SetPacked(int a, const Vector& packed);
+};
+
+struct PredictOptions {
+  // The predictive variance is sf^2 - k^T K^-1 k + noise_variance_multiplier *
+  // sn^2 (the paper's sigma_f^2 + sigma_n^2). 25 gives GTP+sigma_n's model;
+  // 0 gives the latent (noise-free) variance. Training is not affected.
+  double noise_variance_multiplier = 1.0;
+};
+
+class GpModel {
+ public:
+  // Builds the model from N training pairs: inputs N x E, targets N x D,
+  // hyperparameters D x E. Factorises K_a by Cholesky; if that fails, adds
+  // jitter 1e-8 * sf_a^2, then x10 up to 1e-2 * sf_a^2, and records the jitter
+  // used. Errors: InvalidArgument for mismatched shapes, N == 0 or non-finite
+  // numbers (the message names which); FailedPrecondition when even the
+  // largest jitter does not make K_a positive definite.
+  static absl::StatusOr<GpModel> Create(const RowMatrix& inputs, const RowMatrix& targets,
+                                        const GpHyperparameters& hyperparameters);
+
+  int num_inputs() const { return num_inputs_; }
+  int num_outputs() const { return num_outputs_; }
+  int num_data() const { return num_data_; }
+  const GpHyperparameters& hyperparameters() const { return hyp_; }
+  // Jitter added to the diagonal of K_a (0 when none was needed).
+  double jitter(int a) const { return outputs_[a].jitter; }
+
+  // Batched prediction for P query rows z (P x E).
+  //   mean (P x D):      mean(p, a) = k_a(z_p)^T beta_a
+  //   variance (P x D):  variance(p, a) = sf_a^2 - k^T K_a^-1 k + mult * sn_a^2,
+  //                      floored at 1e-12 (the floor only ever catches round-off;
+  //                      where it binds the variance's Jacobian row is zero).
+  //   dmean_dz, dvar_dz (P x D*E, optional, may be null):
+  //                      dmean_dz(p, a*E + m) = d mean(p, a) / d z_{p,m}.
+  // Output matrices are resized by the call. Jacobians are computed only when
+  // asked for, so an evaluation rollout pays nothing for them.
+  void Predict(const ConstRowMatrixRef& z, const PredictOptions& options, RowMatrix* mean,
+               RowMatrix* variance, RowMatrix* dmean_dz, RowMatrix* dvar_dz) const;
+
+ private:
+  struct Output {
+    RowMatrix scaled_inputs;  // N x E, X / l_a
+    Vector scaled_sq_norms;   // N, |X_n / l_a|^2
+    Matrix k_inverse;         // N x N, (K_a + sn_a^2 I + jitter I)^-1, symmetric
+    Vector beta;              // N, K^-1 y_a
+    Vector inv_lengthscales;  // E, 1 / l_a
+    double signal_var = 0;    // sf_a^2
+    double noise_var = 0;     // sn_a^2
+    double jitter = 0;
+  };
+  GpModel() = default;
+
+  int num_inputs_ = 0;
+  int num_outputs_ = 0;
+  int num_data_ = 0;
+  GpHyperparameters hyp_;
+  std::vector<Output> outputs_;
+};
+
+}  // namespace totalgrad::gp
+
+#endif  // TOTALGRAD_CORE_GP_GP_H_

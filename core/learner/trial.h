@@ -1,0 +1,107 @@
+// A full policy-learning trial (the job a worker runs):
+//
+//   episode 0:      one random episode (force ~ U(-max_force, max_force)).
+//   episode e>=1:   fit the GP on all data so far, optimise the policy
+//                   (policy_steps gradient steps of `particles` particles with
+//                   the chosen estimator, warm-started), run one real episode
+//                   whose data are added, and evaluate the policy with
+//                   eval_rollouts independent real episodes.
+//
+// Results stream out through a TrialObserver, one call per finished episode;
+// the observer is also polled for cancellation. core knows nothing of how
+// they are transported.
+//
+// Determinism: the same TrialOptions (including the seed) and the same build
+// give the same numbers, bit for bit (one thread per trial; every random
+// number comes from a named substream of the seed).
+#ifndef TOTALGRAD_CORE_LEARNER_TRIAL_H_
+#define TOTALGRAD_CORE_LEARNER_TRIAL_H_
+
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "core/gp/gp.h"
+#include "core/gp/training.h"
+#include "core/learner/optimizer.h"
+#include "core/tasks/scene.h"
+
+namespace totalgrad::learner {
+
+struct TrialOptions {
+  tasks::SceneOptions scene;
+  std::string method = "RP";   // estimator name, see estimators/estimator.h
+  uint64_t seed = 1;
+  int episodes = 15;           // learned episodes after the random one
+  int policy_steps = 600;      // gradient steps per policy optimisation
+  int particles = 300;         // particles per gradient estimate
+  int eval_rollouts = 30;      // real evaluation episodes per learned episode
+  double success_threshold = 15.0;  // success: last evaluation mean below this
+  int basis_functions = 50;    // RBF policy size
+  double model_noise_multiplier = 1.0;  // GP noise variance x this in policy optimisation
+  int predicted_cost_particles = 1000;  // particles for the reported model-predicted cost
+  OptimizerOptions optimizer;
+  gp::TrainingOptions gp_training;
+
+  // OK, or InvalidArgument naming the first bad field.
+  absl::Status Validate() const;
+};
+
+// Sets one option by its key (the names listed by TrialOptionKeys(), e.g.
+// "particles", "noise_k", "learning_rate") from text. InvalidArgument names an
+// unknown key or an unparsable / out-of-range value. Used by the CLI flags,
+// sweep files and the service, so every option has one name everywhere.
+absl::Status SetTrialOption(const std::string& key, const std::string& value, TrialOptions* options);
+// Every option as (key, canonical text), in a fixed order; SetTrialOption of
+// each pair on default options reproduces `options`.
+std::vector<std::pair<std::string, std::string>> TrialOptionPairs(const TrialOptions& options);
+std::vector<std::string> TrialOptionKeys();
+
+struct EpisodeFlags {
+  int non_finite_gradients = 0;    // gradient estimates dropped for non-finite values
+  int gp_line_search_failures = 0; // caught during hyperparameter training
+  int gp_non_finite_evaluations = 0;
+  bool zero_gradient = false;      // some estimate was exactly zero (e.g. saturated cost)
+  bool gp_jitter = false;          // K needed jitter to factorise
+};
+
+struct EpisodeResult {
+  static constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+  int episode = 0;                 // 0 = random episode
+  double real_cost = kNaN;         // cost of the episode whose data were added
+  double eval_cost_mean = kNaN;    // over eval_rollouts episodes (NaN for episode 0)
+  double eval_cost_std = kNaN;
+  double predicted_cost = kNaN;    // model's expected episode cost of the optimised policy
+  double optimisation_seconds = 0; // GP fit + policy optimisation wall time
+  gp::GpHyperparameters hyperparameters;  // of the GP used this episode (empty for 0)
+  EpisodeFlags flags;
+};
+
+struct TrialSummary {
+  std::vector<EpisodeResult> episodes;
+  bool success = false;
+  double final_eval_cost = EpisodeResult::kNaN;
+};
+
+class TrialObserver {
+ public:
+  virtual ~TrialObserver() = default;
+  // Called once per finished episode, in order, from the trial's thread.
+  virtual void OnEpisode(const EpisodeResult& result) = 0;
+  // Polled regularly (at least once per policy gradient step); true stops the
+  // trial, which then returns CancelledError.
+  virtual bool ShouldCancel() { return false; }
+};
+
+// Runs the trial. `observer` may be null. Errors: InvalidArgument (bad
+// options), Cancelled, Internal (a numerical failure, named, e.g. the plant
+// integrator failing or a non-finite cost), FailedPrecondition (GP could not
+// be factorised).
+absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver* observer);
+
+}  // namespace totalgrad::learner
+
+#endif  // TOTALGRAD_CORE_LEARNER_TRIAL_H_

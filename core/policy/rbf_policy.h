@@ -1,0 +1,72 @@
+// RBF network policy (paper section 6; pipps-spec.md 2):
+//
+//   a(x) = sum_k w_k exp(-1/2 sum_m (x_m - c_{k,m})^2 / l_m^2)
+//   force(x) = u_max (9 sin a + sin 3a) / 8
+//
+// with C = 50 centres on the 4-D state, length-scales shared by all centres.
+// Parameter vector (254 for C = 50, S = 4), in this order:
+//   [ centres row-major (C x S: c_{0,0..S-1}, c_{1,0..}, ...),
+//     log length-scales (S), weights (C) ]
+//
+// Thread safety: const methods are thread-safe.
+#ifndef TOTALGRAD_CORE_POLICY_RBF_POLICY_H_
+#define TOTALGRAD_CORE_POLICY_RBF_POLICY_H_
+
+#include "core/common/rng.h"
+#include "core/common/types.h"
+
+namespace totalgrad::policy {
+
+// Saturation u_max (9 sin a + sin 3a)/8 and its derivative.
+double Saturate(double a, double u_max);
+double DaSaturate(double a, double u_max);
+
+class RbfPolicy {
+ public:
+  RbfPolicy(int num_basis, int state_dim, double max_force);
+
+  int num_basis() const { return num_basis_; }
+  int state_dim() const { return state_dim_; }
+  int num_parameters() const { return num_basis_ * state_dim_ + state_dim_ + num_basis_; }
+  double max_force() const { return max_force_; }
+
+  const Vector& parameters() const { return params_; }
+  void set_parameters(const Vector& p);  // size must be num_parameters()
+
+  // Views into the parameter vector.
+  Eigen::Map<const RowMatrix> centres() const;  // C x S
+  Eigen::Map<const Vector> log_lengthscales() const;
+  Eigen::Map<const Vector> weights() const;
+
+  // Centres ~ N(mean, centre_std^2 I) per dimension, log length-scales =
+  // log(lengthscale), weights ~ U(-1/sqrt(C), 1/sqrt(C)).
+  void Initialize(const Vector& mean, const Vector& centre_std, double lengthscale, Rng* rng);
+
+  // Forces for P states (P x S). If `cache` is non-null, what the adjoints
+  // below need is kept there (basis activations and pre-activations).
+  struct Cache {
+    RowMatrix states;   // P x S
+    RowMatrix phi;      // P x C basis activations
+    Vector pre;         // P pre-saturation a
+  };
+  void Evaluate(const ConstRowMatrixRef& states, Vector* forces, Cache* cache) const;
+
+  // Adjoints. Given force_bar (P) = dJ/dforce_p:
+  //  * state_bar (P x S, overwritten) = dJ/dstate through the policy;
+  //  * per_particle_param_bar (P x n, optional): row p = force_bar_p * dforce_p/dtheta
+  //    is ADDED to (accumulated over time steps by the caller);
+  //  * param_bar (n, optional) is ADDED the column sums.
+  // Any output may be null.
+  void Backward(const Cache& cache, const Vector& force_bar, RowMatrix* state_bar,
+                RowMatrix* per_particle_param_bar, Vector* param_bar) const;
+
+ private:
+  int num_basis_;
+  int state_dim_;
+  double max_force_;
+  Vector params_;
+};
+
+}  // namespace totalgrad::policy
+
+#endif  // TOTALGRAD_CORE_POLICY_RBF_POLICY_H_

@@ -1,0 +1,61 @@
+// The cart-pole plant with PILCO's constants (pilco-spec.md section 1), in the
+// paper's state order.
+//
+// State x = [s, beta, s_dot, beta_dot]: cart position (m), pole angle (rad),
+// cart velocity (m/s), angular velocity (rad/s). beta = 0 hangs down, beta = pi
+// is upright; beta is never wrapped. The control is the horizontal force on
+// the cart in newtons, held constant over one control period (zero-order
+// hold). The pole is a uniform rod of length pole_length.
+//
+// Thread safety: const methods are thread-safe.
+#ifndef TOTALGRAD_CORE_TASKS_CARTPOLE_H_
+#define TOTALGRAD_CORE_TASKS_CARTPOLE_H_
+
+#include <Eigen/Core>
+
+#include "absl/status/status.h"
+#include "core/common/types.h"
+#include "core/ode/integrator.h"
+
+namespace totalgrad::tasks {
+
+inline constexpr int kCartPoleStateDim = 4;
+using State = Eigen::Vector4d;
+
+struct CartPoleParams {
+  double cart_mass = 0.5;    // kg
+  double pole_mass = 0.5;    // kg
+  double pole_length = 0.5;  // m
+  double friction = 0.1;     // N/(m/s), cart on ground
+  double gravity = 9.82;     // m/s^2
+  double dt = 0.1;           // s, control period
+  double max_force = 10.0;   // N, bound of the policy's saturated output
+  ode::IntegratorOptions integrator;
+};
+
+class CartPole {
+ public:
+  explicit CartPole(const CartPoleParams& params = {}) : params_(params) {}
+
+  const CartPoleParams& params() const { return params_; }
+
+  // dx/dt at state x under force (N).
+  State Derivative(const State& x, double force) const;
+
+  // Total mechanical energy (J), conserved when friction = 0 and force = 0.
+  double Energy(const State& x) const;
+
+  // Integrates one control period dt with the force held constant. On success
+  // writes the next state into *next. Fails (leaving *next unchanged) on a
+  // non-finite input or when the adaptive integrator cannot meet its
+  // tolerances; the status names the cause. `report` may be null.
+  absl::Status Step(const State& x, double force, State* next,
+                    ode::IntegrationReport* report = nullptr) const;
+
+ private:
+  CartPoleParams params_;
+};
+
+}  // namespace totalgrad::tasks
+
+#endif  // TOTALGRAD_CORE_TASKS_CARTPOLE_H_

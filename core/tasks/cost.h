@@ -1,0 +1,72 @@
+// Per-step state costs of the cart-pole tasks (values in [0, 1]).
+//
+//  * AngleCost: c(x) = 1 - exp(-(x - t)^T Q (x - t)), Q diagonal (the paper's
+//    "Angle Cost", Q = diag(1, 1, 0, 0) by default, t the target state).
+//  * TipCost: PILCO's saturating tip-distance cost,
+//    c(x) = 1 - exp(-d^2 / (2 width^2)), with d the distance between the pole
+//    tip and the tip of the upright pole above the target cart position:
+//    d^2 = (s - s_target + l sin beta)^2 + l^2 (cos beta + 1)^2, l = 0.5 m,
+//    width = 0.25 m (pilco-spec.md 3.4, in our angle convention).
+//
+// Batched evaluation: x is P x 4 (one state per row), cost is P, the optional
+// gradient is P x 4 with grad(i, m) = dc(x_i)/dx_im.
+//
+// Thread safety: const methods are thread-safe.
+#ifndef TOTALGRAD_CORE_TASKS_COST_H_
+#define TOTALGRAD_CORE_TASKS_COST_H_
+
+#include <memory>
+#include <string>
+
+#include "absl/status/statusor.h"
+#include "core/common/types.h"
+#include "core/tasks/cartpole.h"
+
+namespace totalgrad::tasks {
+
+class StateCost {
+ public:
+  virtual ~StateCost() = default;
+  // cost must be non-null; grad may be null (then no gradient is computed).
+  // Output sizes are set by the call.
+  virtual void Evaluate(const ConstRowMatrixRef& x, Vector* cost, RowMatrix* grad) const = 0;
+  virtual std::string Name() const = 0;
+  // Convenience for one state.
+  double Value(const State& x) const;
+};
+
+class AngleCost final : public StateCost {
+ public:
+  AngleCost(const State& target, const State& q_diagonal);
+  void Evaluate(const ConstRowMatrixRef& x, Vector* cost, RowMatrix* grad) const override;
+  std::string Name() const override { return "angle"; }
+  const State& target() const { return target_; }
+  const State& q_diagonal() const { return q_; }
+
+ private:
+  State target_;
+  State q_;
+};
+
+class TipCost final : public StateCost {
+ public:
+  TipCost(double target_position, double pendulum_length = 0.5, double width = 0.25);
+  void Evaluate(const ConstRowMatrixRef& x, Vector* cost, RowMatrix* grad) const override;
+  std::string Name() const override { return "tip"; }
+  double target_position() const { return target_position_; }
+  double pendulum_length() const { return length_; }
+  double width() const { return width_; }
+
+ private:
+  double target_position_;
+  double length_;
+  double width_;
+};
+
+// "angle" or "tip", with target state `target` (the upright state for both
+// scenes). InvalidArgument names an unknown cost.
+absl::StatusOr<std::unique_ptr<StateCost>> MakeCost(const std::string& name, const State& target);
+
+}  // namespace totalgrad::tasks
+
+#endif  // TOTALGRAD_CORE_TASKS_COST_H_
