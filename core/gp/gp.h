@@ -60,6 +60,11 @@ class GpModel {
   const GpHyperparameters& hyperparameters() const { return hyp_; }
   // Jitter added to the diagonal of K_a (0 when none was needed).
   double jitter(int a) const { return outputs_[a].jitter; }
+  // Cached quantities, for moment-matching predictors (PILCO) that reuse them.
+  const RowMatrix& inputs() const { return inputs_; }    // N x E
+  const RowMatrix& targets() const { return targets_; }  // N x D
+  const Matrix& k_inverse(int a) const { return outputs_[a].k_inverse; }  // N x N
+  const Vector& beta(int a) const { return outputs_[a].beta; }            // N
 
   // Batched prediction for P query rows z (P x E).
   //   mean (P x D):      mean(p, a) = k_a(z_p)^T beta_a
@@ -90,6 +95,8 @@ class GpModel {
   int num_outputs_ = 0;
   int num_data_ = 0;
   GpHyperparameters hyp_;
+  RowMatrix inputs_;
+  RowMatrix targets_;
   std::vector<Output> outputs_;
 };
 
