@@ -35,14 +35,22 @@ struct IntegratorOptions {
 struct IntegrationReport {
   int accepted_steps = 0;
   int rejected_steps = 0;
-  double smallest_step = 0.0;  // seconds
+  // Smallest accepted step the error controller chose (seconds). The last
+  // step, shortened to land exactly on `duration`, counts only when it is the
+  // only step. 0 if no step was accepted.
+  double smallest_step = 0.0;
 };
 
 // Integrates from t = 0 to t = duration (> 0) starting at *state, and on
 // success overwrites *state with x(duration). On failure *state is left
 // unchanged and the status says why (InvalidArgument for a non-finite start
 // or duration <= 0, ResourceExhausted for the step budget, Internal for a
-// non-finite intermediate state or step-size underflow). `report` may be null.
+// non-finite intermediate state or step-size underflow). `report` may be null;
+// it is filled on failure too. Invalid options (negative or non-finite
+// tolerances, both tolerances 0, initial_step <= 0, min_step < 0,
+// max_steps < 1) are InvalidArgument. A non-finite f(x) at the start state is
+// Internal. The result is taken at exactly t = duration (the last step is
+// shortened to land there).
 absl::Status IntegrateAdaptive(const Rhs& rhs, double duration, const IntegratorOptions& options,
                                Vector* state, IntegrationReport* report);
 
