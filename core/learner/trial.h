@@ -43,6 +43,8 @@ struct TrialOptions {
   int basis_functions = 50;    // RBF policy size
   double model_noise_multiplier = 1.0;  // GP noise variance x this in policy optimisation
   int predicted_cost_particles = 1000;  // particles for the reported model-predicted cost
+  double policy_init_lengthscale = 1.0; // initial length-scale of every basis function
+  double policy_centre_std = 1.0;       // centres ~ N(mu0, policy_centre_std^2 I)
   OptimizerOptions optimizer;
   gp::TrainingOptions gp_training;
 

@@ -1,0 +1,114 @@
+// `totalgrad bench iteration`: seconds per gradient iteration at a given size,
+// and in the same run the seconds the unavoidable matrix products alone take
+// (gemm_bound_seconds: per step and output one (P x N) * (N x N) product).
+#include <algorithm>
+#include <chrono>
+#include <iostream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "client/core_commands/commands.h"
+#include "core/common/blas.h"
+#include "core/estimators/estimator.h"
+#include "core/estimators/synthetic_problem.h"
+
+namespace totalgrad::cli {
+namespace {
+
+struct BenchState {
+  int particles = 300;
+  int data = 450;
+  int horizon = 30;
+  int threads = 1;
+  int repeats = 7;
+  std::string method = "RP";
+};
+
+double Median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+template <typename F>
+double TimeOnce(F&& f) {
+  const auto start = std::chrono::steady_clock::now();
+  f();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+}  // namespace
+
+void AddBenchCommand(CLI::App* app, int* exit_code) {
+  auto state = std::make_shared<BenchState>();
+  CLI::App* bench = app->add_subcommand("bench", "Performance measurements (JSON output)");
+  bench->require_subcommand(1);
+  CLI::App* it = bench->add_subcommand("iteration", "Seconds per gradient iteration vs the gemm bound");
+  it->add_option("--particles", state->particles, "P")->check(CLI::PositiveNumber);
+  it->add_option("--data", state->data, "N, GP training points")->check(CLI::Range(2, 100000));
+  it->add_option("--horizon", state->horizon, "H, steps")->check(CLI::PositiveNumber);
+  it->add_option("--threads", state->threads, "BLAS threads")->check(CLI::PositiveNumber);
+  it->add_option("--repeats", state->repeats, "timed repetitions (median reported)")->check(CLI::PositiveNumber);
+  it->add_option("--method", state->method, "estimator");
+  it->callback([state, exit_code]() {
+    SetBlasThreads(state->threads);
+    estimators::SyntheticProblemOptions options;
+    options.data = state->data;
+    options.horizon = state->horizon;
+    auto problem = estimators::MakeSyntheticProblem(options);
+    if (!problem.ok()) {
+      std::cerr << "totalgrad bench: " << problem.status().message() << "\n";
+      *exit_code = 1;
+      return;
+    }
+    auto estimator = estimators::MakeEstimator(state->method, {});
+    if (!estimator.ok()) {
+      std::cerr << "totalgrad bench: " << estimator.status().message() << "\n";
+      *exit_code = 2;
+      return;
+    }
+    const estimators::Problem& p = (*problem)->problem;
+    estimators::EstimateOptions eo;
+    eo.particles = state->particles;
+    estimators::GradientEstimate estimate;
+    std::vector<double> iteration_times;
+    for (int r = 0; r < state->repeats + 1; ++r) {
+      Rng rng(1, Stream::kStudy, 100 + r);
+      const double s = TimeOnce([&] {
+        absl::Status st = (*estimator)->Estimate(p, eo, &rng, &estimate);
+        (void)st;
+      });
+      if (r > 0) iteration_times.push_back(s);  // first call warms caches and allocations
+    }
+    // The bound: horizon x outputs products of (P x N) by (N x N), as Predict does.
+    const int n = p.model->num_data(), outputs = p.model->num_outputs();
+    Matrix kstar = Matrix::Random(state->particles, n);
+    Matrix kinv = p.model->k_inverse(0);
+    Matrix product(state->particles, n);
+    std::vector<double> gemm_times;
+    for (int r = 0; r < state->repeats + 1; ++r) {
+      const double s = TimeOnce([&] {
+        for (int t = 0; t < state->horizon * outputs; ++t) product.noalias() = kstar * kinv;
+      });
+      if (r > 0) gemm_times.push_back(s);
+    }
+    const double iteration = Median(iteration_times), bound = Median(gemm_times);
+    nlohmann::json j = {{"method", state->method},
+                        {"particles", state->particles},
+                        {"data", n},
+                        {"horizon", state->horizon},
+                        {"threads", state->threads},
+                        {"repeats", state->repeats},
+                        {"seconds_per_iteration", iteration},
+                        {"gemm_bound_seconds", bound},
+                        {"ratio", iteration / bound},
+                        {"blas", BlasConfig()},
+                        {"gradient_finite", estimate.finite}};
+    std::cout << j.dump(2) << std::endl;
+    *exit_code = 0;
+  });
+}
+
+}  // namespace totalgrad::cli

@@ -1,0 +1,115 @@
+// `totalgrad trial`: one policy-learning trial in-process, printing each
+// episode as it finishes.
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <map>
+#include <memory>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "absl/strings/str_replace.h"
+#include "client/core_commands/commands.h"
+#include "client/core_commands/trial_format.h"
+#include "core/common/blas.h"
+#include "core/learner/trial.h"
+
+namespace totalgrad::cli {
+namespace {
+
+class PrintingObserver final : public learner::TrialObserver {
+ public:
+  explicit PrintingObserver(bool json) : json_(json) {}
+  void OnEpisode(const learner::EpisodeResult& result) override {
+    if (json_) {
+      std::cout << EpisodeToJson(result).dump() << std::endl;
+    } else {
+      if (!header_printed_) {
+        std::printf("%-8s %10s %10s %10s %10s %10s  %s\n", "episode", "real_cost", "eval_mean",
+                    "eval_std", "predicted", "seconds", "flags");
+        header_printed_ = true;
+      }
+      std::printf("%-8d %10.3f %10.3f %10.3f %10.3f %10.1f  %s\n", result.episode, result.real_cost,
+                  result.eval_cost_mean, result.eval_cost_std, result.predicted_cost,
+                  result.optimisation_seconds, FlagsText(result.flags).c_str());
+      std::fflush(stdout);
+    }
+  }
+
+ private:
+  bool json_;
+  bool header_printed_ = false;
+};
+
+struct TrialCommandState {
+  std::map<std::string, std::string> values;
+  std::vector<std::string> sets;
+  bool json = false;
+};
+
+}  // namespace
+
+void AddTrialCommand(CLI::App* app, int* exit_code) {
+  auto state = std::make_shared<TrialCommandState>();
+  CLI::App* cmd = app->add_subcommand(
+      "trial", "Run one policy-learning trial in-process and print each episode as it finishes");
+  cmd->add_flag("--json", state->json, "print one JSON object per episode instead of a table");
+  // Every trial option is a flag of its own: key noise_k is --noise-k.
+  const learner::TrialOptions defaults;
+  for (const auto& [key, value] : learner::TrialOptionPairs(defaults)) {
+    const std::string flag = "--" + absl::StrReplaceAll(key, {{"_", "-"}});
+    cmd->add_option(flag, state->values[key], "trial option '" + key + "' (default " + value + ")");
+  }
+  cmd->add_option("--set", state->sets, "KEY=VALUE for any trial option (repeatable)");
+  cmd->callback([state, exit_code]() {
+    learner::TrialOptions options;
+    for (const auto& [key, value] : state->values) {
+      if (value.empty()) continue;
+      const absl::Status s = learner::SetTrialOption(key, value, &options);
+      if (!s.ok()) {
+        std::cerr << "totalgrad trial: " << s.message() << "\n";
+        *exit_code = 2;
+        return;
+      }
+    }
+    for (const std::string& kv : state->sets) {
+      const size_t eq = kv.find('=');
+      const absl::Status s = eq == std::string::npos
+                                 ? absl::InvalidArgumentError("--set expects KEY=VALUE, got '" + kv + "'")
+                                 : learner::SetTrialOption(kv.substr(0, eq), kv.substr(eq + 1), &options);
+      if (!s.ok()) {
+        std::cerr << "totalgrad trial: " << s.message() << "\n";
+        *exit_code = 2;
+        return;
+      }
+    }
+    const absl::Status valid = options.Validate();
+    if (!valid.ok()) {
+      std::cerr << "totalgrad trial: " << valid.message() << "\n";
+      *exit_code = 2;
+      return;
+    }
+    SetBlasThreads(1);  // a trial is single-threaded by contract (determinism)
+    PrintingObserver observer(state->json);
+    absl::StatusOr<learner::TrialSummary> summary = learner::RunTrial(options, &observer);
+    if (!summary.ok()) {
+      std::cerr << "totalgrad trial: failed: " << summary.status().ToString() << "\n";
+      *exit_code = 1;
+      return;
+    }
+    if (state->json) {
+      nlohmann::json done = {{"done", true},
+                             {"success", summary->success},
+                             {"final_eval_cost", summary->final_eval_cost},
+                             {"threshold", options.success_threshold}};
+      std::cout << done.dump() << std::endl;
+    } else {
+      std::printf("final evaluation cost %.3f (threshold %.3g): %s\n", summary->final_eval_cost,
+                  options.success_threshold, summary->success ? "success" : "failure");
+    }
+    *exit_code = 0;
+  });
+}
+
+}  // namespace totalgrad::cli

@@ -1,0 +1,49 @@
+#include "client/core_commands/trial_format.h"
+
+#include <cmath>
+
+namespace totalgrad::cli {
+namespace {
+nlohmann::json Number(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+}  // namespace
+
+nlohmann::json EpisodeToJson(const learner::EpisodeResult& result) {
+  nlohmann::json j;
+  j["episode"] = result.episode;
+  j["real_cost"] = Number(result.real_cost);
+  j["eval_cost_mean"] = Number(result.eval_cost_mean);
+  j["eval_cost_std"] = Number(result.eval_cost_std);
+  j["predicted_cost"] = Number(result.predicted_cost);
+  j["seconds"] = result.optimisation_seconds;
+  j["flags"] = {{"non_finite_gradients", result.flags.non_finite_gradients},
+                {"gp_line_search_failures", result.flags.gp_line_search_failures},
+                {"gp_non_finite_evaluations", result.flags.gp_non_finite_evaluations},
+                {"zero_gradient", result.flags.zero_gradient},
+                {"gp_jitter", result.flags.gp_jitter}};
+  const auto& h = result.hyperparameters;
+  if (h.num_outputs() > 0) {
+    nlohmann::json gp = nlohmann::json::array();
+    for (int a = 0; a < h.num_outputs(); ++a) {
+      std::vector<double> ls(h.log_lengthscales.row(a).data(),
+                             h.log_lengthscales.row(a).data() + h.num_inputs());
+      gp.push_back({{"log_lengthscales", ls},
+                    {"log_signal_std", h.log_signal_std(a)},
+                    {"log_noise_std", h.log_noise_std(a)}});
+    }
+    j["gp"] = gp;
+  }
+  return j;
+}
+
+std::string FlagsText(const learner::EpisodeFlags& flags) {
+  std::string text;
+  auto add = [&text](const std::string& s) { text += (text.empty() ? "" : ",") + s; };
+  if (flags.non_finite_gradients > 0) add("nonfinite_grad=" + std::to_string(flags.non_finite_gradients));
+  if (flags.gp_line_search_failures > 0) add("gp_ls_fail=" + std::to_string(flags.gp_line_search_failures));
+  if (flags.gp_non_finite_evaluations > 0) add("gp_nonfinite=" + std::to_string(flags.gp_non_finite_evaluations));
+  if (flags.zero_gradient) add("zero_grad");
+  if (flags.gp_jitter) add("gp_jitter");
+  return text.empty() ? "-" : text;
+}
+
+}  // namespace totalgrad::cli

@@ -1,0 +1,22 @@
+// Text and JSON renderings of trial results, shared by the CLI commands.
+#ifndef TOTALGRAD_CLIENT_CORE_COMMANDS_TRIAL_FORMAT_H_
+#define TOTALGRAD_CLIENT_CORE_COMMANDS_TRIAL_FORMAT_H_
+
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "core/learner/trial.h"
+
+namespace totalgrad::cli {
+
+// {"episode", "real_cost", "eval_cost_mean", "eval_cost_std", "predicted_cost",
+//  "seconds", "flags": {...}, "gp": {...}}; NaN becomes null.
+nlohmann::json EpisodeToJson(const learner::EpisodeResult& result);
+
+// Short text of the set flags ("-" when none).
+std::string FlagsText(const learner::EpisodeFlags& flags);
+
+}  // namespace totalgrad::cli
+
+#endif  // TOTALGRAD_CLIENT_CORE_COMMANDS_TRIAL_FORMAT_H_

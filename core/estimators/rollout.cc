@@ -1,0 +1,54 @@
+#include "core/estimators/rollout.h"
+
+#include <cmath>
+
+namespace totalgrad::estimators {
+
+absl::Status SimulateParticles(const Problem& problem, int particles,
+                               const RolloutRecording& recording, Rng* rng, Rollout* rollout) {
+  if (problem.model == nullptr || problem.policy == nullptr || problem.cost == nullptr)
+    return absl::InvalidArgumentError("rollout problem needs a model, a policy and a cost");
+  if (particles < 1) return absl::InvalidArgumentError("particles must be >= 1");
+  if (problem.horizon < 1) return absl::InvalidArgumentError("horizon must be >= 1");
+  const int s_dim = problem.policy->state_dim();
+  if (problem.mu0.size() != s_dim || problem.initial_std.size() != s_dim ||
+      problem.model->num_outputs() != s_dim || problem.model->num_inputs() != s_dim + 1)
+    return absl::InvalidArgumentError("rollout problem: model, policy and start state dimensions disagree");
+
+  const int e_dim = s_dim + 1;
+  gp::PredictOptions predict_options;
+  predict_options.noise_variance_multiplier = problem.noise_variance_multiplier;
+
+  rollout->steps.resize(problem.horizon);
+  rollout->finite = true;
+  RowMatrix x(particles, s_dim);
+  rng->FillNormal(&x);
+  x = (x * problem.initial_std.asDiagonal()).rowwise() + problem.mu0.transpose();
+
+  RowMatrix z(particles, e_dim);
+  double total = 0;
+  for (int t = 0; t < problem.horizon; ++t) {
+    StepRecord& step = rollout->steps[t];
+    step.state = x;
+    problem.policy->Evaluate(step.state, &step.force,
+                             recording.jacobians ? &step.policy_cache : nullptr);
+    z.leftCols(s_dim) = step.state;
+    z.col(s_dim) = step.force;
+    problem.model->Predict(z, predict_options, &step.mean, &step.variance,
+                           recording.jacobians ? &step.dmean_dz : nullptr,
+                           recording.jacobians ? &step.dvar_dz : nullptr);
+    step.noise.resize(particles, s_dim);
+    rng->FillNormal(&step.noise);
+    step.next_state = step.state + step.mean;
+    step.next_state.array() += step.variance.array().sqrt() * step.noise.array();
+    problem.cost->Evaluate(step.next_state, &step.cost,
+                           recording.jacobians ? &step.cost_gradient : nullptr);
+    if (!step.next_state.allFinite() || !step.cost.allFinite()) rollout->finite = false;
+    total += step.cost.sum();
+    x = step.next_state;
+  }
+  rollout->objective = total / particles;
+  return absl::OkStatus();
+}
+
+}  // namespace totalgrad::estimators

@@ -1,0 +1,42 @@
+#include "core/learner/optimizer.h"
+
+#include "core/common/check.h"
+
+namespace totalgrad::learner {
+
+RmspropLike::RmspropLike(const OptimizerOptions& options, int num_parameters)
+    : options_(options), v_(Vector::Zero(num_parameters)), m_(Vector::Zero(num_parameters)) {}
+
+void RmspropLike::Reset() {
+  v_.setZero();
+  m_.setZero();
+  first_ = true;
+}
+
+void RmspropLike::Step(const Vector& gradient, const Vector& per_particle_variance,
+                       int num_particles, Vector* parameters) {
+  TG_CHECK_EQ(gradient.size(), v_.size());
+  TG_CHECK_EQ(parameters->size(), v_.size());
+  Vector s2;
+  switch (options_.normalisation) {
+    case Normalisation::kParticleStd:
+      s2 = per_particle_variance;
+      break;
+    case Normalisation::kMeanStd:
+      s2 = per_particle_variance / static_cast<double>(num_particles);
+      break;
+    case Normalisation::kRmsprop:
+      s2 = gradient.array().square();
+      break;
+  }
+  if (first_) {
+    v_ = s2;
+    first_ = false;
+  } else {
+    v_ = options_.decay * v_ + (1.0 - options_.decay) * s2;
+  }
+  m_ = options_.momentum * m_ + (gradient.array() / (v_.array().sqrt() + options_.epsilon)).matrix();
+  *parameters -= options_.learning_rate * m_;
+}
+
+}  // namespace totalgrad::learner

@@ -1,0 +1,111 @@
+#include "core/learner/trial.h"
+
+#include <cmath>
+#include <cstring>
+
+#include <gtest/gtest.h>
+
+namespace totalgrad::learner {
+namespace {
+
+TrialOptions Tiny() {
+  TrialOptions o;
+  for (const auto& [k, v] : std::vector<std::pair<std::string, std::string>>{
+           {"episodes", "2"}, {"policy_steps", "4"}, {"particles", "8"}, {"eval_rollouts", "2"},
+           {"horizon", "10"}, {"basis_functions", "10"}, {"gp_iterations", "20"},
+           {"predicted_cost_particles", "20"}, {"seed", "5"}}) {
+    EXPECT_TRUE(SetTrialOption(k, v, &o).ok()) << k;
+  }
+  return o;
+}
+
+class Recorder final : public TrialObserver {
+ public:
+  void OnEpisode(const EpisodeResult& r) override { results.push_back(r); }
+  bool ShouldCancel() override { return ++polls > cancel_after; }
+  std::vector<EpisodeResult> results;
+  int polls = 0;
+  int cancel_after = 1 << 30;
+};
+
+TEST(Trial, RunsAndReportsEveryEpisode) {
+  Recorder recorder;
+  auto summary = RunTrial(Tiny(), &recorder);
+  ASSERT_TRUE(summary.ok()) << summary.status();
+  ASSERT_EQ(recorder.results.size(), 3u);
+  EXPECT_EQ(recorder.results[0].episode, 0);
+  EXPECT_TRUE(std::isnan(recorder.results[0].eval_cost_mean));
+  for (int e = 1; e <= 2; ++e) {
+    const EpisodeResult& r = recorder.results[e];
+    EXPECT_EQ(r.episode, e);
+    EXPECT_TRUE(std::isfinite(r.real_cost));
+    EXPECT_GE(r.eval_cost_mean, 0);
+    EXPECT_LE(r.eval_cost_mean, 10.0);  // horizon 10, costs in [0, 1]
+    EXPECT_TRUE(std::isfinite(r.predicted_cost));
+    EXPECT_EQ(r.hyperparameters.num_outputs(), 4);
+  }
+  EXPECT_EQ(summary->final_eval_cost, recorder.results.back().eval_cost_mean);
+  EXPECT_EQ(summary->success, summary->final_eval_cost < 15.0);
+}
+
+TEST(Trial, SameSeedSameNumbersBitForBit) {
+  auto a = RunTrial(Tiny(), nullptr);
+  auto b = RunTrial(Tiny(), nullptr);
+  ASSERT_TRUE(a.ok() && b.ok());
+  ASSERT_EQ(a->episodes.size(), b->episodes.size());
+  for (size_t e = 0; e < a->episodes.size(); ++e) {
+    const EpisodeResult &x = a->episodes[e], &y = b->episodes[e];
+    EXPECT_EQ(std::memcmp(&x.real_cost, &y.real_cost, sizeof(double)), 0) << e;
+    if (e > 0) {
+      EXPECT_EQ(x.eval_cost_mean, y.eval_cost_mean) << e;
+      EXPECT_EQ(x.eval_cost_std, y.eval_cost_std) << e;
+      EXPECT_EQ(x.predicted_cost, y.predicted_cost) << e;
+      EXPECT_EQ(x.hyperparameters.log_lengthscales, y.hyperparameters.log_lengthscales) << e;
+    }
+  }
+  TrialOptions other = Tiny();
+  other.seed = 6;
+  auto c = RunTrial(other, nullptr);
+  ASSERT_TRUE(c.ok());
+  EXPECT_NE(c->episodes[1].eval_cost_mean, a->episodes[1].eval_cost_mean);
+}
+
+TEST(Trial, CancellationStopsTheTrial) {
+  Recorder recorder;
+  recorder.cancel_after = 2;
+  auto summary = RunTrial(Tiny(), &recorder);
+  ASSERT_FALSE(summary.ok());
+  EXPECT_EQ(summary.status().code(), absl::StatusCode::kCancelled);
+}
+
+TEST(TrialOptions, UnknownKeyAndBadValuesAreNamed) {
+  TrialOptions o;
+  absl::Status s = SetTrialOption("particels", "3", &o);
+  EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(s.message().find("particels"), std::string::npos);
+  s = SetTrialOption("particles", "many", &o);
+  EXPECT_NE(s.message().find("many"), std::string::npos);
+  s = SetTrialOption("noise_k", "nan", &o);
+  EXPECT_FALSE(s.ok());
+  s = SetTrialOption("method", "QQ", &o);
+  EXPECT_NE(s.message().find("QQ"), std::string::npos);
+  o.particles = 0;
+  s = o.Validate();
+  EXPECT_NE(s.message().find("particles"), std::string::npos);
+  o = TrialOptions();
+  o.scene.scene = "pendulum";
+  EXPECT_FALSE(o.Validate().ok());
+}
+
+TEST(TrialOptions, PairsRoundTrip) {
+  TrialOptions o = Tiny();
+  o.optimizer.learning_rate = 1.0 / 3.0;
+  o.scene.noise_k = 0.01;
+  TrialOptions back;
+  for (const auto& [k, v] : TrialOptionPairs(o)) ASSERT_TRUE(SetTrialOption(k, v, &back).ok()) << k;
+  EXPECT_EQ(TrialOptionPairs(back), TrialOptionPairs(o));
+  EXPECT_EQ(back.optimizer.learning_rate, 1.0 / 3.0);
+}
+
+}  // namespace
+}  // namespace totalgrad::learner
