@@ -1,0 +1,75 @@
+#include "core/tasks/cartpole.h"
+
+#include <cmath>
+
+#include "absl/strings/str_cat.h"
+#include "core/common/check.h"
+
+namespace totalgrad::tasks {
+
+// PILCO's dynamics_cp (pilco-spec.md 1.2) with x = s, v = s_dot,
+// omega = beta_dot, theta = beta. Derived from the Lagrangian of a cart with a
+// uniform rod (inertia m l^2 / 12 about its centre, centre at l / 2) and
+// viscous cart friction; Energy() below is that Lagrangian's energy, so
+// dE/dt = (force - friction * s_dot) * s_dot, which the tests check.
+State CartPole::Derivative(const State& x, double force) const {
+  const double mc = params_.cart_mass;
+  const double mp = params_.pole_mass;
+  const double l = params_.pole_length;
+  const double b = params_.friction;
+  const double g = params_.gravity;
+  const double total = mc + mp;
+  const double s_dot = x(2);
+  const double beta = x(1);
+  const double beta_dot = x(3);
+  const double sn = std::sin(beta);
+  const double cs = std::cos(beta);
+  const double denominator = 4.0 * total - 3.0 * mp * cs * cs;  // > 0: 4(M+m) > 3m
+  const double s_ddot =
+      (2.0 * mp * l * beta_dot * beta_dot * sn + 3.0 * mp * g * sn * cs + 4.0 * force -
+       4.0 * b * s_dot) /
+      denominator;
+  const double beta_ddot = (-3.0 * mp * l * beta_dot * beta_dot * sn * cs - 6.0 * total * g * sn -
+                            6.0 * (force - b * s_dot) * cs) /
+                           (l * denominator);
+  State dxdt;
+  dxdt << s_dot, beta_dot, s_ddot, beta_ddot;
+  return dxdt;
+}
+
+double CartPole::Energy(const State& x) const {
+  const double mp = params_.pole_mass;
+  const double l = params_.pole_length;
+  const double total = params_.cart_mass + mp;
+  const double s_dot = x(2);
+  const double beta = x(1);
+  const double beta_dot = x(3);
+  // Kinetic energy of cart and rod plus the rod's potential energy, zero
+  // potential at the pivot height (pilco-spec.md 1.2).
+  return 0.5 * total * s_dot * s_dot + mp * l * l * beta_dot * beta_dot / 6.0 +
+         0.5 * mp * l * (s_dot * beta_dot - params_.gravity) * std::cos(beta);
+}
+
+absl::Status CartPole::Step(const State& x, double force, State* next,
+                            ode::IntegrationReport* report) const {
+  TG_CHECK(next != nullptr);
+  if (!x.allFinite()) {
+    return absl::InvalidArgumentError(absl::StrCat("cart-pole step: non-finite state [", x(0),
+                                                   ", ", x(1), ", ", x(2), ", ", x(3), "]"));
+  }
+  if (!std::isfinite(force)) {
+    return absl::InvalidArgumentError(absl::StrCat("cart-pole step: non-finite force ", force));
+  }
+  const ode::Rhs rhs = [this, force](const Vector& z, Vector* dzdt) {
+    *dzdt = Derivative(State(z), force);
+  };
+  Vector z = x;
+  const absl::Status status = ode::IntegrateAdaptive(rhs, params_.dt, params_.integrator, &z, report);
+  if (!status.ok()) {
+    return absl::Status(status.code(), absl::StrCat("cart-pole step: ", status.message()));
+  }
+  *next = z;
+  return absl::OkStatus();
+}
+
+}  // namespace totalgrad::tasks
