@@ -44,6 +44,10 @@ struct Scene {
 
 // InvalidArgument names the bad field (unknown scene or cost, k < 0,
 // horizon < 1, non-finite numbers).
+// Also rejected: initial_std < 0; plant masses, pole_length, dt or max_force
+// <= 0; friction or gravity < 0 (the field is named as "plant.<field>").
+// The tip cost measures the tip of this plant's pole, so it uses
+// plant.pole_length (PILCO: cost length = pole length = 0.5 m).
 absl::StatusOr<Scene> MakeScene(const SceneOptions& options);
 
 // One real episode.
@@ -62,6 +66,11 @@ using Controller = std::function<double(const State& observation)>;
 // *start_rng, observation noise from *noise_rng. Fails (Internal, with the
 // step number) if the plant integration fails or a state is non-finite;
 // *episode is then unspecified.
+// Also Internal (with the step number) when the controller returns a
+// non-finite force. Draw order, part of the reproducibility contract: x0 takes
+// the first 4 normals of *start_rng (in state order); observation t
+// (t = 0..H) takes the next 4 normals of *noise_rng, drawn before the
+// controller is called at step t.
 absl::Status RunEpisode(const Scene& scene, const Controller& controller, Rng* start_rng,
                         Rng* noise_rng, Episode* episode);
 

@@ -1,0 +1,235 @@
+#include "core/tasks/scene.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <functional>
+#include <limits>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include "tests/testutil/testutil.h"
+
+namespace totalgrad::tasks {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
+
+State MakeState(double s, double beta, double s_dot, double beta_dot) {
+  State x;
+  x << s, beta, s_dot, beta_dot;
+  return x;
+}
+
+const State kBaseNoiseStd = MakeState(0.01, kPi / 180.0, 0.1, 10.0 * kPi / 180.0);
+
+Scene MustMakeScene(const SceneOptions& options) {
+  absl::StatusOr<Scene> scene = MakeScene(options);
+  EXPECT_TRUE(scene.ok()) << scene.status();
+  if (scene.ok()) return *std::move(scene);
+  return Scene();
+}
+
+// A bounded feedback law on the observation, so that observation noise
+// changes the trajectory.
+double Feedback(const State& o) { return 10.0 * std::tanh(o(0) + 0.5 * o(2) - 0.3 * o(3)); }
+
+TEST(MakeSceneTest, SwingUpDefaults) {
+  const Scene scene = MustMakeScene({});
+  EXPECT_EQ(scene.name, "cartpole-swingup");
+  EXPECT_EQ(scene.mu0, State::Zero());
+  EXPECT_EQ(scene.target, MakeState(0, kPi, 0, 0));
+  EXPECT_EQ(scene.initial_std, State::Constant(0.1));
+  EXPECT_TRUE(testing::MatricesNear(scene.observation_noise_std, kBaseNoiseStd, 0, 1e-15));
+  EXPECT_EQ(scene.horizon, 30);
+  ASSERT_NE(scene.cost, nullptr);
+  EXPECT_EQ(scene.cost->Name(), "angle");
+  EXPECT_EQ(scene.cost->Value(scene.target), 0.0);
+  EXPECT_EQ(scene.plant.params().dt, 0.1);
+}
+
+TEST(MakeSceneTest, BalanceTipAndNoiseScaling) {
+  SceneOptions options;
+  options.scene = "cartpole-balance";
+  options.cost = "tip";
+  options.noise_k = 4.0;
+  options.horizon = 12;
+  options.initial_std = 0.02;
+  options.plant.pole_length = 0.6;
+  const Scene scene = MustMakeScene(options);
+  EXPECT_EQ(scene.mu0, MakeState(0, kPi, 0, 0));
+  EXPECT_EQ(scene.target, scene.mu0);
+  EXPECT_EQ(scene.horizon, 12);
+  EXPECT_EQ(scene.initial_std, State::Constant(0.02));
+  // Variance multiplier k = 4: standard deviations double.
+  EXPECT_TRUE(
+      testing::MatricesNear(scene.observation_noise_std, 2.0 * kBaseNoiseStd, 0, 1e-15));
+  ASSERT_NE(scene.cost, nullptr);
+  const auto* tip = dynamic_cast<const TipCost*>(scene.cost.get());
+  ASSERT_NE(tip, nullptr);
+  EXPECT_EQ(tip->pendulum_length(), 0.6);  // the plant's pole
+  EXPECT_EQ(tip->width(), 0.25);
+  EXPECT_EQ(scene.plant.params().pole_length, 0.6);
+}
+
+TEST(MakeSceneTest, ErrorsNameTheBadField) {
+  struct Case {
+    std::function<void(SceneOptions*)> mutate;
+    std::string field;
+  };
+  const std::vector<Case> cases = {
+      {[](SceneOptions* o) { o->scene = "acrobot"; }, "acrobot"},
+      {[](SceneOptions* o) { o->scene = "acrobot"; }, "scene"},
+      {[](SceneOptions* o) { o->cost = "quadratic"; }, "quadratic"},
+      {[](SceneOptions* o) { o->noise_k = -1.0; }, "noise_k"},
+      {[](SceneOptions* o) { o->noise_k = kNan; }, "noise_k"},
+      {[](SceneOptions* o) { o->horizon = 0; }, "horizon"},
+      {[](SceneOptions* o) { o->initial_std = -0.1; }, "initial_std"},
+      {[](SceneOptions* o) { o->initial_std = kNan; }, "initial_std"},
+      {[](SceneOptions* o) { o->plant.dt = 0.0; }, "plant.dt"},
+      {[](SceneOptions* o) { o->plant.pole_length = kNan; }, "plant.pole_length"},
+      {[](SceneOptions* o) { o->plant.cart_mass = -0.5; }, "plant.cart_mass"},
+      {[](SceneOptions* o) { o->plant.friction = -0.1; }, "plant.friction"},
+      {[](SceneOptions* o) { o->plant.max_force = 0.0; }, "plant.max_force"},
+  };
+  for (const Case& c : cases) {
+    SceneOptions options;
+    c.mutate(&options);
+    const absl::StatusOr<Scene> scene = MakeScene(options);
+    EXPECT_EQ(scene.status().code(), absl::StatusCode::kInvalidArgument) << c.field;
+    EXPECT_NE(scene.status().message().find(c.field), std::string::npos)
+        << "want '" << c.field << "' in: " << scene.status();
+  }
+  SceneOptions zero_noise;
+  zero_noise.noise_k = 0.0;  // noise-free observations are allowed
+  EXPECT_OK(MakeScene(zero_noise).status());
+}
+
+absl::Status RunSeeded(const Scene& scene, uint64_t start_seed, uint64_t noise_seed,
+                       Episode* episode, const Controller& controller = Feedback) {
+  Rng start(start_seed, Stream::kInitialState);
+  Rng noise(noise_seed, Stream::kObservationNoise);
+  return RunEpisode(scene, controller, &start, &noise, episode);
+}
+
+TEST(RunEpisodeTest, DeterministicForEqualSeedsDifferentOtherwise) {
+  const Scene scene = MustMakeScene({});
+  Episode a, b, other_start, other_noise;
+  ASSERT_OK(RunSeeded(scene, 1, 2, &a));
+  ASSERT_OK(RunSeeded(scene, 1, 2, &b));
+  EXPECT_EQ(a.states, b.states);
+  EXPECT_EQ(a.observations, b.observations);
+  EXPECT_EQ(a.forces, b.forces);
+  EXPECT_EQ(a.costs, b.costs);
+  EXPECT_EQ(a.total_cost, b.total_cost);
+
+  ASSERT_OK(RunSeeded(scene, 3, 2, &other_start));
+  EXPECT_NE(other_start.states.row(0), a.states.row(0));
+
+  ASSERT_OK(RunSeeded(scene, 1, 4, &other_noise));
+  EXPECT_EQ(other_noise.states.row(0), a.states.row(0));  // same start stream
+  EXPECT_NE(other_noise.observations.row(0), a.observations.row(0));
+  EXPECT_NE(other_noise.states.row(scene.horizon), a.states.row(scene.horizon));
+}
+
+TEST(RunEpisodeTest, EpisodeIsConsistent) {
+  for (const std::string cost : {"angle", "tip"}) {
+    SceneOptions options;
+    options.cost = cost;
+    const Scene scene = MustMakeScene(options);
+    std::vector<State> seen;
+    const Controller recording = [&](const State& o) {
+      seen.push_back(o);
+      return Feedback(o);
+    };
+    Episode ep;
+    ASSERT_OK(RunSeeded(scene, 11, 12, &ep, recording));
+    const int h = scene.horizon;
+    ASSERT_EQ(ep.states.rows(), h + 1);
+    ASSERT_EQ(ep.states.cols(), 4);
+    ASSERT_EQ(ep.observations.rows(), h + 1);
+    ASSERT_EQ(ep.forces.size(), h);
+    ASSERT_EQ(ep.costs.size(), h);
+    ASSERT_EQ(static_cast<int>(seen.size()), h);
+
+    // x0 = mu0 + initial_std * (first four normals of the start stream).
+    Rng start(11, Stream::kInitialState);
+    for (int m = 0; m < 4; ++m) {
+      EXPECT_EQ(ep.states(0, m), scene.mu0(m) + scene.initial_std(m) * start.Normal());
+    }
+    double sum = 0;
+    for (int t = 0; t < h; ++t) {
+      // The controller acted on the recorded observation; its force was applied.
+      EXPECT_EQ(seen[t], State(ep.observations.row(t).transpose())) << "step " << t;
+      EXPECT_EQ(ep.forces(t), Feedback(seen[t]));
+      // Costs of the true post-step state, in [0, 1].
+      const State next = ep.states.row(t + 1).transpose();
+      EXPECT_EQ(ep.costs(t), scene.cost->Value(next));
+      EXPECT_GE(ep.costs(t), 0.0);
+      EXPECT_LE(ep.costs(t), 1.0);
+      // The true state follows the plant exactly.
+      State stepped;
+      ASSERT_OK(scene.plant.Step(ep.states.row(t).transpose(), ep.forces(t), &stepped));
+      EXPECT_EQ(stepped, next) << "step " << t;
+      sum += ep.costs(t);
+    }
+    EXPECT_NEAR(ep.total_cost, sum, 1e-12);
+    EXPECT_NEAR(ep.total_cost, ep.costs.sum(), 1e-12);
+    EXPECT_GT(ep.total_cost, 0.0);
+  }
+}
+
+TEST(RunEpisodeTest, ObservationNoiseHasTheSceneStd) {
+  SceneOptions options;
+  options.horizon = 400;
+  options.noise_k = 2.0;
+  const Scene scene = MustMakeScene(options);
+  Episode ep;
+  ASSERT_OK(RunSeeded(scene, 5, 6, &ep, [](const State&) { return 0.0; }));
+  const RowMatrix residual = ep.observations - ep.states;
+  const double n = static_cast<double>(residual.rows());
+  for (int m = 0; m < 4; ++m) {
+    const Vector z = residual.col(m) / scene.observation_noise_std(m);
+    const double mean = z.mean();
+    const double sd = std::sqrt((z.array() - mean).square().sum() / (n - 1));
+    // 401 standard normals: the mean has std 0.05, the sample std about 0.035;
+    // the bounds are about 4 of those.
+    EXPECT_LT(std::abs(mean), 0.2) << "dim " << m;
+    EXPECT_NEAR(sd, 1.0, 0.15) << "dim " << m;
+  }
+}
+
+TEST(RunEpisodeTest, ZeroNoiseObservesTheTrueState) {
+  SceneOptions options;
+  options.noise_k = 0.0;
+  options.scene = "cartpole-balance";
+  const Scene scene = MustMakeScene(options);
+  Episode ep;
+  ASSERT_OK(RunSeeded(scene, 7, 8, &ep));
+  EXPECT_EQ(ep.observations, ep.states);
+}
+
+TEST(RunEpisodeTest, NonFiniteForceFailsNamingTheStep) {
+  const Scene scene = MustMakeScene({});
+  int calls = 0;
+  const Controller bad = [&](const State&) { return calls++ == 3 ? kNan : 1.0; };
+  Episode ep;
+  const absl::Status st = RunSeeded(scene, 1, 2, &ep, bad);
+  EXPECT_EQ(st.code(), absl::StatusCode::kInternal) << st;
+  EXPECT_NE(st.message().find("step 3"), std::string::npos) << st;
+}
+
+TEST(RunEpisodeTest, PlantFailureFailsNamingTheStep) {
+  SceneOptions options;
+  options.plant.integrator.max_steps = 1;
+  const Scene scene = MustMakeScene(options);
+  Episode ep;
+  const absl::Status st = RunSeeded(scene, 1, 2, &ep);
+  EXPECT_EQ(st.code(), absl::StatusCode::kInternal) << st;
+  EXPECT_NE(st.message().find("step 0"), std::string::npos) << st;
+}
+
+}  // namespace
+}  // namespace totalgrad::tasks
