@@ -48,7 +48,9 @@ class GpModel {
   // Builds the model from N training pairs: inputs N x E, targets N x D,
   // hyperparameters D x E. Factorises K_a by Cholesky; if that fails, adds
   // jitter 1e-8 * sf_a^2, then x10 up to 1e-2 * sf_a^2, and records the jitter
-  // used. Errors: InvalidArgument for mismatched shapes, N == 0 or non-finite
+  // used. "Fails" includes a factorisation that succeeds only by round-off: a
+  // pivot L_ii^2 <= N * eps * max diag(K) (duplicated inputs with tiny noise).
+  // Errors: InvalidArgument for mismatched shapes, N == 0 or non-finite
   // numbers (the message names which); FailedPrecondition when even the
   // largest jitter does not make K_a positive definite.
   static absl::StatusOr<GpModel> Create(const RowMatrix& inputs, const RowMatrix& targets,
@@ -74,7 +76,10 @@ class GpModel {
   //   dmean_dz, dvar_dz (P x D*E, optional, may be null):
   //                      dmean_dz(p, a*E + m) = d mean(p, a) / d z_{p,m}.
   // Output matrices are resized by the call. Jacobians are computed only when
-  // asked for, so an evaluation rollout pays nothing for them.
+  // asked for, so an evaluation rollout pays nothing for them. `mean` must not
+  // be null; `variance` may be null when dvar_dz is null too, which skips the
+  // P x N x N product (a mean-only prediction costs O(P N E)). Requesting
+  // Jacobians never changes the mean and variance values.
   void Predict(const ConstRowMatrixRef& z, const PredictOptions& options, RowMatrix* mean,
                RowMatrix* variance, RowMatrix* dmean_dz, RowMatrix* dvar_dz) const;
 

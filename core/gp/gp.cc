@@ -1,0 +1,248 @@
+#include "core/gp/gp.h"
+
+#include <Eigen/Cholesky>
+#include <cmath>
+#include <string>
+#include <utility>
+
+#include "absl/status/status.h"
+#include "absl/strings/str_cat.h"
+#include "core/common/check.h"
+#include "core/gp/se_kernel.h"
+
+namespace totalgrad::gp {
+namespace {
+
+// Predictive variances below this are round-off (see gp.h).
+constexpr double kVarianceFloor = 1e-12;
+// Jitter ladder of Create, relative to sf_a^2: 1e-8, 1e-7, ..., 1e-2.
+constexpr int kFirstJitterExponent = -8;
+constexpr int kLastJitterExponent = -2;
+
+// Scratch matrices of Predict. Predict is const and must stay thread-safe, so
+// the buffers cannot live in the model; one set per thread keeps the hot path
+// free of heap allocations once the shapes have been seen (Eigen's resize is a
+// no-op when the size does not change).
+struct PredictWorkspace {
+  RowMatrix zs;      // P x E, z / l_a
+  Vector zs_sq;      // P, |z / l_a|^2
+  Matrix kstar;      // P x N, k_a(z_p, x_n)
+  Matrix a;          // P x N, Kstar K^-1, then Kstar .* Kstar K^-1
+  Vector column;     // P, one output's mean or k^T K^-1 k
+  RowMatrix rhs;     // N x E, beta .* Xs
+  Matrix product;    // P x E, Jacobian products
+};
+
+PredictWorkspace& ThreadWorkspace() {
+  thread_local PredictWorkspace workspace;
+  return workspace;
+}
+
+// Returns InvalidArgument naming the first non-finite entry of `m`, or OK.
+template <typename Derived>
+absl::Status CheckFinite(const Eigen::MatrixBase<Derived>& m, const std::string& name) {
+  for (Eigen::Index r = 0; r < m.rows(); ++r) {
+    for (Eigen::Index c = 0; c < m.cols(); ++c) {
+      if (!std::isfinite(m(r, c))) {
+        return absl::InvalidArgumentError(
+            absl::StrCat(name, "(", r, ", ", c, ") is not finite: ", m(r, c)));
+      }
+    }
+  }
+  return absl::OkStatus();
+}
+
+absl::Status ValidateCreateArguments(const RowMatrix& inputs, const RowMatrix& targets,
+                                     const GpHyperparameters& hyp) {
+  if (inputs.rows() == 0) return absl::InvalidArgumentError("inputs has no rows (N == 0)");
+  if (inputs.cols() == 0) return absl::InvalidArgumentError("inputs has no columns (E == 0)");
+  if (targets.cols() == 0) return absl::InvalidArgumentError("targets has no columns (D == 0)");
+  if (targets.rows() != inputs.rows()) {
+    return absl::InvalidArgumentError(absl::StrCat("targets has ", targets.rows(),
+                                                   " rows but inputs has ", inputs.rows()));
+  }
+  if (hyp.log_lengthscales.rows() != targets.cols()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("hyperparameters.log_lengthscales has ", hyp.log_lengthscales.rows(),
+                     " rows but targets has ", targets.cols(), " columns (outputs)"));
+  }
+  if (hyp.log_lengthscales.cols() != inputs.cols()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("hyperparameters.log_lengthscales has ", hyp.log_lengthscales.cols(),
+                     " columns but inputs has ", inputs.cols()));
+  }
+  if (hyp.log_signal_std.size() != targets.cols()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("hyperparameters.log_signal_std has ", hyp.log_signal_std.size(),
+                     " entries but targets has ", targets.cols(), " columns"));
+  }
+  if (hyp.log_noise_std.size() != targets.cols()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("hyperparameters.log_noise_std has ", hyp.log_noise_std.size(),
+                     " entries but targets has ", targets.cols(), " columns"));
+  }
+  if (absl::Status s = CheckFinite(inputs, "inputs"); !s.ok()) return s;
+  if (absl::Status s = CheckFinite(targets, "targets"); !s.ok()) return s;
+  if (absl::Status s = CheckFinite(hyp.log_lengthscales, "hyperparameters.log_lengthscales");
+      !s.ok()) {
+    return s;
+  }
+  if (absl::Status s = CheckFinite(hyp.log_signal_std, "hyperparameters.log_signal_std");
+      !s.ok()) {
+    return s;
+  }
+  if (absl::Status s = CheckFinite(hyp.log_noise_std, "hyperparameters.log_noise_std");
+      !s.ok()) {
+    return s;
+  }
+  return absl::OkStatus();
+}
+
+}  // namespace
+
+Vector GpHyperparameters::Packed(int a) const {
+  const int e = num_inputs();
+  Vector packed(e + 2);
+  packed.head(e) = log_lengthscales.row(a).transpose();
+  packed(e) = log_signal_std(a);
+  packed(e + 1) = log_noise_std(a);
+  return packed;
+}
+
+void GpHyperparameters::SetPacked(int a, const Vector& packed) {
+  const int e = num_inputs();
+  TG_CHECK_EQ(packed.size(), e + 2);
+  log_lengthscales.row(a) = packed.head(e).transpose();
+  log_signal_std(a) = packed(e);
+  log_noise_std(a) = packed(e + 1);
+}
+
+absl::StatusOr<GpModel> GpModel::Create(const RowMatrix& inputs, const RowMatrix& targets,
+                                        const GpHyperparameters& hyperparameters) {
+  if (absl::Status s = ValidateCreateArguments(inputs, targets, hyperparameters); !s.ok()) {
+    return s;
+  }
+  GpModel model;
+  model.num_data_ = static_cast<int>(inputs.rows());
+  model.num_inputs_ = static_cast<int>(inputs.cols());
+  model.num_outputs_ = static_cast<int>(targets.cols());
+  model.hyp_ = hyperparameters;
+  model.inputs_ = inputs;
+  model.targets_ = targets;
+  model.outputs_.resize(model.num_outputs_);
+
+  const Eigen::Index n = inputs.rows();
+  Matrix k(n, n);
+  Eigen::LLT<Matrix> llt(n);
+  for (int a = 0; a < model.num_outputs_; ++a) {
+    Output& out = model.outputs_[a];
+    // Hyperparameters finite in log space can still over/underflow here.
+    out.inv_lengthscales = (-hyperparameters.log_lengthscales.row(a)).array().exp().transpose();
+    out.signal_var = std::exp(2.0 * hyperparameters.log_signal_std(a));
+    out.noise_var = std::exp(2.0 * hyperparameters.log_noise_std(a));
+    if (!out.inv_lengthscales.allFinite()) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "hyperparameters.log_lengthscales row ", a, " underflows (a length-scale is 0)"));
+    }
+    if (!std::isfinite(out.signal_var)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("hyperparameters.log_signal_std(", a, ") overflows sf^2"));
+    }
+    if (!std::isfinite(out.noise_var)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("hyperparameters.log_noise_std(", a, ") overflows sn^2"));
+    }
+    out.scaled_inputs = inputs * out.inv_lengthscales.asDiagonal();
+    out.scaled_sq_norms = out.scaled_inputs.rowwise().squaredNorm();
+
+    internal::SeCrossKernel(out.scaled_inputs, out.scaled_sq_norms, out.scaled_inputs,
+                            out.scaled_sq_norms, out.signal_var, &k);
+    // LLT reads the lower triangle only; the self-distance is exactly zero.
+    const double diagonal = out.signal_var + out.noise_var;
+    k.diagonal().setConstant(diagonal);
+    llt.compute(k);
+    bool accepted = internal::CholeskyAccepted(llt, diagonal);
+    for (int e = kFirstJitterExponent; !accepted && e <= kLastJitterExponent; ++e) {
+      out.jitter = std::pow(10.0, e) * out.signal_var;
+      k.diagonal().setConstant(diagonal + out.jitter);
+      llt.compute(k);
+      accepted = internal::CholeskyAccepted(llt, diagonal + out.jitter);
+    }
+    if (!accepted) {
+      return absl::FailedPreconditionError(absl::StrCat(
+          "K for output ", a, " is not positive definite even with jitter ",
+          out.jitter, " (sf^2 = ", out.signal_var, ", sn^2 = ", out.noise_var, ")"));
+    }
+    out.k_inverse = llt.solve(Matrix::Identity(n, n));
+    // The solve leaves K^-1 asymmetric at round-off level; Predict's variance
+    // Jacobian uses (Kstar K^-1)_pn = (K^-1 k_p)_n, which needs exact symmetry.
+    Matrix symmetric = 0.5 * (out.k_inverse + out.k_inverse.transpose());
+    out.k_inverse.swap(symmetric);
+    out.beta = llt.solve(targets.col(a));
+  }
+  return model;
+}
+
+void GpModel::Predict(const ConstRowMatrixRef& z, const PredictOptions& options, RowMatrix* mean,
+                      RowMatrix* variance, RowMatrix* dmean_dz, RowMatrix* dvar_dz) const {
+  TG_CHECK(mean != nullptr);
+  TG_CHECK(variance != nullptr || dvar_dz == nullptr);
+  TG_CHECK_EQ(z.cols(), num_inputs_);
+  const Eigen::Index p = z.rows();
+  const int e = num_inputs_;
+  mean->resize(p, num_outputs_);
+  if (variance != nullptr) variance->resize(p, num_outputs_);
+  if (dmean_dz != nullptr) dmean_dz->resize(p, num_outputs_ * e);
+  if (dvar_dz != nullptr) dvar_dz->resize(p, num_outputs_ * e);
+  if (p == 0) return;
+
+  PredictWorkspace& ws = ThreadWorkspace();
+  for (int a = 0; a < num_outputs_; ++a) {
+    const Output& out = outputs_[a];
+    ws.zs.noalias() = z * out.inv_lengthscales.asDiagonal();
+    ws.zs_sq.noalias() = ws.zs.rowwise().squaredNorm();
+    internal::SeCrossKernel(ws.zs, ws.zs_sq, out.scaled_inputs, out.scaled_sq_norms,
+                            out.signal_var, &ws.kstar);
+
+    // Mean and variance are computed the same way whether or not Jacobians are
+    // requested, so that asking for derivatives never changes the values.
+    ws.column.noalias() = ws.kstar * out.beta;
+    mean->col(a) = ws.column;
+
+    if (dmean_dz != nullptr) {
+      // d mean_p / d z_pm = sum_n beta_n k_pn (xs_nm - zs_pm) / l_m
+      //                   = [(Kstar (beta .* Xs))_pm - zs_pm mean_p] / l_m.
+      ws.rhs.noalias() = out.beta.asDiagonal() * out.scaled_inputs;
+      ws.product.noalias() = ws.kstar * ws.rhs;
+      dmean_dz->middleCols(a * e, e) =
+          ((ws.product.array() - ws.zs.array().colwise() * ws.column.array()).rowwise() *
+           out.inv_lengthscales.transpose().array());
+    }
+
+    if (variance == nullptr) continue;
+    // The one P x N x N product per output: row p of A is (K^-1 k_p)^T.
+    ws.a.noalias() = ws.kstar * out.k_inverse;
+    ws.column.noalias() = (ws.a.array() * ws.kstar.array()).rowwise().sum().matrix();
+    const double prior = out.signal_var + options.noise_variance_multiplier * out.noise_var;
+    for (Eigen::Index i = 0; i < p; ++i) {
+      const double v = prior - ws.column(i);
+      // Written so that a NaN (from a non-finite query) propagates.
+      (*variance)(i, a) = v < kVarianceFloor ? kVarianceFloor : v;
+    }
+
+    if (dvar_dz != nullptr) {
+      // d var_p / d z_pm = -2 sum_n A_pn d k_pn / d z_pm
+      //                  = -2 [((A .* Kstar) Xs)_pm - zs_pm rowsum(A .* Kstar)_p] / l_m.
+      ws.a.array() *= ws.kstar.array();
+      ws.product.noalias() = ws.a * out.scaled_inputs;
+      auto block = dvar_dz->middleCols(a * e, e);
+      block = ((ws.product.array() - ws.zs.array().colwise() * ws.column.array()).rowwise() *
+               (-2.0 * out.inv_lengthscales.transpose().array()));
+      for (Eigen::Index i = 0; i < p; ++i) {
+        if (prior - ws.column(i) < kVarianceFloor) block.row(i).setZero();
+      }
+    }
+  }
+}
+
+}  // namespace totalgrad::gp
