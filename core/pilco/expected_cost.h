@@ -1,0 +1,68 @@
+// Expected saturating costs under a Gaussian state (PILCO's lossSat and
+// loss_cp, pilco-spec.md 3.3-3.4), with gradients.
+//
+// Generic form: c(y) = 1 - exp(-1/2 |F (y - z)|^2) with F (r x n), for
+// y ~ N(m, S):
+//   E[c]      = 1 - det(I + F S F^T)^-1/2 exp(-1/2 d^T F^T (I + F S F^T)^-1 F d),
+//   E[(1-c)^2] likewise with 2 F^T F; Var[c] = E[(1-c)^2] - (1 - E[c])^2,
+//   set to 0 when below 1e-12 (as lossSat).
+// Writing W = F^T F, this is lossSat with weight W; the factor form keeps
+// I + F S F^T symmetric positive definite for any PSD S and singular W.
+//
+// GaussianCost builds the two cart-pole costs:
+//  * Angle: c(x) = 1 - exp(-(x - t)^T Q (x - t)) (tasks::AngleCost), i.e.
+//    W = 2 Q on the raw state.
+//  * Tip: c(x) = 1 - exp(-d^2 / (2 width^2)), d^2 = (x_p - target + l sin x_a)^2
+//    + l^2 (cos x_a + 1)^2 (tasks::TipCost; upright at x_a = pi), evaluated, as
+//    loss_cp does, on the Gaussian approximation of [x; sin x_a; cos x_a]
+//    (AugmentWithTrig).
+//
+// Thread safety: const methods are thread-safe.
+#ifndef TOTALGRAD_CORE_PILCO_EXPECTED_COST_H_
+#define TOTALGRAD_CORE_PILCO_EXPECTED_COST_H_
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "core/common/types.h"
+
+namespace totalgrad::pilco {
+
+struct CostMoments {
+  double mean = 0;   // E[c]
+  double var = 0;    // Var[c] (>= 0)
+  Vector dmean_dm;   // n, filled when gradients are asked for
+  Matrix dmean_dS;   // n x n, symmetric
+};
+
+// F r x n, z and m n, S n x n. Errors: InvalidArgument for non-finite input,
+// FailedPrecondition if I + F S F^T cannot be factorised (S not PSD).
+absl::Status ExpectedSaturatingCost(const Matrix& F, const Vector& z, const Vector& m,
+                                    const Matrix& S, bool with_gradient, CostMoments* out);
+
+class GaussianCost {
+ public:
+  // Q: D x D symmetric positive semi-definite; target: D.
+  static absl::StatusOr<GaussianCost> Angle(const Vector& target, const Matrix& q);
+  // Indices into the D-dim state; length > 0, width > 0.
+  static absl::StatusOr<GaussianCost> Tip(int state_dim, int position_index, int angle_index,
+                                          double pendulum_length, double width,
+                                          double target_position = 0.0);
+
+  int state_dim() const { return state_dim_; }
+
+  // Moments of the cost of x ~ N(m, S) (D-dim); gradients with respect to m
+  // and S (symmetric) when with_gradient. Errors as ExpectedSaturatingCost.
+  absl::Status Evaluate(const Vector& m, const Matrix& S, bool with_gradient,
+                        CostMoments* out) const;
+
+ private:
+  GaussianCost() = default;
+  int state_dim_ = 0;
+  int angle_index_ = -1;  // >= 0: the cost sees [x; sin x_a; cos x_a]
+  Matrix f_;
+  Vector z_;
+};
+
+}  // namespace totalgrad::pilco
+
+#endif  // TOTALGRAD_CORE_PILCO_EXPECTED_COST_H_

@@ -1,0 +1,122 @@
+#include "core/pilco/policy_moments.h"
+
+#include <cmath>
+
+#include "core/common/check.h"
+#include "core/pilco/gp_moments.h"
+
+namespace totalgrad::pilco {
+namespace {
+
+// gp2 in scaled coordinates: support points centres / l, unit length-scales,
+// sf = 1, beta = weights.
+struct Scaled {
+  Vector il;  // 1 / l
+  GaussianInputGp gp;
+  Vector m;
+  Matrix s;
+};
+
+Scaled MakeScaled(const RbfPolicyShape& shape, const Vector& params, const Vector& m,
+                  const Matrix& s) {
+  const int c = shape.num_basis, e = shape.input_dim;
+  TG_CHECK(params.size() == shape.num_parameters());
+  TG_CHECK(m.size() == e && s.rows() == e && s.cols() == e);
+  Scaled sc;
+  sc.il = (-params.segment(c * e, e).array()).exp().matrix();
+  const Eigen::Map<const RowMatrix> centres(params.data(), c, e);
+  sc.gp.inputs = centres * sc.il.asDiagonal();
+  sc.gp.inv_lengthscale_sq = RowMatrix::Ones(1, e);
+  sc.gp.signal_var = Vector::Ones(1);
+  sc.gp.noise_var = Vector::Zero(1);
+  sc.gp.beta = params.tail(c);
+  sc.m = sc.il.cwiseProduct(m);
+  sc.s = sc.il.asDiagonal() * s * sc.il.asDiagonal();
+  return sc;
+}
+
+GaussianPredictionOptions Gp2Options(const RbfPolicyShape& shape) {
+  GaussianPredictionOptions o;
+  o.model_variance = false;
+  o.include_noise = false;
+  o.jitter = shape.jitter;
+  return o;
+}
+
+}  // namespace
+
+absl::Status PolicyAtGaussian(const RbfPolicyShape& shape, const Vector& params, const Vector& m,
+                              const Matrix& s, PolicyMoments* out) {
+  const Scaled sc = MakeScaled(shape, params, m, s);
+  GaussianPrediction pred;
+  if (absl::Status st = PredictGaussian(sc.gp, sc.m, sc.s, Gp2Options(shape), &pred); !st.ok()) {
+    return st;
+  }
+  out->a_mean = pred.mean(0);
+  out->a_var = pred.cov(0, 0);
+  out->a_cross = sc.il.cwiseProduct(pred.cross.col(0));
+  out->sat = GSat(out->a_mean, out->a_var, shape.max_force);
+  out->u_cross = out->a_cross * out->sat.c;
+  return absl::OkStatus();
+}
+
+absl::Status UnsquashedPolicyBackward(const RbfPolicyShape& shape, const Vector& params,
+                                      const Vector& m, const Matrix& s, double a_mean_bar,
+                                      double a_var_bar, const Vector& a_cross_bar, Vector* m_bar,
+                                      Matrix* s_bar, Vector* params_bar) {
+  const int c = shape.num_basis, e = shape.input_dim;
+  const Scaled sc = MakeScaled(shape, params, m, s);
+  TG_CHECK(a_cross_bar.size() == e);
+  const Vector mean_bar = Vector::Constant(1, a_mean_bar);
+  const Matrix cov_bar = Matrix::Constant(1, 1, a_var_bar);
+  const Matrix cross_bar_scaled = sc.il.cwiseProduct(a_cross_bar);
+  Vector m_bar_scaled;
+  Matrix s_bar_scaled;
+  RowMatrix inputs_bar;
+  Matrix beta_bar;
+  const GaussianPredictionOptions options = Gp2Options(shape);
+  if (absl::Status st = PredictGaussianBackward(sc.gp, sc.m, sc.s, options, mean_bar, cov_bar,
+                                                cross_bar_scaled, &m_bar_scaled, &s_bar_scaled,
+                                                params_bar ? &inputs_bar : nullptr,
+                                                params_bar ? &beta_bar : nullptr);
+      !st.ok()) {
+    return st;
+  }
+  *m_bar = sc.il.cwiseProduct(m_bar_scaled);
+  *s_bar = sc.il.asDiagonal() * s_bar_scaled * sc.il.asDiagonal();
+  if (params_bar != nullptr) {
+    TG_CHECK(params_bar->size() == shape.num_parameters());
+    Eigen::Map<RowMatrix> centres_bar(params_bar->data(), c, e);
+    centres_bar += inputs_bar * sc.il.asDiagonal();
+    // a_cross = il o cross_scaled: explicit dependence on log l.
+    GaussianPrediction pred;
+    if (absl::Status st = PredictGaussian(sc.gp, sc.m, sc.s, options, &pred); !st.ok()) return st;
+    const Vector a_cross = sc.il.cwiseProduct(pred.cross.col(0));
+    const Vector log_l_bar =
+        -(inputs_bar.cwiseProduct(sc.gp.inputs).colwise().sum().transpose() +
+          m_bar_scaled.cwiseProduct(sc.m) +
+          2.0 * s_bar_scaled.cwiseProduct(sc.s).rowwise().sum() +
+          a_cross_bar.cwiseProduct(a_cross));
+    params_bar->segment(c * e, e) += log_l_bar;
+    params_bar->tail(c) += beta_bar.col(0);
+  }
+  return absl::OkStatus();
+}
+
+absl::Status PolicyAtGaussianBackward(const RbfPolicyShape& shape, const Vector& params,
+                                      const Vector& m, const Matrix& s, double u_mean_bar,
+                                      double u_var_bar, const Vector& u_cross_bar, Vector* m_bar,
+                                      Matrix* s_bar, Vector* params_bar) {
+  PolicyMoments pm;
+  if (absl::Status st = PolicyAtGaussian(shape, params, m, s, &pm); !st.ok()) return st;
+  // u_cross = a_cross * c.
+  const Vector a_cross_bar = u_cross_bar * pm.sat.c;
+  const double c_bar = pm.a_cross.dot(u_cross_bar);
+  const Eigen::Vector3d sat_bar(u_mean_bar, u_var_bar, c_bar);
+  const Eigen::Vector2d in_bar =
+      Dx_GSat(pm.a_mean, pm.a_var, shape.max_force).transpose() * sat_bar;
+  return UnsquashedPolicyBackward(shape, params, m, s, in_bar(0), in_bar(1), a_cross_bar, m_bar,
+                                  s_bar, params_bar);
+}
+
+}  // namespace totalgrad::pilco

@@ -1,0 +1,67 @@
+// The RBF policy (core/policy/rbf_policy.h layout) under a Gaussian input:
+// PILCO's congp + gp2 (mean function only) followed by gSat (conCat),
+// pilco-spec.md 5.1-5.2.
+//
+//   a(x) = sum_k w_k exp(-1/2 sum_m (x_m - c_km)^2 / l_m^2)   (sf = 1)
+//   u    = max_force (9 sin a + sin 3a) / 8
+//
+// Parameters, as in RbfPolicy: [centres row-major (C x E), log l (E),
+// weights (C)]. The weights play the role of gp2's beta = (K + sn^2 I)^-1 y:
+// PILCO's policy with pseudo-targets y is ours with w = beta.
+//
+// For x ~ N(m, s) (E-dim) the unsquashed output has mean a_mean, variance
+// a_var (+ jitter; PILCO: 1e-6) and a_cross = s^-1 Cov(x, a) (E); after the
+// saturation u_mean, u_var and u_cross = s^-1 Cov(x, u) = a_cross * E[du/da].
+//
+// Derivatives with respect to the length-scales use the fact that the
+// moments depend on (centres, m, s) only through the scaled quantities
+// centres / l, m / l, s / (l l^T): gp2 is evaluated with unit length-scales in
+// scaled coordinates and the chain rule is applied to the scaling.
+//
+// Thread safety: free functions.
+#ifndef TOTALGRAD_CORE_PILCO_POLICY_MOMENTS_H_
+#define TOTALGRAD_CORE_PILCO_POLICY_MOMENTS_H_
+
+#include "absl/status/status.h"
+#include "core/common/types.h"
+#include "core/pilco/saturation.h"
+
+namespace totalgrad::pilco {
+
+struct RbfPolicyShape {
+  int num_basis = 0;      // C
+  int input_dim = 0;      // E
+  double max_force = 10;  // u_max > 0
+  double jitter = 1e-6;   // added to a_var (PILCO's gp2)
+  int num_parameters() const { return num_basis * input_dim + input_dim + num_basis; }
+};
+
+struct PolicyMoments {
+  double a_mean = 0, a_var = 0;
+  Vector a_cross;  // E
+  SatMoments sat;  // E[u], Var[u], E[du/da] (sat.mean, sat.var, sat.c)
+  Vector u_cross;  // E, a_cross * sat.c
+};
+
+// Errors: as PredictGaussian (non-finite or non-PSD input covariance).
+absl::Status PolicyAtGaussian(const RbfPolicyShape& shape, const Vector& params, const Vector& m,
+                              const Matrix& s, PolicyMoments* out);
+
+// Reverse mode through the unsquashed output only: given adjoints of a_mean,
+// a_var and a_cross, OVERWRITES *m_bar (E) and *s_bar (E x E, symmetric) and
+// ADDS to *params_bar (num_parameters(); may be null).
+absl::Status UnsquashedPolicyBackward(const RbfPolicyShape& shape, const Vector& params,
+                                      const Vector& m, const Matrix& s, double a_mean_bar,
+                                      double a_var_bar, const Vector& a_cross_bar, Vector* m_bar,
+                                      Matrix* s_bar, Vector* params_bar);
+
+// Reverse mode through the squashed policy: adjoints of u_mean, u_var and
+// u_cross (E). Same outputs as UnsquashedPolicyBackward.
+absl::Status PolicyAtGaussianBackward(const RbfPolicyShape& shape, const Vector& params,
+                                      const Vector& m, const Matrix& s, double u_mean_bar,
+                                      double u_var_bar, const Vector& u_cross_bar, Vector* m_bar,
+                                      Matrix* s_bar, Vector* params_bar);
+
+}  // namespace totalgrad::pilco
+
+#endif  // TOTALGRAD_CORE_PILCO_POLICY_MOMENTS_H_

@@ -1,0 +1,272 @@
+#include "core/pilco/propagation.h"
+
+#include <cmath>
+
+#include "absl/strings/str_cat.h"
+#include "core/common/check.h"
+#include "core/pilco/trig.h"
+
+namespace totalgrad::pilco {
+namespace {
+
+absl::Status Annotate(const absl::Status& st, const std::string& where) {
+  if (st.ok()) return st;
+  return absl::Status(st.code(), absl::StrCat(where, ": ", st.message()));
+}
+
+}  // namespace
+
+absl::Status Propagator::Validate(const GaussianInputGp& dynamics,
+                                  const PropagationOptions& options) {
+  const int d = dynamics.num_outputs();
+  if (d < 1) return absl::InvalidArgumentError("dynamics GP has no outputs");
+  if (options.angle_index < -1 || options.angle_index >= d) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("angle_index ", options.angle_index, " out of range for state dim ", d));
+  }
+  const int ep = options.angle_index >= 0 ? d + 1 : d;
+  if (dynamics.num_inputs() != ep + 1) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "dynamics GP has ", dynamics.num_inputs(), " inputs; expected ", ep + 1,
+        options.angle_index >= 0 ? " ([state without the angle, sin, cos, u])"
+                                 : " ([state, u])"));
+  }
+  if (dynamics.variance_weights.size() != static_cast<size_t>(d)) {
+    return absl::InvalidArgumentError("dynamics GP lacks its variance weights (K^-1)");
+  }
+  if (options.num_basis < 1) return absl::InvalidArgumentError("num_basis must be >= 1");
+  if (!(options.max_force > 0) || !std::isfinite(options.max_force)) {
+    return absl::InvalidArgumentError("max_force must be > 0");
+  }
+  if (!(options.policy_jitter >= 0) || !std::isfinite(options.policy_jitter)) {
+    return absl::InvalidArgumentError("policy output variance jitter must be >= 0");
+  }
+  return absl::OkStatus();
+}
+
+Propagator::Propagator(const GaussianInputGp* dynamics, const PropagationOptions& options)
+    : dynamics_(dynamics), options_(options) {
+  TG_CHECK(dynamics != nullptr);
+  TG_CHECK(Validate(*dynamics, options).ok());
+  state_dim_ = dynamics->num_outputs();
+  const int d = state_dim_;
+  for (int i = 0; i < d; ++i) {
+    if (i != options.angle_index) policy_index_.push_back(i);
+  }
+  if (options.angle_index >= 0) {
+    policy_index_.push_back(d);
+    policy_index_.push_back(d + 1);
+  }
+  policy_input_dim_ = static_cast<int>(policy_index_.size());
+  shape_.num_basis = options.num_basis;
+  shape_.input_dim = policy_input_dim_;
+  shape_.max_force = options.max_force;
+  shape_.jitter = options.policy_jitter;
+  dyn_options_.model_variance = true;
+  dyn_options_.include_noise = options.prediction_includes_noise;
+  dyn_options_.jitter = 0.0;
+}
+
+Vector Propagator::PolicyInput(const Vector& x) const {
+  TG_CHECK(x.size() == state_dim_);
+  Vector y(state_dim_ + 2);
+  y.head(state_dim_) = x;
+  if (options_.angle_index >= 0) {
+    y(state_dim_) = std::sin(x(options_.angle_index));
+    y(state_dim_ + 1) = std::cos(x(options_.angle_index));
+  }
+  Vector p(policy_input_dim_);
+  for (int i = 0; i < policy_input_dim_; ++i) p(i) = y(policy_index_[i]);
+  return p;
+}
+
+absl::Status Propagator::Step(const Vector& params, const Vector& m, const Matrix& S,
+                              Vector* m_next, Matrix* S_next, StepCache* cache) const {
+  const int d = state_dim_, ep = policy_input_dim_;
+  TG_CHECK(params.size() == num_parameters());
+  TG_CHECK(m.size() == d && S.rows() == d && S.cols() == d);
+  if (!m.allFinite() || !S.allFinite()) {
+    return absl::InvalidArgumentError("state mean or covariance not finite");
+  }
+  StepCache local;
+  StepCache& c = cache != nullptr ? *cache : local;
+  c.m = m;
+  c.S = S;
+  if (options_.angle_index >= 0) {
+    AugmentWithTrig(m, S, options_.angle_index, &c.y_mean, &c.y_cov);
+  } else {
+    c.y_mean = m;
+    c.y_cov = S;
+  }
+  c.p_mean.resize(ep);
+  c.p_cov.resize(ep, ep);
+  c.s_xp.resize(d, ep);
+  for (int i = 0; i < ep; ++i) {
+    c.p_mean(i) = c.y_mean(policy_index_[i]);
+    for (int j = 0; j < ep; ++j) c.p_cov(i, j) = c.y_cov(policy_index_[i], policy_index_[j]);
+    for (int r = 0; r < d; ++r) c.s_xp(r, i) = c.y_cov(r, policy_index_[i]);
+  }
+  if (absl::Status st = PolicyAtGaussian(shape_, params, c.p_mean, c.p_cov, &c.policy);
+      !st.ok()) {
+    return Annotate(st, "policy");
+  }
+  c.g_mean.resize(ep + 1);
+  c.g_mean.head(ep) = c.p_mean;
+  c.g_mean(ep) = c.policy.sat.mean;
+  c.g_cov.resize(ep + 1, ep + 1);
+  c.g_cov.topLeftCorner(ep, ep) = c.p_cov;
+  const Vector cov_pu = c.p_cov * c.policy.u_cross;
+  c.g_cov.col(ep).head(ep) = cov_pu;
+  c.g_cov.row(ep).head(ep) = cov_pu.transpose();
+  c.g_cov(ep, ep) = c.policy.sat.var;
+  if (absl::Status st = PredictGaussian(*dynamics_, c.g_mean, c.g_cov, dyn_options_, &c.delta);
+      !st.ok()) {
+    return Annotate(st, "dynamics GP");
+  }
+  Matrix cxg(d, ep + 1);
+  cxg.leftCols(ep) = c.s_xp;
+  cxg.col(ep) = c.s_xp * c.policy.u_cross;
+  const Matrix cxd = cxg * c.delta.cross;
+  *m_next = m + c.delta.mean;
+  Matrix sn = S + c.delta.cov + cxd + cxd.transpose();
+  *S_next = 0.5 * (sn + sn.transpose());
+  if (!m_next->allFinite() || !S_next->allFinite()) {
+    return absl::InternalError("next state distribution not finite");
+  }
+  return absl::OkStatus();
+}
+
+absl::Status Propagator::StepBackward(const Vector& params, const StepCache& c,
+                                      const Vector& m_next_bar, const Matrix& S_next_bar,
+                                      Vector* m_bar, Matrix* S_bar, Vector* params_bar) const {
+  const int d = state_dim_, ep = policy_input_dim_;
+  TG_CHECK(m_next_bar.size() == d && S_next_bar.rows() == d && S_next_bar.cols() == d);
+  const Matrix sb_next = 0.5 * (S_next_bar + S_next_bar.transpose());
+  Vector mb = m_next_bar;
+  Matrix sb = sb_next;
+  // m' = m + E[D]; S' = S + Cov[D] + C + C^T with C = cxg * cross.
+  const Vector delta_mean_bar = m_next_bar;
+  const Matrix delta_cov_bar = sb_next;
+  const Matrix c_bar = 2.0 * sb_next;
+  Matrix cxg(d, ep + 1);
+  cxg.leftCols(ep) = c.s_xp;
+  cxg.col(ep) = c.s_xp * c.policy.u_cross;
+  const Matrix cxg_bar = c_bar * c.delta.cross.transpose();  // D x Eg
+  const Matrix delta_cross_bar = cxg.transpose() * c_bar;     // Eg x D
+  Matrix s_xp_bar = cxg_bar.leftCols(ep) + cxg_bar.col(ep) * c.policy.u_cross.transpose();
+  Vector u_cross_bar = c.s_xp.transpose() * cxg_bar.col(ep);
+
+  Vector g_mean_bar;
+  Matrix g_cov_bar;
+  if (absl::Status st = PredictGaussianBackward(*dynamics_, c.g_mean, c.g_cov, dyn_options_,
+                                                delta_mean_bar, delta_cov_bar, delta_cross_bar,
+                                                &g_mean_bar, &g_cov_bar, nullptr, nullptr);
+      !st.ok()) {
+    return Annotate(st, "dynamics GP (backward)");
+  }
+  Vector p_mean_bar = g_mean_bar.head(ep);
+  const double u_mean_bar = g_mean_bar(ep);
+  Matrix p_cov_bar = g_cov_bar.topLeftCorner(ep, ep);
+  const Vector r_bar = g_cov_bar.col(ep).head(ep) + g_cov_bar.row(ep).head(ep).transpose();
+  p_cov_bar.noalias() += r_bar * c.policy.u_cross.transpose();
+  u_cross_bar.noalias() += c.p_cov.transpose() * r_bar;
+  const double u_var_bar = g_cov_bar(ep, ep);
+
+  Vector pm_bar;
+  Matrix ps_bar;
+  if (absl::Status st = PolicyAtGaussianBackward(shape_, params, c.p_mean, c.p_cov, u_mean_bar,
+                                                 u_var_bar, u_cross_bar, &pm_bar, &ps_bar,
+                                                 params_bar);
+      !st.ok()) {
+    return Annotate(st, "policy (backward)");
+  }
+  p_mean_bar += pm_bar;
+  p_cov_bar += ps_bar;
+
+  const int ny = static_cast<int>(c.y_mean.size());
+  Vector y_mean_bar = Vector::Zero(ny);
+  Matrix y_cov_bar = Matrix::Zero(ny, ny);
+  for (int i = 0; i < ep; ++i) {
+    y_mean_bar(policy_index_[i]) += p_mean_bar(i);
+    for (int j = 0; j < ep; ++j) y_cov_bar(policy_index_[i], policy_index_[j]) += p_cov_bar(i, j);
+    for (int r = 0; r < d; ++r) y_cov_bar(r, policy_index_[i]) += s_xp_bar(r, i);
+  }
+  if (options_.angle_index >= 0) {
+    AugmentWithTrigBackward(c.m, c.S, options_.angle_index, y_mean_bar, y_cov_bar, &mb, &sb);
+  } else {
+    mb += y_mean_bar;
+    sb += y_cov_bar;
+  }
+  *m_bar = mb;
+  *S_bar = 0.5 * (sb + sb.transpose());
+  return absl::OkStatus();
+}
+
+absl::Status PredictTrajectory(const Propagator& propagator, const GaussianCost& cost,
+                               const Vector& params, const Vector& mu0, const Matrix& S0,
+                               int horizon, Trajectory* trajectory, Vector* gradient) {
+  const int d = propagator.state_dim();
+  TG_CHECK(cost.state_dim() == d);
+  if (mu0.size() != d || S0.rows() != d || S0.cols() != d) {
+    return absl::InvalidArgumentError(absl::StrCat("mu0 / S0 must have dimension ", d));
+  }
+  if (horizon < 1) return absl::InvalidArgumentError("horizon must be >= 1");
+  if (params.size() != propagator.num_parameters()) {
+    return absl::InvalidArgumentError(absl::StrCat("policy has ", params.size(),
+                                                   " parameters; expected ",
+                                                   propagator.num_parameters()));
+  }
+  if (!params.allFinite()) return absl::InvalidArgumentError("policy parameters not finite");
+  const bool with_gradient = gradient != nullptr;
+  Trajectory& tr = *trajectory;
+  tr.means.assign(horizon + 1, Vector());
+  tr.covs.assign(horizon + 1, Matrix());
+  tr.means[0] = mu0;
+  tr.covs[0] = S0;
+  tr.cost_mean.resize(horizon);
+  tr.cost_std.resize(horizon);
+  std::vector<StepCache> caches(with_gradient ? horizon : 0);
+  std::vector<Vector> cost_dm(with_gradient ? horizon : 0);
+  std::vector<Matrix> cost_ds(with_gradient ? horizon : 0);
+  for (int t = 0; t < horizon; ++t) {
+    if (absl::Status st =
+            propagator.Step(params, tr.means[t], tr.covs[t], &tr.means[t + 1], &tr.covs[t + 1],
+                            with_gradient ? &caches[t] : nullptr);
+        !st.ok()) {
+      return Annotate(st, absl::StrCat("step ", t + 1));
+    }
+    CostMoments cm;
+    if (absl::Status st = cost.Evaluate(tr.means[t + 1], tr.covs[t + 1], with_gradient, &cm);
+        !st.ok()) {
+      return Annotate(st, absl::StrCat("step ", t + 1));
+    }
+    tr.cost_mean(t) = cm.mean;
+    tr.cost_std(t) = std::sqrt(cm.var);
+    if (with_gradient) {
+      cost_dm[t] = cm.dmean_dm;
+      cost_ds[t] = cm.dmean_dS;
+    }
+  }
+  tr.total_cost = tr.cost_mean.sum();
+  if (!with_gradient) return absl::OkStatus();
+  gradient->setZero(propagator.num_parameters());
+  Vector mb = Vector::Zero(d);
+  Matrix sb = Matrix::Zero(d, d);
+  for (int t = horizon - 1; t >= 0; --t) {
+    mb += cost_dm[t];
+    sb += cost_ds[t];
+    Vector mb_prev;
+    Matrix sb_prev;
+    if (absl::Status st =
+            propagator.StepBackward(params, caches[t], mb, sb, &mb_prev, &sb_prev, gradient);
+        !st.ok()) {
+      return Annotate(st, absl::StrCat("step ", t + 1));
+    }
+    mb = std::move(mb_prev);
+    sb = std::move(sb_prev);
+  }
+  if (!gradient->allFinite()) return absl::InternalError("dJ/dtheta not finite");
+  return absl::OkStatus();
+}
+
+}  // namespace totalgrad::pilco

@@ -1,0 +1,117 @@
+// One PILCO time step by moment matching (pilco-spec.md 6.1) and the
+// chained objective J(theta) = sum_{t=1..H} E[c(x_t)] with its exact gradient
+// (6.2), by reverse-mode accumulation.
+//
+// Step, for x ~ N(m, S) over the D-dim state:
+//  1. y = [x; sin x_a; cos x_a] (AugmentWithTrig) when an angle index a is
+//     set, else y = x;
+//  2. policy input p = [y without x_a] = [x_{-a}, sin x_a, cos x_a] (or x):
+//     Ep = D + 1 (or D) dims; u from PolicyAtGaussian (gp2 + gSat);
+//  3. GP input g = [p; u] (Ep + 1 dims), with Cov(p, u) = S_pp u_cross;
+//     state difference Delta from PredictGaussian (gp0/gp1);
+//  4. m' = m + E[Delta], S' = S + Cov[Delta] + C + C^T, C = Cov(x, Delta) =
+//     Cov(x, g) cross, symmetrised.
+// Every cross-covariance is filled in with Cov(z, out) = Cov(z, in) *
+// (in-covariance^-1 Cov(in, out)), the latter computed without inverting any
+// covariance, so a singular S (deterministic state, nearly singular sin/cos
+// block) is fine.
+//
+// Gradient: the backward pass visits the steps in reverse, recomputing the
+// N x N GP matrices of each step (memory O(N^2 + H D^2)); the result is the
+// exact derivative of the computed J (no finite differences anywhere).
+//
+// Thread safety: const methods of Propagator are thread-safe.
+#ifndef TOTALGRAD_CORE_PILCO_PROPAGATION_H_
+#define TOTALGRAD_CORE_PILCO_PROPAGATION_H_
+
+#include <vector>
+
+#include "absl/status/status.h"
+#include "core/common/types.h"
+#include "core/pilco/expected_cost.h"
+#include "core/pilco/gp_moments.h"
+#include "core/pilco/policy_moments.h"
+
+namespace totalgrad::pilco {
+
+struct PropagationOptions {
+  int angle_index = -1;                   // -1: GP and policy see the raw state
+  bool prediction_includes_noise = false;  // add sn^2 to Cov[Delta] (PILCO: false)
+  double policy_jitter = 1e-6;            // gp2's output-variance jitter
+  double max_force = 10.0;                // u_max of the saturation
+  int num_basis = 10;                     // C, RBF centres
+};
+
+// Intermediate quantities of one step (kept by the forward pass for the
+// backward pass; small: no N x N matrices).
+struct StepCache {
+  Vector m;
+  Matrix S;
+  Vector y_mean;
+  Matrix y_cov;
+  Vector p_mean;
+  Matrix p_cov;
+  PolicyMoments policy;
+  Vector g_mean;
+  Matrix g_cov;
+  GaussianPrediction delta;
+  Matrix s_xp;  // D x Ep, Cov(x, p)
+};
+
+class Propagator {
+ public:
+  // `dynamics` must outlive the Propagator. It has D outputs (the state
+  // differences) and Ep + 1 inputs. CHECK-fails on inconsistent dimensions;
+  // use Validate first for user input.
+  Propagator(const GaussianInputGp* dynamics, const PropagationOptions& options);
+
+  // InvalidArgument naming the mismatch between dynamics, options and state.
+  static absl::Status Validate(const GaussianInputGp& dynamics, const PropagationOptions& options);
+
+  int state_dim() const { return state_dim_; }
+  int policy_input_dim() const { return policy_input_dim_; }
+  const RbfPolicyShape& policy_shape() const { return shape_; }
+  int num_parameters() const { return shape_.num_parameters(); }
+
+  // One step from N(m, S) to N(m_next, S_next). `cache` may be null. Errors
+  // from the blocks (non-finite or non-PSD covariances), naming the block.
+  absl::Status Step(const Vector& params, const Vector& m, const Matrix& S, Vector* m_next,
+                    Matrix* S_next, StepCache* cache) const;
+
+  // Reverse mode of Step: from the adjoints of (m_next, S_next) OVERWRITES
+  // *m_bar, *S_bar (symmetric) and ADDS to *params_bar (may be null).
+  absl::Status StepBackward(const Vector& params, const StepCache& cache, const Vector& m_next_bar,
+                            const Matrix& S_next_bar, Vector* m_bar, Matrix* S_bar,
+                            Vector* params_bar) const;
+
+  // Policy input of a deterministic state (D) : [x_{-a}, sin x_a, cos x_a] or x.
+  Vector PolicyInput(const Vector& x) const;
+
+ private:
+  const GaussianInputGp* dynamics_;
+  PropagationOptions options_;
+  int state_dim_ = 0;
+  int policy_input_dim_ = 0;
+  std::vector<int> policy_index_;  // Ep indices into y
+  RbfPolicyShape shape_;
+  GaussianPredictionOptions dyn_options_;
+};
+
+// Predicted state distributions and expected costs over a horizon.
+struct Trajectory {
+  std::vector<Vector> means;  // H + 1, means[0] = mu0
+  std::vector<Matrix> covs;   // H + 1
+  Vector cost_mean;           // H, E[c(x_t)] for t = 1..H
+  Vector cost_std;            // H, sqrt(Var[c(x_t)])
+  double total_cost = 0;      // J = sum of cost_mean
+};
+
+// Runs the horizon from N(mu0, S0). If `gradient` is non-null it receives
+// dJ/dparams (num_parameters()). Errors name the step (1-based) and block.
+absl::Status PredictTrajectory(const Propagator& propagator, const GaussianCost& cost,
+                               const Vector& params, const Vector& mu0, const Matrix& S0,
+                               int horizon, Trajectory* trajectory, Vector* gradient);
+
+}  // namespace totalgrad::pilco
+
+#endif  // TOTALGRAD_CORE_PILCO_PROPAGATION_H_
