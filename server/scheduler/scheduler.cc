@@ -1,0 +1,371 @@
+#include "server/scheduler/scheduler.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "absl/time/clock.h"
+#include "server/common/status_macros.h"
+
+namespace totalgrad::scheduler {
+
+using storage::AttemptEnd;
+using storage::AttemptState;
+using storage::EndOutcome;
+using storage::Episode;
+using storage::JobRecord;
+using storage::JobState;
+using storage::LeaseKey;
+using storage::SweepState;
+using storage::WorkerIdentity;
+
+int64_t SystemClock::NowMs() { return absl::ToUnixMillis(absl::Now()); }
+
+absl::Status SchedulerOptions::Validate() const {
+  if (heartbeat_interval <= absl::ZeroDuration()) {
+    return absl::InvalidArgumentError("heartbeat_interval must be > 0");
+  }
+  if (lease_timeout <= heartbeat_interval) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "lease_timeout (", absl::FormatDuration(lease_timeout),
+        ") must be longer than heartbeat_interval (", absl::FormatDuration(heartbeat_interval),
+        ")"));
+  }
+  if (max_acquire_wait < absl::ZeroDuration()) {
+    return absl::InvalidArgumentError("max_acquire_wait must be >= 0");
+  }
+  if (claim_scan_limit < 1) return absl::InvalidArgumentError("claim_scan_limit must be >= 1");
+  return absl::OkStatus();
+}
+
+absl::Status ValidateWorkerIdentity(const WorkerIdentity& worker) {
+  if (worker.worker_id.empty()) return absl::InvalidArgumentError("worker_id is empty");
+  if (worker.worker_id.size() > kMaxWorkerIdBytes) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("worker_id is ", worker.worker_id.size(), " bytes; at most ",
+                     kMaxWorkerIdBytes));
+  }
+  for (unsigned char c : worker.worker_id) {
+    if (c < 0x20 || c == 0x7f) {
+      return absl::InvalidArgumentError("worker_id contains a control character");
+    }
+  }
+  if (worker.slots < 1 || worker.slots > 4096) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("worker slots must be in 1..4096, got ", worker.slots));
+  }
+  if (worker.host.size() > 255 || worker.build.size() > 1024) {
+    return absl::InvalidArgumentError("worker host (<= 255 bytes) or build (<= 1024) too long");
+  }
+  return absl::OkStatus();
+}
+
+absl::Status ValidateEpisodes(const std::vector<Episode>& episodes) {
+  if (static_cast<int>(episodes.size()) > kMaxEpisodesPerCall) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        episodes.size(), " episodes in one call; at most ", kMaxEpisodesPerCall));
+  }
+  for (const Episode& e : episodes) {
+    const std::pair<const char*, double> fields[] = {
+        {"real_cost", e.real_cost},           {"eval_cost_mean", e.eval_cost_mean},
+        {"eval_cost_std", e.eval_cost_std},   {"predicted_cost", e.predicted_cost},
+        {"optimisation_seconds", e.optimisation_seconds}};
+    for (const auto& [name, value] : fields) {
+      if (std::isinf(value)) {
+        return absl::InvalidArgumentError(absl::StrCat(
+            "episode ", e.episode, ": ", name, " is infinite; a trial with a non-finite cost "
+            "must be reported with Fail"));
+      }
+    }
+    if (std::isnan(e.real_cost)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("episode ", e.episode, ": real_cost is missing (NaN)"));
+    }
+    if (e.details_json.size() > kMaxDetailsBytes) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "episode ", e.episode, ": details_json is ", e.details_json.size(), " bytes; at most ",
+          kMaxDetailsBytes));
+    }
+  }
+  return absl::OkStatus();
+}
+
+Scheduler::Scheduler(storage::Store* store, Clock* clock, SchedulerOptions options)
+    : store_(store), clock_(clock), options_(options) {}
+
+int64_t Scheduler::LeaseExpiryFrom(int64_t now_ms) const {
+  return now_ms + absl::ToInt64Milliseconds(options_.lease_timeout);
+}
+
+absl::StatusOr<int> Scheduler::Recover() {
+  std::lock_guard<std::mutex> lock(decision_mutex_);
+  const int64_t now = clock_->NowMs();
+  return store_->ExtendOpenLeases(LeaseExpiryFrom(now), now);
+}
+
+absl::Status Scheduler::MaybeTouchWorker(const WorkerIdentity& worker, int64_t now_ms) {
+  auto it = last_touch_ms_.find(worker.worker_id);
+  if (it != last_touch_ms_.end() &&
+      now_ms - it->second < absl::ToInt64Milliseconds(options_.worker_touch_interval)) {
+    return absl::OkStatus();
+  }
+  RETURN_IF_ERROR(store_->TouchWorker(worker, now_ms));
+  last_touch_ms_[worker.worker_id] = now_ms;
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::optional<Lease>> Scheduler::TryAcquire(const WorkerIdentity& worker) {
+  RETURN_IF_ERROR(ValidateWorkerIdentity(worker));
+  std::lock_guard<std::mutex> lock(decision_mutex_);
+  return TryAcquireLocked(worker);
+}
+
+absl::StatusOr<std::optional<Lease>> Scheduler::TryAcquireLocked(const WorkerIdentity& worker) {
+  const int64_t now = clock_->NowMs();
+  // A worker asking for work is alive: always record it (not throttled), so
+  // `worker list` shows idle workers too.
+  RETURN_IF_ERROR(store_->TouchWorker(worker, now));
+  last_touch_ms_[worker.worker_id] = now;
+  ASSIGN_OR_RETURN(storage::WorkerRecord record, store_->GetWorker(worker.worker_id));
+  if (record.draining) return std::optional<Lease>();
+  ASSIGN_OR_RETURN(std::vector<storage::ClaimCandidate> candidates,
+                   store_->ListClaimCandidates(options_.claim_scan_limit));
+  for (const storage::ClaimCandidate& candidate : candidates) {
+    if (candidate.max_concurrent > 0 && candidate.sweep_running >= candidate.max_concurrent) {
+      continue;
+    }
+    const LeaseKey key{candidate.job_id, candidate.attempts + 1};
+    RETURN_IF_ERROR(store_->StartAttempt(key, worker, now, LeaseExpiryFrom(now)));
+    ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(candidate.job_id));
+    Lease lease;
+    lease.job = std::move(job);
+    lease.key = key;
+    lease.heartbeat_interval_ms = absl::ToInt64Milliseconds(options_.heartbeat_interval);
+    lease.lease_timeout_ms = absl::ToInt64Milliseconds(options_.lease_timeout);
+    return std::optional<Lease>(std::move(lease));
+  }
+  return std::optional<Lease>();
+}
+
+absl::StatusOr<std::optional<Lease>> Scheduler::Acquire(const WorkerIdentity& worker,
+                                                        absl::Duration wait) {
+  const auto deadline =
+      std::chrono::steady_clock::now() +
+      std::chrono::milliseconds(absl::ToInt64Milliseconds(std::min(wait, options_.max_acquire_wait)));
+  while (true) {
+    uint64_t generation;
+    {
+      std::lock_guard<std::mutex> lock(work_mutex_);
+      if (shutdown_) return std::optional<Lease>();
+      generation = work_generation_;
+    }
+    ASSIGN_OR_RETURN(std::optional<Lease> lease, TryAcquire(worker));
+    if (lease.has_value()) return lease;
+    std::unique_lock<std::mutex> lock(work_mutex_);
+    // Wake when something changed since we looked (no lost wake-ups: the
+    // generation was read before the store was).
+    const bool changed = work_available_.wait_until(lock, deadline, [&] {
+      return shutdown_ || work_generation_ != generation;
+    });
+    if (!changed || shutdown_) return std::optional<Lease>();
+  }
+}
+
+void Scheduler::NotifyWork() {
+  {
+    std::lock_guard<std::mutex> lock(work_mutex_);
+    ++work_generation_;
+  }
+  work_available_.notify_all();
+}
+
+void Scheduler::Shutdown() {
+  {
+    std::lock_guard<std::mutex> lock(work_mutex_);
+    shutdown_ = true;
+  }
+  work_available_.notify_all();
+}
+
+bool Scheduler::shut_down() const {
+  std::lock_guard<std::mutex> lock(work_mutex_);
+  return shutdown_;
+}
+
+absl::StatusOr<HeartbeatResult> Scheduler::Heartbeat(const std::string& worker_id,
+                                                     const LeaseKey& key,
+                                                     const std::vector<Episode>& episodes) {
+  RETURN_IF_ERROR(ValidateEpisodes(episodes));
+  std::lock_guard<std::mutex> lock(decision_mutex_);
+  const int64_t now = clock_->NowMs();
+  HeartbeatResult result;
+  ASSIGN_OR_RETURN(result.episodes_stored,
+                   store_->StoreEpisodes(key, worker_id, episodes, now, LeaseExpiryFrom(now)));
+  ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(key.job_id));
+  auto worker = store_->GetWorker(worker_id);
+  if (worker.ok()) {
+    RETURN_IF_ERROR(MaybeTouchWorker(worker->identity, now));
+  }
+  if (job.state == JobState::kCancelled) {
+    result.directive = Directive::kCancel;
+  } else if (worker.ok() && worker->draining) {
+    result.directive = Directive::kDrain;
+  }
+  return result;
+}
+
+absl::StatusOr<EndOutcome> Scheduler::EndLocked(AttemptEnd end) {
+  ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(end.key.job_id));
+  const bool cancelled = job.state == JobState::kCancelled;
+  switch (end.attempt_state) {
+    case AttemptState::kCompleted:
+      // Results that arrive after a cancel are still results.
+      end.job_state = JobState::kCompleted;
+      break;
+    case AttemptState::kFailed:
+      end.failures_delta = 1;
+      if (cancelled) {
+        end.job_state = JobState::kCancelled;
+      } else if (job.failures + 1 >= job.max_attempts) {
+        end.job_state = JobState::kFailed;
+      } else {
+        end.job_state = JobState::kQueued;
+      }
+      break;
+    case AttemptState::kLeaseLost:
+    case AttemptState::kReleased:
+    case AttemptState::kCancelled:
+      if (cancelled) {
+        end.attempt_state = end.attempt_state == AttemptState::kLeaseLost
+                                ? AttemptState::kLeaseLost
+                                : AttemptState::kCancelled;
+        end.job_state = JobState::kCancelled;
+        break;
+      }
+      end.lost_leases_delta = 1;
+      if (job.lost_leases + 1 >= job.max_lost_leases) {
+        end.job_state = JobState::kFailed;
+        end.error = absl::StrCat("gave up after ", job.lost_leases + 1,
+                                 " lost or released leases (max_lost_leases); last: ", end.error);
+      } else {
+        end.job_state = JobState::kQueued;
+      }
+      break;
+    case AttemptState::kRunning:
+      return absl::InvalidArgumentError("an attempt cannot end as running");
+  }
+  end.now_ms = clock_->NowMs();
+  ASSIGN_OR_RETURN(EndOutcome outcome, store_->EndAttempt(end));
+  if (outcome == EndOutcome::kApplied) NotifyWork();
+  return outcome;
+}
+
+absl::Status Scheduler::Complete(const std::string& worker_id, const LeaseKey& key,
+                                 const std::vector<Episode>& episodes, int episodes_total,
+                                 bool success, double final_eval_cost) {
+  RETURN_IF_ERROR(ValidateEpisodes(episodes));
+  if (!std::isfinite(final_eval_cost)) {
+    return absl::InvalidArgumentError(
+        "final_eval_cost is not finite; a trial with a non-finite cost must be reported with Fail");
+  }
+  std::lock_guard<std::mutex> lock(decision_mutex_);
+  AttemptEnd end;
+  end.key = key;
+  end.worker_id = worker_id;
+  end.attempt_state = AttemptState::kCompleted;
+  end.episodes = episodes;
+  end.episodes_total = episodes_total;
+  end.success = success;
+  end.final_eval_cost = final_eval_cost;
+  return EndLocked(std::move(end)).status();
+}
+
+absl::StatusOr<bool> Scheduler::Fail(const std::string& worker_id, const LeaseKey& key,
+                                     const std::vector<Episode>& episodes,
+                                     const std::string& error) {
+  RETURN_IF_ERROR(ValidateEpisodes(episodes));
+  std::lock_guard<std::mutex> lock(decision_mutex_);
+  AttemptEnd end;
+  end.key = key;
+  end.worker_id = worker_id;
+  end.attempt_state = AttemptState::kFailed;
+  end.episodes = episodes;
+  end.error = error.empty() ? "(no error text given)" : error.substr(0, kMaxErrorBytes);
+  RETURN_IF_ERROR(EndLocked(std::move(end)).status());
+  ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(key.job_id));
+  return job.state == JobState::kQueued || job.state == JobState::kRunning;
+}
+
+absl::Status Scheduler::Release(const std::string& worker_id, const LeaseKey& key,
+                                const std::string& reason) {
+  std::lock_guard<std::mutex> lock(decision_mutex_);
+  ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(key.job_id));
+  AttemptEnd end;
+  end.key = key;
+  end.worker_id = worker_id;
+  // A release answering CANCEL is recorded as cancelled, any other as released.
+  end.attempt_state =
+      job.state == JobState::kCancelled ? AttemptState::kCancelled : AttemptState::kReleased;
+  end.error = absl::StrCat("released: ", reason.substr(0, 1000));
+  return EndLocked(std::move(end)).status();
+}
+
+absl::StatusOr<int> Scheduler::ExpireLeases() {
+  std::lock_guard<std::mutex> lock(decision_mutex_);
+  const int64_t now = clock_->NowMs();
+  ASSIGN_OR_RETURN(std::vector<LeaseKey> expired, store_->ListExpiredLeases(now));
+  int count = 0;
+  for (const LeaseKey& key : expired) {
+    ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(key.job_id));
+    AttemptEnd end;
+    end.key = key;
+    end.worker_id = job.worker_id;
+    end.attempt_state = AttemptState::kLeaseLost;
+    end.error = absl::StrCat("no heartbeat for ", absl::FormatDuration(options_.lease_timeout),
+                             " from worker ", job.worker_id);
+    ASSIGN_OR_RETURN(EndOutcome outcome, EndLocked(std::move(end)));
+    if (outcome == EndOutcome::kApplied) ++count;
+  }
+  return count;
+}
+
+absl::StatusOr<storage::SweepRecord> Scheduler::SubmitSweep(const storage::NewSweep& sweep,
+                                                            bool* created) {
+  std::lock_guard<std::mutex> lock(decision_mutex_);
+  ASSIGN_OR_RETURN(storage::SweepRecord record,
+                   store_->CreateSweep(sweep, clock_->NowMs(), created));
+  if (*created) NotifyWork();
+  return record;
+}
+
+absl::StatusOr<storage::SweepRecord> Scheduler::SetSweepState(const std::string& name,
+                                                              SweepState state) {
+  std::lock_guard<std::mutex> lock(decision_mutex_);
+  ASSIGN_OR_RETURN(storage::SweepRecord sweep, store_->GetSweep(name));
+  if (sweep.state == state) return sweep;
+  if (sweep.state == SweepState::kCancelled) {
+    return absl::FailedPreconditionError(
+        absl::StrCat("sweep '", name, "' is cancelled; a cancelled sweep cannot be ",
+                     state == SweepState::kPaused ? "paused" : "resumed"));
+  }
+  RETURN_IF_ERROR(store_->SetSweepState(name, state, clock_->NowMs()));
+  NotifyWork();
+  return store_->GetSweep(name);
+}
+
+absl::StatusOr<JobRecord> Scheduler::RetryJob(int64_t job_id) {
+  std::lock_guard<std::mutex> lock(decision_mutex_);
+  RETURN_IF_ERROR(store_->RetryJob(job_id, clock_->NowMs()));
+  NotifyWork();
+  return store_->GetJob(job_id);
+}
+
+absl::StatusOr<storage::WorkerRecord> Scheduler::DrainWorker(const std::string& worker_id) {
+  std::lock_guard<std::mutex> lock(decision_mutex_);
+  RETURN_IF_ERROR(store_->SetWorkerDraining(worker_id, true, clock_->NowMs()));
+  return store_->GetWorker(worker_id);
+}
+
+}  // namespace totalgrad::scheduler

@@ -1,0 +1,168 @@
+// The scheduler: leases, heartbeats, expiry, re-queueing and attempt budgets,
+// over a Store and an injected Clock. It knows nothing of gRPC; the service
+// layer converts messages and calls it.
+//
+// Policy (docs/service.md):
+//   * A lease is one attempt of one job; its number is its epoch. A worker
+//     keeps it by heartbeating at least every heartbeat_interval; it is lost
+//     when no heartbeat arrived for lease_timeout, judged on the coordinator's
+//     clock by ExpireLeases(). A lost lease ends the attempt (lease_lost) and
+//     re-queues the job; the old worker's later writes get ABORTED.
+//   * Application failures (Fail) count against the sweep's max_attempts; lost
+//     leases and releases count against max_lost_leases instead. A job over
+//     either budget becomes failed.
+//   * A cancelled job's running attempt gets DIRECTIVE kCancel; a draining
+//     worker gets kDrain and no new leases. Paused sweeps hand out nothing.
+//   * Repeated Complete/Fail/Release of an attempt that already ended that way
+//     are OK and change nothing (duplicate delivery).
+//
+// Threading: every method may be called from any thread. Decisions that read
+// then write happen under one mutex, so they cannot interleave; the store
+// commits each decision in one transaction before the method returns.
+#ifndef TOTALGRAD_SERVER_SCHEDULER_SCHEDULER_H_
+#define TOTALGRAD_SERVER_SCHEDULER_SCHEDULER_H_
+
+#include <condition_variable>
+#include <cstdint>
+#include <map>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "absl/time/time.h"
+#include "server/scheduler/clock.h"
+#include "server/storage/store.h"
+
+namespace totalgrad::scheduler {
+
+struct SchedulerOptions {
+  // How often workers must beat.
+  absl::Duration heartbeat_interval = absl::Seconds(15);
+  // A lease with no beat for this long is lost (6 missed beats by default, so
+  // a busy network or a long GC pause does not kill live work).
+  absl::Duration lease_timeout = absl::Seconds(90);
+  // Longest AcquireLease long-poll.
+  absl::Duration max_acquire_wait = absl::Seconds(30);
+  // A worker's last-seen time is written at most this often per worker.
+  absl::Duration worker_touch_interval = absl::Seconds(5);
+  // Queued jobs examined per lease request.
+  int claim_scan_limit = 256;
+
+  // InvalidArgument naming the bad field (non-positive durations, a lease
+  // timeout not above the heartbeat interval).
+  absl::Status Validate() const;
+};
+
+enum class Directive { kContinue, kCancel, kDrain };
+
+struct Lease {
+  storage::JobRecord job;  // job.attempts is the lease's attempt number
+  storage::LeaseKey key;
+  int64_t heartbeat_interval_ms = 0;
+  int64_t lease_timeout_ms = 0;
+};
+
+struct HeartbeatResult {
+  Directive directive = Directive::kContinue;
+  int episodes_stored = 0;
+};
+
+// Limits on what a worker may send (checked before anything is stored).
+inline constexpr int kMaxEpisodesPerCall = 1000;
+inline constexpr size_t kMaxDetailsBytes = 64 * 1024;
+inline constexpr size_t kMaxErrorBytes = 16 * 1024;
+inline constexpr size_t kMaxWorkerIdBytes = 128;
+
+// InvalidArgument naming the problem: empty or over-long id, control chars.
+absl::Status ValidateWorkerIdentity(const storage::WorkerIdentity& worker);
+// InvalidArgument naming the episode and field: +-Inf anywhere (NaN means
+// "no value"), a NaN real cost, too many episodes, oversized details.
+absl::Status ValidateEpisodes(const std::vector<storage::Episode>& episodes);
+
+class Scheduler {
+ public:
+  // `store` and `clock` are not owned and must outlive the scheduler.
+  Scheduler(storage::Store* store, Clock* clock, SchedulerOptions options);
+  Scheduler(const Scheduler&) = delete;
+  Scheduler& operator=(const Scheduler&) = delete;
+
+  const SchedulerOptions& options() const { return options_; }
+
+  // Start-up recovery: extends every open lease to now + lease_timeout so
+  // workers that kept running while the coordinator was down can reattach
+  // before anything is re-queued. Returns the number of leases extended.
+  absl::StatusOr<int> Recover();
+
+  // ---- worker calls ----
+
+  // Leases the next claimable job to `worker`, or returns nullopt if there is
+  // none (or the worker is draining). Does not wait.
+  absl::StatusOr<std::optional<Lease>> TryAcquire(const storage::WorkerIdentity& worker);
+  // Like TryAcquire, but waits up to min(wait, max_acquire_wait) of real time
+  // for work to appear. Returns nullopt at the deadline or after Shutdown().
+  absl::StatusOr<std::optional<Lease>> Acquire(const storage::WorkerIdentity& worker,
+                                               absl::Duration wait);
+  // Stores `episodes` and extends the lease. Aborted for a stale lease.
+  absl::StatusOr<HeartbeatResult> Heartbeat(const std::string& worker_id,
+                                            const storage::LeaseKey& key,
+                                            const std::vector<storage::Episode>& episodes);
+  // Ends the attempt as completed (see Store::EndAttempt for the checks).
+  absl::Status Complete(const std::string& worker_id, const storage::LeaseKey& key,
+                        const std::vector<storage::Episode>& episodes, int episodes_total,
+                        bool success, double final_eval_cost);
+  // Ends the attempt as failed. Returns true if the job was re-queued.
+  absl::StatusOr<bool> Fail(const std::string& worker_id, const storage::LeaseKey& key,
+                            const std::vector<storage::Episode>& episodes,
+                            const std::string& error);
+  // Ends the attempt as released (or cancelled, if the job was cancelled).
+  absl::Status Release(const std::string& worker_id, const storage::LeaseKey& key,
+                       const std::string& reason);
+
+  // Ends every lease that expired on the coordinator's clock. Returns how many.
+  absl::StatusOr<int> ExpireLeases();
+
+  // ---- user calls ----
+
+  absl::StatusOr<storage::SweepRecord> SubmitSweep(const storage::NewSweep& sweep, bool* created);
+  // Pause/resume/cancel with the transition rules of the proto (no-op when
+  // already there; FailedPrecondition to leave kCancelled).
+  absl::StatusOr<storage::SweepRecord> SetSweepState(const std::string& name,
+                                                     storage::SweepState state);
+  absl::StatusOr<storage::JobRecord> RetryJob(int64_t job_id);
+  absl::StatusOr<storage::WorkerRecord> DrainWorker(const std::string& worker_id);
+
+  // Wakes every waiting Acquire; later Acquire calls return nullopt at once.
+  void Shutdown();
+  bool shut_down() const;
+
+ private:
+  int64_t LeaseExpiryFrom(int64_t now_ms) const;
+  // Writes the worker's last-seen time unless it was written recently.
+  absl::Status MaybeTouchWorker(const storage::WorkerIdentity& worker, int64_t now_ms);
+  absl::StatusOr<std::optional<Lease>> TryAcquireLocked(const storage::WorkerIdentity& worker);
+  // Ends the attempt with the job's next state decided by the budgets.
+  absl::StatusOr<storage::EndOutcome> EndLocked(storage::AttemptEnd end);
+  // Counts a change that may make a job claimable and wakes waiters.
+  void NotifyWork();
+
+  storage::Store* const store_;
+  Clock* const clock_;
+  const SchedulerOptions options_;
+
+  // Serialises read-decide-write sequences.
+  std::mutex decision_mutex_;
+  std::map<std::string, int64_t> last_touch_ms_;  // guarded by decision_mutex_
+
+  // Long-poll wake-ups.
+  mutable std::mutex work_mutex_;
+  std::condition_variable work_available_;
+  uint64_t work_generation_ = 0;  // guarded by work_mutex_
+  bool shutdown_ = false;         // guarded by work_mutex_
+};
+
+}  // namespace totalgrad::scheduler
+
+#endif  // TOTALGRAD_SERVER_SCHEDULER_SCHEDULER_H_

@@ -1,0 +1,1075 @@
+#include "server/storage/sqlite_store.h"
+
+#include <sqlite3.h>
+#include <sys/stat.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+#include "server/common/status_macros.h"
+
+namespace totalgrad::storage {
+namespace {
+
+using internal::Db;
+using internal::Statement;
+
+constexpr int kSchemaVersion = 1;
+
+// The schema; docs/results_schema.md explains every column. Kept in one
+// string so a new database is created in one transaction.
+constexpr char kSchema[] = R"sql(
+CREATE TABLE meta(
+  key TEXT PRIMARY KEY,
+  value TEXT NOT NULL
+) WITHOUT ROWID;
+CREATE TABLE sweeps(
+  id INTEGER PRIMARY KEY,
+  name TEXT NOT NULL UNIQUE,
+  description TEXT NOT NULL DEFAULT '',
+  state TEXT NOT NULL CHECK(state IN ('running', 'paused', 'cancelled')),
+  canonical_spec TEXT NOT NULL,
+  spec_hash TEXT NOT NULL,
+  source_name TEXT NOT NULL DEFAULT '',
+  source_text TEXT NOT NULL DEFAULT '',
+  coordinator_build TEXT NOT NULL,
+  max_attempts INTEGER NOT NULL CHECK(max_attempts >= 1),
+  max_lost_leases INTEGER NOT NULL CHECK(max_lost_leases >= 1),
+  max_concurrent INTEGER NOT NULL CHECK(max_concurrent >= 0),
+  created_ms INTEGER NOT NULL
+);
+CREATE TABLE jobs(
+  id INTEGER PRIMARY KEY,
+  sweep_id INTEGER NOT NULL REFERENCES sweeps(id),
+  ordinal INTEGER NOT NULL,
+  method TEXT NOT NULL,
+  seed TEXT NOT NULL,
+  variant TEXT NOT NULL,
+  options_json TEXT NOT NULL,
+  episodes_expected INTEGER NOT NULL CHECK(episodes_expected >= 1),
+  state TEXT NOT NULL
+      CHECK(state IN ('queued', 'running', 'completed', 'failed', 'cancelled')),
+  attempts INTEGER NOT NULL DEFAULT 0,
+  failures INTEGER NOT NULL DEFAULT 0,
+  lost_leases INTEGER NOT NULL DEFAULT 0,
+  completed_attempt INTEGER,
+  success INTEGER,
+  final_eval_cost REAL,
+  last_error TEXT NOT NULL DEFAULT '',
+  UNIQUE(sweep_id, ordinal)
+);
+CREATE INDEX jobs_by_state ON jobs(state, sweep_id, ordinal);
+CREATE TABLE attempts(
+  job_id INTEGER NOT NULL REFERENCES jobs(id),
+  attempt INTEGER NOT NULL CHECK(attempt >= 1),
+  state TEXT NOT NULL CHECK(state IN
+      ('running', 'completed', 'failed', 'lease_lost', 'released', 'cancelled')),
+  worker_id TEXT NOT NULL,
+  worker_host TEXT NOT NULL,
+  worker_build TEXT NOT NULL,
+  started_ms INTEGER NOT NULL,
+  lease_expires_ms INTEGER NOT NULL,
+  ended_ms INTEGER,
+  error TEXT NOT NULL DEFAULT '',
+  PRIMARY KEY(job_id, attempt)
+) WITHOUT ROWID;
+CREATE INDEX open_attempts_by_expiry ON attempts(lease_expires_ms) WHERE state = 'running';
+CREATE INDEX open_attempts_by_worker ON attempts(worker_id) WHERE state = 'running';
+CREATE TABLE episodes(
+  job_id INTEGER NOT NULL,
+  attempt INTEGER NOT NULL,
+  episode INTEGER NOT NULL CHECK(episode >= 0),
+  real_cost REAL,
+  eval_cost_mean REAL,
+  eval_cost_std REAL,
+  predicted_cost REAL,
+  optimisation_seconds REAL,
+  details_json TEXT NOT NULL DEFAULT '',
+  reported_ms INTEGER NOT NULL,
+  PRIMARY KEY(job_id, attempt, episode),
+  FOREIGN KEY(job_id, attempt) REFERENCES attempts(job_id, attempt)
+) WITHOUT ROWID;
+CREATE TABLE workers(
+  worker_id TEXT PRIMARY KEY,
+  host TEXT NOT NULL,
+  build TEXT NOT NULL,
+  slots INTEGER NOT NULL,
+  first_seen_ms INTEGER NOT NULL,
+  last_seen_ms INTEGER NOT NULL,
+  draining INTEGER NOT NULL DEFAULT 0
+) WITHOUT ROWID;
+CREATE TABLE events(
+  id INTEGER PRIMARY KEY,
+  ms INTEGER NOT NULL,
+  sweep_id INTEGER REFERENCES sweeps(id),
+  job_id INTEGER REFERENCES jobs(id),
+  attempt INTEGER NOT NULL DEFAULT 0,
+  kind TEXT NOT NULL,
+  message TEXT NOT NULL DEFAULT ''
+);
+CREATE INDEX events_by_job ON events(job_id, id);
+)sql";
+
+std::string OptionsToJson(const OptionList& options) {
+  nlohmann::json array = nlohmann::json::array();
+  for (const auto& [key, value] : options) array.push_back({key, value});
+  return array.dump();
+}
+
+OptionList OptionsFromJson(const std::string& text) {
+  OptionList options;
+  const nlohmann::json array = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (!array.is_array()) return options;
+  for (const auto& pair : array) {
+    if (pair.is_array() && pair.size() == 2 && pair[0].is_string() && pair[1].is_string()) {
+      options.emplace_back(pair[0].get<std::string>(), pair[1].get<std::string>());
+    }
+  }
+  return options;
+}
+
+absl::Status AddEvent(Db& db, int64_t ms, int64_t sweep_id, int64_t job_id, int attempt,
+                      absl::string_view kind, absl::string_view message) {
+  ASSIGN_OR_RETURN(Statement insert,
+                   Statement::Prepare(db, "INSERT INTO events(ms, sweep_id, job_id, attempt, kind, "
+                                          "message) VALUES(?, ?, ?, ?, ?, ?)"));
+  insert.Bind(1, ms);
+  if (sweep_id > 0) insert.Bind(2, sweep_id); else insert.BindNull(2);
+  if (job_id > 0) insert.Bind(3, job_id); else insert.BindNull(3);
+  insert.Bind(4, attempt).Bind(5, kind).Bind(6, message);
+  return insert.Run();
+}
+
+// Reads an int from a one-row query.
+absl::StatusOr<int64_t> QueryInt(Db& db, absl::string_view sql, int64_t param) {
+  ASSIGN_OR_RETURN(Statement query, Statement::Prepare(db, sql));
+  query.Bind(1, param);
+  ASSIGN_OR_RETURN(bool row, query.Step());
+  if (!row) return int64_t{0};
+  return query.ColumnInt(0);
+}
+
+constexpr char kSweepColumns[] =
+    "s.id, s.name, s.description, s.state, s.canonical_spec, s.spec_hash, s.source_name, "
+    "s.coordinator_build, s.created_ms, s.max_attempts, s.max_lost_leases, s.max_concurrent";
+
+absl::StatusOr<SweepRecord> ReadSweepRow(Db& db, const Statement& row) {
+  SweepRecord sweep;
+  sweep.id = row.ColumnInt(0);
+  sweep.name = row.ColumnText(1);
+  sweep.description = row.ColumnText(2);
+  sweep.state = ParseSweepState(row.ColumnText(3)).value_or(SweepState::kRunning);
+  sweep.canonical_spec = row.ColumnText(4);
+  sweep.spec_hash = row.ColumnText(5);
+  sweep.source_name = row.ColumnText(6);
+  sweep.coordinator_build = row.ColumnText(7);
+  sweep.created_ms = row.ColumnInt(8);
+  sweep.max_attempts = static_cast<int>(row.ColumnInt(9));
+  sweep.max_lost_leases = static_cast<int>(row.ColumnInt(10));
+  sweep.max_concurrent = static_cast<int>(row.ColumnInt(11));
+  ASSIGN_OR_RETURN(Statement counts,
+                   Statement::Prepare(db, "SELECT state, COUNT(*), SUM(episodes_expected) "
+                                          "FROM jobs WHERE sweep_id = ? GROUP BY state"));
+  counts.Bind(1, sweep.id);
+  while (true) {
+    ASSIGN_OR_RETURN(bool more, counts.Step());
+    if (!more) break;
+    const int n = static_cast<int>(counts.ColumnInt(1));
+    sweep.jobs_total += n;
+    sweep.episodes_expected += counts.ColumnInt(2);
+    switch (ParseJobState(counts.ColumnText(0)).value_or(JobState::kQueued)) {
+      case JobState::kQueued: sweep.jobs_queued += n; break;
+      case JobState::kRunning: sweep.jobs_running += n; break;
+      case JobState::kCompleted: sweep.jobs_completed += n; break;
+      case JobState::kFailed: sweep.jobs_failed += n; break;
+      case JobState::kCancelled: sweep.jobs_cancelled += n; break;
+    }
+  }
+  ASSIGN_OR_RETURN(
+      sweep.episodes_stored,
+      QueryInt(db,
+               "SELECT COUNT(*) FROM episodes e JOIN jobs j ON e.job_id = j.id AND "
+               "e.attempt = COALESCE(j.completed_attempt, j.attempts) WHERE j.sweep_id = ?",
+               sweep.id));
+  return sweep;
+}
+
+absl::StatusOr<SweepRecord> LoadSweep(Db& db, const std::string& name) {
+  ASSIGN_OR_RETURN(Statement query,
+                   Statement::Prepare(db, absl::StrCat("SELECT ", kSweepColumns,
+                                                       " FROM sweeps s WHERE s.name = ?")));
+  query.Bind(1, name);
+  ASSIGN_OR_RETURN(bool row, query.Step());
+  if (!row) return absl::NotFoundError(absl::StrCat("no sweep named '", name, "'"));
+  return ReadSweepRow(db, query);
+}
+
+constexpr char kJobSelect[] = R"sql(
+SELECT j.id, j.sweep_id, s.name, s.state, j.ordinal, j.method, j.seed, j.variant, j.options_json,
+       j.state, j.attempts, j.failures, j.lost_leases, s.max_attempts, s.max_lost_leases,
+       j.episodes_expected,
+       (SELECT COUNT(*) FROM episodes e WHERE e.job_id = j.id AND e.attempt = j.attempts),
+       COALESCE((SELECT a.worker_id FROM attempts a
+                 WHERE a.job_id = j.id AND a.attempt = j.attempts AND a.state = 'running'), ''),
+       j.last_error, COALESCE(j.completed_attempt, 0), COALESCE(j.success, 0), j.final_eval_cost
+FROM jobs j JOIN sweeps s ON s.id = j.sweep_id
+)sql";
+
+JobRecord ReadJobRow(const Statement& row) {
+  JobRecord job;
+  job.id = row.ColumnInt(0);
+  job.sweep_id = row.ColumnInt(1);
+  job.sweep_name = row.ColumnText(2);
+  job.sweep_state = ParseSweepState(row.ColumnText(3)).value_or(SweepState::kRunning);
+  job.ordinal = static_cast<int>(row.ColumnInt(4));
+  job.method = row.ColumnText(5);
+  job.seed = row.ColumnText(6);
+  job.variant = row.ColumnText(7);
+  job.options = OptionsFromJson(row.ColumnText(8));
+  job.state = ParseJobState(row.ColumnText(9)).value_or(JobState::kQueued);
+  job.attempts = static_cast<int>(row.ColumnInt(10));
+  job.failures = static_cast<int>(row.ColumnInt(11));
+  job.lost_leases = static_cast<int>(row.ColumnInt(12));
+  job.max_attempts = static_cast<int>(row.ColumnInt(13));
+  job.max_lost_leases = static_cast<int>(row.ColumnInt(14));
+  job.episodes_expected = static_cast<int>(row.ColumnInt(15));
+  job.episodes_stored = static_cast<int>(row.ColumnInt(16));
+  job.worker_id = row.ColumnText(17);
+  job.last_error = row.ColumnText(18);
+  job.completed_attempt = static_cast<int>(row.ColumnInt(19));
+  job.success = row.ColumnInt(20) != 0;
+  job.final_eval_cost = row.ColumnDouble(21);
+  return job;
+}
+
+absl::StatusOr<JobRecord> LoadJob(Db& db, int64_t job_id) {
+  ASSIGN_OR_RETURN(Statement query,
+                   Statement::Prepare(db, absl::StrCat(kJobSelect, " WHERE j.id = ?")));
+  query.Bind(1, job_id);
+  ASSIGN_OR_RETURN(bool row, query.Step());
+  if (!row) return absl::NotFoundError(absl::StrCat("no job with id ", job_id));
+  return ReadJobRow(query);
+}
+
+struct OpenAttempt {
+  AttemptState state = AttemptState::kRunning;
+  std::string worker_id;
+  int job_attempts = 0;
+  int episodes_expected = 0;
+  int64_t sweep_id = 0;
+};
+
+// Loads the attempt and the job's latest attempt number. NotFound if the job
+// does not exist; Aborted if the attempt does not exist.
+absl::StatusOr<OpenAttempt> LoadAttempt(Db& db, const LeaseKey& key) {
+  ASSIGN_OR_RETURN(Statement query,
+                   Statement::Prepare(db, "SELECT j.attempts, j.episodes_expected, j.sweep_id, "
+                                          "a.state, a.worker_id FROM jobs j LEFT JOIN attempts a "
+                                          "ON a.job_id = j.id AND a.attempt = ? WHERE j.id = ?"));
+  query.Bind(1, key.attempt).Bind(2, key.job_id);
+  ASSIGN_OR_RETURN(bool row, query.Step());
+  if (!row) return absl::NotFoundError(absl::StrCat("no job with id ", key.job_id));
+  OpenAttempt attempt;
+  attempt.job_attempts = static_cast<int>(query.ColumnInt(0));
+  attempt.episodes_expected = static_cast<int>(query.ColumnInt(1));
+  attempt.sweep_id = query.ColumnInt(2);
+  if (query.ColumnIsNull(3)) {
+    return absl::AbortedError(absl::StrCat("job ", key.job_id, " has no attempt ", key.attempt,
+                                           " (latest is ", attempt.job_attempts, ")"));
+  }
+  attempt.state = ParseAttemptState(query.ColumnText(3)).value_or(AttemptState::kRunning);
+  attempt.worker_id = query.ColumnText(4);
+  return attempt;
+}
+
+// The fence: the attempt must be open, the job's latest, and owned by `worker_id`.
+absl::Status CheckOpen(const LeaseKey& key, const OpenAttempt& attempt,
+                       const std::string& worker_id) {
+  if (attempt.state != AttemptState::kRunning) {
+    return absl::AbortedError(absl::StrCat("lease of job ", key.job_id, " attempt ", key.attempt,
+                                           " is no longer held: the attempt ended as ",
+                                           ToString(attempt.state)));
+  }
+  if (attempt.job_attempts != key.attempt) {
+    return absl::AbortedError(absl::StrCat("lease of job ", key.job_id, " attempt ", key.attempt,
+                                           " is stale: the job is at attempt ",
+                                           attempt.job_attempts));
+  }
+  if (attempt.worker_id != worker_id) {
+    return absl::AbortedError(absl::StrCat("lease of job ", key.job_id, " attempt ", key.attempt,
+                                           " belongs to worker '", attempt.worker_id,
+                                           "', not '", worker_id, "'"));
+  }
+  return absl::OkStatus();
+}
+
+absl::Status InsertEpisodes(Db& db, const LeaseKey& key, int episodes_expected,
+                            const std::vector<Episode>& episodes, int64_t now_ms) {
+  if (episodes.empty()) return absl::OkStatus();
+  ASSIGN_OR_RETURN(Statement insert,
+                   Statement::Prepare(db, R"sql(
+INSERT INTO episodes(job_id, attempt, episode, real_cost, eval_cost_mean, eval_cost_std,
+                     predicted_cost, optimisation_seconds, details_json, reported_ms)
+VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?)
+ON CONFLICT(job_id, attempt, episode) DO NOTHING)sql"));
+  for (const Episode& episode : episodes) {
+    if (episode.episode < 0 || episode.episode >= episodes_expected) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("episode ", episode.episode, " of job ", key.job_id,
+                       " is out of range: the trial has episodes 0..", episodes_expected - 1));
+    }
+    insert.Bind(1, key.job_id).Bind(2, key.attempt).Bind(3, episode.episode);
+    insert.Bind(4, episode.real_cost).Bind(5, episode.eval_cost_mean);
+    insert.Bind(6, episode.eval_cost_std).Bind(7, episode.predicted_cost);
+    insert.Bind(8, episode.optimisation_seconds).Bind(9, episode.details_json).Bind(10, now_ms);
+    RETURN_IF_ERROR(insert.Run());
+    insert.Reset();
+  }
+  return absl::OkStatus();
+}
+
+}  // namespace
+
+// ---- enum names ----
+
+absl::string_view ToString(SweepState state) {
+  switch (state) {
+    case SweepState::kRunning: return "running";
+    case SweepState::kPaused: return "paused";
+    case SweepState::kCancelled: return "cancelled";
+  }
+  return "unknown";
+}
+absl::string_view ToString(JobState state) {
+  switch (state) {
+    case JobState::kQueued: return "queued";
+    case JobState::kRunning: return "running";
+    case JobState::kCompleted: return "completed";
+    case JobState::kFailed: return "failed";
+    case JobState::kCancelled: return "cancelled";
+  }
+  return "unknown";
+}
+absl::string_view ToString(AttemptState state) {
+  switch (state) {
+    case AttemptState::kRunning: return "running";
+    case AttemptState::kCompleted: return "completed";
+    case AttemptState::kFailed: return "failed";
+    case AttemptState::kLeaseLost: return "lease_lost";
+    case AttemptState::kReleased: return "released";
+    case AttemptState::kCancelled: return "cancelled";
+  }
+  return "unknown";
+}
+std::optional<SweepState> ParseSweepState(absl::string_view text) {
+  for (SweepState s : {SweepState::kRunning, SweepState::kPaused, SweepState::kCancelled}) {
+    if (ToString(s) == text) return s;
+  }
+  return std::nullopt;
+}
+std::optional<JobState> ParseJobState(absl::string_view text) {
+  for (JobState s : {JobState::kQueued, JobState::kRunning, JobState::kCompleted,
+                     JobState::kFailed, JobState::kCancelled}) {
+    if (ToString(s) == text) return s;
+  }
+  return std::nullopt;
+}
+std::optional<AttemptState> ParseAttemptState(absl::string_view text) {
+  for (AttemptState s : {AttemptState::kRunning, AttemptState::kCompleted, AttemptState::kFailed,
+                         AttemptState::kLeaseLost, AttemptState::kReleased,
+                         AttemptState::kCancelled}) {
+    if (ToString(s) == text) return s;
+  }
+  return std::nullopt;
+}
+
+// ---- SqliteStore ----
+
+absl::StatusOr<std::unique_ptr<SqliteStore>> SqliteStore::Open(const std::string& path,
+                                                               const SqliteStoreOptions& options) {
+  ASSIGN_OR_RETURN(Db writer, Db::Open(path, /*create=*/true, options.busy_timeout_ms));
+  // WAL lets the reader connection (and backups) run while the writer
+  // commits; FULL makes every commit survive power loss, which matters more
+  // than write speed here (a trial costs CPU-hours, a commit a millisecond).
+  RETURN_IF_ERROR(writer.Exec("PRAGMA journal_mode=WAL"));
+  RETURN_IF_ERROR(writer.Exec("PRAGMA synchronous=FULL"));
+  RETURN_IF_ERROR(writer.Exec("PRAGMA foreign_keys=ON"));
+  {
+    ASSIGN_OR_RETURN(Statement mode, Statement::Prepare(writer, "PRAGMA journal_mode"));
+    ASSIGN_OR_RETURN(bool row, mode.Step());
+    if (!row || mode.ColumnText(0) != "wal") {
+      return absl::FailedPreconditionError(
+          absl::StrCat("sqlite: ", path, " cannot use WAL journaling (journal_mode is '",
+                       row ? mode.ColumnText(0) : "", "'); is it on a network file system?"));
+    }
+  }
+  if (options.check_integrity_on_open) {
+    ASSIGN_OR_RETURN(Statement check, Statement::Prepare(writer, "PRAGMA quick_check"));
+    ASSIGN_OR_RETURN(bool row, check.Step());
+    if (!row || check.ColumnText(0) != "ok") {
+      return absl::DataLossError(absl::StrCat("sqlite: ", path, " failed its integrity check: ",
+                                              row ? check.ColumnText(0) : "no answer"));
+    }
+  }
+  int64_t version = 0;
+  {
+    ASSIGN_OR_RETURN(Statement query, Statement::Prepare(writer, "PRAGMA user_version"));
+    ASSIGN_OR_RETURN(bool row, query.Step());
+    version = row ? query.ColumnInt(0) : 0;
+  }
+  if (version == 0) {
+    ASSIGN_OR_RETURN(Statement tables,
+                     Statement::Prepare(writer, "SELECT COUNT(*) FROM sqlite_schema"));
+    ASSIGN_OR_RETURN(bool row, tables.Step());
+    if (row && tables.ColumnInt(0) != 0) {
+      return absl::FailedPreconditionError(
+          absl::StrCat(path, " is an SQLite database but not a totalgrad one (it has tables "
+                             "and no totalgrad schema version)"));
+    }
+    RETURN_IF_ERROR(writer.Exec("BEGIN IMMEDIATE"));
+    absl::Status created = writer.Exec(kSchema);
+    if (created.ok()) {
+      created = writer.Exec(absl::StrCat("PRAGMA user_version=", kSchemaVersion));
+    }
+    if (created.ok()) created = writer.Exec("COMMIT");
+    if (!created.ok()) {
+      (void)writer.Exec("ROLLBACK");
+      return created;
+    }
+  } else if (version != kSchemaVersion) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        path, " has totalgrad schema version ", version, "; this build reads version ",
+        kSchemaVersion));
+  }
+  ASSIGN_OR_RETURN(Db reader, Db::Open(path, /*create=*/false, options.busy_timeout_ms));
+  RETURN_IF_ERROR(reader.Exec("PRAGMA foreign_keys=ON"));
+  return std::unique_ptr<SqliteStore>(
+      new SqliteStore(path, options, std::move(writer), std::move(reader)));
+}
+
+SqliteStore::SqliteStore(std::string path, SqliteStoreOptions options, Db writer, Db reader)
+    : path_(std::move(path)),
+      options_(options),
+      writer_(std::move(writer)),
+      reader_(std::move(reader)) {}
+
+SqliteStore::~SqliteStore() {
+  std::lock_guard<std::mutex> lock(write_mutex_);
+  // Fold the WAL back into the main file so a copied file is complete.
+  (void)writer_.Exec("PRAGMA wal_checkpoint(TRUNCATE)");
+}
+
+absl::StatusOr<std::string> SqliteStore::DescribeSettings() {
+  std::lock_guard<std::mutex> lock(write_mutex_);
+  std::string description;
+  for (const char* pragma : {"journal_mode", "synchronous", "foreign_keys", "busy_timeout"}) {
+    ASSIGN_OR_RETURN(Statement query, Statement::Prepare(writer_, absl::StrCat("PRAGMA ", pragma)));
+    ASSIGN_OR_RETURN(bool row, query.Step());
+    absl::StrAppend(&description, description.empty() ? "" : " ", pragma, "=",
+                    row ? query.ColumnText(0) : "?");
+  }
+  return description;
+}
+
+absl::Status SqliteStore::InWriteTransaction(const std::function<absl::Status(Db&)>& body) {
+  std::lock_guard<std::mutex> lock(write_mutex_);
+  // IMMEDIATE takes the write lock up front: a deferred transaction that reads
+  // then writes can fail with SQLITE_BUSY without the busy handler being used.
+  RETURN_IF_ERROR(writer_.Exec("BEGIN IMMEDIATE"));
+  absl::Status status = body(writer_);
+  if (status.ok()) status = writer_.Exec("COMMIT");
+  if (!status.ok()) {
+    (void)writer_.Exec("ROLLBACK");  // fails harmlessly if COMMIT already ended it
+  }
+  return status;
+}
+
+absl::StatusOr<SweepRecord> SqliteStore::CreateSweep(const NewSweep& sweep, int64_t now_ms,
+                                                     bool* created) {
+  *created = false;
+  const absl::Status status = InWriteTransaction([&](Db& db) -> absl::Status {
+    ASSIGN_OR_RETURN(Statement existing,
+                     Statement::Prepare(db, "SELECT spec_hash FROM sweeps WHERE name = ?"));
+    existing.Bind(1, sweep.name);
+    ASSIGN_OR_RETURN(bool found, existing.Step());
+    if (found) {
+      if (existing.ColumnText(0) != sweep.spec_hash) {
+        return absl::AlreadyExistsError(absl::StrCat(
+            "a different sweep named '", sweep.name, "' exists (spec hash ",
+            existing.ColumnText(0).substr(0, 12), ", submitted ", sweep.spec_hash.substr(0, 12),
+            "); rename the sweep or cancel and use a new name"));
+      }
+      return absl::OkStatus();
+    }
+    ASSIGN_OR_RETURN(Statement insert, Statement::Prepare(db, R"sql(
+INSERT INTO sweeps(name, description, state, canonical_spec, spec_hash, source_name, source_text,
+                   coordinator_build, max_attempts, max_lost_leases, max_concurrent, created_ms)
+VALUES(?, ?, 'running', ?, ?, ?, ?, ?, ?, ?, ?, ?))sql"));
+    insert.Bind(1, sweep.name).Bind(2, sweep.description).Bind(3, sweep.canonical_spec);
+    insert.Bind(4, sweep.spec_hash).Bind(5, sweep.source_name).Bind(6, sweep.source_text);
+    insert.Bind(7, sweep.coordinator_build).Bind(8, sweep.max_attempts);
+    insert.Bind(9, sweep.max_lost_leases).Bind(10, sweep.max_concurrent).Bind(11, now_ms);
+    RETURN_IF_ERROR(insert.Run());
+    const int64_t sweep_id = db.LastInsertRowId();
+    ASSIGN_OR_RETURN(Statement job_insert, Statement::Prepare(db, R"sql(
+INSERT INTO jobs(sweep_id, ordinal, method, seed, variant, options_json, episodes_expected, state)
+VALUES(?, ?, ?, ?, ?, ?, ?, 'queued'))sql"));
+    for (size_t i = 0; i < sweep.jobs.size(); ++i) {
+      const NewJob& job = sweep.jobs[i];
+      job_insert.Bind(1, sweep_id).Bind(2, static_cast<int64_t>(i)).Bind(3, job.method);
+      job_insert.Bind(4, job.seed).Bind(5, job.variant).Bind(6, OptionsToJson(job.options));
+      job_insert.Bind(7, job.episodes_expected);
+      RETURN_IF_ERROR(job_insert.Run());
+      job_insert.Reset();
+    }
+    *created = true;
+    return AddEvent(db, now_ms, sweep_id, 0, 0, "sweep_submitted",
+                    absl::StrCat(sweep.jobs.size(), " jobs, spec ", sweep.spec_hash));
+  });
+  if (!status.ok()) return status;
+  return GetSweep(sweep.name);
+}
+
+absl::Status SqliteStore::SetSweepState(const std::string& name, SweepState state,
+                                        int64_t now_ms) {
+  return InWriteTransaction([&](Db& db) -> absl::Status {
+    ASSIGN_OR_RETURN(Statement query,
+                     Statement::Prepare(db, "SELECT id, state FROM sweeps WHERE name = ?"));
+    query.Bind(1, name);
+    ASSIGN_OR_RETURN(bool found, query.Step());
+    if (!found) return absl::NotFoundError(absl::StrCat("no sweep named '", name, "'"));
+    const int64_t sweep_id = query.ColumnInt(0);
+    const std::string previous = query.ColumnText(1);
+    if (previous == ToString(state)) return absl::OkStatus();
+    ASSIGN_OR_RETURN(Statement update,
+                     Statement::Prepare(db, "UPDATE sweeps SET state = ? WHERE id = ?"));
+    update.Bind(1, ToString(state)).Bind(2, sweep_id);
+    RETURN_IF_ERROR(update.Run());
+    if (state == SweepState::kCancelled) {
+      ASSIGN_OR_RETURN(Statement cancel,
+                       Statement::Prepare(db, "UPDATE jobs SET state = 'cancelled' WHERE "
+                                              "sweep_id = ? AND state IN ('queued', 'running')"));
+      cancel.Bind(1, sweep_id);
+      RETURN_IF_ERROR(cancel.Run());
+    }
+    return AddEvent(db, now_ms, sweep_id, 0, 0, absl::StrCat("sweep_", ToString(state)),
+                    absl::StrCat("was ", previous));
+  });
+}
+
+absl::Status SqliteStore::StartAttempt(const LeaseKey& key, const WorkerIdentity& worker,
+                                       int64_t now_ms, int64_t lease_expires_ms) {
+  return InWriteTransaction([&](Db& db) -> absl::Status {
+    ASSIGN_OR_RETURN(Statement update, Statement::Prepare(db, R"sql(
+UPDATE jobs SET state = 'running', attempts = ?
+WHERE id = ? AND state = 'queued' AND attempts = ?)sql"));
+    update.Bind(1, key.attempt).Bind(2, key.job_id).Bind(3, key.attempt - 1);
+    RETURN_IF_ERROR(update.Run());
+    if (db.Changes() != 1) {
+      return absl::FailedPreconditionError(absl::StrCat(
+          "job ", key.job_id, " is not queued at attempt ", key.attempt - 1));
+    }
+    ASSIGN_OR_RETURN(Statement insert, Statement::Prepare(db, R"sql(
+INSERT INTO attempts(job_id, attempt, state, worker_id, worker_host, worker_build, started_ms,
+                     lease_expires_ms)
+VALUES(?, ?, 'running', ?, ?, ?, ?, ?))sql"));
+    insert.Bind(1, key.job_id).Bind(2, key.attempt).Bind(3, worker.worker_id);
+    insert.Bind(4, worker.host).Bind(5, worker.build).Bind(6, now_ms).Bind(7, lease_expires_ms);
+    RETURN_IF_ERROR(insert.Run());
+    ASSIGN_OR_RETURN(int64_t sweep_id,
+                     QueryInt(db, "SELECT sweep_id FROM jobs WHERE id = ?", key.job_id));
+    return AddEvent(db, now_ms, sweep_id, key.job_id, key.attempt, "lease_granted",
+                    absl::StrCat("worker ", worker.worker_id));
+  });
+}
+
+absl::StatusOr<int> SqliteStore::StoreEpisodes(const LeaseKey& key, const std::string& worker_id,
+                                               const std::vector<Episode>& episodes,
+                                               int64_t now_ms,
+                                               std::optional<int64_t> lease_expires_ms) {
+  int stored = 0;
+  const absl::Status status = InWriteTransaction([&](Db& db) -> absl::Status {
+    ASSIGN_OR_RETURN(OpenAttempt attempt, LoadAttempt(db, key));
+    RETURN_IF_ERROR(CheckOpen(key, attempt, worker_id));
+    RETURN_IF_ERROR(InsertEpisodes(db, key, attempt.episodes_expected, episodes, now_ms));
+    if (lease_expires_ms.has_value()) {
+      ASSIGN_OR_RETURN(Statement extend,
+                       Statement::Prepare(db, "UPDATE attempts SET lease_expires_ms = ? "
+                                              "WHERE job_id = ? AND attempt = ?"));
+      extend.Bind(1, *lease_expires_ms).Bind(2, key.job_id).Bind(3, key.attempt);
+      RETURN_IF_ERROR(extend.Run());
+    }
+    ASSIGN_OR_RETURN(Statement count,
+                     Statement::Prepare(db, "SELECT COUNT(*) FROM episodes "
+                                            "WHERE job_id = ? AND attempt = ?"));
+    count.Bind(1, key.job_id).Bind(2, key.attempt);
+    ASSIGN_OR_RETURN(bool row, count.Step());
+    stored = row ? static_cast<int>(count.ColumnInt(0)) : 0;
+    return absl::OkStatus();
+  });
+  if (!status.ok()) return status;
+  return stored;
+}
+
+absl::StatusOr<EndOutcome> SqliteStore::EndAttempt(const AttemptEnd& end) {
+  if (end.attempt_state == AttemptState::kRunning) {
+    return absl::InvalidArgumentError("EndAttempt needs a final attempt state, not running");
+  }
+  EndOutcome outcome = EndOutcome::kApplied;
+  const absl::Status status = InWriteTransaction([&](Db& db) -> absl::Status {
+    const LeaseKey& key = end.key;
+    ASSIGN_OR_RETURN(OpenAttempt attempt, LoadAttempt(db, key));
+    if (attempt.state == end.attempt_state && attempt.worker_id == end.worker_id) {
+      outcome = EndOutcome::kAlreadyEnded;  // a repeated call: nothing to do
+      return absl::OkStatus();
+    }
+    RETURN_IF_ERROR(CheckOpen(key, attempt, end.worker_id));
+    RETURN_IF_ERROR(InsertEpisodes(db, key, attempt.episodes_expected, end.episodes, end.now_ms));
+    if (end.attempt_state == AttemptState::kCompleted) {
+      if (end.episodes_total < 1 || end.episodes_total > attempt.episodes_expected) {
+        return absl::InvalidArgumentError(absl::StrCat(
+            "completion of job ", key.job_id, " reports ", end.episodes_total,
+            " episodes; the trial has ", attempt.episodes_expected));
+      }
+      ASSIGN_OR_RETURN(Statement present,
+                       Statement::Prepare(db, "SELECT episode FROM episodes WHERE job_id = ? "
+                                              "AND attempt = ? AND episode < ?"));
+      present.Bind(1, key.job_id).Bind(2, key.attempt).Bind(3, end.episodes_total);
+      std::set<int> have;
+      while (true) {
+        ASSIGN_OR_RETURN(bool row, present.Step());
+        if (!row) break;
+        have.insert(static_cast<int>(present.ColumnInt(0)));
+      }
+      std::vector<int> missing;
+      for (int e = 0; e < end.episodes_total; ++e) {
+        if (!have.count(e)) missing.push_back(e);
+      }
+      if (!missing.empty()) {
+        return absl::FailedPreconditionError(absl::StrCat(
+            "cannot complete job ", key.job_id, " attempt ", key.attempt, ": episodes ",
+            absl::StrJoin(missing, ","), " of 0..", end.episodes_total - 1, " are not stored"));
+      }
+    }
+    ASSIGN_OR_RETURN(Statement close, Statement::Prepare(db, R"sql(
+UPDATE attempts SET state = ?, ended_ms = ?, error = ? WHERE job_id = ? AND attempt = ?)sql"));
+    close.Bind(1, ToString(end.attempt_state)).Bind(2, end.now_ms).Bind(3, end.error);
+    close.Bind(4, key.job_id).Bind(5, key.attempt);
+    RETURN_IF_ERROR(close.Run());
+    const bool completed = end.attempt_state == AttemptState::kCompleted;
+    ASSIGN_OR_RETURN(Statement job, Statement::Prepare(db, R"sql(
+UPDATE jobs SET state = ?, failures = failures + ?, lost_leases = lost_leases + ?,
+       last_error = CASE WHEN ? = '' THEN last_error ELSE ? END,
+       completed_attempt = CASE WHEN ? THEN ? ELSE completed_attempt END,
+       success = CASE WHEN ? THEN ? ELSE success END,
+       final_eval_cost = CASE WHEN ? THEN ? ELSE final_eval_cost END
+WHERE id = ?)sql"));
+    job.Bind(1, ToString(end.job_state)).Bind(2, end.failures_delta);
+    job.Bind(3, end.lost_leases_delta).Bind(4, end.error).Bind(5, end.error);
+    job.Bind(6, completed ? 1 : 0).Bind(7, key.attempt);
+    job.Bind(8, completed ? 1 : 0).Bind(9, end.success ? 1 : 0);
+    job.Bind(10, completed ? 1 : 0).Bind(11, end.final_eval_cost);
+    job.Bind(12, key.job_id);
+    RETURN_IF_ERROR(job.Run());
+    std::string message = absl::StrCat("worker ", end.worker_id, "; job ", ToString(end.job_state));
+    if (!end.error.empty()) absl::StrAppend(&message, ": ", end.error.substr(0, 2000));
+    return AddEvent(db, end.now_ms, attempt.sweep_id, key.job_id, key.attempt,
+                    ToString(end.attempt_state), message);
+  });
+  if (!status.ok()) return status;
+  return outcome;
+}
+
+absl::Status SqliteStore::RetryJob(int64_t job_id, int64_t now_ms) {
+  return InWriteTransaction([&](Db& db) -> absl::Status {
+    ASSIGN_OR_RETURN(JobRecord job, LoadJob(db, job_id));
+    if (job.state != JobState::kFailed && job.state != JobState::kCancelled) {
+      return absl::FailedPreconditionError(absl::StrCat(
+          "job ", job_id, " is ", ToString(job.state), "; only failed or cancelled jobs can be "
+          "retried"));
+    }
+    if (job.sweep_state == SweepState::kCancelled) {
+      return absl::FailedPreconditionError(absl::StrCat(
+          "job ", job_id, " belongs to sweep '", job.sweep_name, "', which is cancelled"));
+    }
+    ASSIGN_OR_RETURN(Statement update,
+                     Statement::Prepare(db, "UPDATE jobs SET state = 'queued', failures = 0, "
+                                            "lost_leases = 0 WHERE id = ?"));
+    update.Bind(1, job_id);
+    RETURN_IF_ERROR(update.Run());
+    return AddEvent(db, now_ms, job.sweep_id, job_id, job.attempts, "retried",
+                    absl::StrCat("was ", ToString(job.state)));
+  });
+}
+
+absl::StatusOr<int> SqliteStore::ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms) {
+  int changed = 0;
+  const absl::Status status = InWriteTransaction([&](Db& db) -> absl::Status {
+    ASSIGN_OR_RETURN(Statement update,
+                     Statement::Prepare(db, "UPDATE attempts SET lease_expires_ms = ? "
+                                            "WHERE state = 'running' AND lease_expires_ms < ?"));
+    update.Bind(1, lease_expires_ms).Bind(2, lease_expires_ms);
+    RETURN_IF_ERROR(update.Run());
+    changed = db.Changes();
+    if (changed == 0) return absl::OkStatus();
+    return AddEvent(db, now_ms, 0, 0, 0, "leases_extended",
+                    absl::StrCat(changed, " open leases extended on coordinator start"));
+  });
+  if (!status.ok()) return status;
+  return changed;
+}
+
+absl::Status SqliteStore::TouchWorker(const WorkerIdentity& worker, int64_t now_ms) {
+  return InWriteTransaction([&](Db& db) -> absl::Status {
+    ASSIGN_OR_RETURN(Statement upsert, Statement::Prepare(db, R"sql(
+INSERT INTO workers(worker_id, host, build, slots, first_seen_ms, last_seen_ms)
+VALUES(?, ?, ?, ?, ?, ?)
+ON CONFLICT(worker_id) DO UPDATE SET host = excluded.host, build = excluded.build,
+    slots = excluded.slots, last_seen_ms = excluded.last_seen_ms)sql"));
+    upsert.Bind(1, worker.worker_id).Bind(2, worker.host).Bind(3, worker.build);
+    upsert.Bind(4, worker.slots).Bind(5, now_ms).Bind(6, now_ms);
+    return upsert.Run();
+  });
+}
+
+absl::Status SqliteStore::SetWorkerDraining(const std::string& worker_id, bool draining,
+                                            int64_t now_ms) {
+  return InWriteTransaction([&](Db& db) -> absl::Status {
+    ASSIGN_OR_RETURN(Statement update,
+                     Statement::Prepare(db, "UPDATE workers SET draining = ? WHERE worker_id = ?"));
+    update.Bind(1, draining ? 1 : 0).Bind(2, worker_id);
+    RETURN_IF_ERROR(update.Run());
+    if (db.Changes() != 1) {
+      return absl::NotFoundError(absl::StrCat("no worker with id '", worker_id, "'"));
+    }
+    return AddEvent(db, now_ms, 0, 0, 0, draining ? "worker_drain" : "worker_undrain", worker_id);
+  });
+}
+
+// ---- reads ----
+
+absl::StatusOr<SweepRecord> SqliteStore::GetSweep(const std::string& name) {
+  std::lock_guard<std::mutex> lock(read_mutex_);
+  return LoadSweep(reader_, name);
+}
+
+absl::StatusOr<std::vector<SweepRecord>> SqliteStore::ListSweeps() {
+  std::lock_guard<std::mutex> lock(read_mutex_);
+  RETURN_IF_ERROR(reader_.Exec("BEGIN"));  // one snapshot for the whole list
+  std::vector<SweepRecord> sweeps;
+  absl::Status status = [&]() -> absl::Status {
+    ASSIGN_OR_RETURN(Statement query,
+                     Statement::Prepare(reader_, absl::StrCat("SELECT ", kSweepColumns,
+                                                              " FROM sweeps s ORDER BY s.id DESC")));
+    while (true) {
+      ASSIGN_OR_RETURN(bool row, query.Step());
+      if (!row) return absl::OkStatus();
+      ASSIGN_OR_RETURN(SweepRecord sweep, ReadSweepRow(reader_, query));
+      sweeps.push_back(std::move(sweep));
+    }
+  }();
+  (void)reader_.Exec("COMMIT");
+  if (!status.ok()) return status;
+  return sweeps;
+}
+
+absl::StatusOr<JobRecord> SqliteStore::GetJob(int64_t job_id) {
+  std::lock_guard<std::mutex> lock(read_mutex_);
+  return LoadJob(reader_, job_id);
+}
+
+absl::StatusOr<std::vector<JobRecord>> SqliteStore::ListJobs(const JobFilter& filter) {
+  std::lock_guard<std::mutex> lock(read_mutex_);
+  // The state filter is one bound parameter: a list ",queued,,running," that
+  // each job's state is looked up in with instr().
+  std::string states;
+  for (JobState s : filter.states) absl::StrAppend(&states, ",", ToString(s), ",");
+  ASSIGN_OR_RETURN(Statement query, Statement::Prepare(reader_, absl::StrCat(kJobSelect, R"sql(
+WHERE (? = '' OR s.name = ?) AND (? = '' OR instr(?, ',' || j.state || ',') > 0) AND j.id > ?
+ORDER BY j.id LIMIT ?)sql")));
+  query.Bind(1, filter.sweep_name).Bind(2, filter.sweep_name).Bind(3, states).Bind(4, states);
+  query.Bind(5, filter.after_job_id).Bind(6, filter.limit);
+  std::vector<JobRecord> jobs;
+  while (true) {
+    ASSIGN_OR_RETURN(bool row, query.Step());
+    if (!row) break;
+    jobs.push_back(ReadJobRow(query));
+  }
+  if (jobs.empty() && !filter.sweep_name.empty()) {
+    ASSIGN_OR_RETURN(Statement check,
+                     Statement::Prepare(reader_, "SELECT 1 FROM sweeps WHERE name = ?"));
+    check.Bind(1, filter.sweep_name);
+    ASSIGN_OR_RETURN(bool found, check.Step());
+    if (!found) return absl::NotFoundError(absl::StrCat("no sweep named '", filter.sweep_name, "'"));
+  }
+  return jobs;
+}
+
+absl::StatusOr<std::vector<AttemptRecord>> SqliteStore::ListAttempts(int64_t job_id) {
+  std::lock_guard<std::mutex> lock(read_mutex_);
+  ASSIGN_OR_RETURN(Statement query, Statement::Prepare(reader_, R"sql(
+SELECT a.attempt, a.state, a.worker_id, a.worker_host, a.worker_build, a.started_ms,
+       COALESCE(a.ended_ms, 0), a.lease_expires_ms, a.error,
+       (SELECT COUNT(*) FROM episodes e WHERE e.job_id = a.job_id AND e.attempt = a.attempt)
+FROM attempts a WHERE a.job_id = ? ORDER BY a.attempt)sql"));
+  query.Bind(1, job_id);
+  std::vector<AttemptRecord> attempts;
+  while (true) {
+    ASSIGN_OR_RETURN(bool row, query.Step());
+    if (!row) break;
+    AttemptRecord a;
+    a.key = {job_id, static_cast<int>(query.ColumnInt(0))};
+    a.state = ParseAttemptState(query.ColumnText(1)).value_or(AttemptState::kRunning);
+    a.worker_id = query.ColumnText(2);
+    a.worker_host = query.ColumnText(3);
+    a.worker_build = query.ColumnText(4);
+    a.started_ms = query.ColumnInt(5);
+    a.ended_ms = query.ColumnInt(6);
+    a.lease_expires_ms = query.ColumnInt(7);
+    a.error = query.ColumnText(8);
+    a.episodes_stored = static_cast<int>(query.ColumnInt(9));
+    attempts.push_back(std::move(a));
+  }
+  return attempts;
+}
+
+absl::StatusOr<std::vector<EventRecord>> SqliteStore::ListEvents(int64_t job_id) {
+  std::lock_guard<std::mutex> lock(read_mutex_);
+  ASSIGN_OR_RETURN(Statement query,
+                   Statement::Prepare(reader_, "SELECT ms, attempt, kind, message FROM events "
+                                               "WHERE job_id = ? ORDER BY id"));
+  query.Bind(1, job_id);
+  std::vector<EventRecord> events;
+  while (true) {
+    ASSIGN_OR_RETURN(bool row, query.Step());
+    if (!row) break;
+    events.push_back({query.ColumnInt(0), job_id, static_cast<int>(query.ColumnInt(1)),
+                      query.ColumnText(2), query.ColumnText(3)});
+  }
+  return events;
+}
+
+absl::StatusOr<std::vector<ClaimCandidate>> SqliteStore::ListClaimCandidates(int limit) {
+  std::lock_guard<std::mutex> lock(read_mutex_);
+  ASSIGN_OR_RETURN(Statement query, Statement::Prepare(reader_, R"sql(
+SELECT j.id, j.attempts, s.id, s.max_concurrent,
+       (SELECT COUNT(*) FROM jobs r WHERE r.sweep_id = s.id AND r.state = 'running')
+FROM jobs j JOIN sweeps s ON s.id = j.sweep_id
+WHERE j.state = 'queued' AND s.state = 'running'
+ORDER BY s.id, j.ordinal LIMIT ?)sql"));
+  query.Bind(1, limit);
+  std::vector<ClaimCandidate> candidates;
+  while (true) {
+    ASSIGN_OR_RETURN(bool row, query.Step());
+    if (!row) break;
+    candidates.push_back({query.ColumnInt(0), static_cast<int>(query.ColumnInt(1)),
+                          query.ColumnInt(2), static_cast<int>(query.ColumnInt(3)),
+                          static_cast<int>(query.ColumnInt(4))});
+  }
+  return candidates;
+}
+
+absl::StatusOr<std::vector<LeaseKey>> SqliteStore::ListExpiredLeases(int64_t now_ms) {
+  std::lock_guard<std::mutex> lock(read_mutex_);
+  ASSIGN_OR_RETURN(Statement query,
+                   Statement::Prepare(reader_, "SELECT job_id, attempt FROM attempts WHERE "
+                                               "state = 'running' AND lease_expires_ms < ? "
+                                               "ORDER BY lease_expires_ms"));
+  query.Bind(1, now_ms);
+  std::vector<LeaseKey> keys;
+  while (true) {
+    ASSIGN_OR_RETURN(bool row, query.Step());
+    if (!row) break;
+    keys.push_back({query.ColumnInt(0), static_cast<int>(query.ColumnInt(1))});
+  }
+  return keys;
+}
+
+namespace {
+constexpr char kWorkerSelect[] = R"sql(
+SELECT w.worker_id, w.host, w.build, w.slots, w.first_seen_ms, w.last_seen_ms, w.draining,
+       (SELECT COUNT(*) FROM attempts a WHERE a.worker_id = w.worker_id AND a.state = 'running')
+FROM workers w)sql";
+
+WorkerRecord ReadWorkerRow(const Statement& query) {
+  WorkerRecord w;
+  w.identity.worker_id = query.ColumnText(0);
+  w.identity.host = query.ColumnText(1);
+  w.identity.build = query.ColumnText(2);
+  w.identity.slots = static_cast<int>(query.ColumnInt(3));
+  w.first_seen_ms = query.ColumnInt(4);
+  w.last_seen_ms = query.ColumnInt(5);
+  w.draining = query.ColumnInt(6) != 0;
+  w.running = static_cast<int>(query.ColumnInt(7));
+  return w;
+}
+}  // namespace
+
+absl::StatusOr<std::vector<WorkerRecord>> SqliteStore::ListWorkers() {
+  std::lock_guard<std::mutex> lock(read_mutex_);
+  ASSIGN_OR_RETURN(Statement query,
+                   Statement::Prepare(reader_, absl::StrCat(kWorkerSelect,
+                                                            " ORDER BY w.last_seen_ms DESC")));
+  std::vector<WorkerRecord> workers;
+  while (true) {
+    ASSIGN_OR_RETURN(bool row, query.Step());
+    if (!row) break;
+    workers.push_back(ReadWorkerRow(query));
+  }
+  return workers;
+}
+
+absl::StatusOr<WorkerRecord> SqliteStore::GetWorker(const std::string& worker_id) {
+  std::lock_guard<std::mutex> lock(read_mutex_);
+  ASSIGN_OR_RETURN(Statement query,
+                   Statement::Prepare(reader_, absl::StrCat(kWorkerSelect,
+                                                            " WHERE w.worker_id = ?")));
+  query.Bind(1, worker_id);
+  ASSIGN_OR_RETURN(bool row, query.Step());
+  if (!row) return absl::NotFoundError(absl::StrCat("no worker with id '", worker_id, "'"));
+  return ReadWorkerRow(query);
+}
+
+absl::StatusOr<std::vector<TrialResultRecord>> SqliteStore::ListTrialResults(
+    const std::string& sweep_name) {
+  std::lock_guard<std::mutex> lock(read_mutex_);
+  ASSIGN_OR_RETURN(Statement check, Statement::Prepare(reader_, "SELECT id FROM sweeps WHERE name = ?"));
+  check.Bind(1, sweep_name);
+  ASSIGN_OR_RETURN(bool found, check.Step());
+  if (!found) return absl::NotFoundError(absl::StrCat("no sweep named '", sweep_name, "'"));
+  const int64_t sweep_id = check.ColumnInt(0);
+  ASSIGN_OR_RETURN(Statement query, Statement::Prepare(reader_, R"sql(
+SELECT j.id, j.method, j.seed, j.variant, j.completed_attempt, j.success, j.final_eval_cost,
+       (SELECT COUNT(*) FROM episodes e WHERE e.job_id = j.id AND e.attempt = j.completed_attempt)
+FROM jobs j WHERE j.sweep_id = ? AND j.state = 'completed' ORDER BY j.ordinal)sql"));
+  query.Bind(1, sweep_id);
+  std::vector<TrialResultRecord> results;
+  while (true) {
+    ASSIGN_OR_RETURN(bool row, query.Step());
+    if (!row) break;
+    TrialResultRecord r;
+    r.job_id = query.ColumnInt(0);
+    r.method = query.ColumnText(1);
+    r.seed = query.ColumnText(2);
+    r.variant = query.ColumnText(3);
+    r.attempt = static_cast<int>(query.ColumnInt(4));
+    r.success = query.ColumnInt(5) != 0;
+    r.final_eval_cost = query.ColumnDouble(6);
+    r.episodes = static_cast<int>(query.ColumnInt(7));
+    results.push_back(std::move(r));
+  }
+  return results;
+}
+
+absl::Status SqliteStore::ExportEpisodes(
+    const std::string& sweep_name, bool all_attempts, int batch_size,
+    const std::function<absl::Status(std::vector<EpisodeRowRecord>)>& sink) {
+  // A connection of its own: a long export holds one read snapshot without
+  // blocking the other readers.
+  ASSIGN_OR_RETURN(Db db, Db::Open(path_, /*create=*/false, options_.busy_timeout_ms));
+  RETURN_IF_ERROR(db.Exec("BEGIN"));
+  ASSIGN_OR_RETURN(Statement check, Statement::Prepare(db, "SELECT id FROM sweeps WHERE name = ?"));
+  check.Bind(1, sweep_name);
+  ASSIGN_OR_RETURN(bool found, check.Step());
+  if (!found) return absl::NotFoundError(absl::StrCat("no sweep named '", sweep_name, "'"));
+  const int64_t sweep_id = check.ColumnInt(0);
+  ASSIGN_OR_RETURN(Statement query, Statement::Prepare(db, R"sql(
+SELECT e.job_id, e.attempt, j.method, j.seed, j.variant, e.episode, e.real_cost, e.eval_cost_mean,
+       e.eval_cost_std, e.predicted_cost, e.optimisation_seconds, e.details_json, e.reported_ms,
+       COALESCE(j.completed_attempt, 0) = e.attempt
+FROM episodes e JOIN jobs j ON j.id = e.job_id
+WHERE j.sweep_id = ? AND (? OR e.attempt = COALESCE(j.completed_attempt, j.attempts))
+ORDER BY e.job_id, e.attempt, e.episode)sql"));
+  query.Bind(1, sweep_id).Bind(2, all_attempts ? 1 : 0);
+  std::vector<EpisodeRowRecord> batch;
+  while (true) {
+    ASSIGN_OR_RETURN(bool row, query.Step());
+    if (!row) break;
+    EpisodeRowRecord r;
+    r.job_id = query.ColumnInt(0);
+    r.attempt = static_cast<int>(query.ColumnInt(1));
+    r.method = query.ColumnText(2);
+    r.seed = query.ColumnText(3);
+    r.variant = query.ColumnText(4);
+    r.episode.episode = static_cast<int>(query.ColumnInt(5));
+    r.episode.real_cost = query.ColumnDouble(6);
+    r.episode.eval_cost_mean = query.ColumnDouble(7);
+    r.episode.eval_cost_std = query.ColumnDouble(8);
+    r.episode.predicted_cost = query.ColumnDouble(9);
+    r.episode.optimisation_seconds = query.ColumnDouble(10);
+    r.episode.details_json = query.ColumnText(11);
+    r.reported_ms = query.ColumnInt(12);
+    r.final_attempt = query.ColumnInt(13) != 0;
+    batch.push_back(std::move(r));
+    if (static_cast<int>(batch.size()) >= batch_size) {
+      RETURN_IF_ERROR(sink(std::move(batch)));
+      batch.clear();
+    }
+  }
+  if (!batch.empty()) RETURN_IF_ERROR(sink(std::move(batch)));
+  return absl::OkStatus();
+}
+
+absl::StatusOr<StoreCounts> SqliteStore::Counts() {
+  std::lock_guard<std::mutex> lock(read_mutex_);
+  ASSIGN_OR_RETURN(Statement query, Statement::Prepare(reader_, R"sql(
+SELECT (SELECT COUNT(*) FROM sweeps),
+       (SELECT COUNT(*) FROM jobs WHERE state = 'queued'),
+       (SELECT COUNT(*) FROM jobs WHERE state = 'running'))sql"));
+  ASSIGN_OR_RETURN(bool row, query.Step());
+  StoreCounts counts;
+  if (row) {
+    counts.sweeps = static_cast<int>(query.ColumnInt(0));
+    counts.jobs_queued = static_cast<int>(query.ColumnInt(1));
+    counts.jobs_running = static_cast<int>(query.ColumnInt(2));
+  }
+  return counts;
+}
+
+absl::StatusOr<int64_t> SqliteStore::Backup(const std::string& path) {
+  std::error_code error;
+  if (std::filesystem::exists(path, error)) {
+    return absl::AlreadyExistsError(absl::StrCat("backup target ", path, " already exists"));
+  }
+  // Copy into a temporary name and rename, so a crash never leaves a
+  // half-written file under the requested name.
+  const std::string temporary = absl::StrCat(path, ".partial");
+  std::filesystem::remove(temporary, error);
+  ASSIGN_OR_RETURN(Db source, Db::Open(path_, /*create=*/false, options_.busy_timeout_ms));
+  absl::Status status;
+  {
+    ASSIGN_OR_RETURN(Db destination, Db::Open(temporary, /*create=*/true, options_.busy_timeout_ms));
+    sqlite3_backup* backup = sqlite3_backup_init(destination.raw(), "main", source.raw(), "main");
+    if (backup == nullptr) {
+      return internal::SqliteError(sqlite3_errcode(destination.raw()), "backup init",
+                                   sqlite3_errmsg(destination.raw()));
+    }
+    // One step copies everything from one read snapshot: the copy is
+    // consistent even while the writer keeps committing.
+    const int rc = sqlite3_backup_step(backup, -1);
+    sqlite3_backup_finish(backup);
+    if (rc != SQLITE_DONE) {
+      status = internal::SqliteError(rc, "backup step", sqlite3_errstr(rc));
+    } else {
+      status = destination.Exec("PRAGMA journal_mode=DELETE");
+    }
+  }
+  if (!status.ok()) {
+    std::filesystem::remove(temporary, error);
+    return status;
+  }
+  std::filesystem::rename(temporary, path, error);
+  if (error) {
+    return absl::InternalError(absl::StrCat("backup: rename ", temporary, " -> ", path, ": ",
+                                            error.message()));
+  }
+  const auto size = std::filesystem::file_size(path, error);
+  return error ? int64_t{0} : static_cast<int64_t>(size);
+}
+
+}  // namespace totalgrad::storage

@@ -1,0 +1,336 @@
+// The coordinator's durable state: sweeps, jobs, attempts (= leases),
+// episodes, workers and an event log. The schema is documented in
+// docs/results_schema.md.
+//
+// Store is an interface (leveldb's DB/Env seam) so tests can wrap it, e.g.
+// with a fault-injecting store. SqliteStore (sqlite_store.h) is the real one.
+//
+// Contract shared by every write:
+//   * It is one transaction: when it returns OK the change is committed
+//     durably; when it returns an error nothing changed.
+//   * It takes `now_ms` from the caller (the coordinator's clock); the store
+//     never reads a clock itself.
+//   * Fenced writes name a lease (job id + attempt). If that attempt is not
+//     the job's open attempt they return ABORTED and change nothing.
+// Errors common to all calls: Unavailable (database busy), DataLoss
+// (corruption), Internal (other SQLite errors).
+//
+// Threading: implementations are safe to call from many threads. Writes are
+// serialised (one writer); reads may run concurrently with a write and see
+// the last committed state.
+#ifndef TOTALGRAD_SERVER_STORAGE_STORE_H_
+#define TOTALGRAD_SERVER_STORAGE_STORE_H_
+
+#include <cmath>
+#include <cstdint>
+#include <functional>
+#include <limits>
+#include <optional>
+#include <string>
+#include "absl/strings/string_view.h"
+#include <utility>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+
+namespace totalgrad::storage {
+
+enum class SweepState { kRunning, kPaused, kCancelled };
+enum class JobState { kQueued, kRunning, kCompleted, kFailed, kCancelled };
+enum class AttemptState { kRunning, kCompleted, kFailed, kLeaseLost, kReleased, kCancelled };
+
+// Names as stored in the database ("running", "lease_lost", ...).
+absl::string_view ToString(SweepState state);
+absl::string_view ToString(JobState state);
+absl::string_view ToString(AttemptState state);
+std::optional<SweepState> ParseSweepState(absl::string_view text);
+std::optional<JobState> ParseJobState(absl::string_view text);
+std::optional<AttemptState> ParseAttemptState(absl::string_view text);
+
+// Trial options as (key, canonical text), in application order.
+using OptionList = std::vector<std::pair<std::string, std::string>>;
+
+inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+struct LeaseKey {
+  int64_t job_id = 0;
+  int attempt = 0;  // the lease's epoch
+  friend bool operator==(const LeaseKey&, const LeaseKey&) = default;
+};
+
+struct WorkerIdentity {
+  std::string worker_id;
+  std::string host;
+  std::string build;
+  int slots = 1;
+};
+
+// One finished episode. NaN = no value (stored as NULL).
+struct Episode {
+  int episode = 0;
+  double real_cost = kNaN;
+  double eval_cost_mean = kNaN;
+  double eval_cost_std = kNaN;
+  double predicted_cost = kNaN;
+  double optimisation_seconds = kNaN;
+  std::string details_json;
+};
+
+struct NewJob {
+  std::string method;
+  std::string seed;
+  std::string variant;
+  OptionList options;
+  int episodes_expected = 0;
+};
+
+struct NewSweep {
+  std::string name;
+  std::string description;
+  std::string canonical_spec;
+  std::string spec_hash;
+  std::string source_name;
+  std::string source_text;
+  std::string coordinator_build;
+  int max_attempts = 3;
+  int max_lost_leases = 20;
+  int max_concurrent = 0;
+  std::vector<NewJob> jobs;
+};
+
+struct SweepRecord {
+  int64_t id = 0;
+  std::string name;
+  std::string description;
+  SweepState state = SweepState::kRunning;
+  std::string canonical_spec;
+  std::string spec_hash;
+  std::string source_name;
+  std::string coordinator_build;
+  int64_t created_ms = 0;
+  int max_attempts = 0;
+  int max_lost_leases = 0;
+  int max_concurrent = 0;
+  int jobs_total = 0;
+  int jobs_queued = 0;
+  int jobs_running = 0;
+  int jobs_completed = 0;
+  int jobs_failed = 0;
+  int jobs_cancelled = 0;
+  int64_t episodes_stored = 0;    // for each job's counting attempt
+  int64_t episodes_expected = 0;  // sum over jobs
+  bool finished() const { return jobs_queued == 0 && jobs_running == 0; }
+};
+
+struct JobRecord {
+  int64_t id = 0;
+  int64_t sweep_id = 0;
+  std::string sweep_name;
+  SweepState sweep_state = SweepState::kRunning;
+  int ordinal = 0;
+  std::string method;
+  std::string seed;
+  std::string variant;
+  OptionList options;
+  JobState state = JobState::kQueued;
+  int attempts = 0;  // leases granted; the latest attempt's number
+  int failures = 0;
+  int lost_leases = 0;
+  int max_attempts = 0;     // of its sweep
+  int max_lost_leases = 0;  // of its sweep
+  int episodes_expected = 0;
+  int episodes_stored = 0;  // of the latest attempt
+  std::string worker_id;    // of the open attempt, if running
+  std::string last_error;
+  int completed_attempt = 0;  // 0 unless completed
+  bool success = false;
+  double final_eval_cost = kNaN;
+};
+
+struct AttemptRecord {
+  LeaseKey key;
+  AttemptState state = AttemptState::kRunning;
+  std::string worker_id;
+  std::string worker_host;
+  std::string worker_build;
+  int64_t started_ms = 0;
+  int64_t ended_ms = 0;  // 0 while running
+  int64_t lease_expires_ms = 0;
+  std::string error;
+  int episodes_stored = 0;
+};
+
+struct EventRecord {
+  int64_t ms = 0;
+  int64_t job_id = 0;  // 0: sweep-level event
+  int attempt = 0;
+  std::string kind;
+  std::string message;
+};
+
+struct WorkerRecord {
+  WorkerIdentity identity;
+  int64_t first_seen_ms = 0;
+  int64_t last_seen_ms = 0;
+  bool draining = false;
+  int running = 0;  // open attempts
+};
+
+struct TrialResultRecord {
+  int64_t job_id = 0;
+  std::string method;
+  std::string seed;
+  std::string variant;
+  int attempt = 0;
+  bool success = false;
+  double final_eval_cost = kNaN;
+  int episodes = 0;
+};
+
+struct EpisodeRowRecord {
+  int64_t job_id = 0;
+  int attempt = 0;
+  std::string method;
+  std::string seed;
+  std::string variant;
+  Episode episode;
+  int64_t reported_ms = 0;
+  bool final_attempt = false;
+};
+
+// A queued job that could be leased now, with what the scheduler needs to
+// decide (the sweep's concurrency limit and how many of its jobs run).
+struct ClaimCandidate {
+  int64_t job_id = 0;
+  int attempts = 0;
+  int64_t sweep_id = 0;
+  int max_concurrent = 0;
+  int sweep_running = 0;
+};
+
+struct JobFilter {
+  std::string sweep_name;        // empty: all
+  std::vector<JobState> states;  // empty: all
+  int64_t after_job_id = 0;
+  int limit = 1000;
+};
+
+struct StoreCounts {
+  int sweeps = 0;
+  int jobs_queued = 0;
+  int jobs_running = 0;
+};
+
+// How an attempt ends (EndAttempt).
+struct AttemptEnd {
+  LeaseKey key;
+  std::string worker_id;         // must own the attempt
+  AttemptState attempt_state = AttemptState::kCompleted;  // not kRunning
+  JobState job_state = JobState::kCompleted;  // the job's next state
+  std::vector<Episode> episodes;  // stored first, in the same transaction
+  std::string error;              // kept as the attempt's and job's error
+  int failures_delta = 0;         // added to the job's failure count
+  int lost_leases_delta = 0;      // added to the job's lost-lease count
+  // Completion only: all episodes 0..episodes_total-1 must be stored.
+  int episodes_total = 0;
+  bool success = false;
+  double final_eval_cost = kNaN;
+  int64_t now_ms = 0;
+};
+
+enum class EndOutcome {
+  kApplied,
+  // The attempt had already ended the same way; nothing changed.
+  kAlreadyEnded,
+};
+
+class Store {
+ public:
+  virtual ~Store() = default;
+
+  // ---- Writes ----
+
+  // Stores the sweep and its jobs (all queued, ordinals in vector order).
+  // If a sweep with that name exists: same spec_hash -> returns it with
+  // *created = false and stores nothing; different hash -> AlreadyExists.
+  virtual absl::StatusOr<SweepRecord> CreateSweep(const NewSweep& sweep, int64_t now_ms,
+                                                  bool* created) = 0;
+
+  // Sets a sweep's state. kCancelled also cancels its queued and running jobs
+  // (open attempts stay open until the worker answers the CANCEL directive or
+  // the lease is lost). NotFound if no such sweep.
+  virtual absl::Status SetSweepState(const std::string& name, SweepState state,
+                                     int64_t now_ms) = 0;
+
+  // Opens attempt `key.attempt` of a queued job for `worker`: the job becomes
+  // running with attempts = key.attempt. FailedPrecondition (nothing changed)
+  // unless the job is queued with attempts == key.attempt - 1.
+  virtual absl::Status StartAttempt(const LeaseKey& key, const WorkerIdentity& worker,
+                                    int64_t now_ms, int64_t lease_expires_ms) = 0;
+
+  // Stores episodes of an open attempt owned by `worker_id` (repeats are
+  // ignored) and, if given, moves its lease expiry. Returns the number of
+  // episodes stored for the attempt. Aborted: stale lease or another worker's;
+  // InvalidArgument: an episode number outside [0, episodes_expected).
+  virtual absl::StatusOr<int> StoreEpisodes(const LeaseKey& key, const std::string& worker_id,
+                                            const std::vector<Episode>& episodes, int64_t now_ms,
+                                            std::optional<int64_t> lease_expires_ms) = 0;
+
+  // Ends an attempt as `end` says. Aborted if the attempt is not open (unless
+  // it already ended with the same attempt state: kAlreadyEnded), or belongs
+  // to another worker. For kCompleted, FailedPrecondition names the missing
+  // episodes if 0..episodes_total-1 are not all stored (nothing changes).
+  virtual absl::StatusOr<EndOutcome> EndAttempt(const AttemptEnd& end) = 0;
+
+  // Puts a failed or cancelled job back in the queue with zeroed failure and
+  // lost-lease counts. FailedPrecondition otherwise, or if its sweep is
+  // cancelled; NotFound if no such job.
+  virtual absl::Status RetryJob(int64_t job_id, int64_t now_ms) = 0;
+
+  // Sets the lease expiry of every open attempt to at least `lease_expires_ms`
+  // (coordinator start-up, so running workers can reattach). Returns how many.
+  virtual absl::StatusOr<int> ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms) = 0;
+
+  // Inserts or refreshes a worker (host, build, slots, last seen).
+  virtual absl::Status TouchWorker(const WorkerIdentity& worker, int64_t now_ms) = 0;
+  // NotFound if the worker was never seen.
+  virtual absl::Status SetWorkerDraining(const std::string& worker_id, bool draining,
+                                         int64_t now_ms) = 0;
+
+  // ---- Reads ----
+
+  virtual absl::StatusOr<SweepRecord> GetSweep(const std::string& name) = 0;
+  // Newest first.
+  virtual absl::StatusOr<std::vector<SweepRecord>> ListSweeps() = 0;
+  virtual absl::StatusOr<JobRecord> GetJob(int64_t job_id) = 0;
+  virtual absl::StatusOr<std::vector<JobRecord>> ListJobs(const JobFilter& filter) = 0;
+  virtual absl::StatusOr<std::vector<AttemptRecord>> ListAttempts(int64_t job_id) = 0;
+  virtual absl::StatusOr<std::vector<EventRecord>> ListEvents(int64_t job_id) = 0;
+  // Queued jobs of running sweeps, oldest sweep first then ordinal; at most `limit`.
+  virtual absl::StatusOr<std::vector<ClaimCandidate>> ListClaimCandidates(int limit) = 0;
+  // Open attempts whose lease expired before `now_ms`.
+  virtual absl::StatusOr<std::vector<LeaseKey>> ListExpiredLeases(int64_t now_ms) = 0;
+  virtual absl::StatusOr<std::vector<WorkerRecord>> ListWorkers() = 0;
+  // NotFound if never seen.
+  virtual absl::StatusOr<WorkerRecord> GetWorker(const std::string& worker_id) = 0;
+  // Completed jobs of a sweep. NotFound if no such sweep.
+  virtual absl::StatusOr<std::vector<TrialResultRecord>> ListTrialResults(
+      const std::string& sweep_name) = 0;
+  // Calls `sink` with batches of at most `batch_size` rows ordered by job,
+  // attempt, episode; stops at the first non-OK status `sink` returns and
+  // returns it. Only each job's counting attempt (completed, else latest)
+  // unless `all_attempts`. NotFound if no such sweep.
+  virtual absl::Status ExportEpisodes(
+      const std::string& sweep_name, bool all_attempts, int batch_size,
+      const std::function<absl::Status(std::vector<EpisodeRowRecord>)>& sink) = 0;
+  virtual absl::StatusOr<StoreCounts> Counts() = 0;
+
+  // Writes a consistent copy of the database to `path` (which must not
+  // exist) while the store stays usable. Returns its size in bytes.
+  virtual absl::StatusOr<int64_t> Backup(const std::string& path) = 0;
+};
+
+}  // namespace totalgrad::storage
+
+#endif  // TOTALGRAD_SERVER_STORAGE_STORE_H_

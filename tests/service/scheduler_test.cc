@@ -1,0 +1,433 @@
+// The scheduler on a real SQLite store with a fake clock: exactly-once claims,
+// lease expiry and fencing, duplicate delivery, attempt budgets, pause,
+// cancel, drain, restart recovery, store faults.
+#include "server/scheduler/scheduler.h"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <set>
+#include <thread>
+
+#include "absl/strings/str_cat.h"
+#include "server/storage/sqlite_store.h"
+#include "tests/service/service_testutil.h"
+
+namespace totalgrad::scheduler {
+namespace {
+
+using storage::AttemptState;
+using storage::Episode;
+using storage::JobRecord;
+using storage::JobState;
+using storage::LeaseKey;
+using storage::SweepState;
+using ::totalgrad::testing::FaultyStore;
+using ::totalgrad::testing::MakeEpisode;
+using ::totalgrad::testing::MakeSweep;
+using ::totalgrad::testing::MakeTempDir;
+using ::totalgrad::testing::MakeWorker;
+
+class SchedulerTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    path_ = MakeTempDir() + "/scheduler.db";
+    auto store = storage::SqliteStore::Open(path_);
+    ASSERT_TRUE(store.ok()) << store.status();
+    store_ = std::move(*store);
+    faulty_ = std::make_unique<FaultyStore>(store_.get());
+    options_.heartbeat_interval = absl::Seconds(15);
+    options_.lease_timeout = absl::Seconds(90);
+    scheduler_ = std::make_unique<Scheduler>(faulty_.get(), &clock_, options_);
+  }
+  void Submit(const std::string& name, int jobs, int episodes, int max_attempts = 3,
+              int max_lost = 20, int max_concurrent = 0) {
+    storage::NewSweep sweep = MakeSweep(name, jobs, episodes);
+    sweep.max_attempts = max_attempts;
+    sweep.max_lost_leases = max_lost;
+    sweep.max_concurrent = max_concurrent;
+    bool created = false;
+    auto result = scheduler_->SubmitSweep(sweep, &created);
+    ASSERT_TRUE(result.ok()) << result.status();
+  }
+  Lease MustAcquire(const std::string& worker) {
+    auto lease = scheduler_->TryAcquire(MakeWorker(worker));
+    EXPECT_TRUE(lease.ok()) << lease.status();
+    EXPECT_TRUE(lease.ok() && lease->has_value()) << "no lease for " << worker;
+    return lease.ok() && lease->has_value() ? **lease : Lease{};
+  }
+  bool NothingToAcquire(const std::string& worker) {
+    auto lease = scheduler_->TryAcquire(MakeWorker(worker));
+    EXPECT_TRUE(lease.ok()) << lease.status();
+    return lease.ok() && !lease->has_value();
+  }
+  JobRecord Job(int64_t id) {
+    auto job = store_->GetJob(id);
+    EXPECT_TRUE(job.ok()) << job.status();
+    return job.ok() ? *job : JobRecord{};
+  }
+  std::vector<Episode> Episodes(int from, int to) {
+    std::vector<Episode> episodes;
+    for (int e = from; e < to; ++e) episodes.push_back(MakeEpisode(e, 10 + e));
+    return episodes;
+  }
+
+  std::string path_;
+  FakeClock clock_;
+  SchedulerOptions options_;
+  std::unique_ptr<storage::SqliteStore> store_;
+  std::unique_ptr<FaultyStore> faulty_;
+  std::unique_ptr<Scheduler> scheduler_;
+};
+
+TEST(SchedulerOptionsTest, ValidateNamesTheBadField) {
+  SchedulerOptions options;
+  TG_EXPECT_OK(options.Validate());
+  options.lease_timeout = absl::Seconds(10);
+  const absl::Status status = options.Validate();
+  EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(status.message().find("lease_timeout"), std::string::npos) << status;
+}
+
+// T1: many workers racing for few jobs get each job exactly once.
+TEST_F(SchedulerTest, ConcurrentWorkersClaimEachJobExactlyOnce) {
+  constexpr int kJobs = 12;
+  constexpr int kWorkers = 8;
+  Submit("s", kJobs, 2);
+  std::mutex mutex;
+  std::vector<int64_t> granted;
+  std::vector<std::thread> threads;
+  for (int w = 0; w < kWorkers; ++w) {
+    threads.emplace_back([&, w] {
+      while (true) {
+        auto lease = scheduler_->TryAcquire(MakeWorker(absl::StrCat("w", w)));
+        ASSERT_TRUE(lease.ok()) << lease.status();
+        if (!lease->has_value()) return;
+        std::lock_guard<std::mutex> lock(mutex);
+        granted.push_back((*lease)->key.job_id);
+      }
+    });
+  }
+  for (auto& t : threads) t.join();
+  EXPECT_EQ(granted.size(), static_cast<size_t>(kJobs));
+  EXPECT_EQ(std::set<int64_t>(granted.begin(), granted.end()).size(), static_cast<size_t>(kJobs));
+}
+
+TEST_F(SchedulerTest, LeaseCarriesTheJobAndTimings) {
+  Submit("s", 1, 3);
+  const Lease lease = MustAcquire("w1");
+  EXPECT_EQ(lease.key.attempt, 1);
+  EXPECT_EQ(lease.job.method, "RP");
+  EXPECT_EQ(lease.job.seed, "1");
+  EXPECT_EQ(lease.job.episodes_expected, 3);
+  EXPECT_EQ(lease.job.options.size(), 3u);
+  EXPECT_EQ(lease.heartbeat_interval_ms, 15'000);
+  EXPECT_EQ(lease.lease_timeout_ms, 90'000);
+  EXPECT_TRUE(NothingToAcquire("w2"));
+}
+
+// T2: a lease without heartbeats is lost on the coordinator's clock, the job
+// goes back to the queue, and the old worker's late writes are refused.
+TEST_F(SchedulerTest, SilentLeaseExpiresAndLateWritesAreRefused) {
+  Submit("s", 1, 3);
+  const Lease first = MustAcquire("w1");
+  TG_ASSERT_OK(scheduler_->Heartbeat("w1", first.key, Episodes(0, 1)));
+  clock_.AdvanceMs(89'000);
+  TG_ASSERT_OK_AND_ASSIGN(int expired, scheduler_->ExpireLeases());
+  EXPECT_EQ(expired, 0);
+  clock_.AdvanceMs(2'000);
+  TG_ASSERT_OK_AND_ASSIGN(expired, scheduler_->ExpireLeases());
+  EXPECT_EQ(expired, 1);
+  JobRecord job = Job(first.key.job_id);
+  EXPECT_EQ(job.state, JobState::kQueued);
+  EXPECT_EQ(job.lost_leases, 1);
+  EXPECT_EQ(job.failures, 0);
+
+  const Lease second = MustAcquire("w2");
+  EXPECT_EQ(second.key.job_id, first.key.job_id);
+  EXPECT_EQ(second.key.attempt, 2);
+
+  auto late_beat = scheduler_->Heartbeat("w1", first.key, Episodes(1, 2));
+  EXPECT_EQ(late_beat.status().code(), absl::StatusCode::kAborted) << late_beat.status();
+  auto late_complete = scheduler_->Complete("w1", first.key, Episodes(1, 3), 3, true, 1.0);
+  EXPECT_EQ(late_complete.code(), absl::StatusCode::kAborted) << late_complete;
+  auto late_fail = scheduler_->Fail("w1", first.key, {}, "boom");
+  EXPECT_EQ(late_fail.status().code(), absl::StatusCode::kAborted);
+
+  job = Job(first.key.job_id);
+  EXPECT_EQ(job.state, JobState::kRunning);
+  EXPECT_EQ(job.worker_id, "w2");
+  EXPECT_EQ(job.episodes_stored, 0);
+  TG_ASSERT_OK_AND_ASSIGN(auto attempts, store_->ListAttempts(first.key.job_id));
+  ASSERT_EQ(attempts.size(), 2u);
+  EXPECT_EQ(attempts[0].state, AttemptState::kLeaseLost);
+  EXPECT_EQ(attempts[0].episodes_stored, 1);
+}
+
+TEST_F(SchedulerTest, HeartbeatsKeepALeaseAlive) {
+  Submit("s", 1, 3);
+  const Lease lease = MustAcquire("w1");
+  for (int i = 0; i < 5; ++i) {
+    clock_.AdvanceMs(80'000);
+    TG_ASSERT_OK_AND_ASSIGN(HeartbeatResult beat, scheduler_->Heartbeat("w1", lease.key, {}));
+    EXPECT_EQ(beat.directive, Directive::kContinue);
+    TG_ASSERT_OK_AND_ASSIGN(int expired, scheduler_->ExpireLeases());
+    EXPECT_EQ(expired, 0);
+  }
+}
+
+// T3: every worker call delivered twice leaves the same state as once.
+TEST_F(SchedulerTest, DuplicateDeliveryIsANoOp) {
+  Submit("s", 2, 3);
+  const Lease a = MustAcquire("w1");
+  const Lease b = MustAcquire("w2");
+  for (int repeat = 0; repeat < 2; ++repeat) {
+    TG_ASSERT_OK_AND_ASSIGN(HeartbeatResult beat, scheduler_->Heartbeat("w1", a.key, Episodes(0, 2)));
+    EXPECT_EQ(beat.episodes_stored, 2);
+  }
+  for (int repeat = 0; repeat < 2; ++repeat) {
+    TG_ASSERT_OK(scheduler_->Complete("w1", a.key, Episodes(2, 3), 3, true, 4.5));
+  }
+  for (int repeat = 0; repeat < 2; ++repeat) {
+    TG_ASSERT_OK_AND_ASSIGN(bool requeued, scheduler_->Fail("w2", b.key, Episodes(0, 1), "diverged"));
+    EXPECT_TRUE(requeued);
+  }
+  // A beat overtaken by its own completion is refused and changes nothing.
+  EXPECT_EQ(scheduler_->Heartbeat("w1", a.key, Episodes(0, 3)).status().code(),
+            absl::StatusCode::kAborted);
+  const JobRecord done = Job(a.key.job_id);
+  EXPECT_EQ(done.state, JobState::kCompleted);
+  EXPECT_EQ(done.episodes_stored, 3);
+  EXPECT_EQ(done.final_eval_cost, 4.5);
+  const JobRecord failed_once = Job(b.key.job_id);
+  EXPECT_EQ(failed_once.state, JobState::kQueued);
+  EXPECT_EQ(failed_once.failures, 1);  // not 2
+  TG_ASSERT_OK_AND_ASSIGN(auto sweep, store_->GetSweep("s"));
+  EXPECT_EQ(sweep.jobs_completed, 1);
+}
+
+// T7: application failures use max_attempts; lost leases and releases do not.
+TEST_F(SchedulerTest, FailuresCountAgainstMaxAttemptsButLostLeasesDoNot) {
+  Submit("s", 1, 2, /*max_attempts=*/2, /*max_lost=*/20);
+  Lease lease = MustAcquire("w1");
+  for (int i = 0; i < 3; ++i) {  // three lost leases
+    clock_.AdvanceMs(91'000);
+    TG_ASSERT_OK(scheduler_->ExpireLeases());
+    lease = MustAcquire("w1");
+  }
+  TG_ASSERT_OK(scheduler_->Release("w1", lease.key, "drain"));  // and a release
+  lease = MustAcquire("w1");
+  TG_ASSERT_OK_AND_ASSIGN(bool requeued, scheduler_->Fail("w1", lease.key, {}, "first"));
+  EXPECT_TRUE(requeued);
+  lease = MustAcquire("w1");
+  TG_ASSERT_OK_AND_ASSIGN(requeued, scheduler_->Fail("w1", lease.key, {}, "second"));
+  EXPECT_FALSE(requeued);
+  const JobRecord job = Job(lease.key.job_id);
+  EXPECT_EQ(job.state, JobState::kFailed);
+  EXPECT_EQ(job.failures, 2);
+  EXPECT_EQ(job.lost_leases, 4);
+  EXPECT_EQ(job.attempts, 6);
+  EXPECT_EQ(job.last_error, "second");
+  EXPECT_TRUE(NothingToAcquire("w1"));
+}
+
+TEST_F(SchedulerTest, APoisonLeaseLoserStopsAtMaxLostLeases) {
+  Submit("s", 1, 2, /*max_attempts=*/3, /*max_lost=*/2);
+  MustAcquire("w1");
+  clock_.AdvanceMs(91'000);
+  TG_ASSERT_OK(scheduler_->ExpireLeases());
+  const Lease second = MustAcquire("w1");
+  clock_.AdvanceMs(91'000);
+  TG_ASSERT_OK(scheduler_->ExpireLeases());
+  const JobRecord job = Job(second.key.job_id);
+  EXPECT_EQ(job.state, JobState::kFailed);
+  EXPECT_NE(job.last_error.find("gave up after 2 lost or released leases"), std::string::npos)
+      << job.last_error;
+}
+
+TEST_F(SchedulerTest, RetryGivesAFailedJobAFreshBudget) {
+  Submit("s", 1, 2, /*max_attempts=*/1);
+  Lease lease = MustAcquire("w1");
+  TG_ASSERT_OK(scheduler_->Fail("w1", lease.key, {}, "bad"));
+  EXPECT_EQ(Job(lease.key.job_id).state, JobState::kFailed);
+  TG_ASSERT_OK_AND_ASSIGN(JobRecord retried, scheduler_->RetryJob(lease.key.job_id));
+  EXPECT_EQ(retried.state, JobState::kQueued);
+  lease = MustAcquire("w1");
+  EXPECT_EQ(lease.key.attempt, 2);
+  EXPECT_EQ(scheduler_->RetryJob(lease.key.job_id).status().code(),
+            absl::StatusCode::kFailedPrecondition);
+}
+
+TEST_F(SchedulerTest, PausedSweepsHandOutNothingButRunningTrialsContinue) {
+  Submit("s", 2, 2);
+  const Lease running = MustAcquire("w1");
+  TG_ASSERT_OK(scheduler_->SetSweepState("s", SweepState::kPaused));
+  EXPECT_TRUE(NothingToAcquire("w2"));
+  TG_ASSERT_OK_AND_ASSIGN(HeartbeatResult beat,
+                          scheduler_->Heartbeat("w1", running.key, Episodes(0, 2)));
+  EXPECT_EQ(beat.directive, Directive::kContinue);
+  TG_ASSERT_OK(scheduler_->Complete("w1", running.key, {}, 2, false, 30));
+  TG_ASSERT_OK(scheduler_->SetSweepState("s", SweepState::kRunning));
+  MustAcquire("w2");
+}
+
+TEST_F(SchedulerTest, CancelTellsRunningTrialsToStopAndCannotBeUndone) {
+  Submit("s", 3, 2);
+  const Lease running = MustAcquire("w1");
+  TG_ASSERT_OK_AND_ASSIGN(auto sweep, scheduler_->SetSweepState("s", SweepState::kCancelled));
+  EXPECT_EQ(sweep.jobs_cancelled, 3);
+  TG_ASSERT_OK_AND_ASSIGN(HeartbeatResult beat,
+                          scheduler_->Heartbeat("w1", running.key, Episodes(0, 1)));
+  EXPECT_EQ(beat.directive, Directive::kCancel);
+  TG_ASSERT_OK(scheduler_->Release("w1", running.key, "cancelled"));
+  TG_ASSERT_OK(scheduler_->Release("w1", running.key, "cancelled"));  // repeated: no-op
+  TG_ASSERT_OK_AND_ASSIGN(auto attempts, store_->ListAttempts(running.key.job_id));
+  EXPECT_EQ(attempts[0].state, AttemptState::kCancelled);
+  EXPECT_EQ(Job(running.key.job_id).state, JobState::kCancelled);
+  EXPECT_EQ(Job(running.key.job_id).lost_leases, 0);
+  EXPECT_TRUE(NothingToAcquire("w2"));
+  EXPECT_EQ(scheduler_->SetSweepState("s", SweepState::kRunning).status().code(),
+            absl::StatusCode::kFailedPrecondition);
+  EXPECT_EQ(scheduler_->SetSweepState("missing", SweepState::kPaused).status().code(),
+            absl::StatusCode::kNotFound);
+}
+
+TEST_F(SchedulerTest, DrainingWorkerGetsDrainAndNoNewLeases) {
+  Submit("s", 2, 2);
+  const Lease lease = MustAcquire("w1");
+  TG_ASSERT_OK(scheduler_->DrainWorker("w1"));
+  TG_ASSERT_OK_AND_ASSIGN(HeartbeatResult beat, scheduler_->Heartbeat("w1", lease.key, {}));
+  EXPECT_EQ(beat.directive, Directive::kDrain);
+  EXPECT_TRUE(NothingToAcquire("w1"));
+  MustAcquire("w2");
+  EXPECT_EQ(scheduler_->DrainWorker("never-seen").status().code(), absl::StatusCode::kNotFound);
+}
+
+TEST_F(SchedulerTest, MaxConcurrentLimitsRunningJobsPerSweep) {
+  Submit("s", 4, 2, 3, 20, /*max_concurrent=*/2);
+  const Lease a = MustAcquire("w1");
+  MustAcquire("w2");
+  EXPECT_TRUE(NothingToAcquire("w3"));
+  TG_ASSERT_OK(scheduler_->Complete("w1", a.key, Episodes(0, 2), 2, true, 1));
+  MustAcquire("w3");
+}
+
+// A coordinator restart: leases that look expired by the clock are extended
+// by one lease timeout, so workers that kept running can reattach.
+TEST_F(SchedulerTest, RecoverExtendsOpenLeasesAfterARestart) {
+  Submit("s", 1, 2);
+  const Lease lease = MustAcquire("w1");
+  clock_.AdvanceMs(200'000);  // the coordinator was down for 200 s
+  scheduler_ = std::make_unique<Scheduler>(faulty_.get(), &clock_, options_);
+  TG_ASSERT_OK_AND_ASSIGN(int extended, scheduler_->Recover());
+  EXPECT_EQ(extended, 1);
+  TG_ASSERT_OK_AND_ASSIGN(int expired, scheduler_->ExpireLeases());
+  EXPECT_EQ(expired, 0);
+  TG_ASSERT_OK(scheduler_->Heartbeat("w1", lease.key, Episodes(0, 2)));
+  TG_ASSERT_OK(scheduler_->Complete("w1", lease.key, {}, 2, true, 2));
+  EXPECT_EQ(Job(lease.key.job_id).state, JobState::kCompleted);
+}
+
+TEST_F(SchedulerTest, RecoveredLeaseStillExpiresIfTheWorkerIsGone) {
+  Submit("s", 1, 2);
+  const Lease lease = MustAcquire("w1");
+  clock_.AdvanceMs(200'000);
+  TG_ASSERT_OK(scheduler_->Recover());
+  clock_.AdvanceMs(91'000);
+  TG_ASSERT_OK_AND_ASSIGN(int expired, scheduler_->ExpireLeases());
+  EXPECT_EQ(expired, 1);
+  EXPECT_EQ(Job(lease.key.job_id).state, JobState::kQueued);
+}
+
+// A write that fails before commit leaves the job claimable; nothing leaks.
+TEST_F(SchedulerTest, StoreFailureBeforeCommitLosesNothing) {
+  Submit("s", 1, 2);
+  faulty_->FailNext("StartAttempt", absl::UnavailableError("disk hiccup"));
+  auto failed = scheduler_->TryAcquire(MakeWorker("w1"));
+  EXPECT_EQ(failed.status().code(), absl::StatusCode::kUnavailable);
+  const Lease lease = MustAcquire("w1");
+  EXPECT_EQ(lease.key.attempt, 1);
+
+  faulty_->FailNext("StoreEpisodes", absl::UnavailableError("disk hiccup"));
+  EXPECT_FALSE(scheduler_->Heartbeat("w1", lease.key, Episodes(0, 1)).ok());
+  EXPECT_EQ(Job(lease.key.job_id).episodes_stored, 0);
+  TG_ASSERT_OK(scheduler_->Heartbeat("w1", lease.key, Episodes(0, 1)));
+  EXPECT_EQ(Job(lease.key.job_id).episodes_stored, 1);
+}
+
+// A reply lost after commit: the worker retries and gets OK, not a second effect.
+TEST_F(SchedulerTest, LostReplyAfterCommitIsSafeToRetry) {
+  Submit("s", 1, 2);
+  const Lease lease = MustAcquire("w1");
+  TG_ASSERT_OK(scheduler_->Heartbeat("w1", lease.key, Episodes(0, 2)));
+  faulty_->FailNext("EndAttempt", absl::DeadlineExceededError("reply lost"),
+                    FaultyStore::When::kAfterCommit);
+  EXPECT_FALSE(scheduler_->Complete("w1", lease.key, {}, 2, true, 1).ok());
+  TG_ASSERT_OK(scheduler_->Complete("w1", lease.key, {}, 2, true, 1));
+  EXPECT_EQ(Job(lease.key.job_id).state, JobState::kCompleted);
+  EXPECT_EQ(faulty_->faults_fired(), 1);
+}
+
+TEST_F(SchedulerTest, BadReportsAreRefusedWithTheFieldNamed) {
+  Submit("s", 1, 3);
+  const Lease lease = MustAcquire("w1");
+  std::vector<Episode> bad = Episodes(0, 1);
+  bad[0].real_cost = std::numeric_limits<double>::infinity();
+  auto inf = scheduler_->Heartbeat("w1", lease.key, bad);
+  EXPECT_EQ(inf.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(inf.status().message().find("real_cost is infinite"), std::string::npos);
+  bad[0].real_cost = std::nan("");
+  EXPECT_EQ(scheduler_->Heartbeat("w1", lease.key, bad).status().code(),
+            absl::StatusCode::kInvalidArgument);
+  auto nan_final = scheduler_->Complete("w1", lease.key, {}, 3, true, std::nan(""));
+  EXPECT_EQ(nan_final.code(), absl::StatusCode::kInvalidArgument);
+  auto out_of_range = scheduler_->Heartbeat("w1", lease.key, Episodes(3, 4));
+  EXPECT_EQ(out_of_range.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(scheduler_->TryAcquire(MakeWorker("")).status().code(),
+            absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(scheduler_->Heartbeat("w1", {999, 1}, {}).status().code(), absl::StatusCode::kNotFound);
+  EXPECT_EQ(Job(lease.key.job_id).episodes_stored, 0);
+}
+
+TEST_F(SchedulerTest, CompletionAfterCancelKeepsTheResult) {
+  Submit("s", 1, 2);
+  const Lease lease = MustAcquire("w1");
+  TG_ASSERT_OK(scheduler_->SetSweepState("s", SweepState::kCancelled));
+  TG_ASSERT_OK(scheduler_->Complete("w1", lease.key, Episodes(0, 2), 2, true, 1));
+  EXPECT_EQ(Job(lease.key.job_id).state, JobState::kCompleted);
+}
+
+// The long poll returns as soon as work appears (bounded real-time wait).
+TEST_F(SchedulerTest, AcquireWaitsForWorkAndWakesOnSubmit) {
+  std::atomic<bool> got{false};
+  const auto start = std::chrono::steady_clock::now();
+  std::thread waiter([&] {
+    auto lease = scheduler_->Acquire(MakeWorker("w1"), absl::Seconds(20));
+    got = lease.ok() && lease->has_value();
+  });
+  // Submit once the waiter has registered as a worker (it then waits).
+  for (int i = 0; i < 2000 && !store_->GetWorker("w1").ok(); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  Submit("s", 1, 2);
+  waiter.join();
+  EXPECT_TRUE(got);
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(10));
+}
+
+TEST_F(SchedulerTest, AcquireReturnsEmptyAtTheDeadlineAndAfterShutdown) {
+  auto lease = scheduler_->Acquire(MakeWorker("w1"), absl::Milliseconds(50));
+  ASSERT_TRUE(lease.ok());
+  EXPECT_FALSE(lease->has_value());
+  scheduler_->Shutdown();
+  Submit("s", 1, 2);
+  const auto start = std::chrono::steady_clock::now();
+  lease = scheduler_->Acquire(MakeWorker("w1"), absl::Seconds(20));
+  ASSERT_TRUE(lease.ok());
+  EXPECT_FALSE(lease->has_value());
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(5));
+}
+
+}  // namespace
+}  // namespace totalgrad::scheduler

@@ -1,0 +1,179 @@
+#include "tests/service/service_testutil.h"
+
+#include <stdlib.h>
+
+#include <filesystem>
+
+#include "absl/strings/str_cat.h"
+
+namespace totalgrad::testing {
+
+std::string MakeTempDir() {
+  const char* base = std::getenv("TEST_TMPDIR");
+  std::string pattern =
+      (std::filesystem::path(base ? base : std::filesystem::temp_directory_path().string()) /
+       "totalgrad_service_XXXXXX")
+          .string();
+  char* made = mkdtemp(pattern.data());
+  if (made == nullptr) {
+    ADD_FAILURE() << "mkdtemp failed for " << pattern;
+    return "/tmp";
+  }
+  return made;
+}
+
+storage::NewSweep MakeSweep(const std::string& name, int jobs, int episodes,
+                            const std::string& spec_hash) {
+  storage::NewSweep sweep;
+  sweep.name = name;
+  sweep.description = "test sweep";
+  sweep.canonical_spec = absl::StrCat("{\"name\":\"", name, "\"}");
+  sweep.spec_hash = spec_hash;
+  sweep.coordinator_build = "test-build";
+  sweep.max_attempts = 3;
+  sweep.max_lost_leases = 20;
+  for (int i = 0; i < jobs; ++i) {
+    storage::NewJob job;
+    job.method = "RP";
+    job.seed = absl::StrCat(i + 1);
+    job.variant = "noise_k=1";
+    job.options = {{"method", "RP"}, {"seed", job.seed}, {"noise_k", "1"}};
+    job.episodes_expected = episodes;
+    sweep.jobs.push_back(job);
+  }
+  return sweep;
+}
+
+storage::Episode MakeEpisode(int episode, double cost) {
+  storage::Episode e;
+  e.episode = episode;
+  e.real_cost = cost;
+  if (episode > 0) {
+    e.eval_cost_mean = cost + 0.5;
+    e.eval_cost_std = 1.0;
+    e.predicted_cost = cost - 0.5;
+  }
+  e.optimisation_seconds = 0.25;
+  e.details_json = "{}";
+  return e;
+}
+
+storage::WorkerIdentity MakeWorker(const std::string& id) {
+  return {id, "testhost", "test-worker-build", 1};
+}
+
+void FaultyStore::FailNext(const std::string& method, absl::Status error, When when) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  faults_[method] = {std::move(error), when};
+}
+
+int FaultyStore::faults_fired() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return fired_;
+}
+
+std::optional<FaultyStore::Fault> FaultyStore::Take(const std::string& method) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  auto it = faults_.find(method);
+  if (it == faults_.end()) return std::nullopt;
+  Fault fault = it->second;
+  faults_.erase(it);
+  ++fired_;
+  return fault;
+}
+
+// Forwards `call` unless a fault is armed for `method`.
+#define TG_FORWARD(method, call)                                     \
+  do {                                                               \
+    std::optional<Fault> fault = Take(method);                       \
+    if (fault && fault->when == When::kBeforeCommit) return fault->error; \
+    auto result = (call);                                            \
+    if (fault) return fault->error;                                  \
+    return result;                                                   \
+  } while (0)
+
+absl::StatusOr<storage::SweepRecord> FaultyStore::CreateSweep(const storage::NewSweep& sweep,
+                                                              int64_t now_ms, bool* created) {
+  TG_FORWARD("CreateSweep", target_->CreateSweep(sweep, now_ms, created));
+}
+absl::Status FaultyStore::SetSweepState(const std::string& name, storage::SweepState state,
+                                        int64_t now_ms) {
+  TG_FORWARD("SetSweepState", target_->SetSweepState(name, state, now_ms));
+}
+absl::Status FaultyStore::StartAttempt(const storage::LeaseKey& key,
+                                       const storage::WorkerIdentity& worker, int64_t now_ms,
+                                       int64_t lease_expires_ms) {
+  TG_FORWARD("StartAttempt", target_->StartAttempt(key, worker, now_ms, lease_expires_ms));
+}
+absl::StatusOr<int> FaultyStore::StoreEpisodes(const storage::LeaseKey& key,
+                                               const std::string& worker_id,
+                                               const std::vector<storage::Episode>& episodes,
+                                               int64_t now_ms,
+                                               std::optional<int64_t> lease_expires_ms) {
+  TG_FORWARD("StoreEpisodes",
+             target_->StoreEpisodes(key, worker_id, episodes, now_ms, lease_expires_ms));
+}
+absl::StatusOr<storage::EndOutcome> FaultyStore::EndAttempt(const storage::AttemptEnd& end) {
+  TG_FORWARD("EndAttempt", target_->EndAttempt(end));
+}
+absl::Status FaultyStore::RetryJob(int64_t job_id, int64_t now_ms) {
+  TG_FORWARD("RetryJob", target_->RetryJob(job_id, now_ms));
+}
+absl::StatusOr<int> FaultyStore::ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms) {
+  TG_FORWARD("ExtendOpenLeases", target_->ExtendOpenLeases(lease_expires_ms, now_ms));
+}
+absl::Status FaultyStore::TouchWorker(const storage::WorkerIdentity& worker, int64_t now_ms) {
+  TG_FORWARD("TouchWorker", target_->TouchWorker(worker, now_ms));
+}
+absl::Status FaultyStore::SetWorkerDraining(const std::string& worker_id, bool draining,
+                                            int64_t now_ms) {
+  TG_FORWARD("SetWorkerDraining", target_->SetWorkerDraining(worker_id, draining, now_ms));
+}
+absl::StatusOr<storage::SweepRecord> FaultyStore::GetSweep(const std::string& name) {
+  TG_FORWARD("GetSweep", target_->GetSweep(name));
+}
+absl::StatusOr<std::vector<storage::SweepRecord>> FaultyStore::ListSweeps() {
+  TG_FORWARD("ListSweeps", target_->ListSweeps());
+}
+absl::StatusOr<storage::JobRecord> FaultyStore::GetJob(int64_t job_id) {
+  TG_FORWARD("GetJob", target_->GetJob(job_id));
+}
+absl::StatusOr<std::vector<storage::JobRecord>> FaultyStore::ListJobs(
+    const storage::JobFilter& f) {
+  TG_FORWARD("ListJobs", target_->ListJobs(f));
+}
+absl::StatusOr<std::vector<storage::AttemptRecord>> FaultyStore::ListAttempts(int64_t job_id) {
+  TG_FORWARD("ListAttempts", target_->ListAttempts(job_id));
+}
+absl::StatusOr<std::vector<storage::EventRecord>> FaultyStore::ListEvents(int64_t job_id) {
+  TG_FORWARD("ListEvents", target_->ListEvents(job_id));
+}
+absl::StatusOr<std::vector<storage::ClaimCandidate>> FaultyStore::ListClaimCandidates(int limit) {
+  TG_FORWARD("ListClaimCandidates", target_->ListClaimCandidates(limit));
+}
+absl::StatusOr<std::vector<storage::LeaseKey>> FaultyStore::ListExpiredLeases(int64_t now_ms) {
+  TG_FORWARD("ListExpiredLeases", target_->ListExpiredLeases(now_ms));
+}
+absl::StatusOr<std::vector<storage::WorkerRecord>> FaultyStore::ListWorkers() {
+  TG_FORWARD("ListWorkers", target_->ListWorkers());
+}
+absl::StatusOr<storage::WorkerRecord> FaultyStore::GetWorker(const std::string& worker_id) {
+  TG_FORWARD("GetWorker", target_->GetWorker(worker_id));
+}
+absl::StatusOr<std::vector<storage::TrialResultRecord>> FaultyStore::ListTrialResults(
+    const std::string& sweep_name) {
+  TG_FORWARD("ListTrialResults", target_->ListTrialResults(sweep_name));
+}
+absl::Status FaultyStore::ExportEpisodes(
+    const std::string& sweep_name, bool all_attempts, int batch_size,
+    const std::function<absl::Status(std::vector<storage::EpisodeRowRecord>)>& sink) {
+  TG_FORWARD("ExportEpisodes", target_->ExportEpisodes(sweep_name, all_attempts, batch_size, sink));
+}
+absl::StatusOr<storage::StoreCounts> FaultyStore::Counts() {
+  TG_FORWARD("Counts", target_->Counts());
+}
+absl::StatusOr<int64_t> FaultyStore::Backup(const std::string& path) {
+  TG_FORWARD("Backup", target_->Backup(path));
+}
+
+}  // namespace totalgrad::testing

@@ -1,0 +1,115 @@
+// Helpers for the service tests: status assertions, temporary directories,
+// sweep builders and FaultyStore (a Store wrapper that injects errors, in the
+// spirit of leveldb's ErrorEnv).
+#ifndef TOTALGRAD_TESTS_SERVICE_SERVICE_TESTUTIL_H_
+#define TOTALGRAD_TESTS_SERVICE_SERVICE_TESTUTIL_H_
+
+#include <gtest/gtest.h>
+
+#include <map>
+#include <mutex>
+#include <string>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "server/storage/store.h"
+
+#define TG_EXPECT_OK(expr)                                           \
+  do {                                                               \
+    const ::absl::Status tg_st_ = ::totalgrad::testing::ToStatus(expr); \
+    EXPECT_TRUE(tg_st_.ok()) << #expr << ": " << tg_st_.ToString();  \
+  } while (0)
+#define TG_ASSERT_OK(expr)                                           \
+  do {                                                               \
+    const ::absl::Status tg_st_ = ::totalgrad::testing::ToStatus(expr); \
+    ASSERT_TRUE(tg_st_.ok()) << #expr << ": " << tg_st_.ToString();  \
+  } while (0)
+#define TG_ASSERT_OK_AND_ASSIGN(lhs, expr)                                   \
+  auto TG_TU_CONCAT(tg_sor_, __LINE__) = (expr);                             \
+  ASSERT_TRUE(TG_TU_CONCAT(tg_sor_, __LINE__).ok())                          \
+      << #expr << ": " << TG_TU_CONCAT(tg_sor_, __LINE__).status().ToString(); \
+  lhs = std::move(*TG_TU_CONCAT(tg_sor_, __LINE__))
+#define TG_TU_CONCAT_INNER(a, b) a##b
+#define TG_TU_CONCAT(a, b) TG_TU_CONCAT_INNER(a, b)
+
+namespace totalgrad::testing {
+
+inline absl::Status ToStatus(const absl::Status& status) { return status; }
+template <typename T>
+absl::Status ToStatus(const absl::StatusOr<T>& status_or) {
+  return status_or.status();
+}
+
+// A fresh empty directory for one test (under $TEST_TMPDIR or /tmp).
+std::string MakeTempDir();
+
+// A sweep named `name` with `jobs` jobs (method "RP", seeds 1..jobs, variant
+// "noise_k=1"), each expecting `episodes` episodes.
+storage::NewSweep MakeSweep(const std::string& name, int jobs, int episodes,
+                            const std::string& spec_hash = "hash-1");
+
+storage::Episode MakeEpisode(int episode, double cost = 10.0);
+
+storage::WorkerIdentity MakeWorker(const std::string& id);
+
+// Forwards to a target store; a test arms one failure per method name (e.g.
+// "StartAttempt"), which the next call of that method returns instead of
+// forwarding (a crash before commit), or after forwarding (committed, but the
+// reply was lost).
+class FaultyStore final : public storage::Store {
+ public:
+  explicit FaultyStore(storage::Store* target) : target_(target) {}
+  enum class When { kBeforeCommit, kAfterCommit };
+  void FailNext(const std::string& method, absl::Status error, When when = When::kBeforeCommit);
+  int faults_fired() const;
+
+  absl::StatusOr<storage::SweepRecord> CreateSweep(const storage::NewSweep& sweep, int64_t now_ms,
+                                                   bool* created) override;
+  absl::Status SetSweepState(const std::string& name, storage::SweepState state,
+                             int64_t now_ms) override;
+  absl::Status StartAttempt(const storage::LeaseKey& key, const storage::WorkerIdentity& worker,
+                            int64_t now_ms, int64_t lease_expires_ms) override;
+  absl::StatusOr<int> StoreEpisodes(const storage::LeaseKey& key, const std::string& worker_id,
+                                    const std::vector<storage::Episode>& episodes, int64_t now_ms,
+                                    std::optional<int64_t> lease_expires_ms) override;
+  absl::StatusOr<storage::EndOutcome> EndAttempt(const storage::AttemptEnd& end) override;
+  absl::Status RetryJob(int64_t job_id, int64_t now_ms) override;
+  absl::StatusOr<int> ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms) override;
+  absl::Status TouchWorker(const storage::WorkerIdentity& worker, int64_t now_ms) override;
+  absl::Status SetWorkerDraining(const std::string& worker_id, bool draining,
+                                 int64_t now_ms) override;
+  absl::StatusOr<storage::SweepRecord> GetSweep(const std::string& name) override;
+  absl::StatusOr<std::vector<storage::SweepRecord>> ListSweeps() override;
+  absl::StatusOr<storage::JobRecord> GetJob(int64_t job_id) override;
+  absl::StatusOr<std::vector<storage::JobRecord>> ListJobs(const storage::JobFilter& f) override;
+  absl::StatusOr<std::vector<storage::AttemptRecord>> ListAttempts(int64_t job_id) override;
+  absl::StatusOr<std::vector<storage::EventRecord>> ListEvents(int64_t job_id) override;
+  absl::StatusOr<std::vector<storage::ClaimCandidate>> ListClaimCandidates(int limit) override;
+  absl::StatusOr<std::vector<storage::LeaseKey>> ListExpiredLeases(int64_t now_ms) override;
+  absl::StatusOr<std::vector<storage::WorkerRecord>> ListWorkers() override;
+  absl::StatusOr<storage::WorkerRecord> GetWorker(const std::string& worker_id) override;
+  absl::StatusOr<std::vector<storage::TrialResultRecord>> ListTrialResults(
+      const std::string& sweep_name) override;
+  absl::Status ExportEpisodes(
+      const std::string& sweep_name, bool all_attempts, int batch_size,
+      const std::function<absl::Status(std::vector<storage::EpisodeRowRecord>)>& sink) override;
+  absl::StatusOr<storage::StoreCounts> Counts() override;
+  absl::StatusOr<int64_t> Backup(const std::string& path) override;
+
+ private:
+  struct Fault {
+    absl::Status error;
+    When when;
+  };
+  // Pops the armed fault for `method`, if any.
+  std::optional<Fault> Take(const std::string& method);
+
+  storage::Store* const target_;
+  mutable std::mutex mutex_;
+  std::map<std::string, Fault> faults_;
+  int fired_ = 0;
+};
+
+}  // namespace totalgrad::testing
+
+#endif  // TOTALGRAD_TESTS_SERVICE_SERVICE_TESTUTIL_H_
