@@ -1,0 +1,350 @@
+// Derivatives of every PILCO block against central finite differences, with
+// respect to the block's own inputs (mean, covariance, parameters), and
+// deliberately wrong derivatives that the check must reject.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "core/diff/gradient_checker.h"
+#include "core/pilco/expected_cost.h"
+#include "core/pilco/gp_moments.h"
+#include "core/pilco/policy_moments.h"
+#include "core/pilco/propagation.h"
+#include "core/pilco/saturation.h"
+#include "core/pilco/trig.h"
+#include "tests/core/pilco/pilco_test_util.h"
+
+namespace totalgrad::pilco {
+namespace {
+
+using testing::BlockBackward;
+using testing::BlockForward;
+using testing::CheckBlock;
+using testing::Flatten;
+
+diff::CheckOptions Tight() {
+  diff::CheckOptions o;
+  o.relative_step = 1e-6;
+  o.relative_tolerance = 1e-6;
+  o.absolute_tolerance = 1e-8;
+  return o;
+}
+
+// ---------------------------------------------------------------- gTrig, gSat
+
+TEST(GTrigTest, JacobianMatchesFiniteDifferences) {
+  for (const auto& [mean, var] : {std::pair{0.3, 0.2}, {2.9, 1e-4}, {-1.2, 3.0}, {3.14159, 0.0}}) {
+    const diff::VectorFunction f = [](const Vector& x, Vector* y) {
+      *y = GTrig(x(0), x(1)).AsVector();
+      return true;
+    };
+    const Vector x = Eigen::Vector2d(mean, var);
+    const diff::CheckResult r = diff::CheckJacobian(f, x, Dx_GTrig(mean, var), Tight());
+    EXPECT_TRUE(r.ok) << "mean " << mean << " var " << var << ": " << r.log;
+  }
+}
+
+TEST(GSatTest, JacobianMatchesFiniteDifferences) {
+  for (const auto& [mean, var] : {std::pair{0.3, 0.2}, {1.5, 1e-5}, {-2.2, 2.0}, {0.0, 0.0}}) {
+    const diff::VectorFunction f = [](const Vector& x, Vector* y) {
+      *y = GSat(x(0), x(1), 10.0).AsVector();
+      return true;
+    };
+    const Vector x = Eigen::Vector2d(mean, var);
+    const diff::CheckResult r = diff::CheckJacobian(f, x, Dx_GSat(mean, var, 10.0), Tight());
+    EXPECT_TRUE(r.ok) << "mean " << mean << " var " << var << ": " << r.log;
+  }
+}
+
+TEST(GSatTest, WrongJacobianIsRejected) {
+  const diff::VectorFunction f = [](const Vector& x, Vector* y) {
+    *y = GSat(x(0), x(1), 10.0).AsVector();
+    return true;
+  };
+  Eigen::Matrix<double, 3, 2> wrong = Dx_GSat(0.4, 0.3, 10.0);
+  wrong(1, 1) *= 1.001;  // 0.1 % error in dVar/dvar
+  EXPECT_FALSE(diff::CheckJacobian(f, Eigen::Vector2d(0.4, 0.3), wrong, Tight()).ok);
+}
+
+TEST(GSatTest, DeterministicInputIsTheSquash) {
+  for (double a : {-1.3, 0.0, 0.4, 1.5707963}) {
+    const SatMoments s = GSat(a, 0.0, 10.0);
+    EXPECT_NEAR(s.mean, 10.0 * (9 * std::sin(a) + std::sin(3 * a)) / 8, 1e-14);
+    EXPECT_NEAR(s.var, 0.0, 1e-13);
+    EXPECT_NEAR(s.c, 10.0 * (9 * std::cos(a) + 3 * std::cos(3 * a)) / 8, 1e-13);
+  }
+}
+
+// ---------------------------------------------------------------- augmentation
+
+TEST(AugmentWithTrigTest, ReverseModeMatchesFiniteDifferences) {
+  std::mt19937_64 rng(1);
+  const int d = 4, angle = 1;
+  const Vector m = testing::RandomVector(d, 1.0, &rng);
+  const Matrix s = testing::RandomCovariance(d, 0.3, &rng);
+  const BlockForward fwd = [&](const Vector& mm, const Matrix& ss, const Vector&, Vector* y) {
+    Vector ym;
+    Matrix ys;
+    AugmentWithTrig(mm, ss, angle, &ym, &ys);
+    y->resize(ym.size() + ys.size());
+    *y << ym, Flatten(ys);
+    return true;
+  };
+  const BlockBackward bwd = [&](const Vector& mm, const Matrix& ss, const Vector&,
+                                const Vector& yb, Vector* mb, Matrix* sb, Vector*) {
+    const int ny = d + 2;
+    const Vector ymb = yb.head(ny);
+    const Matrix ysb = Eigen::Map<const Matrix>(yb.data() + ny, ny, ny);
+    *mb = Vector::Zero(d);
+    *sb = Matrix::Zero(d, d);
+    AugmentWithTrigBackward(mm, ss, angle, ymb, ysb, mb, sb);
+    return true;
+  };
+  const diff::CheckResult r = CheckBlock(fwd, bwd, m, s, Vector(), Tight());
+  EXPECT_TRUE(r.ok) << r.log;
+}
+
+// ---------------------------------------------------------------- GP blocks
+
+TEST(GpMomentsTest, Gp0ReverseModeMatchesFiniteDifferences) {
+  std::mt19937_64 rng(2);
+  const int n = 30, e = 6, d = 4;
+  const GaussianInputGp gp = testing::MakeTestGp(n, e, d, &rng);
+  for (const bool noise : {false, true}) {
+    GaussianPredictionOptions options;
+    options.model_variance = true;
+    options.include_noise = noise;
+    const Vector m = testing::RandomVector(e, 0.5, &rng);
+    const Matrix s = testing::RandomCovariance(e, 0.2, &rng);
+    const BlockForward fwd = [&](const Vector& mm, const Matrix& ss, const Vector&, Vector* y) {
+      GaussianPrediction p;
+      if (!PredictGaussian(gp, mm, ss, options, &p).ok()) return false;
+      y->resize(d + d * d + e * d);
+      *y << p.mean, Flatten(p.cov), Flatten(p.cross);
+      return true;
+    };
+    const BlockBackward bwd = [&](const Vector& mm, const Matrix& ss, const Vector&,
+                                  const Vector& yb, Vector* mb, Matrix* sb, Vector*) {
+      const Vector mean_bar = yb.head(d);
+      const Matrix cov_bar = Eigen::Map<const Matrix>(yb.data() + d, d, d);
+      const Matrix cross_bar = Eigen::Map<const Matrix>(yb.data() + d + d * d, e, d);
+      return PredictGaussianBackward(gp, mm, ss, options, mean_bar, cov_bar, cross_bar, mb, sb,
+                                     nullptr, nullptr)
+          .ok();
+    };
+    const diff::CheckResult r = CheckBlock(fwd, bwd, m, s, Vector(), Tight());
+    EXPECT_TRUE(r.ok) << "include_noise " << noise << ": " << r.log;
+  }
+}
+
+// gp2 with derivatives with respect to the support points and beta too.
+TEST(GpMomentsTest, Gp2ReverseModeIncludingParametersMatchesFiniteDifferences) {
+  std::mt19937_64 rng(3);
+  const int n = 8, e = 3, d = 2;
+  const GaussianInputGp gp0 = testing::MakeTestGp(n, e, d, &rng);
+  GaussianPredictionOptions options;
+  options.model_variance = false;
+  options.jitter = 1e-6;
+  const Vector m = testing::RandomVector(e, 0.5, &rng);
+  const Matrix s = testing::RandomCovariance(e, 0.3, &rng);
+  Vector theta(n * e + n * d);
+  theta << Eigen::Map<const Vector>(gp0.inputs.data(), n * e), Flatten(gp0.beta);
+  auto make_gp = [&](const Vector& th) {
+    GaussianInputGp gp = gp0;
+    gp.inputs = Eigen::Map<const RowMatrix>(th.data(), n, e);
+    gp.beta = Eigen::Map<const Matrix>(th.data() + n * e, n, d);
+    return gp;
+  };
+  const BlockForward fwd = [&](const Vector& mm, const Matrix& ss, const Vector& th, Vector* y) {
+    GaussianPrediction p;
+    if (!PredictGaussian(make_gp(th), mm, ss, options, &p).ok()) return false;
+    y->resize(d + d * d + e * d);
+    *y << p.mean, Flatten(p.cov), Flatten(p.cross);
+    return true;
+  };
+  const BlockBackward bwd = [&](const Vector& mm, const Matrix& ss, const Vector& th,
+                                const Vector& yb, Vector* mb, Matrix* sb, Vector* thb) {
+    const Vector mean_bar = yb.head(d);
+    const Matrix cov_bar = Eigen::Map<const Matrix>(yb.data() + d, d, d);
+    const Matrix cross_bar = Eigen::Map<const Matrix>(yb.data() + d + d * d, e, d);
+    RowMatrix xb;
+    Matrix bb;
+    if (!PredictGaussianBackward(make_gp(th), mm, ss, options, mean_bar, cov_bar, cross_bar, mb,
+                                 sb, &xb, &bb)
+             .ok()) {
+      return false;
+    }
+    thb->resize(th.size());
+    *thb << Eigen::Map<const Vector>(xb.data(), n * e), Flatten(bb);
+    return true;
+  };
+  const diff::CheckResult r = CheckBlock(fwd, bwd, m, s, theta, Tight());
+  EXPECT_TRUE(r.ok) << r.log;
+}
+
+// A deliberately wrong derivative must fail: (a) one entry off by 0.1 %;
+// (b) the classic bug of not counting an off-diagonal covariance entry twice.
+TEST(GpMomentsTest, WrongDerivativesAreRejected) {
+  std::mt19937_64 rng(4);
+  const int n = 20, e = 3, d = 2;
+  const GaussianInputGp gp = testing::MakeTestGp(n, e, d, &rng);
+  GaussianPredictionOptions options;
+  const Vector m = testing::RandomVector(e, 0.5, &rng);
+  const Matrix s = testing::RandomCovariance(e, 0.3, &rng);
+  const BlockForward fwd = [&](const Vector& mm, const Matrix& ss, const Vector&, Vector* y) {
+    GaussianPrediction p;
+    if (!PredictGaussian(gp, mm, ss, options, &p).ok()) return false;
+    y->resize(d + d * d);
+    *y << p.mean, Flatten(p.cov);
+    return true;
+  };
+  const BlockBackward bwd = [&](const Vector& mm, const Matrix& ss, const Vector&,
+                                const Vector& yb, Vector* mb, Matrix* sb, Vector*) {
+    const Matrix cov_bar = Eigen::Map<const Matrix>(yb.data() + d, d, d);
+    return PredictGaussianBackward(gp, mm, ss, options, yb.head(d), cov_bar,
+                                   Matrix::Zero(e, d), mb, sb, nullptr, nullptr)
+        .ok();
+  };
+  EXPECT_TRUE(CheckBlock(fwd, bwd, m, s, Vector(), Tight()).ok);
+  EXPECT_FALSE(CheckBlock(fwd, bwd, m, s, Vector(), Tight(), /*symmetrise=*/false).ok);
+  const BlockBackward off_by_a_bit = [&](const Vector& mm, const Matrix& ss, const Vector& th,
+                                         const Vector& yb, Vector* mb, Matrix* sb, Vector* thb) {
+    if (!bwd(mm, ss, th, yb, mb, sb, thb)) return false;
+    (*mb)(1) *= 1.001;
+    return true;
+  };
+  const diff::CheckResult r = CheckBlock(fwd, off_by_a_bit, m, s, Vector(), Tight());
+  EXPECT_FALSE(r.ok);
+  EXPECT_LT(r.worst_col, e);
+}
+
+// ---------------------------------------------------------------- policy
+
+TEST(PolicyMomentsTest, ReverseModeMatchesFiniteDifferences) {
+  std::mt19937_64 rng(5);
+  RbfPolicyShape shape;
+  shape.num_basis = 6;
+  shape.input_dim = 5;
+  shape.max_force = 10.0;
+  shape.jitter = 1e-6;
+  Vector params(shape.num_parameters());
+  params.head(shape.num_basis * shape.input_dim) =
+      testing::RandomVector(shape.num_basis * shape.input_dim, 0.6, &rng);
+  params.segment(shape.num_basis * shape.input_dim, shape.input_dim) =
+      testing::RandomVector(shape.input_dim, 0.2, &rng);
+  params.tail(shape.num_basis) = testing::RandomVector(shape.num_basis, 0.5, &rng);
+  const Vector m = testing::RandomVector(5, 0.4, &rng);
+  const Matrix s = testing::RandomCovariance(5, 0.1, &rng);
+  for (const bool squashed : {true, false}) {
+    const BlockForward fwd = [&](const Vector& mm, const Matrix& ss, const Vector& th, Vector* y) {
+      PolicyMoments pm;
+      if (!PolicyAtGaussian(shape, th, mm, ss, &pm).ok()) return false;
+      y->resize(2 + 5);
+      if (squashed) {
+        *y << pm.sat.mean, pm.sat.var, pm.u_cross;
+      } else {
+        *y << pm.a_mean, pm.a_var, pm.a_cross;
+      }
+      return true;
+    };
+    const BlockBackward bwd = [&](const Vector& mm, const Matrix& ss, const Vector& th,
+                                  const Vector& yb, Vector* mb, Matrix* sb, Vector* thb) {
+      thb->setZero(th.size());
+      const Vector cross_bar = yb.tail(5);
+      if (squashed) {
+        return PolicyAtGaussianBackward(shape, th, mm, ss, yb(0), yb(1), cross_bar, mb, sb, thb)
+            .ok();
+      }
+      return UnsquashedPolicyBackward(shape, th, mm, ss, yb(0), yb(1), cross_bar, mb, sb, thb)
+          .ok();
+    };
+    const diff::CheckResult r = CheckBlock(fwd, bwd, m, s, params, Tight());
+    EXPECT_TRUE(r.ok) << "squashed " << squashed << ": " << r.log;
+  }
+}
+
+// ---------------------------------------------------------------- costs
+
+void CheckCost(const GaussianCost& cost, const Vector& m, const Matrix& s) {
+  const BlockForward fwd = [&](const Vector& mm, const Matrix& ss, const Vector&, Vector* y) {
+    CostMoments c;
+    if (!cost.Evaluate(mm, ss, false, &c).ok()) return false;
+    *y = Vector::Constant(1, c.mean);
+    return true;
+  };
+  const BlockBackward bwd = [&](const Vector& mm, const Matrix& ss, const Vector&,
+                                const Vector& yb, Vector* mb, Matrix* sb, Vector*) {
+    CostMoments c;
+    if (!cost.Evaluate(mm, ss, true, &c).ok()) return false;
+    *mb = yb(0) * c.dmean_dm;
+    *sb = yb(0) * c.dmean_dS;
+    return true;
+  };
+  const diff::CheckResult r = CheckBlock(fwd, bwd, m, s, Vector(), Tight());
+  EXPECT_TRUE(r.ok) << r.log;
+}
+
+TEST(ExpectedCostTest, AngleCostGradientMatchesFiniteDifferences) {
+  std::mt19937_64 rng(6);
+  const Vector target = Eigen::Vector4d(0, M_PI, 0, 0);
+  const Matrix q = Eigen::Vector4d(1, 1, 0, 0).asDiagonal();
+  auto cost = GaussianCost::Angle(target, q);
+  ASSERT_TRUE(cost.ok());
+  CheckCost(*cost, Eigen::Vector4d(0.2, 2.5, 0.3, -0.4), testing::RandomCovariance(4, 0.2, &rng));
+}
+
+TEST(ExpectedCostTest, TipCostGradientMatchesFiniteDifferences) {
+  std::mt19937_64 rng(7);
+  auto cost = GaussianCost::Tip(4, 0, 1, 0.5, 0.25);
+  ASSERT_TRUE(cost.ok());
+  CheckCost(*cost, Eigen::Vector4d(0.2, 2.5, 0.3, -0.4), testing::RandomCovariance(4, 0.05, &rng));
+  CheckCost(*cost, Eigen::Vector4d(-0.1, 0.1, 0.0, 0.0), 1e-4 * Matrix::Identity(4, 4));
+}
+
+// ---------------------------------------------------------------- one step
+
+class StepTest : public ::testing::TestWithParam<int> {};
+
+TEST_P(StepTest, ReverseModeMatchesFiniteDifferences) {
+  const int angle = GetParam();
+  std::mt19937_64 rng(8);
+  const int d = 4, ep = angle >= 0 ? 5 : 4;
+  const GaussianInputGp gp = testing::MakeTestGp(25, ep + 1, d, &rng, 1.5);
+  PropagationOptions options;
+  options.angle_index = angle;
+  options.num_basis = 5;
+  options.max_force = 10.0;
+  const Propagator prop(&gp, options);
+  Vector params(prop.num_parameters());
+  params.head(5 * ep) = testing::RandomVector(5 * ep, 0.7, &rng);
+  params.segment(5 * ep, ep).setConstant(std::log(0.9));
+  params.tail(5) = testing::RandomVector(5, 0.5, &rng);
+  const Vector m = Eigen::Vector4d(0.1, 0.4, -0.2, 0.3);
+  const Matrix s = testing::RandomCovariance(d, 0.05, &rng);
+  const BlockForward fwd = [&](const Vector& mm, const Matrix& ss, const Vector& th, Vector* y) {
+    Vector mn;
+    Matrix sn;
+    if (!prop.Step(th, mm, ss, &mn, &sn, nullptr).ok()) return false;
+    y->resize(d + d * d);
+    *y << mn, Flatten(sn);
+    return true;
+  };
+  const BlockBackward bwd = [&](const Vector& mm, const Matrix& ss, const Vector& th,
+                                const Vector& yb, Vector* mb, Matrix* sb, Vector* thb) {
+    StepCache cache;
+    Vector mn;
+    Matrix sn;
+    if (!prop.Step(th, mm, ss, &mn, &sn, &cache).ok()) return false;
+    thb->setZero(th.size());
+    const Matrix snb = Eigen::Map<const Matrix>(yb.data() + d, d, d);
+    return prop.StepBackward(th, cache, yb.head(d), snb, mb, sb, thb).ok();
+  };
+  const diff::CheckResult r = CheckBlock(fwd, bwd, m, s, params, Tight());
+  EXPECT_TRUE(r.ok) << r.log;
+}
+
+INSTANTIATE_TEST_SUITE_P(WithAndWithoutSinCos, StepTest, ::testing::Values(1, -1));
+
+}  // namespace
+}  // namespace totalgrad::pilco
