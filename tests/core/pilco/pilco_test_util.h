@@ -100,6 +100,21 @@ class MomentAccumulator {
     sum2_ += p;
     sum4_ += p.cwiseProduct(p);
   }
+  // Rows of x are samples.
+  void AddBatch(const RowMatrix& x) {
+    RowMatrix c = x;
+    c.rowwise() -= shift_.transpose();
+    n_ += static_cast<long>(c.rows());
+    sum_ += c.colwise().sum().transpose();
+    sum2_.noalias() += c.transpose() * c;
+    for (Eigen::Index i = 0; i < c.cols(); ++i) {
+      for (Eigen::Index j = i; j < c.cols(); ++j) {
+        const double s4 = (c.col(i).array() * c.col(j).array()).square().sum();
+        sum4_(i, j) += s4;
+        if (j != i) sum4_(j, i) += s4;
+      }
+    }
+  }
   double n() const { return static_cast<double>(n_); }
   Vector Mean() const { return shift_ + sum_ / n(); }
   Vector MeanStdError() const {
