@@ -341,6 +341,7 @@ absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver
       result.predicted_cost = rollout.objective;
     }
     result.optimisation_seconds = Seconds(start_time);
+    result.policy_parameters = policy.parameters();
 
     // 3. One real episode with the new policy; its data are added.
     {

@@ -79,6 +79,7 @@ struct EpisodeResult {
   double predicted_cost = kNaN;    // model's expected episode cost of the optimised policy
   double optimisation_seconds = 0; // GP fit + policy optimisation wall time
   gp::GpHyperparameters hyperparameters;  // of the GP used this episode (empty for 0)
+  Vector policy_parameters;        // the optimised policy of this episode (empty for 0)
   EpisodeFlags flags;
 };
 
