@@ -1,0 +1,205 @@
+#include "client/core_commands/simulate_command.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include "client/core_commands/commands.h"
+#include "tests/testutil/testutil.h"
+
+namespace totalgrad::cli {
+namespace {
+
+TEST(ParseNumberListTest, ParsesCompleteFiniteNumbers) {
+  absl::StatusOr<std::vector<double>> v = ParseNumberList(" 1, -2.5,+3e-1 ,0 ", "--x");
+  ASSERT_OK(v.status());
+  EXPECT_EQ(*v, (std::vector<double>{1.0, -2.5, 0.3, 0.0}));
+  v = ParseNumberList("", "--x");
+  ASSERT_OK(v.status());
+  EXPECT_TRUE(v->empty());
+}
+
+TEST(ParseNumberListTest, ErrorsNameOptionAndEntry) {
+  struct Case {
+    std::string text, want;
+  };
+  for (const Case& c : std::vector<Case>{{"1,abc,3", "value 2 'abc' is not a number"},
+                                         {"1,,3", "value 2 is empty"},
+                                         {"1.5x", "value 1 '1.5x' is not a number"},
+                                         {"1,nan", "value 2 'nan' is not finite"},
+                                         {"inf", "value 1 'inf' is not finite"},
+                                         {"1e999", "value 1 '1e999'"},
+                                         {"1,", "value 2 is empty"}}) {
+    const absl::StatusOr<std::vector<double>> v = ParseNumberList(c.text, "--forces");
+    EXPECT_EQ(v.status().code(), absl::StatusCode::kInvalidArgument) << c.text;
+    EXPECT_NE(v.status().message().find("--forces"), std::string::npos) << v.status();
+    EXPECT_NE(v.status().message().find(c.want), std::string::npos) << v.status();
+  }
+}
+
+TEST(ParseSimulateRequestTest, ValidatesEveryOption) {
+  absl::StatusOr<SimulateRequest> r = ParseSimulateRequest("cartpole", "0,3.1,0,0", "1,-2", "0.05");
+  ASSERT_OK(r.status());
+  EXPECT_EQ(r->start(1), 3.1);
+  EXPECT_EQ(r->forces, (std::vector<double>{1.0, -2.0}));
+  EXPECT_EQ(r->dt, 0.05);
+  struct Case {
+    std::string scene, start, forces, dt, want;
+  };
+  for (const Case& c : std::vector<Case>{
+           {"acrobot", "0,0,0,0", "1", "0.1", "--scene"},
+           {"cartpole", "0,0,0", "1", "0.1", "expected 4 values"},
+           {"cartpole", "0,0,0,0,0", "1", "0.1", "got 5"},
+           {"cartpole", "0,0,x,0", "1", "0.1", "--start: value 3"},
+           {"cartpole", "0,0,0,0", "", "0.1", "--forces: expected at least one"},
+           {"cartpole", "0,0,0,0", "1,inf", "0.1", "--forces: value 2"},
+           {"cartpole", "0,0,0,0", "1", "0", "--dt: must be > 0"},
+           {"cartpole", "0,0,0,0", "1", "-0.1", "--dt"},
+           {"cartpole", "0,0,0,0", "1", "fast", "--dt: 'fast' is not a number"},
+           {"cartpole", "0,0,0,0", "1", "nan", "--dt: 'nan' is not finite"}}) {
+    r = ParseSimulateRequest(c.scene, c.start, c.forces, c.dt);
+    EXPECT_EQ(r.status().code(), absl::StatusCode::kInvalidArgument) << c.want;
+    EXPECT_NE(r.status().message().find(c.want), std::string::npos)
+        << "want '" << c.want << "' in " << r.status();
+  }
+}
+
+TEST(RunSimulationTest, StatesFollowThePlant) {
+  SimulateRequest request;
+  request.start << 0.1, 0.2, 0.3, 0.4;
+  request.forces = {10.0, -10.0, 0.0};
+  SimulateResult result;
+  ASSERT_OK(RunSimulation(request, &result));
+  ASSERT_EQ(result.states.size(), 4u);
+  ASSERT_EQ(result.energy.size(), 4u);
+  EXPECT_EQ(result.states[0], request.start);
+  const tasks::CartPole plant;
+  tasks::State x = request.start;
+  for (size_t k = 0; k < request.forces.size(); ++k) {
+    tasks::State next;
+    ASSERT_OK(plant.Step(x, request.forces[k], &next));
+    EXPECT_EQ(result.states[k + 1], next) << "step " << k;
+    EXPECT_EQ(result.energy[k + 1], plant.Energy(next));
+    x = next;
+  }
+}
+
+TEST(RunSimulationTest, IntegratorFailureNamesTheStep) {
+  // A force of 1e300 N makes the accelerations overflow to infinity.
+  SimulateRequest request;
+  request.forces = {1.0, 1e300};
+  SimulateResult result;
+  const absl::Status st = RunSimulation(request, &result);
+  EXPECT_FALSE(st.ok());
+  EXPECT_NE(st.message().find("step 1"), std::string::npos) << st;
+}
+
+TEST(FormatTest, JsonRoundTripsAndTableHasOneRowPerState) {
+  SimulateRequest request;
+  request.start << 0.0, 3.0, 0.0, 0.0;
+  request.forces = {2.0, 2.0};
+  SimulateResult result;
+  ASSERT_OK(RunSimulation(request, &result));
+
+  const nlohmann::json doc = nlohmann::json::parse(FormatSimulationJson(result));
+  EXPECT_EQ(doc.at("dt").get<double>(), 0.1);
+  ASSERT_EQ(doc.at("states").size(), 3u);
+  for (size_t k = 0; k < 3; ++k) {
+    for (int m = 0; m < 4; ++m) {
+      EXPECT_EQ(doc["states"][k][m].get<double>(), result.states[k](m));  // exact round trip
+    }
+    EXPECT_EQ(doc["energy"][k].get<double>(), result.energy[k]);
+  }
+  EXPECT_EQ(doc.at("forces").get<std::vector<double>>(), result.forces);
+  // Keys in the documented order.
+  const std::string json = FormatSimulationJson(result);
+  EXPECT_EQ(json.rfind("{\"dt\":", 0), 0u) << json;
+  EXPECT_LT(json.find("\"states\""), json.find("\"forces\"")) << json;
+  EXPECT_LT(json.find("\"forces\""), json.find("\"energy\"")) << json;
+
+  const std::string table = FormatSimulationTable(result);
+  int lines = 0;
+  for (char ch : table) lines += ch == '\n';
+  EXPECT_EQ(lines, 2 + 3);  // comment, header, one row per state
+  EXPECT_NE(table.find("energy"), std::string::npos);
+}
+
+// Runs `totalgrad <args>` through CLI11 in process, as main() does.
+struct CommandRun {
+  int exit_code = -1;
+  std::string out, err;
+};
+
+CommandRun RunCommand(std::vector<std::string> args) {
+  CLI::App app;
+  app.require_subcommand(1);
+  CommandRun run;
+  run.exit_code = 0;
+  AddSimulateCommand(&app, &run.exit_code);
+  std::reverse(args.begin(), args.end());  // CLI11 takes the arguments reversed
+  ::testing::internal::CaptureStdout();
+  ::testing::internal::CaptureStderr();
+  try {
+    app.parse(args);
+  } catch (const CLI::ParseError& e) {
+    run.exit_code = app.exit(e) == 0 ? 0 : 2;
+  }
+  run.out = ::testing::internal::GetCapturedStdout();
+  run.err = ::testing::internal::GetCapturedStderr();
+  return run;
+}
+
+TEST(SimulateCommandTest, PrintsJson) {
+  const CommandRun run = RunCommand(
+      {"simulate", "--scene", "cartpole", "--start", "0,0,0,0", "--forces", "10,10", "--json"});
+  EXPECT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_TRUE(run.err.empty()) << run.err;
+  const nlohmann::json doc = nlohmann::json::parse(run.out);
+  ASSERT_EQ(doc.at("states").size(), 3u);
+  // PILCO convention: pushing right from hanging moves the cart right.
+  EXPECT_GT(doc["states"][2][0].get<double>(), 0.0);
+}
+
+TEST(SimulateCommandTest, NegativeNumbersAndDtAreAccepted) {
+  const CommandRun run = RunCommand(
+      {"simulate", "--start", "-1,3.1,0,0", "--forces", "-2.5", "--dt", "0.05", "--json"});
+  EXPECT_EQ(run.exit_code, 0) << run.err;
+  const nlohmann::json doc = nlohmann::json::parse(run.out);
+  EXPECT_EQ(doc.at("dt").get<double>(), 0.05);
+  EXPECT_EQ(doc["states"][0][0].get<double>(), -1.0);
+}
+
+TEST(SimulateCommandTest, PrintsTable) {
+  const CommandRun run = RunCommand({"simulate", "--start", "0,0,0,0", "--forces", "1,2,3"});
+  EXPECT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_NE(run.out.find("beta"), std::string::npos) << run.out;
+}
+
+TEST(SimulateCommandTest, BadInputExitsTwoNamingTheProblem) {
+  CommandRun run = RunCommand({"simulate", "--start", "0,0,0", "--forces", "1"});
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_NE(run.err.find("--start"), std::string::npos) << run.err;
+  EXPECT_TRUE(run.out.empty()) << run.out;
+  run = RunCommand({"simulate", "--start", "0,0,0,0", "--forces", "1,x"});
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_NE(run.err.find("'x' is not a number"), std::string::npos) << run.err;
+  run = RunCommand({"simulate", "--start", "0,0,0,0"});  // --forces missing: CLI11's error
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_NE(run.err.find("--forces"), std::string::npos) << run.err;
+}
+
+TEST(SimulateCommandTest, IntegrationFailureExitsOne) {
+  const CommandRun run = RunCommand({"simulate", "--start", "0,0,0,0", "--forces", "1e300"});
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_NE(run.err.find("integration failed"), std::string::npos) << run.err;
+  EXPECT_NE(run.err.find("step 0"), std::string::npos) << run.err;
+  EXPECT_TRUE(run.out.empty()) << run.out;
+}
+
+}  // namespace
+}  // namespace totalgrad::cli
