@@ -3,6 +3,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <Eigen/Cholesky>
 #include <cmath>
 #include <limits>
 
@@ -253,7 +254,7 @@ TEST(GpModelTest, VarianceFloorZeroesTheJacobianRow) {
 }
 
 TEST(GpModelTest, DuplicateInputsWithTinyNoiseUseJitter) {
-  // Ten distinct inputs, each twice, with sn = 1e-9: K is singular to round-off.
+  // Ten distinct inputs, each twice: with tiny noise K is singular to round-off.
   Rng rng(10, Stream::kStudy);
   const RowMatrix unique = UniformMatrix(&rng, 10, 2, -2.0, 2.0);
   RowMatrix x(20, 2), y(20, 1);
@@ -265,19 +266,27 @@ TEST(GpModelTest, DuplicateInputsWithTinyNoiseUseJitter) {
   GpHyperparameters hyp;
   hyp.log_lengthscales = RowMatrix::Constant(1, 2, std::log(0.8));
   hyp.log_signal_std = Vector::Constant(1, 0.0);
-  hyp.log_noise_std = Vector::Constant(1, std::log(1e-9));
-  absl::StatusOr<GpModel> model = GpModel::Create(x, y, hyp);
-  ASSERT_OK(model.status());
-  EXPECT_GT(model->jitter(0), 0.0);
-  EXPECT_LE(model->jitter(0), 1e-2);
-  EXPECT_TRUE(model->k_inverse(0).allFinite());
+  // The second copy's Cholesky pivot is 2 sn^2 (+ round-off ~eps sf^2).
+  // sn = 1e-9: the pivot is round-off and LLT itself fails. sn = 3e-8: the
+  // pivot 1.8e-15 is positive, LLT "succeeds", but it is below N eps sf^2 =
+  // 4.4e-15 and K^-1 (~1/pivot) would be garbage.
+  for (const double sn : {1e-9, 3e-8}) {
+    SCOPED_TRACE(sn);
+    hyp.log_noise_std = Vector::Constant(1, std::log(sn));
+    absl::StatusOr<GpModel> model = GpModel::Create(x, y, hyp);
+    ASSERT_OK(model.status());
+    EXPECT_GT(model->jitter(0), 0.0);
+    EXPECT_LE(model->jitter(0), 1e-2);
+    // Bounded by 1 / (smallest eigenvalue >= jitter = 1e-8 sf^2).
+    EXPECT_LT(model->k_inverse(0).cwiseAbs().maxCoeff(), 1e9);
 
-  // With jitter the GP still interpolates its (consistent) duplicated data.
-  RowMatrix mean, var, dmean, dvar;
-  model->Predict(unique, PredictOptions{}, &mean, &var, &dmean, &dvar);
-  for (int i = 0; i < 10; ++i) EXPECT_NEAR(mean(i, 0), y(2 * i, 0), 1e-4) << i;
-  EXPECT_TRUE(var.allFinite() && dmean.allFinite() && dvar.allFinite());
-  EXPECT_LT(var.maxCoeff(), 1e-4);
+    // With jitter the GP still interpolates its (consistent) duplicated data.
+    RowMatrix mean, var, dmean, dvar;
+    model->Predict(unique, PredictOptions{}, &mean, &var, &dmean, &dvar);
+    for (int i = 0; i < 10; ++i) EXPECT_NEAR(mean(i, 0), y(2 * i, 0), 1e-4) << i;
+    EXPECT_TRUE(var.allFinite() && dmean.allFinite() && dvar.allFinite());
+    EXPECT_LT(var.maxCoeff(), 1e-4);
+  }
 
   // The same data with a sensible noise level needs no jitter.
   hyp.log_noise_std(0) = std::log(0.1);
@@ -352,6 +361,21 @@ TEST(GpModelTest, CachedQuantitiesAreConsistent) {
     EXPECT_TRUE(MatricesNear(k * model->k_inverse(a), Matrix::Identity(25, 25), 1e-9, 0));
     EXPECT_TRUE(MatricesNear(k * model->beta(a), problem.targets.col(a), 1e-9, 1e-9));
     EXPECT_EQ(model->k_inverse(a), model->k_inverse(a).transpose());
+
+    // Predict against the textbook formulas evaluated one query at a time.
+    const RowMatrix z = MakeQueries(problem, 5, 15);
+    RowMatrix mean, var;
+    model->Predict(z, PredictOptions{25.0}, &mean, &var, nullptr, nullptr);
+    const Eigen::LDLT<Matrix> ldlt(k);
+    for (int i = 0; i < 5; ++i) {
+      Vector ks(25);
+      for (int j = 0; j < 25; ++j) {
+        const Vector d = (z.row(i) - problem.inputs.row(j)).transpose();
+        ks(j) = sf2 * std::exp(-0.5 * d.cwiseQuotient(l).squaredNorm());
+      }
+      EXPECT_NEAR(mean(i, a), ks.dot(ldlt.solve(problem.targets.col(a))), 1e-10);
+      EXPECT_NEAR(var(i, a), sf2 - ks.dot(ldlt.solve(ks)) + 25 * sn2, 1e-10);
+    }
   }
 }
 
