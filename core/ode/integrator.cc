@@ -116,6 +116,7 @@ absl::Status IntegrateAdaptive(const Rhs& rhs, double duration, const Integrator
     // shortened to the remaining time, and on acceptance t is set to
     // `duration` itself rather than to the rounded sum t + dt.
     const double remaining = duration - t;
+    if (remaining <= 0) break;  // t + dt rounded up onto `duration`
     const bool landing = dt >= remaining;
     const double attempted = landing ? remaining : dt;
     double step = attempted;

@@ -49,6 +49,9 @@ class CartPole {
   // writes the next state into *next. Fails (leaving *next unchanged) on a
   // non-finite input or when the adaptive integrator cannot meet its
   // tolerances; the status names the cause. `report` may be null.
+  // Codes: InvalidArgument for a non-finite state or force; otherwise the
+  // integrator's code (see ode::IntegrateAdaptive), message prefixed with
+  // "cart-pole step: ". Integrates with params().integrator over params().dt.
   absl::Status Step(const State& x, double force, State* next,
                     ode::IntegrationReport* report = nullptr) const;
 
