@@ -1,0 +1,312 @@
+// The chained objective: J and dJ/dtheta over 30 steps against finite
+// differences, symmetric PSD covariances at every step, and degenerate
+// inputs (deterministic start, nearly singular sin/cos block, a policy and a
+// state far from the data, a non-PSD covariance).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include <Eigen/Eigenvalues>
+
+#include "core/diff/gradient_checker.h"
+#include "core/pilco/expected_cost.h"
+#include "core/pilco/gp_moments.h"
+#include "core/pilco/propagation.h"
+#include "core/tasks/cartpole.h"
+#include "tests/core/pilco/pilco_test_util.h"
+#include "tests/testutil/testutil.h"
+
+namespace totalgrad::pilco {
+namespace {
+
+// A GP on real cart-pole transitions (state [s, beta, s_dot, beta_dot]) with
+// PILCO's initial hyperparameters (log l = log std(inputs), sf = std(targets),
+// sn = sf / 10). angle_index 1: inputs [s, s_dot, beta_dot, sin, cos, u].
+GaussianInputGp CartPoleGp(int n, bool sin_cos, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> normal;
+  std::uniform_real_distribution<double> uniform(-10, 10);
+  const tasks::CartPole plant;
+  const int e = sin_cos ? 6 : 5;
+  RowMatrix x(n, e), y(n, 4);
+  for (int i = 0; i < n; ++i) {
+    tasks::State s(0.5 * normal(rng), 3.0 * normal(rng), 1.0 * normal(rng), 3.0 * normal(rng));
+    const double u = uniform(rng);
+    tasks::State next;
+    EXPECT_TRUE(plant.Step(s, u, &next).ok());
+    if (sin_cos) {
+      x.row(i) << s(0), s(2), s(3), std::sin(s(1)), std::cos(s(1)), u;
+    } else {
+      x.row(i) << s(0), s(1), s(2), s(3), u;
+    }
+    y.row(i) = (next - s).transpose();
+  }
+  RowMatrix log_hyp(4, e + 2);
+  for (int a = 0; a < 4; ++a) {
+    for (int j = 0; j < e; ++j) {
+      const double mean = x.col(j).mean();
+      log_hyp(a, j) = std::log(std::sqrt((x.col(j).array() - mean).square().sum() / (n - 1)));
+    }
+    const double mean = y.col(a).mean();
+    const double sd = std::sqrt((y.col(a).array() - mean).square().sum() / (n - 1));
+    log_hyp(a, e) = std::log(sd);
+    log_hyp(a, e + 1) = std::log(sd / 10);
+  }
+  auto gp = GaussianInputGpFromData(x, y, log_hyp);
+  EXPECT_TRUE(gp.ok()) << gp.status();
+  return *gp;
+}
+
+Vector InitialPolicy(const Propagator& prop, int num_basis, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> normal;
+  const int ep = prop.policy_input_dim();
+  Vector p(prop.num_parameters());
+  for (int k = 0; k < num_basis; ++k) {
+    const Vector x = Eigen::Vector4d(0.1 * normal(rng), 0.1 * normal(rng), 0.1 * normal(rng),
+                                     0.1 * normal(rng));
+    p.segment(k * ep, ep) = prop.PolicyInput(x);
+  }
+  p.segment(num_basis * ep, ep).setConstant(std::log(1.0));
+  if (ep == 5) p.segment(num_basis * ep + 3, 2).setConstant(std::log(0.7));
+  for (int k = 0; k < num_basis; ++k) p(num_basis * ep + ep + k) = 0.1 * normal(rng);
+  return p;
+}
+
+::testing::AssertionResult AllSymmetricPsd(const Trajectory& tr) {
+  for (size_t t = 0; t < tr.covs.size(); ++t) {
+    const Matrix& s = tr.covs[t];
+    if (!s.allFinite()) return ::testing::AssertionFailure() << "step " << t << " not finite";
+    if ((s - s.transpose()).cwiseAbs().maxCoeff() != 0.0) {
+      return ::testing::AssertionFailure() << "step " << t << " not symmetric";
+    }
+    const double min_eig = Eigen::SelfAdjointEigenSolver<Matrix>(s).eigenvalues().minCoeff();
+    if (min_eig < -1e-12 * (1.0 + s.cwiseAbs().maxCoeff())) {
+      return ::testing::AssertionFailure() << "step " << t << " min eigenvalue " << min_eig;
+    }
+  }
+  return ::testing::AssertionSuccess();
+}
+
+struct Scenario {
+  bool sin_cos;
+  const char* cost;  // "tip" or "angle"
+};
+
+class ChainedObjectiveTest : public ::testing::TestWithParam<Scenario> {};
+
+TEST_P(ChainedObjectiveTest, GradientOver30StepsMatchesFiniteDifferences) {
+  const Scenario sc = GetParam();
+  const GaussianInputGp gp = CartPoleGp(60, sc.sin_cos, 21);
+  PropagationOptions options;
+  options.angle_index = sc.sin_cos ? 1 : -1;
+  options.num_basis = 6;
+  const Propagator prop(&gp, options);
+  auto cost = std::string(sc.cost) == "tip"
+                  ? GaussianCost::Tip(4, 0, 1, 0.5, 0.25)
+                  : GaussianCost::Angle(Eigen::Vector4d(0, M_PI, 0, 0),
+                                        Eigen::Vector4d(1, 1, 0, 0).asDiagonal().toDenseMatrix());
+  ASSERT_TRUE(cost.ok());
+  const Vector params = InitialPolicy(prop, 6, 22);
+  const Vector mu0 = Vector::Zero(4);
+  const Matrix s0 = 0.01 * Matrix::Identity(4, 4);
+  Trajectory tr;
+  Vector grad;
+  ASSERT_TRUE(PredictTrajectory(prop, *cost, params, mu0, s0, 30, &tr, &grad).ok());
+  EXPECT_TRUE(AllSymmetricPsd(tr));
+  EXPECT_GT(tr.total_cost, 1.0);
+  EXPECT_LT(tr.total_cost, 30.0);
+  // The state distribution really moves (else the check is weak).
+  EXPECT_GT(tr.covs[30].trace(), 10 * s0.trace());
+  const diff::VectorFunction j = [&](const Vector& th, Vector* out) {
+    Trajectory t;
+    if (!PredictTrajectory(prop, *cost, th, mu0, s0, 30, &t, nullptr).ok()) return false;
+    *out = Vector::Constant(1, t.total_cost);
+    return true;
+  };
+  diff::CheckOptions check;
+  check.relative_step = 1e-6;
+  check.relative_tolerance = 1e-5;
+  check.absolute_tolerance = 1e-7;
+  const diff::CheckResult r = diff::CheckJacobian(j, params, grad.transpose(), check);
+  EXPECT_TRUE(r.ok) << r.log;
+  EXPECT_GT(grad.norm(), 1e-3);
+  // A gradient with its largest entry wrong by 0.1 % fails the same criterion.
+  Eigen::Index worst;
+  grad.cwiseAbs().maxCoeff(&worst);
+  const double wrong = grad(worst) * 1.001, numeric = r.numeric(0, worst);
+  EXPECT_GT(std::abs(wrong - numeric),
+            check.absolute_tolerance +
+                check.relative_tolerance * std::max(std::abs(wrong), std::abs(numeric)));
+}
+
+INSTANTIATE_TEST_SUITE_P(Scenarios, ChainedObjectiveTest,
+                         ::testing::Values(Scenario{true, "tip"}, Scenario{false, "angle"},
+                                           Scenario{true, "angle"}));
+
+TEST(PropagationTest, PredictionIncludesNoiseAddsTheNoiseVariance) {
+  const GaussianInputGp gp = CartPoleGp(60, true, 23);
+  PropagationOptions options;
+  options.angle_index = 1;
+  options.num_basis = 5;
+  const Propagator without(&gp, options);
+  options.prediction_includes_noise = true;
+  const Propagator with(&gp, options);
+  auto cost = GaussianCost::Tip(4, 0, 1, 0.5, 0.25);
+  ASSERT_TRUE(cost.ok());
+  const Vector params = InitialPolicy(without, 5, 24);
+  Trajectory a, b;
+  ASSERT_TRUE(
+      PredictTrajectory(without, *cost, params, Vector::Zero(4), 0.01 * Matrix::Identity(4, 4), 5, &a, nullptr).ok());
+  ASSERT_TRUE(
+      PredictTrajectory(with, *cost, params, Vector::Zero(4), 0.01 * Matrix::Identity(4, 4), 5, &b, nullptr).ok());
+  // Step 1: the difference is exactly the noise variances.
+  const Vector noise = gp.noise_var;
+  EXPECT_TRUE(::totalgrad::testing::MatricesNear(Matrix(b.covs[1] - a.covs[1]).diagonal(), noise,
+                                                 1e-12, 0));
+}
+
+// ------------------------------------------------------------ degenerate inputs
+
+class DegenerateTest : public ::testing::Test {
+ protected:
+  DegenerateTest() : gp_(CartPoleGp(50, true, 31)) {
+    options_.angle_index = 1;
+    options_.num_basis = 6;
+    prop_ = std::make_unique<Propagator>(&gp_, options_);
+    auto c = GaussianCost::Tip(4, 0, 1, 0.5, 0.25);
+    cost_ = std::make_unique<GaussianCost>(*c);
+    params_ = InitialPolicy(*prop_, 6, 32);
+  }
+  GaussianInputGp gp_;
+  PropagationOptions options_;
+  std::unique_ptr<Propagator> prop_;
+  std::unique_ptr<GaussianCost> cost_;
+  Vector params_;
+};
+
+TEST_F(DegenerateTest, ZeroInputCovarianceIsDeterministicPrediction) {
+  Trajectory tr;
+  Vector grad;
+  ASSERT_TRUE(PredictTrajectory(*prop_, *cost_, params_, Vector::Zero(4), Matrix::Zero(4, 4), 30,
+                                &tr, &grad)
+                  .ok());
+  EXPECT_TRUE(AllSymmetricPsd(tr));
+  EXPECT_TRUE(grad.allFinite());
+  // One step from a point: the mean is x + GP mean at [x_-a, sin, cos, pi(x)],
+  // the covariance the GP's latent variance there.
+  StepCache cache;
+  Vector m1;
+  Matrix s1;
+  const Vector x0 = Eigen::Vector4d(0.1, 0.2, -0.3, 0.4);
+  ASSERT_TRUE(prop_->Step(params_, x0, Matrix::Zero(4, 4), &m1, &s1, &cache).ok());
+  // The only input uncertainty left is the policy's 1e-6 jitter, squashed.
+  const double c = cache.policy.sat.c;
+  EXPECT_LE(cache.policy.sat.var, c * c * 1e-6 * 1.001 + 1e-15);
+  EXPECT_NEAR(cache.g_mean(4), std::cos(0.2), 1e-15);
+  EXPECT_NEAR(cache.g_mean(3), std::sin(0.2), 1e-15);
+  // The gradient matches finite differences here too.
+  const diff::VectorFunction j = [&](const Vector& th, Vector* out) {
+    Trajectory t;
+    if (!PredictTrajectory(*prop_, *cost_, th, Vector::Zero(4), Matrix::Zero(4, 4), 30, &t,
+                           nullptr)
+             .ok()) {
+      return false;
+    }
+    *out = Vector::Constant(1, t.total_cost);
+    return true;
+  };
+  diff::CheckOptions check;
+  check.relative_tolerance = 1e-5;
+  check.absolute_tolerance = 1e-7;
+  const diff::CheckResult r = diff::CheckJacobian(j, params_, grad.transpose(), check);
+  EXPECT_TRUE(r.ok) << r.log;
+}
+
+TEST_F(DegenerateTest, NearlySingularSinCosBlockIsContinuous) {
+  // Angle variance 1e-12: the (beta, sin, cos) block has rank ~1.
+  Matrix s_tiny = Matrix::Zero(4, 4);
+  s_tiny(1, 1) = 1e-12;
+  Trajectory tiny, zero;
+  Vector g_tiny, g_zero;
+  const Vector mu0 = Eigen::Vector4d(0, 0.3, 0, 0);
+  ASSERT_TRUE(PredictTrajectory(*prop_, *cost_, params_, mu0, s_tiny, 30, &tiny, &g_tiny).ok());
+  ASSERT_TRUE(
+      PredictTrajectory(*prop_, *cost_, params_, mu0, Matrix::Zero(4, 4), 30, &zero, &g_zero).ok());
+  EXPECT_TRUE(AllSymmetricPsd(tiny));
+  EXPECT_NEAR(tiny.total_cost, zero.total_cost, 1e-8);
+  EXPECT_TRUE(::totalgrad::testing::MatricesNear(g_tiny, g_zero, 1e-7, 1e-6));
+  // The augmented input covariance of step 1 is numerically singular.
+  StepCache cache;
+  Vector m1;
+  Matrix s1;
+  ASSERT_TRUE(prop_->Step(params_, mu0, s_tiny, &m1, &s1, &cache).ok());
+  const Eigen::VectorXd eig = Eigen::SelfAdjointEigenSolver<Matrix>(cache.p_cov).eigenvalues();
+  EXPECT_LT(eig.minCoeff(), 1e-20);
+  EXPECT_TRUE(m1.allFinite() && s1.allFinite());
+}
+
+TEST_F(DegenerateTest, PolicyFarFromTheDataGivesZeroControl) {
+  Vector far = params_;
+  const int ep = prop_->policy_input_dim();
+  far.head(6 * ep).array() += 1e3;
+  Trajectory tr;
+  Vector grad;
+  ASSERT_TRUE(PredictTrajectory(*prop_, *cost_, far, Vector::Zero(4), 0.01 * Matrix::Identity(4, 4),
+                                30, &tr, &grad)
+                  .ok());
+  EXPECT_TRUE(AllSymmetricPsd(tr));
+  EXPECT_TRUE(grad.allFinite());
+  StepCache cache;
+  Vector m1;
+  Matrix s1;
+  ASSERT_TRUE(prop_->Step(far, Vector::Zero(4), 0.01 * Matrix::Identity(4, 4), &m1, &s1, &cache).ok());
+  EXPECT_LT(std::abs(cache.policy.a_mean), 1e-300);
+  EXPECT_NEAR(cache.policy.a_var, 1e-6, 1e-18);  // only the jitter
+}
+
+TEST_F(DegenerateTest, StateFarFromTheGpDataRevertsToThePrior) {
+  const Vector far = Eigen::Vector4d(1e4, 0.0, -1e4, 1e4);
+  Vector m1;
+  Matrix s1;
+  ASSERT_TRUE(prop_->Step(params_, far, 0.01 * Matrix::Identity(4, 4), &m1, &s1, nullptr).ok());
+  EXPECT_TRUE(::totalgrad::testing::MatricesNear(m1, far, 1e-9, 0));
+  // Prior variance sf^2 added on the diagonal.
+  for (int a = 0; a < 4; ++a) EXPECT_NEAR(s1(a, a), 0.01 + gp_.signal_var(a), 1e-9);
+}
+
+TEST_F(DegenerateTest, NonPsdCovarianceIsAClearError) {
+  Matrix bad = 0.01 * Matrix::Identity(4, 4);
+  bad(2, 2) = -5.0;
+  Trajectory tr;
+  const absl::Status st =
+      PredictTrajectory(*prop_, *cost_, params_, Vector::Zero(4), bad, 30, &tr, nullptr);
+  EXPECT_EQ(st.code(), absl::StatusCode::kFailedPrecondition) << st;
+  EXPECT_NE(st.message().find("step 1"), std::string::npos) << st;
+  EXPECT_NE(st.message().find("positive"), std::string::npos) << st;
+}
+
+TEST_F(DegenerateTest, NonFiniteInputIsAClearError) {
+  Vector mu0 = Vector::Zero(4);
+  mu0(2) = std::nan("");
+  Trajectory tr;
+  const absl::Status st = PredictTrajectory(*prop_, *cost_, params_, mu0,
+                                            0.01 * Matrix::Identity(4, 4), 30, &tr, nullptr);
+  EXPECT_EQ(st.code(), absl::StatusCode::kInvalidArgument) << st;
+}
+
+TEST(GpFromDataTest, FailedFactorisationIsAClearError) {
+  RowMatrix x = RowMatrix::Zero(3, 2);  // duplicate inputs
+  RowMatrix y(3, 1);
+  y << 1, 2, 3;
+  RowMatrix log_hyp(1, 4);
+  log_hyp << 0, 0, 0, -400;  // sn = e^-400: K singular
+  auto gp = GaussianInputGpFromData(x, y, log_hyp);
+  ASSERT_FALSE(gp.ok());
+  EXPECT_EQ(gp.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_NE(gp.status().message().find("output 0"), std::string::npos) << gp.status();
+}
+
+}  // namespace
+}  // namespace totalgrad::pilco
