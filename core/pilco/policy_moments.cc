@@ -2,6 +2,8 @@
 
 #include <cmath>
 
+#include <Eigen/Cholesky>
+
 #include "core/common/check.h"
 #include "core/pilco/gp_moments.h"
 
@@ -117,6 +119,82 @@ absl::Status PolicyAtGaussianBackward(const RbfPolicyShape& shape, const Vector&
       Dx_GSat(pm.a_mean, pm.a_var, shape.max_force).transpose() * sat_bar;
   return UnsquashedPolicyBackward(shape, params, m, s, in_bar(0), in_bar(1), a_cross_bar, m_bar,
                                   s_bar, params_bar);
+}
+
+namespace {
+
+// K_cc (C x C) of the scaled centres.
+Matrix CentreKernel(const RowMatrix& scaled) {
+  const int c = static_cast<int>(scaled.rows());
+  Matrix k(c, c);
+  for (int j = 0; j < c; ++j) {
+    for (int i = j; i < c; ++i) {
+      k(i, j) = k(j, i) = std::exp(-0.5 * (scaled.row(i) - scaled.row(j)).squaredNorm());
+    }
+  }
+  return k;
+}
+
+}  // namespace
+
+absl::Status PseudoTargetsToWeights(const RbfPolicyShape& shape, const Vector& pilco_params,
+                                    Vector* params) {
+  const int c = shape.num_basis, e = shape.input_dim;
+  TG_CHECK(pilco_params.size() == shape.num_parameters());
+  const Vector il = (-pilco_params.segment(c * e, e).array()).exp().matrix();
+  const Eigen::Map<const RowMatrix> centres(pilco_params.data(), c, e);
+  Matrix a = CentreKernel(centres * il.asDiagonal());
+  a.diagonal().array() += kCongpNoiseVar;
+  Eigen::LLT<Matrix> llt(a);
+  if (llt.info() != Eigen::Success || !a.allFinite()) {
+    return absl::FailedPreconditionError(
+        "policy: K_cc + 1e-4 I of the centres is not positive definite");
+  }
+  *params = pilco_params;
+  params->tail(c) = llt.solve(pilco_params.tail(c));
+  return absl::OkStatus();
+}
+
+absl::Status PseudoTargetsBackward(const RbfPolicyShape& shape, const Vector& pilco_params,
+                                   const Vector& params_bar, Vector* pilco_params_bar) {
+  const int c = shape.num_basis, e = shape.input_dim;
+  TG_CHECK(pilco_params.size() == shape.num_parameters());
+  TG_CHECK(params_bar.size() == shape.num_parameters());
+  const Vector il = (-pilco_params.segment(c * e, e).array()).exp().matrix();
+  const Eigen::Map<const RowMatrix> centres(pilco_params.data(), c, e);
+  const Matrix k = CentreKernel(centres * il.asDiagonal());
+  Matrix a = k;
+  a.diagonal().array() += kCongpNoiseVar;
+  Eigen::LLT<Matrix> llt(a);
+  if (llt.info() != Eigen::Success || !a.allFinite()) {
+    return absl::FailedPreconditionError(
+        "policy: K_cc + 1e-4 I of the centres is not positive definite");
+  }
+  const Vector w = llt.solve(pilco_params.tail(c));
+  // w = A^-1 y: y_bar = A^-1 w_bar, A_bar = -y_bar w^T.
+  const Vector y_bar = llt.solve(params_bar.tail(c));
+  const Matrix a_bar = -y_bar * w.transpose();
+  const Matrix b = (a_bar + a_bar.transpose()).cwiseProduct(k);  // symmetric
+  const Vector il2 = il.cwiseProduct(il);
+  *pilco_params_bar = params_bar;
+  Eigen::Map<RowMatrix> centres_bar(pilco_params_bar->data(), c, e);
+  const Vector row_b = b.rowwise().sum();
+  // dK_kl/dc_km = -K_kl (c_km - c_lm) / l_m^2.
+  const RowMatrix bc = b * centres;
+  centres_bar -= (row_b.asDiagonal() * centres - bc) * il2.asDiagonal();
+  // dK_kl/dlog l_m = K_kl (c_km - c_lm)^2 / l_m^2.
+  for (int m = 0; m < e; ++m) {
+    double acc = 0;
+    for (int l = 0; l < c; ++l) {
+      for (int kk = 0; kk < c; ++kk) {
+        const double diff = centres(kk, m) - centres(l, m);
+        acc += b(kk, l) * diff * diff;
+      }
+    }
+    (*pilco_params_bar)(c * e + m) += 0.5 * acc * il2(m);
+  }
+  pilco_params_bar->tail(c) = y_bar;
+  return absl::OkStatus();
 }
 
 }  // namespace totalgrad::pilco

@@ -62,6 +62,25 @@ absl::Status PolicyAtGaussianBackward(const RbfPolicyShape& shape, const Vector&
                                       double u_var_bar, const Vector& u_cross_bar, Vector* m_bar,
                                       Matrix* s_bar, Vector* params_bar);
 
+// PILCO's own policy parameterisation (congp): pseudo-targets y instead of
+// weights, w = (K_cc + sn^2 I)^-1 y with K_cc,kl = exp(-1/2 sum_m (c_km -
+// c_lm)^2 / l_m^2) (sf = 1) and sn = 0.01, both fixed by congp.
+inline constexpr double kCongpNoiseVar = 1e-4;
+
+// pilco_params = [centres row-major, log l, pseudo-targets (C)]; writes
+// *params = [centres, log l, weights] (same layout as RbfPolicy). Errors:
+// FailedPrecondition if K_cc + sn^2 I cannot be factorised (e.g. non-finite
+// numbers).
+absl::Status PseudoTargetsToWeights(const RbfPolicyShape& shape, const Vector& pilco_params,
+                                    Vector* params);
+
+// Chain rule through PseudoTargetsToWeights: from params_bar (the gradient
+// with respect to [centres, log l, weights]) OVERWRITES *pilco_params_bar
+// with the gradient with respect to [centres, log l, pseudo-targets], i.e.
+// what PILCO's value.m returns for inputs, hyp(1..E) and targets.
+absl::Status PseudoTargetsBackward(const RbfPolicyShape& shape, const Vector& pilco_params,
+                                   const Vector& params_bar, Vector* pilco_params_bar);
+
 }  // namespace totalgrad::pilco
 
 #endif  // TOTALGRAD_CORE_PILCO_POLICY_MOMENTS_H_

@@ -264,6 +264,36 @@ TEST(PolicyMomentsTest, ReverseModeMatchesFiniteDifferences) {
   }
 }
 
+TEST(PolicyMomentsTest, PseudoTargetParameterisationMatchesFiniteDifferences) {
+  std::mt19937_64 rng(9);
+  RbfPolicyShape shape;
+  shape.num_basis = 5;
+  shape.input_dim = 3;
+  const int n = shape.num_parameters();
+  Vector pilco(n);
+  pilco.head(15) = testing::RandomVector(15, 0.8, &rng);
+  pilco.segment(15, 3) = testing::RandomVector(3, 0.2, &rng);
+  pilco.tail(5) = testing::RandomVector(5, 0.3, &rng);
+  const diff::VectorFunction f = [&](const Vector& x, Vector* y) {
+    return PseudoTargetsToWeights(shape, x, y).ok();
+  };
+  Matrix analytic(n, n);
+  for (int r = 0; r < n; ++r) {
+    Vector bar = Vector::Zero(n), out;
+    bar(r) = 1.0;
+    ASSERT_TRUE(PseudoTargetsBackward(shape, pilco, bar, &out).ok());
+    analytic.row(r) = out.transpose();
+  }
+  diff::CheckOptions o = Tight();
+  o.relative_tolerance = 1e-5;
+  const diff::CheckResult r = diff::CheckJacobian(f, pilco, analytic, o);
+  EXPECT_TRUE(r.ok) << r.log;
+  // Weights solve (K + 1e-4 I) w = y.
+  Vector params;
+  ASSERT_TRUE(PseudoTargetsToWeights(shape, pilco, &params).ok());
+  EXPECT_TRUE(params.head(18).isApprox(pilco.head(18)));
+}
+
 // ---------------------------------------------------------------- costs
 
 void CheckCost(const GaussianCost& cost, const Vector& m, const Matrix& s) {
