@@ -15,6 +15,7 @@ int main(int argc, char** argv) {
   totalgrad::cli::AddSimulateCommand(&app, &exit_code);
   totalgrad::cli::AddTrialCommand(&app, &exit_code);
   totalgrad::cli::AddBenchCommand(&app, &exit_code);
+  totalgrad::cli::AddPilcoCommand(&app, &exit_code);
 #ifdef TOTALGRAD_WITH_SERVICE
   totalgrad::cli::AddServiceCommands(&app, &exit_code);
 #endif

@@ -100,8 +100,10 @@ absl::StatusOr<GaussianCost> GaussianCost::Tip(int state_dim, int position_index
   c.f_(1, state_dim + 1) = pendulum_length / width;
   c.z_ = Vector::Zero(n);
   c.z_(position_index) = target_position;
-  c.z_(state_dim) = 0.0;       // sin(pi)
-  c.z_(state_dim + 1) = -1.0;  // cos(pi)
+  // The upright target angle pi through sin/cos, as loss_cp: sin(pi) is
+  // 1.2246e-16 in double precision, not 0.
+  c.z_(state_dim) = std::sin(M_PI);
+  c.z_(state_dim + 1) = std::cos(M_PI);
   return c;
 }
 

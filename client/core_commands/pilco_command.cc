@@ -1,0 +1,344 @@
+#include "client/core_commands/pilco_command.h"
+
+#include <cmath>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <string>
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include "absl/strings/str_cat.h"
+#include "client/core_commands/commands.h"
+#include "core/pilco/expected_cost.h"
+#include "core/pilco/gp_moments.h"
+#include "core/pilco/policy_moments.h"
+#include "core/pilco/propagation.h"
+
+namespace totalgrad::cli {
+namespace {
+
+using Json = nlohmann::json;
+
+absl::StatusOr<double> Number(const Json& v, const std::string& what) {
+  if (!v.is_number()) return absl::InvalidArgumentError(absl::StrCat(what, ": not a number"));
+  const double x = v.get<double>();
+  if (!std::isfinite(x)) return absl::InvalidArgumentError(absl::StrCat(what, ": not finite"));
+  return x;
+}
+
+const Json* Field(const Json& obj, const std::string& key) {
+  auto it = obj.find(key);
+  return it == obj.end() ? nullptr : &*it;
+}
+
+absl::StatusOr<const Json*> Required(const Json& obj, const std::string& key,
+                                     const std::string& where) {
+  const Json* v = Field(obj, key);
+  if (v == nullptr) {
+    return absl::InvalidArgumentError(absl::StrCat("missing field '", where, key, "'"));
+  }
+  return v;
+}
+
+absl::StatusOr<Vector> ToVector(const Json& v, const std::string& what) {
+  if (!v.is_array()) return absl::InvalidArgumentError(absl::StrCat(what, ": not an array"));
+  Vector out(v.size());
+  for (size_t i = 0; i < v.size(); ++i) {
+    absl::StatusOr<double> x = Number(v[i], absl::StrCat(what, "[", i, "]"));
+    if (!x.ok()) return x.status();
+    out(i) = *x;
+  }
+  return out;
+}
+
+absl::StatusOr<RowMatrix> ToMatrix(const Json& v, const std::string& what) {
+  if (!v.is_array()) return absl::InvalidArgumentError(absl::StrCat(what, ": not an array"));
+  RowMatrix out;
+  for (size_t i = 0; i < v.size(); ++i) {
+    absl::StatusOr<Vector> row = ToVector(v[i], absl::StrCat(what, "[", i, "]"));
+    if (!row.ok()) return row.status();
+    if (i == 0) out.resize(v.size(), row->size());
+    if (row->size() != out.cols()) {
+      return absl::InvalidArgumentError(absl::StrCat(what, "[", i, "]: has ", row->size(),
+                                                     " entries, row 0 has ", out.cols()));
+    }
+    out.row(i) = row->transpose();
+  }
+  return out;
+}
+
+absl::StatusOr<int> ToIndex(const Json& v, const std::string& what) {
+  if (!v.is_number_integer()) {
+    return absl::InvalidArgumentError(absl::StrCat(what, ": not an integer"));
+  }
+  return v.get<int>();
+}
+
+#define TG_ASSIGN_OR_RETURN_IMPL(var, expr, tmp) \
+  auto tmp = (expr);                             \
+  if (!tmp.ok()) return tmp.status();            \
+  var = *std::move(tmp)
+#define TG_CONCAT_INNER(a, b) a##b
+#define TG_CONCAT(a, b) TG_CONCAT_INNER(a, b)
+#define TG_ASSIGN_OR_RETURN(var, expr) \
+  TG_ASSIGN_OR_RETURN_IMPL(var, expr, TG_CONCAT(status_or_, __LINE__))
+
+Json MatrixJson(const Matrix& m) {
+  Json rows = Json::array();
+  for (Eigen::Index r = 0; r < m.rows(); ++r) {
+    Json row = Json::array();
+    for (Eigen::Index c = 0; c < m.cols(); ++c) row.push_back(m(r, c));
+    rows.push_back(std::move(row));
+  }
+  return rows;
+}
+
+Json VectorJson(const Vector& v) {
+  Json out = Json::array();
+  for (Eigen::Index i = 0; i < v.size(); ++i) out.push_back(v(i));
+  return out;
+}
+
+int RunPropagateFile(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) {
+    std::cerr << "pilco propagate: cannot open '" << path << "'\n";
+    return 2;
+  }
+  Json doc = Json::parse(in, nullptr, /*allow_exceptions=*/false);
+  if (doc.is_discarded()) {
+    std::cerr << "pilco propagate: '" << path << "' is not valid JSON\n";
+    return 2;
+  }
+  absl::StatusOr<PilcoScenario> scenario = ParsePilcoScenario(doc);
+  if (!scenario.ok()) {
+    std::cerr << "pilco propagate: " << scenario.status().message() << "\n";
+    return 2;
+  }
+  absl::StatusOr<nlohmann::ordered_json> out = RunPilcoPropagate(*scenario);
+  if (!out.ok()) {
+    std::cerr << "pilco propagate: " << out.status().message() << "\n";
+    return out.status().code() == absl::StatusCode::kInvalidArgument ? 2 : 1;
+  }
+  std::cout << out->dump() << "\n";
+  std::cout.flush();
+  return 0;
+}
+
+}  // namespace
+
+absl::StatusOr<PilcoScenario> ParsePilcoScenario(const nlohmann::json& doc) {
+  if (!doc.is_object()) return absl::InvalidArgumentError("scenario: not a JSON object");
+  PilcoScenario s;
+  TG_ASSIGN_OR_RETURN(const Json* angle, Required(doc, "angle_index", ""));
+  if (angle->is_null()) {
+    s.angle_index = -1;
+  } else {
+    TG_ASSIGN_OR_RETURN(s.angle_index, ToIndex(*angle, "angle_index"));
+    if (s.angle_index < 0) return absl::InvalidArgumentError("angle_index: must be >= 0 or null");
+  }
+  TG_ASSIGN_OR_RETURN(const Json* xi, Required(doc, "train_inputs", ""));
+  TG_ASSIGN_OR_RETURN(s.train_inputs, ToMatrix(*xi, "train_inputs"));
+  TG_ASSIGN_OR_RETURN(const Json* yi, Required(doc, "train_targets", ""));
+  TG_ASSIGN_OR_RETURN(s.train_targets, ToMatrix(*yi, "train_targets"));
+  TG_ASSIGN_OR_RETURN(const Json* hyp, Required(doc, "gp_log_hyp", ""));
+  TG_ASSIGN_OR_RETURN(s.gp_log_hyp, ToMatrix(*hyp, "gp_log_hyp"));
+  if (const Json* noise = Field(doc, "prediction_includes_noise"); noise != nullptr) {
+    if (!noise->is_boolean()) {
+      return absl::InvalidArgumentError("prediction_includes_noise: not a boolean");
+    }
+    s.prediction_includes_noise = noise->get<bool>();
+  }
+
+  TG_ASSIGN_OR_RETURN(const Json* policy, Required(doc, "policy", ""));
+  if (!policy->is_object()) return absl::InvalidArgumentError("policy: not an object");
+  TG_ASSIGN_OR_RETURN(const Json* centres, Required(*policy, "centres", "policy."));
+  TG_ASSIGN_OR_RETURN(s.centres, ToMatrix(*centres, "policy.centres"));
+  const Json* weights = Field(*policy, "weights");
+  const Json* targets = Field(*policy, "targets");
+  if ((weights == nullptr) == (targets == nullptr)) {
+    return absl::InvalidArgumentError(
+        "policy: give exactly one of 'weights' (ours) or 'targets' (PILCO's congp)");
+  }
+  if (weights != nullptr) {
+    TG_ASSIGN_OR_RETURN(s.weights, ToVector(*weights, "policy.weights"));
+  } else {
+    TG_ASSIGN_OR_RETURN(s.targets, ToVector(*targets, "policy.targets"));
+    s.has_targets = true;
+  }
+  TG_ASSIGN_OR_RETURN(const Json* ll, Required(*policy, "log_lengthscales", "policy."));
+  TG_ASSIGN_OR_RETURN(s.log_lengthscales, ToVector(*ll, "policy.log_lengthscales"));
+  TG_ASSIGN_OR_RETURN(const Json* mf, Required(*policy, "max_force", "policy."));
+  TG_ASSIGN_OR_RETURN(s.max_force, Number(*mf, "policy.max_force"));
+  if (const Json* j = Field(*policy, "output_variance_jitter"); j != nullptr) {
+    TG_ASSIGN_OR_RETURN(s.output_variance_jitter, Number(*j, "policy.output_variance_jitter"));
+  }
+
+  TG_ASSIGN_OR_RETURN(const Json* mu0, Required(doc, "mu0", ""));
+  TG_ASSIGN_OR_RETURN(s.mu0, ToVector(*mu0, "mu0"));
+  TG_ASSIGN_OR_RETURN(const Json* s0, Required(doc, "S0", ""));
+  TG_ASSIGN_OR_RETURN(RowMatrix s0m, ToMatrix(*s0, "S0"));
+  s.s0 = s0m;
+  TG_ASSIGN_OR_RETURN(const Json* h, Required(doc, "horizon", ""));
+  TG_ASSIGN_OR_RETURN(s.horizon, ToIndex(*h, "horizon"));
+  if (s.horizon < 1) return absl::InvalidArgumentError("horizon: must be >= 1");
+
+  TG_ASSIGN_OR_RETURN(const Json* cost, Required(doc, "cost", ""));
+  if (!cost->is_object()) return absl::InvalidArgumentError("cost: not an object");
+  TG_ASSIGN_OR_RETURN(const Json* type, Required(*cost, "type", "cost."));
+  if (!type->is_string()) return absl::InvalidArgumentError("cost.type: not a string");
+  s.cost_type = type->get<std::string>();
+  if (s.cost_type == "tip") {
+    TG_ASSIGN_OR_RETURN(const Json* pi, Required(*cost, "position_index", "cost."));
+    TG_ASSIGN_OR_RETURN(s.cost_position_index, ToIndex(*pi, "cost.position_index"));
+    TG_ASSIGN_OR_RETURN(const Json* ai, Required(*cost, "angle_index", "cost."));
+    TG_ASSIGN_OR_RETURN(s.cost_angle_index, ToIndex(*ai, "cost.angle_index"));
+    TG_ASSIGN_OR_RETURN(const Json* pl, Required(*cost, "pendulum_length", "cost."));
+    TG_ASSIGN_OR_RETURN(s.pendulum_length, Number(*pl, "cost.pendulum_length"));
+    TG_ASSIGN_OR_RETURN(const Json* w, Required(*cost, "width", "cost."));
+    TG_ASSIGN_OR_RETURN(s.width, Number(*w, "cost.width"));
+    if (const Json* tp = Field(*cost, "target_position"); tp != nullptr) {
+      TG_ASSIGN_OR_RETURN(s.target_position, Number(*tp, "cost.target_position"));
+    }
+  } else if (s.cost_type == "angle") {
+    TG_ASSIGN_OR_RETURN(const Json* t, Required(*cost, "target", "cost."));
+    TG_ASSIGN_OR_RETURN(s.cost_target, ToVector(*t, "cost.target"));
+    TG_ASSIGN_OR_RETURN(const Json* q, Required(*cost, "Q", "cost."));
+    if (q->is_array() && !q->empty() && q->front().is_array()) {
+      TG_ASSIGN_OR_RETURN(RowMatrix qm, ToMatrix(*q, "cost.Q"));
+      s.cost_q = qm;
+    } else {
+      TG_ASSIGN_OR_RETURN(Vector qd, ToVector(*q, "cost.Q"));
+      s.cost_q = qd.asDiagonal();
+    }
+  } else {
+    return absl::InvalidArgumentError(
+        absl::StrCat("cost.type: unknown '", s.cost_type, "' (tip or angle)"));
+  }
+  return s;
+}
+
+absl::StatusOr<nlohmann::ordered_json> RunPilcoPropagate(const PilcoScenario& s) {
+  const int d = static_cast<int>(s.train_targets.cols());
+  const int n = static_cast<int>(s.train_inputs.rows());
+  if (n == 0) return absl::InvalidArgumentError("train_inputs: no rows");
+  if (s.mu0.size() != d) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("mu0: has ", s.mu0.size(), " entries, train_targets has ", d, " columns"));
+  }
+  if (s.s0.rows() != d || s.s0.cols() != d) {
+    return absl::InvalidArgumentError(absl::StrCat("S0: must be ", d, " x ", d));
+  }
+  if (s.angle_index >= d) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("angle_index: ", s.angle_index, " is not a state index (state dim ", d, ")"));
+  }
+  const int ep = s.angle_index >= 0 ? d + 1 : d;
+  if (s.train_inputs.cols() != ep + 1) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "train_inputs: rows must have ", ep + 1, " entries (",
+        s.angle_index >= 0 ? "the other state dims, sin, cos, u" : "state, u", "), have ",
+        s.train_inputs.cols()));
+  }
+  const int c = static_cast<int>(s.centres.rows());
+  if (c == 0 || s.centres.cols() != ep) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("policy.centres: must be C rows of ", ep, " entries (policy inputs)"));
+  }
+  const Vector& w = s.has_targets ? s.targets : s.weights;
+  if (w.size() != c) {
+    return absl::InvalidArgumentError(absl::StrCat("policy.", s.has_targets ? "targets" : "weights",
+                                                   ": must have ", c, " entries (one per centre)"));
+  }
+  if (s.log_lengthscales.size() != ep) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("policy.log_lengthscales: must have ", ep, " entries"));
+  }
+  if (!(s.max_force > 0)) return absl::InvalidArgumentError("policy.max_force: must be > 0");
+  if (!(s.output_variance_jitter >= 0)) {
+    return absl::InvalidArgumentError("policy.output_variance_jitter: must be >= 0");
+  }
+
+  absl::StatusOr<pilco::GaussianInputGp> gp =
+      pilco::GaussianInputGpFromData(s.train_inputs, s.train_targets, s.gp_log_hyp);
+  if (!gp.ok()) return gp.status();
+
+  pilco::PropagationOptions options;
+  options.angle_index = s.angle_index;
+  options.prediction_includes_noise = s.prediction_includes_noise;
+  options.policy_jitter = s.output_variance_jitter;
+  options.max_force = s.max_force;
+  options.num_basis = c;
+  if (absl::Status st = pilco::Propagator::Validate(*gp, options); !st.ok()) return st;
+  const pilco::Propagator prop(&*gp, options);
+
+  absl::StatusOr<pilco::GaussianCost> cost =
+      s.cost_type == "tip"
+          ? pilco::GaussianCost::Tip(d, s.cost_position_index, s.cost_angle_index,
+                                     s.pendulum_length, s.width, s.target_position)
+          : pilco::GaussianCost::Angle(s.cost_target, s.cost_q);
+  if (!cost.ok()) return cost.status();
+
+  Vector given(prop.num_parameters());
+  given << Eigen::Map<const Vector>(s.centres.data(), c * ep), s.log_lengthscales, w;
+  Vector params = given;
+  if (s.has_targets) {
+    if (absl::Status st = pilco::PseudoTargetsToWeights(prop.policy_shape(), given, &params);
+        !st.ok()) {
+      return st;
+    }
+  }
+  pilco::Trajectory tr;
+  Vector grad;
+  if (absl::Status st = pilco::PredictTrajectory(prop, *cost, params, s.mu0, s.s0, s.horizon,
+                                                 &tr, &grad);
+      !st.ok()) {
+    return st;
+  }
+  Vector grad_given = grad;
+  if (s.has_targets) {
+    if (absl::Status st =
+            pilco::PseudoTargetsBackward(prop.policy_shape(), given, grad, &grad_given);
+        !st.ok()) {
+      return st;
+    }
+  }
+
+  nlohmann::ordered_json out;
+  Json means = Json::array(), covs = Json::array();
+  for (size_t t = 0; t < tr.means.size(); ++t) {
+    means.push_back(VectorJson(tr.means[t]));
+    covs.push_back(MatrixJson(tr.covs[t]));
+  }
+  out["mean"] = std::move(means);
+  out["cov"] = std::move(covs);
+  out["cost_mean"] = VectorJson(tr.cost_mean);
+  out["cost_std"] = VectorJson(tr.cost_std);
+  out["J"] = tr.total_cost;
+  const RowMatrix dc = Eigen::Map<const RowMatrix>(grad_given.data(), c, ep);
+  out["dJ_dcentres"] = MatrixJson(dc);
+  if (s.has_targets) {
+    out["dJ_dtargets"] = VectorJson(grad_given.tail(c));
+    out["weights"] = VectorJson(params.tail(c));
+  } else {
+    out["dJ_dweights"] = VectorJson(grad_given.tail(c));
+  }
+  out["dJ_dlog_lengthscales"] = VectorJson(grad_given.segment(c * ep, ep));
+  return out;
+}
+
+void AddPilcoCommand(CLI::App* app, int* exit_code) {
+  CLI::App* pilco = app->add_subcommand("pilco", "PILCO's analytic moment-matching tools");
+  pilco->require_subcommand(1);
+  auto path = std::make_shared<std::string>();
+  CLI::App* propagate = pilco->add_subcommand(
+      "propagate",
+      "Predict a scenario's state distributions, expected costs, J and dJ/dtheta by moment "
+      "matching; prints JSON (format: docs/pilco.md)");
+  propagate->add_option("FILE", *path, "Scenario JSON file")->required();
+  propagate->callback([path, exit_code] { *exit_code = RunPropagateFile(*path); });
+}
+
+}  // namespace totalgrad::cli
