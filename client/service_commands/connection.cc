@@ -1,0 +1,395 @@
+#include "client/service_commands/connection.h"
+
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <set>
+#include <sstream>
+#include <thread>
+
+#include "absl/strings/ascii.h"
+#include "absl/strings/str_cat.h"
+#include "absl/time/time.h"
+#include "client/service_commands/stats.h"
+
+namespace totalgrad::cli {
+namespace {
+
+std::string Env(const char* name, const std::string& fallback) {
+  const char* value = std::getenv(name);
+  return value != nullptr && *value != '\0' ? std::string(value) : fallback;
+}
+
+const char* CodeName(grpc::StatusCode code) {
+  switch (code) {
+    case grpc::StatusCode::OK: return "OK";
+    case grpc::StatusCode::CANCELLED: return "CANCELLED";
+    case grpc::StatusCode::UNKNOWN: return "UNKNOWN";
+    case grpc::StatusCode::INVALID_ARGUMENT: return "INVALID_ARGUMENT";
+    case grpc::StatusCode::DEADLINE_EXCEEDED: return "DEADLINE_EXCEEDED";
+    case grpc::StatusCode::NOT_FOUND: return "NOT_FOUND";
+    case grpc::StatusCode::ALREADY_EXISTS: return "ALREADY_EXISTS";
+    case grpc::StatusCode::PERMISSION_DENIED: return "PERMISSION_DENIED";
+    case grpc::StatusCode::RESOURCE_EXHAUSTED: return "RESOURCE_EXHAUSTED";
+    case grpc::StatusCode::FAILED_PRECONDITION: return "FAILED_PRECONDITION";
+    case grpc::StatusCode::ABORTED: return "ABORTED";
+    case grpc::StatusCode::OUT_OF_RANGE: return "OUT_OF_RANGE";
+    case grpc::StatusCode::UNIMPLEMENTED: return "UNIMPLEMENTED";
+    case grpc::StatusCode::INTERNAL: return "INTERNAL";
+    case grpc::StatusCode::UNAVAILABLE: return "UNAVAILABLE";
+    case grpc::StatusCode::DATA_LOSS: return "DATA_LOSS";
+    case grpc::StatusCode::UNAUTHENTICATED: return "UNAUTHENTICATED";
+    default: return "UNKNOWN";
+  }
+}
+
+}  // namespace
+
+void AddConnectionFlags(CLI::App* command, ServiceFlags* flags, bool with_format) {
+  flags->coordinator = Env("TOTALGRAD_COORDINATOR", "127.0.0.1:7070");
+  flags->token_file = Env("TOTALGRAD_TOKEN_FILE", "");
+  flags->ca_cert = Env("TOTALGRAD_CA_CERT", "");
+  flags->insecure = Env("TOTALGRAD_INSECURE", "") == "1";
+  command->add_option("--coordinator", flags->coordinator,
+                      "coordinator host:port [env TOTALGRAD_COORDINATOR]")
+      ->capture_default_str();
+  command->add_option("--token-file", flags->token_file,
+                      "file holding the user token [env TOTALGRAD_TOKEN_FILE]");
+  command->add_option("--ca-cert", flags->ca_cert, "CA certificate to trust [env TOTALGRAD_CA_CERT]");
+  command->add_option("--tls-server-name", flags->tls_server_name,
+                      "expected name in the server certificate");
+  command->add_flag("--insecure", flags->insecure,
+                    "plaintext; only to a loopback coordinator [env TOTALGRAD_INSECURE=1]");
+  command->add_option("--timeout", flags->timeout_seconds, "seconds per call")
+      ->capture_default_str();
+  if (with_format) {
+    command->add_option("-f,--format", flags->format, "output: table, json or csv")
+        ->check(CLI::IsMember({"table", "json", "csv"}))
+        ->capture_default_str();
+  }
+}
+
+absl::StatusOr<Connection> Connection::Open(const ServiceFlags& flags) {
+  Connection connection;
+  if (!ParseFormat(flags.format, &connection.format_)) {
+    return absl::InvalidArgumentError(absl::StrCat("--format: '", flags.format,
+                                                   "' is not table, json or csv"));
+  }
+  rpc::ConnectionOptions options;
+  options.target = flags.coordinator;
+  options.insecure = flags.insecure;
+  options.ca_cert_file = flags.ca_cert;
+  options.tls_server_name = flags.tls_server_name;
+  if (!flags.token_file.empty()) {
+    std::ifstream in(flags.token_file);
+    if (!in) return absl::NotFoundError(absl::StrCat("cannot read token file ", flags.token_file));
+    std::stringstream buffer;
+    buffer << in.rdbuf();
+    connection.token_ = std::string(absl::StripAsciiWhitespace(buffer.str()));
+  }
+  absl::StatusOr<std::shared_ptr<grpc::Channel>> channel = rpc::MakeChannel(options);
+  if (!channel.ok()) return channel.status();
+  connection.stub_ = v1::ControlService::NewStub(*channel);
+  connection.policy_.call_timeout = absl::Seconds(flags.timeout_seconds);
+  connection.policy_.give_up_after = absl::Seconds(std::max(10.0, flags.timeout_seconds));
+  return connection;
+}
+
+int ReportError(const grpc::Status& status, const std::string& what) {
+  std::cerr << "error: " << what << ": " << CodeName(status.error_code()) << ": "
+            << status.error_message() << "\n";
+  switch (status.error_code()) {
+    case grpc::StatusCode::UNAVAILABLE:
+    case grpc::StatusCode::DEADLINE_EXCEEDED:
+      return 3;
+    case grpc::StatusCode::INVALID_ARGUMENT:
+    case grpc::StatusCode::NOT_FOUND:
+    case grpc::StatusCode::ALREADY_EXISTS:
+    case grpc::StatusCode::UNAUTHENTICATED:
+    case grpc::StatusCode::PERMISSION_DENIED:
+      return 2;
+    default:
+      return 1;
+  }
+}
+
+int ReportError(const absl::Status& status, const std::string& what) {
+  return ReportError(grpc::Status(static_cast<grpc::StatusCode>(status.code()),
+                                  std::string(status.message())),
+                     what);
+}
+
+std::string StateName(v1::JobState state) {
+  switch (state) {
+    case v1::JOB_STATE_QUEUED: return "queued";
+    case v1::JOB_STATE_RUNNING: return "running";
+    case v1::JOB_STATE_COMPLETED: return "completed";
+    case v1::JOB_STATE_FAILED: return "failed";
+    case v1::JOB_STATE_CANCELLED: return "cancelled";
+    default: return "?";
+  }
+}
+
+std::string StateName(v1::SweepState state) {
+  switch (state) {
+    case v1::SWEEP_STATE_RUNNING: return "running";
+    case v1::SWEEP_STATE_PAUSED: return "paused";
+    case v1::SWEEP_STATE_CANCELLED: return "cancelled";
+    default: return "?";
+  }
+}
+
+std::string FormatTime(int64_t unix_ms) {
+  if (unix_ms <= 0) return "";
+  return absl::FormatTime("%Y-%m-%d %H:%M:%S", absl::FromUnixMillis(unix_ms), absl::LocalTimeZone());
+}
+
+int WaitForSweep(Connection* connection, const std::string& sweep_name,
+                 const std::atomic<bool>* stop) {
+  const bool tty = isatty(STDERR_FILENO);
+  std::string last_line;
+  auto last_print = std::chrono::steady_clock::now() - std::chrono::hours(1);
+  v1::SweepRequest request;
+  request.set_name(sweep_name);
+  v1::SweepInfo sweep;
+  while (true) {
+    if (stop != nullptr && stop->load()) {
+      if (tty) std::cerr << "\n";
+      return 130;
+    }
+    sweep.Clear();
+    const grpc::Status status = connection->Call(&v1::ControlService::Stub::GetSweep, request, &sweep);
+    if (!status.ok()) {
+      if (tty) std::cerr << "\n";
+      return ReportError(status, "sweep status " + sweep_name);
+    }
+    const int done = sweep.jobs_completed() + sweep.jobs_failed() + sweep.jobs_cancelled();
+    const int total = std::max(1, sweep.jobs_total());
+    constexpr int kWidth = 30;
+    const int filled = kWidth * done / total;
+    const std::string line = absl::StrCat(
+        "[", std::string(filled, '#'), std::string(kWidth - filled, '.'), "] jobs ", done, "/",
+        sweep.jobs_total(), " (", sweep.jobs_running(), " running, ", sweep.jobs_failed(),
+        " failed) episodes ", sweep.episodes_stored(), "/", sweep.episodes_expected(),
+        sweep.state() == v1::SWEEP_STATE_PAUSED ? " [paused]" : "");
+    const auto now = std::chrono::steady_clock::now();
+    if (tty) {
+      std::cerr << "\r" << line << std::flush;
+    } else if (line != last_line && (now - last_print > std::chrono::seconds(10) || sweep.finished())) {
+      std::cerr << line << "\n";
+      last_print = now;
+    }
+    last_line = line;
+    if (sweep.finished()) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  }
+  if (tty) std::cerr << "\n";
+  if (sweep.jobs_completed() == sweep.jobs_total()) return 0;
+  std::cerr << "sweep " << sweep_name << " finished with " << sweep.jobs_failed() << " failed and "
+            << sweep.jobs_cancelled() << " cancelled jobs";
+  v1::ListJobsRequest jobs_request;
+  jobs_request.set_sweep_name(sweep_name);
+  jobs_request.add_states(v1::JOB_STATE_FAILED);
+  jobs_request.set_page_size(5);
+  v1::ListJobsResponse jobs;
+  if (connection->Call(&v1::ControlService::Stub::ListJobs, jobs_request, &jobs).ok() &&
+      jobs.jobs_size() > 0) {
+    std::cerr << "; for example:";
+    for (const auto& job : jobs.jobs()) {
+      std::cerr << "\n  job " << job.job_id() << " (" << job.method() << " seed " << job.seed()
+                << "): " << job.last_error();
+    }
+    std::cerr << "\n(see `totalgrad job logs ID`, retry with `totalgrad job retry ID`)";
+  }
+  std::cerr << "\n";
+  return 1;
+}
+
+int PrintResultsTable(Connection* connection, const std::string& sweep_name, Format format) {
+  v1::SweepRequest request;
+  request.set_name(sweep_name);
+  v1::ListTrialResultsResponse response;
+  const grpc::Status status =
+      connection->Call(&v1::ControlService::Stub::ListTrialResults, request, &response);
+  if (!status.ok()) return ReportError(status, "results table " + sweep_name);
+  std::vector<TrialRow> rows;
+  for (const auto& r : response.results()) {
+    rows.push_back({r.method(), r.variant(), r.success(), r.final_eval_cost()});
+  }
+  const std::vector<TableCell> cells = SuccessTable(rows);
+  if (format != Format::kTable) {
+    Listing listing;
+    listing.columns = {"method", "variant", "trials", "successes", "success_rate",
+                       "wilson95_low", "wilson95_high", "median_final_cost"};
+    listing.numeric_columns = {"trials", "successes", "success_rate", "wilson95_low",
+                               "wilson95_high", "median_final_cost"};
+    for (const TableCell& c : cells) {
+      listing.rows.push_back({c.method, c.variant, std::to_string(c.trials),
+                              std::to_string(c.successes), FormatNumber(c.rate),
+                              FormatNumber(c.low), FormatNumber(c.high),
+                              FormatNumber(c.median_final_cost)});
+    }
+    Print(listing, format, std::cout);
+    return 0;
+  }
+  // Table 1 layout: one row per method, one column per task variant; each
+  // cell is the success rate, its 95% Wilson interval and the trial count.
+  std::vector<std::string> methods, variants;
+  std::map<std::pair<std::string, std::string>, const TableCell*> by_key;
+  for (const TableCell& c : cells) {
+    if (std::find(methods.begin(), methods.end(), c.method) == methods.end()) methods.push_back(c.method);
+    if (std::find(variants.begin(), variants.end(), c.variant) == variants.end()) variants.push_back(c.variant);
+    by_key[{c.method, c.variant}] = &c;
+  }
+  Listing listing;
+  listing.columns.push_back("method");
+  for (const std::string& v : variants) listing.columns.push_back(v.empty() ? "success rate" : v);
+  for (const std::string& m : methods) {
+    std::vector<std::string> row = {m};
+    for (const std::string& v : variants) {
+      auto it = by_key.find({m, v});
+      if (it == by_key.end()) {
+        row.push_back("-");
+        continue;
+      }
+      const TableCell& c = *it->second;
+      row.push_back(absl::StrCat(FormatFixed(c.rate, 2), " [", FormatFixed(c.low, 2), ", ",
+                                 FormatFixed(c.high, 2), "] n=", c.trials));
+    }
+    listing.rows.push_back(row);
+  }
+  std::cout << "sweep " << sweep_name << ": success rate [95% Wilson interval] n=trials ("
+            << response.sweep().jobs_completed() << " of " << response.sweep().jobs_total()
+            << " jobs completed)\n";
+  Print(listing, Format::kTable, std::cout);
+  return 0;
+}
+
+namespace {
+
+// Writes the curves as a gnuplot picture; returns "" or what went wrong.
+std::string Plot(const std::vector<CurvePoint>& curves, const std::string& sweep_name,
+                 const std::string& path) {
+  const std::string extension = std::filesystem::path(path).extension().string();
+  std::string terminal;
+  if (extension == ".svg") terminal = "svg size 900,560 dynamic";
+  else if (extension == ".png") terminal = "pngcairo size 900,560";
+  else return "--plot: the file must end in .svg or .png";
+  std::vector<std::string> series;
+  std::map<std::string, std::vector<const CurvePoint*>> points;
+  for (const CurvePoint& p : curves) {
+    const std::string name = p.variant.empty() ? p.method : p.method + " (" + p.variant + ")";
+    if (!points.count(name)) series.push_back(name);
+    points[name].push_back(&p);
+  }
+  const std::string data_path = path + ".dat";
+  {
+    std::ofstream data(data_path);
+    if (!data) return "cannot write " + data_path;
+    for (const std::string& name : series) {
+      data << "# " << name << "\n";
+      for (const CurvePoint* p : points[name]) {
+        data << p->episode << " " << p->q25 << " " << p->median << " " << p->q75 << "\n";
+      }
+      data << "\n\n";
+    }
+  }
+  const std::string script_path = path + ".gp";
+  {
+    std::ofstream script(script_path);
+    if (!script) return "cannot write " + script_path;
+    auto quote = [](std::string text) {
+      std::string out;
+      for (char c : text) {
+        if (c == '"' || c == '\\') out += '\\';
+        out += c;
+      }
+      return "\"" + out + "\"";
+    };
+    script << "set terminal " << terminal << "\n"
+           << "set output " << quote(path) << "\n"
+           << "set title " << quote("Evaluation cost per episode, sweep " + sweep_name +
+                                    " (median and quartiles over trials)") << "\n"
+           << "set xlabel \"episode\"\nset ylabel \"evaluation cost\"\n"
+           << "set key outside right\nset grid\nset style fill transparent solid 0.2 noborder\n"
+           << "plot ";
+    for (size_t i = 0; i < series.size(); ++i) {
+      script << (i ? ", \\\n     " : "") << quote(data_path) << " index " << i
+             << " using 1:2:4 with filledcurves lc " << i + 1 << " notitle, " << quote(data_path)
+             << " index " << i << " using 1:3 with linespoints lc " << i + 1 << " lw 2 title "
+             << quote(series[i]);
+    }
+    script << "\n";
+  }
+  const std::string command = "gnuplot " + script_path + " 2>&1";
+  FILE* pipe = popen(command.c_str(), "r");
+  if (pipe == nullptr) return "cannot run gnuplot (install gnuplot-nox)";
+  std::string output;
+  char buffer[256];
+  while (fgets(buffer, sizeof(buffer), pipe) != nullptr) output += buffer;
+  const int rc = pclose(pipe);
+  if (rc != 0) return "gnuplot failed (is gnuplot-nox installed?): " + output;
+  return "";
+}
+
+}  // namespace
+
+int PrintCurves(Connection* connection, const std::string& sweep_name, Format format,
+                const std::string& plot_path, bool print_table) {
+  v1::ExportEpisodesRequest request;
+  request.set_sweep_name(sweep_name);
+  std::vector<EpisodeValue> values;
+  grpc::Status status = rpc::CallWithRetry(
+      connection->policy(), connection->token(), [&](grpc::ClientContext* context) {
+        values.clear();
+        auto reader = connection->control()->ExportEpisodes(context, request);
+        v1::ExportEpisodesResponse batch;
+        while (reader->Read(&batch)) {
+          for (const auto& row : batch.rows()) {
+            // Only completed trials: a curve mixes no partial attempts.
+            if (!row.final_attempt()) continue;
+            values.push_back({row.method(), row.variant(), row.report().episode(),
+                              row.report().eval_cost_mean()});
+          }
+        }
+        return reader->Finish();
+      });
+  if (!status.ok()) return ReportError(status, "results curves " + sweep_name);
+  const std::vector<CurvePoint> curves = Curves(values);
+  if (print_table) {
+    Listing listing;
+    listing.columns = {"method", "variant", "episode", "trials", "q25", "median", "q75"};
+    listing.numeric_columns = {"episode", "trials", "q25", "median", "q75"};
+    for (const CurvePoint& p : curves) {
+      listing.rows.push_back({p.method, p.variant, std::to_string(p.episode),
+                              std::to_string(p.trials),
+                              format == Format::kTable ? FormatFixed(p.q25, 2) : FormatNumber(p.q25),
+                              format == Format::kTable ? FormatFixed(p.median, 2) : FormatNumber(p.median),
+                              format == Format::kTable ? FormatFixed(p.q75, 2) : FormatNumber(p.q75)});
+    }
+    Print(listing, format, std::cout);
+  }
+  if (!plot_path.empty()) {
+    if (curves.empty()) {
+      std::cerr << "error: results curves " << sweep_name
+                << ": no completed trial has evaluation costs yet; nothing to plot\n";
+      return 1;
+    }
+    const std::string problem = Plot(curves, sweep_name, plot_path);
+    if (!problem.empty()) {
+      std::cerr << "error: results curves --plot: " << problem << "\n";
+      return 1;
+    }
+    std::cerr << "plot written to " << plot_path << "\n";
+  }
+  return 0;
+}
+
+}  // namespace totalgrad::cli

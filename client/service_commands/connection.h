@@ -1,0 +1,89 @@
+// What every service command shares: connection flags (with environment
+// defaults), the stubs, calls with deadlines and retries, error reporting.
+#ifndef TOTALGRAD_CLIENT_SERVICE_COMMANDS_CONNECTION_H_
+#define TOTALGRAD_CLIENT_SERVICE_COMMANDS_CONNECTION_H_
+
+#include <CLI/CLI.hpp>
+#include <grpcpp/support/status.h>
+
+#include <memory>
+#include <string>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "client/service_commands/format.h"
+#include "server/common/rpc_client.h"
+#include "totalgrad/v1/control_service.grpc.pb.h"
+
+namespace totalgrad::cli {
+
+// Flags of every service command. Defaults come from the environment:
+// TOTALGRAD_COORDINATOR (else 127.0.0.1:7070), TOTALGRAD_TOKEN_FILE,
+// TOTALGRAD_CA_CERT, TOTALGRAD_INSECURE=1.
+struct ServiceFlags {
+  std::string coordinator;
+  std::string token_file;
+  std::string ca_cert;
+  std::string tls_server_name;
+  bool insecure = false;
+  std::string format = "table";
+  double timeout_seconds = 60;
+};
+
+// Adds the connection flags (and -f/--format when `with_format`) to `command`.
+void AddConnectionFlags(CLI::App* command, ServiceFlags* flags, bool with_format = true);
+
+class Connection {
+ public:
+  // InvalidArgument: bad flags (plaintext to a remote host, bad format);
+  // NotFound: unreadable token or certificate file.
+  static absl::StatusOr<Connection> Open(const ServiceFlags& flags);
+
+  v1::ControlService::Stub* control() { return stub_.get(); }
+  const std::string& token() const { return token_; }
+  Format format() const { return format_; }
+  const rpc::RetryPolicy& policy() const { return policy_; }
+
+  // One unary call with deadline and retries.
+  template <typename Request, typename Response>
+  grpc::Status Call(grpc::Status (v1::ControlService::Stub::*method)(grpc::ClientContext*,
+                                                                      const Request&, Response*),
+                    const Request& request, Response* response) {
+    return rpc::CallWithRetry(policy_, token_, [&](grpc::ClientContext* context) {
+      return (stub_.get()->*method)(context, request, response);
+    });
+  }
+
+ private:
+  std::shared_ptr<v1::ControlService::Stub> stub_;
+  std::string token_;
+  Format format_ = Format::kTable;
+  rpc::RetryPolicy policy_;
+};
+
+// Prints "error: <what>: <message>" and returns the exit code for `status`:
+// 3 for UNAVAILABLE/DEADLINE_EXCEEDED, 2 for INVALID_ARGUMENT/NOT_FOUND/
+// ALREADY_EXISTS/UNAUTHENTICATED/PERMISSION_DENIED, 1 otherwise.
+int ReportError(const grpc::Status& status, const std::string& what);
+int ReportError(const absl::Status& status, const std::string& what);
+
+// Shared helpers of the commands.
+std::string StateName(v1::JobState state);
+std::string StateName(v1::SweepState state);
+std::string FormatTime(int64_t unix_ms);
+
+// Polls the sweep until it is finished, drawing a progress bar on stderr.
+// Returns 0 if every job completed, 1 if any failed or was cancelled, or an
+// error exit code. `stop` (may be null) ends the wait early (exit code 130).
+int WaitForSweep(Connection* connection, const std::string& sweep_name,
+                 const std::atomic<bool>* stop = nullptr);
+
+// The results table of a sweep (the paper's Table 1 layout), printed.
+int PrintResultsTable(Connection* connection, const std::string& sweep_name, Format format);
+// Per-method curves; optionally a gnuplot picture at `plot_path` (.svg/.png).
+int PrintCurves(Connection* connection, const std::string& sweep_name, Format format,
+                const std::string& plot_path, bool print_table);
+
+}  // namespace totalgrad::cli
+
+#endif  // TOTALGRAD_CLIENT_SERVICE_COMMANDS_CONNECTION_H_

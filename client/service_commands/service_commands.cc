@@ -1,0 +1,462 @@
+// sweep / job / worker / results / admin subcommands. Each callback opens a
+// connection, makes its calls with deadlines and retries, prints, and stores
+// its exit code.
+#include "client/service_commands/service_commands.h"
+
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_split.h"
+#include "client/service_commands/connection.h"
+#include "client/service_commands/format.h"
+#include "server/sweep/sweep_spec.h"
+
+namespace totalgrad::cli {
+
+void AddRunCommand(CLI::App* app, int* exit_code);  // run_command.cc
+
+namespace {
+
+// Sweep spec -> proto (the client sends what it parsed; the coordinator
+// re-validates everything).
+void ToProto(const sweep::SweepSpec& spec, v1::SweepSpec* out) {
+  out->set_name(spec.name);
+  out->set_description(spec.description);
+  for (const auto& axis : spec.grid) {
+    auto* a = out->add_grid();
+    a->set_key(axis.key);
+    for (const auto& v : axis.values) a->add_values(v);
+  }
+  for (const auto& [key, value] : spec.protocol) {
+    auto* o = out->add_protocol();
+    o->set_key(key);
+    o->set_value(value);
+  }
+  out->set_max_attempts(spec.max_attempts);
+  out->set_max_lost_leases(spec.max_lost_leases);
+  out->set_max_concurrent(spec.max_concurrent);
+}
+
+void PrintSweeps(const std::vector<const v1::SweepInfo*>& sweeps, Format format) {
+  Listing listing;
+  listing.columns = {"name", "state", "finished", "jobs", "queued", "running", "completed",
+                     "failed", "cancelled", "episodes", "episodes_expected", "created", "spec_hash"};
+  listing.numeric_columns = {"jobs", "queued", "running", "completed", "failed", "cancelled",
+                             "episodes", "episodes_expected"};
+  for (const auto* s : sweeps) {
+    listing.rows.push_back({s->name(), StateName(s->state()), s->finished() ? "yes" : "no",
+                            std::to_string(s->jobs_total()), std::to_string(s->jobs_queued()),
+                            std::to_string(s->jobs_running()), std::to_string(s->jobs_completed()),
+                            std::to_string(s->jobs_failed()), std::to_string(s->jobs_cancelled()),
+                            std::to_string(s->episodes_stored()),
+                            std::to_string(s->episodes_expected()), FormatTime(s->created_unix_ms()),
+                            s->spec_hash().substr(0, 12)});
+  }
+  Print(listing, format, std::cout);
+}
+
+// Adds a command whose callback receives an open connection.
+CLI::App* AddCommand(CLI::App* parent, const std::string& name, const std::string& help,
+                     int* exit_code, std::function<int(Connection*)> body,
+                     bool with_format = true) {
+  CLI::App* command = parent->add_subcommand(name, help);
+  auto flags = std::make_shared<ServiceFlags>();
+  AddConnectionFlags(command, flags.get(), with_format);
+  command->callback([flags, exit_code, body = std::move(body), name] {
+    absl::StatusOr<Connection> connection = Connection::Open(*flags);
+    if (!connection.ok()) {
+      *exit_code = ReportError(connection.status(), name);
+      return;
+    }
+    *exit_code = body(&*connection);
+  });
+  return command;
+}
+
+void AddSweepCommands(CLI::App* app, int* exit_code) {
+  CLI::App* sweep_cmd = app->add_subcommand("sweep", "submit and control sweeps");
+  sweep_cmd->require_subcommand(1);
+
+  auto file = std::make_shared<std::string>();
+  auto wait = std::make_shared<bool>(false);
+  auto dry_run = std::make_shared<bool>(false);
+  CLI::App* submit = AddCommand(
+      sweep_cmd, "submit", "submit a sweep file (resubmitting the same file is a no-op)",
+      exit_code, [file, wait, dry_run](Connection* connection) {
+        std::string source;
+        absl::StatusOr<sweep::SweepSpec> spec = sweep::LoadSweepFile(*file, &source);
+        if (!spec.ok()) {
+          std::cerr << "error: " << spec.status().message() << "\n";
+          return 2;
+        }
+        v1::SubmitSweepRequest request;
+        ToProto(*spec, request.mutable_spec());
+        request.set_source_name(*file);
+        request.set_source_text(source);
+        request.set_dry_run(*dry_run);
+        v1::SubmitSweepResponse response;
+        const grpc::Status status =
+            connection->Call(&v1::ControlService::Stub::SubmitSweep, request, &response);
+        if (!status.ok()) return ReportError(status, "sweep submit " + *file);
+        const v1::SweepInfo& info = response.sweep();
+        if (*dry_run) {
+          std::cout << "dry run: sweep " << info.name() << " would have " << info.jobs_total()
+                    << " jobs and " << info.episodes_expected() << " episodes (spec "
+                    << info.spec_hash().substr(0, 12) << ")\n";
+          return 0;
+        }
+        std::cout << (response.created() ? "submitted" : "already submitted (no change)")
+                  << ": sweep " << info.name() << ", " << info.jobs_total() << " jobs, spec "
+                  << info.spec_hash().substr(0, 12) << "\n";
+        if (!*wait) return 0;
+        return WaitForSweep(connection, info.name());
+      });
+  submit->add_option("FILE", *file, "sweep file (TOML)")->required();
+  submit->add_flag("--wait", *wait, "show progress until the sweep finishes; exit 1 if it failed");
+  submit->add_flag("--dry-run", *dry_run, "validate and count the jobs; store nothing");
+
+  auto list_format = AddCommand(sweep_cmd, "list", "list sweeps", exit_code, [](Connection* c) {
+    v1::ListSweepsResponse response;
+    const grpc::Status status =
+        c->Call(&v1::ControlService::Stub::ListSweeps, v1::ListSweepsRequest(), &response);
+    if (!status.ok()) return ReportError(status, "sweep list");
+    std::vector<const v1::SweepInfo*> sweeps;
+    for (const auto& s : response.sweeps()) sweeps.push_back(&s);
+    PrintSweeps(sweeps, c->format());
+    return 0;
+  });
+  (void)list_format;
+
+  auto status_name = std::make_shared<std::string>();
+  auto status_wait = std::make_shared<bool>(false);
+  CLI::App* status_cmd = AddCommand(
+      sweep_cmd, "status", "show one sweep", exit_code,
+      [status_name, status_wait](Connection* c) {
+        if (*status_wait) {
+          const int code = WaitForSweep(c, *status_name);
+          if (code != 0 && code != 1) return code;
+        }
+        v1::SweepRequest request;
+        request.set_name(*status_name);
+        v1::SweepInfo info;
+        const grpc::Status status = c->Call(&v1::ControlService::Stub::GetSweep, request, &info);
+        if (!status.ok()) return ReportError(status, "sweep status " + *status_name);
+        PrintSweeps({&info}, c->format());
+        return info.finished() && info.jobs_completed() != info.jobs_total() ? 1 : 0;
+      });
+  status_cmd->add_option("SWEEP", *status_name, "sweep name")->required();
+  status_cmd->add_flag("--wait", *status_wait, "show progress until the sweep finishes");
+
+  struct Control {
+    const char* name;
+    const char* help;
+    grpc::Status (v1::ControlService::Stub::*method)(grpc::ClientContext*, const v1::SweepRequest&,
+                                                     v1::SweepInfo*);
+  };
+  for (const Control& control :
+       {Control{"cancel", "cancel queued jobs and stop running trials (results are kept)",
+                &v1::ControlService::Stub::CancelSweep},
+        Control{"pause", "hand out no more jobs; running trials continue",
+                &v1::ControlService::Stub::PauseSweep},
+        Control{"resume", "hand out jobs again", &v1::ControlService::Stub::ResumeSweep}}) {
+    auto name = std::make_shared<std::string>();
+    CLI::App* command = AddCommand(
+        sweep_cmd, control.name, control.help, exit_code, [name, control](Connection* c) {
+          v1::SweepRequest request;
+          request.set_name(*name);
+          v1::SweepInfo info;
+          const grpc::Status status = c->Call(control.method, request, &info);
+          if (!status.ok()) return ReportError(status, absl::StrCat("sweep ", control.name, " ", *name));
+          PrintSweeps({&info}, c->format());
+          return 0;
+        });
+    command->add_option("SWEEP", *name, "sweep name")->required();
+  }
+}
+
+void AddJobCommands(CLI::App* app, int* exit_code) {
+  CLI::App* job_cmd = app->add_subcommand("job", "inspect and retry jobs");
+  job_cmd->require_subcommand(1);
+
+  auto sweep_name = std::make_shared<std::string>();
+  auto states = std::make_shared<std::string>();
+  CLI::App* list = AddCommand(job_cmd, "list", "list jobs", exit_code, [sweep_name, states](Connection* c) {
+    v1::ListJobsRequest request;
+    request.set_sweep_name(*sweep_name);
+    request.set_page_size(1000);
+    if (!states->empty()) {
+      for (absl::string_view state : absl::StrSplit(*states, ',')) {
+        const std::map<std::string, v1::JobState> names = {
+            {"queued", v1::JOB_STATE_QUEUED}, {"running", v1::JOB_STATE_RUNNING},
+            {"completed", v1::JOB_STATE_COMPLETED}, {"failed", v1::JOB_STATE_FAILED},
+            {"cancelled", v1::JOB_STATE_CANCELLED}};
+        auto it = names.find(std::string(state));
+        if (it == names.end()) {
+          std::cerr << "error: --state: '" << state
+                    << "' is not one of queued, running, completed, failed, cancelled\n";
+          return 2;
+        }
+        request.add_states(it->second);
+      }
+    }
+    Listing listing;
+    listing.columns = {"job",     "sweep",    "method", "seed",     "variant", "state",
+                       "attempts", "failures", "lost",  "episodes", "worker",  "final_cost",
+                       "success", "last_error"};
+    listing.numeric_columns = {"job", "attempts", "failures", "lost", "final_cost"};
+    while (true) {
+      v1::ListJobsResponse response;
+      const grpc::Status status = c->Call(&v1::ControlService::Stub::ListJobs, request, &response);
+      if (!status.ok()) return ReportError(status, "job list");
+      for (const auto& j : response.jobs()) {
+        const bool done = j.state() == v1::JOB_STATE_COMPLETED;
+        listing.rows.push_back(
+            {std::to_string(j.job_id()), j.sweep_name(), j.method(), j.seed(), j.variant(),
+             StateName(j.state()), std::to_string(j.attempts()), std::to_string(j.failures()),
+             std::to_string(j.lost_leases()),
+             absl::StrCat(j.episodes_stored(), "/", j.episodes_expected()), j.worker_id(),
+             done ? FormatNumber(j.final_eval_cost()) : "", done ? (j.success() ? "yes" : "no") : "",
+             j.last_error().substr(0, c->format() == Format::kTable ? 60 : std::string::npos)});
+      }
+      if (response.next_after_job_id() == 0) break;
+      request.set_after_job_id(response.next_after_job_id());
+    }
+    Print(listing, c->format(), std::cout);
+    return 0;
+  });
+  list->add_option("--sweep", *sweep_name, "only this sweep");
+  list->add_option("--state", *states, "only these states, e.g. failed,running");
+
+  auto retry_ids = std::make_shared<std::vector<int64_t>>();
+  CLI::App* retry = AddCommand(job_cmd, "retry", "re-queue failed or cancelled jobs", exit_code,
+                               [retry_ids](Connection* c) {
+    int code = 0;
+    for (int64_t id : *retry_ids) {
+      v1::JobRequest request;
+      request.set_job_id(id);
+      v1::JobInfo job;
+      const grpc::Status status = c->Call(&v1::ControlService::Stub::RetryJob, request, &job);
+      if (!status.ok()) {
+        code = ReportError(status, absl::StrCat("job retry ", id));
+        continue;
+      }
+      std::cout << "job " << id << " re-queued (" << job.method() << " seed " << job.seed() << ")\n";
+    }
+    return code;
+  }, /*with_format=*/false);
+  retry->add_option("JOB", *retry_ids, "job ids")->required();
+
+  auto log_id = std::make_shared<int64_t>(0);
+  CLI::App* logs = AddCommand(job_cmd, "logs", "a job's attempts, errors and events", exit_code,
+                              [log_id](Connection* c) {
+    v1::JobRequest request;
+    request.set_job_id(*log_id);
+    v1::GetJobLogResponse response;
+    const grpc::Status status = c->Call(&v1::ControlService::Stub::GetJobLog, request, &response);
+    if (!status.ok()) return ReportError(status, absl::StrCat("job logs ", *log_id));
+    const v1::JobInfo& job = response.job();
+    if (c->format() == Format::kTable) {
+      std::cout << "job " << job.job_id() << " of sweep " << job.sweep_name() << ": "
+                << job.method() << " seed " << job.seed() << " " << job.variant() << ", "
+                << StateName(job.state()) << "\noptions:";
+      for (const auto& o : job.options()) std::cout << " " << o.key() << "=" << o.value();
+      std::cout << "\n\n";
+    }
+    Listing attempts;
+    attempts.columns = {"attempt", "state", "worker", "host", "build", "started", "ended",
+                        "episodes", "error"};
+    attempts.numeric_columns = {"attempt", "episodes"};
+    const char* names[] = {"?", "running", "completed", "failed", "lease_lost", "released", "cancelled"};
+    for (const auto& a : response.attempts()) {
+      attempts.rows.push_back({std::to_string(a.attempt()), names[std::clamp<int>(a.state(), 0, 6)],
+                               a.worker_id(), a.worker_host(), a.worker_build(),
+                               FormatTime(a.started_unix_ms()), FormatTime(a.ended_unix_ms()),
+                               std::to_string(a.episodes_stored()), a.error()});
+    }
+    Print(attempts, c->format(), std::cout);
+    if (c->format() == Format::kTable) {
+      std::cout << "\nevents:\n";
+      for (const auto& e : response.events()) {
+        std::cout << "  " << FormatTime(e.unix_ms()) << "  attempt " << e.attempt() << "  "
+                  << e.kind() << "  " << e.message() << "\n";
+      }
+    }
+    return 0;
+  });
+  logs->add_option("JOB", *log_id, "job id")->required();
+}
+
+void AddWorkerCommands(CLI::App* app, int* exit_code) {
+  CLI::App* worker_cmd = app->add_subcommand("worker", "inspect workers");
+  worker_cmd->require_subcommand(1);
+  AddCommand(worker_cmd, "list", "workers the coordinator has heard from", exit_code, [](Connection* c) {
+    v1::ListWorkersResponse response;
+    const grpc::Status status =
+        c->Call(&v1::ControlService::Stub::ListWorkers, v1::ListWorkersRequest(), &response);
+    if (!status.ok()) return ReportError(status, "worker list");
+    Listing listing;
+    listing.columns = {"worker", "state", "host", "slots", "running", "last_seen", "build"};
+    listing.numeric_columns = {"slots", "running"};
+    const char* names[] = {"?", "active", "draining", "gone"};
+    for (const auto& w : response.workers()) {
+      listing.rows.push_back({w.worker_id(), names[std::clamp<int>(w.state(), 0, 3)], w.host(),
+                              std::to_string(w.slots()), std::to_string(w.running()),
+                              FormatTime(w.last_seen_unix_ms()), w.build()});
+    }
+    Print(listing, c->format(), std::cout);
+    return 0;
+  });
+  auto drain_id = std::make_shared<std::string>();
+  CLI::App* drain = AddCommand(worker_cmd, "drain", "stop giving a worker new jobs; it exits when idle",
+                               exit_code, [drain_id](Connection* c) {
+    v1::DrainWorkerRequest request;
+    request.set_worker_id(*drain_id);
+    v1::WorkerInfo info;
+    const grpc::Status status = c->Call(&v1::ControlService::Stub::DrainWorker, request, &info);
+    if (!status.ok()) return ReportError(status, "worker drain " + *drain_id);
+    std::cout << "worker " << info.worker_id() << " is draining (" << info.running()
+              << " trials running)\n";
+    return 0;
+  }, /*with_format=*/false);
+  drain->add_option("WORKER", *drain_id, "worker id")->required();
+}
+
+void AddResultsCommands(CLI::App* app, int* exit_code) {
+  CLI::App* results = app->add_subcommand("results", "query results");
+  results->require_subcommand(1);
+  auto table_sweep = std::make_shared<std::string>();
+  CLI::App* table = AddCommand(results, "table",
+                               "success rate per method and task variant, 95% Wilson interval, n",
+                               exit_code, [table_sweep](Connection* c) {
+    return PrintResultsTable(c, *table_sweep, c->format());
+  });
+  table->add_option("SWEEP", *table_sweep, "sweep name")->required();
+
+  auto curves_sweep = std::make_shared<std::string>();
+  auto plot = std::make_shared<std::string>();
+  CLI::App* curves = AddCommand(results, "curves",
+                                "median and quartiles of the evaluation cost per episode",
+                                exit_code, [curves_sweep, plot](Connection* c) {
+    return PrintCurves(c, *curves_sweep, c->format(), *plot, /*print_table=*/true);
+  });
+  curves->add_option("SWEEP", *curves_sweep, "sweep name")->required();
+  curves->add_option("--plot", *plot, "also draw the curves into FILE.svg or FILE.png (gnuplot)");
+
+  auto export_sweep = std::make_shared<std::string>();
+  auto all_attempts = std::make_shared<bool>(false);
+  auto output = std::make_shared<std::string>();
+  CLI::App* export_cmd = AddCommand(results, "export", "stream every episode row (csv or json)",
+                                    exit_code, [export_sweep, all_attempts, output](Connection* c) {
+    if (c->format() == Format::kTable) {
+      std::cerr << "error: results export: --format must be csv or json\n";
+      return 2;
+    }
+    std::ofstream file;
+    if (!output->empty()) {
+      file.open(*output);
+      if (!file) {
+        std::cerr << "error: results export: cannot write " << *output << "\n";
+        return 1;
+      }
+    }
+    std::ostream& out = output->empty() ? std::cout : file;
+    v1::ExportEpisodesRequest request;
+    request.set_sweep_name(*export_sweep);
+    request.set_all_attempts(*all_attempts);
+    // Rows are written as they arrive (JSON: one object per line), so an
+    // export of any size runs in constant memory.
+    grpc::ClientContext context;
+    rpc::PrepareContext(&context, c->token(), absl::Minutes(30), /*wait_for_ready=*/false);
+    auto reader = c->control()->ExportEpisodes(&context, request);
+    if (c->format() == Format::kCsv) {
+      out << "job_id,attempt,final_attempt,method,seed,variant,episode,real_cost,eval_cost_mean,"
+             "eval_cost_std,predicted_cost,optimisation_seconds,reported_unix_ms,details_json\n";
+    }
+    v1::ExportEpisodesResponse batch;
+    int64_t rows = 0;
+    while (reader->Read(&batch)) {
+      for (const auto& r : batch.rows()) {
+        const auto& e = r.report();
+        ++rows;
+        if (c->format() == Format::kCsv) {
+          out << r.job_id() << "," << r.attempt() << "," << (r.final_attempt() ? 1 : 0) << ","
+              << CsvField(r.method()) << "," << CsvField(r.seed()) << "," << CsvField(r.variant())
+              << "," << e.episode() << "," << FormatNumber(e.real_cost()) << ","
+              << FormatNumber(e.eval_cost_mean()) << "," << FormatNumber(e.eval_cost_std()) << ","
+              << FormatNumber(e.predicted_cost()) << "," << FormatNumber(e.optimisation_seconds())
+              << "," << r.reported_unix_ms() << "," << CsvField(e.details_json()) << "\n";
+        } else {
+          nlohmann::json object = {
+              {"job_id", r.job_id()}, {"attempt", r.attempt()}, {"final_attempt", r.final_attempt()},
+              {"method", r.method()}, {"seed", r.seed()}, {"variant", r.variant()},
+              {"episode", e.episode()}, {"real_cost", e.real_cost()},
+              {"eval_cost_mean", e.eval_cost_mean()}, {"eval_cost_std", e.eval_cost_std()},
+              {"predicted_cost", e.predicted_cost()},
+              {"optimisation_seconds", e.optimisation_seconds()},
+              {"reported_unix_ms", r.reported_unix_ms()}};
+          object["details"] = nlohmann::json::parse(e.details_json(), nullptr, false);
+          if (object["details"].is_discarded()) object["details"] = e.details_json();
+          out << object.dump() << "\n";
+        }
+      }
+    }
+    const grpc::Status status = reader->Finish();
+    if (!status.ok()) return ReportError(status, "results export " + *export_sweep);
+    if (!output->empty()) std::cerr << rows << " rows written to " << *output << "\n";
+    return 0;
+  });
+  export_cmd->add_option("SWEEP", *export_sweep, "sweep name")->required();
+  export_cmd->add_flag("--all-attempts", *all_attempts, "include failed and lost attempts");
+  export_cmd->add_option("-o,--output", *output, "write to FILE instead of stdout");
+}
+
+void AddAdminCommands(CLI::App* app, int* exit_code) {
+  CLI::App* admin = app->add_subcommand("admin", "coordinator health and backups");
+  admin->require_subcommand(1);
+  AddCommand(admin, "health", "is the coordinator serving", exit_code, [](Connection* c) {
+    v1::HealthResponse response;
+    const grpc::Status status =
+        c->Call(&v1::ControlService::Stub::Health, v1::HealthRequest(), &response);
+    if (!status.ok()) return ReportError(status, "admin health");
+    Listing listing;
+    listing.columns = {"serving", "build", "database", "sweeps", "queued", "running", "workers"};
+    listing.numeric_columns = {"sweeps", "queued", "running", "workers"};
+    listing.rows.push_back({response.serving() ? "yes" : "no", response.build(),
+                            response.database(), std::to_string(response.sweeps()),
+                            std::to_string(response.jobs_queued()),
+                            std::to_string(response.jobs_running()),
+                            std::to_string(response.workers_active())});
+    Print(listing, c->format(), std::cout);
+    return response.serving() ? 0 : 1;
+  });
+  auto backup_name = std::make_shared<std::string>();
+  CLI::App* backup = AddCommand(admin, "backup", "consistent copy of the database (online backup)",
+                                exit_code, [backup_name](Connection* c) {
+    v1::BackupRequest request;
+    request.set_file_name(*backup_name);
+    v1::BackupResponse response;
+    const grpc::Status status = c->Call(&v1::ControlService::Stub::Backup, request, &response);
+    if (!status.ok()) return ReportError(status, "admin backup " + *backup_name);
+    std::cout << "backup written on the coordinator: " << response.path() << " ("
+              << response.bytes() << " bytes)\n";
+    return 0;
+  }, /*with_format=*/false);
+  backup->add_option("NAME", *backup_name, "file name inside the coordinator's --backup-dir")
+      ->required();
+}
+
+}  // namespace
+
+void AddServiceCommands(CLI::App* app, int* exit_code) {
+  AddSweepCommands(app, exit_code);
+  AddJobCommands(app, exit_code);
+  AddWorkerCommands(app, exit_code);
+  AddResultsCommands(app, exit_code);
+  AddAdminCommands(app, exit_code);
+  AddRunCommand(app, exit_code);
+}
+
+}  // namespace totalgrad::cli

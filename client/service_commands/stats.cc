@@ -1,0 +1,92 @@
+#include "client/service_commands/stats.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <tuple>
+
+namespace totalgrad::cli {
+
+std::pair<double, double> WilsonInterval(int successes, int trials, double z) {
+  if (trials <= 0) return {0.0, 1.0};
+  const double n = trials;
+  const double p = successes / n;
+  const double z2 = z * z;
+  const double centre = (p + z2 / (2 * n)) / (1 + z2 / n);
+  const double half = z / (1 + z2 / n) * std::sqrt(p * (1 - p) / n + z2 / (4 * n * n));
+  return {std::max(0.0, centre - half), std::min(1.0, centre + half)};
+}
+
+double Quantile(std::vector<double> values, double q) {
+  if (values.empty()) return std::numeric_limits<double>::quiet_NaN();
+  std::sort(values.begin(), values.end());
+  const double position = q * (values.size() - 1);
+  const size_t below = static_cast<size_t>(std::floor(position));
+  const size_t above = std::min(below + 1, values.size() - 1);
+  const double fraction = position - below;
+  return values[below] + fraction * (values[above] - values[below]);
+}
+
+namespace {
+
+// First-appearance order of keys.
+class Order {
+ public:
+  int Of(const std::string& key) {
+    auto [it, inserted] = index_.emplace(key, static_cast<int>(index_.size()));
+    return it->second;
+  }
+
+ private:
+  std::map<std::string, int> index_;
+};
+
+}  // namespace
+
+std::vector<TableCell> SuccessTable(const std::vector<TrialRow>& rows) {
+  Order methods, variants;
+  std::map<std::pair<int, int>, std::pair<TableCell, std::vector<double>>> cells;
+  for (const TrialRow& row : rows) {
+    auto& [cell, costs] = cells[{methods.Of(row.method), variants.Of(row.variant)}];
+    cell.method = row.method;
+    cell.variant = row.variant;
+    ++cell.trials;
+    if (row.success) ++cell.successes;
+    costs.push_back(row.final_eval_cost);
+  }
+  std::vector<TableCell> table;
+  for (auto& [order, entry] : cells) {
+    TableCell cell = entry.first;
+    cell.rate = static_cast<double>(cell.successes) / cell.trials;
+    std::tie(cell.low, cell.high) = WilsonInterval(cell.successes, cell.trials);
+    cell.median_final_cost = Quantile(entry.second, 0.5);
+    table.push_back(cell);
+  }
+  return table;
+}
+
+std::vector<CurvePoint> Curves(const std::vector<EpisodeValue>& values) {
+  Order methods, variants;
+  std::map<std::tuple<int, int, int>, std::pair<CurvePoint, std::vector<double>>> points;
+  for (const EpisodeValue& v : values) {
+    if (std::isnan(v.value)) continue;
+    auto& [point, samples] = points[{methods.Of(v.method), variants.Of(v.variant), v.episode}];
+    point.method = v.method;
+    point.variant = v.variant;
+    point.episode = v.episode;
+    samples.push_back(v.value);
+  }
+  std::vector<CurvePoint> curves;
+  for (auto& [key, entry] : points) {
+    CurvePoint point = entry.first;
+    point.trials = static_cast<int>(entry.second.size());
+    point.q25 = Quantile(entry.second, 0.25);
+    point.median = Quantile(entry.second, 0.5);
+    point.q75 = Quantile(entry.second, 0.75);
+    curves.push_back(point);
+  }
+  return curves;
+}
+
+}  // namespace totalgrad::cli

@@ -1,0 +1,65 @@
+// Statistics for the results views: Wilson score intervals for success
+// rates, quantiles, and the grouping behind `results table` (the paper's
+// Table 1) and `results curves` (its Figure 2). Pure functions.
+#ifndef TOTALGRAD_CLIENT_SERVICE_COMMANDS_STATS_H_
+#define TOTALGRAD_CLIENT_SERVICE_COMMANDS_STATS_H_
+
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace totalgrad::cli {
+
+// 95% Wilson score interval for `successes` out of `trials` (z = 1.959964).
+// Returns {0, 1} for trials == 0. Always within [0, 1].
+std::pair<double, double> WilsonInterval(int successes, int trials, double z = 1.959963984540054);
+
+// Quantile q in [0, 1] of `values` by linear interpolation between order
+// statistics (Hyndman & Fan type 7, as R and NumPy default). NaN if empty.
+double Quantile(std::vector<double> values, double q);
+
+struct TrialRow {
+  std::string method;
+  std::string variant;
+  bool success = false;
+  double final_eval_cost = 0;
+};
+
+struct TableCell {
+  std::string method;
+  std::string variant;
+  int trials = 0;
+  int successes = 0;
+  double rate = 0;
+  double low = 0;   // Wilson 95%
+  double high = 0;
+  double median_final_cost = 0;
+};
+
+// One cell per (method, variant), methods in first-appearance order, then
+// variants in first-appearance order.
+std::vector<TableCell> SuccessTable(const std::vector<TrialRow>& rows);
+
+struct EpisodeValue {
+  std::string method;
+  std::string variant;
+  int episode = 0;
+  double value = 0;  // evaluation cost mean (NaN values are skipped)
+};
+
+struct CurvePoint {
+  std::string method;
+  std::string variant;
+  int episode = 0;
+  int trials = 0;
+  double q25 = 0;
+  double median = 0;
+  double q75 = 0;
+};
+
+// Median and quartiles over trials, per (method, variant, episode).
+std::vector<CurvePoint> Curves(const std::vector<EpisodeValue>& values);
+
+}  // namespace totalgrad::cli
+
+#endif  // TOTALGRAD_CLIENT_SERVICE_COMMANDS_STATS_H_

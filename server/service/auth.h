@@ -1,0 +1,50 @@
+// Bearer-token authorisation of every call.
+//
+// Two roles: a worker token may call only WorkerService, a user token only
+// ControlService. A call without "authorization: Bearer <token>" or with an
+// unknown token gets UNAUTHENTICATED; a known token of the other role gets
+// PERMISSION_DENIED. Tokens are compared in constant time and never logged.
+//
+// With no tokens configured (only allowed with --insecure on loopback) every
+// call is allowed.
+//
+// Threading: immutable after construction; Check is safe from any thread.
+#ifndef TOTALGRAD_SERVER_SERVICE_AUTH_H_
+#define TOTALGRAD_SERVER_SERVICE_AUTH_H_
+
+#include <grpcpp/server_context.h>
+
+#include <string>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+
+namespace totalgrad::service {
+
+enum class Role { kWorker, kUser };
+
+class TokenAuthenticator {
+ public:
+  // Empty tokens mean "no tokens" (both must then be empty). InvalidArgument
+  // if only one is set, either is shorter than 16 characters, or they are equal.
+  static absl::StatusOr<TokenAuthenticator> Create(std::string worker_token,
+                                                   std::string user_token);
+  bool enabled() const { return !worker_token_.empty(); }
+
+  // OK, Unauthenticated or PermissionDenied as described above.
+  absl::Status Check(const grpc::ServerContext& context, Role role) const;
+
+ private:
+  TokenAuthenticator(std::string worker_token, std::string user_token)
+      : worker_token_(std::move(worker_token)), user_token_(std::move(user_token)) {}
+  std::string worker_token_;
+  std::string user_token_;
+};
+
+// Reads a token from a file: surrounding whitespace is trimmed. NotFound if
+// unreadable, InvalidArgument if empty.
+absl::StatusOr<std::string> ReadTokenFile(const std::string& path);
+
+}  // namespace totalgrad::service
+
+#endif  // TOTALGRAD_SERVER_SERVICE_AUTH_H_

@@ -1,0 +1,282 @@
+#include "server/service/control_service.h"
+
+#include <filesystem>
+
+#include "absl/strings/str_cat.h"
+#include "server/service/convert.h"
+#include "server/sweep/sweep_spec.h"
+
+namespace totalgrad::service {
+
+#define TG_AUTHORIZE(context)                                                \
+  do {                                                                       \
+    const absl::Status auth_status = auth_->Check(*(context), Role::kUser);  \
+    if (!auth_status.ok()) return ToGrpcStatus(auth_status);                 \
+  } while (0)
+
+absl::StatusOr<storage::NewSweep> PrepareSubmission(const v1::SubmitSweepRequest& request,
+                                                    const std::string& coordinator_build) {
+  if (request.source_text().size() > sweep::kMaxSourceBytes) {
+    return absl::InvalidArgumentError(absl::StrCat("source_text is ", request.source_text().size(),
+                                                   " bytes; at most ", sweep::kMaxSourceBytes));
+  }
+  if (request.source_name().size() > 4096) {
+    return absl::InvalidArgumentError("source_name: at most 4096 bytes");
+  }
+  sweep::SweepSpec spec = FromProto(request.spec());
+  absl::Status status = sweep::CanonicalizeSpec(&spec);
+  if (!status.ok()) return status;
+  absl::StatusOr<std::vector<sweep::ExpandedJob>> jobs = sweep::ExpandJobs(spec);
+  if (!jobs.ok()) return jobs.status();
+  storage::NewSweep sweep;
+  sweep.name = spec.name;
+  sweep.description = spec.description;
+  sweep.canonical_spec = sweep::CanonicalJson(spec);
+  sweep.spec_hash = sweep::SpecHash(spec);
+  sweep.source_name = request.source_name();
+  sweep.source_text = request.source_text();
+  sweep.coordinator_build = coordinator_build;
+  sweep.max_attempts = spec.max_attempts;
+  sweep.max_lost_leases = spec.max_lost_leases;
+  sweep.max_concurrent = spec.max_concurrent;
+  for (sweep::ExpandedJob& job : *jobs) {
+    sweep.jobs.push_back({std::move(job.method), std::move(job.seed), std::move(job.variant),
+                          std::move(job.options), job.episodes_expected});
+  }
+  return sweep;
+}
+
+grpc::Status ControlServiceImpl::SubmitSweep(grpc::ServerContext* context,
+                                             const v1::SubmitSweepRequest* request,
+                                             v1::SubmitSweepResponse* response) {
+  TG_AUTHORIZE(context);
+  absl::StatusOr<storage::NewSweep> sweep = PrepareSubmission(*request, options_.build);
+  if (!sweep.ok()) return ToGrpcStatus(sweep.status());
+  if (request->dry_run()) {
+    storage::SweepRecord preview;
+    preview.name = sweep->name;
+    preview.description = sweep->description;
+    preview.canonical_spec = sweep->canonical_spec;
+    preview.spec_hash = sweep->spec_hash;
+    preview.coordinator_build = sweep->coordinator_build;
+    preview.max_attempts = sweep->max_attempts;
+    preview.max_lost_leases = sweep->max_lost_leases;
+    preview.max_concurrent = sweep->max_concurrent;
+    preview.source_name = sweep->source_name;
+    preview.jobs_total = preview.jobs_queued = static_cast<int>(sweep->jobs.size());
+    for (const auto& job : sweep->jobs) preview.episodes_expected += job.episodes_expected;
+    ToProto(preview, response->mutable_sweep());
+    response->set_created(false);
+    return grpc::Status::OK;
+  }
+  bool created = false;
+  absl::StatusOr<storage::SweepRecord> record = scheduler_->SubmitSweep(*sweep, &created);
+  if (!record.ok()) return ToGrpcStatus(record.status());
+  ToProto(*record, response->mutable_sweep());
+  response->set_created(created);
+  return grpc::Status::OK;
+}
+
+grpc::Status ControlServiceImpl::ListSweeps(grpc::ServerContext* context,
+                                            const v1::ListSweepsRequest* request,
+                                            v1::ListSweepsResponse* response) {
+  TG_AUTHORIZE(context);
+  absl::StatusOr<std::vector<storage::SweepRecord>> sweeps = store_->ListSweeps();
+  if (!sweeps.ok()) return ToGrpcStatus(sweeps.status());
+  for (const auto& sweep : *sweeps) ToProto(sweep, response->add_sweeps());
+  return grpc::Status::OK;
+}
+
+grpc::Status ControlServiceImpl::GetSweep(grpc::ServerContext* context,
+                                          const v1::SweepRequest* request,
+                                          v1::SweepInfo* response) {
+  TG_AUTHORIZE(context);
+  absl::StatusOr<storage::SweepRecord> sweep = store_->GetSweep(request->name());
+  if (!sweep.ok()) return ToGrpcStatus(sweep.status());
+  ToProto(*sweep, response);
+  return grpc::Status::OK;
+}
+
+grpc::Status ControlServiceImpl::SetState(grpc::ServerContext* context,
+                                          const v1::SweepRequest* request,
+                                          storage::SweepState state, v1::SweepInfo* response) {
+  TG_AUTHORIZE(context);
+  absl::StatusOr<storage::SweepRecord> sweep = scheduler_->SetSweepState(request->name(), state);
+  if (!sweep.ok()) return ToGrpcStatus(sweep.status());
+  ToProto(*sweep, response);
+  return grpc::Status::OK;
+}
+
+grpc::Status ControlServiceImpl::CancelSweep(grpc::ServerContext* context,
+                                             const v1::SweepRequest* request,
+                                             v1::SweepInfo* response) {
+  return SetState(context, request, storage::SweepState::kCancelled, response);
+}
+grpc::Status ControlServiceImpl::PauseSweep(grpc::ServerContext* context,
+                                            const v1::SweepRequest* request,
+                                            v1::SweepInfo* response) {
+  return SetState(context, request, storage::SweepState::kPaused, response);
+}
+grpc::Status ControlServiceImpl::ResumeSweep(grpc::ServerContext* context,
+                                             const v1::SweepRequest* request,
+                                             v1::SweepInfo* response) {
+  return SetState(context, request, storage::SweepState::kRunning, response);
+}
+
+grpc::Status ControlServiceImpl::ListJobs(grpc::ServerContext* context,
+                                          const v1::ListJobsRequest* request,
+                                          v1::ListJobsResponse* response) {
+  TG_AUTHORIZE(context);
+  if (request->page_size() < 0 || request->page_size() > 10000) {
+    return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "page_size must be in 0..10000");
+  }
+  storage::JobFilter filter;
+  filter.sweep_name = request->sweep_name();
+  filter.after_job_id = request->after_job_id();
+  filter.limit = request->page_size() == 0 ? 1000 : request->page_size();
+  for (int state : request->states()) {
+    std::optional<storage::JobState> parsed = FromProto(static_cast<v1::JobState>(state));
+    if (!parsed) {
+      return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                          absl::StrCat("states: ", state, " is not a job state"));
+    }
+    filter.states.push_back(*parsed);
+  }
+  absl::StatusOr<std::vector<storage::JobRecord>> jobs = store_->ListJobs(filter);
+  if (!jobs.ok()) return ToGrpcStatus(jobs.status());
+  for (const auto& job : *jobs) ToProto(job, response->add_jobs());
+  if (static_cast<int>(jobs->size()) == filter.limit) {
+    response->set_next_after_job_id(jobs->back().id);
+  }
+  return grpc::Status::OK;
+}
+
+grpc::Status ControlServiceImpl::RetryJob(grpc::ServerContext* context,
+                                          const v1::JobRequest* request, v1::JobInfo* response) {
+  TG_AUTHORIZE(context);
+  absl::StatusOr<storage::JobRecord> job = scheduler_->RetryJob(request->job_id());
+  if (!job.ok()) return ToGrpcStatus(job.status());
+  ToProto(*job, response);
+  return grpc::Status::OK;
+}
+
+grpc::Status ControlServiceImpl::GetJobLog(grpc::ServerContext* context,
+                                           const v1::JobRequest* request,
+                                           v1::GetJobLogResponse* response) {
+  TG_AUTHORIZE(context);
+  absl::StatusOr<storage::JobRecord> job = store_->GetJob(request->job_id());
+  if (!job.ok()) return ToGrpcStatus(job.status());
+  absl::StatusOr<std::vector<storage::AttemptRecord>> attempts =
+      store_->ListAttempts(request->job_id());
+  if (!attempts.ok()) return ToGrpcStatus(attempts.status());
+  absl::StatusOr<std::vector<storage::EventRecord>> events = store_->ListEvents(request->job_id());
+  if (!events.ok()) return ToGrpcStatus(events.status());
+  ToProto(*job, response->mutable_job());
+  for (const auto& attempt : *attempts) ToProto(attempt, response->add_attempts());
+  for (const auto& event : *events) ToProto(event, response->add_events());
+  return grpc::Status::OK;
+}
+
+grpc::Status ControlServiceImpl::ListTrialResults(grpc::ServerContext* context,
+                                                  const v1::SweepRequest* request,
+                                                  v1::ListTrialResultsResponse* response) {
+  TG_AUTHORIZE(context);
+  absl::StatusOr<storage::SweepRecord> sweep = store_->GetSweep(request->name());
+  if (!sweep.ok()) return ToGrpcStatus(sweep.status());
+  absl::StatusOr<std::vector<storage::TrialResultRecord>> results =
+      store_->ListTrialResults(request->name());
+  if (!results.ok()) return ToGrpcStatus(results.status());
+  ToProto(*sweep, response->mutable_sweep());
+  for (const auto& result : *results) ToProto(result, response->add_results());
+  return grpc::Status::OK;
+}
+
+grpc::Status ControlServiceImpl::ExportEpisodes(
+    grpc::ServerContext* context, const v1::ExportEpisodesRequest* request,
+    grpc::ServerWriter<v1::ExportEpisodesResponse>* writer) {
+  TG_AUTHORIZE(context);
+  const absl::Status status = store_->ExportEpisodes(
+      request->sweep_name(), request->all_attempts(), /*batch_size=*/500,
+      [&](std::vector<storage::EpisodeRowRecord> rows) -> absl::Status {
+        v1::ExportEpisodesResponse batch;
+        for (const auto& row : rows) ToProto(row, batch.add_rows());
+        if (!writer->Write(batch)) {
+          return absl::CancelledError("the client went away during the export");
+        }
+        return absl::OkStatus();
+      });
+  return ToGrpcStatus(status);
+}
+
+grpc::Status ControlServiceImpl::ListWorkers(grpc::ServerContext* context,
+                                             const v1::ListWorkersRequest* request,
+                                             v1::ListWorkersResponse* response) {
+  TG_AUTHORIZE(context);
+  absl::StatusOr<std::vector<storage::WorkerRecord>> workers = store_->ListWorkers();
+  if (!workers.ok()) return ToGrpcStatus(workers.status());
+  const int64_t now = clock_->NowMs();
+  const int64_t timeout = absl::ToInt64Milliseconds(scheduler_->options().lease_timeout);
+  for (const auto& worker : *workers) ToProto(worker, now, timeout, response->add_workers());
+  return grpc::Status::OK;
+}
+
+grpc::Status ControlServiceImpl::DrainWorker(grpc::ServerContext* context,
+                                             const v1::DrainWorkerRequest* request,
+                                             v1::WorkerInfo* response) {
+  TG_AUTHORIZE(context);
+  absl::StatusOr<storage::WorkerRecord> worker = scheduler_->DrainWorker(request->worker_id());
+  if (!worker.ok()) return ToGrpcStatus(worker.status());
+  ToProto(*worker, clock_->NowMs(),
+          absl::ToInt64Milliseconds(scheduler_->options().lease_timeout), response);
+  return grpc::Status::OK;
+}
+
+grpc::Status ControlServiceImpl::Health(grpc::ServerContext* context,
+                                        const v1::HealthRequest* request,
+                                        v1::HealthResponse* response) {
+  TG_AUTHORIZE(context);
+  absl::StatusOr<storage::StoreCounts> counts = store_->Counts();
+  if (!counts.ok()) return ToGrpcStatus(counts.status());
+  absl::StatusOr<std::vector<storage::WorkerRecord>> workers = store_->ListWorkers();
+  if (!workers.ok()) return ToGrpcStatus(workers.status());
+  const int64_t now = clock_->NowMs();
+  const int64_t timeout = absl::ToInt64Milliseconds(scheduler_->options().lease_timeout);
+  int active = 0;
+  for (const auto& worker : *workers) {
+    if (!worker.draining && now - worker.last_seen_ms <= timeout) ++active;
+  }
+  response->set_serving(serving_ && !scheduler_->shut_down());
+  response->set_build(options_.build);
+  response->set_database(options_.database);
+  response->set_sweeps(counts->sweeps);
+  response->set_jobs_queued(counts->jobs_queued);
+  response->set_jobs_running(counts->jobs_running);
+  response->set_workers_active(active);
+  response->set_now_unix_ms(now);
+  return grpc::Status::OK;
+}
+
+grpc::Status ControlServiceImpl::Backup(grpc::ServerContext* context,
+                                        const v1::BackupRequest* request,
+                                        v1::BackupResponse* response) {
+  TG_AUTHORIZE(context);
+  if (options_.backup_dir.empty()) {
+    return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION,
+                        "the coordinator was started without --backup-dir");
+  }
+  const std::string& name = request->file_name();
+  const bool plain = !name.empty() && name.size() <= 255 && name != "." && name != ".." &&
+                     name.find('/') == std::string::npos && name.find('\0') == std::string::npos;
+  if (!plain) {
+    return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                        "file_name must be a plain file name (no '/', not '.' or '..')");
+  }
+  const std::string path = (std::filesystem::path(options_.backup_dir) / name).string();
+  absl::StatusOr<int64_t> bytes = store_->Backup(path);
+  if (!bytes.ok()) return ToGrpcStatus(bytes.status());
+  response->set_path(path);
+  response->set_bytes(*bytes);
+  return grpc::Status::OK;
+}
+
+}  // namespace totalgrad::service

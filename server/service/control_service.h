@@ -1,0 +1,89 @@
+// ControlService handlers (user role): sweeps, jobs, results, export,
+// workers, health, backup. Each handler authorises, converts, makes one call
+// into the scheduler (writes) or the store (reads) and converts back.
+//
+// Threading: handlers run on gRPC's threads; scheduler and store are thread-safe.
+#ifndef TOTALGRAD_SERVER_SERVICE_CONTROL_SERVICE_H_
+#define TOTALGRAD_SERVER_SERVICE_CONTROL_SERVICE_H_
+
+#include <atomic>
+#include <string>
+
+#include "server/scheduler/clock.h"
+#include "server/scheduler/scheduler.h"
+#include "server/service/auth.h"
+#include "server/storage/store.h"
+#include "totalgrad/v1/control_service.grpc.pb.h"
+
+namespace totalgrad::service {
+
+struct ControlServiceOptions {
+  std::string build;         // the coordinator's BuildId()
+  std::string database;      // path of the SQLite file (shown by Health)
+  std::string backup_dir;    // empty: Backup RPC refused
+};
+
+// Validates, canonicalizes and expands a submitted spec into what the store
+// keeps. InvalidArgument naming the field at fault.
+absl::StatusOr<storage::NewSweep> PrepareSubmission(const v1::SubmitSweepRequest& request,
+                                                    const std::string& coordinator_build);
+
+class ControlServiceImpl final : public v1::ControlService::Service {
+ public:
+  // None owned; all must outlive the service.
+  ControlServiceImpl(scheduler::Scheduler* scheduler, storage::Store* store,
+                     scheduler::Clock* clock, const TokenAuthenticator* auth,
+                     ControlServiceOptions options)
+      : scheduler_(scheduler), store_(store), clock_(clock), auth_(auth),
+        options_(std::move(options)) {}
+
+  // Health reports serving = false until this is called (after recovery).
+  void SetServing(bool serving) { serving_ = serving; }
+
+  grpc::Status SubmitSweep(grpc::ServerContext* context, const v1::SubmitSweepRequest* request,
+                           v1::SubmitSweepResponse* response) override;
+  grpc::Status ListSweeps(grpc::ServerContext* context, const v1::ListSweepsRequest* request,
+                          v1::ListSweepsResponse* response) override;
+  grpc::Status GetSweep(grpc::ServerContext* context, const v1::SweepRequest* request,
+                        v1::SweepInfo* response) override;
+  grpc::Status CancelSweep(grpc::ServerContext* context, const v1::SweepRequest* request,
+                           v1::SweepInfo* response) override;
+  grpc::Status PauseSweep(grpc::ServerContext* context, const v1::SweepRequest* request,
+                          v1::SweepInfo* response) override;
+  grpc::Status ResumeSweep(grpc::ServerContext* context, const v1::SweepRequest* request,
+                           v1::SweepInfo* response) override;
+  grpc::Status ListJobs(grpc::ServerContext* context, const v1::ListJobsRequest* request,
+                        v1::ListJobsResponse* response) override;
+  grpc::Status RetryJob(grpc::ServerContext* context, const v1::JobRequest* request,
+                        v1::JobInfo* response) override;
+  grpc::Status GetJobLog(grpc::ServerContext* context, const v1::JobRequest* request,
+                         v1::GetJobLogResponse* response) override;
+  grpc::Status ListTrialResults(grpc::ServerContext* context, const v1::SweepRequest* request,
+                                v1::ListTrialResultsResponse* response) override;
+  grpc::Status ExportEpisodes(grpc::ServerContext* context,
+                              const v1::ExportEpisodesRequest* request,
+                              grpc::ServerWriter<v1::ExportEpisodesResponse>* writer) override;
+  grpc::Status ListWorkers(grpc::ServerContext* context, const v1::ListWorkersRequest* request,
+                           v1::ListWorkersResponse* response) override;
+  grpc::Status DrainWorker(grpc::ServerContext* context, const v1::DrainWorkerRequest* request,
+                           v1::WorkerInfo* response) override;
+  grpc::Status Health(grpc::ServerContext* context, const v1::HealthRequest* request,
+                      v1::HealthResponse* response) override;
+  grpc::Status Backup(grpc::ServerContext* context, const v1::BackupRequest* request,
+                      v1::BackupResponse* response) override;
+
+ private:
+  grpc::Status SetState(grpc::ServerContext* context, const v1::SweepRequest* request,
+                        storage::SweepState state, v1::SweepInfo* response);
+
+  scheduler::Scheduler* const scheduler_;
+  storage::Store* const store_;
+  scheduler::Clock* const clock_;
+  const TokenAuthenticator* const auth_;
+  const ControlServiceOptions options_;
+  std::atomic<bool> serving_{false};
+};
+
+}  // namespace totalgrad::service
+
+#endif  // TOTALGRAD_SERVER_SERVICE_CONTROL_SERVICE_H_

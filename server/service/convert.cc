@@ -1,0 +1,260 @@
+#include "server/service/convert.h"
+
+#include <string>
+
+namespace totalgrad::service {
+
+grpc::Status ToGrpcStatus(const absl::Status& status) {
+  if (status.ok()) return grpc::Status::OK;
+  return grpc::Status(static_cast<grpc::StatusCode>(status.code()), std::string(status.message()));
+}
+
+storage::WorkerIdentity FromProto(const v1::WorkerIdentity& worker) {
+  return {worker.worker_id(), worker.host(), worker.build(), worker.slots()};
+}
+
+storage::LeaseKey FromProto(const v1::LeaseKey& key) { return {key.job_id(), key.attempt()}; }
+
+storage::Episode FromProto(const v1::EpisodeReport& report) {
+  storage::Episode e;
+  e.episode = report.episode();
+  e.real_cost = report.real_cost();
+  e.eval_cost_mean = report.eval_cost_mean();
+  e.eval_cost_std = report.eval_cost_std();
+  e.predicted_cost = report.predicted_cost();
+  e.optimisation_seconds = report.optimisation_seconds();
+  e.details_json = report.details_json();
+  return e;
+}
+
+std::vector<storage::Episode> FromProto(
+    const google::protobuf::RepeatedPtrField<v1::EpisodeReport>& reports) {
+  std::vector<storage::Episode> episodes;
+  episodes.reserve(reports.size());
+  for (const auto& report : reports) episodes.push_back(FromProto(report));
+  return episodes;
+}
+
+sweep::SweepSpec FromProto(const v1::SweepSpec& spec) {
+  sweep::SweepSpec out;
+  out.name = spec.name();
+  out.description = spec.description();
+  for (const auto& axis : spec.grid()) {
+    out.grid.push_back({axis.key(), {axis.values().begin(), axis.values().end()}});
+  }
+  for (const auto& option : spec.protocol()) out.protocol.emplace_back(option.key(), option.value());
+  out.max_attempts = spec.max_attempts();
+  out.max_lost_leases = spec.max_lost_leases();
+  out.max_concurrent = spec.max_concurrent();
+  return out;
+}
+
+std::optional<storage::JobState> FromProto(v1::JobState state) {
+  switch (state) {
+    case v1::JOB_STATE_QUEUED: return storage::JobState::kQueued;
+    case v1::JOB_STATE_RUNNING: return storage::JobState::kRunning;
+    case v1::JOB_STATE_COMPLETED: return storage::JobState::kCompleted;
+    case v1::JOB_STATE_FAILED: return storage::JobState::kFailed;
+    case v1::JOB_STATE_CANCELLED: return storage::JobState::kCancelled;
+    default: return std::nullopt;
+  }
+}
+
+void ToProto(const sweep::SweepSpec& spec, v1::SweepSpec* out) {
+  out->set_name(spec.name);
+  out->set_description(spec.description);
+  for (const auto& axis : spec.grid) {
+    auto* a = out->add_grid();
+    a->set_key(axis.key);
+    for (const auto& v : axis.values) a->add_values(v);
+  }
+  for (const auto& [key, value] : spec.protocol) {
+    auto* o = out->add_protocol();
+    o->set_key(key);
+    o->set_value(value);
+  }
+  out->set_max_attempts(spec.max_attempts);
+  out->set_max_lost_leases(spec.max_lost_leases);
+  out->set_max_concurrent(spec.max_concurrent);
+}
+
+v1::JobState ToProto(storage::JobState state) {
+  switch (state) {
+    case storage::JobState::kQueued: return v1::JOB_STATE_QUEUED;
+    case storage::JobState::kRunning: return v1::JOB_STATE_RUNNING;
+    case storage::JobState::kCompleted: return v1::JOB_STATE_COMPLETED;
+    case storage::JobState::kFailed: return v1::JOB_STATE_FAILED;
+    case storage::JobState::kCancelled: return v1::JOB_STATE_CANCELLED;
+  }
+  return v1::JOB_STATE_UNSPECIFIED;
+}
+
+v1::SweepState ToProto(storage::SweepState state) {
+  switch (state) {
+    case storage::SweepState::kRunning: return v1::SWEEP_STATE_RUNNING;
+    case storage::SweepState::kPaused: return v1::SWEEP_STATE_PAUSED;
+    case storage::SweepState::kCancelled: return v1::SWEEP_STATE_CANCELLED;
+  }
+  return v1::SWEEP_STATE_UNSPECIFIED;
+}
+
+v1::AttemptState ToProto(storage::AttemptState state) {
+  switch (state) {
+    case storage::AttemptState::kRunning: return v1::ATTEMPT_STATE_RUNNING;
+    case storage::AttemptState::kCompleted: return v1::ATTEMPT_STATE_COMPLETED;
+    case storage::AttemptState::kFailed: return v1::ATTEMPT_STATE_FAILED;
+    case storage::AttemptState::kLeaseLost: return v1::ATTEMPT_STATE_LEASE_LOST;
+    case storage::AttemptState::kReleased: return v1::ATTEMPT_STATE_RELEASED;
+    case storage::AttemptState::kCancelled: return v1::ATTEMPT_STATE_CANCELLED;
+  }
+  return v1::ATTEMPT_STATE_UNSPECIFIED;
+}
+
+v1::Directive ToProto(scheduler::Directive directive) {
+  switch (directive) {
+    case scheduler::Directive::kContinue: return v1::DIRECTIVE_CONTINUE;
+    case scheduler::Directive::kCancel: return v1::DIRECTIVE_CANCEL;
+    case scheduler::Directive::kDrain: return v1::DIRECTIVE_DRAIN;
+  }
+  return v1::DIRECTIVE_UNSPECIFIED;
+}
+
+void ToProto(const storage::SweepRecord& sweep, v1::SweepInfo* out) {
+  out->set_name(sweep.name);
+  out->set_description(sweep.description);
+  out->set_state(ToProto(sweep.state));
+  out->set_finished(sweep.finished());
+  out->set_spec_hash(sweep.spec_hash);
+  out->set_canonical_spec(sweep.canonical_spec);
+  out->set_coordinator_build(sweep.coordinator_build);
+  out->set_created_unix_ms(sweep.created_ms);
+  out->set_jobs_total(sweep.jobs_total);
+  out->set_jobs_queued(sweep.jobs_queued);
+  out->set_jobs_running(sweep.jobs_running);
+  out->set_jobs_completed(sweep.jobs_completed);
+  out->set_jobs_failed(sweep.jobs_failed);
+  out->set_jobs_cancelled(sweep.jobs_cancelled);
+  out->set_episodes_stored(sweep.episodes_stored);
+  out->set_episodes_expected(sweep.episodes_expected);
+  out->set_max_attempts(sweep.max_attempts);
+  out->set_max_lost_leases(sweep.max_lost_leases);
+  out->set_max_concurrent(sweep.max_concurrent);
+  out->set_source_name(sweep.source_name);
+}
+
+void ToProto(const storage::JobRecord& job, v1::JobInfo* out) {
+  out->set_job_id(job.id);
+  out->set_sweep_name(job.sweep_name);
+  out->set_ordinal(job.ordinal);
+  out->set_method(job.method);
+  out->set_seed(job.seed);
+  out->set_variant(job.variant);
+  out->set_state(ToProto(job.state));
+  out->set_attempts(job.attempts);
+  out->set_failures(job.failures);
+  out->set_lost_leases(job.lost_leases);
+  out->set_episodes_stored(job.episodes_stored);
+  out->set_episodes_expected(job.episodes_expected);
+  out->set_worker_id(job.worker_id);
+  out->set_last_error(job.last_error);
+  out->set_success(job.success);
+  out->set_final_eval_cost(job.final_eval_cost);
+  for (const auto& [key, value] : job.options) {
+    auto* option = out->add_options();
+    option->set_key(key);
+    option->set_value(value);
+  }
+}
+
+void ToProto(const storage::AttemptRecord& attempt, v1::AttemptInfo* out) {
+  out->set_job_id(attempt.key.job_id);
+  out->set_attempt(attempt.key.attempt);
+  out->set_state(ToProto(attempt.state));
+  out->set_worker_id(attempt.worker_id);
+  out->set_worker_host(attempt.worker_host);
+  out->set_worker_build(attempt.worker_build);
+  out->set_started_unix_ms(attempt.started_ms);
+  out->set_ended_unix_ms(attempt.ended_ms);
+  if (attempt.state == storage::AttemptState::kRunning) {
+    out->set_lease_expires_unix_ms(attempt.lease_expires_ms);
+  }
+  out->set_error(attempt.error);
+  out->set_episodes_stored(attempt.episodes_stored);
+}
+
+void ToProto(const storage::EventRecord& event, v1::Event* out) {
+  out->set_unix_ms(event.ms);
+  out->set_job_id(event.job_id);
+  out->set_attempt(event.attempt);
+  out->set_kind(event.kind);
+  out->set_message(event.message);
+}
+
+void ToProto(const storage::WorkerRecord& worker, int64_t now_ms, int64_t lease_timeout_ms,
+             v1::WorkerInfo* out) {
+  out->set_worker_id(worker.identity.worker_id);
+  out->set_host(worker.identity.host);
+  out->set_build(worker.identity.build);
+  out->set_slots(worker.identity.slots);
+  out->set_running(worker.running);
+  out->set_first_seen_unix_ms(worker.first_seen_ms);
+  out->set_last_seen_unix_ms(worker.last_seen_ms);
+  if (worker.draining) {
+    out->set_state(v1::WORKER_STATE_DRAINING);
+  } else if (now_ms - worker.last_seen_ms > lease_timeout_ms) {
+    out->set_state(v1::WORKER_STATE_GONE);
+  } else {
+    out->set_state(v1::WORKER_STATE_ACTIVE);
+  }
+}
+
+void ToProto(const storage::TrialResultRecord& result, v1::TrialResult* out) {
+  out->set_job_id(result.job_id);
+  out->set_method(result.method);
+  out->set_seed(result.seed);
+  out->set_variant(result.variant);
+  out->set_attempt(result.attempt);
+  out->set_success(result.success);
+  out->set_final_eval_cost(result.final_eval_cost);
+  out->set_episodes(result.episodes);
+}
+
+void ToProto(const storage::Episode& episode, v1::EpisodeReport* out) {
+  out->set_episode(episode.episode);
+  out->set_real_cost(episode.real_cost);
+  out->set_eval_cost_mean(episode.eval_cost_mean);
+  out->set_eval_cost_std(episode.eval_cost_std);
+  out->set_predicted_cost(episode.predicted_cost);
+  out->set_optimisation_seconds(episode.optimisation_seconds);
+  out->set_details_json(episode.details_json);
+}
+
+void ToProto(const storage::EpisodeRowRecord& row, v1::EpisodeRow* out) {
+  out->set_job_id(row.job_id);
+  out->set_attempt(row.attempt);
+  out->set_method(row.method);
+  out->set_seed(row.seed);
+  out->set_variant(row.variant);
+  ToProto(row.episode, out->mutable_report());
+  out->set_reported_unix_ms(row.reported_ms);
+  out->set_final_attempt(row.final_attempt);
+}
+
+void ToProto(const scheduler::Lease& lease, v1::Lease* out) {
+  out->mutable_key()->set_job_id(lease.key.job_id);
+  out->mutable_key()->set_attempt(lease.key.attempt);
+  out->set_sweep_name(lease.job.sweep_name);
+  out->set_method(lease.job.method);
+  out->set_seed(lease.job.seed);
+  out->set_variant(lease.job.variant);
+  for (const auto& [key, value] : lease.job.options) {
+    auto* option = out->add_options();
+    option->set_key(key);
+    option->set_value(value);
+  }
+  out->set_episodes_expected(lease.job.episodes_expected);
+  out->set_heartbeat_interval_ms(static_cast<int32_t>(lease.heartbeat_interval_ms));
+  out->set_lease_timeout_ms(static_cast<int32_t>(lease.lease_timeout_ms));
+}
+
+}  // namespace totalgrad::service

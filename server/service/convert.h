@@ -1,0 +1,52 @@
+// Conversions between the wire messages (totalgrad.v1) and the storage /
+// scheduler / sweep domain types, and from absl::Status to grpc::Status.
+// Pure functions; no I/O.
+#ifndef TOTALGRAD_SERVER_SERVICE_CONVERT_H_
+#define TOTALGRAD_SERVER_SERVICE_CONVERT_H_
+
+#include <grpcpp/support/status.h>
+
+#include <vector>
+
+#include "absl/status/status.h"
+#include "server/scheduler/scheduler.h"
+#include "server/storage/store.h"
+#include "server/sweep/sweep_spec.h"
+#include "totalgrad/v1/control_service.pb.h"
+#include "totalgrad/v1/types.pb.h"
+#include "totalgrad/v1/worker_service.pb.h"
+
+namespace totalgrad::service {
+
+// Same canonical code, same message (the codes are shared by design).
+grpc::Status ToGrpcStatus(const absl::Status& status);
+
+storage::WorkerIdentity FromProto(const v1::WorkerIdentity& worker);
+storage::LeaseKey FromProto(const v1::LeaseKey& key);
+storage::Episode FromProto(const v1::EpisodeReport& report);
+std::vector<storage::Episode> FromProto(
+    const google::protobuf::RepeatedPtrField<v1::EpisodeReport>& reports);
+sweep::SweepSpec FromProto(const v1::SweepSpec& spec);
+// Unspecified maps to nullopt.
+std::optional<storage::JobState> FromProto(v1::JobState state);
+
+void ToProto(const sweep::SweepSpec& spec, v1::SweepSpec* out);
+void ToProto(const storage::SweepRecord& sweep, v1::SweepInfo* out);
+void ToProto(const storage::JobRecord& job, v1::JobInfo* out);
+void ToProto(const storage::AttemptRecord& attempt, v1::AttemptInfo* out);
+void ToProto(const storage::EventRecord& event, v1::Event* out);
+// `now_ms` and `lease_timeout_ms` decide ACTIVE vs GONE.
+void ToProto(const storage::WorkerRecord& worker, int64_t now_ms, int64_t lease_timeout_ms,
+             v1::WorkerInfo* out);
+void ToProto(const storage::TrialResultRecord& result, v1::TrialResult* out);
+void ToProto(const storage::Episode& episode, v1::EpisodeReport* out);
+void ToProto(const storage::EpisodeRowRecord& row, v1::EpisodeRow* out);
+void ToProto(const scheduler::Lease& lease, v1::Lease* out);
+v1::Directive ToProto(scheduler::Directive directive);
+v1::JobState ToProto(storage::JobState state);
+v1::SweepState ToProto(storage::SweepState state);
+v1::AttemptState ToProto(storage::AttemptState state);
+
+}  // namespace totalgrad::service
+
+#endif  // TOTALGRAD_SERVER_SERVICE_CONVERT_H_

@@ -1,0 +1,180 @@
+#include "server/service/coordinator.h"
+
+#include <grpcpp/security/server_credentials.h>
+#include <grpcpp/server_builder.h>
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <fstream>
+#include <sstream>
+
+#include "absl/strings/str_cat.h"
+#include "server/common/address.h"
+#include "server/common/build_info.h"
+
+namespace totalgrad::service {
+namespace {
+
+absl::StatusOr<std::string> ReadFile(const std::string& path, const char* what) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return absl::NotFoundError(absl::StrCat("cannot read ", what, " file ", path));
+  std::ostringstream buffer;
+  buffer << in.rdbuf();
+  return buffer.str();
+}
+
+}  // namespace
+
+absl::Status CoordinatorOptions::Validate() const {
+  if (database.empty()) return absl::InvalidArgumentError("--db: a database file is required");
+  if (listen.empty()) return absl::InvalidArgumentError("--listen: an address is required");
+  if (insecure) {
+    if (!IsLoopbackAddress(listen)) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "--insecure is only allowed on a loopback address (127.0.0.1, ::1, localhost); '",
+          listen, "' is not one. Use --tls-cert/--tls-key and token files instead"));
+    }
+  } else {
+    if (tls_cert_file.empty() || tls_key_file.empty()) {
+      return absl::InvalidArgumentError(
+          "--tls-cert and --tls-key are required (or --insecure on a loopback address)");
+    }
+    if (worker_token.empty() || user_token.empty()) {
+      return absl::InvalidArgumentError(
+          "--worker-token-file and --user-token-file are required (or --insecure on a loopback "
+          "address)");
+    }
+  }
+  if (max_message_bytes < 64 * 1024) {
+    return absl::InvalidArgumentError("--max-message-bytes must be at least 65536");
+  }
+  return scheduler.Validate();
+}
+
+absl::StatusOr<std::unique_ptr<Coordinator>> Coordinator::Start(const CoordinatorOptions& options,
+                                                                 scheduler::Clock* clock) {
+  absl::Status valid = options.Validate();
+  if (!valid.ok()) return valid;
+  std::unique_ptr<Coordinator> c(new Coordinator());
+  c->options_ = options;
+  if (clock == nullptr) {
+    c->own_clock_ = std::make_unique<scheduler::SystemClock>();
+    clock = c->own_clock_.get();
+  }
+  c->clock_ = clock;
+
+  absl::StatusOr<TokenAuthenticator> auth =
+      TokenAuthenticator::Create(options.worker_token, options.user_token);
+  if (!auth.ok()) return auth.status();
+  c->auth_ = std::make_unique<TokenAuthenticator>(*std::move(auth));
+
+  absl::StatusOr<std::unique_ptr<storage::SqliteStore>> store =
+      storage::SqliteStore::Open(options.database);
+  if (!store.ok()) return store.status();
+  c->store_ = *std::move(store);
+  absl::StatusOr<std::string> settings = c->store_->DescribeSettings();
+  spdlog::info("database {} ({})", options.database, settings.ok() ? *settings : "?");
+
+  c->scheduler_ = std::make_unique<scheduler::Scheduler>(c->store_.get(), clock, options.scheduler);
+  // Recover before serving: leases that were open when the previous process
+  // died get one more lease timeout, so their workers can reattach.
+  absl::StatusOr<int> extended = c->scheduler_->Recover();
+  if (!extended.ok()) return extended.status();
+  if (*extended > 0) spdlog::info("recovery: extended {} open leases", *extended);
+
+  c->worker_service_ = std::make_unique<WorkerServiceImpl>(c->scheduler_.get(), c->auth_.get());
+  c->control_service_ = std::make_unique<ControlServiceImpl>(
+      c->scheduler_.get(), c->store_.get(), clock, c->auth_.get(),
+      ControlServiceOptions{BuildId(), options.database, options.backup_dir});
+
+  std::shared_ptr<grpc::ServerCredentials> credentials;
+  if (options.insecure) {
+    credentials = grpc::InsecureServerCredentials();
+  } else {
+    absl::StatusOr<std::string> cert = ReadFile(options.tls_cert_file, "TLS certificate");
+    if (!cert.ok()) return cert.status();
+    absl::StatusOr<std::string> key = ReadFile(options.tls_key_file, "TLS key");
+    if (!key.ok()) return key.status();
+    grpc::SslServerCredentialsOptions ssl;
+    ssl.pem_key_cert_pairs.push_back({*key, *cert});
+    if (!options.tls_client_ca_file.empty()) {
+      absl::StatusOr<std::string> ca = ReadFile(options.tls_client_ca_file, "client CA");
+      if (!ca.ok()) return ca.status();
+      ssl.pem_root_certs = *ca;
+      ssl.client_certificate_request = GRPC_SSL_REQUEST_AND_REQUIRE_CLIENT_CERTIFICATE_AND_VERIFY;
+    }
+    credentials = grpc::SslServerCredentials(ssl);
+  }
+
+  grpc::ServerBuilder builder;
+  builder.AddListeningPort(options.listen, credentials, &c->port_);
+  builder.SetMaxReceiveMessageSize(options.max_message_bytes);
+  builder.SetMaxSendMessageSize(options.max_message_bytes);
+  // Workers beat every 15 s, so the connection is never idle for long; allow
+  // client keepalive pings down to 20 s without a GOAWAY.
+  builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, 20000);
+  builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
+  builder.RegisterService(c->worker_service_.get());
+  builder.RegisterService(c->control_service_.get());
+  c->server_ = builder.BuildAndStart();
+  if (c->server_ == nullptr || c->port_ == 0) {
+    return absl::UnavailableError(absl::StrCat("cannot listen on ", options.listen,
+                                               " (address in use, or not an address?)"));
+  }
+  c->control_service_->SetServing(true);
+  c->expiry_thread_ = std::thread([raw = c.get()] { raw->ExpiryLoop(); });
+  spdlog::info("coordinator {} serving on port {} ({}, tokens {})", BuildId(), c->port_,
+               options.insecure ? "plaintext" : "TLS",
+               c->auth_->enabled() ? "required" : "not configured");
+  return c;
+}
+
+void Coordinator::ExpiryLoop() {
+  // Check often relative to the timeout, so a lost lease is noticed within a
+  // few percent of lease_timeout.
+  const auto period = std::chrono::milliseconds(std::clamp<int64_t>(
+      absl::ToInt64Milliseconds(options_.scheduler.lease_timeout) / 20, 50, 1000));
+  std::unique_lock<std::mutex> lock(mutex_);
+  while (!stopping_) {
+    stop_signal_.wait_for(lock, period, [&] { return stopping_; });
+    if (stopping_) break;
+    lock.unlock();
+    absl::StatusOr<int> expired = scheduler_->ExpireLeases();
+    if (!expired.ok()) {
+      spdlog::warn("lease expiry check failed: {}", expired.status().ToString());
+    } else if (*expired > 0) {
+      spdlog::info("{} leases lost; their jobs were re-queued", *expired);
+    }
+    lock.lock();
+  }
+}
+
+void Coordinator::Shutdown() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (stopping_) return;
+    stopping_ = true;
+  }
+  stop_signal_.notify_all();
+  if (control_service_) control_service_->SetServing(false);
+  if (scheduler_) scheduler_->Shutdown();
+  if (server_) server_->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(5));
+  if (expiry_thread_.joinable()) expiry_thread_.join();
+  if (server_) server_->Wait();
+  store_.reset();  // checkpoints the WAL
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stopped_ = true;
+  }
+  stop_signal_.notify_all();
+  spdlog::info("coordinator stopped");
+}
+
+void Coordinator::Wait() {
+  std::unique_lock<std::mutex> lock(mutex_);
+  stop_signal_.wait(lock, [&] { return stopped_; });
+}
+
+Coordinator::~Coordinator() { Shutdown(); }
+
+}  // namespace totalgrad::service

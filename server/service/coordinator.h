@@ -1,0 +1,100 @@
+// The coordinator process in one object: opens the store, recovers open
+// leases, serves WorkerService and ControlService over gRPC, and expires
+// leases on a timer. main.cc only parses flags, starts it and waits for a
+// signal; tests start it in-process the same way.
+//
+// Security rules (checked by Validate): without `insecure`, TLS certificate
+// and key files and both tokens are required; `insecure` (plaintext, tokens
+// optional) is refused unless the listen address is loopback.
+//
+// Threading: Start/Shutdown/Wait from one controlling thread; the services
+// run on gRPC's threads.
+#ifndef TOTALGRAD_SERVER_SERVICE_COORDINATOR_H_
+#define TOTALGRAD_SERVER_SERVICE_COORDINATOR_H_
+
+#include <grpcpp/server.h>
+
+#include <condition_variable>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include "absl/status/statusor.h"
+#include "server/scheduler/clock.h"
+#include "server/scheduler/scheduler.h"
+#include "server/service/auth.h"
+#include "server/service/control_service.h"
+#include "server/service/worker_service.h"
+#include "server/storage/sqlite_store.h"
+
+namespace totalgrad::service {
+
+struct CoordinatorOptions {
+  // host:port to listen on; port 0 picks a free port (see Coordinator::port()).
+  std::string listen = "127.0.0.1:7070";
+  // The SQLite file (created if missing). Must be on a local disk.
+  std::string database;
+  // Token contents (not file names). Both or neither.
+  std::string worker_token;
+  std::string user_token;
+  // PEM files. The client CA, if given, makes client certificates mandatory.
+  std::string tls_cert_file;
+  std::string tls_key_file;
+  std::string tls_client_ca_file;
+  bool insecure = false;
+  scheduler::SchedulerOptions scheduler;
+  // Directory for Backup RPC copies; empty refuses the RPC.
+  std::string backup_dir;
+  // Largest request or response message, bytes.
+  int max_message_bytes = 4 << 20;
+
+  // InvalidArgument naming the flag at fault.
+  absl::Status Validate() const;
+};
+
+class Coordinator {
+ public:
+  // Opens the database, runs recovery, starts serving. `clock` is not owned
+  // (null: the system clock). Errors: InvalidArgument (options), the store's
+  // open errors, Unavailable if the address cannot be bound.
+  static absl::StatusOr<std::unique_ptr<Coordinator>> Start(const CoordinatorOptions& options,
+                                                            scheduler::Clock* clock = nullptr);
+  ~Coordinator();  // Shutdown()
+  Coordinator(const Coordinator&) = delete;
+  Coordinator& operator=(const Coordinator&) = delete;
+
+  // The bound port.
+  int port() const { return port_; }
+  // Stops taking leases, wakes long polls, stops the server (in-flight calls
+  // get up to 5 s), stops the lease timer and closes the store. Idempotent.
+  void Shutdown();
+  // Blocks until Shutdown() has been called and finished.
+  void Wait();
+  storage::SqliteStore* store() { return store_.get(); }
+
+ private:
+  Coordinator() = default;
+  void ExpiryLoop();
+
+  CoordinatorOptions options_;
+  std::unique_ptr<scheduler::SystemClock> own_clock_;
+  scheduler::Clock* clock_ = nullptr;
+  std::unique_ptr<storage::SqliteStore> store_;
+  std::unique_ptr<scheduler::Scheduler> scheduler_;
+  std::unique_ptr<TokenAuthenticator> auth_;
+  std::unique_ptr<WorkerServiceImpl> worker_service_;
+  std::unique_ptr<ControlServiceImpl> control_service_;
+  std::unique_ptr<grpc::Server> server_;
+  int port_ = 0;
+
+  std::mutex mutex_;
+  std::condition_variable stop_signal_;
+  bool stopping_ = false;  // guarded by mutex_
+  bool stopped_ = false;   // guarded by mutex_
+  std::thread expiry_thread_;
+};
+
+}  // namespace totalgrad::service
+
+#endif  // TOTALGRAD_SERVER_SERVICE_COORDINATOR_H_

@@ -1,0 +1,385 @@
+#include "server/sweep/sweep_spec.h"
+
+#include <openssl/evp.h>
+
+#include <charconv>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <sstream>
+#include <string_view>
+#include <toml++/toml.h>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+#include "core/learner/trial.h"
+#include "server/common/status_macros.h"
+
+namespace totalgrad::sweep {
+namespace {
+
+// Where a field came from, for error messages.
+std::string Where(const std::string& file, const toml::source_region& source) {
+  return absl::StrCat(file, ":", source.begin.line, ":", source.begin.column);
+}
+
+absl::Status FieldError(const std::string& where, absl::string_view field,
+                        absl::string_view message) {
+  return absl::InvalidArgumentError(absl::StrCat(where, ": ", field, ": ", message));
+}
+
+std::string FormatDouble(double value) {
+  char buffer[64];
+  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value);
+  return std::string(buffer, result.ptr);
+}
+
+// A scalar TOML value as the text the trial runner parses.
+absl::StatusOr<std::string> ScalarText(const toml::node& node) {
+  if (const auto* s = node.as_string()) return std::string(s->get());
+  if (const auto* i = node.as_integer()) return std::to_string(i->get());
+  if (const auto* f = node.as_floating_point()) return FormatDouble(f->get());
+  if (const auto* b = node.as_boolean()) return std::string(b->get() ? "true" : "false");
+  return absl::InvalidArgumentError("must be a string, number or boolean");
+}
+
+absl::StatusOr<int> NonNegativeInt(const toml::node& node) {
+  const auto* i = node.as_integer();
+  if (i == nullptr) return absl::InvalidArgumentError("must be an integer");
+  if (i->get() < 0 || i->get() > 1'000'000) {
+    return absl::InvalidArgumentError(absl::StrCat("must be in 0..1000000, got ", i->get()));
+  }
+  return static_cast<int>(i->get());
+}
+
+// The runner's canonical text for one option value.
+absl::StatusOr<std::string> CanonicalValue(const std::string& key, const std::string& value) {
+  learner::TrialOptions options;
+  RETURN_IF_ERROR(learner::SetTrialOption(key, value, &options));
+  for (const auto& [k, v] : learner::TrialOptionPairs(options)) {
+    if (k == key) return v;
+  }
+  return value;
+}
+
+bool ValidName(const std::string& name) {
+  if (name.empty() || name.size() > 64) return false;
+  for (char c : name) {
+    const bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+                    c == '.' || c == '_' || c == '-';
+    if (!ok) return false;
+  }
+  return true;
+}
+
+// Options for one grid point: defaults, then protocol, then the point's values.
+absl::StatusOr<learner::TrialOptions> OptionsAt(const SweepSpec& spec,
+                                                const std::vector<size_t>& index) {
+  learner::TrialOptions options;
+  for (const auto& [key, value] : spec.protocol) {
+    RETURN_IF_ERROR(learner::SetTrialOption(key, value, &options));
+  }
+  for (size_t a = 0; a < spec.grid.size(); ++a) {
+    RETURN_IF_ERROR(
+        learner::SetTrialOption(spec.grid[a].key, spec.grid[a].values[index[a]], &options));
+  }
+  return options;
+}
+
+}  // namespace
+
+absl::StatusOr<SweepSpec> ParseSweepToml(absl::string_view text, const std::string& file_name) {
+  if (text.size() > kMaxSourceBytes) {
+    return absl::InvalidArgumentError(absl::StrCat(file_name, ": the file is ", text.size(),
+                                                   " bytes; sweep files are at most ",
+                                                   kMaxSourceBytes));
+  }
+  toml::table root;
+  try {
+    root = toml::parse(std::string_view(text.data(), text.size()), file_name);
+  } catch (const toml::parse_error& error) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(Where(file_name, error.source()), ": ", std::string(error.description())));
+  }
+  SweepSpec spec;
+  bool have_grid = false;
+  for (auto&& [key, node] : root) {
+    const std::string name(key.str());
+    const std::string where = Where(file_name, node.source());
+    if (name == "name" || name == "description") {
+      const auto* value = node.as_string();
+      if (value == nullptr) return FieldError(where, name, "must be a string");
+      (name == "name" ? spec.name : spec.description) = std::string(value->get());
+    } else if (name == "max_attempts" || name == "max_lost_leases" || name == "max_concurrent") {
+      absl::StatusOr<int> value = NonNegativeInt(node);
+      if (!value.ok()) return FieldError(where, name, value.status().message());
+      (name == "max_attempts"      ? spec.max_attempts
+       : name == "max_lost_leases" ? spec.max_lost_leases
+                                   : spec.max_concurrent) = *value;
+    } else if (name == "grid") {
+      const auto* grid = node.as_table();
+      if (grid == nullptr) return FieldError(where, name, "must be a table ([grid])");
+      have_grid = true;
+      // toml++ iterates keys sorted; the file's order decides the job order.
+      std::vector<std::pair<toml::source_position, std::string>> order;
+      for (auto&& [axis_key, axis_node] : *grid) {
+        order.push_back({axis_node.source().begin, std::string(axis_key.str())});
+      }
+      std::sort(order.begin(), order.end(), [](const auto& a, const auto& b) {
+        return a.first.line != b.first.line ? a.first.line < b.first.line
+                                            : a.first.column < b.first.column;
+      });
+      for (const auto& [position, axis_key] : order) {
+        const toml::node& axis_node = *grid->get(axis_key);
+        const std::string axis_where = Where(file_name, axis_node.source());
+        const std::string field = absl::StrCat("grid.", axis_key);
+        GridAxis axis;
+        axis.key = axis_key;
+        if (const auto* array = axis_node.as_array()) {
+          for (size_t i = 0; i < array->size(); ++i) {
+            const toml::node& item = *array->get(i);
+            absl::StatusOr<std::string> value = ScalarText(item);
+            const std::string item_field = absl::StrCat(field, "[", i, "]");
+            if (!value.ok()) {
+              return FieldError(Where(file_name, item.source()), item_field,
+                                value.status().message());
+            }
+            learner::TrialOptions scratch;
+            const absl::Status accepted = learner::SetTrialOption(axis_key, *value, &scratch);
+            if (!accepted.ok()) {
+              return FieldError(Where(file_name, item.source()), item_field, accepted.message());
+            }
+            // Checked alone against defaults, so an unknown method is named at its line.
+            const absl::Status valid = scratch.Validate();
+            if (!valid.ok()) {
+              return FieldError(Where(file_name, item.source()), item_field, valid.message());
+            }
+            axis.values.push_back(*value);
+          }
+        } else if (const auto* range = axis_node.as_table()) {
+          // { first = A, count = N }: A, A+1, ..., A+N-1 (integers, e.g. seeds).
+          const auto first = (*range)["first"].value<int64_t>();
+          const auto count = (*range)["count"].value<int64_t>();
+          if (!first || !count || range->size() != 2) {
+            return FieldError(axis_where, field,
+                              "a range must be { first = INTEGER, count = INTEGER }");
+          }
+          if (*count < 1 || *count > kMaxJobsPerSweep) {
+            return FieldError(axis_where, field, absl::StrCat("count must be in 1..",
+                                                              kMaxJobsPerSweep));
+          }
+          for (int64_t v = *first; v < *first + *count; ++v) {
+            learner::TrialOptions scratch;
+            const absl::Status accepted =
+                learner::SetTrialOption(axis_key, std::to_string(v), &scratch);
+            if (!accepted.ok()) return FieldError(axis_where, field, accepted.message());
+            axis.values.push_back(std::to_string(v));
+          }
+        } else {
+          return FieldError(axis_where, field,
+                            "must be a list of values or a range { first = A, count = N }");
+        }
+        spec.grid.push_back(std::move(axis));
+      }
+    } else if (name == "protocol") {
+      const auto* protocol = node.as_table();
+      if (protocol == nullptr) return FieldError(where, name, "must be a table ([protocol])");
+      std::vector<std::pair<toml::source_position, std::string>> order;
+      for (auto&& [option_key, option_node] : *protocol) {
+        order.push_back({option_node.source().begin, std::string(option_key.str())});
+      }
+      std::sort(order.begin(), order.end(), [](const auto& a, const auto& b) {
+        return a.first.line != b.first.line ? a.first.line < b.first.line
+                                            : a.first.column < b.first.column;
+      });
+      for (const auto& [position, option_key] : order) {
+        const toml::node& option_node = *protocol->get(option_key);
+        const std::string option_where = Where(file_name, option_node.source());
+        const std::string field = absl::StrCat("protocol.", option_key);
+        absl::StatusOr<std::string> value = ScalarText(option_node);
+        if (!value.ok()) return FieldError(option_where, field, value.status().message());
+        learner::TrialOptions scratch;
+        absl::Status accepted = learner::SetTrialOption(option_key, *value, &scratch);
+        if (accepted.ok()) accepted = scratch.Validate();
+        if (!accepted.ok()) return FieldError(option_where, field, accepted.message());
+        spec.protocol.emplace_back(option_key, *value);
+      }
+    } else {
+      return FieldError(where, name,
+                        "unknown field; expected name, description, max_attempts, "
+                        "max_lost_leases, max_concurrent, [grid] or [protocol]");
+    }
+  }
+  if (spec.name.empty()) {
+    return absl::InvalidArgumentError(absl::StrCat(file_name, ": name: missing (name = \"...\")"));
+  }
+  if (!have_grid) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(file_name, ": grid: missing ([grid] with at least method = [...])"));
+  }
+  // Whole-spec rules (method axis, duplicates, limits, combinations), with the
+  // file name in front.
+  SweepSpec checked = spec;
+  absl::Status status = CanonicalizeSpec(&checked);
+  if (status.ok()) status = ExpandJobs(checked).status();
+  if (!status.ok()) {
+    return absl::InvalidArgumentError(absl::StrCat(file_name, ": ", status.message()));
+  }
+  return spec;
+}
+
+absl::StatusOr<SweepSpec> LoadSweepFile(const std::string& path, std::string* source_text) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return absl::NotFoundError(absl::StrCat(path, ": cannot open the sweep file"));
+  std::ostringstream buffer;
+  buffer << in.rdbuf();
+  std::string text = buffer.str();
+  absl::StatusOr<SweepSpec> spec = ParseSweepToml(text, path);
+  if (source_text != nullptr) *source_text = std::move(text);
+  return spec;
+}
+
+absl::Status CanonicalizeSpec(SweepSpec* spec) {
+  if (!ValidName(spec->name)) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "name: '", spec->name, "' is not a valid sweep name (1 to 64 characters from "
+        "A-Z a-z 0-9 . _ -)"));
+  }
+  if (spec->description.size() > 4096) {
+    return absl::InvalidArgumentError("description: at most 4096 bytes");
+  }
+  if (spec->max_attempts < 0 || spec->max_lost_leases < 0 || spec->max_concurrent < 0) {
+    return absl::InvalidArgumentError(
+        "max_attempts, max_lost_leases and max_concurrent must be >= 0");
+  }
+  if (spec->max_attempts == 0) spec->max_attempts = kDefaultMaxAttempts;
+  if (spec->max_lost_leases == 0) spec->max_lost_leases = kDefaultMaxLostLeases;
+  std::set<std::string> keys;
+  bool have_method = false;
+  int64_t jobs = 1;
+  for (GridAxis& axis : spec->grid) {
+    const std::string field = absl::StrCat("grid.", axis.key);
+    if (!keys.insert(axis.key).second) {
+      return absl::InvalidArgumentError(absl::StrCat(field, ": the axis appears twice"));
+    }
+    if (axis.values.empty()) {
+      return absl::InvalidArgumentError(absl::StrCat(field, ": needs at least one value"));
+    }
+    std::set<std::string> seen;
+    for (size_t i = 0; i < axis.values.size(); ++i) {
+      absl::StatusOr<std::string> canonical = CanonicalValue(axis.key, axis.values[i]);
+      if (!canonical.ok()) {
+        return absl::InvalidArgumentError(
+            absl::StrCat(field, "[", i, "]: ", canonical.status().message()));
+      }
+      if (!seen.insert(*canonical).second) {
+        return absl::InvalidArgumentError(absl::StrCat(
+            field, "[", i, "]: '", axis.values[i], "' repeats an earlier value of the axis"));
+      }
+      axis.values[i] = *canonical;
+    }
+    if (axis.key == "method") have_method = true;
+    jobs *= static_cast<int64_t>(axis.values.size());
+    if (jobs > kMaxJobsPerSweep) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("grid: more than ", kMaxJobsPerSweep, " jobs; split the sweep"));
+    }
+  }
+  if (!have_method) {
+    return absl::InvalidArgumentError("grid.method: missing; a sweep names its methods");
+  }
+  std::set<std::string> protocol_keys;
+  for (auto& [key, value] : spec->protocol) {
+    const std::string field = absl::StrCat("protocol.", key);
+    if (keys.count(key)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat(field, ": also a grid axis; give it in one place"));
+    }
+    if (!protocol_keys.insert(key).second) {
+      return absl::InvalidArgumentError(absl::StrCat(field, ": given twice"));
+    }
+    absl::StatusOr<std::string> canonical = CanonicalValue(key, value);
+    if (!canonical.ok()) {
+      return absl::InvalidArgumentError(absl::StrCat(field, ": ", canonical.status().message()));
+    }
+    value = *canonical;
+  }
+  return absl::OkStatus();
+}
+
+std::string CanonicalJson(const SweepSpec& spec) {
+  nlohmann::json grid = nlohmann::json::array();
+  for (const GridAxis& axis : spec.grid) grid.push_back({axis.key, axis.values});
+  nlohmann::json protocol = nlohmann::json::array();
+  for (const auto& [key, value] : spec.protocol) protocol.push_back({key, value});
+  nlohmann::json json = {{"name", spec.name},
+                         {"description", spec.description},
+                         {"grid", grid},
+                         {"protocol", protocol},
+                         {"max_attempts", spec.max_attempts},
+                         {"max_lost_leases", spec.max_lost_leases},
+                         {"max_concurrent", spec.max_concurrent}};
+  return json.dump();  // keys sorted, no whitespace: deterministic
+}
+
+std::string SpecHash(const SweepSpec& spec) {
+  const std::string text = CanonicalJson(spec);
+  unsigned char digest[EVP_MAX_MD_SIZE];
+  unsigned int length = 0;
+  EVP_Digest(text.data(), text.size(), digest, &length, EVP_sha256(), nullptr);
+  static constexpr char kHex[] = "0123456789abcdef";
+  std::string hex;
+  for (unsigned int i = 0; i < length; ++i) {
+    hex.push_back(kHex[digest[i] >> 4]);
+    hex.push_back(kHex[digest[i] & 15]);
+  }
+  return hex;
+}
+
+absl::StatusOr<std::vector<ExpandedJob>> ExpandJobs(const SweepSpec& spec) {
+  std::vector<ExpandedJob> jobs;
+  if (spec.grid.empty()) return absl::InvalidArgumentError("grid: empty");
+  std::vector<size_t> index(spec.grid.size(), 0);
+  while (true) {
+    absl::StatusOr<learner::TrialOptions> options = OptionsAt(spec, index);
+    absl::Status valid = options.ok() ? options->Validate() : options.status();
+    std::vector<std::string> point;
+    std::vector<std::string> variant;
+    for (size_t a = 0; a < spec.grid.size(); ++a) {
+      const std::string pair = absl::StrCat(spec.grid[a].key, "=", spec.grid[a].values[index[a]]);
+      point.push_back(pair);
+      if (spec.grid[a].key != "method" && spec.grid[a].key != "seed") variant.push_back(pair);
+    }
+    if (!valid.ok()) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("grid point {", absl::StrJoin(point, ", "), "}: ", valid.message()));
+    }
+    ExpandedJob job;
+    job.method = options->method;
+    job.seed = std::to_string(options->seed);
+    job.variant = absl::StrJoin(variant, " ");
+    job.options = learner::TrialOptionPairs(*options);
+    job.episodes_expected = options->episodes + 1;
+    jobs.push_back(std::move(job));
+    // Odometer: the last axis varies fastest.
+    size_t a = spec.grid.size();
+    while (a > 0) {
+      --a;
+      if (++index[a] < spec.grid[a].values.size()) break;
+      index[a] = 0;
+      if (a == 0) return jobs;
+    }
+  }
+}
+
+absl::StatusOr<OptionList> ResolveOptions(const OptionList& pairs) {
+  learner::TrialOptions options;
+  for (const auto& [key, value] : pairs) {
+    RETURN_IF_ERROR(learner::SetTrialOption(key, value, &options));
+  }
+  RETURN_IF_ERROR(options.Validate());
+  return learner::TrialOptionPairs(options);
+}
+
+}  // namespace totalgrad::sweep

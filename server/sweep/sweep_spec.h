@@ -1,0 +1,100 @@
+// Sweep specifications: what a sweep file says, its canonical form and hash,
+// and its expansion into jobs.
+//
+// A sweep is a grid (methods x seeds x task variants x any other trial option)
+// plus protocol overrides. Options are the trial runner's own (key, text)
+// pairs (learner::SetTrialOption), so any option a method takes can be swept
+// without the service knowing it, and an unknown method or key is refused by
+// the runner's own validation.
+//
+// Sweep file (TOML; docs/service.md has the full reference):
+//
+//   name = "table1"                 # [A-Za-z0-9._-], 1..64 characters
+//   description = "free text"       # optional
+//   max_attempts = 3                # optional: application failures per job
+//   max_lost_leases = 20            # optional: lost leases/releases per job
+//   max_concurrent = 0              # optional: running jobs at once, 0 = no limit
+//   [grid]                          # axes in file order, first varies slowest
+//   method = ["RP", "PILCO"]
+//   seed = { first = 0, count = 100 }   # or a list: [1, 2, 3]
+//   noise_k = [0.01, 1.0]
+//   [protocol]                      # applied to every job before the grid
+//   episodes = 15
+//
+// Threading: free functions, no shared state.
+#ifndef TOTALGRAD_SERVER_SWEEP_SWEEP_SPEC_H_
+#define TOTALGRAD_SERVER_SWEEP_SWEEP_SPEC_H_
+
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
+
+namespace totalgrad::sweep {
+
+using OptionList = std::vector<std::pair<std::string, std::string>>;
+
+struct GridAxis {
+  std::string key;
+  std::vector<std::string> values;
+};
+
+struct SweepSpec {
+  std::string name;
+  std::string description;
+  std::vector<GridAxis> grid;
+  OptionList protocol;
+  int max_attempts = 0;     // 0: kDefaultMaxAttempts
+  int max_lost_leases = 0;  // 0: kDefaultMaxLostLeases
+  int max_concurrent = 0;   // 0: no limit
+};
+
+inline constexpr int kDefaultMaxAttempts = 3;
+inline constexpr int kDefaultMaxLostLeases = 20;
+inline constexpr int kMaxJobsPerSweep = 100000;
+inline constexpr size_t kMaxSourceBytes = 1 << 20;
+
+// One job of an expanded sweep.
+struct ExpandedJob {
+  std::string method;
+  std::string seed;
+  // "key=value ..." for the grid axes other than method and seed.
+  std::string variant;
+  // Every trial option as (key, canonical text): enough to re-run the trial.
+  OptionList options;
+  // Episodes the trial reports (the random one + the learned ones).
+  int episodes_expected = 0;
+};
+
+// Parses a sweep file. InvalidArgument "FILE:LINE:COLUMN: FIELD: what is
+// wrong" for a TOML syntax error, an unknown or mistyped field, or a value
+// the trial runner refuses for its key. Nothing is validated across fields
+// here beyond each value on its own; ValidateSpec/ExpandJobs do the rest.
+absl::StatusOr<SweepSpec> ParseSweepToml(absl::string_view text, const std::string& file_name);
+// Reads and parses the file at `path` (NotFound / InvalidArgument).
+absl::StatusOr<SweepSpec> LoadSweepFile(const std::string& path, std::string* source_text);
+
+// Checks the whole spec and rewrites every value in the runner's canonical
+// text (e.g. "1.0" -> "1"), so equal sweeps have equal canonical forms.
+// InvalidArgument naming the field: bad name, no method axis, empty axis,
+// duplicate values or keys, a key in both grid and protocol, bad limits, a
+// value the runner refuses, too many jobs.
+absl::Status CanonicalizeSpec(SweepSpec* spec);
+
+// Deterministic JSON of a canonicalized spec, and its SHA-256 in hex.
+std::string CanonicalJson(const SweepSpec& spec);
+std::string SpecHash(const SweepSpec& spec);
+
+// Expands a canonicalized spec into its jobs, in grid order. InvalidArgument
+// naming the grid point if the runner's whole-options validation refuses one.
+absl::StatusOr<std::vector<ExpandedJob>> ExpandJobs(const SweepSpec& spec);
+
+// Applies option pairs to default trial options and returns the full
+// canonical list (what a worker is given). InvalidArgument naming the key.
+absl::StatusOr<OptionList> ResolveOptions(const OptionList& pairs);
+
+}  // namespace totalgrad::sweep
+
+#endif  // TOTALGRAD_SERVER_SWEEP_SWEEP_SPEC_H_

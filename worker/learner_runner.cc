@@ -1,0 +1,76 @@
+#include "worker/learner_runner.h"
+
+#include <nlohmann/json.hpp>
+
+#include "core/learner/trial.h"
+
+namespace totalgrad::worker {
+namespace {
+
+nlohmann::json ToJson(const Vector& v) {
+  nlohmann::json array = nlohmann::json::array();
+  for (Eigen::Index i = 0; i < v.size(); ++i) array.push_back(v(i));
+  return array;
+}
+
+std::string DetailsJson(const learner::EpisodeResult& result) {
+  nlohmann::json details;
+  const gp::GpHyperparameters& h = result.hyperparameters;
+  if (h.log_lengthscales.size() > 0) {
+    nlohmann::json lengthscales = nlohmann::json::array();
+    for (Eigen::Index r = 0; r < h.log_lengthscales.rows(); ++r) {
+      lengthscales.push_back(ToJson(h.log_lengthscales.row(r).transpose()));
+    }
+    details["gp"] = {{"log_lengthscales", lengthscales},
+                     {"log_signal_std", ToJson(h.log_signal_std)},
+                     {"log_noise_std", ToJson(h.log_noise_std)}};
+  }
+  details["flags"] = {{"non_finite_gradients", result.flags.non_finite_gradients},
+                      {"gp_line_search_failures", result.flags.gp_line_search_failures},
+                      {"gp_non_finite_evaluations", result.flags.gp_non_finite_evaluations},
+                      {"zero_gradient", result.flags.zero_gradient},
+                      {"gp_jitter", result.flags.gp_jitter}};
+  return details.dump();
+}
+
+class ObserverAdapter final : public learner::TrialObserver {
+ public:
+  explicit ObserverAdapter(TrialProgress* progress) : progress_(progress) {}
+  void OnEpisode(const learner::EpisodeResult& result) override {
+    if (progress_ == nullptr) return;
+    EpisodeOutcome e;
+    e.episode = result.episode;
+    e.real_cost = result.real_cost;
+    e.eval_cost_mean = result.eval_cost_mean;
+    e.eval_cost_std = result.eval_cost_std;
+    e.predicted_cost = result.predicted_cost;
+    e.optimisation_seconds = result.optimisation_seconds;
+    e.details_json = DetailsJson(result);
+    progress_->OnEpisode(e);
+  }
+  bool ShouldCancel() override { return progress_ != nullptr && progress_->ShouldCancel(); }
+
+ private:
+  TrialProgress* progress_;
+};
+
+}  // namespace
+
+absl::StatusOr<TrialOutcome> LearnerTrialRunner::Run(const OptionList& options,
+                                                     TrialProgress* progress) {
+  learner::TrialOptions trial_options;
+  for (const auto& [key, value] : options) {
+    absl::Status status = learner::SetTrialOption(key, value, &trial_options);
+    if (!status.ok()) return status;
+  }
+  ObserverAdapter observer(progress);
+  absl::StatusOr<learner::TrialSummary> summary = learner::RunTrial(trial_options, &observer);
+  if (!summary.ok()) return summary.status();
+  TrialOutcome outcome;
+  outcome.success = summary->success;
+  outcome.final_eval_cost = summary->final_eval_cost;
+  outcome.episodes = static_cast<int>(summary->episodes.size());
+  return outcome;
+}
+
+}  // namespace totalgrad::worker

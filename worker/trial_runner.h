@@ -1,0 +1,58 @@
+// The seam between the worker runtime and the numerical core: a TrialRunner
+// runs one trial from its options and reports each finished episode. The real
+// one (learner_runner.h) calls learner::RunTrial; tests inject fakes, so the
+// worker's networking logic is tested without running the core.
+#ifndef TOTALGRAD_WORKER_TRIAL_RUNNER_H_
+#define TOTALGRAD_WORKER_TRIAL_RUNNER_H_
+
+#include <limits>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "absl/status/statusor.h"
+
+namespace totalgrad::worker {
+
+using OptionList = std::vector<std::pair<std::string, std::string>>;
+
+// One finished episode (NaN: no value, e.g. the evaluation of episode 0).
+struct EpisodeOutcome {
+  static constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+  int episode = 0;
+  double real_cost = kNaN;
+  double eval_cost_mean = kNaN;
+  double eval_cost_std = kNaN;
+  double predicted_cost = kNaN;
+  double optimisation_seconds = kNaN;
+  std::string details_json;  // JSON object: hyperparameters, numerical flags
+};
+
+struct TrialOutcome {
+  bool success = false;
+  double final_eval_cost = EpisodeOutcome::kNaN;
+  int episodes = 0;  // episodes reported
+};
+
+class TrialProgress {
+ public:
+  virtual ~TrialProgress() = default;
+  // Called once per finished episode, in order, on the trial's thread.
+  virtual void OnEpisode(const EpisodeOutcome& episode) = 0;
+  // Polled often; true asks the trial to stop (it then returns Cancelled).
+  virtual bool ShouldCancel() = 0;
+};
+
+class TrialRunner {
+ public:
+  virtual ~TrialRunner() = default;
+  // Runs one trial with `options` (applied in order to default options).
+  // Must be safe to call from several threads at once (one trial each).
+  // Errors: InvalidArgument (options), Cancelled (ShouldCancel), or the
+  // trial's own failure (Internal, FailedPrecondition, ...), named.
+  virtual absl::StatusOr<TrialOutcome> Run(const OptionList& options, TrialProgress* progress) = 0;
+};
+
+}  // namespace totalgrad::worker
+
+#endif  // TOTALGRAD_WORKER_TRIAL_RUNNER_H_
