@@ -1,0 +1,152 @@
+#include "core/pilco/pilco.h"
+
+#include <chrono>
+#include <cmath>
+
+#include <Eigen/Eigenvalues>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "core/pilco/policy_moments.h"
+#include "core/pilco/trig.h"
+
+namespace totalgrad::pilco {
+
+absl::Status PilcoProblem::Validate(const GaussianInputGp* model) const {
+  const int d = static_cast<int>(mu0.size());
+  if (d < 1) return absl::InvalidArgumentError("mu0 is empty");
+  if (S0.rows() != d || S0.cols() != d) {
+    return absl::InvalidArgumentError(absl::StrCat("S0 must be ", d, " x ", d));
+  }
+  if (!mu0.allFinite() || !S0.allFinite()) {
+    return absl::InvalidArgumentError("mu0 or S0 not finite");
+  }
+  if (horizon < 1) return absl::InvalidArgumentError("horizon must be >= 1");
+  if (cost == nullptr) return absl::InvalidArgumentError("cost is null");
+  if (cost->state_dim() != d) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("cost is for state dim ", cost->state_dim(), ", mu0 has ", d));
+  }
+  if (model != nullptr) {
+    if (model->num_outputs() != d) {
+      return absl::InvalidArgumentError(absl::StrCat("dynamics GP has ", model->num_outputs(),
+                                                     " outputs, state dim is ", d));
+    }
+    return Propagator::Validate(*model, propagation);
+  }
+  return absl::OkStatus();
+}
+
+std::string PilcoResult::BriefReport() const {
+  return absl::StrFormat("%s; predicted J %.6g; %.3f s", optimizer.BriefReport(),
+                         prediction.total_cost, seconds);
+}
+
+absl::StatusOr<Trajectory> Propagate(const GaussianInputGp& model, const PilcoProblem& problem,
+                                     const Vector& params, Vector* gradient) {
+  if (absl::Status st = problem.Validate(&model); !st.ok()) return st;
+  const Propagator prop(&model, problem.propagation);
+  Trajectory tr;
+  if (absl::Status st = PredictTrajectory(prop, *problem.cost, params, problem.mu0, problem.S0,
+                                          problem.horizon, &tr, gradient);
+      !st.ok()) {
+    return st;
+  }
+  return tr;
+}
+
+absl::StatusOr<PilcoResult> OptimizePolicy(const GaussianInputGp& model,
+                                           const PilcoProblem& problem,
+                                           const PilcoOptions& options, Vector* params) {
+  if (absl::Status st = problem.Validate(&model); !st.ok()) return st;
+  const Propagator prop(&model, problem.propagation);
+  if (params->size() != prop.num_parameters()) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "policy has ", params->size(), " parameters, expected ", prop.num_parameters()));
+  }
+  const auto start = std::chrono::steady_clock::now();
+  // Check the start point explicitly so that its error is reported.
+  {
+    Trajectory tr;
+    if (absl::Status st = PredictTrajectory(prop, *problem.cost, *params, problem.mu0,
+                                            problem.S0, problem.horizon, &tr, nullptr);
+        !st.ok()) {
+      return absl::Status(st.code(), absl::StrCat("at the initial policy: ", st.message()));
+    }
+  }
+  const Objective objective = [&](const Vector& x, double* f, Vector* g) {
+    Trajectory tr;
+    if (!PredictTrajectory(prop, *problem.cost, x, problem.mu0, problem.S0, problem.horizon,
+                           &tr, g)
+             .ok()) {
+      return false;
+    }
+    *f = tr.total_cost;
+    return true;
+  };
+  PilcoResult result;
+  Vector x = *params;
+  result.optimizer = MinimizeBfgs(objective, options.bfgs, &x);
+  if (result.optimizer.termination == BfgsSummary::Termination::kInitialEvaluationFailed) {
+    return absl::InternalError("PILCO: the initial policy could not be evaluated");
+  }
+  if (absl::Status st = PredictTrajectory(prop, *problem.cost, x, problem.mu0, problem.S0,
+                                          problem.horizon, &result.prediction, nullptr);
+      !st.ok()) {
+    return st;
+  }
+  *params = x;
+  result.seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return result;
+}
+
+absl::StatusOr<Vector> InitialPolicyParameters(const PilcoProblem& problem, Rng* rng) {
+  if (absl::Status st = problem.Validate(); !st.ok()) return st;
+  const int d = static_cast<int>(problem.mu0.size());
+  const int a = problem.propagation.angle_index;
+  if (a < -1 || a >= d) return absl::InvalidArgumentError("angle_index out of range");
+  const int c = problem.propagation.num_basis;
+  if (c < 1) return absl::InvalidArgumentError("num_basis must be >= 1");
+  Vector y_mean;
+  Matrix y_cov;
+  std::vector<int> index;
+  if (a >= 0) {
+    AugmentWithTrig(problem.mu0, problem.S0, a, &y_mean, &y_cov);
+    for (int i = 0; i < d; ++i) {
+      if (i != a) index.push_back(i);
+    }
+    index.push_back(d);
+    index.push_back(d + 1);
+  } else {
+    y_mean = problem.mu0;
+    y_cov = problem.S0;
+    for (int i = 0; i < d; ++i) index.push_back(i);
+  }
+  const int ep = static_cast<int>(index.size());
+  Vector pm(ep);
+  Matrix ps(ep, ep);
+  for (int i = 0; i < ep; ++i) {
+    pm(i) = y_mean(index[i]);
+    for (int j = 0; j < ep; ++j) ps(i, j) = y_cov(index[i], index[j]);
+  }
+  Eigen::SelfAdjointEigenSolver<Matrix> eig(ps);
+  const Matrix l = eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal();
+  RbfPolicyShape shape;
+  shape.num_basis = c;
+  shape.input_dim = ep;
+  Vector pilco(shape.num_parameters());
+  for (int k = 0; k < c; ++k) {
+    Vector z(ep);
+    for (int i = 0; i < ep; ++i) z(i) = rng->Normal();
+    pilco.segment(k * ep, ep) = pm + l * z;
+  }
+  pilco.segment(c * ep, ep).setZero();
+  if (a >= 0) pilco.segment(c * ep + ep - 2, 2).setConstant(std::log(0.7));
+  for (int k = 0; k < c; ++k) pilco(c * ep + ep + k) = 0.1 * rng->Normal();
+  Vector params;
+  if (absl::Status st = PseudoTargetsToWeights(shape, pilco, &params); !st.ok()) return st;
+  return params;
+}
+
+}  // namespace totalgrad::pilco
