@@ -182,6 +182,23 @@ GaussianInputGp GaussianInputGpFromModel(const gp::GpModel& model) {
   return gp;
 }
 
+GaussianInputGp GaussianInputGpFromFitc(const gp::FitcModel& model) {
+  GaussianInputGp gp;
+  const int d = model.num_outputs();
+  const gp::GpHyperparameters& h = model.hyperparameters();
+  gp.inputs = model.inducing();
+  gp.inv_lengthscale_sq = (-2.0 * h.log_lengthscales.array()).exp().matrix();
+  gp.signal_var = (2.0 * h.log_signal_std.array()).exp().matrix();
+  gp.noise_var = (2.0 * h.log_noise_std.array()).exp().matrix();
+  gp.beta.resize(model.num_inducing(), d);
+  gp.variance_weights.resize(d);
+  for (int a = 0; a < d; ++a) {
+    gp.beta.col(a) = model.beta(a);
+    gp.variance_weights[a] = model.variance_weights(a);
+  }
+  return gp;
+}
+
 absl::Status PredictGaussian(const GaussianInputGp& gp, const Vector& m, const Matrix& s,
                              const GaussianPredictionOptions& options, GaussianPrediction* out) {
   if (absl::Status st = CheckInputs(gp, m, s, options); !st.ok()) return st;

@@ -32,6 +32,7 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "core/common/types.h"
+#include "core/gp/fitc.h"
 #include "core/gp/gp.h"
 
 namespace totalgrad::pilco {
@@ -65,6 +66,10 @@ absl::StatusOr<GaussianInputGp> GaussianInputGpFromData(const RowMatrix& inputs,
 // Copies what is needed from a trained full GpModel (its cached K^-1 and beta,
 // including any jitter GpModel added).
 GaussianInputGp GaussianInputGpFromModel(const gp::GpModel& model);
+
+// The sparse (FITC) model as PILCO's gp1: support points = inducing inputs,
+// beta from FITC, variance weights Kmm^-1 - B^-1.
+GaussianInputGp GaussianInputGpFromFitc(const gp::FitcModel& model);
 
 struct GaussianPredictionOptions {
   bool model_variance = true;  // gp0/gp1: add sf^2 - tr(Vw Q); false: gp2
