@@ -1,0 +1,396 @@
+// End to end: the real coordinator and worker binaries over gRPC on loopback
+// with a real SQLite file, running real (tiny) trials. Stored rows are
+// compared bit for bit with in-process runs of the same trials.
+#include <signal.h>
+#include <sys/wait.h>
+
+#include <set>
+
+#include "absl/strings/str_cat.h"
+#include "tests/service/e2e_util.h"
+#include "tests/service/service_testutil.h"
+
+namespace totalgrad::testing {
+namespace {
+
+using std::chrono::seconds;
+
+class EndToEndTest : public ServiceFixture {};
+
+TEST_F(EndToEndTest, TwoWorkersStoreExactlyTheExpectedRows) {
+  StartCoordinator();
+  auto worker_a = StartWorker("a");
+  auto worker_b = StartWorker("b");
+  v1::SubmitSweepResponse submitted;
+  ASSERT_TRUE(Submit(MakeSpec("e2e", {1, 2, 3, 4, 5, 6}, TinyProtocol()), &submitted).ok());
+  EXPECT_TRUE(submitted.created());
+  EXPECT_EQ(submitted.sweep().jobs_total(), 6);
+  ASSERT_TRUE(WaitFinished("e2e", seconds(60)));
+  const v1::SweepInfo sweep = Sweep("e2e");
+  EXPECT_EQ(sweep.jobs_completed(), 6);
+  EXPECT_EQ(sweep.episodes_stored(), 18);
+  EXPECT_EQ(sweep.episodes_expected(), 18);
+  ExpectRowsEqualReference("e2e", TinyProtocol());
+  // Both workers took part and each attempt records the worker's build.
+  std::set<std::string> workers;
+  for (const v1::JobInfo& job : Jobs("e2e")) {
+    const v1::GetJobLogResponse log = JobLog(job.job_id());
+    ASSERT_EQ(log.attempts_size(), 1);
+    workers.insert(log.attempts(0).worker_id());
+    EXPECT_NE(log.attempts(0).worker_build().find("totalgrad"), std::string::npos);
+  }
+  EXPECT_EQ(workers.size(), 2u);
+  // SIGTERM drains and exits cleanly.
+  worker_a->Signal(SIGTERM);
+  worker_b->Signal(SIGTERM);
+  EXPECT_EQ(worker_a->Wait(seconds(20)), 0) << worker_a->Log();
+  EXPECT_EQ(worker_b->Wait(seconds(20)), 0) << worker_b->Log();
+}
+
+// A worker killed in the middle of a trial: the lease is lost, the job is
+// re-queued and finished by another worker, and the counting rows equal an
+// undisturbed run exactly (no episode lost or duplicated).
+TEST_F(EndToEndTest, KilledWorkersTrialIsFinishedByAnother) {
+  StartCoordinator();
+  ASSERT_TRUE(Submit(MakeSpec("kill-worker", {7}, SlowProtocol())).ok());
+  auto victim = StartWorker("victim");
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        auto jobs = Jobs("kill-worker");
+        return !jobs.empty() && jobs[0].state() == v1::JOB_STATE_RUNNING &&
+               jobs[0].episodes_stored() >= 2;
+      },
+      seconds(60)));
+  ASSERT_TRUE(victim->Running());
+  victim->Signal(SIGKILL);
+  victim->Wait(seconds(10));
+  auto rescuer = StartWorker("rescuer");
+  ASSERT_TRUE(WaitFinished("kill-worker", seconds(120)));
+  ExpectRowsEqualReference("kill-worker", SlowProtocol());
+  const v1::JobInfo job = Jobs("kill-worker")[0];
+  EXPECT_EQ(job.attempts(), 2);
+  EXPECT_EQ(job.failures(), 0);  // a lost lease is not an application failure
+  EXPECT_EQ(job.lost_leases(), 1);
+  const v1::GetJobLogResponse log = JobLog(job.job_id());
+  ASSERT_EQ(log.attempts_size(), 2);
+  EXPECT_EQ(log.attempts(0).state(), v1::ATTEMPT_STATE_LEASE_LOST);
+  EXPECT_EQ(log.attempts(0).worker_id(), "victim");
+  EXPECT_GE(log.attempts(0).episodes_stored(), 2);
+  EXPECT_EQ(log.attempts(1).state(), v1::ATTEMPT_STATE_COMPLETED);
+  EXPECT_EQ(log.attempts(1).worker_id(), "rescuer");
+}
+
+// The coordinator killed in the middle of a sweep and restarted on the same
+// file and port: every row acknowledged before the kill is still there, the
+// running workers reattach, and the sweep completes with exact results.
+TEST_F(EndToEndTest, KilledCoordinatorRestartsAndLosesNothing) {
+  StartCoordinator();
+  const int port = port_;
+  ASSERT_TRUE(Submit(MakeSpec("kill-coordinator", {1, 2, 3}, SlowProtocol())).ok());
+  auto worker_a = StartWorker("a");
+  auto worker_b = StartWorker("b");
+  ASSERT_TRUE(WaitFor([&] { return Sweep("kill-coordinator").episodes_stored() >= 4; }, seconds(60)));
+  std::vector<v1::EpisodeRow> acknowledged = Export("kill-coordinator", /*all_attempts=*/true);
+  ASSERT_GE(acknowledged.size(), 4u);
+  coordinator_->Signal(SIGKILL);
+  coordinator_->Wait(seconds(10));
+  StartCoordinator(port);
+  ASSERT_TRUE(WaitFinished("kill-coordinator", seconds(180)));
+  // Nothing acknowledged was lost: every row read before the kill is still stored, unchanged.
+  std::map<std::tuple<int64_t, int, int>, double> after;
+  for (const auto& row : Export("kill-coordinator", /*all_attempts=*/true)) {
+    after[{row.job_id(), row.attempt(), row.report().episode()}] = row.report().real_cost();
+  }
+  for (const auto& row : acknowledged) {
+    auto it = after.find({row.job_id(), row.attempt(), row.report().episode()});
+    ASSERT_NE(it, after.end()) << "lost: job " << row.job_id() << " episode " << row.report().episode();
+    EXPECT_EQ(it->second, row.report().real_cost());
+  }
+  ExpectRowsEqualReference("kill-coordinator", SlowProtocol());
+  // The workers reattached to their leases: no attempt was lost.
+  for (const v1::JobInfo& job : Jobs("kill-coordinator")) EXPECT_EQ(job.lost_leases(), 0);
+}
+
+// A worker that stops heartbeating loses its lease; its late reports are
+// refused with ABORTED and change nothing. Repeated reports are no-ops.
+TEST_F(EndToEndTest, StaleLeaseIsRefusedAndDuplicatesAreNoOps) {
+  StartCoordinator();
+  ASSERT_TRUE(Submit(MakeSpec("stale", {1}, TinyProtocol())).ok());
+  v1::AcquireLeaseRequest acquire;
+  acquire.mutable_worker()->set_worker_id("ghost");
+  acquire.mutable_worker()->set_slots(1);
+  acquire.set_wait_ms(1000);
+  v1::AcquireLeaseResponse ghost;
+  ASSERT_TRUE(worker_stub_->AcquireLease(Context(kWorkerToken).get(), acquire, &ghost).ok());
+  ASSERT_TRUE(ghost.granted());
+  EXPECT_EQ(ghost.lease().key().attempt(), 1);
+  EXPECT_EQ(ghost.lease().episodes_expected(), 3);
+  // Silence: the coordinator's clock takes the lease back (timeout 1.5 s).
+  ASSERT_TRUE(WaitFor([&] { return Jobs("stale")[0].state() == v1::JOB_STATE_QUEUED; }, seconds(20)));
+
+  v1::HeartbeatRequest late;
+  late.set_worker_id("ghost");
+  *late.mutable_lease() = ghost.lease().key();
+  auto* episode = late.add_episodes();
+  episode->set_episode(0);
+  episode->set_real_cost(1.0);
+  v1::HeartbeatResponse beat;
+  grpc::Status status = worker_stub_->Heartbeat(Context(kWorkerToken).get(), late, &beat);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::ABORTED) << status.error_message();
+  v1::CompleteRequest late_complete;
+  late_complete.set_worker_id("ghost");
+  *late_complete.mutable_lease() = ghost.lease().key();
+  late_complete.set_episodes_total(1);
+  late_complete.set_final_eval_cost(1);
+  v1::CompleteResponse completed;
+  status = worker_stub_->Complete(Context(kWorkerToken).get(), late_complete, &completed);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::ABORTED) << status.error_message();
+
+  // A new lease (attempt 2): every report sent twice changes nothing the second time.
+  acquire.mutable_worker()->set_worker_id("honest");
+  v1::AcquireLeaseResponse honest;
+  ASSERT_TRUE(worker_stub_->AcquireLease(Context(kWorkerToken).get(), acquire, &honest).ok());
+  ASSERT_TRUE(honest.granted());
+  EXPECT_EQ(honest.lease().key().attempt(), 2);
+  v1::HeartbeatRequest report;
+  report.set_worker_id("honest");
+  *report.mutable_lease() = honest.lease().key();
+  for (int e = 0; e < 3; ++e) {
+    auto* ep = report.add_episodes();
+    ep->set_episode(e);
+    ep->set_real_cost(10 + e);
+    ep->set_eval_cost_mean(e == 0 ? std::nan("") : 5 + e);
+    ep->set_predicted_cost(e == 0 ? std::nan("") : 6 + e);
+  }
+  for (int i = 0; i < 2; ++i) {
+    status = worker_stub_->Heartbeat(Context(kWorkerToken).get(), report, &beat);
+    ASSERT_TRUE(status.ok()) << status.error_message();
+    EXPECT_EQ(beat.episodes_stored(), 3);
+    EXPECT_EQ(beat.directive(), v1::DIRECTIVE_CONTINUE);
+  }
+  v1::CompleteRequest complete;
+  complete.set_worker_id("honest");
+  *complete.mutable_lease() = honest.lease().key();
+  complete.set_episodes_total(3);
+  complete.set_success(true);
+  complete.set_final_eval_cost(7);
+  for (int i = 0; i < 2; ++i) {
+    status = worker_stub_->Complete(Context(kWorkerToken).get(), complete, &completed);
+    EXPECT_TRUE(status.ok()) << status.error_message();
+  }
+  const std::vector<v1::EpisodeRow> rows = Export("stale", /*all_attempts=*/true);
+  EXPECT_EQ(rows.size(), 3u);  // the ghost stored nothing; the honest rows once each
+  for (const auto& row : rows) EXPECT_EQ(row.attempt(), 2);
+  const v1::JobInfo job = Jobs("stale")[0];
+  EXPECT_EQ(job.state(), v1::JOB_STATE_COMPLETED);
+  EXPECT_EQ(job.final_eval_cost(), 7);
+  EXPECT_EQ(job.lost_leases(), 1);
+}
+
+TEST_F(EndToEndTest, ResubmittingASweepIsIdempotent) {
+  StartCoordinator();
+  const v1::SweepSpec spec = MakeSpec("again", {1, 2}, TinyProtocol());
+  v1::SubmitSweepResponse first, second;
+  ASSERT_TRUE(Submit(spec, &first).ok());
+  ASSERT_TRUE(Submit(spec, &second).ok());
+  EXPECT_TRUE(first.created());
+  EXPECT_FALSE(second.created());
+  EXPECT_EQ(first.sweep().spec_hash(), second.sweep().spec_hash());
+  EXPECT_EQ(second.sweep().jobs_total(), 2);
+  // The same values written differently canonicalize to the same spec.
+  v1::SweepSpec respelled = spec;
+  for (auto& option : *respelled.mutable_protocol()) {
+    if (option.key() == "horizon") option.set_value("10.0e0") ;
+  }
+  v1::SubmitSweepResponse third;
+  grpc::Status status = Submit(respelled, &third);
+  // "10.0e0" is not an integer for the runner: refused with the field named.
+  if (!status.ok()) {
+    EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    EXPECT_NE(status.error_message().find("protocol.horizon"), std::string::npos)
+        << status.error_message();
+  }
+  // A different spec under the same name is refused and stores nothing.
+  const v1::SweepSpec different = MakeSpec("again", {1, 2, 3}, TinyProtocol());
+  status = Submit(different);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::ALREADY_EXISTS) << status.error_message();
+  EXPECT_EQ(Sweep("again").jobs_total(), 2);
+  v1::ListSweepsResponse sweeps;
+  ASSERT_TRUE(control_->ListSweeps(Context(kUserToken).get(), {}, &sweeps).ok());
+  EXPECT_EQ(sweeps.sweeps_size(), 1);
+}
+
+TEST_F(EndToEndTest, TokensAreCheckedOnEveryCallWithPreciseErrors) {
+  StartCoordinator();
+  v1::HealthResponse health;
+  EXPECT_EQ(control_->Health(Context("").get(), {}, &health).error_code(),
+            grpc::StatusCode::UNAUTHENTICATED);
+  EXPECT_EQ(control_->Health(Context("not-a-valid-token-at-all").get(), {}, &health).error_code(),
+            grpc::StatusCode::UNAUTHENTICATED);
+  const grpc::Status worker_on_control = control_->Health(Context(kWorkerToken).get(), {}, &health);
+  EXPECT_EQ(worker_on_control.error_code(), grpc::StatusCode::PERMISSION_DENIED);
+  EXPECT_NE(worker_on_control.error_message().find("worker token"), std::string::npos);
+  v1::AcquireLeaseRequest acquire;
+  acquire.mutable_worker()->set_worker_id("w");
+  acquire.mutable_worker()->set_slots(1);
+  v1::AcquireLeaseResponse lease;
+  const grpc::Status user_on_worker =
+      worker_stub_->AcquireLease(Context(kUserToken).get(), acquire, &lease);
+  EXPECT_EQ(user_on_worker.error_code(), grpc::StatusCode::PERMISSION_DENIED);
+  EXPECT_NE(user_on_worker.error_message().find("user token"), std::string::npos);
+  EXPECT_EQ(worker_stub_->AcquireLease(Context("").get(), acquire, &lease).error_code(),
+            grpc::StatusCode::UNAUTHENTICATED);
+  ASSERT_TRUE(control_->Health(Context(kUserToken).get(), {}, &health).ok());
+  EXPECT_TRUE(health.serving());
+  EXPECT_EQ(health.workers_active(), 0);  // refused calls register nobody
+}
+
+TEST_F(EndToEndTest, BadRequestsGetPreciseStatusesAndStoreNothing) {
+  StartCoordinator();
+  v1::SweepSpec unknown_method = MakeSpec("bad", {1}, TinyProtocol());
+  unknown_method.mutable_grid(0)->add_values("NOPE");
+  grpc::Status status = Submit(unknown_method);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(status.error_message().find("grid.method[1]"), std::string::npos) << status.error_message();
+  EXPECT_NE(status.error_message().find("NOPE"), std::string::npos) << status.error_message();
+
+  v1::SweepSpec unknown_key = MakeSpec("bad", {1}, {{"partikles", "3"}});
+  status = Submit(unknown_key);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(status.error_message().find("protocol.partikles"), std::string::npos)
+      << status.error_message();
+
+  v1::SweepSpec bad_name = MakeSpec("no spaces allowed", {1}, TinyProtocol());
+  EXPECT_EQ(Submit(bad_name).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+
+  v1::ListSweepsResponse sweeps;
+  ASSERT_TRUE(control_->ListSweeps(Context(kUserToken).get(), {}, &sweeps).ok());
+  EXPECT_EQ(sweeps.sweeps_size(), 0);
+
+  v1::SweepRequest missing;
+  missing.set_name("missing");
+  v1::SweepInfo info;
+  EXPECT_EQ(control_->GetSweep(Context(kUserToken).get(), missing, &info).error_code(),
+            grpc::StatusCode::NOT_FOUND);
+  v1::JobRequest no_job;
+  no_job.set_job_id(424242);
+  v1::JobInfo job;
+  EXPECT_EQ(control_->RetryJob(Context(kUserToken).get(), no_job, &job).error_code(),
+            grpc::StatusCode::NOT_FOUND);
+  v1::BackupRequest backup;
+  backup.set_file_name("x.db");
+  v1::BackupResponse backed_up;
+  EXPECT_EQ(control_->Backup(Context(kUserToken).get(), backup, &backed_up).error_code(),
+            grpc::StatusCode::FAILED_PRECONDITION);  // no --backup-dir
+}
+
+TEST_F(EndToEndTest, OversizedMessageIsRefusedAndTheCoordinatorCarriesOn) {
+  StartCoordinator(0, {"--max-message-bytes", "262144"});
+  ASSERT_TRUE(Submit(MakeSpec("big", {1}, TinyProtocol())).ok());
+  v1::AcquireLeaseRequest acquire;
+  acquire.mutable_worker()->set_worker_id("w");
+  acquire.mutable_worker()->set_slots(1);
+  v1::AcquireLeaseResponse lease;
+  ASSERT_TRUE(worker_stub_->AcquireLease(Context(kWorkerToken).get(), acquire, &lease).ok());
+  ASSERT_TRUE(lease.granted());
+  v1::HeartbeatRequest huge;
+  huge.set_worker_id("w");
+  *huge.mutable_lease() = lease.lease().key();
+  auto* episode = huge.add_episodes();
+  episode->set_episode(0);
+  episode->set_real_cost(1);
+  episode->set_details_json(std::string(1 << 20, 'x'));
+  v1::HeartbeatResponse beat;
+  const grpc::Status status = worker_stub_->Heartbeat(Context(kWorkerToken).get(), huge, &beat);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << status.error_message();
+  // Within the transport limit but over the per-episode details limit.
+  episode->set_details_json(std::string(100 * 1024, 'x'));
+  const grpc::Status too_detailed =
+      worker_stub_->Heartbeat(Context(kWorkerToken).get(), huge, &beat);
+  EXPECT_EQ(too_detailed.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(too_detailed.error_message().find("details_json"), std::string::npos);
+  EXPECT_EQ(Jobs("big")[0].episodes_stored(), 0);
+  v1::HealthResponse health;
+  EXPECT_TRUE(control_->Health(Context(kUserToken).get(), {}, &health).ok());
+}
+
+TEST_F(EndToEndTest, CoordinatorRefusesPlaintextOffLoopback) {
+  std::string out, err;
+  const int code = RunCommand({TOTALGRAD_COORDINATOR_BIN, "--db", db_, "--listen", "0.0.0.0:0",
+                               "--insecure"},
+                              &out, &err);
+  EXPECT_NE(code, 0);
+  EXPECT_NE((out + err).find("--insecure is only allowed on a loopback address"), std::string::npos)
+      << out << err;
+  const int no_tls = RunCommand({TOTALGRAD_COORDINATOR_BIN, "--db", db_, "--listen", "0.0.0.0:0"},
+                                &out, &err);
+  EXPECT_NE(no_tls, 0);
+  EXPECT_NE((out + err).find("--tls-cert and --tls-key are required"), std::string::npos) << out << err;
+}
+
+TEST_F(EndToEndTest, CancelStopsRunningTrialsAndKeepsStoredResults) {
+  StartCoordinator();
+  ASSERT_TRUE(Submit(MakeSpec("cancel-me", {1, 2, 3}, SlowProtocol())).ok());
+  auto worker = StartWorker("w");
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        for (const auto& job : Jobs("cancel-me")) {
+          if (job.state() == v1::JOB_STATE_RUNNING && job.episodes_stored() >= 1) return true;
+        }
+        return false;
+      },
+      seconds(60)));
+  v1::SweepRequest request;
+  request.set_name("cancel-me");
+  v1::SweepInfo info;
+  ASSERT_TRUE(control_->CancelSweep(Context(kUserToken).get(), request, &info).ok());
+  EXPECT_EQ(info.state(), v1::SWEEP_STATE_CANCELLED);
+  // The running trial hears CANCEL on its next beat and releases its lease.
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        for (const auto& job : Jobs("cancel-me")) {
+          const v1::GetJobLogResponse log = JobLog(job.job_id());
+          for (const auto& attempt : log.attempts()) {
+            if (attempt.state() == v1::ATTEMPT_STATE_RUNNING) return false;
+          }
+        }
+        return true;
+      },
+      seconds(30)));
+  const v1::SweepInfo after = Sweep("cancel-me");
+  EXPECT_TRUE(after.finished());
+  EXPECT_EQ(after.jobs_cancelled() + after.jobs_completed(), 3);
+  EXPECT_GE(after.jobs_cancelled(), 2);
+  EXPECT_FALSE(Export("cancel-me", /*all_attempts=*/true).empty());  // kept
+  v1::SweepInfo resumed;
+  EXPECT_EQ(control_->ResumeSweep(Context(kUserToken).get(), request, &resumed).error_code(),
+            grpc::StatusCode::FAILED_PRECONDITION);
+  EXPECT_TRUE(worker->Running());  // a cancel is not a reason for the worker to exit
+}
+
+TEST_F(EndToEndTest, WorkerDrainsOnSigtermAndTheJobIsRequeuedWithoutBlame) {
+  StartCoordinator();
+  ASSERT_TRUE(Submit(MakeSpec("drain", {5}, SlowProtocol())).ok());
+  auto worker = StartWorker("drainer", {"--drain-timeout", "0"});
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        auto jobs = Jobs("drain");
+        return jobs[0].state() == v1::JOB_STATE_RUNNING && jobs[0].episodes_stored() >= 1;
+      },
+      seconds(60)));
+  worker->Signal(SIGTERM);
+  EXPECT_EQ(worker->Wait(seconds(30)), 0) << worker->Log();
+  const v1::JobInfo job = Jobs("drain")[0];
+  EXPECT_EQ(job.state(), v1::JOB_STATE_QUEUED);
+  EXPECT_EQ(job.failures(), 0);
+  const v1::GetJobLogResponse log = JobLog(job.job_id());
+  ASSERT_EQ(log.attempts_size(), 1);
+  EXPECT_EQ(log.attempts(0).state(), v1::ATTEMPT_STATE_RELEASED);
+  // Another worker finishes it with exact results.
+  auto finisher = StartWorker("finisher");
+  ASSERT_TRUE(WaitFinished("drain", seconds(120)));
+  ExpectRowsEqualReference("drain", SlowProtocol());
+}
+
+}  // namespace
+}  // namespace totalgrad::testing

@@ -1,0 +1,73 @@
+// A coordinator process and worker processes for end-to-end tests: real
+// binaries, real gRPC on loopback, a real SQLite file per test.
+#ifndef TOTALGRAD_TESTS_SERVICE_E2E_UTIL_H_
+#define TOTALGRAD_TESTS_SERVICE_E2E_UTIL_H_
+
+#include <gtest/gtest.h>
+#include <grpcpp/channel.h>
+
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "tests/service/process_util.h"
+#include "totalgrad/v1/control_service.grpc.pb.h"
+#include "totalgrad/v1/worker_service.grpc.pb.h"
+#include "worker/trial_runner.h"
+
+namespace totalgrad::testing {
+
+inline constexpr char kWorkerToken[] = "worker-token-0123456789abcdef";
+inline constexpr char kUserToken[] = "user-token-0123456789abcdef";
+
+// Options of a trial that takes ~0.05 s (3 episodes).
+worker::OptionList TinyProtocol();
+// Options of a trial that takes a few seconds (9 episodes), for kill tests.
+worker::OptionList SlowProtocol();
+
+// One sweep spec: method RP, seeds, and the given protocol.
+v1::SweepSpec MakeSpec(const std::string& name, const std::vector<int>& seeds,
+                       const worker::OptionList& protocol);
+
+// Runs the trial in this process with the real runner: the reference values
+// that every stored row must equal exactly (trials are deterministic).
+std::vector<worker::EpisodeOutcome> ReferenceEpisodes(const worker::OptionList& options);
+
+class ServiceFixture : public ::testing::Test {
+ protected:
+  void SetUp() override;
+  void TearDown() override;
+
+  // Starts the coordinator (plaintext on loopback, tokens, short leases) on
+  // `port` (0: any) and connects the stubs. Fails the test if it does not start.
+  void StartCoordinator(int port = 0, std::vector<std::string> extra = {});
+  std::unique_ptr<Process> StartWorker(const std::string& id, std::vector<std::string> extra = {});
+
+  grpc::Status Submit(const v1::SweepSpec& spec, v1::SubmitSweepResponse* response = nullptr);
+  v1::SweepInfo Sweep(const std::string& name);
+  bool WaitFinished(const std::string& name, std::chrono::milliseconds timeout);
+  std::vector<v1::JobInfo> Jobs(const std::string& sweep);
+  std::vector<v1::EpisodeRow> Export(const std::string& sweep, bool all_attempts);
+  v1::GetJobLogResponse JobLog(int64_t job_id);
+  // Expects the completed sweep's rows to equal the reference runs exactly:
+  // every job, every episode, once, with identical values.
+  void ExpectRowsEqualReference(const std::string& sweep, const worker::OptionList& protocol);
+
+  // A context with deadline and the given token ("" for none).
+  static std::unique_ptr<grpc::ClientContext> Context(const std::string& token,
+                                                      int timeout_ms = 10000);
+
+  std::string dir_;
+  std::string db_;
+  int port_ = 0;
+  std::unique_ptr<Process> coordinator_;
+  std::shared_ptr<grpc::Channel> channel_;
+  std::unique_ptr<v1::ControlService::Stub> control_;
+  std::unique_ptr<v1::WorkerService::Stub> worker_stub_;
+  int coordinator_starts_ = 0;
+};
+
+}  // namespace totalgrad::testing
+
+#endif  // TOTALGRAD_TESTS_SERVICE_E2E_UTIL_H_
