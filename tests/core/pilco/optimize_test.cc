@@ -7,6 +7,7 @@
 #include "core/common/rng.h"
 #include "core/pilco/angle_features.h"
 #include "core/pilco/bfgs.h"
+#include "core/gp/gp.h"
 #include "core/pilco/pilco.h"
 #include "core/tasks/cartpole.h"
 #include "tests/core/pilco/pilco_test_util.h"
@@ -192,6 +193,36 @@ TEST(PilcoApiTest, InconsistentProblemIsNamed) {
   problem = SwingUpProblem(1);
   problem.cost = nullptr;
   EXPECT_EQ(Propagate(gp, problem, params).status().code(), absl::StatusCode::kInvalidArgument);
+}
+
+// The trial runner hands PILCO a trained GpModel: the conversion must give the
+// same predictor as building it from the data and hyperparameters.
+TEST(PilcoApiTest, GpModelConversionMatchesFromData) {
+  const GaussianInputGp ref = CartPoleGp(40, 1, 43);
+  gp::GpHyperparameters hyp;
+  hyp.log_lengthscales = (-0.5 * ref.inv_lengthscale_sq.array().log()).matrix();
+  hyp.log_signal_std = (0.5 * ref.signal_var.array().log()).matrix();
+  hyp.log_noise_std = (0.5 * ref.noise_var.array().log()).matrix();
+  // The targets are recovered as y = (K + sn^2 I) beta.
+  RowMatrix targets(40, 4);
+  for (int a = 0; a < 4; ++a) {
+    targets.col(a) = ref.variance_weights[a].ldlt().solve(ref.beta.col(a));
+  }
+  auto model = gp::GpModel::Create(ref.inputs, targets, hyp);
+  ASSERT_OK(model.status());
+  const GaussianInputGp conv = GaussianInputGpFromModel(*model);
+  for (int a = 0; a < 4; ++a) EXPECT_EQ(model->jitter(a), 0.0);
+  EXPECT_TRUE(::totalgrad::testing::MatricesNear(conv.beta, ref.beta, 1e-8, 1e-6));
+  EXPECT_TRUE(::totalgrad::testing::MatricesNear(conv.inv_lengthscale_sq, ref.inv_lengthscale_sq,
+                                                 0, 1e-14));
+  PilcoProblem problem = SwingUpProblem(1);
+  Rng prng(5, Stream::kPolicyInit);
+  const Vector params = *InitialPolicyParameters(problem, &prng);
+  auto a = Propagate(conv, problem, params);
+  auto b = Propagate(ref, problem, params);
+  ASSERT_OK(a.status());
+  ASSERT_OK(b.status());
+  EXPECT_NEAR(a->total_cost, b->total_cost, 1e-8);
 }
 
 TEST(AngleFeaturesTest, MapAndChainRule) {
