@@ -105,6 +105,32 @@ void BM_PilcoJAndGradient(benchmark::State& state) {
   }
 }
 
+// One FITC NLML + gradient (inducing-input training step) at {N, M}.
+void BM_FitcNlmlAndGradient(benchmark::State& state) {
+  SetBlasThreads(1);
+  const int n = state.range(0), m = state.range(1);
+  std::mt19937_64 gen(4);
+  std::normal_distribution<double> normal;
+  RowMatrix x(n, 6), y(n, 4);
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < 6; ++j) x(i, j) = normal(gen);
+    for (int a = 0; a < 4; ++a) y(i, a) = std::sin(x(i, a)) + 0.1 * normal(gen);
+  }
+  gp::GpHyperparameters hyp;
+  hyp.log_lengthscales = RowMatrix::Zero(4, 6);
+  hyp.log_signal_std = Vector::Zero(4);
+  hyp.log_noise_std = Vector::Constant(4, std::log(0.1));
+  Rng rng(5, Stream::kGpInit);
+  const RowMatrix z = gp::RandomSubsetOfInputs(x, m, &rng);
+  double value;
+  RowMatrix grad;
+  for (auto _ : state) {
+    if (!gp::FitcNlml(x, y, hyp, z, &value, &grad)) std::abort();
+    benchmark::DoNotOptimize(value);
+  }
+}
+BENCHMARK(BM_FitcNlmlAndGradient)->Args({450, 300})->Unit(benchmark::kMillisecond)->UseRealTime();
+
 // {N, M, H, C}: the measurement (N = 450, H = 30) with the full GP
 // and FITC with M = 300; PILCO's policy size C = 10 and the paper's C = 50.
 #define PILCO_ARGS                                                                     \
