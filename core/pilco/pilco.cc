@@ -101,6 +101,43 @@ absl::StatusOr<PilcoResult> OptimizePolicy(const GaussianInputGp& model,
   return result;
 }
 
+std::string DynamicsModelReport::BriefReport() const {
+  return sparse ? fitc.BriefReport() : std::string("full GP");
+}
+
+absl::StatusOr<GaussianInputGp> BuildDynamicsModel(const RowMatrix& inputs,
+                                                   const RowMatrix& targets,
+                                                   const gp::GpHyperparameters& hyperparameters,
+                                                   const DynamicsModelOptions& options,
+                                                   RowMatrix* inducing, Rng* rng,
+                                                   DynamicsModelReport* report) {
+  DynamicsModelReport local;
+  DynamicsModelReport& rep = report != nullptr ? *report : local;
+  const int n = static_cast<int>(inputs.rows());
+  if (options.num_inducing <= 0 || n <= options.num_inducing) {
+    rep.sparse = false;
+    absl::StatusOr<gp::GpModel> model = gp::GpModel::Create(inputs, targets, hyperparameters);
+    if (!model.ok()) return model.status();
+    return GaussianInputGpFromModel(*model);
+  }
+  rep.sparse = true;
+  gp::FitcTrainingOptions fit;
+  if (inducing->rows() != options.num_inducing || inducing->cols() != inputs.cols()) {
+    *inducing = gp::RandomSubsetOfInputs(inputs, options.num_inducing, rng);
+    fit.max_iterations = options.first_fit_iterations;
+  } else {
+    fit.max_iterations = options.warm_fit_iterations;
+  }
+  absl::StatusOr<gp::FitcTrainingSummary> summary =
+      gp::TrainInducingInputs(inputs, targets, hyperparameters, fit, inducing);
+  if (!summary.ok()) return summary.status();
+  rep.fitc = *summary;
+  absl::StatusOr<gp::FitcModel> model =
+      gp::FitcModel::Create(inputs, targets, hyperparameters, *inducing);
+  if (!model.ok()) return model.status();
+  return GaussianInputGpFromFitc(*model);
+}
+
 absl::StatusOr<Vector> InitialPolicyParameters(const PilcoProblem& problem, Rng* rng) {
   if (absl::Status st = problem.Validate(); !st.ok()) return st;
   const int d = static_cast<int>(problem.mu0.size());

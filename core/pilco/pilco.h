@@ -28,6 +28,8 @@
 #include "absl/status/statusor.h"
 #include "core/common/rng.h"
 #include "core/common/types.h"
+#include "core/gp/fitc.h"
+#include "core/gp/gp.h"
 #include "core/pilco/bfgs.h"
 #include "core/pilco/expected_cost.h"
 #include "core/pilco/gp_moments.h"
@@ -74,6 +76,33 @@ absl::StatusOr<Trajectory> Propagate(const GaussianInputGp& model, const PilcoPr
 absl::StatusOr<PilcoResult> OptimizePolicy(const GaussianInputGp& model,
                                            const PilcoProblem& problem,
                                            const PilcoOptions& options, Vector* params);
+
+// The dynamics model PILCO uses for a data set (pilco-spec.md 4.5): the full
+// GP while N <= num_inducing (or num_inducing == 0), else FITC with
+// num_inducing shared inducing inputs trained with the hyperparameters fixed.
+struct DynamicsModelOptions {
+  int num_inducing = 300;            // PILCO: 300; 0 = always the full GP
+  int first_fit_iterations = 1500;   // Z from a random subset of the inputs
+  int warm_fit_iterations = 500;     // Z warm-started from *inducing
+};
+
+struct DynamicsModelReport {
+  bool sparse = false;
+  gp::FitcTrainingSummary fitc;  // when sparse
+  std::string BriefReport() const;
+};
+
+// inputs N x (Ep + 1) in feature space (StatesToFeatures + u), targets N x D,
+// hyperparameters trained on the full data (gp::TrainHyperparameters).
+// *inducing is the warm start (empty the first time) and receives the
+// trained inducing inputs; `rng` draws the first random subset. Errors from
+// GpModel::Create / FitcModel::Create / TrainInducingInputs.
+absl::StatusOr<GaussianInputGp> BuildDynamicsModel(const RowMatrix& inputs,
+                                                   const RowMatrix& targets,
+                                                   const gp::GpHyperparameters& hyperparameters,
+                                                   const DynamicsModelOptions& options,
+                                                   RowMatrix* inducing, Rng* rng,
+                                                   DynamicsModelReport* report);
 
 // PILCO's initial policy: C centres drawn from the (moment-matched) Gaussian
 // of the policy features at time 0, log length-scales 0 for the raw dims and

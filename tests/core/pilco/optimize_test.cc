@@ -225,6 +225,40 @@ TEST(PilcoApiTest, GpModelConversionMatchesFromData) {
   EXPECT_NEAR(a->total_cost, b->total_cost, 1e-8);
 }
 
+TEST(PilcoApiTest, BuildDynamicsModelSwitchesToFitcAboveM) {
+  const GaussianInputGp ref = CartPoleGp(40, 1, 44);
+  gp::GpHyperparameters hyp;
+  hyp.log_lengthscales = (-0.5 * ref.inv_lengthscale_sq.array().log()).matrix();
+  hyp.log_signal_std = (0.5 * ref.signal_var.array().log()).matrix();
+  hyp.log_noise_std = (0.5 * ref.noise_var.array().log()).matrix();
+  RowMatrix targets(40, 4);
+  for (int a = 0; a < 4; ++a) {
+    targets.col(a) = ref.variance_weights[a].ldlt().solve(ref.beta.col(a));
+  }
+  DynamicsModelOptions options;
+  options.num_inducing = 40;
+  RowMatrix z;
+  Rng rng(1, Stream::kGpInit);
+  DynamicsModelReport report;
+  auto full = BuildDynamicsModel(ref.inputs, targets, hyp, options, &z, &rng, &report);
+  ASSERT_OK(full.status());
+  EXPECT_FALSE(report.sparse);
+  EXPECT_EQ(full->num_points(), 40);
+  options.num_inducing = 15;
+  options.first_fit_iterations = 10;
+  auto sparse = BuildDynamicsModel(ref.inputs, targets, hyp, options, &z, &rng, &report);
+  ASSERT_OK(sparse.status());
+  EXPECT_TRUE(report.sparse);
+  EXPECT_EQ(sparse->num_points(), 15);
+  EXPECT_EQ(z.rows(), 15);
+  EXPECT_LE(report.fitc.final_nlml, report.fitc.initial_nlml) << report.BriefReport();
+  // Warm start keeps Z's size and improves further (or stays).
+  const double first = report.fitc.final_nlml;
+  auto again = BuildDynamicsModel(ref.inputs, targets, hyp, options, &z, &rng, &report);
+  ASSERT_OK(again.status());
+  EXPECT_NEAR(report.fitc.initial_nlml, first, 1e-9 * std::abs(first));
+}
+
 TEST(AngleFeaturesTest, MapAndChainRule) {
   RowMatrix states(2, 4);
   states << 0.1, 0.2, 0.3, 0.4, -1, 3.0, 2, 1;
