@@ -7,7 +7,10 @@
 // with p = 30, ls = 100, snr = 1000 and std_m the (N-1)-normalised standard
 // deviation of input column m. Minimised per output with L-BFGS (LBFGSpp),
 // warm-started from the given hyperparameters. A line-search failure is caught:
-// the best point seen so far is kept and the failure is counted in the summary.
+// the best point seen so far is kept and the failure is counted in the summary;
+// as in PILCO's minimize.m, L-BFGS then restarts from that point (within the
+// same iteration budget) if the failed run had made progress. A constant input
+// column (std 0) uses std 1 in the penalty, as in InitialHyperparameters.
 //
 // Thread safety: free functions, no shared state.
 #ifndef TOTALGRAD_CORE_GP_TRAINING_H_
@@ -36,7 +39,7 @@ struct TrainingOptions {
 
 struct TrainingSummary {
   std::vector<double> final_loss;     // per output, NLML + penalty at the result
-  std::vector<int> iterations;        // per output
+  std::vector<int> iterations;        // per output: accepted L-BFGS steps (line searches)
   int line_search_failures = 0;       // caught and recovered from
   int non_finite_evaluations = 0;     // loss evaluations that were not finite
   std::string BriefReport() const;
@@ -44,7 +47,7 @@ struct TrainingSummary {
 
 // NLML of one output plus the penalty, and its gradient with respect to the
 // packed log hyperparameters [log l_1..E, log sf, log sn] (E + 2). `input_std`
-// (E) is the per-column input std used by the penalty. `gradient` may be
+// (E, entries > 0) is the per-column input std used by the penalty. `gradient` may be
 // null. Returns false (value unspecified) if K is not positive definite or a
 // value is not finite.
 bool PenalisedNlml(const RowMatrix& inputs, const Vector& targets, const Vector& input_std,
