@@ -84,6 +84,19 @@ absl::Status ComputePairTerms(const Matrix& delta, const Matrix& s, const Vector
   const Vector rb = -0.5 * p->zb.cwiseProduct(delta).rowwise().sum() +
                     0.5 * (p->zb * p->t).cwiseProduct(p->zb).rowwise().sum();
   p->q.noalias() = zat * p->zb.transpose();
+  if (a == b) {
+    // Q_aa is symmetric: exponentiate the lower triangle and mirror it
+    // (the exp is most of the cost of a step).
+    const Eigen::Index n = p->q.rows();
+    for (Eigen::Index j = 0; j < n; ++j) {
+      auto col = p->q.col(j).tail(n - j);
+      col = (col.array() + ra.tail(n - j).array() + (rb(j) + p->log_const)).exp().matrix();
+    }
+    for (Eigen::Index j = 1; j < n; ++j) {
+      for (Eigen::Index i = 0; i < j; ++i) p->q(i, j) = p->q(j, i);
+    }
+    return absl::OkStatus();
+  }
   p->q.array().colwise() += ra.array() + p->log_const;
   p->q.array().rowwise() += rb.transpose().array();
   p->q = p->q.array().exp().matrix();
@@ -160,7 +173,8 @@ absl::StatusOr<GaussianInputGp> GaussianInputGpFromData(const RowMatrix& inputs,
           " (kernel matrix not positive definite; check gp_log_hyp and duplicate inputs)"));
     }
     gp.beta.col(a) = llt.solve(targets.col(a));
-    gp.variance_weights[a] = llt.solve(Matrix::Identity(n, n));
+    const Matrix k_inv = llt.solve(Matrix::Identity(n, n));
+    gp.variance_weights[a] = 0.5 * (k_inv + k_inv.transpose());
   }
   return gp;
 }
@@ -300,11 +314,13 @@ absl::Status PredictGaussianBackward(const GaussianInputGp& gp, const Vector& m,
       } else {
         w.array() *= gamma * (gp.beta.col(a) * gp.beta.col(b).transpose()).array();
       }
+      // For a == b, W is symmetric (Q_aa, beta beta^T and Vw_a are), so
+      // c = r and W^T Za = W Zb: one product instead of two.
       const Vector r = w.rowwise().sum();
-      const Vector c = w.colwise().sum().transpose();
+      const Vector c = a == b ? r : Vector(w.colwise().sum().transpose());
       const double sum_w = r.sum();
-      const Matrix wzb = w * p.zb;               // N x E
-      const Matrix wtza = w.transpose() * p.za;  // N x E
+      const Matrix wzb = w * p.zb;                                     // N x E
+      const Matrix wtza = a == b ? wzb : Matrix(w.transpose() * p.za);  // N x E
       const Matrix rza = r.asDiagonal() * p.za;
       const Matrix czb = c.asDiagonal() * p.zb;
       delta_bar.noalias() -= rza + czb;
