@@ -13,7 +13,7 @@ PACKAGES=(
   libgrpc++-dev libprotobuf-dev protobuf-compiler protobuf-compiler-grpc
   libsqlite3-dev sqlite3
   gnuplot-nox
-  iproute2 openssl
+  iproute2 openssl libssl-dev
 )
 
 missing=()

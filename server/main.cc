@@ -95,7 +95,9 @@ int main(int argc, char** argv) {
     spdlog::info("signal {}: shutting down", signal_number);
     (*coordinator)->Shutdown();
   });
+  // Only the signal thread shuts the coordinator down, so joining it is the
+  // wait; the coordinator is destroyed after the thread is done with it.
+  signal_thread.join();
   (*coordinator)->Wait();
-  signal_thread.detach();  // may still be waiting if shutdown came from elsewhere
   return 0;
 }

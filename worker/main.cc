@@ -96,9 +96,12 @@ int main(int argc, char** argv) {
     return 2;
   }
 
-  totalgrad::worker::LearnerTrialRunner runner;
-  totalgrad::worker::Worker worker(options, *channel, &runner);
-  std::thread signal_thread([&] {
+  // Deliberately never destroyed: the detached signal thread may still hold
+  // them while the process exits.
+  auto* runner = new totalgrad::worker::LearnerTrialRunner();
+  auto* worker_ptr = new totalgrad::worker::Worker(options, *channel, runner);
+  totalgrad::worker::Worker& worker = *worker_ptr;
+  std::thread signal_thread([&worker] {
     int signal_number = totalgrad::WaitForShutdownSignal();
     spdlog::info("signal {}: draining (send again to release running trials now)", signal_number);
     worker.Drain();

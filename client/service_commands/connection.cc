@@ -65,6 +65,9 @@ void AddConnectionFlags(CLI::App* command, ServiceFlags* flags, bool with_format
   command->add_option("--ca-cert", flags->ca_cert, "CA certificate to trust [env TOTALGRAD_CA_CERT]");
   command->add_option("--tls-server-name", flags->tls_server_name,
                       "expected name in the server certificate");
+  command->add_option("--client-cert", flags->client_cert,
+                      "client certificate (PEM), for coordinators that require one");
+  command->add_option("--client-key", flags->client_key, "client key (PEM)");
   command->add_flag("--insecure", flags->insecure,
                     "plaintext; only to a loopback coordinator [env TOTALGRAD_INSECURE=1]");
   command->add_option("--timeout", flags->timeout_seconds, "seconds per call")
@@ -87,6 +90,8 @@ absl::StatusOr<Connection> Connection::Open(const ServiceFlags& flags) {
   options.insecure = flags.insecure;
   options.ca_cert_file = flags.ca_cert;
   options.tls_server_name = flags.tls_server_name;
+  options.client_cert_file = flags.client_cert;
+  options.client_key_file = flags.client_key;
   if (!flags.token_file.empty()) {
     std::ifstream in(flags.token_file);
     if (!in) return absl::NotFoundError(absl::StrCat("cannot read token file ", flags.token_file));
@@ -98,7 +103,10 @@ absl::StatusOr<Connection> Connection::Open(const ServiceFlags& flags) {
   if (!channel.ok()) return channel.status();
   connection.stub_ = v1::ControlService::NewStub(*channel);
   connection.policy_.call_timeout = absl::Seconds(flags.timeout_seconds);
-  connection.policy_.give_up_after = absl::Seconds(std::max(10.0, flags.timeout_seconds));
+  connection.policy_.give_up_after = absl::Seconds(flags.timeout_seconds);
+  // Fail fast on a connection problem so the user sees its cause (refused,
+  // TLS handshake, ...) rather than a bare deadline; retries still cover restarts.
+  connection.policy_.wait_for_ready = false;
   return connection;
 }
 

@@ -25,6 +25,8 @@ struct ServiceFlags {
   std::string token_file;
   std::string ca_cert;
   std::string tls_server_name;
+  std::string client_cert;
+  std::string client_key;
   bool insecure = false;
   std::string format = "table";
   double timeout_seconds = 60;

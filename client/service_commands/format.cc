@@ -86,9 +86,14 @@ void Print(const Listing& listing, Format format, std::ostream& out) {
                                          name) != listing.numeric_columns.end();
           if (numeric) {
             double value = 0;
-            const auto parsed = std::from_chars(row[c].data(), row[c].data() + row[c].size(), value);
+            int64_t integer = 0;
+            const char* end = row[c].data() + row[c].size();
+            const auto as_integer = std::from_chars(row[c].data(), end, integer);
+            const auto parsed = std::from_chars(row[c].data(), end, value);
             if (row[c].empty() || row[c] == "nan" || row[c] == "-") {
               object[name] = nullptr;
+            } else if (as_integer.ec == std::errc() && as_integer.ptr == end) {
+              object[name] = integer;
             } else if (parsed.ec == std::errc() && parsed.ptr == row[c].data() + row[c].size()) {
               object[name] = value;
             } else {

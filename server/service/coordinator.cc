@@ -158,16 +158,17 @@ void Coordinator::Shutdown() {
   stop_signal_.notify_all();
   if (control_service_) control_service_->SetServing(false);
   if (scheduler_) scheduler_->Shutdown();
-  if (server_) server_->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(5));
+  // In-flight calls get 2 s; then they are cancelled, which is safe because
+  // every write is idempotent and clients retry against the next coordinator.
+  if (server_) server_->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
   if (expiry_thread_.joinable()) expiry_thread_.join();
   if (server_) server_->Wait();
   store_.reset();  // checkpoints the WAL
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    stopped_ = true;
-  }
-  stop_signal_.notify_all();
   spdlog::info("coordinator stopped");
+  // Last: once Wait() returns, the owner may destroy this object.
+  std::lock_guard<std::mutex> lock(mutex_);
+  stopped_ = true;
+  stop_signal_.notify_all();
 }
 
 void Coordinator::Wait() {

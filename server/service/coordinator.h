@@ -67,7 +67,7 @@ class Coordinator {
   // The bound port.
   int port() const { return port_; }
   // Stops taking leases, wakes long polls, stops the server (in-flight calls
-  // get up to 5 s), stops the lease timer and closes the store. Idempotent.
+  // get up to 2 s), stops the lease timer and closes the store. Idempotent.
   void Shutdown();
   // Blocks until Shutdown() has been called and finished.
   void Wait();

@@ -1,0 +1,276 @@
+// The `totalgrad` CLI against a real coordinator: sweep files with errors,
+// submit --wait, results table/curves/export in every format, job and worker
+// listings, backups, and `totalgrad run` (the embedded default).
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_split.h"
+#include "tests/service/e2e_util.h"
+#include "tests/service/service_testutil.h"
+
+namespace totalgrad::testing {
+namespace {
+
+using std::chrono::seconds;
+
+constexpr char kTinySweep[] = R"(# a tiny sweep
+name = "cli"
+[grid]
+method = ["RP"]
+seed = [1, 2, 3]
+[protocol]
+episodes = 2
+policy_steps = 3
+particles = 8
+eval_rollouts = 2
+horizon = 10
+)";
+
+class CliTest : public ServiceFixture {
+ protected:
+  // Runs `totalgrad ARGS... --coordinator ... --insecure --token-file user.token`.
+  int Cli(std::vector<std::string> args, std::string* out, std::string* err,
+          bool connection_flags = true) {
+    std::vector<std::string> argv = {TOTALGRAD_CLI_BIN};
+    argv.insert(argv.end(), args.begin(), args.end());
+    if (connection_flags) {
+      for (const std::string& flag : {std::string("--coordinator"), absl::StrCat("127.0.0.1:", port_),
+                                      std::string("--insecure"), std::string("--token-file"),
+                                      dir_ + "/user.token"}) {
+        argv.push_back(flag);
+      }
+    }
+    return RunCommand(argv, out, err);
+  }
+  std::string WriteSweep(const std::string& name, const std::string& text) {
+    const std::string path = dir_ + "/" + name;
+    WriteFile(path, text);
+    return path;
+  }
+};
+
+TEST_F(CliTest, MalformedSweepFilesAreRefusedWithFileLineAndFieldBeforeAnythingIsStored) {
+  StartCoordinator();
+  struct Case {
+    std::string text;
+    std::string expected;  // in stderr, after the file name
+  };
+  const std::vector<Case> cases = {
+      {"name = \"x\"\n[grid]\nmethod = [\"RP\",\n  \"NOT-A-METHOD\"]\n",
+       ":4:3: grid.method[1]: option 'method': unknown method 'NOT-A-METHOD'"},
+      {"name = \"x\"\n[grid]\nmethod = [\"RP\"]\n[protocol]\nparticles = -5\n",
+       ":5:13: protocol.particles:"},
+      {"name = \"x\"\n[grid]\nmethod = [\"RP\"]\n[protocol]\nparticels = 5\n",
+       ":5:13: protocol.particels: unknown option 'particels'"},
+      {"name = \"x\"\n[grid]\nmethod = [\"RP\"]\nseed = [1, 1]\n", ": grid.seed[1]: '1' repeats"},
+      {"name = \"x\"\nmax_attempts = \"three\"\n[grid]\nmethod = [\"RP\"]\n",
+       ":2:16: max_attempts: must be an integer"},
+      {"name = \"x\"\n[grid\nmethod = [\"RP\"]\n", ":2:"},
+      {"name = \"x\"\ncolour = 3\n[grid]\nmethod = [\"RP\"]\n", ":2:10: colour: unknown field"},
+      {"name = \"x\"\n[grid]\nseed = [1]\n", ": grid.method: missing"},
+      {"[grid]\nmethod = [\"RP\"]\n", ": name: missing"},
+  };
+  for (size_t i = 0; i < cases.size(); ++i) {
+    const std::string path = WriteSweep(absl::StrCat("bad", i, ".toml"), cases[i].text);
+    std::string out, err;
+    EXPECT_EQ(Cli({"sweep", "submit", path}, &out, &err), 2) << err;
+    EXPECT_NE(err.find(path + cases[i].expected), std::string::npos)
+        << "case " << i << ": expected '" << path + cases[i].expected << "' in: " << err;
+  }
+  std::string out, err;
+  ASSERT_EQ(Cli({"sweep", "list", "-f", "json"}, &out, &err), 0) << err;
+  EXPECT_EQ(nlohmann::json::parse(out).size(), 0u);
+}
+
+TEST_F(CliTest, SubmitWaitAndQueryResultsInEveryFormat) {
+  StartCoordinator();
+  auto worker = StartWorker("cli-worker");
+  const std::string path = WriteSweep("cli.toml", kTinySweep);
+  std::string out, err;
+  ASSERT_EQ(Cli({"sweep", "submit", path, "--wait"}, &out, &err), 0) << out << err;
+  EXPECT_NE(out.find("submitted: sweep cli, 3 jobs"), std::string::npos) << out;
+  EXPECT_NE(err.find("jobs 3/3"), std::string::npos) << err;
+  // Resubmitting is a no-op.
+  ASSERT_EQ(Cli({"sweep", "submit", path}, &out, &err), 0) << err;
+  EXPECT_NE(out.find("already submitted (no change)"), std::string::npos) << out;
+
+  ASSERT_EQ(Cli({"results", "table", "cli"}, &out, &err), 0) << err;
+  EXPECT_NE(out.find("RP      1.00 [0.44, 1.00] n=3"), std::string::npos) << out;
+  ASSERT_EQ(Cli({"results", "table", "cli", "-f", "csv"}, &out, &err), 0) << err;
+  EXPECT_EQ(out.substr(0, out.find('\n')),
+            "method,variant,trials,successes,success_rate,wilson95_low,wilson95_high,"
+            "median_final_cost");
+  ASSERT_EQ(Cli({"results", "table", "cli", "-f", "json"}, &out, &err), 0) << err;
+  const nlohmann::json table = nlohmann::json::parse(out);
+  ASSERT_EQ(table.size(), 1u);
+  EXPECT_EQ(table[0]["trials"], 3);
+  EXPECT_EQ(table[0]["successes"], 3);
+
+  const std::string plot = dir_ + "/curves.svg";
+  ASSERT_EQ(Cli({"results", "curves", "cli", "-f", "json", "--plot", plot}, &out, &err), 0) << err;
+  const nlohmann::json curves = nlohmann::json::parse(out);
+  ASSERT_EQ(curves.size(), 2u);  // episodes 1 and 2 have evaluation costs
+  EXPECT_EQ(curves[0]["trials"], 3);
+  EXPECT_TRUE(std::filesystem::file_size(plot) > 1000) << err;
+  EXPECT_NE(ReadFile(plot).find("<svg"), std::string::npos);
+
+  ASSERT_EQ(Cli({"results", "export", "cli", "-f", "csv"}, &out, &err), 0) << err;
+  std::vector<std::string> lines = absl::StrSplit(out, '\n', absl::SkipEmpty());
+  EXPECT_EQ(lines.size(), 1u + 9u);
+  ASSERT_EQ(Cli({"results", "export", "cli", "-f", "json"}, &out, &err), 0) << err;
+  lines = absl::StrSplit(out, '\n', absl::SkipEmpty());
+  ASSERT_EQ(lines.size(), 9u);
+  const nlohmann::json row = nlohmann::json::parse(lines[1]);
+  EXPECT_EQ(row["episode"], 1);
+  EXPECT_TRUE(row["details"].is_object());
+  EXPECT_EQ(Cli({"results", "export", "cli"}, &out, &err), 2);  // table is not an export format
+
+  ASSERT_EQ(Cli({"job", "list", "--sweep", "cli", "-f", "json"}, &out, &err), 0) << err;
+  const nlohmann::json jobs = nlohmann::json::parse(out);
+  ASSERT_EQ(jobs.size(), 3u);
+  EXPECT_EQ(jobs[0]["state"], "completed");
+  ASSERT_EQ(Cli({"job", "logs", jobs[0]["job"].dump()}, &out, &err), 0) << err;
+  EXPECT_NE(out.find("lease_granted"), std::string::npos) << out;
+  EXPECT_NE(out.find("particles=8"), std::string::npos) << out;
+  EXPECT_EQ(Cli({"job", "retry", jobs[0]["job"].dump()}, &out, &err), 1);  // completed: refused
+  EXPECT_NE(err.find("FAILED_PRECONDITION"), std::string::npos) << err;
+
+  ASSERT_EQ(Cli({"worker", "list", "-f", "csv"}, &out, &err), 0) << err;
+  EXPECT_NE(out.find("cli-worker,active"), std::string::npos) << out;
+  ASSERT_EQ(Cli({"sweep", "status", "cli", "-f", "json"}, &out, &err), 0) << err;
+  EXPECT_EQ(nlohmann::json::parse(out)[0]["completed"], 3);
+  EXPECT_EQ(Cli({"sweep", "status", "nope"}, &out, &err), 2);
+  EXPECT_NE(err.find("NOT_FOUND: no sweep named 'nope'"), std::string::npos) << err;
+}
+
+TEST_F(CliTest, PauseResumeAndCancelFromTheCli) {
+  StartCoordinator();
+  const std::string path = WriteSweep("cli.toml", kTinySweep);
+  std::string out, err;
+  ASSERT_EQ(Cli({"sweep", "submit", path}, &out, &err), 0) << err;
+  ASSERT_EQ(Cli({"sweep", "pause", "cli", "-f", "json"}, &out, &err), 0) << err;
+  EXPECT_EQ(nlohmann::json::parse(out)[0]["state"], "paused");
+  auto worker = StartWorker("w");
+  // A paused sweep hands out nothing: the worker registers and stays idle.
+  ASSERT_TRUE(WaitFor([&] { return Cli({"worker", "list", "-f", "csv"}, &out, &err) == 0 &&
+                                   out.find("w,active") != std::string::npos; },
+                      seconds(20)));
+  EXPECT_EQ(Sweep("cli").jobs_queued(), 3);
+  ASSERT_EQ(Cli({"sweep", "resume", "cli"}, &out, &err), 0) << err;
+  ASSERT_EQ(Cli({"sweep", "status", "cli", "--wait"}, &out, &err), 0) << err;
+  ASSERT_EQ(Cli({"sweep", "cancel", "cli"}, &out, &err), 0) << err;  // finished: results kept
+  EXPECT_EQ(Sweep("cli").jobs_completed(), 3);
+  EXPECT_EQ(Cli({"sweep", "resume", "cli"}, &out, &err), 1);
+  EXPECT_NE(err.find("cancelled sweep cannot be resumed"), std::string::npos) << err;
+}
+
+TEST_F(CliTest, BackupsByRpcAndOneShotAreConsistentCopies) {
+  const std::string backups = dir_ + "/backups";
+  std::filesystem::create_directories(backups);
+  StartCoordinator(0, {"--backup-dir", backups});
+  const std::string path = WriteSweep("cli.toml", kTinySweep);
+  std::string out, err;
+  ASSERT_EQ(Cli({"sweep", "submit", path}, &out, &err), 0) << err;
+  ASSERT_EQ(Cli({"admin", "backup", "copy.db"}, &out, &err), 0) << err;
+  EXPECT_NE(out.find(backups + "/copy.db"), std::string::npos) << out;
+  EXPECT_EQ(Cli({"admin", "backup", "copy.db"}, &out, &err), 2);  // exists: refused
+  EXPECT_EQ(Cli({"admin", "backup", "../escape.db"}, &out, &err), 2);
+  EXPECT_NE(err.find("plain file name"), std::string::npos) << err;
+  // One-shot copy of a live database, then serve the copy: the sweep is there.
+  ASSERT_EQ(RunCommand({TOTALGRAD_COORDINATOR_BIN, "--db", db_, "--backup", dir_ + "/oneshot.db"},
+                       &out, &err),
+            0)
+      << err;
+  coordinator_->Signal(SIGTERM);
+  ASSERT_EQ(coordinator_->Wait(seconds(20)), 0);
+  for (const std::string& copy : {backups + "/copy.db", dir_ + "/oneshot.db"}) {
+    db_ = copy;
+    StartCoordinator();
+    EXPECT_EQ(Sweep("cli").jobs_total(), 3) << copy;
+    coordinator_->Signal(SIGTERM);
+    ASSERT_EQ(coordinator_->Wait(seconds(20)), 0);
+  }
+}
+
+TEST_F(CliTest, RunStartsEverythingPrintsTheTableAndStopsEverything) {
+  const std::string path = WriteSweep("cli.toml", kTinySweep);
+  const std::string run_dir = dir_ + "/run";
+  std::string out, err;
+  ASSERT_EQ(Cli({"run", path, "--workers", "2", "--dir", run_dir}, &out, &err,
+                /*connection_flags=*/false),
+            0)
+      << out << err;
+  EXPECT_NE(out.find("RP      1.00 [0.44, 1.00] n=3"), std::string::npos) << out;
+  EXPECT_NE(err.find("plot written to " + run_dir + "/cli-curves.svg"), std::string::npos) << err;
+  EXPECT_TRUE(std::filesystem::exists(run_dir + "/cli.db"));
+  // Everything was stopped cleanly: the WAL was checkpointed away.
+  EXPECT_FALSE(std::filesystem::exists(run_dir + "/cli.db-wal"));
+  EXPECT_NE(ReadFile(run_dir + "/cli-coordinator.log").find("coordinator stopped"), std::string::npos);
+  // Running the same file again is a no-op that prints the stored results.
+  ASSERT_EQ(Cli({"run", path, "--workers", "1", "--dir", run_dir, "--no-plot"}, &out, &err,
+                /*connection_flags=*/false),
+            0)
+      << err;
+  EXPECT_NE(err.find("already in the database"), std::string::npos) << err;
+  EXPECT_NE(out.find("n=3"), std::string::npos) << out;
+}
+
+TEST_F(CliTest, TlsWithDevCertificatesAndTokens) {
+  const std::string certs = dir_ + "/certs";
+  std::string out, err;
+  ASSERT_EQ(RunCommand({"/bin/bash", std::string(TOTALGRAD_SOURCE_DIR) + "/deploy/make-dev-certs.sh",
+                        certs},
+                       &out, &err),
+            0)
+      << err;
+  const std::string port_file = dir_ + "/tls.port";
+  Process coordinator({TOTALGRAD_COORDINATOR_BIN, "--db", db_, "--listen", "127.0.0.1:0",
+                       "--tls-cert", certs + "/server.pem", "--tls-key", certs + "/server.key",
+                       "--worker-token-file", certs + "/worker.token", "--user-token-file",
+                       certs + "/user.token", "--port-file", port_file,
+                       "--heartbeat-interval", "0.2", "--lease-timeout", "2"},
+                      dir_ + "/tls-coordinator.log");
+  int port = 0;
+  ASSERT_TRUE(WaitFor([&] {
+    std::ifstream in(port_file);
+    return (in >> port) && port > 0;
+  }, seconds(30))) << coordinator.Log();
+  const std::string address = absl::StrCat("127.0.0.1:", port);
+  Process worker({TOTALGRAD_WORKER_BIN, "--coordinator", address, "--ca-cert", certs + "/ca.pem",
+                  "--token-file", certs + "/worker.token", "--slots", "1", "--acquire-wait", "1"},
+                 dir_ + "/tls-worker.log");
+  const std::string path = WriteSweep("cli.toml", kTinySweep);
+  const std::vector<std::string> tls = {"--coordinator", address, "--ca-cert", certs + "/ca.pem",
+                                        "--token-file", certs + "/user.token"};
+  std::vector<std::string> submit = {TOTALGRAD_CLI_BIN, "sweep", "submit", path, "--wait"};
+  submit.insert(submit.end(), tls.begin(), tls.end());
+  ASSERT_EQ(RunCommand(submit, &out, &err), 0) << out << err << worker.Log();
+  // Plaintext to the TLS port fails; so does TLS without the right CA.
+  EXPECT_EQ(RunCommand({TOTALGRAD_CLI_BIN, "admin", "health", "--coordinator", address,
+                        "--insecure", "--token-file", certs + "/user.token", "--timeout", "2"},
+                       &out, &err),
+            3);
+  EXPECT_EQ(RunCommand({TOTALGRAD_CLI_BIN, "admin", "health", "--coordinator", address,
+                        "--token-file", certs + "/user.token", "--timeout", "2"},
+                       &out, &err),
+            3);
+  // The worker token is not a user token, even over TLS.
+  EXPECT_EQ(RunCommand({TOTALGRAD_CLI_BIN, "admin", "health", "--coordinator", address, "--ca-cert",
+                        certs + "/ca.pem", "--token-file", certs + "/worker.token"},
+                       &out, &err),
+            2);
+  EXPECT_NE(err.find("PERMISSION_DENIED"), std::string::npos) << err;
+  // Plaintext to a non-loopback address is refused by the client itself.
+  EXPECT_EQ(RunCommand({TOTALGRAD_CLI_BIN, "admin", "health", "--coordinator", "192.0.2.1:7070",
+                        "--insecure"},
+                       &out, &err),
+            2);
+  EXPECT_NE(err.find("--insecure is only allowed for a loopback"), std::string::npos) << err;
+}
+
+}  // namespace
+}  // namespace totalgrad::testing
