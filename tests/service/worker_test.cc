@@ -1,0 +1,234 @@
+// The worker runtime against an in-process coordinator, with fake trial
+// runners: failures are reported with their reasons, episodes survive a
+// coordinator restart (replayed from the worker), CANCEL and drain behave.
+#include "worker/worker.h"
+
+#include <gtest/gtest.h>
+#include <grpcpp/create_channel.h>
+
+#include <atomic>
+#include <thread>
+
+#include "absl/strings/str_cat.h"
+#include "server/service/coordinator.h"
+#include "tests/service/process_util.h"
+#include "tests/service/service_testutil.h"
+
+namespace totalgrad::worker {
+namespace {
+
+using std::chrono::seconds;
+using ::totalgrad::testing::MakeTempDir;
+using ::totalgrad::testing::WaitFor;
+
+// Behaviour by seed: 13 reports a NaN evaluation cost at episode 1, 14
+// throws, 15 returns an error, 16 is slow (300 ms per episode); others take
+// 10 ms per episode. Values are a function of (seed, episode).
+class FakeRunner final : public TrialRunner {
+ public:
+  absl::StatusOr<TrialOutcome> Run(const OptionList& options, TrialProgress* progress) override {
+    int seed = 0, episodes = 0;
+    for (const auto& [key, value] : options) {
+      if (key == "seed") seed = std::stoi(value);
+      if (key == "episodes") episodes = std::stoi(value);
+    }
+    if (seed == 14) throw std::runtime_error("boom");
+    if (seed == 15) return absl::InternalError("integrator failed at step 7");
+    const int step_ms = seed == 16 ? 300 : 10;
+    for (int e = 0; e <= episodes; ++e) {
+      for (int waited = 0; waited < step_ms; waited += 5) {
+        if (progress->ShouldCancel()) return absl::CancelledError("cancelled");
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+      }
+      EpisodeOutcome outcome;
+      outcome.episode = e;
+      outcome.real_cost = seed * 100 + e;
+      if (e > 0) {
+        outcome.eval_cost_mean = seed == 13 ? std::nan("") : seed * 10 + e;
+        outcome.eval_cost_std = 0.5;
+        outcome.predicted_cost = seed + e;
+      }
+      outcome.optimisation_seconds = 0.01;
+      outcome.details_json = "{}";
+      progress->OnEpisode(outcome);
+      ++produced;
+    }
+    return TrialOutcome{true, static_cast<double>(seed * 10 + episodes), episodes + 1};
+  }
+  std::atomic<int> produced{0};
+};
+
+class WorkerTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = MakeTempDir();
+    options_.database = dir_ + "/worker_test.db";
+    options_.listen = "127.0.0.1:0";
+    options_.insecure = true;
+    options_.scheduler.heartbeat_interval = absl::Milliseconds(200);
+    options_.scheduler.lease_timeout = absl::Milliseconds(1500);
+    StartCoordinator();
+  }
+  void TearDown() override {
+    if (worker_) worker_->Stop();
+    if (worker_thread_.joinable()) worker_thread_.join();
+    if (coordinator_) coordinator_->Shutdown();
+  }
+  void StartCoordinator() {
+    auto coordinator = service::Coordinator::Start(options_);
+    ASSERT_TRUE(coordinator.ok()) << coordinator.status();
+    coordinator_ = std::move(*coordinator);
+    options_.listen = absl::StrCat("127.0.0.1:", coordinator_->port());  // same port on restart
+    control_ = v1::ControlService::NewStub(grpc::CreateChannel(
+        options_.listen, grpc::InsecureChannelCredentials()));
+  }
+  void StartWorker(int slots, absl::Duration drain_timeout = absl::Seconds(30)) {
+    WorkerOptions options;
+    options.worker_id = "fake";
+    options.host = "testhost";
+    options.build = "test";
+    options.slots = slots;
+    options.acquire_wait = absl::Seconds(1);
+    options.call_timeout = absl::Seconds(5);
+    options.drain_timeout = drain_timeout;
+    worker_ = std::make_unique<Worker>(
+        options, grpc::CreateChannel(options_.listen, grpc::InsecureChannelCredentials()), &runner_);
+    worker_thread_ = std::thread([this] { summary_ = worker_->Run(); });
+  }
+  void Submit(const std::string& name, const std::vector<int>& seeds, int max_attempts = 3) {
+    v1::SubmitSweepRequest request;
+    auto* spec = request.mutable_spec();
+    spec->set_name(name);
+    spec->set_max_attempts(max_attempts);
+    auto* method = spec->add_grid();
+    method->set_key("method");
+    method->add_values("RP");
+    auto* seed = spec->add_grid();
+    seed->set_key("seed");
+    for (int s : seeds) seed->add_values(std::to_string(s));
+    auto* episodes = spec->add_protocol();
+    episodes->set_key("episodes");
+    episodes->set_value("8");
+    grpc::ClientContext context;
+    v1::SubmitSweepResponse response;
+    const grpc::Status status = control_->SubmitSweep(&context, request, &response);
+    ASSERT_TRUE(status.ok()) << status.error_message();
+  }
+  std::map<std::string, v1::JobInfo> JobsBySeed(const std::string& sweep) {
+    grpc::ClientContext context;
+    v1::ListJobsRequest request;
+    request.set_sweep_name(sweep);
+    v1::ListJobsResponse response;
+    std::map<std::string, v1::JobInfo> jobs;
+    if (!control_->ListJobs(&context, request, &response).ok()) return jobs;
+    for (const auto& job : response.jobs()) jobs[job.seed()] = job;
+    return jobs;
+  }
+  bool Finished(const std::string& sweep) {
+    grpc::ClientContext context;
+    v1::SweepRequest request;
+    request.set_name(sweep);
+    v1::SweepInfo info;
+    return control_->GetSweep(&context, request, &info).ok() && info.finished();
+  }
+  v1::GetJobLogResponse Log(int64_t job_id) {
+    grpc::ClientContext context;
+    v1::JobRequest request;
+    request.set_job_id(job_id);
+    v1::GetJobLogResponse response;
+    EXPECT_TRUE(control_->GetJobLog(&context, request, &response).ok());
+    return response;
+  }
+
+  std::string dir_;
+  service::CoordinatorOptions options_;
+  std::unique_ptr<service::Coordinator> coordinator_;
+  std::unique_ptr<v1::ControlService::Stub> control_;
+  FakeRunner runner_;
+  std::unique_ptr<Worker> worker_;
+  std::thread worker_thread_;
+  WorkerSummary summary_;
+};
+
+TEST_F(WorkerTest, FailuresAreReportedWithTheirReasons) {
+  Submit("failures", {1, 13, 14, 15}, /*max_attempts=*/1);
+  StartWorker(2);
+  ASSERT_TRUE(WaitFor([&] { return Finished("failures"); }, seconds(60)));
+  auto jobs = JobsBySeed("failures");
+  EXPECT_EQ(jobs["1"].state(), v1::JOB_STATE_COMPLETED);
+  EXPECT_EQ(jobs["1"].episodes_stored(), 9);
+  EXPECT_EQ(jobs["1"].final_eval_cost(), 18);
+  EXPECT_EQ(jobs["13"].state(), v1::JOB_STATE_FAILED);
+  EXPECT_NE(jobs["13"].last_error().find("episode 1: eval_cost_mean is not finite"),
+            std::string::npos) << jobs["13"].last_error();
+  EXPECT_EQ(jobs["13"].episodes_stored(), 1);  // episode 0 is kept with the failed attempt
+  EXPECT_EQ(jobs["14"].state(), v1::JOB_STATE_FAILED);
+  EXPECT_NE(jobs["14"].last_error().find("the trial threw: boom"), std::string::npos)
+      << jobs["14"].last_error();
+  EXPECT_EQ(jobs["15"].state(), v1::JOB_STATE_FAILED);
+  EXPECT_NE(jobs["15"].last_error().find("integrator failed at step 7"), std::string::npos)
+      << jobs["15"].last_error();
+  EXPECT_EQ(Log(jobs["15"].job_id()).attempts(0).state(), v1::ATTEMPT_STATE_FAILED);
+}
+
+TEST_F(WorkerTest, FailedJobsAreRetriedUpToMaxAttempts) {
+  Submit("retries", {14}, /*max_attempts=*/3);
+  StartWorker(1);
+  ASSERT_TRUE(WaitFor([&] { return Finished("retries"); }, seconds(60)));
+  const v1::JobInfo job = JobsBySeed("retries")["14"];
+  EXPECT_EQ(job.state(), v1::JOB_STATE_FAILED);
+  EXPECT_EQ(job.attempts(), 3);
+  EXPECT_EQ(job.failures(), 3);
+}
+
+// The coordinator goes away in the middle of a trial; the worker keeps
+// computing, keeps the unacknowledged episodes, and replays them when the
+// coordinator is back. The lease survives (recovery extends it).
+TEST_F(WorkerTest, EpisodesAreReplayedAfterACoordinatorRestart) {
+  Submit("replay", {16});
+  StartWorker(1);
+  ASSERT_TRUE(WaitFor([&] { return JobsBySeed("replay")["16"].episodes_stored() >= 2; }, seconds(30)));
+  coordinator_->Shutdown();
+  coordinator_.reset();
+  const int produced_at_stop = runner_.produced;
+  // Episodes finish while nobody listens.
+  ASSERT_TRUE(WaitFor([&] { return runner_.produced >= produced_at_stop + 2; }, seconds(30)));
+  StartCoordinator();
+  ASSERT_TRUE(WaitFor([&] { return Finished("replay"); }, seconds(60)));
+  const v1::JobInfo job = JobsBySeed("replay")["16"];
+  EXPECT_EQ(job.state(), v1::JOB_STATE_COMPLETED);
+  EXPECT_EQ(job.attempts(), 1);
+  EXPECT_EQ(job.lost_leases(), 0);
+  EXPECT_EQ(job.episodes_stored(), 9);
+}
+
+TEST_F(WorkerTest, CancelDirectiveStopsTheTrialAndReleasesIt) {
+  Submit("cancel", {16});
+  StartWorker(1);
+  ASSERT_TRUE(WaitFor([&] { return JobsBySeed("cancel")["16"].episodes_stored() >= 1; }, seconds(30)));
+  grpc::ClientContext context;
+  v1::SweepRequest request;
+  request.set_name("cancel");
+  v1::SweepInfo info;
+  ASSERT_TRUE(control_->CancelSweep(&context, request, &info).ok());
+  const int64_t job_id = JobsBySeed("cancel")["16"].job_id();
+  ASSERT_TRUE(WaitFor([&] { return Log(job_id).attempts(0).state() == v1::ATTEMPT_STATE_CANCELLED; },
+                      seconds(30)));
+  EXPECT_LT(runner_.produced.load(), 9);  // stopped early
+  worker_->Drain();
+  worker_thread_.join();
+  EXPECT_EQ(summary_.released, 1);
+}
+
+TEST_F(WorkerTest, DrainLetsRunningTrialsFinishWithinTheTimeout) {
+  Submit("drain", {16});
+  StartWorker(1, /*drain_timeout=*/absl::Seconds(60));
+  ASSERT_TRUE(WaitFor([&] { return JobsBySeed("drain")["16"].episodes_stored() >= 1; }, seconds(30)));
+  worker_->Drain();
+  worker_thread_.join();
+  EXPECT_EQ(summary_.completed, 1);
+  EXPECT_EQ(JobsBySeed("drain")["16"].state(), v1::JOB_STATE_COMPLETED);
+}
+
+}  // namespace
+}  // namespace totalgrad::worker
