@@ -14,23 +14,41 @@
 
 namespace totalgrad::gp::internal {
 
+// y[i] = exp(min(x[i], 0)) for i < n, the kernel's exponential; x and y may be
+// the same array. Results are within 1 ulp of the correctly rounded value;
+// exp(x) for x < -708 (below 3.3e-308, irrelevant next to any kernel value
+// that matters) is returned as exactly 0 instead of a subnormal; NaN stays
+// NaN. The same IEEE operations (no FMA) run in every SIMD width, so the
+// result is bitwise the same whether the AVX2 path (chosen at run time when
+// the CPU has it) or the baseline path runs: a trial's numbers do not
+// depend on the worker's CPU through this function. With -march=x86-64-v2,
+// Eigen's own exp is 2-wide SSE and costs more than the P x N x N product at
+// N <= 120; this one runs 4-wide where it can.
+void ExpNonPositive(const double* x, double* y, Eigen::Index n);
+// The two paths, for tests: baseline (SSE2 on x86-64, scalar elsewhere) and
+// AVX2, which returns false (and does nothing) when the CPU lacks AVX2.
+void ExpNonPositiveBaseline(const double* x, double* y, Eigen::Index n);
+bool ExpNonPositiveAvx2(const double* x, double* y, Eigen::Index n);
+
 // out (P x N, overwritten) = sf2 * exp(-1/2 |a_p - b_n|^2) for rows a_p of `a`
 // (P x E) and b_n of `b` (N x E), both already divided by the length-scales.
-// a_sq / b_sq are their squared row norms. The squared distance is formed as
-// |a|^2 + |b|^2 - 2 a.b so that the only O(P N E) work is one BLAS product;
+// a_sq / b_sq are their squared row norms. The exponent is formed as
+// a.b - |a|^2/2 - |b|^2/2 so that the only O(P N E) work is one BLAS product;
 // its cancellation error is absolute (~eps |a|^2), harmless inside exp, but can
-// make it slightly negative, hence the clamp at zero.
+// make it slightly positive, hence the clamp at zero.
 inline void SeCrossKernel(const ConstRowMatrixRef& a, const Vector& a_sq,
                           const ConstRowMatrixRef& b, const Vector& b_sq, double sf2,
                           Matrix* out) {
   out->resize(a.rows(), b.rows());
   out->noalias() = a * b.transpose();
-  out->array() = ((((out->array() * -2.0).colwise() + a_sq.array()).rowwise() +
-                   b_sq.transpose().array())
-                      .max(0.0) *
-                  -0.5)
-                     .exp() *
-                 sf2;
+  // Column by column, so that |b_n|^2 is a scalar: a broadcast row vector
+  // (rowwise() + b_sq^T) would make Eigen fall back to scalar code.
+  for (Eigen::Index n = 0; n < out->cols(); ++n) {
+    auto column = out->col(n).array();
+    column = (column - 0.5 * a_sq.array()) - 0.5 * b_sq(n);
+  }
+  ExpNonPositive(out->data(), out->data(), out->size());  // clamps the exponent at 0
+  out->array() *= sf2;
 }
 
 // True when `llt` succeeded and K is positive definite beyond round-off: every

@@ -4,11 +4,15 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Cholesky>
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <limits>
+#include <vector>
 
 #include "core/common/rng.h"
 #include "core/diff/gradient_checker.h"
+#include "core/gp/se_kernel.h"
 #include "tests/testutil/testutil.h"
 
 namespace totalgrad::gp {
@@ -391,6 +395,68 @@ TEST(GpHyperparametersTest, PackedRoundTrip) {
   hyp.SetPacked(1, changed);
   EXPECT_EQ(hyp.Packed(1), changed);
   EXPECT_EQ(hyp.Packed(0), MakeProblem(5, 14).hyp.Packed(0));  // other output untouched
+}
+
+// The kernel's own exp (se_kernel.h): accuracy, special values, and bitwise
+// agreement of the SIMD paths.
+std::vector<double> ExpTestArguments() {
+  std::vector<double> x;
+  for (double v = -708.0; v <= 0.0; v += 0.0007137) x.push_back(v);  // odd count on purpose
+  for (double v = -1e-3; v <= 0.0; v += 1.37e-7) x.push_back(v);     // near 0
+  x.push_back(-0.0);
+  x.push_back(0.0);
+  return x;
+}
+
+TEST(SeKernelTest, ExpIsAccurateToOneUlp) {
+  const std::vector<double> x = ExpTestArguments();
+  std::vector<double> y(x.size());
+  internal::ExpNonPositive(x.data(), y.data(), static_cast<Eigen::Index>(x.size()));
+  double worst = 0;
+  for (size_t i = 0; i < x.size(); ++i) {
+    const double expected = std::exp(x[i]);
+    // One ulp of a number in [2^e, 2^(e+1)) is 2^(e-52) <= 2.2e-16 * value;
+    // std::exp itself is within one ulp of the exact value: allow two.
+    const double ulps = std::abs(y[i] - expected) / (std::numeric_limits<double>::epsilon() * expected);
+    worst = std::max(worst, ulps);
+    ASSERT_LE(ulps, 2.0) << "x = " << x[i] << " exp " << y[i] << " std::exp " << expected;
+  }
+  EXPECT_GT(worst, 0.0);  // the comparison really compared two implementations
+}
+
+TEST(SeKernelTest, ExpSpecialValues) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const double inf = std::numeric_limits<double>::infinity();
+  const std::vector<double> x = {0.0, 2.5, -708.0, -708.5, -1e4, -inf, nan};
+  std::vector<double> y(x.size());
+  internal::ExpNonPositive(x.data(), y.data(), static_cast<Eigen::Index>(x.size()));
+  EXPECT_EQ(y[0], 1.0);
+  EXPECT_EQ(y[1], 1.0);  // the exponent is clamped at 0
+  EXPECT_NEAR(y[2], std::exp(-708.0), 2 * std::numeric_limits<double>::epsilon() * y[2]);
+  EXPECT_EQ(y[3], 0.0);  // below exp(-708): flushed, never subnormal
+  EXPECT_EQ(y[4], 0.0);
+  EXPECT_EQ(y[5], 0.0);
+  EXPECT_TRUE(std::isnan(y[6]));
+  // In place, and every tail length of the SIMD loops.
+  for (int n = 1; n <= 9; ++n) {
+    std::vector<double> v(n, -0.75);
+    internal::ExpNonPositive(v.data(), v.data(), n);
+    for (int i = 0; i < n; ++i) EXPECT_NEAR(v[i], std::exp(-0.75), 1e-16) << n << " " << i;
+  }
+}
+
+TEST(SeKernelTest, SimdPathsAgreeBitwise) {
+  const std::vector<double> x = ExpTestArguments();
+  const auto n = static_cast<Eigen::Index>(x.size());
+  std::vector<double> baseline(x.size()), avx2(x.size());
+  internal::ExpNonPositiveBaseline(x.data(), baseline.data(), n);
+  if (!internal::ExpNonPositiveAvx2(x.data(), avx2.data(), n)) {
+    GTEST_SKIP() << "CPU without AVX2: only the baseline path exists here";
+  }
+  for (size_t i = 0; i < x.size(); ++i) {
+    ASSERT_EQ(std::bit_cast<uint64_t>(baseline[i]), std::bit_cast<uint64_t>(avx2[i]))
+        << "x = " << x[i];
+  }
 }
 
 }  // namespace

@@ -1,0 +1,145 @@
+#include "core/gp/se_kernel.h"
+
+#include <algorithm>
+
+#include <bit>
+#include <cstdint>
+
+#if defined(__x86_64__) && defined(__SSE2__)
+#include <immintrin.h>
+#define TOTALGRAD_GP_X86_EXP 1
+#endif
+
+namespace totalgrad::gp::internal {
+namespace {
+
+// exp(x) = 2^k exp(r), k = round(x / ln 2), r = x - k ln 2 in [-ln2/2, ln2/2],
+// with ln 2 split in two (Cody-Waite; ln2_hi has enough trailing zero bits for
+// k ln2_hi to be exact for |k| < 2^11) and exp(r) by its Taylor polynomial of
+// degree 13 (truncation < 5e-18 relative) in Horner form. k is rounded by the
+// 1.5 * 2^52 trick, which also leaves k in the low bits of t, and 2^k is
+// applied by adding k to the exponent field; x >= -708 keeps 2^k exp(r)
+// normal, so the integer add is exact.
+constexpr double kLog2e = 1.4426950408889634074;
+constexpr double kLn2Hi = 6.93147180369123816490e-01;
+constexpr double kLn2Lo = 1.90821492927058770002e-10;
+constexpr double kRoundMagic = 6755399441055744.0;  // 1.5 * 2^52
+constexpr double kMinArgument = -708.0;
+constexpr int kDegree = 13;
+// 1/13!, 1/12!, ..., 1/1!, 1/0!
+constexpr double kTaylor[kDegree + 1] = {
+    1.0 / 6227020800.0, 1.0 / 479001600.0, 1.0 / 39916800.0, 1.0 / 3628800.0,
+    1.0 / 362880.0,     1.0 / 40320.0,     1.0 / 5040.0,     1.0 / 720.0,
+    1.0 / 120.0,        1.0 / 24.0,        1.0 / 6.0,        0.5,
+    1.0,                1.0};
+
+// Portable path: the same operations on one lane.
+[[maybe_unused]] double ExpScalar(double x) {
+  const double xc = std::max(std::min(x, 0.0), kMinArgument);  // NaN handled below
+  const double t = xc * kLog2e + kRoundMagic;
+  const double k = t - kRoundMagic;
+  const double r = (xc - k * kLn2Hi) - k * kLn2Lo;
+  double p = kTaylor[0];
+  for (int i = 1; i <= kDegree; ++i) p = p * r + kTaylor[i];
+  const uint64_t k_bits = std::bit_cast<uint64_t>(t) - std::bit_cast<uint64_t>(kRoundMagic);
+  const double scaled = std::bit_cast<double>(std::bit_cast<uint64_t>(p) + (k_bits << 52));
+  if (x != x) return x;
+  return x < kMinArgument ? 0.0 : scaled;
+}
+
+#ifdef TOTALGRAD_GP_X86_EXP
+// Each function below performs exactly this sequence of IEEE operations per
+// lane, in this order; only the register width differs.
+inline __m128d ExpPacket2(__m128d x) {
+  const __m128d xc = _mm_max_pd(_mm_min_pd(x, _mm_setzero_pd()), _mm_set1_pd(kMinArgument));
+  const __m128d t = _mm_add_pd(_mm_mul_pd(xc, _mm_set1_pd(kLog2e)), _mm_set1_pd(kRoundMagic));
+  const __m128d k = _mm_sub_pd(t, _mm_set1_pd(kRoundMagic));
+  const __m128d r = _mm_sub_pd(_mm_sub_pd(xc, _mm_mul_pd(k, _mm_set1_pd(kLn2Hi))),
+                               _mm_mul_pd(k, _mm_set1_pd(kLn2Lo)));
+  __m128d p = _mm_set1_pd(kTaylor[0]);
+  for (int i = 1; i <= kDegree; ++i) p = _mm_add_pd(_mm_mul_pd(p, r), _mm_set1_pd(kTaylor[i]));
+  const __m128i k_bits =
+      _mm_sub_epi64(_mm_castpd_si128(t), _mm_castpd_si128(_mm_set1_pd(kRoundMagic)));
+  const __m128d scaled =
+      _mm_castsi128_pd(_mm_add_epi64(_mm_castpd_si128(p), _mm_slli_epi64(k_bits, 52)));
+  // x < -708 -> 0 (min/max above would give exp(-708)); NaN -> x. Ordered
+  // comparisons are false for NaN, so `below` is clear there.
+  const __m128d below = _mm_cmplt_pd(x, _mm_set1_pd(kMinArgument));
+  const __m128d nan = _mm_cmpunord_pd(x, x);
+  return _mm_or_pd(_mm_andnot_pd(_mm_or_pd(below, nan), scaled), _mm_and_pd(nan, x));
+}
+
+__attribute__((target("avx2"))) inline __m256d ExpPacket4(__m256d x) {
+  const __m256d xc =
+      _mm256_max_pd(_mm256_min_pd(x, _mm256_setzero_pd()), _mm256_set1_pd(kMinArgument));
+  const __m256d t =
+      _mm256_add_pd(_mm256_mul_pd(xc, _mm256_set1_pd(kLog2e)), _mm256_set1_pd(kRoundMagic));
+  const __m256d k = _mm256_sub_pd(t, _mm256_set1_pd(kRoundMagic));
+  const __m256d r = _mm256_sub_pd(_mm256_sub_pd(xc, _mm256_mul_pd(k, _mm256_set1_pd(kLn2Hi))),
+                                  _mm256_mul_pd(k, _mm256_set1_pd(kLn2Lo)));
+  __m256d p = _mm256_set1_pd(kTaylor[0]);
+  for (int i = 1; i <= kDegree; ++i) {
+    p = _mm256_add_pd(_mm256_mul_pd(p, r), _mm256_set1_pd(kTaylor[i]));
+  }
+  const __m256i k_bits = _mm256_sub_epi64(_mm256_castpd_si256(t),
+                                          _mm256_castpd_si256(_mm256_set1_pd(kRoundMagic)));
+  const __m256d scaled = _mm256_castsi256_pd(
+      _mm256_add_epi64(_mm256_castpd_si256(p), _mm256_slli_epi64(k_bits, 52)));
+  const __m256d below = _mm256_cmp_pd(x, _mm256_set1_pd(kMinArgument), _CMP_LT_OQ);
+  const __m256d nan = _mm256_cmp_pd(x, x, _CMP_UNORD_Q);
+  return _mm256_or_pd(_mm256_andnot_pd(_mm256_or_pd(below, nan), scaled),
+                      _mm256_and_pd(nan, x));
+}
+
+// The last odd element goes through a padded packet: same operations.
+void ExpTail(const double* x, double* y, Eigen::Index n) {
+  for (Eigen::Index i = 0; i < n; ++i) {
+    alignas(16) double in[2] = {x[i], 0.0};
+    alignas(16) double out[2];
+    _mm_store_pd(out, ExpPacket2(_mm_load_pd(in)));
+    y[i] = out[0];
+  }
+}
+
+__attribute__((target("avx2"))) void ExpAvx2Body(const double* x, double* y,
+                                                 Eigen::Index n) {
+  Eigen::Index i = 0;
+  for (; i + 4 <= n; i += 4) _mm256_storeu_pd(y + i, ExpPacket4(_mm256_loadu_pd(x + i)));
+  for (; i + 2 <= n; i += 2) _mm_storeu_pd(y + i, ExpPacket2(_mm_loadu_pd(x + i)));
+  ExpTail(x + i, y + i, n - i);
+}
+
+bool CpuHasAvx2() {
+  static const bool has = __builtin_cpu_supports("avx2");
+  return has;
+}
+
+#endif  // TOTALGRAD_GP_X86_EXP
+
+}  // namespace
+
+void ExpNonPositiveBaseline(const double* x, double* y, Eigen::Index n) {
+#ifdef TOTALGRAD_GP_X86_EXP
+  Eigen::Index i = 0;
+  for (; i + 2 <= n; i += 2) _mm_storeu_pd(y + i, ExpPacket2(_mm_loadu_pd(x + i)));
+  ExpTail(x + i, y + i, n - i);
+#else
+  for (Eigen::Index i = 0; i < n; ++i) y[i] = ExpScalar(x[i]);
+#endif
+}
+
+bool ExpNonPositiveAvx2(const double* x, double* y, Eigen::Index n) {
+#ifdef TOTALGRAD_GP_X86_EXP
+  if (!CpuHasAvx2()) return false;
+  ExpAvx2Body(x, y, n);
+  return true;
+#else
+  return false;
+#endif
+}
+
+void ExpNonPositive(const double* x, double* y, Eigen::Index n) {
+  if (!ExpNonPositiveAvx2(x, y, n)) ExpNonPositiveBaseline(x, y, n);
+}
+
+}  // namespace totalgrad::gp::internal
