@@ -331,8 +331,12 @@ void Worker::Beat(const std::shared_ptr<ActiveLease>& active) {
       active->unacked.clear();
       active->cancel = true;
     } else {
-      // Unreachable or busy: keep the episodes and try again soon.
-      active->next_beat_ms = now + std::min(active->backoff_ms, interval);
+      // Unreachable or busy: keep the episodes and try again soon, with
+      // jitter so many workers do not retry in lockstep after an outage.
+      thread_local std::mt19937_64 random(std::random_device{}());
+      std::uniform_real_distribution<double> jitter(0.8, 1.2);
+      active->next_beat_ms =
+          now + static_cast<int64_t>(std::min(active->backoff_ms, interval) * jitter(random));
       active->backoff_ms = std::min<int64_t>(active->backoff_ms * 2, interval);
       spdlog::warn("{}: heartbeat failed: {}; episodes kept for replay",
                    Describe(active->lease.key()), status.error_message());
