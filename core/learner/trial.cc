@@ -236,7 +236,7 @@ absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver
   const uint64_t seed = options.seed;
 
   absl::StatusOr<std::unique_ptr<estimators::Estimator>> estimator_or =
-      estimators::MakeEstimator(options.method, estimators::EstimatorOptions{});
+      estimators::MakeEstimator(options.method, options.estimator);
   if (!estimator_or.ok()) return estimator_or.status();
   estimators::Estimator& estimator = **estimator_or;
 
@@ -330,6 +330,8 @@ absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver
       }
       if (estimate.gradient.isZero(0.0)) result.flags.zero_gradient = true;
       optimiser.Step(estimate.gradient, estimate.per_particle_variance, options.particles, &theta);
+      if (observer != nullptr)
+        observer->OnPolicyStep(e, step, estimate.objective, (theta - policy.parameters()).norm());
       policy.set_parameters(theta);
     }
     {

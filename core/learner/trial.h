@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
+#include "core/estimators/estimator.h"
 #include "core/gp/gp.h"
 #include "core/gp/training.h"
 #include "core/learner/optimizer.h"
@@ -47,6 +48,7 @@ struct TrialOptions {
   double policy_centre_std = 1.0;       // centres ~ N(mu0, policy_centre_std^2 I)
   OptimizerOptions optimizer;
   gp::TrainingOptions gp_training;
+  estimators::EstimatorOptions estimator;  // method-specific knobs
 
   // OK, or InvalidArgument naming the first bad field.
   absl::Status Validate() const;
@@ -97,6 +99,10 @@ class TrialObserver {
   // Polled regularly (at least once per policy gradient step); true stops the
   // trial, which then returns CancelledError.
   virtual bool ShouldCancel() { return false; }
+  // Called after every policy gradient step with the objective J estimated by
+  // that step's forward pass and the norm of the parameter change (for
+  // progress displays and optimiser diagnostics). Default: nothing.
+  virtual void OnPolicyStep(int episode, int step, double objective, double step_norm) {}
 };
 
 // Runs the trial. `observer` may be null. Errors: InvalidArgument (bad
