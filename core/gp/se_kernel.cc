@@ -8,6 +8,12 @@
 #if defined(__x86_64__) && defined(__SSE2__)
 #include <immintrin.h>
 #define TOTALGRAD_GP_X86_EXP 1
+// GCC 12's avx512fintrin.h passes _mm512_undefined_pd() as the unused merge
+// operand of unmasked intrinsics, which -Wmaybe-uninitialized reports inside
+// target("avx512f") functions (GCC bug 105593); the values are never read.
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
 #endif
 
 namespace totalgrad::gp::internal {
@@ -91,6 +97,28 @@ __attribute__((target("avx2"))) inline __m256d ExpPacket4(__m256d x) {
                       _mm256_and_pd(nan, x));
 }
 
+__attribute__((target("avx512f"))) inline __m512d ExpPacket8(__m512d x) {
+  const __m512d xc =
+      _mm512_max_pd(_mm512_min_pd(x, _mm512_setzero_pd()), _mm512_set1_pd(kMinArgument));
+  const __m512d t =
+      _mm512_add_pd(_mm512_mul_pd(xc, _mm512_set1_pd(kLog2e)), _mm512_set1_pd(kRoundMagic));
+  const __m512d k = _mm512_sub_pd(t, _mm512_set1_pd(kRoundMagic));
+  const __m512d r = _mm512_sub_pd(_mm512_sub_pd(xc, _mm512_mul_pd(k, _mm512_set1_pd(kLn2Hi))),
+                                  _mm512_mul_pd(k, _mm512_set1_pd(kLn2Lo)));
+  __m512d p = _mm512_set1_pd(kTaylor[0]);
+  for (int i = 1; i <= kDegree; ++i) {
+    p = _mm512_add_pd(_mm512_mul_pd(p, r), _mm512_set1_pd(kTaylor[i]));
+  }
+  const __m512i k_bits = _mm512_sub_epi64(_mm512_castpd_si512(t),
+                                          _mm512_castpd_si512(_mm512_set1_pd(kRoundMagic)));
+  const __m512d scaled = _mm512_castsi512_pd(
+      _mm512_add_epi64(_mm512_castpd_si512(p), _mm512_slli_epi64(k_bits, 52)));
+  const __mmask8 below = _mm512_cmp_pd_mask(x, _mm512_set1_pd(kMinArgument), _CMP_LT_OQ);
+  const __mmask8 nan = _mm512_cmp_pd_mask(x, x, _CMP_UNORD_Q);
+  const __m512d flushed = _mm512_mask_blend_pd(below, scaled, _mm512_setzero_pd());
+  return _mm512_mask_blend_pd(nan, flushed, x);
+}
+
 // The last odd element goes through a padded packet: same operations.
 void ExpTail(const double* x, double* y, Eigen::Index n) {
   for (Eigen::Index i = 0; i < n; ++i) {
@@ -107,6 +135,19 @@ __attribute__((target("avx2"))) void ExpAvx2Body(const double* x, double* y,
   for (; i + 4 <= n; i += 4) _mm256_storeu_pd(y + i, ExpPacket4(_mm256_loadu_pd(x + i)));
   for (; i + 2 <= n; i += 2) _mm_storeu_pd(y + i, ExpPacket2(_mm_loadu_pd(x + i)));
   ExpTail(x + i, y + i, n - i);
+}
+
+__attribute__((target("avx512f"))) void ExpAvx512Body(const double* x, double* y,
+                                                      Eigen::Index n) {
+  Eigen::Index i = 0;
+  for (; i + 8 <= n; i += 8) _mm512_storeu_pd(y + i, ExpPacket8(_mm512_loadu_pd(x + i)));
+  for (; i + 2 <= n; i += 2) _mm_storeu_pd(y + i, ExpPacket2(_mm_loadu_pd(x + i)));
+  ExpTail(x + i, y + i, n - i);
+}
+
+bool CpuHasAvx512() {
+  static const bool has = __builtin_cpu_supports("avx512f");
+  return has;
 }
 
 bool CpuHasAvx2() {
@@ -138,8 +179,20 @@ bool ExpNonPositiveAvx2(const double* x, double* y, Eigen::Index n) {
 #endif
 }
 
+bool ExpNonPositiveAvx512(const double* x, double* y, Eigen::Index n) {
+#ifdef TOTALGRAD_GP_X86_EXP
+  if (!CpuHasAvx512()) return false;
+  ExpAvx512Body(x, y, n);
+  return true;
+#else
+  return false;
+#endif
+}
+
 void ExpNonPositive(const double* x, double* y, Eigen::Index n) {
-  if (!ExpNonPositiveAvx2(x, y, n)) ExpNonPositiveBaseline(x, y, n);
+  if (ExpNonPositiveAvx512(x, y, n)) return;
+  if (ExpNonPositiveAvx2(x, y, n)) return;
+  ExpNonPositiveBaseline(x, y, n);
 }
 
 }  // namespace totalgrad::gp::internal

@@ -19,16 +19,18 @@ namespace totalgrad::gp::internal {
 // exp(x) for x < -708 (below 3.3e-308, irrelevant next to any kernel value
 // that matters) is returned as exactly 0 instead of a subnormal; NaN stays
 // NaN. The same IEEE operations (no FMA) run in every SIMD width, so the
-// result is bitwise the same whether the AVX2 path (chosen at run time when
-// the CPU has it) or the baseline path runs: a trial's numbers do not
+// result is bitwise the same whether the AVX-512 or AVX2 path (chosen at run
+// time, widest first) or the baseline path runs: a trial's numbers do not
 // depend on the worker's CPU through this function. With -march=x86-64-v2,
 // Eigen's own exp is 2-wide SSE and costs more than the P x N x N product at
-// N <= 120; this one runs 4-wide where it can.
+// N <= 120; this one runs 8- or 4-wide where it can.
 void ExpNonPositive(const double* x, double* y, Eigen::Index n);
-// The two paths, for tests: baseline (SSE2 on x86-64, scalar elsewhere) and
-// AVX2, which returns false (and does nothing) when the CPU lacks AVX2.
+// The paths, for tests: baseline (SSE2 on x86-64, scalar elsewhere), AVX2 and
+// AVX-512F; the latter two return false (and do nothing) when the CPU lacks
+// the instructions.
 void ExpNonPositiveBaseline(const double* x, double* y, Eigen::Index n);
 bool ExpNonPositiveAvx2(const double* x, double* y, Eigen::Index n);
+bool ExpNonPositiveAvx512(const double* x, double* y, Eigen::Index n);
 
 // out (P x N, overwritten) = sf2 * exp(-1/2 |a_p - b_n|^2) for rows a_p of `a`
 // (P x E) and b_n of `b` (N x E), both already divided by the length-scales.
