@@ -51,7 +51,7 @@ TEST_F(EndToEndTest, TwoWorkersStoreExactlyTheExpectedRows) {
 // re-queued and finished by another worker, and the counting rows equal an
 // undisturbed run exactly (no episode lost or duplicated).
 TEST_F(EndToEndTest, KilledWorkersTrialIsFinishedByAnother) {
-  StartCoordinator();
+  StartCoordinator(0, {}, /*lease_timeout_seconds=*/1.5);
   ASSERT_TRUE(Submit(MakeSpec("kill-worker", {7}, SlowProtocol())).ok());
   auto victim = StartWorker("victim");
   ASSERT_TRUE(WaitFor(
@@ -114,7 +114,7 @@ TEST_F(EndToEndTest, KilledCoordinatorRestartsAndLosesNothing) {
 // A worker that stops heartbeating loses its lease; its late reports are
 // refused with ABORTED and change nothing. Repeated reports are no-ops.
 TEST_F(EndToEndTest, StaleLeaseIsRefusedAndDuplicatesAreNoOps) {
-  StartCoordinator();
+  StartCoordinator(0, {}, /*lease_timeout_seconds=*/1.5);
   ASSERT_TRUE(Submit(MakeSpec("stale", {1}, TinyProtocol())).ok());
   v1::AcquireLeaseRequest acquire;
   acquire.mutable_worker()->set_worker_id("ghost");

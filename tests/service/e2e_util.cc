@@ -77,7 +77,8 @@ void ServiceFixture::TearDown() {
   }
 }
 
-void ServiceFixture::StartCoordinator(int port, std::vector<std::string> extra) {
+void ServiceFixture::StartCoordinator(int port, std::vector<std::string> extra,
+                                      double lease_timeout_seconds) {
   const std::string port_file = dir_ + "/port";
   std::filesystem::remove(port_file);
   std::vector<std::string> argv = {TOTALGRAD_COORDINATOR_BIN,
@@ -88,7 +89,7 @@ void ServiceFixture::StartCoordinator(int port, std::vector<std::string> extra) 
                                    "--user-token-file", dir_ + "/user.token",
                                    "--port-file", port_file,
                                    "--heartbeat-interval", "0.2",
-                                   "--lease-timeout", "1.5"};
+                                   "--lease-timeout", absl::StrCat(lease_timeout_seconds)};
   argv.insert(argv.end(), extra.begin(), extra.end());
   coordinator_ = std::make_unique<Process>(
       argv, absl::StrCat(dir_, "/coordinator-", coordinator_starts_++, ".log"));

@@ -39,9 +39,13 @@ class ServiceFixture : public ::testing::Test {
   void SetUp() override;
   void TearDown() override;
 
-  // Starts the coordinator (plaintext on loopback, tokens, short leases) on
-  // `port` (0: any) and connects the stubs. Fails the test if it does not start.
-  void StartCoordinator(int port = 0, std::vector<std::string> extra = {});
+  // Starts the coordinator (plaintext on loopback, tokens, heartbeats every
+  // 0.2 s, leases lost after `lease_timeout_seconds`) on `port` (0: any) and
+  // connects the stubs. Fails the test if it does not start. Tests that wait
+  // for a lease to be lost pass a short timeout; the default leaves room for a
+  // loaded CI machine.
+  void StartCoordinator(int port = 0, std::vector<std::string> extra = {},
+                        double lease_timeout_seconds = 5);
   std::unique_ptr<Process> StartWorker(const std::string& id, std::vector<std::string> extra = {});
 
   grpc::Status Submit(const v1::SweepSpec& spec, v1::SubmitSweepResponse* response = nullptr);

@@ -66,7 +66,7 @@ class WorkerTest : public ::testing::Test {
     options_.listen = "127.0.0.1:0";
     options_.insecure = true;
     options_.scheduler.heartbeat_interval = absl::Milliseconds(200);
-    options_.scheduler.lease_timeout = absl::Milliseconds(1500);
+    options_.scheduler.lease_timeout = absl::Seconds(5);
     StartCoordinator();
   }
   void TearDown() override {
