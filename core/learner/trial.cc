@@ -13,6 +13,8 @@
 #include "absl/strings/str_join.h"
 #include "core/estimators/estimator.h"
 #include "core/estimators/rollout.h"
+#include "core/pilco/angle_features.h"
+#include "core/pilco/pilco.h"
 #include "core/policy/rbf_policy.h"
 
 namespace totalgrad::learner {
@@ -73,8 +75,11 @@ OptionField StringField(const std::string& key, std::function<std::string*(Trial
           [ref](const TrialOptions& o) { return *ref(const_cast<TrialOptions*>(&o)); }};
 }
 
+constexpr char kPilco[] = "PILCO";
+
 std::vector<std::string> AllMethods() {
   std::vector<std::string> methods = estimators::ParticleMethods();
+  methods.push_back(kPilco);
   return methods;
 }
 
@@ -146,6 +151,16 @@ const std::vector<OptionField>& Fields() {
          return std::string();
        }},
       IntField("gp_iterations", [](TrialOptions* o) { return &o->gp_training.max_iterations; }),
+      {"angle_features",
+       [](const std::string& text, TrialOptions* o) {
+         if (text != "auto" && text != "raw" && text != "sincos")
+           return absl::InvalidArgumentError(
+               absl::StrCat("option 'angle_features': '", text, "' is not one of auto, raw, sincos"));
+         o->angle_features = text;
+         return absl::OkStatus();
+       },
+       [](const TrialOptions& o) { return o.angle_features; }},
+      IntField("gp_inducing", [](TrialOptions* o) { return &o->gp_inducing; }),
       {"gp_penalty",
        [](const std::string& text, TrialOptions* o) {
          return ParseBool("gp_penalty", text, &o->gp_training.penalty.enabled);
@@ -159,18 +174,6 @@ const std::vector<OptionField>& Fields() {
 
 double Seconds(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
-}
-
-void AppendEpisodeData(const tasks::Episode& episode, std::vector<Eigen::Matrix<double, 1, 5>>* inputs,
-                       std::vector<Eigen::Matrix<double, 1, 4>>* targets) {
-  const Eigen::Index h = episode.forces.size();
-  for (Eigen::Index t = 0; t < h; ++t) {
-    Eigen::Matrix<double, 1, 5> in;
-    in.head<4>() = episode.observations.row(t);
-    in(4) = episode.forces(t);
-    inputs->push_back(in);
-    targets->push_back(episode.observations.row(t + 1) - episode.observations.row(t));
-  }
 }
 
 // Stream indices inside a trial. Part of the reproducibility contract.
@@ -201,6 +204,11 @@ absl::Status TrialOptions::Validate() const {
   if (!(optimizer.epsilon >= 0)) return bad("epsilon", "must be >= 0");
   if (gp_training.max_iterations < 0) return bad("gp_iterations", "must be >= 0");
   if (!std::isfinite(success_threshold)) return bad("threshold", "must be finite");
+  if (gp_inducing < -1) return bad("gp_inducing", "must be -1 (auto), 0 (full GP) or a count");
+  if (method != kPilco && (angle_features == "sincos" || gp_inducing > 0))
+    return bad(method == kPilco ? "method" : (angle_features == "sincos" ? "angle_features" : "gp_inducing"),
+               "(sin/cos angle inputs and FITC) is implemented for PILCO only so far; "
+               "particle methods use the raw state and the full GP");
   const auto methods = AllMethods();
   if (std::find(methods.begin(), methods.end(), method) == methods.end())
     return bad("method", absl::StrCat("'", method, "' is unknown; known: ", absl::StrJoin(methods, ", ")));
@@ -226,34 +234,265 @@ std::vector<std::string> TrialOptionKeys() {
   return keys;
 }
 
+namespace {
+
+// All real data of a trial: observed states, forces and observed next states.
+struct TrialData {
+  std::vector<Eigen::Matrix<double, 1, 4>> states;
+  std::vector<double> forces;
+  std::vector<Eigen::Matrix<double, 1, 4>> next_states;
+
+  void Append(const tasks::Episode& episode) {
+    for (Eigen::Index t = 0; t < episode.forces.size(); ++t) {
+      states.push_back(episode.observations.row(t));
+      forces.push_back(episode.forces(t));
+      next_states.push_back(episode.observations.row(t + 1));
+    }
+  }
+  RowMatrix States() const {
+    RowMatrix m(states.size(), 4);
+    for (size_t r = 0; r < states.size(); ++r) m.row(r) = states[r];
+    return m;
+  }
+  RowMatrix Targets() const {
+    RowMatrix m(states.size(), 4);
+    for (size_t r = 0; r < states.size(); ++r) m.row(r) = next_states[r] - states[r];
+    return m;
+  }
+};
+
+// Fits the GP hyperparameters (warm-started in *hyperparameters) and records
+// what happened in *result.
+absl::Status TrainModel(const RowMatrix& inputs, const RowMatrix& targets, const TrialOptions& options,
+                        int episode, std::optional<gp::GpHyperparameters>* hyperparameters,
+                        EpisodeResult* result) {
+  if (!*hyperparameters) *hyperparameters = gp::InitialHyperparameters(inputs, targets);
+  absl::StatusOr<gp::TrainingSummary> training =
+      gp::TrainHyperparameters(inputs, targets, options.gp_training, &**hyperparameters);
+  if (!training.ok())
+    return absl::Status(training.status().code(),
+                        absl::StrCat("episode ", episode, ": GP training: ", training.status().message()));
+  result->flags.gp_line_search_failures = training->line_search_failures;
+  result->flags.gp_non_finite_evaluations = training->non_finite_evaluations;
+  result->hyperparameters = **hyperparameters;
+  return absl::OkStatus();
+}
+
+// How a method turns the data into a policy. One object per trial; its
+// policy persists across episodes (warm start).
+class PolicyLearner {
+ public:
+  virtual ~PolicyLearner() = default;
+  // Fits the model on `data`, optimises the policy, fills the model- and
+  // optimisation-related fields of *result.
+  virtual absl::Status Improve(const TrialData& data, int episode, TrialObserver* observer,
+                               EpisodeResult* result) = 0;
+  // The current policy as a controller of the real plant (force in N).
+  virtual double Control(const tasks::State& observation) const = 0;
+};
+
+class ParticleLearner final : public PolicyLearner {
+ public:
+  ParticleLearner(const TrialOptions& options, const tasks::Scene& scene,
+                  std::unique_ptr<estimators::Estimator> estimator)
+      : options_(options), scene_(scene), estimator_(std::move(estimator)),
+        policy_(options.basis_functions, tasks::kCartPoleStateDim, scene.plant.params().max_force),
+        optimiser_(options.optimizer, policy_.num_parameters()) {
+    Rng init_rng(options.seed, Stream::kPolicyInit);
+    policy_.Initialize(scene.mu0, Vector::Constant(tasks::kCartPoleStateDim, options.policy_centre_std),
+                       options.policy_init_lengthscale, &init_rng);
+  }
+
+  absl::Status Improve(const TrialData& data, int e, TrialObserver* observer,
+                       EpisodeResult* result) override {
+    const int s_dim = tasks::kCartPoleStateDim;
+    const RowMatrix states = data.States();
+    RowMatrix x(states.rows(), s_dim + 1);
+    x.leftCols(s_dim) = states;
+    for (Eigen::Index r = 0; r < x.rows(); ++r) x(r, s_dim) = data.forces[r];
+    const RowMatrix y = data.Targets();
+    absl::Status status = TrainModel(x, y, options_, e, &hyperparameters_, result);
+    if (!status.ok()) return status;
+    absl::StatusOr<gp::GpModel> model = gp::GpModel::Create(x, y, *hyperparameters_);
+    if (!model.ok())
+      return absl::Status(model.status().code(),
+                          absl::StrCat("episode ", e, ": GP model: ", model.status().message()));
+    for (int a = 0; a < model->num_outputs(); ++a)
+      if (model->jitter(a) > 0) result->flags.gp_jitter = true;
+
+    estimators::Problem problem;
+    problem.model = &*model;
+    problem.policy = &policy_;
+    problem.cost = scene_.cost.get();
+    problem.mu0 = scene_.mu0;
+    problem.initial_std = scene_.initial_std;
+    problem.horizon = scene_.horizon;
+    problem.noise_variance_multiplier = options_.model_noise_multiplier;
+    estimators::EstimateOptions estimate_options;
+    estimate_options.particles = options_.particles;
+    optimiser_.Reset();
+    estimators::GradientEstimate estimate;
+    Vector theta = policy_.parameters();
+    for (int step = 0; step < options_.policy_steps; ++step) {
+      if (observer != nullptr && observer->ShouldCancel())
+        return absl::CancelledError(absl::StrCat("trial cancelled in episode ", e, " at step ", step));
+      Rng particle_rng(options_.seed, Stream::kParticleNoise, StepStreamIndex(e, step));
+      status = estimator_->Estimate(problem, estimate_options, &particle_rng, &estimate);
+      if (!status.ok()) return status;
+      if (!estimate.finite) {
+        ++result->flags.non_finite_gradients;
+        continue;
+      }
+      if (estimate.gradient.isZero(0.0)) result->flags.zero_gradient = true;
+      optimiser_.Step(estimate.gradient, estimate.per_particle_variance, options_.particles, &theta);
+      if (observer != nullptr)
+        observer->OnPolicyStep(e, step, estimate.objective, (theta - policy_.parameters()).norm());
+      policy_.set_parameters(theta);
+    }
+    estimators::Rollout rollout;
+    Rng predicted_rng(options_.seed, Stream::kParticleNoise, StepStreamIndex(e, kPredictedCostStep));
+    status = estimators::SimulateParticles(problem, options_.predicted_cost_particles, {},
+                                           &predicted_rng, &rollout);
+    if (!status.ok()) return status;
+    result->predicted_cost = rollout.objective;
+    result->policy_parameters = policy_.parameters();
+    return absl::OkStatus();
+  }
+
+  double Control(const tasks::State& observation) const override {
+    Vector force;
+    policy_.Evaluate(observation.transpose(), &force, nullptr);
+    return force(0);
+  }
+
+ private:
+  const TrialOptions& options_;
+  const tasks::Scene& scene_;
+  std::unique_ptr<estimators::Estimator> estimator_;
+  policy::RbfPolicy policy_;
+  RmspropLike optimiser_;
+  std::optional<gp::GpHyperparameters> hyperparameters_;
+};
+
+// PILCO: analytic moment matching and BFGS (core/pilco), on the features the
+// angle option selects, with FITC once the data exceed gp_inducing points.
+class PilcoLearner final : public PolicyLearner {
+ public:
+  PilcoLearner(const TrialOptions& options, const tasks::Scene& scene, int angle_index)
+      : options_(options), scene_(scene), angle_index_(angle_index),
+        feature_dim_(pilco::FeatureDim(tasks::kCartPoleStateDim, angle_index)),
+        policy_(options.basis_functions, feature_dim_, scene.plant.params().max_force) {}
+
+  absl::Status Init() {
+    const tasks::StateCost& cost = *scene_.cost;
+    absl::StatusOr<pilco::GaussianCost> gaussian_cost = absl::InvalidArgumentError("unknown cost");
+    if (const auto* angle = dynamic_cast<const tasks::AngleCost*>(&cost)) {
+      gaussian_cost = pilco::GaussianCost::Angle(angle->target(), angle->q_diagonal().asDiagonal().toDenseMatrix());
+    } else if (const auto* tip = dynamic_cast<const tasks::TipCost*>(&cost)) {
+      gaussian_cost = pilco::GaussianCost::Tip(tasks::kCartPoleStateDim, 0, 1, tip->pendulum_length(),
+                                               tip->width(), tip->target_position());
+    }
+    if (!gaussian_cost.ok()) return gaussian_cost.status();
+    problem_.mu0 = scene_.mu0;
+    problem_.S0 = scene_.initial_std.array().square().matrix().asDiagonal();
+    problem_.horizon = scene_.horizon;
+    problem_.cost = std::make_shared<pilco::GaussianCost>(*std::move(gaussian_cost));
+    problem_.propagation.angle_index = angle_index_;
+    problem_.propagation.max_force = scene_.plant.params().max_force;
+    problem_.propagation.num_basis = options_.basis_functions;
+    Rng init_rng(options_.seed, Stream::kPolicyInit);
+    absl::StatusOr<Vector> params = pilco::InitialPolicyParameters(problem_, &init_rng);
+    if (!params.ok()) return params.status();
+    policy_.set_parameters(*params);
+    return absl::OkStatus();
+  }
+
+  absl::Status Improve(const TrialData& data, int e, TrialObserver* observer,
+                       EpisodeResult* result) override {
+    const RowMatrix states = data.States();
+    RowMatrix features;
+    pilco::StatesToFeatures(states, angle_index_, &features);
+    RowMatrix x(states.rows(), feature_dim_ + 1);
+    x.leftCols(feature_dim_) = features;
+    for (Eigen::Index r = 0; r < x.rows(); ++r) x(r, feature_dim_) = data.forces[r];
+    const RowMatrix y = data.Targets();
+    absl::Status status = TrainModel(x, y, options_, e, &hyperparameters_, result);
+    if (!status.ok()) return status;
+    pilco::DynamicsModelOptions model_options;
+    model_options.num_inducing = options_.gp_inducing < 0 ? 300 : options_.gp_inducing;
+    Rng inducing_rng(options_.seed, Stream::kGpInit, static_cast<uint64_t>(e));
+    pilco::DynamicsModelReport report;
+    absl::StatusOr<pilco::GaussianInputGp> model = pilco::BuildDynamicsModel(
+        x, y, *hyperparameters_, model_options, &inducing_, &inducing_rng, &report);
+    if (!model.ok())
+      return absl::Status(model.status().code(),
+                          absl::StrCat("episode ", e, ": PILCO model: ", model.status().message()));
+    pilco::PilcoOptions pilco_options;
+    bool cancelled = false;
+    pilco_options.bfgs.should_stop = [observer, &cancelled]() {
+      cancelled = observer != nullptr && observer->ShouldCancel();
+      return cancelled;
+    };
+    Vector params = policy_.parameters();
+    absl::StatusOr<pilco::PilcoResult> optimised = pilco::OptimizePolicy(*model, problem_, pilco_options, &params);
+    if (cancelled) return absl::CancelledError(absl::StrCat("trial cancelled in episode ", e));
+    if (!optimised.ok())
+      return absl::Status(optimised.status().code(),
+                          absl::StrCat("episode ", e, ": PILCO optimisation: ", optimised.status().message()));
+    policy_.set_parameters(params);
+    result->predicted_cost = optimised->prediction.total_cost;
+    result->predicted_cost_mean_per_step = optimised->prediction.cost_mean;
+    result->predicted_cost_std_per_step = optimised->prediction.cost_std;
+    result->policy_parameters = params;
+    return absl::OkStatus();
+  }
+
+  double Control(const tasks::State& observation) const override {
+    const Vector features = pilco::StateFeatures(observation, angle_index_);
+    Vector force;
+    policy_.Evaluate(features.transpose(), &force, nullptr);
+    return force(0);
+  }
+
+ private:
+  const TrialOptions& options_;
+  const tasks::Scene& scene_;
+  int angle_index_;
+  int feature_dim_;
+  policy::RbfPolicy policy_;
+  pilco::PilcoProblem problem_;
+  RowMatrix inducing_;
+  std::optional<gp::GpHyperparameters> hyperparameters_;
+};
+
+}  // namespace
+
 absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver* observer) {
   absl::Status status = options.Validate();
   if (!status.ok()) return status;
   absl::StatusOr<tasks::Scene> scene_or = tasks::MakeScene(options.scene);
   if (!scene_or.ok()) return scene_or.status();
   const tasks::Scene& scene = *scene_or;
-  const int s_dim = tasks::kCartPoleStateDim;
   const uint64_t seed = options.seed;
 
-  absl::StatusOr<std::unique_ptr<estimators::Estimator>> estimator_or =
-      estimators::MakeEstimator(options.method, options.estimator);
-  if (!estimator_or.ok()) return estimator_or.status();
-  estimators::Estimator& estimator = **estimator_or;
-
-  policy::RbfPolicy policy(options.basis_functions, s_dim, scene.plant.params().max_force);
-  {
-    Rng init_rng(seed, Stream::kPolicyInit);
-    policy.Initialize(scene.mu0, Vector::Constant(s_dim, options.policy_centre_std),
-                      options.policy_init_lengthscale, &init_rng);
+  std::unique_ptr<PolicyLearner> learner;
+  if (options.method == kPilco) {
+    const int angle_index = options.angle_features == "raw" ? -1 : 1;  // beta is state index 1
+    auto pilco_learner = std::make_unique<PilcoLearner>(options, scene, angle_index);
+    status = pilco_learner->Init();
+    if (!status.ok()) return status;
+    learner = std::move(pilco_learner);
+  } else {
+    absl::StatusOr<std::unique_ptr<estimators::Estimator>> estimator =
+        estimators::MakeEstimator(options.method, options.estimator);
+    if (!estimator.ok()) return estimator.status();
+    learner = std::make_unique<ParticleLearner>(options, scene, *std::move(estimator));
   }
-  const tasks::Controller policy_controller = [&policy](const tasks::State& observation) {
-    Vector force;
-    policy.Evaluate(observation.transpose(), &force, nullptr);
-    return force(0);
+  const tasks::Controller policy_controller = [&learner](const tasks::State& observation) {
+    return learner->Control(observation);
   };
 
-  std::vector<Eigen::Matrix<double, 1, 5>> inputs;
-  std::vector<Eigen::Matrix<double, 1, 4>> targets;
+  TrialData data;
   TrialSummary summary;
 
   // Episode 0: random exploration.
@@ -267,7 +506,7 @@ absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver
     tasks::Episode episode;
     status = tasks::RunEpisode(scene, random_controller, &start_rng, &noise_rng, &episode);
     if (!status.ok()) return absl::InternalError(absl::StrCat("episode 0: ", status.message()));
-    AppendEpisodeData(episode, &inputs, &targets);
+    data.Append(episode);
     EpisodeResult result;
     result.episode = 0;
     result.real_cost = episode.total_cost;
@@ -275,75 +514,14 @@ absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver
     if (observer != nullptr) observer->OnEpisode(result);
   }
 
-  std::optional<gp::GpHyperparameters> hyperparameters;
-  RmspropLike optimiser(options.optimizer, policy.num_parameters());
   for (int e = 1; e <= options.episodes; ++e) {
     EpisodeResult result;
     result.episode = e;
     const auto start_time = std::chrono::steady_clock::now();
-
-    // 1. Fit the dynamics model on all data so far.
-    RowMatrix x(inputs.size(), s_dim + 1), y(targets.size(), s_dim);
-    for (size_t r = 0; r < inputs.size(); ++r) {
-      x.row(r) = inputs[r];
-      y.row(r) = targets[r];
-    }
-    if (!hyperparameters) hyperparameters = gp::InitialHyperparameters(x, y);
-    absl::StatusOr<gp::TrainingSummary> training =
-        gp::TrainHyperparameters(x, y, options.gp_training, &*hyperparameters);
-    if (!training.ok())
-      return absl::Status(training.status().code(),
-                          absl::StrCat("episode ", e, ": GP training: ", training.status().message()));
-    result.flags.gp_line_search_failures = training->line_search_failures;
-    result.flags.gp_non_finite_evaluations = training->non_finite_evaluations;
-    absl::StatusOr<gp::GpModel> model = gp::GpModel::Create(x, y, *hyperparameters);
-    if (!model.ok())
-      return absl::Status(model.status().code(),
-                          absl::StrCat("episode ", e, ": GP model: ", model.status().message()));
-    for (int a = 0; a < model->num_outputs(); ++a)
-      if (model->jitter(a) > 0) result.flags.gp_jitter = true;
-    result.hyperparameters = *hyperparameters;
-
-    // 2. Optimise the policy on the model.
-    estimators::Problem problem;
-    problem.model = &*model;
-    problem.policy = &policy;
-    problem.cost = scene.cost.get();
-    problem.mu0 = scene.mu0;
-    problem.initial_std = scene.initial_std;
-    problem.horizon = scene.horizon;
-    problem.noise_variance_multiplier = options.model_noise_multiplier;
-    estimators::EstimateOptions estimate_options;
-    estimate_options.particles = options.particles;
-    optimiser.Reset();
-    estimators::GradientEstimate estimate;
-    Vector theta = policy.parameters();
-    for (int step = 0; step < options.policy_steps; ++step) {
-      if (observer != nullptr && observer->ShouldCancel())
-        return absl::CancelledError(absl::StrCat("trial cancelled in episode ", e, " at step ", step));
-      Rng particle_rng(seed, Stream::kParticleNoise, StepStreamIndex(e, step));
-      status = estimator.Estimate(problem, estimate_options, &particle_rng, &estimate);
-      if (!status.ok()) return status;
-      if (!estimate.finite) {
-        ++result.flags.non_finite_gradients;
-        continue;
-      }
-      if (estimate.gradient.isZero(0.0)) result.flags.zero_gradient = true;
-      optimiser.Step(estimate.gradient, estimate.per_particle_variance, options.particles, &theta);
-      if (observer != nullptr)
-        observer->OnPolicyStep(e, step, estimate.objective, (theta - policy.parameters()).norm());
-      policy.set_parameters(theta);
-    }
-    {
-      estimators::Rollout rollout;
-      Rng predicted_rng(seed, Stream::kParticleNoise, StepStreamIndex(e, kPredictedCostStep));
-      status = estimators::SimulateParticles(problem, options.predicted_cost_particles, {}, &predicted_rng,
-                                             &rollout);
-      if (!status.ok()) return status;
-      result.predicted_cost = rollout.objective;
-    }
+    // 1-2. Fit the model on all data so far and optimise the policy.
+    status = learner->Improve(data, e, observer, &result);
+    if (!status.ok()) return status;
     result.optimisation_seconds = Seconds(start_time);
-    result.policy_parameters = policy.parameters();
 
     // 3. One real episode with the new policy; its data are added.
     {
@@ -351,7 +529,7 @@ absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver
       tasks::Episode episode;
       status = tasks::RunEpisode(scene, policy_controller, &start_rng, &noise_rng, &episode);
       if (!status.ok()) return absl::InternalError(absl::StrCat("episode ", e, ": ", status.message()));
-      AppendEpisodeData(episode, &inputs, &targets);
+      data.Append(episode);
       result.real_cost = episode.total_cost;
     }
 

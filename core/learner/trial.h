@@ -49,6 +49,12 @@ struct TrialOptions {
   OptimizerOptions optimizer;
   gp::TrainingOptions gp_training;
   estimators::EstimatorOptions estimator;  // method-specific knobs
+  // How the GP and the policy see the pole angle: "raw", "sincos" (PILCO's
+  // (sin, cos) augmentation) or "auto" (sincos for PILCO, raw otherwise).
+  std::string angle_features = "auto";
+  // FITC inducing inputs once the data exceed this many points: -1 = auto
+  // (300 for PILCO as PILCO does, 0 = full GP for particle methods).
+  int gp_inducing = -1;
 
   // OK, or InvalidArgument naming the first bad field.
   absl::Status Validate() const;
@@ -83,6 +89,9 @@ struct EpisodeResult {
   gp::GpHyperparameters hyperparameters;  // of the GP used this episode (empty for 0)
   Vector policy_parameters;        // the optimised policy of this episode (empty for 0)
   EpisodeFlags flags;
+  // PILCO only: the model's predicted cost mean and std per step t = 1..H.
+  Vector predicted_cost_mean_per_step;
+  Vector predicted_cost_std_per_step;
 };
 
 struct TrialSummary {
