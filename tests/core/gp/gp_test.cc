@@ -8,7 +8,9 @@
 #include <bit>
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <limits>
+#include <thread>
 #include <vector>
 
 #include "core/common/rng.h"
@@ -242,6 +244,53 @@ TEST(GpModelTest, JacobianRequestsDoNotChangeValues) {
   EXPECT_EQ(mean, mean2);
   EXPECT_EQ(var, var2);
   EXPECT_EQ(mean, mean3);
+}
+
+TEST(GpModelTest, ConcurrentPredictionsMatchSerialOnes) {
+  // Predict keeps its scratch space per thread; two threads with different
+  // batch sizes must not disturb each other.
+  const Problem problem = MakeProblem(80, 16);
+  absl::StatusOr<GpModel> model = GpModel::Create(problem.inputs, problem.targets, problem.hyp);
+  ASSERT_OK(model.status());
+  const RowMatrix z1 = MakeQueries(problem, 37, 17), z2 = MakeQueries(problem, 5, 18);
+  RowMatrix mean1, var1, dmean1, dvar1, mean2, var2, dmean2, dvar2;
+  model->Predict(z1, PredictOptions{}, &mean1, &var1, &dmean1, &dvar1);
+  model->Predict(z2, PredictOptions{}, &mean2, &var2, &dmean2, &dvar2);
+  bool same1 = true, same2 = true;
+  auto run = [&](const RowMatrix& z, const RowMatrix& mean, const RowMatrix& var,
+                 const RowMatrix& dmean, const RowMatrix& dvar, bool* same) {
+    RowMatrix m, v, dm, dv;
+    for (int rep = 0; rep < 500; ++rep) {
+      model->Predict(z, PredictOptions{}, &m, &v, &dm, &dv);
+      *same = *same && m == mean && v == var && dm == dmean && dv == dvar;
+    }
+  };
+  std::thread t1(run, std::cref(z1), std::cref(mean1), std::cref(var1), std::cref(dmean1),
+                 std::cref(dvar1), &same1);
+  std::thread t2(run, std::cref(z2), std::cref(mean2), std::cref(var2), std::cref(dmean2),
+                 std::cref(dvar2), &same2);
+  t1.join();
+  t2.join();
+  EXPECT_TRUE(same1);
+  EXPECT_TRUE(same2);
+}
+
+TEST(GpModelTest, EmptyAndNonFiniteQueries) {
+  const Problem problem = MakeProblem(20, 19);
+  absl::StatusOr<GpModel> model = GpModel::Create(problem.inputs, problem.targets, problem.hyp);
+  ASSERT_OK(model.status());
+  RowMatrix mean, var, dmean, dvar;
+  model->Predict(RowMatrix(0, 3), PredictOptions{}, &mean, &var, &dmean, &dvar);
+  EXPECT_EQ(mean.rows(), 0);
+  EXPECT_EQ(mean.cols(), 2);
+  EXPECT_EQ(dvar.cols(), 6);
+  // A NaN query must not come back as a plausible finite prediction.
+  RowMatrix z = MakeQueries(problem, 3, 20);
+  z(1, 2) = std::numeric_limits<double>::quiet_NaN();
+  model->Predict(z, PredictOptions{}, &mean, &var, nullptr, nullptr);
+  EXPECT_TRUE(mean.row(0).allFinite() && var.row(0).allFinite());
+  EXPECT_TRUE(mean.row(1).array().isNaN().all()) << mean.row(1);
+  EXPECT_TRUE(var.row(1).array().isNaN().all()) << var.row(1);
 }
 
 TEST(GpModelTest, VarianceFloorZeroesTheJacobianRow) {
