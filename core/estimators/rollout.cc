@@ -4,21 +4,32 @@
 
 namespace totalgrad::estimators {
 
+ProblemSystem::ProblemSystem(const Problem& problem)
+    : gp_adapter_(problem.model), rbf_adapter_(problem.policy) {
+  dynamics_ = problem.dynamics != nullptr ? problem.dynamics
+              : problem.model != nullptr  ? static_cast<const ParticleDynamics*>(&gp_adapter_)
+                                          : nullptr;
+  policy_ = problem.controller != nullptr ? problem.controller
+            : problem.policy != nullptr   ? static_cast<const ParticlePolicy*>(&rbf_adapter_)
+                                          : nullptr;
+}
+
 absl::Status SimulateParticles(const Problem& problem, int particles,
                                const RolloutRecording& recording, Rng* rng, Rollout* rollout) {
-  if (problem.model == nullptr || problem.policy == nullptr || problem.cost == nullptr)
+  const ProblemSystem system(problem);
+  if (!system.complete() || problem.cost == nullptr)
     return absl::InvalidArgumentError("rollout problem needs a model, a policy and a cost");
   if (particles < 1) return absl::InvalidArgumentError("particles must be >= 1");
   if (problem.horizon < 1) return absl::InvalidArgumentError("horizon must be >= 1");
-  const int s_dim = problem.policy->state_dim();
+  const ParticleDynamics& dynamics = system.dynamics();
+  const ParticlePolicy& policy = system.policy();
+  const int s_dim = policy.state_dim();
   if (problem.mu0.size() != s_dim || problem.initial_std.size() != s_dim ||
-      problem.model->num_outputs() != s_dim || problem.model->num_inputs() != s_dim + 1)
+      dynamics.state_dim() != s_dim ||
+      (problem.dynamics == nullptr && problem.model->num_inputs() != s_dim + 1))
     return absl::InvalidArgumentError("rollout problem: model, policy and start state dimensions disagree");
 
   const int e_dim = s_dim + 1;
-  gp::PredictOptions predict_options;
-  predict_options.noise_variance_multiplier = problem.noise_variance_multiplier;
-
   rollout->steps.resize(problem.horizon);
   rollout->finite = true;
   RowMatrix x(particles, s_dim);
@@ -30,17 +41,22 @@ absl::Status SimulateParticles(const Problem& problem, int particles,
   for (int t = 0; t < problem.horizon; ++t) {
     StepRecord& step = rollout->steps[t];
     step.state = x;
-    problem.policy->Evaluate(step.state, &step.force,
-                             recording.jacobians ? &step.policy_cache : nullptr);
+    policy.Evaluate(step.state, &step.force, recording.jacobians ? &step.policy_cache : nullptr);
     z.leftCols(s_dim) = step.state;
     z.col(s_dim) = step.force;
-    problem.model->Predict(z, predict_options, &step.mean, &step.variance,
-                           recording.jacobians ? &step.dmean_dz : nullptr,
-                           recording.jacobians ? &step.dvar_dz : nullptr);
+    dynamics.Predict(z, problem.noise_variance_multiplier, &step.mean, &step.variance,
+                     recording.jacobians ? &step.dmean_dz : nullptr,
+                     recording.jacobians ? &step.dvar_dz : nullptr);
     step.noise.resize(particles, s_dim);
     rng->FillNormal(&step.noise);
     step.next_state = step.state + step.mean;
     step.next_state.array() += step.variance.array().sqrt() * step.noise.array();
+    if (recording.resampler != nullptr) {
+      recording.resampler->Resample(rng, &step);
+    } else {
+      step.pre_resample_state.resize(0, 0);
+      step.resample_noise.resize(0, 0);
+    }
     problem.cost->Evaluate(step.next_state, &step.cost,
                            recording.jacobians ? &step.cost_gradient : nullptr);
     if (!step.next_state.allFinite() || !step.cost.allFinite()) rollout->finite = false;

@@ -4,11 +4,15 @@
 //   x_0^i ~ N(mu0, diag(initial_std^2)),               i = 1..P
 //   u_t^i = policy(x_t^i);  z_t^i = [x_t^i, u_t^i]
 //   x_{t+1}^i = x_t^i + mean(z_t^i) + sqrt(var(z_t^i)) .* eps_t^i
+//   [GR only: a StepResampler replaces {x_{t+1}^i} by new particles]
 //   J = (1/P) sum_i sum_{t=1..H} c(x_t^i)
 //
 // What the pass records is decided by RolloutRecording, so that a method
 // never pays for what it does not use: an evaluation pass (predicted cost)
-// records no Jacobians and no policy caches.
+// records no Jacobians and no policy caches, and only GR resamples. Quantities
+// that need the whole batch in the backward pass (importance weights, Gaussian
+// fits for shaping and DEL) are not recorded here at all: the backward passes
+// compute them from the recorded particles when the method needs them.
 //
 // Thread safety: functions are re-entrant; a Rollout is a plain value.
 #ifndef TOTALGRAD_CORE_ESTIMATORS_ROLLOUT_H_
@@ -19,6 +23,8 @@
 #include "absl/status/status.h"
 #include "core/common/rng.h"
 #include "core/common/types.h"
+#include "core/estimators/gaussian_fit.h"
+#include "core/estimators/particle_system.h"
 #include "core/gp/gp.h"
 #include "core/policy/rbf_policy.h"
 #include "core/tasks/cost.h"
@@ -36,27 +42,78 @@ struct Problem {
   Vector initial_std;  // S
   int horizon = 30;
   double noise_variance_multiplier = 1.0;  // GTP+sigma_n uses 25
+  // Seams for other systems (tests and studies, e.g. a linear-Gaussian system
+  // with a linear policy, whose exact gradient is known). When non-null they
+  // are used instead of `model` / `policy`; the pointees must outlive the
+  // problem. A trial leaves them null.
+  const ParticleDynamics* dynamics = nullptr;
+  const ParticlePolicy* controller = nullptr;
+};
+
+// The dynamics and policy of a problem as interfaces: its seams when set,
+// otherwise adapters over `model` and `policy`. Holds pointers into `problem`'s
+// pointees, not into `problem` itself.
+class ProblemSystem {
+ public:
+  explicit ProblemSystem(const Problem& problem);
+  ProblemSystem(const ProblemSystem&) = delete;
+  ProblemSystem& operator=(const ProblemSystem&) = delete;
+  // False when the problem has no model or no policy.
+  bool complete() const { return dynamics_ != nullptr && policy_ != nullptr; }
+  const ParticleDynamics& dynamics() const { return *dynamics_; }
+  const ParticlePolicy& policy() const { return *policy_; }
+
+ private:
+  GpDynamics gp_adapter_;
+  RbfParticlePolicy rbf_adapter_;
+  const ParticleDynamics* dynamics_ = nullptr;
+  const ParticlePolicy* policy_ = nullptr;
+};
+
+struct StepRecord;
+
+// A per-step hook of the forward pass that replaces the freshly sampled
+// particles x_{t+1} by new ones (Gaussian resampling, GR), together with the
+// reverse-mode map its backward pass needs.
+class StepResampler {
+ public:
+  virtual ~StepResampler() = default;
+  // Called after x_{t+1} has been sampled into step->next_state and before
+  // its cost is evaluated. Must move the sampled particles to
+  // step->pre_resample_state, write the new ones to step->next_state (same
+  // shape) and keep in the resample_* fields what Backward needs. Draws its
+  // random numbers from *rng.
+  virtual void Resample(Rng* rng, StepRecord* step) const = 0;
+  // gamma: dJ/dx_{t+1} (P x S) for the resampled particles; writes
+  // dJ/dx'_{t+1} for the particles before resampling (P x S, overwritten).
+  virtual void Backward(const StepRecord& step, const RowMatrix& gamma,
+                        RowMatrix* gamma_pre) const = 0;
 };
 
 // Which quantities the forward pass keeps.
 struct RolloutRecording {
-  bool jacobians = false;     // GP dmean/dz, dvar/dz, policy caches, cost gradients
+  bool jacobians = false;     // model dmean/dz, dvar/dz, policy caches, cost gradients
+  const StepResampler* resampler = nullptr;  // non-null: resample every step (GR)
 };
 
 // Everything recorded for one step t = 0..H-1 (the transition x_t -> x_{t+1}).
 struct StepRecord {
   RowMatrix state;        // P x S, x_t
   Vector force;           // P, u_t
-  RowMatrix mean;         // P x S, GP mean difference
-  RowMatrix variance;     // P x S, GP predictive variance (incl. noise x multiplier)
+  RowMatrix mean;         // P x S, model mean difference
+  RowMatrix variance;     // P x S, predictive variance (incl. noise x multiplier)
   RowMatrix noise;        // P x S, eps_t
-  RowMatrix next_state;   // P x S, x_{t+1}
+  RowMatrix next_state;   // P x S, x_{t+1} (after resampling, if any)
   Vector cost;            // P, c(x_{t+1})
   // Recorded only with RolloutRecording::jacobians:
-  policy::RbfPolicy::Cache policy_cache;
+  PolicyCache policy_cache;
   RowMatrix dmean_dz;     // P x S*E
   RowMatrix dvar_dz;      // P x S*E
   RowMatrix cost_gradient;  // P x S, dc/dx at x_{t+1}
+  // Recorded only with a resampler (empty otherwise):
+  RowMatrix pre_resample_state;  // P x S, x_t + mean + sqrt(var) eps
+  RowMatrix resample_noise;      // P x S, the resampler's standard normals
+  GaussianFit resample_fit;      // the fit the particles were drawn from
 };
 
 struct Rollout {
@@ -65,8 +122,9 @@ struct Rollout {
   bool finite = true;             // false if any recorded value was non-finite
 };
 
-// Runs the forward pass with P particles, drawing x_0 and every eps_t from
-// *rng. Errors: InvalidArgument for an incomplete problem or P < 1.
+// Runs the forward pass with P particles, drawing x_0 and every eps_t (and
+// the resampler's numbers) from *rng, in that order per step. Errors:
+// InvalidArgument for an incomplete problem, inconsistent dimensions or P < 1.
 // A non-finite value does not abort the pass; it sets rollout->finite = false
 // so the caller can record and skip the estimate.
 absl::Status SimulateParticles(const Problem& problem, int particles,

@@ -2,14 +2,21 @@
 
 #include <cmath>
 
+#include "core/common/check.h"
+
 namespace totalgrad::estimators {
+namespace {
+constexpr int kMaxInputs = 16;  // E = S + 1; the cart-pole has 5
+}  // namespace
 
 void RpBackward(const Problem& problem, const Rollout& rollout, Vector* gradient,
                 RowMatrix* per_particle) {
-  const policy::RbfPolicy& policy = *problem.policy;
+  const ProblemSystem system(problem);
+  const ParticlePolicy& policy = system.policy();
   const int s_dim = policy.state_dim();
   const int e_dim = s_dim + 1;
   const int n = policy.num_parameters();
+  TG_CHECK(e_dim <= kMaxInputs);
   const Eigen::Index p = rollout.steps.front().state.rows();
   const double inv_p = 1.0 / static_cast<double>(p);
 
@@ -23,7 +30,7 @@ void RpBackward(const Problem& problem, const Rollout& rollout, Vector* gradient
     // x_{t+1} = x_t + mean(z) + sqrt(var(z)) eps: cotangents on mean and var.
     // mean_bar = gamma, var_bar = gamma eps / (2 sqrt(var)).
     for (Eigen::Index i = 0; i < p; ++i) {
-      double z_bar[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+      double z_bar[kMaxInputs] = {};
       for (int a = 0; a < s_dim; ++a) {
         const double m_bar = gamma(i, a);
         const double v_bar = gamma(i, a) * step.noise(i, a) / (2.0 * std::sqrt(step.variance(i, a)));

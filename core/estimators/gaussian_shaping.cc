@@ -1,0 +1,64 @@
+#include "core/estimators/gaussian_shaping.h"
+
+#include "core/common/check.h"
+
+namespace totalgrad::estimators {
+
+void SampledExpectedCostGradient(const tasks::StateCost& cost, const GaussianFit& fit,
+                                 int samples, Rng* rng, ExpectedCostGradient* out) {
+  TG_CHECK(samples >= 1);
+  const Eigen::Index s = fit.mean.size();
+  RowMatrix zeta(samples, s);
+  rng->FillNormal(&zeta);
+  RowMatrix x = zeta * fit.chol.transpose();
+  x.rowwise() += fit.mean.transpose();
+  Vector c;
+  RowMatrix grad;
+  cost.Evaluate(x, &c, &grad);
+  const double inv_k = 1.0 / static_cast<double>(samples);
+  out->value = c.mean();
+  out->dmean = inv_k * grad.colwise().sum().transpose();
+  Matrix chol_bar = inv_k * (grad.transpose() * zeta);  // S x S
+  chol_bar.triangularView<Eigen::StrictlyUpper>().setZero();
+  out->dcov = CholeskyBackward(fit.chol, chol_bar);
+}
+
+absl::StatusOr<pilco::GaussianCost> GaussianCostFor(const tasks::StateCost& cost) {
+  if (const auto* angle = dynamic_cast<const tasks::AngleCost*>(&cost)) {
+    const Vector target = angle->target();
+    const Matrix q = angle->q_diagonal().asDiagonal();
+    return pilco::GaussianCost::Angle(target, q);
+  }
+  if (const auto* tip = dynamic_cast<const tasks::TipCost*>(&cost)) {
+    return pilco::GaussianCost::Tip(tasks::kCartPoleStateDim, /*position_index=*/0,
+                                    /*angle_index=*/1, tip->pendulum_length(), tip->width(),
+                                    tip->target_position());
+  }
+  return absl::InvalidArgumentError(
+      "exact Gaussian-shaping derivatives need the angle or the tip cost; got '" + cost.Name() +
+      "' (use gs_derivative=sampled)");
+}
+
+absl::Status ExactExpectedCostGradient(const pilco::GaussianCost& cost, const GaussianFit& fit,
+                                       ExpectedCostGradient* out) {
+  Matrix cov = fit.covariance;
+  cov.diagonal().array() += fit.jitter;
+  pilco::CostMoments moments;
+  absl::Status status = cost.Evaluate(fit.mean, cov, /*with_gradient=*/true, &moments);
+  if (!status.ok()) return status;
+  out->value = moments.mean;
+  out->dmean = moments.dmean_dm;
+  out->dcov = moments.dmean_dS;
+  return absl::OkStatus();
+}
+
+void ShapedValues(const GaussianFit& fit, const ExpectedCostGradient& e, Vector* g) {
+  const Eigen::Index p = fit.centred.rows();
+  const double correction = (static_cast<double>(p - 1) / static_cast<double>(p)) *
+                            (e.dcov.cwiseProduct(fit.covariance)).sum();  // tr(e_cov cov)
+  const RowMatrix de = fit.centred * e.dcov;  // row i: d_i^T e_cov
+  *g = fit.centred * e.dmean;
+  g->array() += de.cwiseProduct(fit.centred).rowwise().sum().array() - correction;
+}
+
+}  // namespace totalgrad::estimators

@@ -1,0 +1,151 @@
+#include "core/estimators/likelihood_ratio.h"
+
+#include <cmath>
+#include <limits>
+
+#include "core/common/check.h"
+
+namespace totalgrad::estimators {
+namespace {
+
+constexpr double kNegInf = -std::numeric_limits<double>::infinity();
+
+// mean_bar and var_bar of one source from its weighted sums
+// s0 = sum_j w_ij, s1 = sum_j w_ij Delta_ij, s2 = sum_j w_ij Delta_ij^2 (per dim).
+inline void FinishSource(double s0, double s1, double s2, double v, double* mean_bar,
+                         double* var_bar) {
+  *mean_bar = s1 / v;
+  *var_bar = 0.5 * (s2 / (v * v) - s0 / v);
+}
+
+}  // namespace
+
+Vector LeaveOneOutBaseline(const Vector& cost_to_go) {
+  const Eigen::Index p = cost_to_go.size();
+  if (p < 2) return Vector::Zero(p);
+  const double total = cost_to_go.sum();
+  return ((total - cost_to_go.array()) / static_cast<double>(p - 1)).matrix();
+}
+
+void TransitionLogDensities(const StepRecord& step, RowMatrix* log_density) {
+  const Eigen::Index p = step.state.rows();
+  const Eigen::Index s = step.state.cols();
+  const RowMatrix mu = step.state + step.mean;
+  const RowMatrix inv_v = step.variance.cwiseInverse();
+  log_density->resize(p, p);
+  const double log_two_pi = std::log(2.0 * M_PI);
+  for (Eigen::Index i = 0; i < p; ++i) {
+    double norm = 0;
+    for (Eigen::Index d = 0; d < s; ++d) norm += log_two_pi + std::log(step.variance(i, d));
+    norm *= -0.5;
+    const double* mu_i = mu.row(i).data();
+    const double* iv_i = inv_v.row(i).data();
+    for (Eigen::Index j = 0; j < p; ++j) {
+      const double* x_j = step.next_state.row(j).data();
+      double q = 0;
+      for (Eigen::Index d = 0; d < s; ++d) {
+        const double delta = x_j[d] - mu_i[d];
+        q += delta * delta * iv_i[d];
+      }
+      (*log_density)(i, j) = norm - 0.5 * q;
+    }
+  }
+}
+
+void BiwLogWeights(const StepRecord& step, RowMatrix* log_weights) {
+  TransitionLogDensities(step, log_weights);
+  const Eigen::Index p = log_weights->rows();
+  RowMatrix& lw = *log_weights;
+  for (Eigen::Index j = 0; j < p; ++j) {
+    double m = kNegInf;
+    for (Eigen::Index i = 0; i < p; ++i)
+      if (lw(i, j) > m) m = lw(i, j);
+    if (!std::isfinite(m)) continue;  // all -Inf or NaN: leave the column as it is
+    double sum = 0;
+    for (Eigen::Index i = 0; i < p; ++i) sum += std::exp(lw(i, j) - m);
+    const double lse = m + std::log(sum);
+    for (Eigen::Index i = 0; i < p; ++i) lw(i, j) -= lse;
+  }
+}
+
+void BiwBaseline(const RowMatrix& log_weights, const Vector& cost_to_go, Vector* baseline) {
+  const Eigen::Index p = cost_to_go.size();
+  TG_CHECK(log_weights.rows() == p && log_weights.cols() == p);
+  const Vector loo = LeaveOneOutBaseline(cost_to_go);
+  baseline->resize(p);
+  for (Eigen::Index i = 0; i < p; ++i) {
+    double m = kNegInf;
+    for (Eigen::Index j = 0; j < p; ++j)
+      if (j != i && log_weights(i, j) > m) m = log_weights(i, j);
+    if (!std::isfinite(m)) {
+      (*baseline)(i) = loo(i);
+      continue;
+    }
+    double num = 0, den = 0;
+    for (Eigen::Index j = 0; j < p; ++j) {
+      if (j == i) continue;
+      const double w = std::exp(log_weights(i, j) - m);  // <= 1, the largest is 1
+      num += w * cost_to_go(j);
+      den += w;
+    }
+    (*baseline)(i) = num / den;
+  }
+}
+
+void PlainLrCotangent(const StepRecord& step, const Vector& cost_to_go, const Vector& baseline,
+                      double scale, ZetaCotangent* out) {
+  const Eigen::Index p = step.state.rows(), s = step.state.cols();
+  TG_CHECK(cost_to_go.size() == p && baseline.size() == p);
+  out->mean.resize(p, s);
+  out->variance.resize(p, s);
+  for (Eigen::Index i = 0; i < p; ++i) {
+    const double a = scale * (cost_to_go(i) - baseline(i));
+    for (Eigen::Index d = 0; d < s; ++d) {
+      const double delta = step.next_state(i, d) - (step.state(i, d) + step.mean(i, d));
+      FinishSource(a, a * delta, a * delta * delta, step.variance(i, d), &out->mean(i, d),
+                   &out->variance(i, d));
+    }
+  }
+}
+
+void WeightedLrCotangent(const StepRecord& step, const RowMatrix& weights,
+                         const Vector& cost_to_go, const Vector& baseline, double scale,
+                         ZetaCotangent* out) {
+  const Eigen::Index p = step.state.rows(), s = step.state.cols();
+  TG_CHECK(weights.rows() == p && weights.cols() == p);
+  TG_CHECK(cost_to_go.size() == p && baseline.size() == p);
+  out->mean.resize(p, s);
+  out->variance.resize(p, s);
+  Vector s1(s), s2(s);
+  for (Eigen::Index i = 0; i < p; ++i) {
+    double s0 = 0;
+    s1.setZero();
+    s2.setZero();
+    for (Eigen::Index j = 0; j < p; ++j) {
+      const double c = weights(i, j);
+      if (c == 0) continue;  // an underflowed weight contributes exactly nothing
+      const double w = scale * c * (cost_to_go(j) - baseline(i));
+      s0 += w;
+      for (Eigen::Index d = 0; d < s; ++d) {
+        const double delta = step.next_state(j, d) - (step.state(i, d) + step.mean(i, d));
+        s1(d) += w * delta;
+        s2(d) += w * delta * delta;
+      }
+    }
+    for (Eigen::Index d = 0; d < s; ++d)
+      FinishSource(s0, s1(d), s2(d), step.variance(i, d), &out->mean(i, d), &out->variance(i, d));
+  }
+}
+
+void DensityEstimationCotangent(const GaussianFit& fit, const Vector& weights, RowMatrix* x_bar) {
+  const Eigen::Index p = fit.centred.rows(), s = fit.centred.cols();
+  TG_CHECK(weights.size() == p);
+  const Matrix y = SolveWithFit(fit, fit.centred.transpose());  // S x P, Sigma^-1 d_i
+  const Vector mean_bar = y * weights;
+  const Matrix sigma_inv = SolveWithFit(fit, Matrix::Identity(s, s));
+  Matrix cov_bar = y * weights.asDiagonal() * y.transpose() - weights.sum() * sigma_inv;
+  cov_bar = (0.25 * (cov_bar + cov_bar.transpose())).eval();  // 1/2 and symmetrised
+  GaussianFitBackward(fit, mean_bar, cov_bar, x_bar);
+}
+
+}  // namespace totalgrad::estimators

@@ -1,0 +1,102 @@
+#include "core/estimators/node_messages.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <vector>
+
+#include "core/common/check.h"
+
+namespace totalgrad::estimators {
+
+void RpZetaCotangent(const StepRecord& step, const RowMatrix& gamma, ZetaCotangent* out) {
+  TG_CHECK(gamma.rows() == step.noise.rows() && gamma.cols() == step.noise.cols());
+  out->mean = gamma;
+  out->variance = (gamma.array() * step.noise.array() / (2.0 * step.variance.array().sqrt())).matrix();
+}
+
+void TransitionVjp(const StepRecord& step, const ZetaCotangent& cotangent, Vector* force_bar,
+                   RowMatrix* state_bar) {
+  const Eigen::Index p = step.state.rows();
+  const int s_dim = static_cast<int>(step.state.cols());
+  const int e_dim = s_dim + 1;
+  TG_CHECK(step.dmean_dz.rows() == p && step.dmean_dz.cols() == s_dim * e_dim);
+  TG_CHECK(cotangent.mean.rows() == p && cotangent.variance.rows() == p);
+  force_bar->resize(p);
+  if (state_bar != nullptr) *state_bar = cotangent.mean;  // mu = x_t + mean(z): identity path
+  std::vector<double> z_bar(e_dim);
+  for (Eigen::Index i = 0; i < p; ++i) {
+    std::fill(z_bar.begin(), z_bar.end(), 0.0);
+    const double* dm_row = step.dmean_dz.row(i).data();
+    const double* dv_row = step.dvar_dz.row(i).data();
+    for (int a = 0; a < s_dim; ++a) {
+      const double m_bar = cotangent.mean(i, a);
+      const double v_bar = cotangent.variance(i, a);
+      const double* dm = dm_row + a * e_dim;
+      const double* dv = dv_row + a * e_dim;
+      for (int m = 0; m < e_dim; ++m) z_bar[m] += m_bar * dm[m] + v_bar * dv[m];
+    }
+    if (state_bar != nullptr)
+      for (int m = 0; m < s_dim; ++m) (*state_bar)(i, m) += z_bar[m];
+    (*force_bar)(i) = z_bar[s_dim];
+  }
+}
+
+double TraceVariance::value() const {
+  if (non_finite) return std::numeric_limits<double>::infinity();
+  return scale * scale * normalized;
+}
+
+TraceVariance RowTraceVariance(const RowMatrix& rows) {
+  TraceVariance v;
+  const Eigen::Index p = rows.rows();
+  if (!rows.allFinite()) {
+    v.non_finite = true;
+    v.scale = std::numeric_limits<double>::infinity();
+    return v;
+  }
+  if (p < 2) return v;
+  const RowMatrix deviation = rows.rowwise() - rows.colwise().mean();
+  v.scale = deviation.cwiseAbs().maxCoeff();
+  if (!(v.scale > 0)) return v;
+  v.normalized = (deviation / v.scale).squaredNorm() / static_cast<double>(p - 1);
+  return v;
+}
+
+double CombinationWeight(const TraceVariance& rp, const TraceVariance& lr) {
+  const bool rp_bad = rp.non_finite || !std::isfinite(rp.scale) || !std::isfinite(rp.normalized);
+  const bool lr_bad = lr.non_finite || !std::isfinite(lr.scale) || !std::isfinite(lr.normalized);
+  if (rp_bad && lr_bad) return 0.5;
+  if (rp_bad) return 1.0;
+  if (lr_bad) return 0.0;
+  if (rp.zero() && lr.zero()) return 0.5;
+  if (rp.zero()) return 0.0;
+  if (lr.zero()) return 1.0;
+  // log(var_LR / var_RP) without forming either variance.
+  const double log_ratio = 2.0 * (std::log(lr.scale) - std::log(rp.scale)) +
+                           std::log(lr.normalized) - std::log(rp.normalized);
+  const double k = 1.0 / (1.0 + std::exp(log_ratio));  // exp overflow -> k = 0
+  return std::clamp(k, 0.0, 1.0);
+}
+
+double CombinationWeight(double var_rp, double var_lr) {
+  TraceVariance rp, lr;
+  auto to = [](double v, TraceVariance* out) {
+    if (!std::isfinite(v)) {
+      out->non_finite = true;
+      out->scale = std::numeric_limits<double>::infinity();
+    } else if (v > 0) {
+      out->scale = std::sqrt(v);
+      out->normalized = 1.0;
+      if (!(out->scale > 0)) {  // a denormal variance: keep the ratio exact
+        out->scale = 1.0;
+        out->normalized = v;
+      }
+    }
+  };
+  to(var_rp, &rp);
+  to(var_lr, &lr);
+  return CombinationWeight(rp, lr);
+}
+
+}  // namespace totalgrad::estimators

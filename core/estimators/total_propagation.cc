@@ -1,0 +1,264 @@
+#include "core/estimators/total_propagation.h"
+
+#include <cmath>
+#include <optional>
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "core/estimators/gaussian_fit.h"
+#include "core/estimators/gaussian_shaping.h"
+#include "core/estimators/likelihood_ratio.h"
+
+namespace totalgrad::estimators {
+namespace {
+
+// k * jump + (1 - k) * pathwise, not touching a branch whose weight is 0 (it
+// may hold Inf; 0 * Inf would be NaN).
+template <typename T>
+T Mix(double k, const T& jump, const T& pathwise) {
+  if (k == 1.0) return jump;
+  if (k == 0.0) return pathwise;
+  return k * jump + (1.0 - k) * pathwise;
+}
+
+// Per-particle parameter rows force_bar_i * dforce_i/dtheta (P x n).
+RowMatrix ScaledRows(const Vector& force_bar, const RowMatrix& dforce_dtheta) {
+  return force_bar.asDiagonal() * dforce_dtheta;
+}
+
+absl::Status ValidateConfig(const BackwardConfig& config) {
+  if (!config.pathwise && config.jump == JumpKind::kNone)
+    return absl::InvalidArgumentError("backward pass: neither a pathwise nor a jump branch");
+  if (config.resampler != nullptr && config.jump != JumpKind::kNone)
+    return absl::InvalidArgumentError("backward pass: resampling (GR) is pathwise only");
+  return absl::OkStatus();
+}
+
+}  // namespace
+
+absl::Status BackwardPass(const Problem& problem, const Rollout& rollout,
+                          const BackwardConfig& config, Rng* rng, BackwardResult* result) {
+  if (absl::Status st = ValidateConfig(config); !st.ok()) return st;
+  const ProblemSystem system(problem);
+  if (!system.complete() || problem.cost == nullptr)
+    return absl::InvalidArgumentError("backward pass: problem needs a model, a policy and a cost");
+  if (rollout.steps.empty()) return absl::InvalidArgumentError("backward pass: empty rollout");
+  const ParticlePolicy& policy = system.policy();
+  const int s_dim = policy.state_dim();
+  const int n = policy.num_parameters();
+  const Eigen::Index p = rollout.steps.front().state.rows();
+  for (const StepRecord& step : rollout.steps) {
+    if (step.state.rows() != p || step.state.cols() != s_dim ||
+        step.dmean_dz.rows() != p || step.cost_gradient.rows() != p)
+      return absl::InvalidArgumentError(
+          "backward pass: rollout not recorded with Jacobians for this problem");
+    if ((config.resampler != nullptr) != (step.resample_noise.rows() == p))
+      return absl::InvalidArgumentError(
+          "backward pass: the rollout's resampling does not match the configuration");
+  }
+  std::optional<pilco::GaussianCost> exact_cost;
+  if (config.cost == CostNodeKind::kGaussianShaped && config.gs_derivative == GsDerivative::kExact) {
+    absl::StatusOr<pilco::GaussianCost> c = GaussianCostFor(*problem.cost);
+    if (!c.ok()) return c.status();
+    exact_cost = *std::move(c);
+  } else if (config.cost == CostNodeKind::kGaussianShaped && rng == nullptr) {
+    return absl::InvalidArgumentError("backward pass: sampled shaping derivatives need an Rng");
+  }
+
+  const bool combining = config.pathwise && config.jump != JumpKind::kNone;
+  const bool forced = combining && config.forced_k_lr >= 0.0 && config.forced_k_lr <= 1.0;
+  // Only a pathwise branch ever reads the message to x_t.
+  const bool need_message = config.pathwise;
+  const double scale = 1.0 / static_cast<double>(p);
+  const int horizon = static_cast<int>(rollout.steps.size());
+
+  result->per_particle.setZero(p, n);
+  result->k_lr.clear();
+  result->var_pathwise.clear();
+  result->var_jump.clear();
+  if (combining) {
+    result->k_lr.assign(horizon, 0.0);
+    result->var_pathwise.assign(horizon, TraceVariance());
+    result->var_jump.assign(horizon, TraceVariance());
+  }
+
+  RowMatrix gamma = RowMatrix::Zero(p, s_dim);  // combined dJ/dx_{t+1}
+  Vector cost_to_go = Vector::Zero(p);
+  Vector local(p);
+  RowMatrix rp_cost, gamma_rp, resampled, x_rp, x_jump, x_bar, state_bar, log_weights, weights;
+  RowMatrix dforce_dtheta, dforce_dx;
+  Vector f_rp, f_jump, baseline;
+  ZetaCotangent zeta_rp, zeta_jump;
+  GaussianFit fit;
+  ExpectedCostGradient expected;
+
+  for (int t = horizon - 1; t >= 0; --t) {
+    const StepRecord& step = rollout.steps[t];
+
+    // 1. Cost node at x_{t+1}.
+    if (config.cost == CostNodeKind::kPlain) {
+      local = step.cost;
+      if (config.pathwise) rp_cost = scale * step.cost_gradient;
+    } else {
+      FitGaussian(step.next_state, kShapingJitter, &fit);
+      if (exact_cost) {
+        absl::Status st = ExactExpectedCostGradient(*exact_cost, fit, &expected);
+        if (!st.ok()) return st;
+      } else {
+        SampledExpectedCostGradient(*problem.cost, fit, static_cast<int>(p), rng, &expected);
+      }
+      ShapedValues(fit, expected, &local);
+      if (config.pathwise) GaussianFitBackward(fit, expected.dmean, expected.dcov, &rp_cost);
+    }
+    cost_to_go += local;
+
+    // 2. Pathwise branch.
+    if (config.pathwise) {
+      gamma_rp = gamma + rp_cost;
+      if (config.resampler != nullptr) {
+        config.resampler->Backward(step, gamma_rp, &resampled);
+        gamma_rp.swap(resampled);
+      }
+      RpZetaCotangent(step, gamma_rp, &zeta_rp);
+      TransitionVjp(step, zeta_rp, &f_rp, need_message ? &x_rp : nullptr);
+    }
+
+    // 3. Jump branch.
+    if (config.jump == JumpKind::kLikelihoodRatio) {
+      if (config.lr_weights == LrWeights::kBatchImportance) {
+        BiwLogWeights(step, &log_weights);
+        weights = log_weights.array().exp().matrix();
+        switch (config.lr_baseline) {
+          case LrBaseline::kBatchImportance: BiwBaseline(log_weights, cost_to_go, &baseline); break;
+          case LrBaseline::kLeaveOneOut: baseline = LeaveOneOutBaseline(cost_to_go); break;
+          case LrBaseline::kNone: baseline.setZero(p); break;
+        }
+        WeightedLrCotangent(step, weights, cost_to_go, baseline, scale, &zeta_jump);
+      } else {
+        if (config.lr_baseline == LrBaseline::kNone) baseline.setZero(p);
+        else baseline = LeaveOneOutBaseline(cost_to_go);
+        PlainLrCotangent(step, cost_to_go, baseline, scale, &zeta_jump);
+      }
+    } else if (config.jump == JumpKind::kDensityEstimation) {
+      FitGaussian(step.next_state, kShapingJitter, &fit);
+      if (config.lr_baseline == LrBaseline::kNone) baseline.setZero(p);
+      else baseline = LeaveOneOutBaseline(cost_to_go);
+      const Vector a = scale * (cost_to_go - baseline);
+      DensityEstimationCotangent(fit, a, &x_bar);
+      RpZetaCotangent(step, x_bar, &zeta_jump);  // one-step reparameterisation of the fit
+    }
+    if (config.jump != JumpKind::kNone)
+      TransitionVjp(step, zeta_jump, &f_jump, combining && need_message ? &x_jump : nullptr);
+
+    // 4-5. Combine, then cross the policy.
+    if (combining && !forced) {
+      // The policy's Jacobian rows (its adjoint is linear in force_bar), so
+      // that both branches' per-particle gradients exist for the variances.
+      dforce_dtheta.setZero(p, n);
+      policy.Backward(step.policy_cache, Vector::Ones(p), &dforce_dx, &dforce_dtheta, nullptr);
+      const RowMatrix rows_rp = ScaledRows(f_rp, dforce_dtheta);
+      const RowMatrix rows_jump = ScaledRows(f_jump, dforce_dtheta);
+      const TraceVariance v_rp = RowTraceVariance(rows_rp);
+      const TraceVariance v_jump = RowTraceVariance(rows_jump);
+      const double k = CombinationWeight(v_rp, v_jump);
+      result->k_lr[t] = k;
+      result->var_pathwise[t] = v_rp;
+      result->var_jump[t] = v_jump;
+      result->per_particle += Mix(k, rows_jump, rows_rp);
+      if (t > 0) {
+        const Vector f = Mix(k, f_jump, f_rp);
+        gamma = Mix(k, x_jump, x_rp);
+        gamma += f.asDiagonal() * dforce_dx;
+      }
+      continue;
+    }
+    double k = config.pathwise ? 0.0 : 1.0;
+    if (forced) {
+      k = config.forced_k_lr;
+      result->k_lr[t] = k;
+    }
+    const Vector f = combining ? Mix(k, f_jump, f_rp) : (config.pathwise ? f_rp : f_jump);
+    if (need_message && t > 0) {
+      policy.Backward(step.policy_cache, f, &state_bar, &result->per_particle, nullptr);
+      gamma = combining ? Mix(k, x_jump, x_rp) : x_rp;
+      gamma += state_bar;
+    } else {
+      policy.Backward(step.policy_cache, f, nullptr, &result->per_particle, nullptr);
+    }
+  }
+  result->gradient = result->per_particle.colwise().sum().transpose();
+  return absl::OkStatus();
+}
+
+absl::StatusOr<MethodRecipe> RecipeFor(const std::string& name, const EstimatorOptions& options) {
+  if (!(options.sn_noise_multiplier >= 0) || !std::isfinite(options.sn_noise_multiplier))
+    return absl::InvalidArgumentError("estimator option sn_noise_multiplier must be finite and >= 0");
+  MethodRecipe r;
+  BackwardConfig& b = r.backward;
+  b.lr_weights = options.lr_weights;
+  b.lr_baseline = options.lr_baseline;
+  b.gs_derivative = options.gs_derivative;
+  b.forced_k_lr = options.forced_k_lr;
+  if (name == "RP") {
+    b.pathwise = true;
+  } else if (name == "GR") {
+    b.pathwise = true;
+    r.resample = true;
+  } else if (name == "LR") {
+    b.pathwise = false;
+    b.jump = JumpKind::kLikelihoodRatio;
+  } else if (name == "TP") {
+    b.pathwise = true;
+    b.jump = JumpKind::kLikelihoodRatio;
+  } else if (name == "GLR") {
+    b.cost = CostNodeKind::kGaussianShaped;
+    b.pathwise = false;
+    b.jump = JumpKind::kLikelihoodRatio;
+  } else if (name == "GTP" || name == "GTP+sn") {
+    b.cost = CostNodeKind::kGaussianShaped;
+    b.pathwise = true;
+    b.jump = JumpKind::kLikelihoodRatio;
+    if (name == "GTP+sn") r.noise_variance_factor = options.sn_noise_multiplier;
+  } else if (name == "DEL") {
+    b.pathwise = false;
+    b.jump = JumpKind::kDensityEstimation;
+  } else {
+    return absl::InvalidArgumentError(absl::StrCat("no particle recipe for method '", name, "'"));
+  }
+  return r;
+}
+
+ParticleEstimator::ParticleEstimator(std::string name, MethodRecipe recipe)
+    : name_(std::move(name)), recipe_(std::move(recipe)) {}
+
+absl::Status ParticleEstimator::Estimate(const Problem& problem, const EstimateOptions& options,
+                                         Rng* rng, GradientEstimate* estimate) {
+  // GTP+sn changes the model only inside the estimator: the caller's problem
+  // (the trial's predicted cost, the real plant) is untouched.
+  Problem local = problem;
+  local.noise_variance_multiplier *= recipe_.noise_variance_factor;
+  BackwardConfig config = recipe_.backward;
+  RolloutRecording recording;
+  recording.jacobians = true;
+  if (recipe_.resample) {
+    recording.resampler = &resampler_;
+    config.resampler = &resampler_;
+  }
+  absl::Status status = SimulateParticles(local, options.particles, recording, rng, &rollout_);
+  if (!status.ok()) return status;
+  status = BackwardPass(local, rollout_, config, rng, &backward_);
+  if (!status.ok()) return status;
+  estimate->objective = rollout_.objective;
+  estimate->gradient = backward_.gradient;
+  // g^(i) = P * contribution_i, so that mean_i g^(i) = gradient.
+  RowMatrix per_particle = backward_.per_particle * static_cast<double>(options.particles);
+  estimate->per_particle_variance = ColumnSampleVariance(per_particle);
+  estimate->k_lr = backward_.k_lr;
+  estimate->finite = rollout_.finite && estimate->gradient.allFinite() &&
+                     estimate->per_particle_variance.allFinite();
+  if (options.keep_per_particle) estimate->per_particle = std::move(per_particle);
+  else estimate->per_particle.resize(0, 0);
+  return absl::OkStatus();
+}
+
+}  // namespace totalgrad::estimators
