@@ -325,7 +325,8 @@ std::string Plot(const std::vector<CurvePoint>& curves, const std::string& sweep
            << "set output " << quote(path) << "\n"
            << "set title " << quote("Evaluation cost per episode, sweep " + sweep_name +
                                     " (median and quartiles over trials)") << "\n"
-           << "set xlabel \"episode\"\nset ylabel \"evaluation cost\"\n"
+           << "set termoption noenhanced\n"  // option names hold underscores
+           << "set xtics 1\nset xlabel \"episode\"\nset ylabel \"evaluation cost\"\n"
            << "set key outside right\nset grid\nset style fill transparent solid 0.2 noborder\n"
            << "plot ";
     for (size_t i = 0; i < series.size(); ++i) {

@@ -76,9 +76,9 @@ void Print(const Listing& listing, Format format, std::ostream& out) {
       break;
     }
     case Format::kJson: {
-      nlohmann::json array = nlohmann::json::array();
+      nlohmann::ordered_json array = nlohmann::ordered_json::array();
       for (const auto& row : listing.rows) {
-        nlohmann::json object = nlohmann::json::object();
+        nlohmann::ordered_json object = nlohmann::ordered_json::object();  // column order
         for (size_t c = 0; c < listing.columns.size() && c < row.size(); ++c) {
           const std::string& name = listing.columns[c];
           const bool numeric = std::find(listing.numeric_columns.begin(),

@@ -218,7 +218,9 @@ void AddJobCommands(CLI::App* app, int* exit_code) {
              StateName(j.state()), std::to_string(j.attempts()), std::to_string(j.failures()),
              std::to_string(j.lost_leases()),
              absl::StrCat(j.episodes_stored(), "/", j.episodes_expected()), j.worker_id(),
-             done ? FormatNumber(j.final_eval_cost()) : "", done ? (j.success() ? "yes" : "no") : "",
+             done ? (c->format() == Format::kTable ? FormatFixed(j.final_eval_cost(), 3)
+                                                   : FormatNumber(j.final_eval_cost()))
+                  : "", done ? (j.success() ? "yes" : "no") : "",
              j.last_error().substr(0, c->format() == Format::kTable ? 60 : std::string::npos)});
       }
       if (response.next_after_job_id() == 0) break;

@@ -1,0 +1,102 @@
+// The statistics and output formats behind `totalgrad results`.
+#include "client/service_commands/stats.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <sstream>
+
+#include "client/service_commands/format.h"
+
+namespace totalgrad::cli {
+namespace {
+
+TEST(WilsonIntervalTest, MatchesPublishedValues) {
+  // Reference values as given by statsmodels' proportion_confint(method="wilson").
+  auto [low, high] = WilsonInterval(5, 10);
+  EXPECT_NEAR(low, 0.2366, 1e-4);
+  EXPECT_NEAR(high, 0.7634, 1e-4);
+  std::tie(low, high) = WilsonInterval(74, 100);
+  EXPECT_NEAR(low, 0.6463, 1e-4);
+  EXPECT_NEAR(high, 0.8160, 1e-4);
+}
+
+TEST(WilsonIntervalTest, StaysInsideTheUnitIntervalAtTheEdges) {
+  auto [low, high] = WilsonInterval(0, 3);
+  EXPECT_EQ(low, 0.0);
+  EXPECT_NEAR(high, 0.5615, 1e-4);
+  std::tie(low, high) = WilsonInterval(3, 3);
+  EXPECT_NEAR(low, 0.4385, 1e-4);
+  EXPECT_EQ(high, 1.0);
+  std::tie(low, high) = WilsonInterval(0, 0);
+  EXPECT_EQ(low, 0.0);
+  EXPECT_EQ(high, 1.0);
+}
+
+TEST(QuantileTest, InterpolatesLinearlyBetweenOrderStatistics) {
+  EXPECT_EQ(Quantile({3, 1, 2, 4}, 0.5), 2.5);
+  EXPECT_EQ(Quantile({3, 1, 2, 4}, 0.25), 1.75);
+  EXPECT_EQ(Quantile({3, 1, 2, 4}, 1.0), 4);
+  EXPECT_EQ(Quantile({7}, 0.75), 7);
+  EXPECT_TRUE(std::isnan(Quantile({}, 0.5)));
+}
+
+TEST(SuccessTableTest, GroupsByMethodAndVariantInFirstAppearanceOrder) {
+  const std::vector<TrialRow> rows = {
+      {"RP", "k=1", true, 10}, {"LR", "k=1", false, 30}, {"RP", "k=1", false, 20},
+      {"RP", "k=0.01", true, 5}, {"RP", "k=1", true, 12}};
+  const std::vector<TableCell> table = SuccessTable(rows);
+  ASSERT_EQ(table.size(), 3u);
+  EXPECT_EQ(table[0].method, "RP");
+  EXPECT_EQ(table[0].variant, "k=1");
+  EXPECT_EQ(table[0].trials, 3);
+  EXPECT_EQ(table[0].successes, 2);
+  EXPECT_NEAR(table[0].rate, 2.0 / 3, 1e-12);
+  EXPECT_EQ(table[0].median_final_cost, 12);
+  EXPECT_EQ(table[1].variant, "k=0.01");
+  EXPECT_EQ(table[2].method, "LR");
+}
+
+TEST(CurvesTest, MedianAndQuartilesPerEpisodeSkippingMissingValues) {
+  const std::vector<EpisodeValue> values = {
+      {"RP", "", 1, 10}, {"RP", "", 1, 20}, {"RP", "", 1, 30}, {"RP", "", 2, 5},
+      {"RP", "", 0, std::nan("")}};
+  const std::vector<CurvePoint> curves = Curves(values);
+  ASSERT_EQ(curves.size(), 2u);
+  EXPECT_EQ(curves[0].episode, 1);
+  EXPECT_EQ(curves[0].trials, 3);
+  EXPECT_EQ(curves[0].q25, 15);
+  EXPECT_EQ(curves[0].median, 20);
+  EXPECT_EQ(curves[0].q75, 25);
+}
+
+TEST(FormatTest, CsvQuotesOnlyWhenNeeded) {
+  EXPECT_EQ(CsvField("plain"), "plain");
+  EXPECT_EQ(CsvField("a,b"), "\"a,b\"");
+  EXPECT_EQ(CsvField("say \"hi\""), "\"say \"\"hi\"\"\"");
+  EXPECT_EQ(CsvField("two\nlines"), "\"two\nlines\"");
+}
+
+TEST(FormatTest, JsonKeepsColumnOrderAndTypesNumbers) {
+  Listing listing;
+  listing.columns = {"name", "count", "cost"};
+  listing.numeric_columns = {"count", "cost"};
+  listing.rows = {{"x", "3", "1.5"}, {"y", "", "nan"}};
+  std::ostringstream out;
+  Print(listing, Format::kJson, out);
+  EXPECT_EQ(out.str(),
+            "[\n  {\n    \"name\": \"x\",\n    \"count\": 3,\n    \"cost\": 1.5\n  },\n  {\n"
+            "    \"name\": \"y\",\n    \"count\": null,\n    \"cost\": null\n  }\n]\n");
+}
+
+TEST(FormatTest, TableAlignsColumns) {
+  Listing listing;
+  listing.columns = {"a", "bbb"};
+  listing.rows = {{"long value", "1"}};
+  std::ostringstream out;
+  Print(listing, Format::kTable, out);
+  EXPECT_EQ(out.str(), "a           bbb\nlong value  1\n");
+}
+
+}  // namespace
+}  // namespace totalgrad::cli
