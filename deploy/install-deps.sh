@@ -14,6 +14,8 @@ PACKAGES=(
   libsqlite3-dev sqlite3
   gnuplot-nox
   iproute2 openssl libssl-dev
+  # deploy/ file checks (tests/deploy): unit verification, YAML and shell linters
+  systemd python3 python3-yaml yamllint shellcheck
 )
 
 missing=()

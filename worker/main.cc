@@ -69,6 +69,16 @@ int main(int argc, char** argv) {
                  "exit after this many seconds without work (default: never)");
   app.add_option("--acquire-wait", acquire_wait_seconds, "long-poll length, seconds")
       ->capture_default_str();
+  // Batch allocations (deploy/slurm): drain --trial-time before the end of
+  // --walltime, so no trial is taken that cannot finish in time.
+  double walltime_seconds = -1, trial_seconds = 0;
+  app.add_option("--walltime", walltime_seconds,
+                 "seconds this worker may run (e.g. what is left of a batch allocation); it "
+                 "drains --trial-time before the end, taking no trial it cannot finish")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--trial-time", trial_seconds, "longest expected trial, seconds (with --walltime)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   app.set_version_flag("--version", totalgrad::BuildId());
   CLI11_PARSE(app, argc, argv);
   spdlog::flush_on(spdlog::level::info);
@@ -110,6 +120,14 @@ int main(int argc, char** argv) {
     worker.Stop();
   });
   signal_thread.detach();
+  if (walltime_seconds >= 0) {
+    const double drain_after = std::max(0.0, walltime_seconds - trial_seconds);
+    std::thread([&worker, drain_after] {
+      std::this_thread::sleep_for(std::chrono::duration<double>(drain_after));
+      spdlog::info("walltime: less than --trial-time left; taking no new trial");
+      worker.Drain();
+    }).detach();
+  }
   spdlog::info("worker {} ({} slots) -> {} [{}]", options.worker_id, options.slots,
                connection.target, options.build);
   const totalgrad::worker::WorkerSummary summary = worker.Run();
