@@ -67,7 +67,13 @@ void ServiceFixture::SetUp() {
 }
 
 void ServiceFixture::TearDown() {
-  if (HasFailure()) {
+  if (!HasFailure()) {
+    coordinator_.reset();
+    std::error_code ignored;
+    std::filesystem::remove_all(dir_, ignored);
+    return;
+  }
+  {
     // Leave the evidence in the test output.
     for (const auto& entry : std::filesystem::directory_iterator(dir_)) {
       if (entry.path().extension() == ".log") {

@@ -7,6 +7,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <filesystem>
 #include <set>
 #include <thread>
 
@@ -40,6 +41,12 @@ class SchedulerTest : public ::testing::Test {
     options_.heartbeat_interval = absl::Seconds(15);
     options_.lease_timeout = absl::Seconds(90);
     scheduler_ = std::make_unique<Scheduler>(faulty_.get(), &clock_, options_);
+  }
+  void TearDown() override {
+    scheduler_.reset();
+    faulty_.reset();
+    store_.reset();
+    if (!HasFailure()) std::filesystem::remove_all(std::filesystem::path(path_).parent_path());
   }
   void Submit(const std::string& name, int jobs, int episodes, int max_attempts = 3,
               int max_lost = 20, int max_concurrent = 0) {

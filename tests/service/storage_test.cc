@@ -30,6 +30,10 @@ class StorageTest : public ::testing::Test {
     ASSERT_TRUE(store.ok()) << store.status();
     store_ = std::move(*store);
   }
+  void TearDown() override {
+    store_.reset();
+    if (!HasFailure()) std::filesystem::remove_all(dir_);
+  }
   void Reopen() {
     store_.reset();
     auto store = SqliteStore::Open(path_);

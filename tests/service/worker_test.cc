@@ -7,6 +7,7 @@
 #include <grpcpp/create_channel.h>
 
 #include <atomic>
+#include <filesystem>
 #include <thread>
 
 #include "absl/strings/str_cat.h"
@@ -73,6 +74,8 @@ class WorkerTest : public ::testing::Test {
     if (worker_) worker_->Stop();
     if (worker_thread_.joinable()) worker_thread_.join();
     if (coordinator_) coordinator_->Shutdown();
+    coordinator_.reset();
+    if (!HasFailure()) std::filesystem::remove_all(dir_);
   }
   void StartCoordinator() {
     auto coordinator = service::Coordinator::Start(options_);
