@@ -231,6 +231,10 @@ int Run(const RunFlags& flags) {
         std::cerr << (response.created() ? "submitted" : "already in the database")
                   << ": sweep " << spec->name << ", " << response.sweep().jobs_total() << " jobs\n";
         code = WaitForSweep(&*connection, spec->name, &g_interrupted);
+        if (code == 130) {
+          std::cerr << "interrupted: stopping the workers (running trials are released) and the "
+                       "coordinator; run the same file again to continue the sweep\n";
+        }
         if (code == 0 || code == 1) {
           const int table = PrintResultsTable(&*connection, spec->name, format);
           if (!plot.empty()) {
