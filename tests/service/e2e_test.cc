@@ -21,6 +21,14 @@ TEST_F(EndToEndTest, TwoWorkersStoreExactlyTheExpectedRows) {
   StartCoordinator();
   auto worker_a = StartWorker("a");
   auto worker_b = StartWorker("b");
+  // Both workers are polling before the work arrives, so both take part.
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        v1::ListWorkersResponse workers;
+        return control_->ListWorkers(Context(kUserToken).get(), {}, &workers).ok() &&
+               workers.workers_size() == 2;
+      },
+      seconds(30)));
   v1::SubmitSweepResponse submitted;
   ASSERT_TRUE(Submit(MakeSpec("e2e", {1, 2, 3, 4, 5, 6}, TinyProtocol()), &submitted).ok());
   EXPECT_TRUE(submitted.created());
