@@ -1,0 +1,189 @@
+#!/usr/bin/env bash
+# deploy/slurm/totalgrad-workers.sbatch run as Slurm would run it, without
+# Slurm: stand-in `srun` (runs the task once, as task 0, and forwards SIGTERM
+# to it like srun does) and `squeue` (prints the time left), with the real
+# worker against a real coordinator (TLS and tokens, on 127.0.0.1).
+#
+#   A. Walltime: 8 s left, trials of at most 4 s. The worker takes tiny
+#      trials for 4 s, then drains and exits; the script exits 0 well before
+#      the limit; every trial the worker took completed (none released or
+#      lost) and trials it could not have finished stay queued.
+#   B. No time limit known (squeue says UNLIMITED): SIGTERM to the batch
+#      script (what --signal=B:TERM@300 and `scancel --signal=TERM --batch`
+#      send) reaches the worker, which drains and exits 0.
+# Plus the script's duration parser on Slurm's time formats.
+#
+#   slurm_pool_test.sh COORDINATOR_BIN WORKER_BIN CLI_BIN SOURCE_DIR
+set -euo pipefail
+
+if [ $# -ne 4 ]; then
+  echo "usage: $0 COORDINATOR_BIN WORKER_BIN CLI_BIN SOURCE_DIR" >&2
+  exit 2
+fi
+coordinator_bin=$1 worker_bin=$2 cli_bin=$3 source_dir=$4
+sbatch_script="$source_dir/deploy/slurm/totalgrad-workers.sbatch"
+
+fail() { echo "FAIL: $*"; exit 1; }
+start_ns=$(date +%s%N)
+log() {
+  local ms=$(( ($(date +%s%N) - start_ns) / 1000000 ))
+  printf '[%3d.%d s] %s\n' $(( ms / 1000 )) $(( ms % 1000 / 100 )) "$*"
+}
+
+work=$(mktemp -d /tmp/totalgrad-slurm.XXXXXX)
+pids=()
+cleanup() {
+  local status=$?
+  trap - EXIT
+  for pid in "${pids[@]}"; do kill -KILL "$pid" 2>/dev/null || true; done
+  for pid in "${pids[@]}"; do wait "$pid" 2>/dev/null || true; done
+  if [ "$status" -ne 0 ]; then
+    for file in "$work"/*.log "$work"/*.out; do
+      [ -f "$file" ] || continue
+      echo "---- $file (last 40 lines)"
+      tail -n 40 "$file"
+    done
+  fi
+  rm -rf "$work"
+  exit "$status"
+}
+trap cleanup EXIT
+
+wait_for() {  # wait_for SECONDS DESCRIPTION COMMAND...
+  local limit=$1 what=$2 deadline
+  shift 2
+  deadline=$(( $(date +%s) + limit ))
+  until "$@"; do
+    [ "$(date +%s)" -lt "$deadline" ] || fail "timed out after $limit s waiting for: $what"
+    sleep 0.2
+  done
+}
+exited() {  # gone, or a zombie waiting to be reaped
+  [ ! -e "/proc/$1/stat" ] || [ "$(sed -E 's/.*\) ([A-Za-z]).*/\1/' "/proc/$1/stat" 2>/dev/null)" = Z ]
+}
+
+# ---- the duration parser ---------------------------------------------------------------
+# shellcheck source=/dev/null
+(
+  source "$sbatch_script"
+  for case in "1-00:00:00=86400" "12:00:00=43200" "05:30=330" "90=5400" "2-3=183600" \
+              "2-03:04=183840" "00:00:09=9" "0:08=8" "UNLIMITED=" "NOT_SET=" "=" "1:2:3:4="; do
+    input=${case%=*} expected=${case#*=}
+    got=$(slurm_duration_seconds "$input" || true)
+    [ "$got" = "$expected" ] || { echo "FAIL: slurm_duration_seconds '$input' = '$got', expected '$expected'"; exit 1; }
+  done
+) || exit 1
+log "duration parser: 12 Slurm time formats"
+
+# ---- coordinator ---------------------------------------------------------------------------
+bash "$source_dir/deploy/make-dev-certs.sh" "$work/certs" >/dev/null
+"$coordinator_bin" --db "$work/coordinator.db" --listen 127.0.0.1:0 \
+  --tls-cert "$work/certs/server.pem" --tls-key "$work/certs/server.key" \
+  --worker-token-file "$work/certs/worker.token" --user-token-file "$work/certs/user.token" \
+  --heartbeat-interval 0.2 --lease-timeout 5 --port-file "$work/port" >"$work/coordinator.log" 2>&1 &
+pids+=("$!")
+wait_for 30 "the coordinator to listen" test -s "$work/port"
+port=$(cat "$work/port")
+export TOTALGRAD_COORDINATOR="127.0.0.1:$port" TOTALGRAD_CA_CERT="$work/certs/ca.pem"
+cli() { TOTALGRAD_TOKEN_FILE="$work/certs/user.token" "$cli_bin" "$@"; }
+
+cat >"$work/pool.toml" <<'EOF'
+name = "slurm-pool"
+[grid]
+method = ["RP"]
+seed = { first = 1, count = 400 }
+[protocol]
+episodes = 2
+policy_steps = 3
+particles = 8
+eval_rollouts = 2
+horizon = 10
+EOF
+cli sweep submit "$work/pool.toml" >/dev/null
+
+# ---- stand-ins for srun and squeue ------------------------------------------------------
+mkdir -p "$work/bin"
+cat >"$work/bin/srun" <<'EOF'
+#!/bin/bash
+# Stand-in srun: records its arguments, runs the task once as task 0 and
+# forwards SIGTERM to it (srun forwards signals to the tasks it controls).
+printf '%s\n' "$@" >"$FAKE_SLURM_DIR/srun.args"
+while [[ $# -gt 0 && "$1" == --* ]]; do shift; done
+export SLURM_PROCID=0 SLURM_STEP_ID=0
+"$@" &
+task=$!
+trap 'kill -TERM "$task" 2>/dev/null' TERM
+status=0
+while kill -0 "$task" 2>/dev/null; do wait "$task" && status=0 || status=$?; done
+exit "$status"
+EOF
+cat >"$work/bin/squeue" <<'EOF'
+#!/bin/bash
+echo "$FAKE_TIME_LEFT"
+EOF
+chmod +x "$work/bin/srun" "$work/bin/squeue"
+
+run_sbatch() {  # run_sbatch TIME_LEFT OUTPUT: the batch script in the background
+  env PATH="$work/bin:$PATH" FAKE_SLURM_DIR="$work" FAKE_TIME_LEFT="$1" \
+    SLURM_JOB_ID=4242 SLURM_JOB_NUM_NODES=1 SLURM_CPUS_PER_TASK=1 \
+    TOTALGRAD_WORKER_BIN="$worker_bin" TOTALGRAD_WORKER_TOKEN_FILE="$work/certs/worker.token" \
+    TOTALGRAD_TRIAL_TIME=4 \
+    bash "$sbatch_script" >"$2" 2>&1 &
+  pids+=("$!")
+}
+jobs_query() {  # jobs_query PYTHON_EXPRESSION over `jobs`: prints its value
+  cli job list --sweep slurm-pool -f json | python3 -c "
+import json, sys
+jobs = json.load(sys.stdin)
+print($1)"
+}
+
+# ---- A: the walltime ----------------------------------------------------------------------
+started=$(date +%s%N)
+run_sbatch 0:08 "$work/walltime.out"
+sbatch_pid=${pids[-1]}
+wait_for 30 "the batch script to end (walltime)" exited "$sbatch_pid"
+status=0
+wait "$sbatch_pid" || status=$?
+seconds=$(( ($(date +%s%N) - started) / 1000000 ))
+[ "$status" -eq 0 ] || fail "the batch script exited $status"
+log "A: batch script with 8 s left and 4 s trials exited 0 after ${seconds} ms"
+grep -q "walltime: less than --trial-time left" "$work/walltime.out" || fail "the worker did not drain on its walltime"
+[ "$seconds" -ge 3500 ] || fail "the worker stopped before the walltime drain (${seconds} ms)"
+[ "$seconds" -lt 8000 ] || fail "the worker ran into the time limit (${seconds} ms)"
+args=$(tr '\n' ' ' <"$work/srun.args")
+for expected in "--ntasks-per-node=1" "--cpus-per-task=1" "--walltime 8" "--trial-time 4" \
+                "--slots 1" "--drain-timeout 240" "--max-idle 600" "--ca-cert $work/certs/ca.pem"; do
+  [[ " $args " == *" $expected "* ]] || fail "srun was not given '$expected': $args"
+done
+completed=$(jobs_query "sum(j['state'] == 'completed' for j in jobs)")
+queued=$(jobs_query "sum(j['state'] == 'queued' for j in jobs)")
+running=$(jobs_query "sum(j['state'] == 'running' for j in jobs)")
+lost=$(jobs_query "sum(j['lost'] for j in jobs)")
+worker_id=$(grep -Eo "worker slurm-4242-0-[^ ]+" "$work/walltime.out" | head -n1 || true)
+log "A: $completed trials completed, $queued left queued, $running running, $lost released or lost"
+[ "$completed" -gt 0 ] || fail "the worker completed no trial"
+[ "$queued" -gt 0 ] || fail "every trial ran: the walltime drain did not stop the worker taking trials"
+[ "$running" -eq 0 ] && [ "$lost" -eq 0 ] || fail "a trial was started that could not finish"
+[ -n "$worker_id" ] || fail "the worker id does not name the job, task and node"
+log "A: ${worker_id}"
+
+# ---- B: SIGTERM to the batch script -------------------------------------------------------
+run_sbatch UNLIMITED "$work/signal.out"
+sbatch_pid=${pids[-1]}
+wait_for 30 "the worker to take a trial" grep -q "attempt 1: RP seed" "$work/signal.out"
+grep -q "no time limit known" "$work/signal.out" || fail "UNLIMITED was not reported as no time limit"
+if grep -q -- "--walltime" "$work/srun.args"; then fail "--walltime given without a time limit"; fi
+signalled=$(date +%s%N)
+kill -TERM "$sbatch_pid"
+wait_for 30 "the batch script to end (SIGTERM)" exited "$sbatch_pid"
+status=0
+wait "$sbatch_pid" || status=$?
+[ "$status" -eq 0 ] || fail "the batch script exited $status after SIGTERM"
+grep -q "SIGTERM: draining the workers" "$work/signal.out" || fail "the script did not pass SIGTERM on"
+grep -q "signal 15: draining" "$work/signal.out" || fail "the worker did not get SIGTERM"
+log "B: SIGTERM to the batch script: worker drained, script exited 0 after $(( ($(date +%s%N) - signalled) / 1000000 )) ms"
+running=$(jobs_query "sum(j['state'] == 'running' for j in jobs)")
+lost=$(jobs_query "sum(j['lost'] for j in jobs)")
+[ "$running" -eq 0 ] && [ "$lost" -eq 0 ] || fail "after the drain: $running running, $lost released or lost"
+log "PASS"
