@@ -32,6 +32,7 @@ std::string LrWeightsName(LrWeights w) {
 std::string LrBaselineName(LrBaseline b) {
   switch (b) {
     case LrBaseline::kBatchImportance: return "biw";
+    case LrBaseline::kBatchImportancePair: return "biw_pair";
     case LrBaseline::kLeaveOneOut: return "loo";
     case LrBaseline::kNone: return "none";
   }
@@ -51,9 +52,10 @@ absl::Status ParseLrWeights(const std::string& text, LrWeights* out) {
 
 absl::Status ParseLrBaseline(const std::string& text, LrBaseline* out) {
   if (text == "biw") *out = LrBaseline::kBatchImportance;
+  else if (text == "biw_pair") *out = LrBaseline::kBatchImportancePair;
   else if (text == "loo") *out = LrBaseline::kLeaveOneOut;
   else if (text == "none") *out = LrBaseline::kNone;
-  else return absl::InvalidArgumentError(absl::StrCat("LR baseline '", text, "' is not one of biw, loo, none"));
+  else return absl::InvalidArgumentError(absl::StrCat("LR baseline '", text, "' is not one of biw, biw_pair, loo, none"));
   return absl::OkStatus();
 }
 

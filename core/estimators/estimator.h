@@ -67,8 +67,10 @@ enum class LrWeights {
 };
 // Baseline subtracted from the cost to go in the LR part.
 enum class LrBaseline {
-  kBatchImportance,  // "biw": the paper's importance-weighted leave-one-out mean
-                     // (with plain weights it reduces to "loo")
+  kBatchImportance,  // "biw": the paper's importance-weighted leave-one-out mean,
+                     // b_i leaving out sample i (with plain weights: "loo")
+  kBatchImportancePair,  // "biw_pair": b_ij leaving out the sample j the term is
+                         // evaluated at (pipps-spec.md 5.3; with plain weights: "loo")
   kLeaveOneOut,      // "loo": (sum_j G_j - G_i) / (P - 1)
   kNone,             // "none"
 };

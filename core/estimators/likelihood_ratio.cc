@@ -108,12 +108,14 @@ void PlainLrCotangent(const StepRecord& step, const Vector& cost_to_go, const Ve
   }
 }
 
-void WeightedLrCotangent(const StepRecord& step, const RowMatrix& weights,
-                         const Vector& cost_to_go, const Vector& baseline, double scale,
-                         ZetaCotangent* out) {
+namespace {
+
+// w_ij = scale c_ij (G_j - baseline(i, j)); Baseline is a callable (i, j) -> b.
+template <typename Baseline>
+void WeightedLr(const StepRecord& step, const RowMatrix& weights, const Vector& cost_to_go,
+                const Baseline& baseline, double scale, ZetaCotangent* out) {
   const Eigen::Index p = step.state.rows(), s = step.state.cols();
-  TG_CHECK(weights.rows() == p && weights.cols() == p);
-  TG_CHECK(cost_to_go.size() == p && baseline.size() == p);
+  TG_CHECK(weights.rows() == p && weights.cols() == p && cost_to_go.size() == p);
   out->mean.resize(p, s);
   out->variance.resize(p, s);
   Vector s1(s), s2(s);
@@ -124,7 +126,7 @@ void WeightedLrCotangent(const StepRecord& step, const RowMatrix& weights,
     for (Eigen::Index j = 0; j < p; ++j) {
       const double c = weights(i, j);
       if (c == 0) continue;  // an underflowed weight contributes exactly nothing
-      const double w = scale * c * (cost_to_go(j) - baseline(i));
+      const double w = scale * c * (cost_to_go(j) - baseline(i, j));
       s0 += w;
       for (Eigen::Index d = 0; d < s; ++d) {
         const double delta = step.next_state(j, d) - (step.state(i, d) + step.mean(i, d));
@@ -134,6 +136,70 @@ void WeightedLrCotangent(const StepRecord& step, const RowMatrix& weights,
     }
     for (Eigen::Index d = 0; d < s; ++d)
       FinishSource(s0, s1(d), s2(d), step.variance(i, d), &out->mean(i, d), &out->variance(i, d));
+  }
+}
+
+}  // namespace
+
+void WeightedLrCotangent(const StepRecord& step, const RowMatrix& weights,
+                         const Vector& cost_to_go, const Vector& baseline, double scale,
+                         ZetaCotangent* out) {
+  TG_CHECK(baseline.size() == cost_to_go.size());
+  WeightedLr(step, weights, cost_to_go,
+             [&baseline](Eigen::Index i, Eigen::Index) { return baseline(i); }, scale, out);
+}
+
+void WeightedLrCotangent(const StepRecord& step, const RowMatrix& weights,
+                         const Vector& cost_to_go, const RowMatrix& pair_baseline, double scale,
+                         ZetaCotangent* out) {
+  TG_CHECK(pair_baseline.rows() == cost_to_go.size() && pair_baseline.cols() == cost_to_go.size());
+  WeightedLr(step, weights, cost_to_go,
+             [&pair_baseline](Eigen::Index i, Eigen::Index j) { return pair_baseline(i, j); },
+             scale, out);
+}
+
+void BiwPairBaseline(const RowMatrix& log_weights, const Vector& cost_to_go, RowMatrix* baseline) {
+  const Eigen::Index p = cost_to_go.size();
+  TG_CHECK(log_weights.rows() == p && log_weights.cols() == p);
+  const Vector loo = LeaveOneOutBaseline(cost_to_go);
+  baseline->resize(p, p);
+  Vector e(p);
+  for (Eigen::Index i = 0; i < p; ++i) {
+    Eigen::Index top = -1;
+    double m = kNegInf;
+    for (Eigen::Index k = 0; k < p; ++k)
+      if (log_weights(i, k) > m) m = log_weights(i, k), top = k;
+    if (top < 0) {  // no finite weight in the row
+      baseline->row(i) = loo.transpose();
+      continue;
+    }
+    double sum = 0, num = 0;
+    for (Eigen::Index k = 0; k < p; ++k) {
+      e(k) = std::exp(log_weights(i, k) - m);  // e(top) = 1
+      sum += e(k);
+      num += e(k) * cost_to_go(k);
+    }
+    for (Eigen::Index j = 0; j < p; ++j) {
+      if (j == top) continue;
+      // sum - e_j >= e(top) = 1: no cancellation.
+      (*baseline)(i, j) = (num - e(j) * cost_to_go(j)) / (sum - e(j));
+    }
+    // Without the heaviest sample: rescale by the second largest weight.
+    double m2 = kNegInf;
+    for (Eigen::Index k = 0; k < p; ++k)
+      if (k != top && log_weights(i, k) > m2) m2 = log_weights(i, k);
+    if (!std::isfinite(m2)) {
+      (*baseline)(i, top) = loo(top);
+      continue;
+    }
+    double sum2 = 0, num2 = 0;
+    for (Eigen::Index k = 0; k < p; ++k) {
+      if (k == top) continue;
+      const double w = std::exp(log_weights(i, k) - m2);
+      sum2 += w;
+      num2 += w * cost_to_go(k);
+    }
+    (*baseline)(i, top) = num2 / sum2;
   }
 }
 

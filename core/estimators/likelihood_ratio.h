@@ -50,6 +50,14 @@ void BiwLogWeights(const StepRecord& step, RowMatrix* log_weights);
 // the leave-one-out mean is used.
 void BiwBaseline(const RowMatrix& log_weights, const Vector& cost_to_go, Vector* baseline);
 
+// The per-pair variant (pipps-spec.md 5.3 [REC]): b_ij = sum_{k != j} c_ik G_k
+// / sum_{k != j} c_ik, which leaves out the sample j the term is evaluated at
+// (P x P, overwritten). Computed without cancellation: for all j but row i's
+// heaviest sample by subtracting one term from the row sums (the remaining
+// sum is at least the heaviest weight), for the heaviest one directly. Where
+// no k != j has a finite log weight the leave-one-out mean G_{-j} is used.
+void BiwPairBaseline(const RowMatrix& log_weights, const Vector& cost_to_go, RowMatrix* baseline);
+
 // Plain LR: w_ij = [i == j] scale (G_i - b_i).
 void PlainLrCotangent(const StepRecord& step, const Vector& cost_to_go, const Vector& baseline,
                       double scale, ZetaCotangent* out);
@@ -58,6 +66,10 @@ void PlainLrCotangent(const StepRecord& step, const Vector& cost_to_go, const Ve
 // space (P x P, source x sample). weights = I gives PlainLrCotangent.
 void WeightedLrCotangent(const StepRecord& step, const RowMatrix& weights,
                          const Vector& cost_to_go, const Vector& baseline, double scale,
+                         ZetaCotangent* out);
+// The same with a per-pair baseline b_ij (P x P): w_ij = scale c_ij (G_j - b_ij).
+void WeightedLrCotangent(const StepRecord& step, const RowMatrix& weights,
+                         const Vector& cost_to_go, const RowMatrix& pair_baseline, double scale,
                          ZetaCotangent* out);
 
 // DEL: for q = N(fit.mean, fit.covariance + jitter) and weights A_i (P, with

@@ -85,7 +85,7 @@ absl::Status BackwardPass(const Problem& problem, const Rollout& rollout,
   RowMatrix gamma = RowMatrix::Zero(p, s_dim);  // combined dJ/dx_{t+1}
   Vector cost_to_go = Vector::Zero(p);
   Vector local(p);
-  RowMatrix rp_cost, gamma_rp, resampled, x_rp, x_jump, x_bar, state_bar, log_weights, weights;
+  RowMatrix pair_baseline, rp_cost, gamma_rp, resampled, x_rp, x_jump, x_bar, state_bar, log_weights, weights;
   RowMatrix dforce_dtheta, dforce_dx;
   Vector f_rp, f_jump, baseline;
   ZetaCotangent zeta_rp, zeta_jump;
@@ -128,12 +128,17 @@ absl::Status BackwardPass(const Problem& problem, const Rollout& rollout,
       if (config.lr_weights == LrWeights::kBatchImportance) {
         BiwLogWeights(step, &log_weights);
         weights = log_weights.array().exp().matrix();
-        switch (config.lr_baseline) {
-          case LrBaseline::kBatchImportance: BiwBaseline(log_weights, cost_to_go, &baseline); break;
-          case LrBaseline::kLeaveOneOut: baseline = LeaveOneOutBaseline(cost_to_go); break;
-          case LrBaseline::kNone: baseline.setZero(p); break;
+        if (config.lr_baseline == LrBaseline::kBatchImportancePair) {
+          BiwPairBaseline(log_weights, cost_to_go, &pair_baseline);
+          WeightedLrCotangent(step, weights, cost_to_go, pair_baseline, scale, &zeta_jump);
+        } else {
+          switch (config.lr_baseline) {
+            case LrBaseline::kBatchImportance: BiwBaseline(log_weights, cost_to_go, &baseline); break;
+            case LrBaseline::kLeaveOneOut: baseline = LeaveOneOutBaseline(cost_to_go); break;
+            default: baseline.setZero(p); break;
+          }
+          WeightedLrCotangent(step, weights, cost_to_go, baseline, scale, &zeta_jump);
         }
-        WeightedLrCotangent(step, weights, cost_to_go, baseline, scale, &zeta_jump);
       } else {
         if (config.lr_baseline == LrBaseline::kNone) baseline.setZero(p);
         else baseline = LeaveOneOutBaseline(cost_to_go);
