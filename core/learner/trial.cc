@@ -166,6 +166,23 @@ const std::vector<OptionField>& Fields() {
          return ParseBool("gp_penalty", text, &o->gp_training.penalty.enabled);
        },
        [](const TrialOptions& o) { return std::string(o.gp_training.penalty.enabled ? "true" : "false"); }},
+      // Particle-estimator knobs (estimators/estimator.h EstimatorOptions).
+      {"lr_weights",
+       [](const std::string& text, TrialOptions* o) {
+         return estimators::ParseLrWeights(text, &o->estimator.lr_weights);
+       },
+       [](const TrialOptions& o) { return estimators::LrWeightsName(o.estimator.lr_weights); }},
+      {"lr_baseline",
+       [](const std::string& text, TrialOptions* o) {
+         return estimators::ParseLrBaseline(text, &o->estimator.lr_baseline);
+       },
+       [](const TrialOptions& o) { return estimators::LrBaselineName(o.estimator.lr_baseline); }},
+      {"gs_derivative",
+       [](const std::string& text, TrialOptions* o) {
+         return estimators::ParseGsDerivative(text, &o->estimator.gs_derivative);
+       },
+       [](const TrialOptions& o) { return estimators::GsDerivativeName(o.estimator.gs_derivative); }},
+      DoubleField("sn_noise_multiplier", [](TrialOptions* o) { return &o->estimator.sn_noise_multiplier; }),
   };
   return *fields;
 }
