@@ -8,7 +8,8 @@ namespace totalgrad::pilco {
 //   Var[u] = U^2 (81/64 Var s1 + 1/64 Var s3 + 18/64 Cov(s1, s3)),
 //   Var s1      = -1/2 expm1(-2v)  + e^{-v}  expm1(-v)  sin^2 m,
 //   Var s3      = -1/2 expm1(-18v) + e^{-9v} expm1(-9v) sin^2 3m,
-//   Cov(s1, s3) = 1/2 e^{-5v} (expm1(3v) cos 2m - expm1(-3v) cos 4m).
+//   Cov(s1, s3) = 1/2 e^{-5v} (expm1(3v) cos 2m - expm1(-3v) cos 4m)
+//               = -1/2 expm1(-3v) (e^{-2v} cos 2m + e^{-5v} cos 4m).
 SatMoments GSat(double mean, double var, double max_u) {
   const double m = mean, v = var, u = max_u;
   const double e1 = std::exp(-0.5 * v), e9 = std::exp(-4.5 * v);
@@ -18,8 +19,11 @@ SatMoments GSat(double mean, double var, double max_u) {
   const double s1 = std::sin(m), s3 = std::sin(3.0 * m);
   const double var1 = -0.5 * std::expm1(-2.0 * v) + std::exp(-v) * std::expm1(-v) * s1 * s1;
   const double var3 = -0.5 * std::expm1(-18.0 * v) + std::exp(-9.0 * v) * std::expm1(-9.0 * v) * s3 * s3;
-  const double cov13 = 0.5 * std::exp(-5.0 * v) *
-                       (std::expm1(3.0 * v) * std::cos(2.0 * m) - std::expm1(-3.0 * v) * std::cos(4.0 * m));
+  // e^{-5v} expm1(3v) is written as -e^{-2v} expm1(-3v): the same value, but
+  // expm1(3v) overflows to Inf for v > 236 while e^{-5v} underflows to 0, and
+  // 0 * Inf would make Var[u] NaN for a wide input distribution.
+  const double cov13 = -0.5 * std::expm1(-3.0 * v) *
+                       (std::exp(-2.0 * v) * std::cos(2.0 * m) + std::exp(-5.0 * v) * std::cos(4.0 * m));
   out.var = u * u * (81.0 / 64.0 * var1 + 1.0 / 64.0 * var3 + 18.0 / 64.0 * cov13);
   return out;
 }
