@@ -1,6 +1,8 @@
 // `totalgrad bench iteration`: seconds per gradient iteration at a given size,
 // and in the same run the seconds the unavoidable matrix products alone take
 // (gemm_bound_seconds: per step and output one (P x N) * (N x N) product).
+#include <time.h>
+
 #include <algorithm>
 #include <chrono>
 #include <iostream>
@@ -32,11 +34,26 @@ double Median(std::vector<double> v) {
   return v[v.size() / 2];
 }
 
+double ThreadCpuSeconds() {
+  timespec ts;
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+struct Timing {
+  double wall = 0;
+  double cpu = 0;  // this thread's CPU time: robust on a shared, loaded machine
+};
+
+// With one BLAS thread every flop runs on the calling thread, so its CPU time
+// is the cost of the work whatever else the machine is doing.
 template <typename F>
-double TimeOnce(F&& f) {
+Timing TimeOnce(F&& f) {
   const auto start = std::chrono::steady_clock::now();
+  const double cpu_start = ThreadCpuSeconds();
   f();
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return {std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
+          ThreadCpuSeconds() - cpu_start};
 }
 
 }  // namespace
@@ -73,28 +90,35 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
     estimators::EstimateOptions eo;
     eo.particles = state->particles;
     estimators::GradientEstimate estimate;
-    std::vector<double> iteration_times;
+    std::vector<double> iteration_times, iteration_cpu;
     for (int r = 0; r < state->repeats + 1; ++r) {
       Rng rng(1, Stream::kStudy, 100 + r);
-      const double s = TimeOnce([&] {
+      const Timing s = TimeOnce([&] {
         absl::Status st = (*estimator)->Estimate(p, eo, &rng, &estimate);
         (void)st;
       });
-      if (r > 0) iteration_times.push_back(s);  // first call warms caches and allocations
+      if (r > 0) {  // the first call warms caches and allocations
+        iteration_times.push_back(s.wall);
+        iteration_cpu.push_back(s.cpu);
+      }
     }
     // The bound: horizon x outputs products of (P x N) by (N x N), as Predict does.
     const int n = p.model->num_data(), outputs = p.model->num_outputs();
     Matrix kstar = Matrix::Random(state->particles, n);
     Matrix kinv = p.model->k_inverse(0);
     Matrix product(state->particles, n);
-    std::vector<double> gemm_times;
+    std::vector<double> gemm_times, gemm_cpu;
     for (int r = 0; r < state->repeats + 1; ++r) {
-      const double s = TimeOnce([&] {
+      const Timing s = TimeOnce([&] {
         for (int t = 0; t < state->horizon * outputs; ++t) product.noalias() = kstar * kinv;
       });
-      if (r > 0) gemm_times.push_back(s);
+      if (r > 0) {
+        gemm_times.push_back(s.wall);
+        gemm_cpu.push_back(s.cpu);
+      }
     }
     const double iteration = Median(iteration_times), bound = Median(gemm_times);
+    const double iteration_cpu_s = Median(iteration_cpu), bound_cpu = Median(gemm_cpu);
     nlohmann::json j = {{"method", state->method},
                         {"particles", state->particles},
                         {"data", n},
@@ -104,6 +128,9 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
                         {"seconds_per_iteration", iteration},
                         {"gemm_bound_seconds", bound},
                         {"ratio", iteration / bound},
+                        {"cpu_seconds_per_iteration", iteration_cpu_s},
+                        {"gemm_bound_cpu_seconds", bound_cpu},
+                        {"cpu_ratio", iteration_cpu_s / bound_cpu},
                         {"blas", BlasConfig()},
                         {"gradient_finite", estimate.finite}};
     std::cout << j.dump(2) << std::endl;
