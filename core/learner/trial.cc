@@ -306,6 +306,8 @@ class PolicyLearner {
                                EpisodeResult* result) = 0;
   // The current policy as a controller of the real plant (force in N).
   virtual double Control(const tasks::State& observation) const = 0;
+  // The current policy's parameters (for snapshots).
+  virtual Vector Parameters() const = 0;
 };
 
 class ParticleLearner final : public PolicyLearner {
@@ -381,6 +383,7 @@ class ParticleLearner final : public PolicyLearner {
     policy_.Evaluate(observation.transpose(), &force, nullptr);
     return force(0);
   }
+  Vector Parameters() const override { return policy_.parameters(); }
 
  private:
   const TrialOptions& options_;
@@ -470,6 +473,7 @@ class PilcoLearner final : public PolicyLearner {
     policy_.Evaluate(features.transpose(), &force, nullptr);
     return force(0);
   }
+  Vector Parameters() const override { return policy_.parameters(); }
 
  private:
   const TrialOptions& options_;
@@ -536,9 +540,24 @@ absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver
     result.episode = e;
     const auto start_time = std::chrono::steady_clock::now();
     // 1-2. Fit the model on all data so far and optimise the policy.
+    const bool snapshot = observer != nullptr && observer->WantsSnapshot(e);
+    const Vector policy_before = snapshot ? learner->Parameters() : Vector();
     status = learner->Improve(data, e, observer, &result);
     if (!status.ok()) return status;
     result.optimisation_seconds = Seconds(start_time);
+    if (snapshot) {
+      TrialSnapshot s;
+      s.episode = e;
+      s.options = TrialOptionPairs(options);
+      s.states = data.States();
+      s.forces = Eigen::Map<const Vector>(data.forces.data(), static_cast<Eigen::Index>(data.forces.size()));
+      s.next_states.resize(s.states.rows(), s.states.cols());
+      for (Eigen::Index r = 0; r < s.next_states.rows(); ++r) s.next_states.row(r) = data.next_states[r];
+      s.hyperparameters = result.hyperparameters;
+      s.policy_parameters_before = policy_before;
+      s.policy_parameters = result.policy_parameters;
+      observer->OnSnapshot(s);
+    }
 
     // 3. One real episode with the new policy; its data are added.
     {

@@ -100,6 +100,25 @@ struct TrialSummary {
   double final_eval_cost = EpisodeResult::kNaN;
 };
 
+// The state of a trial at one learned episode e, for gradient studies
+// (core/study): the data the model of episode e was fitted on, its trained
+// hyperparameters, and the policy before (the warm start) and after episode
+// e's optimisation. Building the GP from (inputs of data, hyperparameters)
+// reproduces the particle methods' model of episode e bit for bit; PILCO's
+// FITC model (gp_inducing) is not kept.
+struct TrialSnapshot {
+  int episode = 0;
+  // The trial's options as TrialOptionPairs (so that scene, cost, horizon,
+  // basis functions and angle features can be rebuilt with SetTrialOption).
+  std::vector<std::pair<std::string, std::string>> options;
+  RowMatrix states;       // N x 4, observed states x_t of every transition so far
+  Vector forces;          // N, the force applied at x_t (N)
+  RowMatrix next_states;  // N x 4, observed x_{t+1}
+  gp::GpHyperparameters hyperparameters;  // of episode e's model (inputs: angle_features)
+  Vector policy_parameters_before;  // the policy entering episode e's optimisation
+  Vector policy_parameters;         // the optimised policy of episode e
+};
+
 class TrialObserver {
  public:
   virtual ~TrialObserver() = default;
@@ -112,6 +131,11 @@ class TrialObserver {
   // that step's forward pass and the norm of the parameter change (for
   // progress displays and optimiser diagnostics). Default: nothing.
   virtual void OnPolicyStep(int episode, int step, double objective, double step_norm) {}
+  // Snapshots: asked once per learned episode before its optimisation; when
+  // true, OnSnapshot is called after the optimisation and before OnEpisode.
+  // Default: no snapshots (nothing is copied).
+  virtual bool WantsSnapshot(int episode) { return false; }
+  virtual void OnSnapshot(const TrialSnapshot& snapshot) {}
 };
 
 // Runs the trial. `observer` may be null. Errors: InvalidArgument (bad
