@@ -52,43 +52,90 @@ void TransitionLogDensities(const StepRecord& step, RowMatrix* log_density) {
   }
 }
 
-void BiwLogWeights(const StepRecord& step, RowMatrix* log_weights) {
+void BiwLogWeights(const StepRecord& step, RowMatrix* log_weights, RowMatrix* weights) {
   TransitionLogDensities(step, log_weights);
   const Eigen::Index p = log_weights->rows();
   RowMatrix& lw = *log_weights;
+  // Row-major sweeps with per-column accumulators (cache friendly): column
+  // maxima, then exponentials and their column sums, then normalisation.
+  Eigen::RowVectorXd m = Eigen::RowVectorXd::Constant(p, kNegInf);
+  for (Eigen::Index i = 0; i < p; ++i)
+    for (Eigen::Index j = 0; j < p; ++j)
+      if (lw(i, j) > m(j)) m(j) = lw(i, j);
+  RowMatrix local;
+  RowMatrix& e = weights != nullptr ? *weights : local;
+  e.resize(p, p);
+  Eigen::RowVectorXd sum = Eigen::RowVectorXd::Zero(p);
+  for (Eigen::Index i = 0; i < p; ++i)
+    for (Eigen::Index j = 0; j < p; ++j) {
+      // A column without a finite maximum (all -Inf or NaN) is left as it is.
+      const double v = std::isfinite(m(j)) ? std::exp(lw(i, j) - m(j)) : std::nan("");
+      e(i, j) = v;
+      sum(j) += v;
+    }
+  Eigen::RowVectorXd lse(p), inv(p);
   for (Eigen::Index j = 0; j < p; ++j) {
-    double m = kNegInf;
-    for (Eigen::Index i = 0; i < p; ++i)
-      if (lw(i, j) > m) m = lw(i, j);
-    if (!std::isfinite(m)) continue;  // all -Inf or NaN: leave the column as it is
-    double sum = 0;
-    for (Eigen::Index i = 0; i < p; ++i) sum += std::exp(lw(i, j) - m);
-    const double lse = m + std::log(sum);
-    for (Eigen::Index i = 0; i < p; ++i) lw(i, j) -= lse;
+    lse(j) = std::isfinite(m(j)) ? m(j) + std::log(sum(j)) : 0.0;
+    inv(j) = 1.0 / sum(j);
   }
+  for (Eigen::Index i = 0; i < p; ++i)
+    for (Eigen::Index j = 0; j < p; ++j) {
+      if (std::isfinite(m(j))) {
+        lw(i, j) -= lse(j);
+        e(i, j) *= inv(j);
+      } else {
+        e(i, j) = std::exp(lw(i, j));
+      }
+    }
 }
+
+namespace {
+
+// Row i of the BIW baseline from log weights (exact for any underflow).
+double BiwBaselineRowFromLogs(const RowMatrix& log_weights, const Vector& cost_to_go,
+                              Eigen::Index i, double fallback) {
+  const Eigen::Index p = cost_to_go.size();
+  double m = kNegInf;
+  for (Eigen::Index j = 0; j < p; ++j)
+    if (j != i && log_weights(i, j) > m) m = log_weights(i, j);
+  if (!std::isfinite(m)) return fallback;
+  double num = 0, den = 0;
+  for (Eigen::Index j = 0; j < p; ++j) {
+    if (j == i) continue;
+    const double w = std::exp(log_weights(i, j) - m);  // <= 1, the largest is 1
+    num += w * cost_to_go(j);
+    den += w;
+  }
+  return num / den;
+}
+
+}  // namespace
 
 void BiwBaseline(const RowMatrix& log_weights, const Vector& cost_to_go, Vector* baseline) {
   const Eigen::Index p = cost_to_go.size();
   TG_CHECK(log_weights.rows() == p && log_weights.cols() == p);
   const Vector loo = LeaveOneOutBaseline(cost_to_go);
   baseline->resize(p);
+  for (Eigen::Index i = 0; i < p; ++i)
+    (*baseline)(i) = BiwBaselineRowFromLogs(log_weights, cost_to_go, i, loo(i));
+}
+
+void BiwBaseline(const RowMatrix& log_weights, const RowMatrix& weights, const Vector& cost_to_go,
+                 Vector* baseline) {
+  const Eigen::Index p = cost_to_go.size();
+  TG_CHECK(log_weights.rows() == p && log_weights.cols() == p);
+  TG_CHECK(weights.rows() == p && weights.cols() == p);
+  const Vector loo = LeaveOneOutBaseline(cost_to_go);
+  baseline->resize(p);
   for (Eigen::Index i = 0; i < p; ++i) {
-    double m = kNegInf;
-    for (Eigen::Index j = 0; j < p; ++j)
-      if (j != i && log_weights(i, j) > m) m = log_weights(i, j);
-    if (!std::isfinite(m)) {
-      (*baseline)(i) = loo(i);
-      continue;
-    }
     double num = 0, den = 0;
     for (Eigen::Index j = 0; j < p; ++j) {
       if (j == i) continue;
-      const double w = std::exp(log_weights(i, j) - m);  // <= 1, the largest is 1
-      num += w * cost_to_go(j);
-      den += w;
+      num += weights(i, j) * cost_to_go(j);
+      den += weights(i, j);
     }
-    (*baseline)(i) = num / den;
+    (*baseline)(i) = den > 1e-250 ? num / den
+                                  : BiwBaselineRowFromLogs(log_weights, cost_to_go, i, loo(i));
   }
 }
 

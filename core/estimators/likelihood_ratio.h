@@ -40,8 +40,10 @@ void TransitionLogDensities(const StepRecord& step, RowMatrix* log_density);
 
 // log c_ij = log_density(i, j) - logsumexp_k log_density(k, j) (P x P).
 // exp(log c) has columns summing to 1. A column whose densities are all -Inf
-// (non-finite particles) is left -Inf; callers see non-finite results.
-void BiwLogWeights(const StepRecord& step, RowMatrix* log_weights);
+// (non-finite particles) is left -Inf; callers see non-finite results. When
+// `weights` is non-null it receives c itself (P x P), taken from the
+// log-sum-exp's own exponentials (no second P x P exp).
+void BiwLogWeights(const StepRecord& step, RowMatrix* log_weights, RowMatrix* weights = nullptr);
 
 // The BIW baseline from log weights (P x P) and costs to go (P): b_i =
 // sum_{j != i} c_ij G_j / sum_{j != i} c_ij, evaluated with row i's largest
@@ -49,6 +51,10 @@ void BiwLogWeights(const StepRecord& step, RowMatrix* log_weights);
 // c_ij underflows. Where no j != i has a finite log weight (P = 1 included)
 // the leave-one-out mean is used.
 void BiwBaseline(const RowMatrix& log_weights, const Vector& cost_to_go, Vector* baseline);
+// The same, reading the linear weights c for rows whose off-diagonal mass is
+// comfortably representable (> 1e-250) and the log weights for the others.
+void BiwBaseline(const RowMatrix& log_weights, const RowMatrix& weights, const Vector& cost_to_go,
+                 Vector* baseline);
 
 // The per-pair variant (pipps-spec.md 5.3 [REC]): b_ij = sum_{k != j} c_ik G_k
 // / sum_{k != j} c_ik, which leaves out the sample j the term is evaluated at

@@ -126,14 +126,13 @@ absl::Status BackwardPass(const Problem& problem, const Rollout& rollout,
     // 3. Jump branch.
     if (config.jump == JumpKind::kLikelihoodRatio) {
       if (config.lr_weights == LrWeights::kBatchImportance) {
-        BiwLogWeights(step, &log_weights);
-        weights = log_weights.array().exp().matrix();
+        BiwLogWeights(step, &log_weights, &weights);
         if (config.lr_baseline == LrBaseline::kBatchImportancePair) {
           BiwPairBaseline(log_weights, cost_to_go, &pair_baseline);
           WeightedLrCotangent(step, weights, cost_to_go, pair_baseline, scale, &zeta_jump);
         } else {
           switch (config.lr_baseline) {
-            case LrBaseline::kBatchImportance: BiwBaseline(log_weights, cost_to_go, &baseline); break;
+            case LrBaseline::kBatchImportance: BiwBaseline(log_weights, weights, cost_to_go, &baseline); break;
             case LrBaseline::kLeaveOneOut: baseline = LeaveOneOutBaseline(cost_to_go); break;
             default: baseline.setZero(p); break;
           }

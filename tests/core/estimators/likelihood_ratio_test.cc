@@ -57,18 +57,24 @@ TEST(BiwWeights, EveryColumnSumsToOne) {
       // squeeze < 1: shrink the variances so that cross densities underflow in
       // linear space (log densities ~ -1e6), as for well-separated particles.
       step.variance *= squeeze;
-      RowMatrix lw;
-      BiwLogWeights(step, &lw);
+      RowMatrix lw, linear;
+      BiwLogWeights(step, &lw, &linear);
       ASSERT_TRUE(lw.array().isFinite().any());
       const RowMatrix w = lw.array().exp().matrix();
       ASSERT_TRUE(w.allFinite());
       const Eigen::RowVectorXd sums = w.colwise().sum();
       EXPECT_LT((sums.array() - 1.0).abs().maxCoeff(), 1e-12) << "squeeze " << squeeze;
+      // The linear weights the estimator uses are the same numbers.
+      EXPECT_LT((linear - w).cwiseAbs().maxCoeff(), 1e-14) << "squeeze " << squeeze;
+      EXPECT_LT((linear.colwise().sum().array() - 1.0).abs().maxCoeff(), 1e-12);
       // Baselines stay finite where every cross weight underflows.
       Vector g(30), b;
       for (int i = 0; i < 30; ++i) g(i) = 0.1 * i;
       BiwBaseline(lw, g, &b);
       EXPECT_TRUE(b.allFinite());
+      Vector b_fast;
+      BiwBaseline(lw, linear, g, &b_fast);
+      EXPECT_LT((b_fast - b).cwiseAbs().maxCoeff(), 1e-12);
       RowMatrix pb;
       BiwPairBaseline(lw, g, &pb);
       EXPECT_TRUE(pb.allFinite());
@@ -85,8 +91,9 @@ TEST(BiwBaseline, MatchesTheDefinition) {
   Vector g(p);
   rng.FillNormal(&g);
   const RowMatrix c = lw.array().exp().matrix();
-  Vector b;
+  Vector b, b_fast;
   BiwBaseline(lw, g, &b);
+  BiwBaseline(lw, c, g, &b_fast);
   RowMatrix pb;
   BiwPairBaseline(lw, g, &pb);
   for (int i = 0; i < p; ++i) {
@@ -94,6 +101,7 @@ TEST(BiwBaseline, MatchesTheDefinition) {
     for (int j = 0; j < p; ++j)
       if (j != i) num += c(i, j) * g(j), den += c(i, j);
     EXPECT_NEAR(b(i), num / den, 1e-12);
+    EXPECT_NEAR(b_fast(i), num / den, 1e-12);
     for (int j = 0; j < p; ++j) {
       double n2 = 0, d2 = 0;
       for (int k = 0; k < p; ++k)
