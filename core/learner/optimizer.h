@@ -25,7 +25,7 @@ struct OptimizerOptions {
   double momentum = 0.9;
   double decay = 0.9;  // rho
   double epsilon = 1e-8;
-  Normalisation normalisation = Normalisation::kParticleStd;
+  Normalisation normalisation = Normalisation::kMeanStd;  // chosen by measurement: docs/optimizer.md
 };
 
 class RmspropLike {

@@ -12,6 +12,7 @@ TEST(RmspropLike, FirstStepIsNormalisedByParticleStd) {
   o.learning_rate = 0.1;
   o.momentum = 0.9;
   o.epsilon = 0;
+  o.normalisation = Normalisation::kParticleStd;
   RmspropLike opt(o, 2);
   Vector theta = Vector::Zero(2), g(2), var(2);
   g << 2.0, -3.0;
@@ -36,6 +37,10 @@ TEST(RmspropLike, MeanStdNormalisationIsSqrtPLarger) {
   EXPECT_NEAR(theta(0), -1.0 / (2.0 / 10.0), 1e-12);
 }
 
+TEST(RmspropLike, DefaultIsMeanStd) {
+  EXPECT_EQ(OptimizerOptions().normalisation, Normalisation::kMeanStd);
+}
+
 TEST(RmspropLike, NoisyGradientsGiveSmallerSteps) {
   OptimizerOptions o;
   o.epsilon = 0;
@@ -48,6 +53,7 @@ TEST(RmspropLike, NoisyGradientsGiveSmallerSteps) {
 
 TEST(RmspropLike, ResetForgetsState) {
   OptimizerOptions o;
+  o.normalisation = Normalisation::kParticleStd;
   RmspropLike opt(o, 1);
   Vector t1 = Vector::Zero(1), t2 = Vector::Zero(1), g = Vector::Constant(1, 1.0), v = g;
   opt.Step(g, v, 10, &t1);
