@@ -1,0 +1,67 @@
+// A frozen gradient problem for studies (study.h): a GP dynamics model, an
+// RBF policy at fixed parameters, the start distribution and the cost, owned
+// together with the estimators::Problem that points into them.
+//
+// Two sources:
+//  * a trial snapshot (learner::TrialSnapshot, saved at a chosen episode by
+//    `totalgrad trial --snapshot-episodes`): the GP is rebuilt from the
+//    snapshot's data and hyperparameters exactly as the trial's particle
+//    methods build it, so the model is the trial's model of that episode;
+//  * a synthetic problem (estimators::MakeSyntheticProblem).
+//
+// The particle estimators see the raw state (GP inputs [x, u]); a snapshot
+// whose model was built on (sin, cos) angle features (PILCO's default) is
+// refused. PILCO's moment matching runs on the same model and policy with
+// angle_index -1 (study.h).
+//
+// Thread safety: a FrozenProblem is immutable once built; share it read-only.
+#ifndef TOTALGRAD_CORE_STUDY_FROZEN_PROBLEM_H_
+#define TOTALGRAD_CORE_STUDY_FROZEN_PROBLEM_H_
+
+#include <memory>
+#include <string>
+
+#include "absl/status/statusor.h"
+#include "core/estimators/rollout.h"
+#include "core/estimators/synthetic_problem.h"
+#include "core/gp/gp.h"
+#include "core/learner/trial.h"
+#include "core/policy/rbf_policy.h"
+#include "core/tasks/scene.h"
+
+namespace totalgrad::study {
+
+struct FrozenProblem {
+  std::unique_ptr<gp::GpModel> model;
+  std::unique_ptr<policy::RbfPolicy> policy;
+  std::unique_ptr<tasks::Scene> scene;
+  // Points into the members above. horizon is the scene's; a study
+  // overrides it per cell.
+  estimators::Problem problem;
+  // Human-readable provenance, e.g. "trial snapshot, episode 3 (policy
+  // before optimisation), N = 90".
+  std::string source;
+
+  FrozenProblem() = default;
+  FrozenProblem(const FrozenProblem&) = delete;
+  FrozenProblem& operator=(const FrozenProblem&) = delete;
+};
+
+// Which policy of a snapshot the gradient is taken at: the one entering the
+// episode's optimisation (its gradient is what the optimiser used first) or
+// the optimised one.
+enum class SnapshotPolicy { kBefore, kAfter };
+
+// Errors: InvalidArgument naming the problem (an unknown option key in the
+// snapshot, sin/cos angle features, data or parameter shapes that do not
+// match the options); the GP's FailedPrecondition if K cannot be factorised.
+absl::StatusOr<std::unique_ptr<FrozenProblem>> FrozenProblemFromSnapshot(
+    const learner::TrialSnapshot& snapshot, SnapshotPolicy which);
+
+// Errors: those of estimators::MakeSyntheticProblem.
+absl::StatusOr<std::unique_ptr<FrozenProblem>> FrozenProblemFromSynthetic(
+    const estimators::SyntheticProblemOptions& options);
+
+}  // namespace totalgrad::study
+
+#endif  // TOTALGRAD_CORE_STUDY_FROZEN_PROBLEM_H_
