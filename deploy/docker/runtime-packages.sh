@@ -14,12 +14,12 @@ if [ $# -eq 0 ]; then
 fi
 
 owner() {  # owner PATH: the package that installed PATH (tries the /usr-merged twin too)
-  local path="$1" candidate
+  local path="$1" candidate found
   for candidate in "$path" "$(readlink -f "$path")" "/usr$path" "${path#/usr}"; do
     [ -n "$candidate" ] || continue
-    if dpkg-query -S "$candidate" >/dev/null 2>&1; then
+    if found=$(dpkg-query -S "$candidate" 2>/dev/null); then
       # "pkg:arch: /path" or "pkg1, pkg2: /path"; the first package is enough.
-      dpkg-query -S "$candidate" 2>/dev/null | head -n1 | cut -d: -f1 | cut -d, -f1
+      echo "$found" | head -n1 | cut -d: -f1 | cut -d, -f1
       return 0
     fi
   done

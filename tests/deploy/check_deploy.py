@@ -197,6 +197,8 @@ def check_systemd(args):
             if not db.startswith("%S/"):
                 problem(f"{name}: --db {db} is not inside the state directory (%S/...)")
         if "worker" in name:
+            if "OPENBLAS_NUM_THREADS=1" not in unit_get(s, "Service", "Environment"):
+                problem(f"{name}: Environment=OPENBLAS_NUM_THREADS=1 missing (one BLAS thread per trial)")
             drain = duration_seconds(flag_value(words, "--drain-timeout") or "60")
             stop = duration_seconds(service.get("TimeoutStopSec", "90"))
             if drain is None or stop is None or stop <= drain + 15:
@@ -422,6 +424,9 @@ def check_k8s(args):
                 problem(f"{where}: --insecure off loopback")
             if not flag_value(words, "--ca-cert") or not flag_value(words, "--token-file"):
                 problem(f"{where}: workers need --ca-cert and --token-file")
+            env = {e.get("name"): e.get("value") for e in c.get("env", [])}
+            if env.get("OPENBLAS_NUM_THREADS") != "1":
+                problem(f"{where}: env OPENBLAS_NUM_THREADS=1 missing (one BLAS thread per trial)")
 
     images = {c.get("image") for _, d in docs if d.get("kind") in ("StatefulSet", "Deployment")
               for c in containers_of(d["spec"]["template"]["spec"])}
@@ -521,6 +526,11 @@ def check_compose(args):
         note(f"worker: stop grace {grace} s > drain timeout {drain} s + reports")
     if "--insecure" in words or not flag_value(words, "--ca-cert"):
         problem("worker: must use TLS (--ca-cert), never --insecure")
+    environment = worker.get("environment") or {}
+    if isinstance(environment, list):
+        environment = dict(str(e).split("=", 1) for e in environment)
+    if str(environment.get("OPENBLAS_NUM_THREADS")) != "1":
+        problem("worker: environment OPENBLAS_NUM_THREADS=1 missing (one BLAS thread per trial)")
     replicas = (worker.get("deploy") or {}).get("replicas")
     if not isinstance(replicas, int) or replicas < 1:
         problem("worker: deploy.replicas (N workers) is missing")
@@ -688,6 +698,8 @@ def check_sbatch(args):
             problem(f"#SBATCH {key} is missing")
     if not re.search(r"^srun\b", text, re.M):
         problem("the workers are not started with srun")
+    if not re.search(r"^export OPENBLAS_NUM_THREADS=1$", text, re.M):
+        problem("export OPENBLAS_NUM_THREADS=1 missing (one BLAS thread per trial)")
     if "trap drain TERM" not in text:
         problem("SIGTERM is not trapped and passed to the workers")
     # The worker flags the script passes.

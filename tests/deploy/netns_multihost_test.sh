@@ -150,8 +150,11 @@ horizon = 15
 EOF
 cli sweep submit "$work/netns.toml" >"$work/submit.out" || fail "sweep submit: $(cat "$work/submit.out")"
 
+# One BLAS thread per trial, as every deployment file sets it: `totalgrad
+# trial` (the reference below) runs single-threaded, and OpenBLAS's own
+# threads change the order of its sums.
 start_worker() {  # start_worker NAMESPACE ID SLOTS
-  ip netns exec "$1" "$worker_bin" --coordinator "$coordinator_ip:7070" \
+  ip netns exec "$1" env OPENBLAS_NUM_THREADS=1 "$worker_bin" --coordinator "$coordinator_ip:7070" \
     --ca-cert "$work/certs/ca.pem" --token-file "$work/certs/worker.token" \
     --slots "$3" --worker-id "$2" --acquire-wait 1 --drain-timeout 10 \
     >"$work/$2.log" 2>&1 &
