@@ -4,8 +4,8 @@
 # to it like srun does) and `squeue` (prints the time left), with the real
 # worker against a real coordinator (TLS and tokens, on 127.0.0.1).
 #
-#   A. Walltime: 8 s left, trials of at most 4 s. The worker takes tiny
-#      trials for 4 s, then drains and exits; the script exits 0 well before
+#   A. Walltime: 12 s left, trials of at most 6 s. The worker takes tiny
+#      trials for 6 s, then drains and exits; the script exits 0 well before
 #      the limit; every trial the worker took completed (none released or
 #      lost) and trials it could not have finished stay queued.
 #   B. No time limit known (squeue says UNLIMITED): SIGTERM to the batch
@@ -128,7 +128,7 @@ run_sbatch() {  # run_sbatch TIME_LEFT OUTPUT: the batch script in the backgroun
   env PATH="$work/bin:$PATH" FAKE_SLURM_DIR="$work" FAKE_TIME_LEFT="$1" \
     SLURM_JOB_ID=4242 SLURM_JOB_NUM_NODES=1 SLURM_CPUS_PER_TASK=1 \
     TOTALGRAD_WORKER_BIN="$worker_bin" TOTALGRAD_WORKER_TOKEN_FILE="$work/certs/worker.token" \
-    TOTALGRAD_TRIAL_TIME=4 \
+    TOTALGRAD_TRIAL_TIME=6 \
     bash "$sbatch_script" >"$2" 2>&1 &
   pids+=("$!")
 }
@@ -167,19 +167,19 @@ lost_before=0
 
 # ---- A: the walltime ----------------------------------------------------------------------
 started=$(date +%s%N)
-run_sbatch 0:08 "$work/walltime.out"
+run_sbatch 0:12 "$work/walltime.out"
 sbatch_pid=${pids[-1]}
 wait_for 30 "the batch script to end (walltime)" exited "$sbatch_pid"
 status=0
 wait "$sbatch_pid" || status=$?
 seconds=$(( ($(date +%s%N) - started) / 1000000 ))
 [ "$status" -eq 0 ] || fail "the batch script exited $status"
-log "A: batch script with 8 s left and 4 s trials exited 0 after ${seconds} ms"
+log "A: batch script with 12 s left and 6 s trials exited 0 after ${seconds} ms"
 grep -q "walltime: less than --trial-time left" "$work/walltime.out" || fail "the worker did not drain on its walltime"
-[ "$seconds" -ge 3500 ] || fail "the worker stopped before the walltime drain (${seconds} ms)"
-[ "$seconds" -lt 8000 ] || fail "the worker ran into the time limit (${seconds} ms)"
+[ "$seconds" -ge 5500 ] || fail "the worker stopped before the walltime drain (${seconds} ms)"
+[ "$seconds" -lt 12000 ] || fail "the worker ran into the time limit (${seconds} ms)"
 args=$(tr '\n' ' ' <"$work/srun.args")
-for expected in "--ntasks-per-node=1" "--cpus-per-task=1" "--walltime 8" "--trial-time 4" \
+for expected in "--ntasks-per-node=1" "--cpus-per-task=1" "--walltime 12" "--trial-time 6" \
                 "--slots 1" "--drain-timeout 240" "--max-idle 600" "--ca-cert $work/certs/ca.pem"; do
   [[ " $args " == *" $expected "* ]] || fail "srun was not given '$expected': $args"
 done
