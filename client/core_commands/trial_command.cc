@@ -5,12 +5,16 @@
 #include <iostream>
 #include <map>
 #include <memory>
+#include <set>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
 #include "absl/strings/str_replace.h"
 #include "client/core_commands/commands.h"
+#include "client/core_commands/snapshot_json.h"
 #include "client/core_commands/trial_format.h"
 #include "core/common/blas.h"
 #include "core/learner/trial.h"
@@ -20,7 +24,24 @@ namespace {
 
 class PrintingObserver final : public learner::TrialObserver {
  public:
-  explicit PrintingObserver(bool json) : json_(json) {}
+  // Snapshots of `snapshot_episodes` are written to `snapshot_file` (the
+  // whole file again after each one, so a cut-short trial keeps the earlier
+  // ones).
+  PrintingObserver(bool json, std::set<int> snapshot_episodes, std::string snapshot_file)
+      : json_(json), snapshot_episodes_(std::move(snapshot_episodes)),
+        snapshot_file_(std::move(snapshot_file)) {}
+  bool WantsSnapshot(int episode) override { return snapshot_episodes_.count(episode) > 0; }
+  void OnSnapshot(const learner::TrialSnapshot& snapshot) override {
+    snapshots_.push_back(snapshot);
+    const absl::Status st = WriteSnapshotFile(snapshot_file_, snapshots_);
+    if (!st.ok()) {
+      std::cerr << "totalgrad trial: snapshot of episode " << snapshot.episode << ": " << st.message()
+                << "\n";
+      snapshot_failed_ = true;
+    }
+  }
+  bool snapshot_failed() const { return snapshot_failed_; }
+  int snapshots_written() const { return static_cast<int>(snapshots_.size()); }
   void OnEpisode(const learner::EpisodeResult& result) override {
     if (json_) {
       std::cout << EpisodeToJson(result).dump() << std::endl;
@@ -40,12 +61,18 @@ class PrintingObserver final : public learner::TrialObserver {
  private:
   bool json_;
   bool header_printed_ = false;
+  std::set<int> snapshot_episodes_;
+  std::string snapshot_file_;
+  std::vector<learner::TrialSnapshot> snapshots_;
+  bool snapshot_failed_ = false;
 };
 
 struct TrialCommandState {
   std::map<std::string, std::string> values;
   std::vector<std::string> sets;
   bool json = false;
+  std::string snapshot_episodes;  // "1,5,10"
+  std::string snapshot_file = "snapshots.json";
 };
 
 }  // namespace
@@ -62,6 +89,11 @@ void AddTrialCommand(CLI::App* app, int* exit_code) {
     cmd->add_option(flag, state->values[key], "trial option '" + key + "' (default " + value + ")");
   }
   cmd->add_option("--set", state->sets, "KEY=VALUE for any trial option (repeatable)");
+  cmd->add_option("--snapshot-episodes", state->snapshot_episodes,
+                  "save the model data, hyperparameters and policy at these learned episodes "
+                  "(e.g. 1,5,10) for `totalgrad study`");
+  cmd->add_option("--snapshot-file", state->snapshot_file,
+                  "where --snapshot-episodes writes (default snapshots.json)");
   cmd->callback([state, exit_code]() {
     learner::TrialOptions options;
     for (const auto& [key, value] : state->values) {
@@ -90,13 +122,32 @@ void AddTrialCommand(CLI::App* app, int* exit_code) {
       *exit_code = 2;
       return;
     }
+    std::set<int> snapshot_episodes;
+    if (!state->snapshot_episodes.empty()) {
+      absl::StatusOr<std::vector<int>> episodes = ParseEpisodeList(state->snapshot_episodes);
+      if (!episodes.ok()) {
+        std::cerr << "totalgrad trial: --snapshot-episodes: " << episodes.status().message() << "\n";
+        *exit_code = 2;
+        return;
+      }
+      snapshot_episodes.insert(episodes->begin(), episodes->end());
+    }
     SetBlasThreads(1);  // a trial is single-threaded by contract (determinism)
-    PrintingObserver observer(state->json);
+    PrintingObserver observer(state->json, snapshot_episodes, state->snapshot_file);
     absl::StatusOr<learner::TrialSummary> summary = learner::RunTrial(options, &observer);
     if (!summary.ok()) {
       std::cerr << "totalgrad trial: failed: " << summary.status().ToString() << "\n";
       *exit_code = 1;
       return;
+    }
+    if (observer.snapshot_failed()) {
+      *exit_code = 1;
+      return;
+    }
+    if (!snapshot_episodes.empty() && observer.snapshots_written() < static_cast<int>(snapshot_episodes.size())) {
+      std::cerr << "totalgrad trial: note: " << observer.snapshots_written() << " of "
+                << snapshot_episodes.size() << " requested snapshots taken (episodes beyond "
+                << options.episodes << " do not exist)\n";
     }
     if (state->json) {
       nlohmann::json done = {{"done", true},

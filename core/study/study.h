@@ -86,7 +86,9 @@ struct ReferenceOptions {
   int particles = 1000;
   int replicates = 40;             // per estimator, >= 2
   double agreement_max_z = 4.5;    // |z| bound per coordinate for "agree"
-  double agreement_mean_z2 = 2.0;  // and the bound on the mean z^2
+  // and the bound on the mean z^2 (1 for agreeing estimators with exact SEs;
+  // heavy-tailed gradients and R ~ 20 make the estimated SEs small by chance)
+  double agreement_mean_z2 = 3.0;
   double budget_seconds = 120.0;   // per estimator and horizon; >= 2 replicates always
 };
 
