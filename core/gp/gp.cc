@@ -8,6 +8,7 @@
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
 #include "core/common/check.h"
+#include "core/common/finite.h"
 #include "core/gp/se_kernel.h"
 
 namespace totalgrad::gp {
@@ -38,19 +39,6 @@ PredictWorkspace& ThreadWorkspace() {
   return workspace;
 }
 
-// Returns InvalidArgument naming the first non-finite entry of `m`, or OK.
-template <typename Derived>
-absl::Status CheckFinite(const Eigen::MatrixBase<Derived>& m, const std::string& name) {
-  for (Eigen::Index r = 0; r < m.rows(); ++r) {
-    for (Eigen::Index c = 0; c < m.cols(); ++c) {
-      if (!std::isfinite(m(r, c))) {
-        return absl::InvalidArgumentError(
-            absl::StrCat(name, "(", r, ", ", c, ") is not finite: ", m(r, c)));
-      }
-    }
-  }
-  return absl::OkStatus();
-}
 
 absl::Status ValidateCreateArguments(const RowMatrix& inputs, const RowMatrix& targets,
                                      const GpHyperparameters& hyp) {
@@ -83,19 +71,7 @@ absl::Status ValidateCreateArguments(const RowMatrix& inputs, const RowMatrix& t
   }
   if (absl::Status s = CheckFinite(inputs, "inputs"); !s.ok()) return s;
   if (absl::Status s = CheckFinite(targets, "targets"); !s.ok()) return s;
-  if (absl::Status s = CheckFinite(hyp.log_lengthscales, "hyperparameters.log_lengthscales");
-      !s.ok()) {
-    return s;
-  }
-  if (absl::Status s = CheckFinite(hyp.log_signal_std, "hyperparameters.log_signal_std");
-      !s.ok()) {
-    return s;
-  }
-  if (absl::Status s = CheckFinite(hyp.log_noise_std, "hyperparameters.log_noise_std");
-      !s.ok()) {
-    return s;
-  }
-  return absl::OkStatus();
+  return hyp.ValidateFinite();
 }
 
 }  // namespace
@@ -107,6 +83,14 @@ Vector GpHyperparameters::Packed(int a) const {
   packed(e) = log_signal_std(a);
   packed(e + 1) = log_noise_std(a);
   return packed;
+}
+
+absl::Status GpHyperparameters::ValidateFinite() const {
+  if (absl::Status s = CheckFinite(log_lengthscales, "hyperparameters.log_lengthscales"); !s.ok())
+    return s;
+  if (absl::Status s = CheckFinite(log_signal_std, "hyperparameters.log_signal_std"); !s.ok())
+    return s;
+  return CheckFinite(log_noise_std, "hyperparameters.log_noise_std");
 }
 
 void GpHyperparameters::SetPacked(int a, const Vector& packed) {

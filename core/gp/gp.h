@@ -34,6 +34,8 @@ struct GpHyperparameters {
   // Packs output a as [log l_{a,1..E}, log sf_a, log sn_a] (E + 2 entries).
   Vector Packed(int a) const;
   void SetPacked(int a, const Vector& packed);
+  // OK, or InvalidArgument naming the first non-finite entry.
+  absl::Status ValidateFinite() const;
 };
 
 struct PredictOptions {

@@ -9,6 +9,7 @@
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
 #include "core/common/check.h"
+#include "core/common/finite.h"
 #include "core/gp/lbfgs_minimize.h"
 #include "core/gp/se_kernel.h"
 
@@ -36,18 +37,6 @@ Vector NonZeroStd(const Vector& std_dev) {
   return std_dev.unaryExpr([](double s) { return s > 0 && std::isfinite(s) ? s : 1.0; });
 }
 
-template <typename Derived>
-absl::Status CheckFinite(const Eigen::MatrixBase<Derived>& m, const std::string& name) {
-  for (Eigen::Index r = 0; r < m.rows(); ++r) {
-    for (Eigen::Index c = 0; c < m.cols(); ++c) {
-      if (!std::isfinite(m(r, c))) {
-        return absl::InvalidArgumentError(
-            absl::StrCat(name, "(", r, ", ", c, ") is not finite: ", m(r, c)));
-      }
-    }
-  }
-  return absl::OkStatus();
-}
 
 absl::Status ValidateTrainingArguments(const RowMatrix& inputs, const RowMatrix& targets,
                                        const TrainingOptions& options,
@@ -92,19 +81,7 @@ absl::Status ValidateTrainingArguments(const RowMatrix& inputs, const RowMatrix&
   }
   if (absl::Status s = CheckFinite(inputs, "inputs"); !s.ok()) return s;
   if (absl::Status s = CheckFinite(targets, "targets"); !s.ok()) return s;
-  if (absl::Status s = CheckFinite(hyp.log_lengthscales, "hyperparameters.log_lengthscales");
-      !s.ok()) {
-    return s;
-  }
-  if (absl::Status s = CheckFinite(hyp.log_signal_std, "hyperparameters.log_signal_std");
-      !s.ok()) {
-    return s;
-  }
-  if (absl::Status s = CheckFinite(hyp.log_noise_std, "hyperparameters.log_noise_std");
-      !s.ok()) {
-    return s;
-  }
-  return absl::OkStatus();
+  return hyp.ValidateFinite();
 }
 
 }  // namespace

@@ -11,6 +11,7 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
+#include "core/common/blas.h"
 #include "core/estimators/estimator.h"
 #include "core/estimators/rollout.h"
 #include "core/pilco/angle_features.h"
@@ -491,6 +492,9 @@ class PilcoLearner final : public PolicyLearner {
 absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver* observer) {
   absl::Status status = options.Validate();
   if (!status.ok()) return status;
+  // Results must not depend on how many threads the BLAS would use on this
+  // machine (a multi-threaded gemm sums in another order): one thread.
+  SetBlasThreads(1);
   absl::StatusOr<tasks::Scene> scene_or = tasks::MakeScene(options.scene);
   if (!scene_or.ok()) return scene_or.status();
   const tasks::Scene& scene = *scene_or;

@@ -138,8 +138,9 @@ class TrialObserver {
   virtual void OnSnapshot(const TrialSnapshot& snapshot) {}
 };
 
-// Runs the trial. `observer` may be null. Errors: InvalidArgument (bad
-// options), Cancelled, Internal (a numerical failure, named, e.g. the plant
+// Runs the trial. `observer` may be null. Sets the process's BLAS to one
+// thread (core/common/blas.h), so the numbers never depend on the core
+// count. Errors: InvalidArgument (bad options), Cancelled, Internal (a numerical failure, named, e.g. the plant
 // integrator failing or a non-finite cost), FailedPrecondition (GP could not
 // be factorised).
 absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver* observer);
