@@ -121,7 +121,16 @@ absl::StatusOr<std::unique_ptr<Coordinator>> Coordinator::Start(const Coordinato
     return absl::UnavailableError(absl::StrCat("cannot listen on ", options.listen,
                                                " (address in use, or not an address?)"));
   }
+  if (!options.health_listen.empty()) {
+    absl::StatusOr<std::unique_ptr<HealthServer>> health =
+        HealthServer::Start(options.health_listen, [raw = c.get()] { return raw->CheckHealth(); });
+    if (!health.ok()) return health.status();
+    c->health_server_ = *std::move(health);
+    spdlog::info("health endpoint: http://{}/healthz (port {})", options.health_listen,
+                 c->health_server_->port());
+  }
   c->control_service_->SetServing(true);
+  c->serving_ = true;
   c->expiry_thread_ = std::thread([raw = c.get()] { raw->ExpiryLoop(); });
   spdlog::info("coordinator {} serving on port {} ({}, tokens {})", BuildId(), c->port_,
                options.insecure ? "plaintext" : "TLS",
@@ -156,6 +165,7 @@ void Coordinator::Shutdown() {
     stopping_ = true;
   }
   stop_signal_.notify_all();
+  serving_ = false;
   if (control_service_) control_service_->SetServing(false);
   if (scheduler_) scheduler_->Shutdown();
   // In-flight calls get 2 s; then they are cancelled, which is safe because
@@ -163,12 +173,22 @@ void Coordinator::Shutdown() {
   if (server_) server_->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
   if (expiry_thread_.joinable()) expiry_thread_.join();
   if (server_) server_->Wait();
+  // Before the store goes: the health check reads it.
+  if (health_server_) health_server_->Stop();
   store_.reset();  // checkpoints the WAL
   spdlog::info("coordinator stopped");
   // Last: once Wait() returns, the owner may destroy this object.
   std::lock_guard<std::mutex> lock(mutex_);
   stopped_ = true;
   stop_signal_.notify_all();
+}
+
+absl::Status Coordinator::CheckHealth() {
+  if (!serving_) return absl::UnavailableError("not serving (starting or shutting down)");
+  if (scheduler_->shut_down()) return absl::UnavailableError("scheduler shut down");
+  absl::Status store = store_->Ping();
+  if (!store.ok()) return absl::UnavailableError(absl::StrCat("database: ", store.message()));
+  return absl::OkStatus();
 }
 
 void Coordinator::Wait() {

@@ -14,6 +14,7 @@
 
 #include <grpcpp/server.h>
 
+#include <atomic>
 #include <condition_variable>
 #include <memory>
 #include <mutex>
@@ -25,6 +26,7 @@
 #include "server/scheduler/scheduler.h"
 #include "server/service/auth.h"
 #include "server/service/control_service.h"
+#include "server/service/health_server.h"
 #include "server/service/worker_service.h"
 #include "server/storage/sqlite_store.h"
 
@@ -48,6 +50,9 @@ struct CoordinatorOptions {
   std::string backup_dir;
   // Largest request or response message, bytes.
   int max_message_bytes = 4 << 20;
+  // host:port of the plain HTTP liveness endpoint (GET /healthz, see
+  // health_server.h); empty: none. Port 0 picks a free port.
+  std::string health_listen;
 
   // InvalidArgument naming the flag at fault.
   absl::Status Validate() const;
@@ -66,6 +71,12 @@ class Coordinator {
 
   // The bound port.
   int port() const { return port_; }
+  // The bound health port (0 without health_listen).
+  int health_port() const { return health_server_ ? health_server_->port() : 0; }
+  // What GET /healthz reports: OK while serving and the store answers a
+  // trivial query, else Unavailable with the reason. Thread-safe until Shutdown
+  // has stopped the health server.
+  absl::Status CheckHealth();
   // Stops taking leases, wakes long polls, stops the server (in-flight calls
   // get up to 2 s), stops the lease timer and closes the store. Idempotent.
   void Shutdown();
@@ -87,6 +98,8 @@ class Coordinator {
   std::unique_ptr<ControlServiceImpl> control_service_;
   std::unique_ptr<grpc::Server> server_;
   int port_ = 0;
+  std::unique_ptr<HealthServer> health_server_;
+  std::atomic<bool> serving_{false};
 
   std::mutex mutex_;
   std::condition_variable stop_signal_;

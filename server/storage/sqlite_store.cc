@@ -476,6 +476,15 @@ absl::StatusOr<std::string> SqliteStore::DescribeSettings() {
   return description;
 }
 
+absl::Status SqliteStore::Ping() {
+  std::lock_guard<std::mutex> lock(read_mutex_);
+  ASSIGN_OR_RETURN(Statement query,
+                   Statement::Prepare(reader_, "SELECT COUNT(*) FROM sqlite_master"));
+  ASSIGN_OR_RETURN(bool row, query.Step());
+  if (!row) return absl::InternalError("SELECT COUNT(*) FROM sqlite_master returned no row");
+  return absl::OkStatus();
+}
+
 absl::Status SqliteStore::InWriteTransaction(const std::function<absl::Status(Db&)>& body) {
   std::lock_guard<std::mutex> lock(write_mutex_);
   // IMMEDIATE takes the write lock up front: a deferred transaction that reads

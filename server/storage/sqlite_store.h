@@ -42,6 +42,9 @@ class SqliteStore final : public Store {
   // "journal_mode=wal synchronous=2 foreign_keys=1 busy_timeout=5000" (logged
   // on start; tests check them).
   absl::StatusOr<std::string> DescribeSettings();
+  // A trivial read (the schema table) on the reader connection: OK if the
+  // database answers. For the coordinator's health endpoint.
+  absl::Status Ping();
 
   absl::StatusOr<SweepRecord> CreateSweep(const NewSweep& sweep, int64_t now_ms,
                                           bool* created) override;

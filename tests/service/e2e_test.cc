@@ -1,8 +1,12 @@
 // End to end: the real coordinator and worker binaries over gRPC on loopback
 // with a real SQLite file, running real (tiny) trials. Stored rows are
 // compared bit for bit with in-process runs of the same trials.
+#include <arpa/inet.h>
+#include <netinet/in.h>
 #include <signal.h>
+#include <sys/socket.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <set>
 
@@ -16,6 +20,77 @@ namespace {
 using std::chrono::seconds;
 
 class EndToEndTest : public ServiceFixture {};
+
+// A loopback port that was free a moment ago (bound to 0, then released).
+int FreeLoopbackPort() {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  socklen_t length = sizeof(address);
+  int port = 0;
+  if (::bind(fd, reinterpret_cast<sockaddr*>(&address), sizeof(address)) == 0 &&
+      ::getsockname(fd, reinterpret_cast<sockaddr*>(&address), &length) == 0) {
+    port = ntohs(address.sin_port);
+  }
+  ::close(fd);
+  return port;
+}
+
+// Sends `request` to 127.0.0.1:port and returns everything the server sends
+// back until it closes ("" if it cannot connect).
+std::string HttpExchange(int port, const std::string& request) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  timeval timeout{5, 0};
+  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof(timeout));
+  ::setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &timeout, sizeof(timeout));
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  address.sin_port = htons(static_cast<uint16_t>(port));
+  std::string response;
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof(address)) == 0 &&
+      ::send(fd, request.data(), request.size(), MSG_NOSIGNAL) ==
+          static_cast<ssize_t>(request.size())) {
+    char buffer[1024];
+    ssize_t got;
+    while ((got = ::recv(fd, buffer, sizeof(buffer), 0)) > 0) response.append(buffer, got);
+  }
+  ::close(fd);
+  return response;
+}
+
+std::string HttpGet(int port, const std::string& path) {
+  return HttpExchange(port, absl::StrCat("GET ", path, " HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"));
+}
+
+// The plain health port: GET /healthz is 200 "ok", everything else 404, a
+// junk request gets 400 and the endpoint carries on; gRPC is unaffected.
+TEST_F(EndToEndTest, HealthPortAnswersPlainHttp) {
+  const int health_port = FreeLoopbackPort();
+  ASSERT_GT(health_port, 0);
+  StartCoordinator(0, {"--health-listen", absl::StrCat("127.0.0.1:", health_port)});
+  const std::string ok = HttpGet(health_port, "/healthz");
+  EXPECT_EQ(ok.rfind("HTTP/1.1 200 OK\r\n", 0), 0u) << ok;
+  EXPECT_NE(ok.find("\r\n\r\nok\n"), std::string::npos) << ok;
+  EXPECT_EQ(ok.substr(ok.size() - 3), "ok\n") << ok;
+  const std::string other = HttpGet(health_port, "/other");
+  EXPECT_EQ(other.rfind("HTTP/1.1 404 ", 0), 0u) << other;
+  const std::string post =
+      HttpExchange(health_port, "POST /healthz HTTP/1.1\r\nContent-Length: 0\r\n\r\n");
+  EXPECT_EQ(post.rfind("HTTP/1.1 404 ", 0), 0u) << post;
+  const std::string junk = HttpExchange(health_port, std::string(8000, 'x'));
+  EXPECT_EQ(junk.rfind("HTTP/1.1 400 ", 0), 0u) << junk;
+  EXPECT_EQ(HttpGet(health_port, "/healthz").rfind("HTTP/1.1 200 OK\r\n", 0), 0u);
+  // gRPC still serves alongside.
+  v1::HealthResponse health;
+  ASSERT_TRUE(control_->Health(Context(kUserToken).get(), {}, &health).ok());
+  EXPECT_TRUE(health.serving());
+  // SIGTERM stops both cleanly.
+  coordinator_->Signal(SIGTERM);
+  EXPECT_EQ(coordinator_->Wait(seconds(20)), 0) << coordinator_->Log();
+  EXPECT_EQ(HttpGet(health_port, "/healthz"), "");
+}
 
 TEST_F(EndToEndTest, TwoWorkersStoreExactlyTheExpectedRows) {
   StartCoordinator();
