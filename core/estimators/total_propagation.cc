@@ -102,8 +102,14 @@ absl::Status BackwardPass(const Problem& problem, const Rollout& rollout,
     } else {
       FitGaussian(step.next_state, kShapingJitter, &fit);
       if (exact_cost) {
-        absl::Status st = ExactExpectedCostGradient(*exact_cost, fit, &expected);
-        if (!st.ok()) return st;
+        // Fails only on a non-finite fit (non-finite particles): that is a
+        // non-finite estimate for the caller to skip, not an error.
+        if (!ExactExpectedCostGradient(*exact_cost, fit, &expected).ok()) {
+          const double nan = std::nan("");
+          expected.value = nan;
+          expected.dmean = Vector::Constant(s_dim, nan);
+          expected.dcov = Matrix::Constant(s_dim, s_dim, nan);
+        }
       } else {
         SampledExpectedCostGradient(*problem.cost, fit, static_cast<int>(p), rng, &expected);
       }

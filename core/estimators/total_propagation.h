@@ -71,8 +71,8 @@ struct BackwardResult {
 // x S normals per node from *rng (nodes in reverse order). Errors:
 // InvalidArgument for a configuration with no branch, a resampler with a jump
 // branch, a rollout without Jacobians or of another problem, or exact shaping
-// of a cost without a closed form; the errors of the exact expected cost.
-// Non-finite values are not errors: they reach the result.
+// of a cost without a closed form. Non-finite values (particles, fits,
+// derivatives) are not errors: they reach the result.
 absl::Status BackwardPass(const Problem& problem, const Rollout& rollout,
                           const BackwardConfig& config, Rng* rng, BackwardResult* result);
 

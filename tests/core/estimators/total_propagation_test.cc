@@ -11,6 +11,7 @@
 #include "core/estimators/gaussian_resampling.h"
 #include "core/estimators/rp.h"
 #include "core/estimators/synthetic_problem.h"
+#include "tests/core/estimators/linear_gaussian.h"
 
 namespace totalgrad::estimators {
 namespace {
@@ -207,6 +208,42 @@ TEST(BackwardPass, ConfigurationErrors) {
   EstimatorOptions bad;
   bad.sn_noise_multiplier = -1;
   EXPECT_FALSE(MakeEstimator("GTP+sn", bad).ok());
+}
+
+// A rollout that overflows (an explosive linear system) is a non-finite
+// estimate for the caller to skip, never an error or a crash, for every method
+// and option (exact shaping derivatives of a non-finite fit included).
+TEST(AllMethods, OverflowingRolloutIsANonFiniteEstimateNotAnError) {
+  const Matrix a = 1e80 * Matrix::Identity(4, 4);
+  testing::LinearDynamics dynamics(a, Vector::Constant(4, 1.0), Vector::Zero(4), Vector::Constant(4, 0.01));
+  testing::LinearPolicy policy(Vector::Constant(5, 0.1));
+  tasks::State target, q;
+  target << 0, M_PI, 0, 0;
+  q << 1, 1, 0, 0;
+  tasks::AngleCost cost(target, q);
+  Problem problem;
+  problem.dynamics = &dynamics;
+  problem.controller = &policy;
+  problem.cost = &cost;
+  problem.mu0 = Vector::Constant(4, 0.1);
+  problem.initial_std = Vector::Constant(4, 0.1);
+  problem.horizon = 8;
+  for (const std::string& method : ParticleMethods()) {
+    for (const GsDerivative d : {GsDerivative::kSampled, GsDerivative::kExact}) {
+      EstimatorOptions options;
+      options.gs_derivative = d;
+      auto e = MakeEstimator(method, options);
+      ASSERT_TRUE(e.ok());
+      Rng rng(1, Stream::kParticleNoise);
+      EstimateOptions eo;
+      eo.particles = 5;
+      GradientEstimate estimate;
+      const absl::Status st = (*e)->Estimate(problem, eo, &rng, &estimate);
+      EXPECT_TRUE(st.ok()) << method << ": " << st;
+      EXPECT_FALSE(estimate.finite) << method;
+      for (double k : estimate.k_lr) EXPECT_TRUE(k >= 0.0 && k <= 1.0) << method;
+    }
+  }
 }
 
 TEST(Registry, EveryMethodByName) {
