@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <chrono>
 
+#include <spdlog/spdlog.h>
+
 #include "server/service/convert.h"
 
 namespace totalgrad::service {
@@ -31,6 +33,20 @@ grpc::Status WorkerServiceImpl::AcquireLease(grpc::ServerContext* context,
   absl::StatusOr<std::optional<scheduler::Lease>> lease =
       scheduler_->Acquire(FromProto(request->worker()), wait);
   if (!lease.ok()) return ToGrpcStatus(lease.status());
+  if (lease->has_value() && context->IsCancelled()) {
+    // The caller gave up on the poll (e.g. a draining worker cancelled it)
+    // while the grant was being committed: it will never see this lease, so
+    // hand the job back now instead of leaving it running until the lease
+    // expires. A release, not a failure.
+    const absl::Status released = scheduler_->Release(
+        request->worker().worker_id(), (**lease).key,
+        "the AcquireLease call was cancelled before the lease reached the worker");
+    if (!released.ok()) {
+      spdlog::warn("job {} attempt {}: releasing the lease of a cancelled AcquireLease failed: {}",
+                   (**lease).key.job_id, (**lease).key.attempt, released.ToString());
+    }
+    return grpc::Status(grpc::StatusCode::CANCELLED, "call cancelled; the lease was released");
+  }
   response->set_granted(lease->has_value());
   if (lease->has_value()) ToProto(**lease, response->mutable_lease());
   return grpc::Status::OK;

@@ -233,5 +233,51 @@ TEST_F(WorkerTest, DrainLetsRunningTrialsFinishWithinTheTimeout) {
   EXPECT_EQ(JobsBySeed("drain")["16"].state(), v1::JOB_STATE_COMPLETED);
 }
 
+// A long poll cancelled by its caller (as Drain() cancels waiting
+// AcquireLease calls) that the coordinator then answers with a lease: the
+// caller never sees it, so the coordinator releases it at once (a release,
+// not a failure) instead of leaving the job running until the lease expires.
+TEST_F(WorkerTest, LeaseGrantedToACancelledPollIsReleasedAtOnce) {
+  auto stub = v1::WorkerService::NewStub(
+      grpc::CreateChannel(options_.listen, grpc::InsecureChannelCredentials()));
+  grpc::ClientContext context;
+  v1::AcquireLeaseRequest request;
+  request.mutable_worker()->set_worker_id("gone");
+  request.mutable_worker()->set_host("testhost");
+  request.mutable_worker()->set_build("test");
+  request.mutable_worker()->set_slots(1);
+  request.set_wait_ms(4000);
+  grpc::Status status;
+  std::thread poll([&] {
+    v1::AcquireLeaseResponse response;
+    status = stub->AcquireLease(&context, request, &response);
+  });
+  // Let the call reach the coordinator's long poll (nothing is queued yet).
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  context.TryCancel();
+  poll.join();
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::CANCELLED);
+  // The coordinator's handler is still waiting; new work wakes it and it grants.
+  Submit("orphan", {1});
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        const v1::JobInfo job = JobsBySeed("orphan")["1"];
+        return job.attempts() == 1 && job.state() == v1::JOB_STATE_QUEUED;
+      },
+      seconds(3)))  // well inside the 5 s lease timeout
+      << "state " << JobsBySeed("orphan")["1"].state();
+  const v1::JobInfo job = JobsBySeed("orphan")["1"];
+  EXPECT_EQ(job.failures(), 0);
+  // Released leases share the lost-lease budget (as a drain's release does).
+  EXPECT_EQ(job.lost_leases(), 1);
+  const v1::GetJobLogResponse log = Log(job.job_id());
+  ASSERT_EQ(log.attempts_size(), 1);
+  EXPECT_EQ(log.attempts(0).state(), v1::ATTEMPT_STATE_RELEASED);
+  EXPECT_EQ(log.attempts(0).worker_id(), "gone");
+  // A real worker then runs it to completion.
+  StartWorker(1);
+  ASSERT_TRUE(WaitFor([&] { return Finished("orphan"); }, seconds(30)));
+}
+
 }  // namespace
 }  // namespace totalgrad::worker
