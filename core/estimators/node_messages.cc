@@ -12,7 +12,12 @@ namespace totalgrad::estimators {
 void RpZetaCotangent(const StepRecord& step, const RowMatrix& gamma, ZetaCotangent* out) {
   TG_CHECK(gamma.rows() == step.noise.rows() && gamma.cols() == step.noise.cols());
   out->mean = gamma;
-  out->variance = (gamma.array() * step.noise.array() / (2.0 * step.variance.array().sqrt())).matrix();
+  // Where a model predicts exactly zero variance (a deterministic transition)
+  // the variance path is dropped, as the GP does where its variance floor
+  // binds: its Jacobian there is zero, and 0 * Inf must not become NaN.
+  out->variance = (step.variance.array() > 0)
+                      .select(gamma.array() * step.noise.array() / (2.0 * step.variance.array().sqrt()), 0.0)
+                      .matrix();
 }
 
 void TransitionVjp(const StepRecord& step, const ZetaCotangent& cotangent, Vector* force_bar,

@@ -28,7 +28,7 @@ struct ZetaCotangent {
 
 // The RP (pathwise) cotangent from gamma_i = dG/dx_{t+1}^i (P x S) through
 // x_{t+1} = mu + sqrt(v) eps with eps held fixed:
-//   mean_bar = gamma,   var_bar = gamma eps / (2 sqrt(v)).
+//   mean_bar = gamma,   var_bar = gamma eps / (2 sqrt(v))   (0 where v == 0).
 // On a resampled step gamma must already be the cotangent on the particles
 // before resampling (StepResampler::Backward).
 void RpZetaCotangent(const StepRecord& step, const RowMatrix& gamma, ZetaCotangent* out);
