@@ -33,7 +33,10 @@ void RpBackward(const Problem& problem, const Rollout& rollout, Vector* gradient
       double z_bar[kMaxInputs] = {};
       for (int a = 0; a < s_dim; ++a) {
         const double m_bar = gamma(i, a);
-        const double v_bar = gamma(i, a) * step.noise(i, a) / (2.0 * std::sqrt(step.variance(i, a)));
+        // Zero predicted variance: no variance path (see RpZetaCotangent).
+        const double v_bar = step.variance(i, a) > 0
+                                 ? gamma(i, a) * step.noise(i, a) / (2.0 * std::sqrt(step.variance(i, a)))
+                                 : 0.0;
         const double* dm = step.dmean_dz.row(i).data() + a * e_dim;
         const double* dv = step.dvar_dz.row(i).data() + a * e_dim;
         for (int m = 0; m < e_dim; ++m) z_bar[m] += m_bar * dm[m] + v_bar * dv[m];
