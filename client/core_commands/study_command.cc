@@ -716,7 +716,7 @@ void AddStudyCommand(CLI::App* app, int* exit_code) {
   cmd->add_option("--format", state->format, "stdout format: text, csv or json (default text)")
       ->check(CLI::IsMember({"text", "csv", "json"}));
   cmd->add_option("--output-dir", state->output_dir,
-                  "also write table.txt, table.csv, references.csv, study.json and the plots here");
+                  "also write table.txt, table.csv, references.csv, results.json and the plots here");
   cmd->add_flag("--no-plots", state->no_plots, "with --output-dir: write the gnuplot scripts but do not run gnuplot");
   cmd->add_flag("--quiet", state->quiet, "no progress lines on stderr");
   cmd->callback([state, exit_code]() {
@@ -770,7 +770,7 @@ void AddStudyCommand(CLI::App* app, int* exit_code) {
       for (absl::Status st : {WriteFile((dir / "table.txt").string(), StudyTableText(*result)),
                               WriteFile((dir / "table.csv").string(), StudyTableCsv(*result)),
                               WriteFile((dir / "references.csv").string(), StudyReferenceCsv(*result)),
-                              WriteFile((dir / "study.json").string(),
+                              WriteFile((dir / "results.json").string(),
                                         StudyToJson(*result, *spec).dump(2) + "\n")}) {
         if (!st.ok()) {
           std::cerr << "totalgrad study: " << st.message() << "\n";

@@ -209,7 +209,7 @@ TEST(StudyCommand, EndToEndFromATrialSnapshot) {
   EXPECT_THAT(run.out, HasSubstr("episode 2"));
   EXPECT_THAT(run.out, HasSubstr("reference gradients"));
   EXPECT_THAT(run.out, HasSubstr("LR(plain,loo)"));
-  for (const char* f : {"table.txt", "table.csv", "references.csv", "study.json",
+  for (const char* f : {"table.txt", "table.csv", "references.csv", "results.json",
                         "work_precision.gp", "horizon_sweep.gp", "floor.dat"}) {
     EXPECT_TRUE(std::filesystem::exists(out + "/" + f)) << f;
   }
@@ -217,7 +217,7 @@ TEST(StudyCommand, EndToEndFromATrialSnapshot) {
   int lines = 0;
   for (std::string line; std::getline(csv, line);) ++lines;
   EXPECT_EQ(lines, 1 + 3 * 2 * 2 + 2);  // header, 3 particle methods x 2 P x 2 H, PILCO x 2 H
-  std::ifstream js(out + "/study.json");
+  std::ifstream js(out + "/results.json");
   const nlohmann::json doc = nlohmann::json::parse(js);
   EXPECT_EQ(doc.at("cells").size(), 14u);
   EXPECT_EQ(doc.at("references").size(), 2u);
