@@ -146,22 +146,20 @@ TEST(PilcoTrial, RawAngleFeaturesWork) {
   EXPECT_EQ(a->episodes[1].policy_parameters.size(), 5 * 4 + 4 + 5);
 }
 
-// Known open problem (docs/results/pilco.md): with raw angle inputs and seed 5
-// the warm-started policy of episode 2 makes the moment-matched input
-// covariance non-finite. Whatever the outcome, it must be a result or a clear
-// error naming the step and block, never a crash or a silent NaN.
-TEST(PilcoTrial, RawAngleNumericalFailureIsNamed) {
+// Regression: with raw angle inputs and seed 5, the warm-started policy of
+// episode 2 has a pre-saturation variance above 236, where gSat's variance
+// used to evaluate 0 * Inf = NaN ("input covariance is not finite"); fixed in
+// core/pilco/saturation.cc. The trial must now complete with finite numbers.
+TEST(PilcoTrial, RawAngleLargeControlVarianceStaysFinite) {
   TrialOptions o = Tiny();
   ASSERT_TRUE(SetTrialOption("method", "PILCO", &o).ok());
   ASSERT_TRUE(SetTrialOption("basis_functions", "5", &o).ok());
   ASSERT_TRUE(SetTrialOption("angle_features", "raw", &o).ok());
   auto a = RunTrial(o, nullptr);
-  if (a.ok()) {
-    for (const EpisodeResult& r : a->episodes) EXPECT_FALSE(std::isnan(r.real_cost));
-  } else {
-    EXPECT_NE(a.status().message().find("step"), std::string::npos) << a.status();
-    EXPECT_NE(a.status().message().find("episode"), std::string::npos) << a.status();
-  }
+  ASSERT_TRUE(a.ok()) << a.status();
+  for (const EpisodeResult& r : a->episodes) EXPECT_TRUE(std::isfinite(r.real_cost));
+  for (size_t e = 1; e < a->episodes.size(); ++e)
+    EXPECT_TRUE(std::isfinite(a->episodes[e].predicted_cost)) << e;
 }
 
 TEST(TrialOptions, SinCosForParticleMethodsIsAClearError) {
