@@ -12,6 +12,7 @@
 #include "absl/strings/str_split.h"
 #include "client/service_commands/connection.h"
 #include "client/service_commands/format.h"
+#include "server/sweep/sweep_proto.h"
 #include "server/sweep/sweep_spec.h"
 
 namespace totalgrad::cli {
@@ -19,26 +20,6 @@ namespace totalgrad::cli {
 void AddRunCommand(CLI::App* app, int* exit_code);  // run_command.cc
 
 namespace {
-
-// Sweep spec -> proto (the client sends what it parsed; the coordinator
-// re-validates everything).
-void ToProto(const sweep::SweepSpec& spec, v1::SweepSpec* out) {
-  out->set_name(spec.name);
-  out->set_description(spec.description);
-  for (const auto& axis : spec.grid) {
-    auto* a = out->add_grid();
-    a->set_key(axis.key);
-    for (const auto& v : axis.values) a->add_values(v);
-  }
-  for (const auto& [key, value] : spec.protocol) {
-    auto* o = out->add_protocol();
-    o->set_key(key);
-    o->set_value(value);
-  }
-  out->set_max_attempts(spec.max_attempts);
-  out->set_max_lost_leases(spec.max_lost_leases);
-  out->set_max_concurrent(spec.max_concurrent);
-}
 
 void PrintSweeps(const std::vector<const v1::SweepInfo*>& sweeps, Format format) {
   Listing listing;
@@ -93,7 +74,7 @@ void AddSweepCommands(CLI::App* app, int* exit_code) {
           return 2;
         }
         v1::SubmitSweepRequest request;
-        ToProto(*spec, request.mutable_spec());
+        sweep::SweepSpecToProto(*spec, request.mutable_spec());
         request.set_source_name(*file);
         request.set_source_text(source);
         request.set_dry_run(*dry_run);

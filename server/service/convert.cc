@@ -1,5 +1,7 @@
 #include "server/service/convert.h"
 
+#include "server/sweep/sweep_proto.h"
+
 #include <string>
 
 namespace totalgrad::service {
@@ -35,19 +37,7 @@ std::vector<storage::Episode> FromProto(
   return episodes;
 }
 
-sweep::SweepSpec FromProto(const v1::SweepSpec& spec) {
-  sweep::SweepSpec out;
-  out.name = spec.name();
-  out.description = spec.description();
-  for (const auto& axis : spec.grid()) {
-    out.grid.push_back({axis.key(), {axis.values().begin(), axis.values().end()}});
-  }
-  for (const auto& option : spec.protocol()) out.protocol.emplace_back(option.key(), option.value());
-  out.max_attempts = spec.max_attempts();
-  out.max_lost_leases = spec.max_lost_leases();
-  out.max_concurrent = spec.max_concurrent();
-  return out;
-}
+sweep::SweepSpec FromProto(const v1::SweepSpec& spec) { return sweep::SweepSpecFromProto(spec); }
 
 std::optional<storage::JobState> FromProto(v1::JobState state) {
   switch (state) {
@@ -60,23 +50,7 @@ std::optional<storage::JobState> FromProto(v1::JobState state) {
   }
 }
 
-void ToProto(const sweep::SweepSpec& spec, v1::SweepSpec* out) {
-  out->set_name(spec.name);
-  out->set_description(spec.description);
-  for (const auto& axis : spec.grid) {
-    auto* a = out->add_grid();
-    a->set_key(axis.key);
-    for (const auto& v : axis.values) a->add_values(v);
-  }
-  for (const auto& [key, value] : spec.protocol) {
-    auto* o = out->add_protocol();
-    o->set_key(key);
-    o->set_value(value);
-  }
-  out->set_max_attempts(spec.max_attempts);
-  out->set_max_lost_leases(spec.max_lost_leases);
-  out->set_max_concurrent(spec.max_concurrent);
-}
+void ToProto(const sweep::SweepSpec& spec, v1::SweepSpec* out) { sweep::SweepSpecToProto(spec, out); }
 
 v1::JobState ToProto(storage::JobState state) {
   switch (state) {
