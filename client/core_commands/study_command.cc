@@ -230,11 +230,23 @@ absl::StatusOr<StudySpec> ParseStudySpec(const Json& doc, const std::string& bas
     if (absl::Status st = CheckKeys(*problem, "problem", {"snapshot", "episode", "policy"}); !st.ok()) {
       return st;
     }
-    if (!snapshot->is_string()) return absl::InvalidArgumentError("problem.snapshot: not a string");
     spec.from_snapshot = true;
-    std::filesystem::path path(snapshot->get<std::string>());
-    if (path.is_relative() && !base_dir.empty()) path = std::filesystem::path(base_dir) / path;
-    spec.snapshot_file = path.string();
+    if (snapshot->is_object()) {
+      absl::StatusOr<std::vector<learner::TrialSnapshot>> inline_snapshots =
+          SnapshotsFromJson(*snapshot);
+      if (!inline_snapshots.ok()) {
+        return absl::InvalidArgumentError(
+            absl::StrCat("problem.snapshot (inline): ", inline_snapshots.status().message()));
+      }
+      spec.inline_snapshots = *std::move(inline_snapshots);
+    } else if (snapshot->is_string()) {
+      std::filesystem::path path(snapshot->get<std::string>());
+      if (path.is_relative() && !base_dir.empty()) path = std::filesystem::path(base_dir) / path;
+      spec.snapshot_file = path.string();
+    } else {
+      return absl::InvalidArgumentError(
+          "problem.snapshot: not a file name or an inlined snapshot object");
+    }
     if (absl::Status st = ReadInt(*problem, "episode", "problem.", &spec.snapshot_episode); !st.ok()) {
       return st;
     }
@@ -328,10 +340,15 @@ absl::StatusOr<StudySpec> ParseStudySpec(const Json& doc, const std::string& bas
 
 absl::StatusOr<std::unique_ptr<study::FrozenProblem>> LoadStudyProblem(const StudySpec& spec) {
   if (!spec.from_snapshot) return study::FrozenProblemFromSynthetic(spec.synthetic);
-  absl::StatusOr<std::vector<learner::TrialSnapshot>> snapshots = ReadSnapshotFile(spec.snapshot_file);
+  absl::StatusOr<std::vector<learner::TrialSnapshot>> snapshots =
+      spec.snapshot_file.empty() ? absl::StatusOr<std::vector<learner::TrialSnapshot>>(
+                                       spec.inline_snapshots)
+                                 : ReadSnapshotFile(spec.snapshot_file);
   if (!snapshots.ok()) return snapshots.status();
   if (snapshots->empty()) {
-    return absl::InvalidArgumentError(absl::StrCat("'", spec.snapshot_file, "' holds no snapshots"));
+    return absl::InvalidArgumentError(absl::StrCat(
+        spec.snapshot_file.empty() ? "the inline snapshot" : "'" + spec.snapshot_file + "'",
+        " holds no snapshots"));
   }
   const learner::TrialSnapshot* chosen = nullptr;
   std::vector<std::string> available;
@@ -344,12 +361,74 @@ absl::StatusOr<std::unique_ptr<study::FrozenProblem>> LoadStudyProblem(const Stu
   }
   if (chosen == nullptr) {
     for (const learner::TrialSnapshot& s : *snapshots) available.push_back(std::to_string(s.episode));
-    return absl::InvalidArgumentError(absl::StrCat("'", spec.snapshot_file, "' has no snapshot of episode ",
+    return absl::InvalidArgumentError(absl::StrCat(
+        spec.snapshot_file.empty() ? "the inline snapshot" : "'" + spec.snapshot_file + "'",
+        " has no snapshot of episode ",
                                                    spec.snapshot_episode, " (it has ",
                                                    absl::StrJoin(available, ", "), ")"));
   }
   return study::FrozenProblemFromSnapshot(*chosen, spec.snapshot_policy);
 }
+
+absl::StatusOr<Json> ReadStudyDocument(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) return absl::NotFoundError(absl::StrCat("cannot open study file '", path, "'"));
+  Json doc = Json::parse(in, nullptr, /*allow_exceptions=*/false);
+  if (doc.is_discarded()) {
+    return absl::InvalidArgumentError(absl::StrCat("study file '", path, "' is not valid JSON"));
+  }
+  return doc;
+}
+
+absl::StatusOr<Json> InlineStudyDocument(const Json& doc, const std::string& base_dir) {
+  if (!doc.is_object()) return absl::InvalidArgumentError("study file: not a JSON object");
+  const Json* problem = Find(doc, "problem");
+  if (problem == nullptr || !problem->is_object()) return doc;  // ParseStudySpec names it
+  const Json* snapshot = Find(*problem, "snapshot");
+  if (snapshot == nullptr || !snapshot->is_string()) return doc;
+  std::filesystem::path path(snapshot->get<std::string>());
+  if (path.is_relative() && !base_dir.empty()) path = std::filesystem::path(base_dir) / path;
+  std::ifstream in(path);
+  if (!in) {
+    return absl::NotFoundError(absl::StrCat("problem.snapshot: cannot open snapshot file '",
+                                            path.string(), "'"));
+  }
+  Json file = Json::parse(in, nullptr, /*allow_exceptions=*/false);
+  if (file.is_discarded()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("problem.snapshot: '", path.string(), "' is not valid JSON"));
+  }
+  if (absl::StatusOr<std::vector<learner::TrialSnapshot>> parsed = SnapshotsFromJson(file);
+      !parsed.ok()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("problem.snapshot: '", path.string(), "': ", parsed.status().message()));
+  }
+  int episode = -1;
+  if (absl::Status st = ReadInt(*problem, "episode", "problem.", &episode); !st.ok()) return st;
+  // Keep only the snapshot the study uses (the same choice LoadStudyProblem makes).
+  const Json& all = file["snapshots"];
+  Json kept = Json::array();
+  std::vector<std::string> available;
+  for (const Json& s : all) {
+    const int e = s.value("episode", -1);
+    available.push_back(std::to_string(e));
+    if (episode < 0 || e == episode) {
+      kept.push_back(s);
+      break;
+    }
+  }
+  if (kept.empty()) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "problem.episode: '", path.string(), "' has no snapshot of episode ", episode,
+        " (it has ", absl::StrJoin(available, ", "), ")"));
+  }
+  file["snapshots"] = std::move(kept);
+  Json out = doc;
+  out["problem"]["snapshot"] = std::move(file);
+  return out;
+}
+
+std::string StudyCellNote(const study::CellResult& c) { return CellNote(c); }
 
 std::string StudyTableText(const study::StudyResult& r) {
   std::ostringstream os;

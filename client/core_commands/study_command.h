@@ -3,7 +3,9 @@
 // written there with log-log work-precision plots (gnuplot, PNG).
 //
 // Study file (every field but "problem" optional; defaults in brackets):
-//   {"problem": {"snapshot": "snapshots.json",   // relative to the study file
+//   {"problem": {"snapshot": "snapshots.json",   // relative to the study file, or
+//                                                // the snapshot file's JSON object
+//                                                // itself (inlined; see InlineStudyDocument)
 //                "episode": 3,                    // [the first in the file]
 //                "policy": "before" | "after"}    // ["before"]
 //            or {"synthetic": {"data": 450, "horizon": 30, "basis_functions": 50,
@@ -36,6 +38,7 @@
 
 #include "absl/status/statusor.h"
 #include "core/estimators/synthetic_problem.h"
+#include "core/learner/trial.h"
 #include "core/study/frozen_problem.h"
 #include "core/study/study.h"
 
@@ -43,7 +46,8 @@ namespace totalgrad::cli {
 
 struct StudySpec {
   bool from_snapshot = false;
-  std::string snapshot_file;  // resolved path
+  std::string snapshot_file;  // resolved path; empty when the snapshots are inlined
+  std::vector<learner::TrialSnapshot> inline_snapshots;  // problem.snapshot as an object
   int snapshot_episode = -1;  // -1: the first snapshot in the file
   study::SnapshotPolicy snapshot_policy = study::SnapshotPolicy::kBefore;
   estimators::SyntheticProblemOptions synthetic;
@@ -55,12 +59,28 @@ struct StudySpec {
 // snapshot paths are resolved against base_dir.
 absl::StatusOr<StudySpec> ParseStudySpec(const nlohmann::json& doc, const std::string& base_dir);
 
-// Builds the frozen problem the spec names (reads the snapshot file).
+// Reads and parses a study file (NotFound / InvalidArgument naming the path).
+absl::StatusOr<nlohmann::json> ReadStudyDocument(const std::string& path);
+
+// A self-contained copy of a study document: a snapshot given as a path
+// (relative to base_dir) is replaced by the snapshot file's JSON object,
+// keeping only the snapshot the study uses (problem.episode, else the
+// first). Numbers are copied as parsed, so the inlined problem is the same
+// bit for bit. Documents without a snapshot path are returned unchanged.
+// Errors name the snapshot file and what is wrong with it.
+absl::StatusOr<nlohmann::json> InlineStudyDocument(const nlohmann::json& doc,
+                                                   const std::string& base_dir);
+
+// Builds the frozen problem the spec names (reads the snapshot file, or
+// uses the inlined snapshots).
 absl::StatusOr<std::unique_ptr<study::FrozenProblem>> LoadStudyProblem(const StudySpec& spec);
 
 // The result as a fixed-width table (references, cells, omissions), as CSV
 // (one row per cell, header first) and as JSON (NaN as null).
 std::string StudyTableText(const study::StudyResult& result);
+// The `note` column of table.csv for one cell (omission, budget, reference
+// disagreement, first error), "" when there is nothing to note.
+std::string StudyCellNote(const study::CellResult& cell);
 std::string StudyTableCsv(const study::StudyResult& result);
 std::string StudyReferenceCsv(const study::StudyResult& result);
 nlohmann::ordered_json StudyToJson(const study::StudyResult& result, const StudySpec& spec);

@@ -468,7 +468,10 @@ void PoolMeans(const std::vector<Vector>& means, const std::vector<Vector>& stan
 }
 
 absl::StatusOr<StudyResult> RunStudy(const FrozenProblem& problem, const StudyOptions& options,
-                                     const StudyProgress& progress) {
+                                     const StudyProgress& progress,
+                                     const StudyShouldStop& should_stop) {
+  const auto stopped = [&should_stop] { return should_stop && should_stop(); };
+  const absl::Status kStopped = absl::CancelledError("study stopped before it finished");
   if (absl::Status st = options.Validate(); !st.ok()) return st;
   const estimators::ProblemSystem system(problem.problem);
   if (!system.complete() || problem.problem.cost == nullptr || problem.policy == nullptr) {
@@ -480,6 +483,7 @@ absl::StatusOr<StudyResult> RunStudy(const FrozenProblem& problem, const StudyOp
   result.num_parameters = problem.policy->num_parameters();
 
   for (int h : options.horizons) {
+    if (stopped()) return kStopped;
     estimators::Problem p = problem.problem;
     p.horizon = h;
     result.references.push_back(ComputeReference(p, options, progress));
@@ -495,6 +499,7 @@ absl::StatusOr<StudyResult> RunStudy(const FrozenProblem& problem, const StudyOp
   for (const EstimatorSpec& spec : options.estimators) {
     if (spec.method == kPilcoMethod) {
       for (size_t hi = 0; hi < options.horizons.size(); ++hi) {
+        if (stopped()) return kStopped;
         estimators::Problem p = problem.problem;
         p.horizon = options.horizons[hi];
         CellResult cell;
@@ -527,6 +532,7 @@ absl::StatusOr<StudyResult> RunStudy(const FrozenProblem& problem, const StudyOp
     const bool biw = UsesBiwWeights(**estimator, &noise_factor);
     for (int particles : options.particles) {
       for (size_t hi = 0; hi < options.horizons.size(); ++hi) {
+        if (stopped()) return kStopped;
         estimators::Problem p = problem.problem;
         p.horizon = options.horizons[hi];
         const ReferenceGradient& ref = result.references[hi];

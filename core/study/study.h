@@ -186,11 +186,17 @@ void PoolMeans(const std::vector<Vector>& means, const std::vector<Vector>& stan
 // Progress lines ("reference H=30: RP 40 x P=1000 ..."), may be null.
 using StudyProgress = std::function<void(const std::string& line)>;
 
+// Polled before each horizon's reference and each cell; true stops the
+// study (a service worker whose job was cancelled or drained). May be null.
+using StudyShouldStop = std::function<bool()>;
+
 // Runs the study. Errors: the options' InvalidArgument; InvalidArgument for
-// an incomplete problem. Numerical trouble is never an error: it is counted
-// in the cells and references.
+// an incomplete problem; Cancelled when should_stop returned true (the
+// partial result is dropped). Numerical trouble is never an error: it is
+// counted in the cells and references.
 absl::StatusOr<StudyResult> RunStudy(const FrozenProblem& problem, const StudyOptions& options,
-                                     const StudyProgress& progress = nullptr);
+                                     const StudyProgress& progress = nullptr,
+                                     const StudyShouldStop& should_stop = nullptr);
 
 }  // namespace totalgrad::study
 
