@@ -17,6 +17,7 @@
 #include "server/common/signals.h"
 #include "server/common/rpc_client.h"
 #include "worker/learner_runner.h"
+#include "worker/study_runner.h"
 #include "worker/worker.h"
 
 namespace {
@@ -109,7 +110,8 @@ int main(int argc, char** argv) {
   // Deliberately never destroyed: the detached signal thread may still hold
   // them while the process exits.
   auto* runner = new totalgrad::worker::LearnerTrialRunner();
-  auto* worker_ptr = new totalgrad::worker::Worker(options, *channel, runner);
+  auto* study_runner = new totalgrad::worker::CoreStudyRunner();
+  auto* worker_ptr = new totalgrad::worker::Worker(options, *channel, runner, study_runner);
   totalgrad::worker::Worker& worker = *worker_ptr;
   std::thread signal_thread([&worker] {
     int signal_number = totalgrad::WaitForShutdownSignal();

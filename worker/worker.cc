@@ -95,10 +95,12 @@ class Worker::Progress final : public TrialProgress {
   std::shared_ptr<ActiveLease> active_;
 };
 
-Worker::Worker(WorkerOptions options, std::shared_ptr<grpc::Channel> channel, TrialRunner* runner)
+Worker::Worker(WorkerOptions options, std::shared_ptr<grpc::Channel> channel, TrialRunner* runner,
+               StudyRunner* study_runner)
     : options_(std::move(options)),
       stub_(v1::WorkerService::NewStub(std::move(channel))),
-      runner_(runner) {}
+      runner_(runner),
+      study_runner_(study_runner) {}
 
 Worker::~Worker() = default;
 
@@ -156,6 +158,7 @@ void Worker::SlotLoop(int slot) {
     request.mutable_worker()->set_host(options_.host);
     request.mutable_worker()->set_build(options_.build);
     request.mutable_worker()->set_slots(options_.slots);
+    request.mutable_worker()->set_study_jobs(study_runner_ != nullptr);
     request.set_wait_ms(static_cast<int32_t>(absl::ToInt64Milliseconds(options_.acquire_wait)));
     v1::AcquireLeaseResponse response;
     grpc::ClientContext context;
@@ -216,18 +219,33 @@ void Worker::RunLease(const v1::Lease& lease) {
       active->cancel_reason = "worker stopping";
     }
   }
-  spdlog::info("{}: {} seed {} {} ({} episodes)", Describe(lease.key()), lease.method(),
-               lease.seed(), lease.variant(), lease.episodes_expected());
+  const bool is_study = lease.kind() == v1::JOB_KIND_STUDY;
+  if (is_study) {
+    spdlog::info("{}: study {} (seed {})", Describe(lease.key()), lease.variant(), lease.seed());
+  } else {
+    spdlog::info("{}: {} seed {} {} ({} episodes)", Describe(lease.key()), lease.method(),
+                 lease.seed(), lease.variant(), lease.episodes_expected());
+  }
   OptionList options;
   for (const auto& option : lease.options()) options.emplace_back(option.key(), option.value());
   Progress progress(this, active);
   absl::StatusOr<TrialOutcome> result;
+  absl::StatusOr<StudyOutcome> study = absl::UnknownError("not a study");
+  const char* what = is_study ? "the study" : "the trial";
   try {
-    result = runner_->Run(options, &progress);
+    if (!is_study) {
+      result = runner_->Run(options, &progress);
+    } else if (study_runner_ == nullptr) {
+      result = absl::FailedPreconditionError("this worker cannot run study jobs");
+    } else {
+      study = study_runner_->Run(lease.study_spec_json(), &progress);
+      result = study.ok() ? absl::StatusOr<TrialOutcome>(TrialOutcome{})
+                          : absl::StatusOr<TrialOutcome>(study.status());
+    }
   } catch (const std::exception& error) {
-    result = absl::InternalError(absl::StrCat("the trial threw: ", error.what()));
+    result = absl::InternalError(absl::StrCat(what, " threw: ", error.what()));
   } catch (...) {
-    result = absl::InternalError("the trial threw a non-standard exception");
+    result = absl::InternalError(absl::StrCat(what, " threw a non-standard exception"));
   }
   {
     // Take the lease away from the heartbeat thread before the final report.
@@ -236,7 +254,7 @@ void Worker::RunLease(const v1::Lease& lease) {
     active_.erase(lease.key().job_id());
   }
   changed_.notify_all();
-  Finish(active, result);
+  Finish(active, result, is_study && result.ok() && study.ok() ? &*study : nullptr);
 }
 
 void Worker::HeartbeatLoop() {
@@ -348,8 +366,43 @@ void Worker::Beat(const std::shared_ptr<ActiveLease>& active) {
   }
 }
 
+grpc::Status Worker::SendStudyRows(const v1::LeaseKey& key, const StudyOutcome& study,
+                                   const rpc::RetryPolicy& policy) {
+  // Batches stay far below the 4 MiB message limit and the coordinator's
+  // 1000 rows per call.
+  constexpr size_t kMaxBatchBytes = 1 << 20;
+  constexpr int kMaxBatchRows = 500;
+  size_t next_cell = 0, next_reference = 0;
+  while (next_cell < study.cells.size() || next_reference < study.references.size()) {
+    v1::HeartbeatRequest request;
+    request.set_worker_id(options_.worker_id);
+    *request.mutable_lease() = key;
+    size_t bytes = 0;
+    int rows = 0;
+    while (rows < kMaxBatchRows && bytes < kMaxBatchBytes) {
+      if (next_reference < study.references.size()) {
+        bytes += study.references[next_reference].ByteSizeLong();
+        *request.add_study_references() = study.references[next_reference++];
+      } else if (next_cell < study.cells.size()) {
+        bytes += study.cells[next_cell].ByteSizeLong();
+        *request.add_study_cells() = study.cells[next_cell++];
+      } else {
+        break;
+      }
+      ++rows;
+    }
+    const grpc::Status status =
+        rpc::CallWithRetry(policy, options_.token, [&](grpc::ClientContext* context) {
+          v1::HeartbeatResponse response;
+          return stub_->Heartbeat(context, request, &response);
+        });
+    if (!status.ok()) return status;
+  }
+  return grpc::Status::OK;
+}
+
 void Worker::Finish(const std::shared_ptr<ActiveLease>& active,
-                    const absl::StatusOr<TrialOutcome>& result) {
+                    const absl::StatusOr<TrialOutcome>& result, const StudyOutcome* study) {
   const v1::LeaseKey& key = active->lease.key();
   if (active->lost) {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -381,14 +434,23 @@ void Worker::Finish(const std::shared_ptr<ActiveLease>& active,
     v1::CompleteRequest request;
     request.set_worker_id(options_.worker_id);
     *request.mutable_lease() = key;
-    for (const auto& e : unacked) *request.add_episodes() = e;
-    request.set_episodes_total(result->episodes);
-    request.set_success(result->success);
-    request.set_final_eval_cost(result->final_eval_cost);
-    status = rpc::CallWithRetry(policy, options_.token, [&](grpc::ClientContext* context) {
-      v1::CompleteResponse response;
-      return stub_->Complete(context, request, &response);
-    });
+    if (study != nullptr) {
+      // Rows first (each batch a repeatable heartbeat), then the totals.
+      status = SendStudyRows(key, *study, policy);
+      request.set_study_cells_total(static_cast<int32_t>(study->cells.size()));
+      request.set_study_references_total(static_cast<int32_t>(study->references.size()));
+    } else {
+      for (const auto& e : unacked) *request.add_episodes() = e;
+      request.set_episodes_total(result->episodes);
+      request.set_success(result->success);
+      request.set_final_eval_cost(result->final_eval_cost);
+    }
+    if (status.ok()) {
+      status = rpc::CallWithRetry(policy, options_.token, [&](grpc::ClientContext* context) {
+        v1::CompleteResponse response;
+        return stub_->Complete(context, request, &response);
+      });
+    }
     if (status.error_code() == grpc::StatusCode::INVALID_ARGUMENT ||
         status.error_code() == grpc::StatusCode::FAILED_PRECONDITION) {
       failure = absl::StrCat("the coordinator refused the completion: ", status.error_message());
@@ -433,8 +495,13 @@ void Worker::Finish(const std::shared_ptr<ActiveLease>& active,
   switch (kind) {
     case Kind::kComplete:
       ++summary_.completed;
-      spdlog::info("{}: completed (success={}, final eval cost {})", Describe(key),
-                   result->success, result->final_eval_cost);
+      if (study != nullptr) {
+        spdlog::info("{}: study completed ({} cells, {} references)", Describe(key),
+                     study->cells.size(), study->references.size());
+      } else {
+        spdlog::info("{}: completed (success={}, final eval cost {})", Describe(key),
+                     result->success, result->final_eval_cost);
+      }
       break;
     case Kind::kFail:
       ++summary_.failed;

@@ -1,6 +1,13 @@
-// The worker runtime: pulls leases from the coordinator, runs one trial per
-// slot, streams each finished episode, heartbeats on its own thread, and
-// reports the end of every attempt.
+// The worker runtime: pulls leases from the coordinator, runs one trial (or
+// study job) per slot, streams each finished episode, heartbeats on its own
+// thread, and reports the end of every attempt.
+//
+// Study jobs (JOB_KIND_STUDY) run through the StudyRunner, if one is given
+// (the worker then tells the coordinator it takes study jobs). Their rows
+// are sent when the study ends, in heartbeats of bounded size (repeats are
+// harmless: rows are keyed by index), then Complete names the totals. A
+// study that fails is reported with Fail and its error; cancellation and
+// drain stop it between cells and release the job, as for trials.
 //
 // Guarantees:
 //   * Episodes are sent as soon as they finish and kept until the coordinator
@@ -30,7 +37,9 @@
 #include <vector>
 
 #include "absl/time/time.h"
+#include "server/common/rpc_client.h"
 #include "totalgrad/v1/worker_service.grpc.pb.h"
+#include "worker/study_runner.h"
 #include "worker/trial_runner.h"
 
 namespace totalgrad::worker {
@@ -64,8 +73,10 @@ struct WorkerSummary {
 
 class Worker {
  public:
-  // `runner` is not owned and must outlive the worker.
-  Worker(WorkerOptions options, std::shared_ptr<grpc::Channel> channel, TrialRunner* runner);
+  // `runner` and `study_runner` are not owned and must outlive the worker.
+  // Without a study runner the worker takes trial jobs only.
+  Worker(WorkerOptions options, std::shared_ptr<grpc::Channel> channel, TrialRunner* runner,
+         StudyRunner* study_runner = nullptr);
   ~Worker();
   Worker(const Worker&) = delete;
   Worker& operator=(const Worker&) = delete;
@@ -86,12 +97,18 @@ class Worker {
   // Sends one heartbeat for `active`; updates its unacknowledged episodes.
   void Beat(const std::shared_ptr<ActiveLease>& active);
   // Sends the final report of an attempt, retrying while it makes sense.
-  void Finish(const std::shared_ptr<ActiveLease>& active, const absl::StatusOr<TrialOutcome>& result);
+  // `study` holds a finished study job's rows (null for trials).
+  void Finish(const std::shared_ptr<ActiveLease>& active, const absl::StatusOr<TrialOutcome>& result,
+              const StudyOutcome* study = nullptr);
+  // Sends a finished study's rows in heartbeats of bounded size.
+  grpc::Status SendStudyRows(const v1::LeaseKey& key, const StudyOutcome& study,
+                             const rpc::RetryPolicy& policy);
   void CancelAll(const std::string& reason);
 
   const WorkerOptions options_;
   std::unique_ptr<v1::WorkerService::Stub> stub_;
   TrialRunner* const runner_;
+  StudyRunner* const study_runner_;
 
   std::atomic<bool> draining_{false};
   std::atomic<bool> stopping_{false};   // hard stop: release at once

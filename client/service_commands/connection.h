@@ -82,6 +82,12 @@ int WaitForSweep(Connection* connection, const std::string& sweep_name,
 
 // The results table of a sweep (the paper's Table 1 layout), printed.
 int PrintResultsTable(Connection* connection, const std::string& sweep_name, Format format);
+// The rows of a sweep's study jobs (study_results.cc): table format prints
+// the reference gradients then the cells (only the references with
+// `references`); csv/json print the cells, or with `references` the
+// reference gradients, with every stored column.
+int PrintStudyResults(Connection* connection, const std::string& sweep_name, Format format,
+                      bool references, bool all_attempts, std::ostream& out);
 // Per-method curves; optionally a gnuplot picture at `plot_path` (.svg/.png).
 int PrintCurves(Connection* connection, const std::string& sweep_name, Format format,
                 const std::string& plot_path, bool print_table);

@@ -25,6 +25,7 @@
 #include "absl/strings/str_split.h"
 #include "client/service_commands/connection.h"
 #include "client/service_commands/service_commands.h"
+#include "server/sweep/sweep_proto.h"
 #include "server/sweep/sweep_spec.h"
 
 namespace totalgrad::cli {
@@ -204,22 +205,7 @@ int Run(const RunFlags& flags) {
       code = ReportError(connection.status(), "run");
     } else {
       v1::SubmitSweepRequest request;
-      auto* out = request.mutable_spec();
-      out->set_name(spec->name);
-      out->set_description(spec->description);
-      for (const auto& axis : spec->grid) {
-        auto* a = out->add_grid();
-        a->set_key(axis.key);
-        for (const auto& v : axis.values) a->add_values(v);
-      }
-      for (const auto& [key, value] : spec->protocol) {
-        auto* o = out->add_protocol();
-        o->set_key(key);
-        o->set_value(value);
-      }
-      out->set_max_attempts(spec->max_attempts);
-      out->set_max_lost_leases(spec->max_lost_leases);
-      out->set_max_concurrent(spec->max_concurrent);
+      sweep::SweepSpecToProto(*spec, request.mutable_spec());
       request.set_source_name(flags.file);
       request.set_source_text(source);
       v1::SubmitSweepResponse response;
@@ -236,8 +222,16 @@ int Run(const RunFlags& flags) {
                        "coordinator; run the same file again to continue the sweep\n";
         }
         if (code == 0 || code == 1) {
-          const int table = PrintResultsTable(&*connection, spec->name, format);
-          if (!plot.empty()) {
+          int table = 0;
+          if (!spec->grid.empty()) table = PrintResultsTable(&*connection, spec->name, format);
+          if (!spec->studies.empty()) {
+            if (!spec->grid.empty() && format == Format::kTable) std::cout << "\n";
+            const int study = PrintStudyResults(&*connection, spec->name, format,
+                                                /*references=*/false, /*all_attempts=*/false,
+                                                std::cout);
+            if (table == 0) table = study;
+          }
+          if (!plot.empty() && !spec->grid.empty()) {
             const int curves = PrintCurves(&*connection, spec->name, format, plot,
                                            /*print_table=*/false);
             if (curves != 0 && code == 0) code = curves;

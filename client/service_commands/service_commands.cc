@@ -85,7 +85,8 @@ void AddSweepCommands(CLI::App* app, int* exit_code) {
         const v1::SweepInfo& info = response.sweep();
         if (*dry_run) {
           std::cout << "dry run: sweep " << info.name() << " would have " << info.jobs_total()
-                    << " jobs and " << info.episodes_expected() << " episodes (spec "
+                    << " jobs (" << spec->studies.size() << " studies) and "
+                    << info.episodes_expected() << " episodes (spec "
                     << info.spec_hash().substr(0, 12) << ")\n";
           return 0;
         }
@@ -394,6 +395,32 @@ void AddResultsCommands(CLI::App* app, int* exit_code) {
   export_cmd->add_option("SWEEP", *export_sweep, "sweep name")->required();
   export_cmd->add_flag("--all-attempts", *all_attempts, "include failed and lost attempts");
   export_cmd->add_option("-o,--output", *output, "write to FILE instead of stdout");
+
+  auto study_sweep = std::make_shared<std::string>();
+  auto study_references = std::make_shared<bool>(false);
+  auto study_all = std::make_shared<bool>(false);
+  auto study_output = std::make_shared<std::string>();
+  CLI::App* study_cmd = AddCommand(
+      results, "study",
+      "the rows of the sweep's study jobs: one per study cell (the columns of a study's "
+      "table.csv), or per reference gradient",
+      exit_code, [study_sweep, study_references, study_all, study_output](Connection* c) {
+        std::ofstream file;
+        if (!study_output->empty()) {
+          file.open(*study_output);
+          if (!file) {
+            std::cerr << "error: results study: cannot write " << *study_output << "\n";
+            return 1;
+          }
+        }
+        return PrintStudyResults(c, *study_sweep, c->format(), *study_references, *study_all,
+                                 study_output->empty() ? std::cout : file);
+      });
+  study_cmd->add_option("SWEEP", *study_sweep, "sweep name")->required();
+  study_cmd->add_flag("--references", *study_references,
+                      "the reference gradients (references.csv columns) instead of the cells");
+  study_cmd->add_flag("--all-attempts", *study_all, "include failed and lost attempts");
+  study_cmd->add_option("-o,--output", *study_output, "write to FILE instead of stdout");
 }
 
 void AddAdminCommands(CLI::App* app, int* exit_code) {

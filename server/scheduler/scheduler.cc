@@ -92,6 +92,44 @@ absl::Status ValidateEpisodes(const std::vector<Episode>& episodes) {
   return absl::OkStatus();
 }
 
+absl::Status ValidateStudyRows(const storage::StudyRows& rows) {
+  if (static_cast<int>(rows.size()) > kMaxStudyRowsPerCall) {
+    return absl::InvalidArgumentError(absl::StrCat(rows.size(), " study rows in one call; at most ",
+                                                   kMaxStudyRowsPerCall));
+  }
+  for (const storage::StudyCell& c : rows.cells) {
+    const std::string where = absl::StrCat("study cell ", c.index);
+    if (c.index < 0 || c.particles < 0 || c.horizon < 0 || c.replicates < 0 || c.nonfinite < 0 ||
+        c.errors < 0) {
+      return absl::InvalidArgumentError(absl::StrCat(where, ": a negative index or count"));
+    }
+    for (const std::string* text : {&c.estimator, &c.method, &c.note, &c.error,
+                                    &c.omission_reason}) {
+      if (text->size() > kMaxStudyTextBytes) {
+        return absl::InvalidArgumentError(absl::StrCat(where, ": a text field over ",
+                                                       kMaxStudyTextBytes, " bytes"));
+      }
+    }
+    if (c.k_lr_per_step.size() > kMaxStudyVectorSize) {
+      return absl::InvalidArgumentError(absl::StrCat(where, ": k_lr_per_step too long"));
+    }
+  }
+  for (const storage::StudyReference& r : rows.references) {
+    const std::string where = absl::StrCat("study reference ", r.index);
+    if (r.index < 0 || r.horizon < 0) {
+      return absl::InvalidArgumentError(absl::StrCat(where, ": a negative index or horizon"));
+    }
+    if (r.note.size() > kMaxStudyTextBytes || r.used.size() > 1000 ||
+        r.replicates.size() > 1000) {
+      return absl::InvalidArgumentError(absl::StrCat(where, ": note or estimator list too long"));
+    }
+    if (r.gradient.size() > kMaxStudyVectorSize || r.standard_error.size() > kMaxStudyVectorSize) {
+      return absl::InvalidArgumentError(absl::StrCat(where, ": gradient too long"));
+    }
+  }
+  return absl::OkStatus();
+}
+
 Scheduler::Scheduler(storage::Store* store, Clock* clock, SchedulerOptions options)
     : store_(store), clock_(clock), options_(options) {}
 
@@ -136,6 +174,8 @@ absl::StatusOr<std::optional<Lease>> Scheduler::TryAcquireLocked(const WorkerIde
     if (candidate.max_concurrent > 0 && candidate.sweep_running >= candidate.max_concurrent) {
       continue;
     }
+    // A worker that did not say it runs studies (an older build) gets trials only.
+    if (candidate.kind == storage::JobKind::kStudy && !worker.study_jobs) continue;
     const LeaseKey key{candidate.job_id, candidate.attempts + 1};
     RETURN_IF_ERROR(store_->StartAttempt(key, worker, now, LeaseExpiryFrom(now)));
     ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(candidate.job_id));
@@ -196,13 +236,21 @@ bool Scheduler::shut_down() const {
 
 absl::StatusOr<HeartbeatResult> Scheduler::Heartbeat(const std::string& worker_id,
                                                      const LeaseKey& key,
-                                                     const std::vector<Episode>& episodes) {
+                                                     const std::vector<Episode>& episodes,
+                                                     const storage::StudyRows& study) {
   RETURN_IF_ERROR(ValidateEpisodes(episodes));
+  RETURN_IF_ERROR(ValidateStudyRows(study));
   std::lock_guard<std::mutex> lock(decision_mutex_);
   const int64_t now = clock_->NowMs();
   HeartbeatResult result;
-  ASSIGN_OR_RETURN(result.episodes_stored,
-                   store_->StoreEpisodes(key, worker_id, episodes, now, LeaseExpiryFrom(now)));
+  if (!episodes.empty() || study.empty()) {
+    ASSIGN_OR_RETURN(result.episodes_stored,
+                     store_->StoreEpisodes(key, worker_id, episodes, now, LeaseExpiryFrom(now)));
+  }
+  if (!study.empty()) {
+    ASSIGN_OR_RETURN(result.study_rows_stored,
+                     store_->StoreStudyRows(key, worker_id, study, now, LeaseExpiryFrom(now)));
+  }
   ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(key.job_id));
   auto worker = store_->GetWorker(worker_id);
   if (worker.ok()) {
@@ -279,6 +327,22 @@ absl::Status Scheduler::Complete(const std::string& worker_id, const LeaseKey& k
   end.episodes_total = episodes_total;
   end.success = success;
   end.final_eval_cost = final_eval_cost;
+  return EndLocked(std::move(end)).status();
+}
+
+absl::Status Scheduler::CompleteStudy(const std::string& worker_id, const LeaseKey& key,
+                                      const storage::StudyRows& rows, int cells_total,
+                                      int references_total) {
+  RETURN_IF_ERROR(ValidateStudyRows(rows));
+  std::lock_guard<std::mutex> lock(decision_mutex_);
+  AttemptEnd end;
+  end.key = key;
+  end.worker_id = worker_id;
+  end.attempt_state = AttemptState::kCompleted;
+  end.study = rows;
+  end.study_cells_total = cells_total;
+  end.study_references_total = references_total;
+  end.success = true;  // a study that ran to the end; its numbers are in its rows
   return EndLocked(std::move(end)).status();
 }
 

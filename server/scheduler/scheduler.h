@@ -68,6 +68,7 @@ struct Lease {
 struct HeartbeatResult {
   Directive directive = Directive::kContinue;
   int episodes_stored = 0;
+  int study_rows_stored = 0;  // study jobs: cells + references stored
 };
 
 // Limits on what a worker may send (checked before anything is stored).
@@ -75,12 +76,19 @@ inline constexpr int kMaxEpisodesPerCall = 1000;
 inline constexpr size_t kMaxDetailsBytes = 64 * 1024;
 inline constexpr size_t kMaxErrorBytes = 16 * 1024;
 inline constexpr size_t kMaxWorkerIdBytes = 128;
+inline constexpr int kMaxStudyRowsPerCall = 1000;
+inline constexpr size_t kMaxStudyTextBytes = 16 * 1024;
+inline constexpr size_t kMaxStudyVectorSize = 100000;
 
 // InvalidArgument naming the problem: empty or over-long id, control chars.
 absl::Status ValidateWorkerIdentity(const storage::WorkerIdentity& worker);
 // InvalidArgument naming the episode and field: +-Inf anywhere (NaN means
 // "no value"), a NaN real cost, too many episodes, oversized details.
 absl::Status ValidateEpisodes(const std::vector<storage::Episode>& episodes);
+// InvalidArgument naming the row: more than kMaxStudyRowsPerCall rows,
+// oversized text or vectors, a negative index or count. Numbers are stored
+// as they are (NaN: no value).
+absl::Status ValidateStudyRows(const storage::StudyRows& rows);
 
 class Scheduler {
  public:
@@ -99,20 +107,31 @@ class Scheduler {
   // ---- worker calls ----
 
   // Leases the next claimable job to `worker`, or returns nullopt if there is
-  // none (or the worker is draining). Does not wait.
+  // none (or the worker is draining). Study jobs go only to workers whose
+  // identity says study_jobs. Does not wait.
   absl::StatusOr<std::optional<Lease>> TryAcquire(const storage::WorkerIdentity& worker);
   // Like TryAcquire, but waits up to min(wait, max_acquire_wait) of real time
   // for work to appear. Returns nullopt at the deadline or after Shutdown().
   absl::StatusOr<std::optional<Lease>> Acquire(const storage::WorkerIdentity& worker,
                                                absl::Duration wait);
-  // Stores `episodes` and extends the lease. Aborted for a stale lease.
+  // Stores `episodes` (trial jobs) or `study` rows (study jobs) and extends
+  // the lease. Aborted for a stale lease; InvalidArgument for rows of the
+  // wrong kind.
   absl::StatusOr<HeartbeatResult> Heartbeat(const std::string& worker_id,
                                             const storage::LeaseKey& key,
-                                            const std::vector<storage::Episode>& episodes);
+                                            const std::vector<storage::Episode>& episodes,
+                                            const storage::StudyRows& study = {});
   // Ends the attempt as completed (see Store::EndAttempt for the checks).
   absl::Status Complete(const std::string& worker_id, const storage::LeaseKey& key,
                         const std::vector<storage::Episode>& episodes, int episodes_total,
                         bool success, double final_eval_cost);
+  // Ends a study job's attempt as completed: `rows` are stored first, then
+  // cells 0..cells_total-1 and references 0..references_total-1 must all be
+  // stored (FailedPrecondition names the missing ones). InvalidArgument for
+  // a trial job.
+  absl::Status CompleteStudy(const std::string& worker_id, const storage::LeaseKey& key,
+                             const storage::StudyRows& rows, int cells_total,
+                             int references_total);
   // Ends the attempt as failed. Returns true if the job was re-queued.
   absl::StatusOr<bool> Fail(const std::string& worker_id, const storage::LeaseKey& key,
                             const std::vector<storage::Episode>& episodes,

@@ -40,8 +40,17 @@ absl::StatusOr<storage::NewSweep> PrepareSubmission(const v1::SubmitSweepRequest
   sweep.max_lost_leases = spec.max_lost_leases;
   sweep.max_concurrent = spec.max_concurrent;
   for (sweep::ExpandedJob& job : *jobs) {
-    sweep.jobs.push_back({std::move(job.method), std::move(job.seed), std::move(job.variant),
-                          std::move(job.options), job.episodes_expected});
+    storage::NewJob stored;
+    stored.method = std::move(job.method);
+    stored.seed = std::move(job.seed);
+    stored.variant = std::move(job.variant);
+    stored.options = std::move(job.options);
+    stored.episodes_expected = job.episodes_expected;
+    if (job.kind == sweep::JobKind::kStudy) {
+      stored.kind = storage::JobKind::kStudy;
+      stored.payload = std::move(job.payload);
+    }
+    sweep.jobs.push_back(std::move(stored));
   }
   return sweep;
 }
@@ -206,6 +215,23 @@ grpc::Status ControlServiceImpl::ExportEpisodes(
         return absl::OkStatus();
       });
   return ToGrpcStatus(status);
+}
+
+grpc::Status ControlServiceImpl::ListStudyRows(grpc::ServerContext* context,
+                                               const v1::ListStudyRowsRequest* request,
+                                               v1::ListStudyRowsResponse* response) {
+  TG_AUTHORIZE(context);
+  absl::StatusOr<storage::SweepRecord> sweep = store_->GetSweep(request->sweep_name());
+  if (!sweep.ok()) return ToGrpcStatus(sweep.status());
+  std::vector<storage::StudyCellRecord> cells;
+  std::vector<storage::StudyReferenceRecord> references;
+  const absl::Status status =
+      store_->ListStudyRows(request->sweep_name(), request->all_attempts(), &cells, &references);
+  if (!status.ok()) return ToGrpcStatus(status);
+  ToProto(*sweep, response->mutable_sweep());
+  for (const auto& cell : cells) ToProto(cell, response->add_cells());
+  for (const auto& reference : references) ToProto(reference, response->add_references());
+  return grpc::Status::OK;
 }
 
 grpc::Status ControlServiceImpl::ListWorkers(grpc::ServerContext* context,

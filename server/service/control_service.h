@@ -63,6 +63,8 @@ class ControlServiceImpl final : public v1::ControlService::Service {
   grpc::Status ExportEpisodes(grpc::ServerContext* context,
                               const v1::ExportEpisodesRequest* request,
                               grpc::ServerWriter<v1::ExportEpisodesResponse>* writer) override;
+  grpc::Status ListStudyRows(grpc::ServerContext* context, const v1::ListStudyRowsRequest* request,
+                             v1::ListStudyRowsResponse* response) override;
   grpc::Status ListWorkers(grpc::ServerContext* context, const v1::ListWorkersRequest* request,
                            v1::ListWorkersResponse* response) override;
   grpc::Status DrainWorker(grpc::ServerContext* context, const v1::DrainWorkerRequest* request,

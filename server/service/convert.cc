@@ -12,7 +12,134 @@ grpc::Status ToGrpcStatus(const absl::Status& status) {
 }
 
 storage::WorkerIdentity FromProto(const v1::WorkerIdentity& worker) {
-  return {worker.worker_id(), worker.host(), worker.build(), worker.slots()};
+  return {worker.worker_id(), worker.host(), worker.build(), worker.slots(), worker.study_jobs()};
+}
+
+storage::StudyCell FromProto(const v1::StudyCellRow& row) {
+  storage::StudyCell c;
+  c.index = row.index();
+  c.estimator = row.estimator();
+  c.method = row.method();
+  c.particles = row.particles();
+  c.horizon = row.horizon();
+  c.replicates = row.replicates();
+  c.nonfinite = row.nonfinite();
+  c.errors = row.errors();
+  c.time_min_s = row.time_min_s();
+  c.time_median_s = row.time_median_s();
+  c.rel_rmse = row.rel_rmse();
+  c.rel_bias = row.rel_bias();
+  c.rel_bias_noise = row.rel_bias_noise();
+  c.total_variance = row.total_variance();
+  c.cos_mean = row.cos_mean();
+  c.objective_mean = row.objective_mean();
+  c.ess_mean = row.ess_mean();
+  c.ess_min = row.ess_min();
+  c.k_lr_mean = row.k_lr_mean();
+  c.reference_agrees = row.reference_agrees();
+  c.reference_floor = row.reference_floor();
+  c.budget_hit = row.budget_hit();
+  c.omitted = row.omitted();
+  c.note = row.note();
+  c.error = row.error();
+  c.omission_reason = row.omission_reason();
+  c.k_lr_per_step.assign(row.k_lr_per_step().begin(), row.k_lr_per_step().end());
+  return c;
+}
+
+storage::StudyReference FromProto(const v1::StudyReferenceRow& row) {
+  storage::StudyReference r;
+  r.index = row.index();
+  r.horizon = row.horizon();
+  r.norm = row.norm();
+  r.relative_error = row.relative_error();
+  r.floor = row.floor();
+  r.objective = row.objective();
+  r.used.assign(row.used().begin(), row.used().end());
+  r.replicates.assign(row.replicates().begin(), row.replicates().end());
+  r.agreement_max_z = row.agreement_max_z();
+  r.agreement_mean_z2 = row.agreement_mean_z2();
+  r.agree = row.agree();
+  r.seconds = row.seconds();
+  r.note = row.note();
+  r.gradient.assign(row.gradient().begin(), row.gradient().end());
+  r.standard_error.assign(row.standard_error().begin(), row.standard_error().end());
+  return r;
+}
+
+storage::StudyRows StudyRowsFromProto(
+    const google::protobuf::RepeatedPtrField<v1::StudyCellRow>& cells,
+    const google::protobuf::RepeatedPtrField<v1::StudyReferenceRow>& references) {
+  storage::StudyRows rows;
+  for (const auto& c : cells) rows.cells.push_back(FromProto(c));
+  for (const auto& r : references) rows.references.push_back(FromProto(r));
+  return rows;
+}
+
+void ToProto(const storage::StudyCell& c, v1::StudyCellRow* out) {
+  out->set_index(c.index);
+  out->set_estimator(c.estimator);
+  out->set_method(c.method);
+  out->set_particles(c.particles);
+  out->set_horizon(c.horizon);
+  out->set_replicates(c.replicates);
+  out->set_nonfinite(c.nonfinite);
+  out->set_errors(c.errors);
+  out->set_time_min_s(c.time_min_s);
+  out->set_time_median_s(c.time_median_s);
+  out->set_rel_rmse(c.rel_rmse);
+  out->set_rel_bias(c.rel_bias);
+  out->set_rel_bias_noise(c.rel_bias_noise);
+  out->set_total_variance(c.total_variance);
+  out->set_cos_mean(c.cos_mean);
+  out->set_objective_mean(c.objective_mean);
+  out->set_ess_mean(c.ess_mean);
+  out->set_ess_min(c.ess_min);
+  out->set_k_lr_mean(c.k_lr_mean);
+  out->set_reference_agrees(c.reference_agrees);
+  out->set_reference_floor(c.reference_floor);
+  out->set_budget_hit(c.budget_hit);
+  out->set_omitted(c.omitted);
+  out->set_note(c.note);
+  out->set_error(c.error);
+  out->set_omission_reason(c.omission_reason);
+  for (double v : c.k_lr_per_step) out->add_k_lr_per_step(v);
+}
+
+void ToProto(const storage::StudyReference& r, v1::StudyReferenceRow* out) {
+  out->set_index(r.index);
+  out->set_horizon(r.horizon);
+  out->set_norm(r.norm);
+  out->set_relative_error(r.relative_error);
+  out->set_floor(r.floor);
+  out->set_objective(r.objective);
+  for (const auto& u : r.used) out->add_used(u);
+  for (int n : r.replicates) out->add_replicates(n);
+  out->set_agreement_max_z(r.agreement_max_z);
+  out->set_agreement_mean_z2(r.agreement_mean_z2);
+  out->set_agree(r.agree);
+  out->set_seconds(r.seconds);
+  out->set_note(r.note);
+  for (double v : r.gradient) out->add_gradient(v);
+  for (double v : r.standard_error) out->add_standard_error(v);
+}
+
+void ToProto(const storage::StudyCellRecord& record, v1::StudyCellRow* out) {
+  ToProto(record.cell, out);
+  out->set_job_id(record.job_id);
+  out->set_attempt(record.attempt);
+  out->set_study(record.study);
+}
+
+void ToProto(const storage::StudyReferenceRecord& record, v1::StudyReferenceRow* out) {
+  ToProto(record.reference, out);
+  out->set_job_id(record.job_id);
+  out->set_attempt(record.attempt);
+  out->set_study(record.study);
+}
+
+v1::JobKind ToProto(storage::JobKind kind) {
+  return kind == storage::JobKind::kStudy ? v1::JOB_KIND_STUDY : v1::JOB_KIND_TRIAL;
 }
 
 storage::LeaseKey FromProto(const v1::LeaseKey& key) { return {key.job_id(), key.attempt()}; }
@@ -138,6 +265,7 @@ void ToProto(const storage::JobRecord& job, v1::JobInfo* out) {
     option->set_key(key);
     option->set_value(value);
   }
+  out->set_kind(ToProto(job.kind));
 }
 
 void ToProto(const storage::AttemptRecord& attempt, v1::AttemptInfo* out) {
@@ -227,6 +355,8 @@ void ToProto(const scheduler::Lease& lease, v1::Lease* out) {
     option->set_value(value);
   }
   out->set_episodes_expected(lease.job.episodes_expected);
+  out->set_kind(ToProto(lease.job.kind));
+  if (lease.job.kind == storage::JobKind::kStudy) out->set_study_spec_json(lease.job.payload);
   out->set_heartbeat_interval_ms(static_cast<int32_t>(lease.heartbeat_interval_ms));
   out->set_lease_timeout_ms(static_cast<int32_t>(lease.lease_timeout_ms));
 }

@@ -27,6 +27,12 @@ storage::Episode FromProto(const v1::EpisodeReport& report);
 std::vector<storage::Episode> FromProto(
     const google::protobuf::RepeatedPtrField<v1::EpisodeReport>& reports);
 sweep::SweepSpec FromProto(const v1::SweepSpec& spec);
+// Study rows as a worker sends them (job_id, attempt and study are ignored).
+storage::StudyCell FromProto(const v1::StudyCellRow& row);
+storage::StudyReference FromProto(const v1::StudyReferenceRow& row);
+storage::StudyRows StudyRowsFromProto(
+    const google::protobuf::RepeatedPtrField<v1::StudyCellRow>& cells,
+    const google::protobuf::RepeatedPtrField<v1::StudyReferenceRow>& references);
 // Unspecified maps to nullopt.
 std::optional<storage::JobState> FromProto(v1::JobState state);
 
@@ -42,6 +48,11 @@ void ToProto(const storage::TrialResultRecord& result, v1::TrialResult* out);
 void ToProto(const storage::Episode& episode, v1::EpisodeReport* out);
 void ToProto(const storage::EpisodeRowRecord& row, v1::EpisodeRow* out);
 void ToProto(const scheduler::Lease& lease, v1::Lease* out);
+void ToProto(const storage::StudyCell& cell, v1::StudyCellRow* out);
+void ToProto(const storage::StudyReference& reference, v1::StudyReferenceRow* out);
+void ToProto(const storage::StudyCellRecord& record, v1::StudyCellRow* out);
+void ToProto(const storage::StudyReferenceRecord& record, v1::StudyReferenceRow* out);
+v1::JobKind ToProto(storage::JobKind kind);
 v1::Directive ToProto(scheduler::Directive directive);
 v1::JobState ToProto(storage::JobState state);
 v1::SweepState ToProto(storage::SweepState state);

@@ -3,6 +3,7 @@
 #include <sqlite3.h>
 #include <sys/stat.h>
 
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <nlohmann/json.hpp>
@@ -19,10 +20,11 @@ namespace {
 using internal::Db;
 using internal::Statement;
 
-constexpr int kSchemaVersion = 1;
+constexpr int kSchemaVersion = 2;
 
-// The schema; docs/results_schema.md explains every column. Kept in one
-// string so a new database is created in one transaction.
+// The schema of version 1; docs/results_schema.md explains every column. A
+// new database is created as version 1 and migrated, in one transaction, so
+// new and migrated databases have the same schema.
 constexpr char kSchema[] = R"sql(
 CREATE TABLE meta(
   key TEXT PRIMARY KEY,
@@ -115,6 +117,100 @@ CREATE TABLE events(
 CREATE INDEX events_by_job ON events(job_id, id);
 )sql";
 
+// Version 1 -> 2: study jobs (issue 6). A job has a kind and, for studies, a
+// payload (the self-contained study spec); study results go in study_cells
+// (one row per study::CellResult, the columns of the study's table.csv) and
+// study_references (one per horizon, references.csv plus the vectors), keyed
+// like episodes by (job, attempt, index). Study jobs store
+// episodes_expected = 1 (the column's CHECK) and read it back as 0.
+constexpr char kMigration2[] = R"sql(
+ALTER TABLE jobs ADD COLUMN kind TEXT NOT NULL DEFAULT 'trial' CHECK(kind IN ('trial', 'study'));
+ALTER TABLE jobs ADD COLUMN payload TEXT NOT NULL DEFAULT '';
+CREATE TABLE study_cells(
+  job_id INTEGER NOT NULL,
+  attempt INTEGER NOT NULL,
+  idx INTEGER NOT NULL CHECK(idx >= 0),
+  estimator TEXT NOT NULL,
+  method TEXT NOT NULL,
+  particles INTEGER NOT NULL,
+  horizon INTEGER NOT NULL,
+  replicates INTEGER NOT NULL,
+  nonfinite INTEGER NOT NULL,
+  errors INTEGER NOT NULL,
+  time_min_s REAL,
+  time_median_s REAL,
+  rel_rmse REAL,
+  rel_bias REAL,
+  rel_bias_noise REAL,
+  total_variance REAL,
+  cos_mean REAL,
+  objective_mean REAL,
+  ess_mean REAL,
+  ess_min REAL,
+  k_lr_mean REAL,
+  reference_agrees INTEGER NOT NULL,
+  reference_floor REAL,
+  budget_hit INTEGER NOT NULL,
+  omitted INTEGER NOT NULL,
+  note TEXT NOT NULL DEFAULT '',
+  error TEXT NOT NULL DEFAULT '',
+  omission_reason TEXT NOT NULL DEFAULT '',
+  k_lr_per_step_json TEXT NOT NULL DEFAULT '[]',
+  reported_ms INTEGER NOT NULL,
+  PRIMARY KEY(job_id, attempt, idx),
+  FOREIGN KEY(job_id, attempt) REFERENCES attempts(job_id, attempt)
+) WITHOUT ROWID;
+CREATE TABLE study_references(
+  job_id INTEGER NOT NULL,
+  attempt INTEGER NOT NULL,
+  idx INTEGER NOT NULL CHECK(idx >= 0),
+  horizon INTEGER NOT NULL,
+  norm REAL,
+  relative_error REAL,
+  floor REAL,
+  objective REAL,
+  used_json TEXT NOT NULL DEFAULT '[]',
+  replicates_json TEXT NOT NULL DEFAULT '[]',
+  agreement_max_z REAL,
+  agreement_mean_z2 REAL,
+  agree INTEGER NOT NULL,
+  seconds REAL,
+  note TEXT NOT NULL DEFAULT '',
+  gradient_json TEXT NOT NULL DEFAULT '[]',
+  standard_error_json TEXT NOT NULL DEFAULT '[]',
+  reported_ms INTEGER NOT NULL,
+  PRIMARY KEY(job_id, attempt, idx),
+  FOREIGN KEY(job_id, attempt) REFERENCES attempts(job_id, attempt)
+) WITHOUT ROWID;
+)sql";
+
+// Applies the migrations from `from` up to kSchemaVersion inside the
+// caller's transaction and sets user_version.
+absl::Status Migrate(Db& db, int64_t from) {
+  if (from < 2) RETURN_IF_ERROR(db.Exec(kMigration2));
+  return db.Exec(absl::StrCat("PRAGMA user_version=", kSchemaVersion));
+}
+
+// Doubles as JSON arrays: round-trip precision; NaN and +-Inf as null.
+std::string DoublesToJson(const std::vector<double>& values) {
+  nlohmann::json array = nlohmann::json::array();
+  for (double v : values) array.push_back(std::isfinite(v) ? nlohmann::json(v) : nlohmann::json());
+  return array.dump();
+}
+std::vector<double> DoublesFromJson(const std::string& text) {
+  std::vector<double> values;
+  const nlohmann::json array = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (!array.is_array()) return values;
+  for (const auto& v : array) values.push_back(v.is_number() ? v.get<double>() : kNaN);
+  return values;
+}
+
+std::optional<JobKind> ParseJobKind(absl::string_view text) {
+  if (text == "trial") return JobKind::kTrial;
+  if (text == "study") return JobKind::kStudy;
+  return std::nullopt;
+}
+
 std::string OptionsToJson(const OptionList& options) {
   nlohmann::json array = nlohmann::json::array();
   for (const auto& [key, value] : options) array.push_back({key, value});
@@ -173,7 +269,8 @@ absl::StatusOr<SweepRecord> ReadSweepRow(Db& db, const Statement& row) {
   sweep.max_lost_leases = static_cast<int>(row.ColumnInt(10));
   sweep.max_concurrent = static_cast<int>(row.ColumnInt(11));
   ASSIGN_OR_RETURN(Statement counts,
-                   Statement::Prepare(db, "SELECT state, COUNT(*), SUM(episodes_expected) "
+                   Statement::Prepare(db, "SELECT state, COUNT(*), SUM(CASE WHEN kind = 'study' THEN 0 "
+                                          "ELSE episodes_expected END) "
                                           "FROM jobs WHERE sweep_id = ? GROUP BY state"));
   counts.Bind(1, sweep.id);
   while (true) {
@@ -212,11 +309,12 @@ absl::StatusOr<SweepRecord> LoadSweep(Db& db, const std::string& name) {
 constexpr char kJobSelect[] = R"sql(
 SELECT j.id, j.sweep_id, s.name, s.state, j.ordinal, j.method, j.seed, j.variant, j.options_json,
        j.state, j.attempts, j.failures, j.lost_leases, s.max_attempts, s.max_lost_leases,
-       j.episodes_expected,
+       CASE WHEN j.kind = 'study' THEN 0 ELSE j.episodes_expected END,
        (SELECT COUNT(*) FROM episodes e WHERE e.job_id = j.id AND e.attempt = j.attempts),
        COALESCE((SELECT a.worker_id FROM attempts a
                  WHERE a.job_id = j.id AND a.attempt = j.attempts AND a.state = 'running'), ''),
-       j.last_error, COALESCE(j.completed_attempt, 0), COALESCE(j.success, 0), j.final_eval_cost
+       j.last_error, COALESCE(j.completed_attempt, 0), COALESCE(j.success, 0), j.final_eval_cost,
+       j.kind, j.payload
 FROM jobs j JOIN sweeps s ON s.id = j.sweep_id
 )sql";
 
@@ -244,6 +342,8 @@ JobRecord ReadJobRow(const Statement& row) {
   job.completed_attempt = static_cast<int>(row.ColumnInt(19));
   job.success = row.ColumnInt(20) != 0;
   job.final_eval_cost = row.ColumnDouble(21);
+  job.kind = ParseJobKind(row.ColumnText(22)).value_or(JobKind::kTrial);
+  job.payload = row.ColumnText(23);
   return job;
 }
 
@@ -257,6 +357,7 @@ absl::StatusOr<JobRecord> LoadJob(Db& db, int64_t job_id) {
 }
 
 struct OpenAttempt {
+  JobKind kind = JobKind::kTrial;
   AttemptState state = AttemptState::kRunning;
   std::string worker_id;
   int job_attempts = 0;
@@ -268,9 +369,11 @@ struct OpenAttempt {
 // does not exist; Aborted if the attempt does not exist.
 absl::StatusOr<OpenAttempt> LoadAttempt(Db& db, const LeaseKey& key) {
   ASSIGN_OR_RETURN(Statement query,
-                   Statement::Prepare(db, "SELECT j.attempts, j.episodes_expected, j.sweep_id, "
-                                          "a.state, a.worker_id FROM jobs j LEFT JOIN attempts a "
-                                          "ON a.job_id = j.id AND a.attempt = ? WHERE j.id = ?"));
+                   Statement::Prepare(db, "SELECT j.attempts, CASE WHEN j.kind = 'study' THEN 0 "
+                                          "ELSE j.episodes_expected END, j.sweep_id, "
+                                          "a.state, a.worker_id, j.kind FROM jobs j LEFT JOIN "
+                                          "attempts a ON a.job_id = j.id AND a.attempt = ? "
+                                          "WHERE j.id = ?"));
   query.Bind(1, key.attempt).Bind(2, key.job_id);
   ASSIGN_OR_RETURN(bool row, query.Step());
   if (!row) return absl::NotFoundError(absl::StrCat("no job with id ", key.job_id));
@@ -278,6 +381,7 @@ absl::StatusOr<OpenAttempt> LoadAttempt(Db& db, const LeaseKey& key) {
   attempt.job_attempts = static_cast<int>(query.ColumnInt(0));
   attempt.episodes_expected = static_cast<int>(query.ColumnInt(1));
   attempt.sweep_id = query.ColumnInt(2);
+  attempt.kind = ParseJobKind(query.ColumnText(5)).value_or(JobKind::kTrial);
   if (query.ColumnIsNull(3)) {
     return absl::AbortedError(absl::StrCat("job ", key.job_id, " has no attempt ", key.attempt,
                                            " (latest is ", attempt.job_attempts, ")"));
@@ -318,6 +422,10 @@ INSERT INTO episodes(job_id, attempt, episode, real_cost, eval_cost_mean, eval_c
 VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?)
 ON CONFLICT(job_id, attempt, episode) DO NOTHING)sql"));
   for (const Episode& episode : episodes) {
+    if (episodes_expected == 0) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "job ", key.job_id, " is a study job; it reports study rows, not episodes"));
+    }
     if (episode.episode < 0 || episode.episode >= episodes_expected) {
       return absl::InvalidArgumentError(
           absl::StrCat("episode ", episode.episode, " of job ", key.job_id,
@@ -331,6 +439,97 @@ ON CONFLICT(job_id, attempt, episode) DO NOTHING)sql"));
     insert.Reset();
   }
   return absl::OkStatus();
+}
+
+absl::Status InsertStudyRows(Db& db, const LeaseKey& key, JobKind kind, const StudyRows& rows,
+                             int64_t now_ms) {
+  if (rows.empty()) return absl::OkStatus();
+  if (kind != JobKind::kStudy) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "job ", key.job_id, " is a trial job; study rows belong to study jobs"));
+  }
+  if (!rows.cells.empty()) {
+    ASSIGN_OR_RETURN(Statement insert, Statement::Prepare(db, R"sql(
+INSERT INTO study_cells(job_id, attempt, idx, estimator, method, particles, horizon, replicates,
+    nonfinite, errors, time_min_s, time_median_s, rel_rmse, rel_bias, rel_bias_noise,
+    total_variance, cos_mean, objective_mean, ess_mean, ess_min, k_lr_mean, reference_agrees,
+    reference_floor, budget_hit, omitted, note, error, omission_reason, k_lr_per_step_json,
+    reported_ms)
+VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)
+ON CONFLICT(job_id, attempt, idx) DO NOTHING)sql"));
+    for (const StudyCell& c : rows.cells) {
+      if (c.index < 0) {
+        return absl::InvalidArgumentError(
+            absl::StrCat("study cell index ", c.index, " of job ", key.job_id, " is negative"));
+      }
+      insert.Bind(1, key.job_id).Bind(2, key.attempt).Bind(3, c.index).Bind(4, c.estimator);
+      insert.Bind(5, c.method).Bind(6, c.particles).Bind(7, c.horizon).Bind(8, c.replicates);
+      insert.Bind(9, c.nonfinite).Bind(10, c.errors).Bind(11, c.time_min_s);
+      insert.Bind(12, c.time_median_s).Bind(13, c.rel_rmse).Bind(14, c.rel_bias);
+      insert.Bind(15, c.rel_bias_noise).Bind(16, c.total_variance).Bind(17, c.cos_mean);
+      insert.Bind(18, c.objective_mean).Bind(19, c.ess_mean).Bind(20, c.ess_min);
+      insert.Bind(21, c.k_lr_mean).Bind(22, c.reference_agrees ? 1 : 0);
+      insert.Bind(23, c.reference_floor).Bind(24, c.budget_hit ? 1 : 0);
+      insert.Bind(25, c.omitted ? 1 : 0).Bind(26, c.note).Bind(27, c.error);
+      insert.Bind(28, c.omission_reason).Bind(29, DoublesToJson(c.k_lr_per_step));
+      insert.Bind(30, now_ms);
+      RETURN_IF_ERROR(insert.Run());
+      insert.Reset();
+    }
+  }
+  if (!rows.references.empty()) {
+    ASSIGN_OR_RETURN(Statement insert, Statement::Prepare(db, R"sql(
+INSERT INTO study_references(job_id, attempt, idx, horizon, norm, relative_error, floor,
+    objective, used_json, replicates_json, agreement_max_z, agreement_mean_z2, agree, seconds,
+    note, gradient_json, standard_error_json, reported_ms)
+VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)
+ON CONFLICT(job_id, attempt, idx) DO NOTHING)sql"));
+    for (const StudyReference& r : rows.references) {
+      if (r.index < 0) {
+        return absl::InvalidArgumentError(absl::StrCat(
+            "study reference index ", r.index, " of job ", key.job_id, " is negative"));
+      }
+      insert.Bind(1, key.job_id).Bind(2, key.attempt).Bind(3, r.index).Bind(4, r.horizon);
+      insert.Bind(5, r.norm).Bind(6, r.relative_error).Bind(7, r.floor).Bind(8, r.objective);
+      insert.Bind(9, nlohmann::json(r.used).dump()).Bind(10, nlohmann::json(r.replicates).dump());
+      insert.Bind(11, r.agreement_max_z).Bind(12, r.agreement_mean_z2).Bind(13, r.agree ? 1 : 0);
+      insert.Bind(14, r.seconds).Bind(15, r.note).Bind(16, DoublesToJson(r.gradient));
+      insert.Bind(17, DoublesToJson(r.standard_error)).Bind(18, now_ms);
+      RETURN_IF_ERROR(insert.Run());
+      insert.Reset();
+    }
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<int> CountStudyRows(Db& db, const LeaseKey& key) {
+  ASSIGN_OR_RETURN(Statement count, Statement::Prepare(db, R"sql(
+SELECT (SELECT COUNT(*) FROM study_cells WHERE job_id = ?1 AND attempt = ?2) +
+       (SELECT COUNT(*) FROM study_references WHERE job_id = ?1 AND attempt = ?2))sql"));
+  count.Bind(1, key.job_id).Bind(2, key.attempt);
+  ASSIGN_OR_RETURN(bool row, count.Step());
+  return row ? static_cast<int>(count.ColumnInt(0)) : 0;
+}
+
+// The indexes in 0..total-1 missing from `table` for the attempt.
+absl::StatusOr<std::vector<int>> MissingStudyRows(Db& db, const LeaseKey& key,
+                                                  absl::string_view table, int total) {
+  ASSIGN_OR_RETURN(Statement present,
+                   Statement::Prepare(db, absl::StrCat("SELECT idx FROM ", table,
+                                                       " WHERE job_id = ? AND attempt = ? "
+                                                       "AND idx < ?")));
+  present.Bind(1, key.job_id).Bind(2, key.attempt).Bind(3, total);
+  std::set<int> have;
+  while (true) {
+    ASSIGN_OR_RETURN(bool row, present.Step());
+    if (!row) break;
+    have.insert(static_cast<int>(present.ColumnInt(0)));
+  }
+  std::vector<int> missing;
+  for (int i = 0; i < total; ++i) {
+    if (!have.count(i)) missing.push_back(i);
+  }
+  return missing;
 }
 
 }  // namespace
@@ -365,6 +564,9 @@ absl::string_view ToString(AttemptState state) {
     case AttemptState::kCancelled: return "cancelled";
   }
   return "unknown";
+}
+absl::string_view ToString(JobKind kind) {
+  return kind == JobKind::kStudy ? "study" : "trial";
 }
 std::optional<SweepState> ParseSweepState(absl::string_view text) {
   for (SweepState s : {SweepState::kRunning, SweepState::kPaused, SweepState::kCancelled}) {
@@ -433,13 +635,22 @@ absl::StatusOr<std::unique_ptr<SqliteStore>> SqliteStore::Open(const std::string
     }
     RETURN_IF_ERROR(writer.Exec("BEGIN IMMEDIATE"));
     absl::Status created = writer.Exec(kSchema);
-    if (created.ok()) {
-      created = writer.Exec(absl::StrCat("PRAGMA user_version=", kSchemaVersion));
-    }
+    if (created.ok()) created = Migrate(writer, 1);
     if (created.ok()) created = writer.Exec("COMMIT");
     if (!created.ok()) {
       (void)writer.Exec("ROLLBACK");
       return created;
+    }
+  } else if (version < kSchemaVersion) {
+    // An older totalgrad database: migrate in one transaction (all or nothing).
+    RETURN_IF_ERROR(writer.Exec("BEGIN IMMEDIATE"));
+    absl::Status migrated = Migrate(writer, version);
+    if (migrated.ok()) migrated = writer.Exec("COMMIT");
+    if (!migrated.ok()) {
+      (void)writer.Exec("ROLLBACK");
+      return absl::Status(migrated.code(),
+                          absl::StrCat(path, ": migrating from schema version ", version, " to ",
+                                       kSchemaVersion, " failed: ", migrated.message()));
     }
   } else if (version != kSchemaVersion) {
     return absl::FailedPreconditionError(absl::StrCat(
@@ -526,13 +737,16 @@ VALUES(?, ?, 'running', ?, ?, ?, ?, ?, ?, ?, ?, ?))sql"));
     RETURN_IF_ERROR(insert.Run());
     const int64_t sweep_id = db.LastInsertRowId();
     ASSIGN_OR_RETURN(Statement job_insert, Statement::Prepare(db, R"sql(
-INSERT INTO jobs(sweep_id, ordinal, method, seed, variant, options_json, episodes_expected, state)
-VALUES(?, ?, ?, ?, ?, ?, ?, 'queued'))sql"));
+INSERT INTO jobs(sweep_id, ordinal, method, seed, variant, options_json, episodes_expected, state,
+                 kind, payload)
+VALUES(?, ?, ?, ?, ?, ?, ?, 'queued', ?, ?))sql"));
     for (size_t i = 0; i < sweep.jobs.size(); ++i) {
       const NewJob& job = sweep.jobs[i];
       job_insert.Bind(1, sweep_id).Bind(2, static_cast<int64_t>(i)).Bind(3, job.method);
       job_insert.Bind(4, job.seed).Bind(5, job.variant).Bind(6, OptionsToJson(job.options));
-      job_insert.Bind(7, job.episodes_expected);
+      // Study jobs report no episodes; the column's CHECK wants >= 1 (read back as 0).
+      job_insert.Bind(7, job.kind == JobKind::kStudy ? 1 : job.episodes_expected);
+      job_insert.Bind(8, ToString(job.kind)).Bind(9, job.payload);
       RETURN_IF_ERROR(job_insert.Run());
       job_insert.Reset();
     }
@@ -625,6 +839,28 @@ absl::StatusOr<int> SqliteStore::StoreEpisodes(const LeaseKey& key, const std::s
   return stored;
 }
 
+absl::StatusOr<int> SqliteStore::StoreStudyRows(const LeaseKey& key, const std::string& worker_id,
+                                                const StudyRows& rows, int64_t now_ms,
+                                                std::optional<int64_t> lease_expires_ms) {
+  int stored = 0;
+  const absl::Status status = InWriteTransaction([&](Db& db) -> absl::Status {
+    ASSIGN_OR_RETURN(OpenAttempt attempt, LoadAttempt(db, key));
+    RETURN_IF_ERROR(CheckOpen(key, attempt, worker_id));
+    RETURN_IF_ERROR(InsertStudyRows(db, key, attempt.kind, rows, now_ms));
+    if (lease_expires_ms.has_value()) {
+      ASSIGN_OR_RETURN(Statement extend,
+                       Statement::Prepare(db, "UPDATE attempts SET lease_expires_ms = ? "
+                                              "WHERE job_id = ? AND attempt = ?"));
+      extend.Bind(1, *lease_expires_ms).Bind(2, key.job_id).Bind(3, key.attempt);
+      RETURN_IF_ERROR(extend.Run());
+    }
+    ASSIGN_OR_RETURN(stored, CountStudyRows(db, key));
+    return absl::OkStatus();
+  });
+  if (!status.ok()) return status;
+  return stored;
+}
+
 absl::StatusOr<EndOutcome> SqliteStore::EndAttempt(const AttemptEnd& end) {
   if (end.attempt_state == AttemptState::kRunning) {
     return absl::InvalidArgumentError("EndAttempt needs a final attempt state, not running");
@@ -639,7 +875,29 @@ absl::StatusOr<EndOutcome> SqliteStore::EndAttempt(const AttemptEnd& end) {
     }
     RETURN_IF_ERROR(CheckOpen(key, attempt, end.worker_id));
     RETURN_IF_ERROR(InsertEpisodes(db, key, attempt.episodes_expected, end.episodes, end.now_ms));
-    if (end.attempt_state == AttemptState::kCompleted) {
+    RETURN_IF_ERROR(InsertStudyRows(db, key, attempt.kind, end.study, end.now_ms));
+    const bool study_totals = end.study_cells_total != 0 || end.study_references_total != 0;
+    if (end.attempt_state == AttemptState::kCompleted && attempt.kind == JobKind::kStudy) {
+      if (end.study_cells_total < 1 || end.study_references_total < 1) {
+        return absl::InvalidArgumentError(absl::StrCat(
+            "completion of study job ", key.job_id, " reports ", end.study_cells_total,
+            " cells and ", end.study_references_total,
+            " references; a study has at least one of each"));
+      }
+      for (const auto& [table, total] :
+           {std::pair<absl::string_view, int>{"study_cells", end.study_cells_total},
+            std::pair<absl::string_view, int>{"study_references", end.study_references_total}}) {
+        ASSIGN_OR_RETURN(std::vector<int> missing, MissingStudyRows(db, key, table, total));
+        if (!missing.empty()) {
+          return absl::FailedPreconditionError(absl::StrCat(
+              "cannot complete job ", key.job_id, " attempt ", key.attempt, ": ", table, " rows ",
+              absl::StrJoin(missing, ","), " of 0..", total - 1, " are not stored"));
+        }
+      }
+    } else if (end.attempt_state == AttemptState::kCompleted && study_totals) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "job ", key.job_id, " is a trial job; it completes with episodes, not study rows"));
+    } else if (end.attempt_state == AttemptState::kCompleted) {
       if (end.episodes_total < 1 || end.episodes_total > attempt.episodes_expected) {
         return absl::InvalidArgumentError(absl::StrCat(
             "completion of job ", key.job_id, " reports ", end.episodes_total,
@@ -867,7 +1125,7 @@ absl::StatusOr<std::vector<ClaimCandidate>> SqliteStore::ListClaimCandidates(int
   std::lock_guard<std::mutex> lock(read_mutex_);
   ASSIGN_OR_RETURN(Statement query, Statement::Prepare(reader_, R"sql(
 SELECT j.id, j.attempts, s.id, s.max_concurrent,
-       (SELECT COUNT(*) FROM jobs r WHERE r.sweep_id = s.id AND r.state = 'running')
+       (SELECT COUNT(*) FROM jobs r WHERE r.sweep_id = s.id AND r.state = 'running'), j.kind
 FROM jobs j JOIN sweeps s ON s.id = j.sweep_id
 WHERE j.state = 'queued' AND s.state = 'running'
 ORDER BY s.id, j.ordinal LIMIT ?)sql"));
@@ -876,9 +1134,14 @@ ORDER BY s.id, j.ordinal LIMIT ?)sql"));
   while (true) {
     ASSIGN_OR_RETURN(bool row, query.Step());
     if (!row) break;
-    candidates.push_back({query.ColumnInt(0), static_cast<int>(query.ColumnInt(1)),
-                          query.ColumnInt(2), static_cast<int>(query.ColumnInt(3)),
-                          static_cast<int>(query.ColumnInt(4))});
+    ClaimCandidate c;
+    c.job_id = query.ColumnInt(0);
+    c.kind = ParseJobKind(query.ColumnText(5)).value_or(JobKind::kTrial);
+    c.attempts = static_cast<int>(query.ColumnInt(1));
+    c.sweep_id = query.ColumnInt(2);
+    c.max_concurrent = static_cast<int>(query.ColumnInt(3));
+    c.sweep_running = static_cast<int>(query.ColumnInt(4));
+    candidates.push_back(c);
   }
   return candidates;
 }
@@ -955,7 +1218,8 @@ absl::StatusOr<std::vector<TrialResultRecord>> SqliteStore::ListTrialResults(
   ASSIGN_OR_RETURN(Statement query, Statement::Prepare(reader_, R"sql(
 SELECT j.id, j.method, j.seed, j.variant, j.completed_attempt, j.success, j.final_eval_cost,
        (SELECT COUNT(*) FROM episodes e WHERE e.job_id = j.id AND e.attempt = j.completed_attempt)
-FROM jobs j WHERE j.sweep_id = ? AND j.state = 'completed' ORDER BY j.ordinal)sql"));
+FROM jobs j WHERE j.sweep_id = ? AND j.state = 'completed' AND j.kind = 'trial'
+ORDER BY j.ordinal)sql"));
   query.Bind(1, sweep_id);
   std::vector<TrialResultRecord> results;
   while (true) {
@@ -1022,6 +1286,107 @@ ORDER BY e.job_id, e.attempt, e.episode)sql"));
   }
   if (!batch.empty()) RETURN_IF_ERROR(sink(std::move(batch)));
   return absl::OkStatus();
+}
+
+absl::Status SqliteStore::ListStudyRows(const std::string& sweep_name, bool all_attempts,
+                                        std::vector<StudyCellRecord>* cells,
+                                        std::vector<StudyReferenceRecord>* references) {
+  std::lock_guard<std::mutex> lock(read_mutex_);
+  RETURN_IF_ERROR(reader_.Exec("BEGIN"));  // one snapshot for cells and references
+  const absl::Status status = [&]() -> absl::Status {
+    ASSIGN_OR_RETURN(Statement check,
+                     Statement::Prepare(reader_, "SELECT id FROM sweeps WHERE name = ?"));
+    check.Bind(1, sweep_name);
+    ASSIGN_OR_RETURN(bool found, check.Step());
+    if (!found) return absl::NotFoundError(absl::StrCat("no sweep named '", sweep_name, "'"));
+    const int64_t sweep_id = check.ColumnInt(0);
+    ASSIGN_OR_RETURN(Statement query, Statement::Prepare(reader_, R"sql(
+SELECT c.job_id, c.attempt, j.variant, COALESCE(j.completed_attempt, 0) = c.attempt, c.idx,
+       c.estimator, c.method, c.particles, c.horizon, c.replicates, c.nonfinite, c.errors,
+       c.time_min_s, c.time_median_s, c.rel_rmse, c.rel_bias, c.rel_bias_noise, c.total_variance,
+       c.cos_mean, c.objective_mean, c.ess_mean, c.ess_min, c.k_lr_mean, c.reference_agrees,
+       c.reference_floor, c.budget_hit, c.omitted, c.note, c.error, c.omission_reason,
+       c.k_lr_per_step_json
+FROM study_cells c JOIN jobs j ON j.id = c.job_id
+WHERE j.sweep_id = ? AND (? OR c.attempt = COALESCE(j.completed_attempt, j.attempts))
+ORDER BY c.job_id, c.attempt, c.idx)sql"));
+    query.Bind(1, sweep_id).Bind(2, all_attempts ? 1 : 0);
+    while (true) {
+      ASSIGN_OR_RETURN(bool row, query.Step());
+      if (!row) break;
+      StudyCellRecord r;
+      r.job_id = query.ColumnInt(0);
+      r.attempt = static_cast<int>(query.ColumnInt(1));
+      r.study = query.ColumnText(2);
+      r.final_attempt = query.ColumnInt(3) != 0;
+      StudyCell& c = r.cell;
+      c.index = static_cast<int>(query.ColumnInt(4));
+      c.estimator = query.ColumnText(5);
+      c.method = query.ColumnText(6);
+      c.particles = static_cast<int>(query.ColumnInt(7));
+      c.horizon = static_cast<int>(query.ColumnInt(8));
+      c.replicates = static_cast<int>(query.ColumnInt(9));
+      c.nonfinite = static_cast<int>(query.ColumnInt(10));
+      c.errors = static_cast<int>(query.ColumnInt(11));
+      double* const doubles[] = {&c.time_min_s, &c.time_median_s, &c.rel_rmse, &c.rel_bias,
+                                 &c.rel_bias_noise, &c.total_variance, &c.cos_mean,
+                                 &c.objective_mean, &c.ess_mean, &c.ess_min, &c.k_lr_mean};
+      for (int i = 0; i < 11; ++i) *doubles[i] = query.ColumnDouble(12 + i);
+      c.reference_agrees = query.ColumnInt(23) != 0;
+      c.reference_floor = query.ColumnDouble(24);
+      c.budget_hit = query.ColumnInt(25) != 0;
+      c.omitted = query.ColumnInt(26) != 0;
+      c.note = query.ColumnText(27);
+      c.error = query.ColumnText(28);
+      c.omission_reason = query.ColumnText(29);
+      c.k_lr_per_step = DoublesFromJson(query.ColumnText(30));
+      cells->push_back(std::move(r));
+    }
+    ASSIGN_OR_RETURN(Statement refs, Statement::Prepare(reader_, R"sql(
+SELECT r.job_id, r.attempt, j.variant, COALESCE(j.completed_attempt, 0) = r.attempt, r.idx,
+       r.horizon, r.norm, r.relative_error, r.floor, r.objective, r.used_json, r.replicates_json,
+       r.agreement_max_z, r.agreement_mean_z2, r.agree, r.seconds, r.note, r.gradient_json,
+       r.standard_error_json
+FROM study_references r JOIN jobs j ON j.id = r.job_id
+WHERE j.sweep_id = ? AND (? OR r.attempt = COALESCE(j.completed_attempt, j.attempts))
+ORDER BY r.job_id, r.attempt, r.idx)sql"));
+    refs.Bind(1, sweep_id).Bind(2, all_attempts ? 1 : 0);
+    while (true) {
+      ASSIGN_OR_RETURN(bool row, refs.Step());
+      if (!row) break;
+      StudyReferenceRecord r;
+      r.job_id = refs.ColumnInt(0);
+      r.attempt = static_cast<int>(refs.ColumnInt(1));
+      r.study = refs.ColumnText(2);
+      r.final_attempt = refs.ColumnInt(3) != 0;
+      StudyReference& g = r.reference;
+      g.index = static_cast<int>(refs.ColumnInt(4));
+      g.horizon = static_cast<int>(refs.ColumnInt(5));
+      g.norm = refs.ColumnDouble(6);
+      g.relative_error = refs.ColumnDouble(7);
+      g.floor = refs.ColumnDouble(8);
+      g.objective = refs.ColumnDouble(9);
+      const nlohmann::json used = nlohmann::json::parse(refs.ColumnText(10), nullptr, false);
+      if (used.is_array()) {
+        for (const auto& u : used) g.used.push_back(u.is_string() ? u.get<std::string>() : "");
+      }
+      const nlohmann::json reps = nlohmann::json::parse(refs.ColumnText(11), nullptr, false);
+      if (reps.is_array()) {
+        for (const auto& n : reps) g.replicates.push_back(n.is_number_integer() ? n.get<int>() : 0);
+      }
+      g.agreement_max_z = refs.ColumnDouble(12);
+      g.agreement_mean_z2 = refs.ColumnDouble(13);
+      g.agree = refs.ColumnInt(14) != 0;
+      g.seconds = refs.ColumnDouble(15);
+      g.note = refs.ColumnText(16);
+      g.gradient = DoublesFromJson(refs.ColumnText(17));
+      g.standard_error = DoublesFromJson(refs.ColumnText(18));
+      references->push_back(std::move(r));
+    }
+    return absl::OkStatus();
+  }();
+  (void)reader_.Exec("COMMIT");
+  return status;
 }
 
 absl::StatusOr<StoreCounts> SqliteStore::Counts() {

@@ -54,6 +54,9 @@ class SqliteStore final : public Store {
   absl::StatusOr<int> StoreEpisodes(const LeaseKey& key, const std::string& worker_id,
                                     const std::vector<Episode>& episodes, int64_t now_ms,
                                     std::optional<int64_t> lease_expires_ms) override;
+  absl::StatusOr<int> StoreStudyRows(const LeaseKey& key, const std::string& worker_id,
+                                     const StudyRows& rows, int64_t now_ms,
+                                     std::optional<int64_t> lease_expires_ms) override;
   absl::StatusOr<EndOutcome> EndAttempt(const AttemptEnd& end) override;
   absl::Status RetryJob(int64_t job_id, int64_t now_ms) override;
   absl::StatusOr<int> ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms) override;
@@ -76,6 +79,9 @@ class SqliteStore final : public Store {
   absl::Status ExportEpisodes(
       const std::string& sweep_name, bool all_attempts, int batch_size,
       const std::function<absl::Status(std::vector<EpisodeRowRecord>)>& sink) override;
+  absl::Status ListStudyRows(const std::string& sweep_name, bool all_attempts,
+                             std::vector<StudyCellRecord>* cells,
+                             std::vector<StudyReferenceRecord>* references) override;
   absl::StatusOr<StoreCounts> Counts() override;
   absl::StatusOr<int64_t> Backup(const std::string& path) override;
 

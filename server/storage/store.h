@@ -39,11 +39,14 @@ namespace totalgrad::storage {
 enum class SweepState { kRunning, kPaused, kCancelled };
 enum class JobState { kQueued, kRunning, kCompleted, kFailed, kCancelled };
 enum class AttemptState { kRunning, kCompleted, kFailed, kLeaseLost, kReleased, kCancelled };
+// A trial reports episodes; a study (core/study) reports study rows.
+enum class JobKind { kTrial, kStudy };
 
 // Names as stored in the database ("running", "lease_lost", ...).
 absl::string_view ToString(SweepState state);
 absl::string_view ToString(JobState state);
 absl::string_view ToString(AttemptState state);
+absl::string_view ToString(JobKind kind);
 std::optional<SweepState> ParseSweepState(absl::string_view text);
 std::optional<JobState> ParseJobState(absl::string_view text);
 std::optional<AttemptState> ParseAttemptState(absl::string_view text);
@@ -64,6 +67,8 @@ struct WorkerIdentity {
   std::string host;
   std::string build;
   int slots = 1;
+  // The worker can run study jobs (not stored: sent with every AcquireLease).
+  bool study_jobs = false;
 };
 
 // One finished episode. NaN = no value (stored as NULL).
@@ -82,7 +87,85 @@ struct NewJob {
   std::string seed;
   std::string variant;
   OptionList options;
-  int episodes_expected = 0;
+  int episodes_expected = 0;  // study jobs: 0
+  JobKind kind = JobKind::kTrial;
+  std::string payload;        // study jobs: the self-contained study spec (JSON)
+};
+
+// One cell of a gradient study (study::CellResult; the columns of the
+// study's table.csv). NaN: no value (NULL). `index` is the cell's position
+// in the study's result, the row's key within an attempt.
+struct StudyCell {
+  int index = 0;
+  std::string estimator;
+  std::string method;
+  int particles = 0;
+  int horizon = 0;
+  int replicates = 0;
+  int nonfinite = 0;
+  int errors = 0;
+  double time_min_s = kNaN;
+  double time_median_s = kNaN;
+  double rel_rmse = kNaN;
+  double rel_bias = kNaN;
+  double rel_bias_noise = kNaN;
+  double total_variance = kNaN;
+  double cos_mean = kNaN;
+  double objective_mean = kNaN;
+  double ess_mean = kNaN;
+  double ess_min = kNaN;
+  double k_lr_mean = kNaN;
+  bool reference_agrees = true;
+  double reference_floor = kNaN;
+  bool budget_hit = false;
+  bool omitted = false;
+  std::string note;
+  std::string error;
+  std::string omission_reason;
+  std::vector<double> k_lr_per_step;
+};
+
+// The reference gradient of one horizon (study::ReferenceGradient; the
+// columns of references.csv plus g* and its standard errors).
+struct StudyReference {
+  int index = 0;
+  int horizon = 0;
+  double norm = kNaN;
+  double relative_error = kNaN;
+  double floor = kNaN;
+  double objective = kNaN;
+  std::vector<std::string> used;
+  std::vector<int> replicates;
+  double agreement_max_z = kNaN;
+  double agreement_mean_z2 = kNaN;
+  bool agree = false;
+  double seconds = kNaN;
+  std::string note;
+  std::vector<double> gradient;
+  std::vector<double> standard_error;
+};
+
+struct StudyRows {
+  std::vector<StudyCell> cells;
+  std::vector<StudyReference> references;
+  bool empty() const { return cells.empty() && references.empty(); }
+  size_t size() const { return cells.size() + references.size(); }
+};
+
+// Stored study rows with their job's coordinates (ListStudyRows).
+struct StudyCellRecord {
+  int64_t job_id = 0;
+  int attempt = 0;
+  std::string study;  // the study entry's name (the job's variant)
+  bool final_attempt = false;
+  StudyCell cell;
+};
+struct StudyReferenceRecord {
+  int64_t job_id = 0;
+  int attempt = 0;
+  std::string study;
+  bool final_attempt = false;
+  StudyReference reference;
 };
 
 struct NewSweep {
@@ -125,6 +208,8 @@ struct SweepRecord {
 
 struct JobRecord {
   int64_t id = 0;
+  JobKind kind = JobKind::kTrial;
+  std::string payload;  // study jobs: the study spec
   int64_t sweep_id = 0;
   std::string sweep_name;
   SweepState sweep_state = SweepState::kRunning;
@@ -203,6 +288,7 @@ struct EpisodeRowRecord {
 // decide (the sweep's concurrency limit and how many of its jobs run).
 struct ClaimCandidate {
   int64_t job_id = 0;
+  JobKind kind = JobKind::kTrial;
   int attempts = 0;
   int64_t sweep_id = 0;
   int max_concurrent = 0;
@@ -236,6 +322,11 @@ struct AttemptEnd {
   int episodes_total = 0;
   bool success = false;
   double final_eval_cost = kNaN;
+  // Study jobs: rows stored first, and (completion only) how many cells and
+  // references the study produced: all of 0..total-1 must then be stored.
+  StudyRows study;
+  int study_cells_total = 0;
+  int study_references_total = 0;
   int64_t now_ms = 0;
 };
 
@@ -277,10 +368,23 @@ class Store {
                                             const std::vector<Episode>& episodes, int64_t now_ms,
                                             std::optional<int64_t> lease_expires_ms) = 0;
 
+  // Stores study rows of an open study attempt owned by `worker_id` (rows
+  // whose index is already stored are ignored) and, if given, moves its lease
+  // expiry. Returns the number of study rows (cells + references) stored for
+  // the attempt. Aborted: stale lease or another worker's; InvalidArgument: a
+  // trial job, or a negative index.
+  virtual absl::StatusOr<int> StoreStudyRows(const LeaseKey& key, const std::string& worker_id,
+                                             const StudyRows& rows, int64_t now_ms,
+                                             std::optional<int64_t> lease_expires_ms) = 0;
+
   // Ends an attempt as `end` says. Aborted if the attempt is not open (unless
   // it already ended with the same attempt state: kAlreadyEnded), or belongs
   // to another worker. For kCompleted, FailedPrecondition names the missing
-  // episodes if 0..episodes_total-1 are not all stored (nothing changes).
+  // episodes if 0..episodes_total-1 are not all stored (nothing changes); a
+  // study job instead needs cells 0..study_cells_total-1 and references
+  // 0..study_references_total-1 (both totals >= 1), and InvalidArgument is
+  // returned for a completion of the wrong kind (episodes for a study, study
+  // totals for a trial).
   virtual absl::StatusOr<EndOutcome> EndAttempt(const AttemptEnd& end) = 0;
 
   // Puts a failed or cancelled job back in the queue with zeroed failure and
@@ -324,6 +428,11 @@ class Store {
   virtual absl::Status ExportEpisodes(
       const std::string& sweep_name, bool all_attempts, int batch_size,
       const std::function<absl::Status(std::vector<EpisodeRowRecord>)>& sink) = 0;
+  // Study rows of the sweep's study jobs, ordered by job and index; only each
+  // job's counting attempt unless `all_attempts`. NotFound if no such sweep.
+  virtual absl::Status ListStudyRows(const std::string& sweep_name, bool all_attempts,
+                                     std::vector<StudyCellRecord>* cells,
+                                     std::vector<StudyReferenceRecord>* references) = 0;
   virtual absl::StatusOr<StoreCounts> Counts() = 0;
 
   // Writes a consistent copy of the database to `path` (which must not

@@ -19,6 +19,12 @@ void SweepSpecToProto(const SweepSpec& spec, v1::SweepSpec* out) {
   out->set_max_attempts(spec.max_attempts);
   out->set_max_lost_leases(spec.max_lost_leases);
   out->set_max_concurrent(spec.max_concurrent);
+  for (const auto& entry : spec.studies) {
+    auto* e = out->add_studies();
+    e->set_name(entry.name);
+    e->set_spec_json(entry.spec_json);
+    e->set_source(entry.source);
+  }
 }
 
 SweepSpec SweepSpecFromProto(const v1::SweepSpec& spec) {
@@ -32,6 +38,9 @@ SweepSpec SweepSpecFromProto(const v1::SweepSpec& spec) {
   out.max_attempts = spec.max_attempts();
   out.max_lost_leases = spec.max_lost_leases();
   out.max_concurrent = spec.max_concurrent();
+  for (const auto& entry : spec.studies()) {
+    out.studies.push_back({entry.name(), entry.spec_json(), entry.source()});
+  }
   return out;
 }
 

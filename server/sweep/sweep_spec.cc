@@ -3,6 +3,7 @@
 #include <openssl/evp.h>
 
 #include <charconv>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -13,6 +14,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
+#include "client/core_commands/study_command.h"
 #include "core/learner/trial.h"
 #include "server/common/status_macros.h"
 
@@ -87,7 +89,90 @@ absl::StatusOr<learner::TrialOptions> OptionsAt(const SweepSpec& spec,
   return options;
 }
 
+// One [[study]] table of a sweep file: name, and the study from `file` or
+// `spec`, made self-contained (snapshot inlined) and checked.
+absl::StatusOr<StudyEntry> ParseStudyEntry(const toml::table& table, size_t index,
+                                           const std::string& file_name) {
+  const std::string entry_where = Where(file_name, table.source());
+  std::string field = absl::StrCat("study[", index, "]");
+  for (auto&& [key, node] : table) {
+    const std::string k(key.str());
+    if (k != "name" && k != "file" && k != "spec") {
+      return FieldError(Where(file_name, node.source()), absl::StrCat(field, ".", k),
+                        "unknown field; a [[study]] has name and one of file or spec");
+    }
+    if (node.as_string() == nullptr) {
+      return FieldError(Where(file_name, node.source()), absl::StrCat(field, ".", k),
+                        "must be a string");
+    }
+  }
+  StudyEntry entry;
+  const auto name = table["name"].value<std::string>();
+  if (!name) return FieldError(entry_where, field, "name: missing (name = \"...\")");
+  entry.name = *name;
+  field = absl::StrCat("study[", index, "] '", entry.name, "'");
+  if (!ValidName(entry.name)) {
+    return FieldError(Where(file_name, table["name"].node()->source()), field,
+                      "name: not a valid name (1 to 64 characters from A-Z a-z 0-9 . _ -)");
+  }
+  const auto file = table["file"].value<std::string>();
+  const auto inline_spec = table["spec"].value<std::string>();
+  if (file.has_value() == inline_spec.has_value()) {
+    return FieldError(entry_where, field,
+                      "needs exactly one of file = \"STUDY.json\" or spec = '''{...}'''");
+  }
+  const std::filesystem::path sweep_dir = std::filesystem::path(file_name).parent_path();
+  nlohmann::json doc;
+  std::string base_dir = sweep_dir.string();
+  if (file) {
+    std::filesystem::path path(*file);
+    if (path.is_relative()) path = sweep_dir / path;
+    absl::StatusOr<nlohmann::json> read = cli::ReadStudyDocument(path.string());
+    if (!read.ok()) {
+      return FieldError(Where(file_name, table["file"].node()->source()), field,
+                        read.status().message());
+    }
+    doc = *std::move(read);
+    base_dir = path.parent_path().string();
+    entry.source = path.string();
+  } else {
+    doc = nlohmann::json::parse(*inline_spec, nullptr, /*allow_exceptions=*/false);
+    if (doc.is_discarded()) {
+      return FieldError(Where(file_name, table["spec"].node()->source()), field,
+                        "spec: not valid JSON");
+    }
+    entry.source = "inline";
+  }
+  const std::string study_where = file ? absl::StrCat(field, " (", entry.source, ")") : field;
+  absl::StatusOr<nlohmann::json> inlined = cli::InlineStudyDocument(doc, base_dir);
+  if (!inlined.ok()) return FieldError(entry_where, study_where, inlined.status().message());
+  absl::StatusOr<std::string> canonical = CanonicalStudySpec(inlined->dump());
+  if (!canonical.ok()) return FieldError(entry_where, study_where, canonical.status().message());
+  entry.spec_json = *std::move(canonical);
+  return entry;
+}
+
 }  // namespace
+
+absl::StatusOr<std::string> CanonicalStudySpec(const std::string& spec_json) {
+  if (spec_json.size() > kMaxStudySpecBytes) {
+    return absl::InvalidArgumentError(absl::StrCat("the study spec is ", spec_json.size(),
+                                                   " bytes with its snapshot; at most ",
+                                                   kMaxStudySpecBytes));
+  }
+  const nlohmann::json doc = nlohmann::json::parse(spec_json, nullptr, /*allow_exceptions=*/false);
+  if (doc.is_discarded() || !doc.is_object()) {
+    return absl::InvalidArgumentError("the study spec is not a JSON object");
+  }
+  absl::StatusOr<cli::StudySpec> spec = cli::ParseStudySpec(doc, /*base_dir=*/"");
+  if (!spec.ok()) return spec.status();
+  if (!spec->snapshot_file.empty()) {
+    return absl::InvalidArgumentError(
+        "problem.snapshot: a file name; a study sent to the service carries its snapshot "
+        "inline (the sweep-file parser inlines it)");
+  }
+  return doc.dump();
+}
 
 absl::StatusOr<SweepSpec> ParseSweepToml(absl::string_view text, const std::string& file_name) {
   if (text.size() > kMaxSourceBytes) {
@@ -205,18 +290,29 @@ absl::StatusOr<SweepSpec> ParseSweepToml(absl::string_view text, const std::stri
         if (!accepted.ok()) return FieldError(option_where, field, accepted.message());
         spec.protocol.emplace_back(option_key, *value);
       }
+    } else if (name == "study") {
+      const auto* studies = node.as_array();
+      if (studies == nullptr || !studies->is_array_of_tables()) {
+        return FieldError(where, name, "must be an array of tables ([[study]] entries)");
+      }
+      for (size_t i = 0; i < studies->size(); ++i) {
+        absl::StatusOr<StudyEntry> entry =
+            ParseStudyEntry(*studies->get(i)->as_table(), i, file_name);
+        if (!entry.ok()) return entry.status();
+        spec.studies.push_back(*std::move(entry));
+      }
     } else {
       return FieldError(where, name,
                         "unknown field; expected name, description, max_attempts, "
-                        "max_lost_leases, max_concurrent, [grid] or [protocol]");
+                        "max_lost_leases, max_concurrent, [grid], [protocol] or [[study]]");
     }
   }
   if (spec.name.empty()) {
     return absl::InvalidArgumentError(absl::StrCat(file_name, ": name: missing (name = \"...\")"));
   }
-  if (!have_grid) {
-    return absl::InvalidArgumentError(
-        absl::StrCat(file_name, ": grid: missing ([grid] with at least method = [...])"));
+  if (!have_grid && spec.studies.empty()) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        file_name, ": grid: missing ([grid] with at least method = [...], or [[study]] entries)"));
   }
   // Whole-spec rules (method axis, duplicates, limits, combinations), with the
   // file name in front.
@@ -286,8 +382,37 @@ absl::Status CanonicalizeSpec(SweepSpec* spec) {
           absl::StrCat("grid: more than ", kMaxJobsPerSweep, " jobs; split the sweep"));
     }
   }
-  if (!have_method) {
+  if (!have_method && !(spec->grid.empty() && !spec->studies.empty())) {
     return absl::InvalidArgumentError("grid.method: missing; a sweep names its methods");
+  }
+  if (spec->grid.empty() && !spec->protocol.empty()) {
+    return absl::InvalidArgumentError("protocol: given without a [grid]; it applies to trials only");
+  }
+  if (static_cast<int>(spec->studies.size()) > kMaxStudiesPerSweep) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("study: more than ", kMaxStudiesPerSweep, " entries; split the sweep"));
+  }
+  std::set<std::string> study_names;
+  for (size_t i = 0; i < spec->studies.size(); ++i) {
+    StudyEntry& entry = spec->studies[i];
+    const std::string field = absl::StrCat("study[", i, "] '", entry.name, "'");
+    if (!ValidName(entry.name)) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          field, ": name: not a valid name (1 to 64 characters from A-Z a-z 0-9 . _ -)"));
+    }
+    if (!study_names.insert(entry.name).second) {
+      return absl::InvalidArgumentError(
+          absl::StrCat(field, ": name: repeats an earlier study's name"));
+    }
+    absl::StatusOr<std::string> canonical = CanonicalStudySpec(entry.spec_json);
+    if (!canonical.ok()) {
+      return absl::InvalidArgumentError(absl::StrCat(field, ": ", canonical.status().message()));
+    }
+    entry.spec_json = *std::move(canonical);
+  }
+  if (jobs + static_cast<int64_t>(spec->studies.size()) > kMaxJobsPerSweep) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("more than ", kMaxJobsPerSweep, " jobs; split the sweep"));
   }
   std::set<std::string> protocol_keys;
   for (auto& [key, value] : spec->protocol) {
@@ -320,6 +445,12 @@ std::string CanonicalJson(const SweepSpec& spec) {
                          {"max_attempts", spec.max_attempts},
                          {"max_lost_leases", spec.max_lost_leases},
                          {"max_concurrent", spec.max_concurrent}};
+  // Only sweeps with studies carry the key, so older sweeps keep their hash.
+  if (!spec.studies.empty()) {
+    nlohmann::json studies = nlohmann::json::array();
+    for (const StudyEntry& entry : spec.studies) studies.push_back({entry.name, entry.spec_json});
+    json["studies"] = studies;
+  }
   return json.dump();  // keys sorted, no whitespace: deterministic
 }
 
@@ -339,9 +470,9 @@ std::string SpecHash(const SweepSpec& spec) {
 
 absl::StatusOr<std::vector<ExpandedJob>> ExpandJobs(const SweepSpec& spec) {
   std::vector<ExpandedJob> jobs;
-  if (spec.grid.empty()) return absl::InvalidArgumentError("grid: empty");
+  if (spec.grid.empty() && spec.studies.empty()) return absl::InvalidArgumentError("grid: empty");
   std::vector<size_t> index(spec.grid.size(), 0);
-  while (true) {
+  while (!spec.grid.empty()) {
     absl::StatusOr<learner::TrialOptions> options = OptionsAt(spec, index);
     absl::Status valid = options.ok() ? options->Validate() : options.status();
     std::vector<std::string> point;
@@ -364,13 +495,37 @@ absl::StatusOr<std::vector<ExpandedJob>> ExpandJobs(const SweepSpec& spec) {
     jobs.push_back(std::move(job));
     // Odometer: the last axis varies fastest.
     size_t a = spec.grid.size();
+    bool done = false;
     while (a > 0) {
       --a;
       if (++index[a] < spec.grid[a].values.size()) break;
       index[a] = 0;
-      if (a == 0) return jobs;
+      if (a == 0) done = true;
     }
+    if (done) break;
   }
+  for (size_t i = 0; i < spec.studies.size(); ++i) {
+    const StudyEntry& entry = spec.studies[i];
+    const nlohmann::json doc =
+        nlohmann::json::parse(entry.spec_json, nullptr, /*allow_exceptions=*/false);
+    absl::StatusOr<cli::StudySpec> parsed =
+        doc.is_object() ? cli::ParseStudySpec(doc, "")
+                        : absl::StatusOr<cli::StudySpec>(
+                              absl::InvalidArgumentError("not a JSON object"));
+    if (!parsed.ok()) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("study[", i, "] '", entry.name, "': ", parsed.status().message()));
+    }
+    ExpandedJob job;
+    job.kind = JobKind::kStudy;
+    job.payload = entry.spec_json;
+    job.method = "study";
+    job.seed = std::to_string(parsed->options.seed);
+    job.variant = entry.name;
+    job.episodes_expected = 0;
+    jobs.push_back(std::move(job));
+  }
+  return jobs;
 }
 
 absl::StatusOr<OptionList> ResolveOptions(const OptionList& pairs) {

@@ -20,6 +20,15 @@
 //   noise_k = [0.01, 1.0]
 //   [protocol]                      # applied to every job before the grid
 //   episodes = 15
+//   [[study]]                       # optional, repeatable: one study job each
+//   name = "swingup-h30"            # [A-Za-z0-9._-], 1..64, unique in the sweep
+//   file = "study.json"             # a study file, relative to the sweep file
+//   # or: spec = '''{"problem": ...}'''  (the study file's JSON inline)
+//
+// A sweep has a [grid], [[study]] entries or both; study jobs come after the
+// grid's trial jobs. A study's snapshot file is read when the sweep file is
+// parsed and inlined (only the snapshot the study uses), so the spec that
+// travels to the coordinator and workers is self-contained.
 //
 // Threading: free functions, no shared state.
 #ifndef TOTALGRAD_SERVER_SWEEP_SWEEP_SPEC_H_
@@ -41,6 +50,16 @@ struct GridAxis {
   std::vector<std::string> values;
 };
 
+// One [[study]] entry: a gradient study run as one job.
+struct StudyEntry {
+  std::string name;
+  // The self-contained study file (snapshot inlined) as JSON text; canonical
+  // (sorted keys, no whitespace) after CanonicalizeSpec.
+  std::string spec_json;
+  // File name or "inline"; informational (not hashed).
+  std::string source;
+};
+
 struct SweepSpec {
   std::string name;
   std::string description;
@@ -49,15 +68,25 @@ struct SweepSpec {
   int max_attempts = 0;     // 0: kDefaultMaxAttempts
   int max_lost_leases = 0;  // 0: kDefaultMaxLostLeases
   int max_concurrent = 0;   // 0: no limit
+  std::vector<StudyEntry> studies;
 };
 
 inline constexpr int kDefaultMaxAttempts = 3;
 inline constexpr int kDefaultMaxLostLeases = 20;
 inline constexpr int kMaxJobsPerSweep = 100000;
 inline constexpr size_t kMaxSourceBytes = 1 << 20;
+// A study's self-contained spec (with its inlined snapshot).
+inline constexpr size_t kMaxStudySpecBytes = 2 << 20;
+inline constexpr int kMaxStudiesPerSweep = 1000;
+
+enum class JobKind { kTrial, kStudy };
 
 // One job of an expanded sweep.
 struct ExpandedJob {
+  JobKind kind = JobKind::kTrial;
+  // Study jobs: the canonical study spec; method is "study", seed the
+  // study's seed, variant the entry's name, options empty, episodes 0.
+  std::string payload;
   std::string method;
   std::string seed;
   // "key=value ..." for the grid axes other than method and seed.
@@ -87,7 +116,14 @@ absl::Status CanonicalizeSpec(SweepSpec* spec);
 std::string CanonicalJson(const SweepSpec& spec);
 std::string SpecHash(const SweepSpec& spec);
 
-// Expands a canonicalized spec into its jobs, in grid order. InvalidArgument
+// Checks one study entry's self-contained spec (what the coordinator
+// receives): a JSON object the study parser accepts, its snapshot inlined
+// (a path is refused: the coordinator and workers cannot read the user's
+// files). Returns the canonical JSON text. InvalidArgument naming the field.
+absl::StatusOr<std::string> CanonicalStudySpec(const std::string& spec_json);
+
+// Expands a canonicalized spec into its jobs, in grid order, then one job
+// per study entry. InvalidArgument
 // naming the grid point if the runner's whole-options validation refuses one.
 absl::StatusOr<std::vector<ExpandedJob>> ExpandJobs(const SweepSpec& spec);
 

@@ -113,6 +113,13 @@ absl::StatusOr<int> FaultyStore::StoreEpisodes(const storage::LeaseKey& key,
   TG_FORWARD("StoreEpisodes",
              target_->StoreEpisodes(key, worker_id, episodes, now_ms, lease_expires_ms));
 }
+absl::StatusOr<int> FaultyStore::StoreStudyRows(const storage::LeaseKey& key,
+                                                const std::string& worker_id,
+                                                const storage::StudyRows& rows, int64_t now_ms,
+                                                std::optional<int64_t> lease_expires_ms) {
+  TG_FORWARD("StoreStudyRows",
+             target_->StoreStudyRows(key, worker_id, rows, now_ms, lease_expires_ms));
+}
 absl::StatusOr<storage::EndOutcome> FaultyStore::EndAttempt(const storage::AttemptEnd& end) {
   TG_FORWARD("EndAttempt", target_->EndAttempt(end));
 }
@@ -168,6 +175,11 @@ absl::Status FaultyStore::ExportEpisodes(
     const std::string& sweep_name, bool all_attempts, int batch_size,
     const std::function<absl::Status(std::vector<storage::EpisodeRowRecord>)>& sink) {
   TG_FORWARD("ExportEpisodes", target_->ExportEpisodes(sweep_name, all_attempts, batch_size, sink));
+}
+absl::Status FaultyStore::ListStudyRows(const std::string& sweep_name, bool all_attempts,
+                                        std::vector<storage::StudyCellRecord>* cells,
+                                        std::vector<storage::StudyReferenceRecord>* references) {
+  TG_FORWARD("ListStudyRows", target_->ListStudyRows(sweep_name, all_attempts, cells, references));
 }
 absl::StatusOr<storage::StoreCounts> FaultyStore::Counts() {
   TG_FORWARD("Counts", target_->Counts());

@@ -72,6 +72,9 @@ class FaultyStore final : public storage::Store {
   absl::StatusOr<int> StoreEpisodes(const storage::LeaseKey& key, const std::string& worker_id,
                                     const std::vector<storage::Episode>& episodes, int64_t now_ms,
                                     std::optional<int64_t> lease_expires_ms) override;
+  absl::StatusOr<int> StoreStudyRows(const storage::LeaseKey& key, const std::string& worker_id,
+                                     const storage::StudyRows& rows, int64_t now_ms,
+                                     std::optional<int64_t> lease_expires_ms) override;
   absl::StatusOr<storage::EndOutcome> EndAttempt(const storage::AttemptEnd& end) override;
   absl::Status RetryJob(int64_t job_id, int64_t now_ms) override;
   absl::StatusOr<int> ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms) override;
@@ -93,6 +96,9 @@ class FaultyStore final : public storage::Store {
   absl::Status ExportEpisodes(
       const std::string& sweep_name, bool all_attempts, int batch_size,
       const std::function<absl::Status(std::vector<storage::EpisodeRowRecord>)>& sink) override;
+  absl::Status ListStudyRows(const std::string& sweep_name, bool all_attempts,
+                             std::vector<storage::StudyCellRecord>* cells,
+                             std::vector<storage::StudyReferenceRecord>* references) override;
   absl::StatusOr<storage::StoreCounts> Counts() override;
   absl::StatusOr<int64_t> Backup(const std::string& path) override;
 

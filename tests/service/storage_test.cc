@@ -346,5 +346,269 @@ TEST_F(StorageTest, ExportShowsTheCountingAttemptUnlessAllAreAsked) {
             absl::StatusCode::kNotFound);
 }
 
+
+// ---- study jobs (schema version 2) ----
+
+// A sweep of one trial job and one study job; leases the study job to "w1".
+int64_t CreateStudySweepAndLease(SqliteStore* store, const std::string& name) {
+  NewSweep sweep = MakeSweep(name, 1, 3);
+  NewJob study;
+  study.kind = JobKind::kStudy;
+  study.method = "study";
+  study.seed = "7";
+  study.variant = "tiny";
+  study.payload = R"({"problem":{"synthetic":{}}})";
+  sweep.jobs.push_back(study);
+  bool created = false;
+  EXPECT_TRUE(store->CreateSweep(sweep, kNow, &created).ok());
+  auto jobs = store->ListJobs({name, {}, 0, 1000});
+  EXPECT_TRUE(jobs.ok());
+  const int64_t job_id = jobs->back().id;
+  TG_EXPECT_OK(store->StartAttempt({job_id, 1}, MakeWorker("w1"), kNow, kNow + 90'000));
+  return job_id;
+}
+
+StudyRows MakeStudyRows() {
+  StudyRows rows;
+  for (int i = 0; i < 3; ++i) {
+    StudyCell c;
+    c.index = i;
+    c.estimator = i == 2 ? "PILCO" : "RP";
+    c.method = c.estimator;
+    c.particles = i == 2 ? 0 : 10 * (i + 1);
+    c.horizon = 5;
+    c.replicates = 4;
+    c.nonfinite = i;
+    c.errors = 0;
+    c.time_min_s = 1e-4 * (i + 1);
+    c.time_median_s = 2e-4 * (i + 1);
+    c.rel_rmse = 0.1 / 3.0 * (i + 1);  // not exactly representable in decimal
+    c.rel_bias = 0.01;
+    c.rel_bias_noise = 0.02;
+    c.total_variance = 1.5;
+    c.cos_mean = 0.9;
+    c.objective_mean = 12.25;
+    c.ess_mean = kNaN;  // no value
+    c.ess_min = kNaN;
+    c.k_lr_mean = i == 1 ? 0.5 : kNaN;
+    c.reference_agrees = i != 1;
+    c.reference_floor = 0.003;
+    c.budget_hit = i == 0;
+    c.omitted = false;
+    c.note = i == 1 ? "reference disagrees" : "";
+    c.error = "";
+    c.omission_reason = "";
+    if (i == 1) c.k_lr_per_step = {0.25, 0.5, 0.75, kNaN, 1.0 / 3.0};
+    rows.cells.push_back(c);
+  }
+  StudyReference r;
+  r.index = 0;
+  r.horizon = 5;
+  r.norm = 2.5;
+  r.relative_error = 0.01;
+  r.floor = 0.0196;
+  r.objective = 12.0;
+  r.used = {"RP", "LR(plain,loo)"};
+  r.replicates = {4, 3};
+  r.agreement_max_z = 1.25;
+  r.agreement_mean_z2 = 0.75;
+  r.agree = true;
+  r.seconds = 0.5;
+  r.note = "";
+  r.gradient = {0.1, -0.2, 1.0 / 7.0};
+  r.standard_error = {0.01, 0.02, 0.03};
+  rows.references.push_back(r);
+  return rows;
+}
+
+void ExpectSameCell(const StudyCell& a, const StudyCell& b) {
+  auto same = [](double x, double y) { return (std::isnan(x) && std::isnan(y)) || x == y; };
+  EXPECT_EQ(a.index, b.index);
+  EXPECT_EQ(a.estimator, b.estimator);
+  EXPECT_EQ(a.method, b.method);
+  EXPECT_EQ(a.particles, b.particles);
+  EXPECT_EQ(a.horizon, b.horizon);
+  EXPECT_EQ(a.replicates, b.replicates);
+  EXPECT_EQ(a.nonfinite, b.nonfinite);
+  EXPECT_EQ(a.errors, b.errors);
+  for (auto [x, y] : {std::pair{a.time_min_s, b.time_min_s}, {a.time_median_s, b.time_median_s},
+                      {a.rel_rmse, b.rel_rmse}, {a.rel_bias, b.rel_bias},
+                      {a.rel_bias_noise, b.rel_bias_noise}, {a.total_variance, b.total_variance},
+                      {a.cos_mean, b.cos_mean}, {a.objective_mean, b.objective_mean},
+                      {a.ess_mean, b.ess_mean}, {a.ess_min, b.ess_min}, {a.k_lr_mean, b.k_lr_mean},
+                      {a.reference_floor, b.reference_floor}}) {
+    EXPECT_TRUE(same(x, y)) << x << " vs " << y << " (cell " << a.index << ")";
+  }
+  EXPECT_EQ(a.reference_agrees, b.reference_agrees);
+  EXPECT_EQ(a.budget_hit, b.budget_hit);
+  EXPECT_EQ(a.omitted, b.omitted);
+  EXPECT_EQ(a.note, b.note);
+  ASSERT_EQ(a.k_lr_per_step.size(), b.k_lr_per_step.size());
+  for (size_t k = 0; k < a.k_lr_per_step.size(); ++k) {
+    EXPECT_TRUE(same(a.k_lr_per_step[k], b.k_lr_per_step[k])) << k;
+  }
+}
+
+TEST_F(StorageTest, StudyRowsRoundTripExactlyAndReplaysAreNoOps) {
+  const int64_t job = CreateStudySweepAndLease(store_.get(), "st");
+  TG_ASSERT_OK_AND_ASSIGN(JobRecord record, store_->GetJob(job));
+  EXPECT_EQ(record.kind, JobKind::kStudy);
+  EXPECT_EQ(record.payload, R"({"problem":{"synthetic":{}}})");
+  EXPECT_EQ(record.episodes_expected, 0);
+  const StudyRows rows = MakeStudyRows();
+  // Some rows in one heartbeat, then everything again (a replay after a
+  // reconnect), then a changed copy of a stored row: the first values stay.
+  StudyRows first;
+  first.cells = {rows.cells[0]};
+  TG_ASSERT_OK_AND_ASSIGN(int stored, store_->StoreStudyRows({job, 1}, "w1", first, kNow, kNow + 1));
+  EXPECT_EQ(stored, 1);
+  TG_ASSERT_OK_AND_ASSIGN(stored, store_->StoreStudyRows({job, 1}, "w1", rows, kNow, std::nullopt));
+  EXPECT_EQ(stored, 4);
+  TG_ASSERT_OK_AND_ASSIGN(stored, store_->StoreStudyRows({job, 1}, "w1", rows, kNow, std::nullopt));
+  EXPECT_EQ(stored, 4);
+  StudyRows changed = rows;
+  changed.cells[0].rel_rmse = 99;
+  AttemptEnd end;
+  end.key = {job, 1};
+  end.worker_id = "w1";
+  end.attempt_state = AttemptState::kCompleted;
+  end.job_state = JobState::kCompleted;
+  end.study = changed;  // replayed in the completion too
+  end.study_cells_total = 3;
+  end.study_references_total = 1;
+  end.success = true;
+  end.now_ms = kNow;
+  TG_ASSERT_OK_AND_ASSIGN(EndOutcome outcome, store_->EndAttempt(end));
+  EXPECT_EQ(outcome, EndOutcome::kApplied);
+  // A repeated completion is a no-op too.
+  TG_ASSERT_OK_AND_ASSIGN(outcome, store_->EndAttempt(end));
+  EXPECT_EQ(outcome, EndOutcome::kAlreadyEnded);
+
+  Reopen();  // durable
+  std::vector<StudyCellRecord> cells;
+  std::vector<StudyReferenceRecord> refs;
+  TG_ASSERT_OK(store_->ListStudyRows("st", false, &cells, &refs));
+  ASSERT_EQ(cells.size(), 3u);
+  ASSERT_EQ(refs.size(), 1u);
+  for (size_t i = 0; i < cells.size(); ++i) {
+    EXPECT_EQ(cells[i].job_id, job);
+    EXPECT_EQ(cells[i].attempt, 1);
+    EXPECT_EQ(cells[i].study, "tiny");
+    EXPECT_TRUE(cells[i].final_attempt);
+    ExpectSameCell(cells[i].cell, rows.cells[i]);
+  }
+  const StudyReference& r = refs[0].reference;
+  EXPECT_EQ(refs[0].study, "tiny");
+  EXPECT_EQ(r.horizon, 5);
+  EXPECT_EQ(r.norm, 2.5);
+  EXPECT_EQ(r.used, rows.references[0].used);
+  EXPECT_EQ(r.replicates, rows.references[0].replicates);
+  EXPECT_EQ(r.gradient, rows.references[0].gradient);  // bit for bit through JSON
+  EXPECT_EQ(r.standard_error, rows.references[0].standard_error);
+  EXPECT_EQ(r.agreement_max_z, 1.25);
+  EXPECT_TRUE(r.agree);
+  // The study job is not a trial result; the sweep counts no episodes for it.
+  TG_ASSERT_OK_AND_ASSIGN(std::vector<TrialResultRecord> results, store_->ListTrialResults("st"));
+  EXPECT_TRUE(results.empty());
+  TG_ASSERT_OK_AND_ASSIGN(SweepRecord sweep, store_->GetSweep("st"));
+  EXPECT_EQ(sweep.episodes_expected, 3);
+  EXPECT_EQ(sweep.jobs_completed, 1);
+}
+
+TEST_F(StorageTest, StudyCompletionNamesMissingRowsAndRowsOfTheWrongKindAreRefused) {
+  const int64_t job = CreateStudySweepAndLease(store_.get(), "st");
+  const StudyRows rows = MakeStudyRows();
+  StudyRows partial;
+  partial.cells = {rows.cells[0], rows.cells[2]};
+  TG_ASSERT_OK(store_->StoreStudyRows({job, 1}, "w1", partial, kNow, std::nullopt).status());
+  AttemptEnd end;
+  end.key = {job, 1};
+  end.worker_id = "w1";
+  end.attempt_state = AttemptState::kCompleted;
+  end.job_state = JobState::kCompleted;
+  end.study_cells_total = 3;
+  end.study_references_total = 1;
+  end.now_ms = kNow;
+  absl::StatusOr<EndOutcome> outcome = store_->EndAttempt(end);
+  ASSERT_EQ(outcome.status().code(), absl::StatusCode::kFailedPrecondition) << outcome.status();
+  EXPECT_NE(outcome.status().message().find("study_cells rows 1 of 0..2"), std::string::npos)
+      << outcome.status();
+  // Episodes for a study job, a trial-style completion: refused, nothing changes.
+  EXPECT_EQ(store_->StoreEpisodes({job, 1}, "w1", {MakeEpisode(0)}, kNow, std::nullopt)
+                .status().code(),
+            absl::StatusCode::kInvalidArgument);
+  AttemptEnd trial_style = end;
+  trial_style.study_cells_total = trial_style.study_references_total = 0;
+  trial_style.episodes_total = 1;
+  EXPECT_EQ(store_->EndAttempt(trial_style).status().code(), absl::StatusCode::kInvalidArgument);
+  TG_ASSERT_OK_AND_ASSIGN(JobRecord record, store_->GetJob(job));
+  EXPECT_EQ(record.state, JobState::kRunning);
+  // Study rows for a trial job are refused.
+  auto jobs = store_->ListJobs({"st", {}, 0, 1000});
+  ASSERT_TRUE(jobs.ok());
+  const int64_t trial = jobs->front().id;
+  EXPECT_EQ(jobs->front().kind, JobKind::kTrial);
+  TG_ASSERT_OK(store_->StartAttempt({trial, 1}, MakeWorker("w1"), kNow, kNow + 90'000));
+  EXPECT_EQ(store_->StoreStudyRows({trial, 1}, "w1", rows, kNow, std::nullopt).status().code(),
+            absl::StatusCode::kInvalidArgument);
+  // Fencing applies to study rows like to episodes.
+  EXPECT_EQ(store_->StoreStudyRows({job, 2}, "w1", rows, kNow, std::nullopt).status().code(),
+            absl::StatusCode::kAborted);
+  EXPECT_EQ(store_->StoreStudyRows({job, 1}, "w2", rows, kNow, std::nullopt).status().code(),
+            absl::StatusCode::kAborted);
+  // Study candidates say what they are (the scheduler gives them to study workers only).
+  TG_ASSERT_OK_AND_ASSIGN(JobRecord again, store_->GetJob(job));
+  EXPECT_EQ(again.kind, JobKind::kStudy);
+}
+
+// A database written by a build before study jobs (schema version 1) is
+// migrated on open: its sweeps are kept and study jobs can be added.
+TEST_F(StorageTest, VersionOneDatabaseIsMigrated) {
+  const int64_t trial_job = CreateAndLease("old");
+  TG_ASSERT_OK(store_->StoreEpisodes({trial_job, 1}, "w1", {MakeEpisode(0)}, kNow, std::nullopt)
+                   .status());
+  store_.reset();
+  {
+    // Turn the file back into a version-1 database.
+    auto db = internal::Db::Open(path_, false, 1000);
+    ASSERT_TRUE(db.ok()) << db.status();
+    TG_ASSERT_OK(db->Exec("DROP TABLE study_cells; DROP TABLE study_references; "
+                          "ALTER TABLE jobs DROP COLUMN payload; ALTER TABLE jobs DROP COLUMN kind; "
+                          "PRAGMA user_version=1"));
+  }
+  Reopen();
+  {
+    auto db = internal::Db::Open(path_, false, 1000);
+    ASSERT_TRUE(db.ok());
+    TG_ASSERT_OK_AND_ASSIGN(internal::Statement version,
+                            internal::Statement::Prepare(*db, "PRAGMA user_version"));
+    TG_ASSERT_OK_AND_ASSIGN(bool row, version.Step());
+    ASSERT_TRUE(row);
+    EXPECT_EQ(version.ColumnInt(0), 2);
+  }
+  TG_ASSERT_OK_AND_ASSIGN(JobRecord old, store_->GetJob(trial_job));
+  EXPECT_EQ(old.kind, JobKind::kTrial);
+  EXPECT_EQ(old.episodes_stored, 1);
+  const int64_t job = CreateStudySweepAndLease(store_.get(), "new");
+  TG_ASSERT_OK_AND_ASSIGN(int stored, store_->StoreStudyRows({job, 1}, "w1", MakeStudyRows(), kNow,
+                                                             std::nullopt));
+  EXPECT_EQ(stored, 4);
+  // A newer schema than this build knows is refused.
+  store_.reset();
+  {
+    auto db = internal::Db::Open(path_, false, 1000);
+    ASSERT_TRUE(db.ok());
+    TG_ASSERT_OK(db->Exec("PRAGMA user_version=3"));
+  }
+  auto newer = SqliteStore::Open(path_);
+  EXPECT_EQ(newer.status().code(), absl::StatusCode::kFailedPrecondition) << newer.status();
+  {
+    auto db = internal::Db::Open(path_, false, 1000);
+    ASSERT_TRUE(db.ok());
+    TG_ASSERT_OK(db->Exec("PRAGMA user_version=2"));
+  }
+  Reopen();
+}
+
 }  // namespace
 }  // namespace totalgrad::storage

@@ -4,6 +4,11 @@
 
 #include <gtest/gtest.h>
 
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "absl/strings/str_cat.h"
+
 #include "tests/service/service_testutil.h"
 
 namespace totalgrad::sweep {
@@ -121,6 +126,196 @@ TEST(ShippedSweepsTest, Table1IsValidOrNamesTheFirstMissingMethod) {
   TG_ASSERT_OK_AND_ASSIGN(std::vector<ExpandedJob> jobs, ExpandJobs(*spec));
   EXPECT_EQ(jobs.size(), 9u * 2 * 2 * 100);
 }
+
+// ---- [[study]] entries (study jobs) ----
+
+namespace study_entries {
+
+// A tiny synthetic study (the study-file format of `totalgrad study`).
+constexpr char kTinyStudy[] =
+    R"({"problem": {"synthetic": {"data": 40, "horizon": 5, "basis_functions": 8}},
+        "estimators": ["RP", "LR"], "particles": [10], "horizons": [5], "replicates": 3,
+        "seed": 7, "reference": {"particles": 20, "replicates": 3}})";
+
+std::string WriteFile(const std::string& path, const std::string& text) {
+  std::ofstream out(path);
+  out << text;
+  return path;
+}
+
+class SweepStudyTest : public ::testing::Test {
+ protected:
+  void SetUp() override { dir_ = totalgrad::testing::MakeTempDir(); }
+  std::string dir_;
+};
+
+TEST_F(SweepStudyTest, StudyFromAFileAndInlineBecomeStudyJobsAfterTheTrials) {
+  WriteFile(dir_ + "/tiny.json", kTinyStudy);
+  const std::string sweep_file = WriteFile(dir_ + "/mixed.toml", absl::StrCat(R"(
+name = "mixed"
+[grid]
+method = ["RP"]
+seed = [1, 2]
+[[study]]
+name = "from-file"
+file = "tiny.json"
+[[study]]
+name = "inline"
+spec = ')", R"({"problem": {"synthetic": {"data": 30}}, "estimators": ["RP"], "particles": [5], "horizons": [3], "replicates": 2, "reference": {"replicates": 2, "particles": 10}}'
+)"));
+  TG_ASSERT_OK_AND_ASSIGN(SweepSpec spec, LoadSweepFile(sweep_file, nullptr));
+  ASSERT_EQ(spec.studies.size(), 2u);
+  EXPECT_EQ(spec.studies[0].name, "from-file");
+  EXPECT_EQ(spec.studies[0].source, dir_ + "/tiny.json");
+  EXPECT_EQ(spec.studies[1].source, "inline");
+  TG_ASSERT_OK(CanonicalizeSpec(&spec));
+  TG_ASSERT_OK_AND_ASSIGN(std::vector<ExpandedJob> jobs, ExpandJobs(spec));
+  ASSERT_EQ(jobs.size(), 4u);
+  EXPECT_EQ(jobs[0].kind, JobKind::kTrial);
+  EXPECT_EQ(jobs[1].kind, JobKind::kTrial);
+  EXPECT_EQ(jobs[2].kind, JobKind::kStudy);
+  EXPECT_EQ(jobs[2].method, "study");
+  EXPECT_EQ(jobs[2].variant, "from-file");
+  EXPECT_EQ(jobs[2].seed, "7");
+  EXPECT_EQ(jobs[2].episodes_expected, 0);
+  EXPECT_TRUE(jobs[2].options.empty());
+  EXPECT_EQ(jobs[3].seed, "1");  // the study default
+  // The payload is the canonical JSON of the study file.
+  const nlohmann::json payload = nlohmann::json::parse(jobs[2].payload);
+  EXPECT_EQ(payload, nlohmann::json::parse(kTinyStudy));
+  EXPECT_EQ(jobs[2].payload, payload.dump());
+  // The studies are part of the hash.
+  SweepSpec other = spec;
+  other.studies[1].name = "renamed";
+  EXPECT_NE(SpecHash(spec), SpecHash(other));
+}
+
+TEST_F(SweepStudyTest, AStudyOnlySweepNeedsNoGridAndKeepsTrialSweepsHashesUnchanged) {
+  TG_ASSERT_OK_AND_ASSIGN(SweepSpec spec, ParseSweepToml(absl::StrCat(
+      "name = \"only\"\n[[study]]\nname = \"s\"\nspec = '''", kTinyStudy, "'''\n"), dir_ + "/only.toml"));
+  EXPECT_TRUE(spec.grid.empty());
+  TG_ASSERT_OK(CanonicalizeSpec(&spec));
+  TG_ASSERT_OK_AND_ASSIGN(std::vector<ExpandedJob> jobs, ExpandJobs(spec));
+  ASSERT_EQ(jobs.size(), 1u);
+  EXPECT_EQ(jobs[0].kind, JobKind::kStudy);
+  // A sweep without studies has no "studies" key: hashes of stored sweeps stay valid.
+  TG_ASSERT_OK_AND_ASSIGN(SweepSpec trial, ParseSweepToml("name = \"t\"\n[grid]\nmethod = [\"RP\"]\n", "t"));
+  TG_ASSERT_OK(CanonicalizeSpec(&trial));
+  EXPECT_EQ(CanonicalJson(trial).find("studies"), std::string::npos);
+  EXPECT_NE(CanonicalJson(spec).find("studies"), std::string::npos);
+}
+
+TEST_F(SweepStudyTest, TheSnapshotIsInlinedKeepingOnlyTheStudiedEpisode) {
+  // The documented swing-up study's snapshot file (episodes 1..n).
+  const std::string snapshot = std::string(TOTALGRAD_SOURCE_DIR) +
+                               "/docs/error-vs-time/swingup_tp_seed1.json";
+  WriteFile(dir_ + "/snap.json",
+            absl::StrCat(R"({"problem": {"snapshot": ")", snapshot,
+                         R"(", "episode": 3}, "estimators": ["RP"], "particles": [5],
+                            "horizons": [3], "replicates": 2,
+                            "reference": {"replicates": 2, "particles": 10}})"));
+  TG_ASSERT_OK_AND_ASSIGN(SweepSpec spec, ParseSweepToml(
+      "name = \"snap\"\n[[study]]\nname = \"ep3\"\nfile = \"snap.json\"\n", dir_ + "/snap.toml"));
+  ASSERT_EQ(spec.studies.size(), 1u);
+  const nlohmann::json payload = nlohmann::json::parse(spec.studies[0].spec_json);
+  const nlohmann::json& inlined = payload["problem"]["snapshot"];
+  ASSERT_TRUE(inlined.is_object()) << payload["problem"].dump().substr(0, 200);
+  ASSERT_EQ(inlined["snapshots"].size(), 1u);
+  EXPECT_EQ(inlined["snapshots"][0]["episode"], 3);
+  // Self-contained: the coordinator's check accepts it without any file.
+  TG_EXPECT_OK(CanonicalStudySpec(spec.studies[0].spec_json).status());
+}
+
+// Each malformed entry: the error names the sweep file, the entry and what is wrong.
+TEST_F(SweepStudyTest, MalformedStudyEntriesNameTheFileTheEntryAndTheProblem) {
+  WriteFile(dir_ + "/bad_field.json",
+            R"({"problem": {"synthetic": {}}, "replicates": 1})");
+  WriteFile(dir_ + "/not_json.json", "{ this is not json");
+  WriteFile(dir_ + "/no_snapshot.json",
+            R"({"problem": {"snapshot": "missing-snapshot.json"}})");
+  struct Case {
+    std::string entry;
+    std::vector<std::string> expected;  // substrings of the message
+  } cases[] = {
+      {"file = \"x.json\"\n", {"bad.toml:", "study[0]", "name: missing"}},
+      {"name = \"a\"\nfile = \"bad_field.json\"\nspec = \"{}\"\n",
+       {"bad.toml:", "study[0] 'a'", "exactly one of file"}},
+      {"name = \"a\"\n", {"bad.toml:", "study[0] 'a'", "exactly one of file"}},
+      {"name = \"a b\"\nfile = \"bad_field.json\"\n", {"bad.toml:", "not a valid name"}},
+      {"name = \"a\"\nfile = \"absent.json\"\n", {"bad.toml:", "study[0] 'a'", "absent.json"}},
+      {"name = \"a\"\nfile = \"bad_field.json\"\n",
+       {"bad.toml:", "study[0] 'a'", "bad_field.json", "replicates"}},
+      {"name = \"a\"\nfile = \"not_json.json\"\n",
+       {"bad.toml:", "study[0] 'a'", "not_json.json", "not valid JSON"}},
+      {"name = \"a\"\nfile = \"no_snapshot.json\"\n",
+       {"bad.toml:", "study[0] 'a'", "missing-snapshot.json"}},
+      {"name = \"a\"\nspec = '{\"problem\": {\"synthetic\": {}}, \"estimators\": [\"NOPE\"]}'\n",
+       {"bad.toml:", "study[0] 'a'", "NOPE"}},
+      {"name = \"a\"\nspec = '{not json'\n", {"bad.toml:", "study[0] 'a'", "not valid JSON"}},
+      {"name = \"a\"\nspec = '{}'\nseeds = \"1\"\n", {"bad.toml:", "study[0].seeds", "unknown field"}},
+      {"name = \"a\"\nfile = 3\n", {"bad.toml:", "study[0].file", "must be a string"}},
+  };
+  for (const Case& c : cases) {
+    const absl::StatusOr<SweepSpec> spec =
+        ParseSweepToml(absl::StrCat("name = \"bad\"\n[[study]]\n", c.entry), dir_ + "/bad.toml");
+    ASSERT_FALSE(spec.ok()) << c.entry;
+    EXPECT_EQ(spec.status().code(), absl::StatusCode::kInvalidArgument) << c.entry;
+    for (const std::string& part : c.expected) {
+      EXPECT_NE(spec.status().message().find(part), std::string::npos)
+          << "entry:\n" << c.entry << "message: " << spec.status().message()
+          << "\nmissing: " << part;
+    }
+  }
+  // Two studies with one name.
+  const absl::StatusOr<SweepSpec> twice = ParseSweepToml(
+      absl::StrCat("name = \"bad\"\n[[study]]\nname = \"s\"\nspec = '''", kTinyStudy,
+                   "'''\n[[study]]\nname = \"s\"\nspec = '''", kTinyStudy, "'''\n"),
+      dir_ + "/bad.toml");
+  ASSERT_FALSE(twice.ok());
+  EXPECT_NE(twice.status().message().find("study[1] 's': name: repeats"), std::string::npos)
+      << twice.status().message();
+  // A study table that is not an array of tables.
+  const absl::StatusOr<SweepSpec> table =
+      ParseSweepToml("name = \"bad\"\n[study]\nname = \"s\"\n", dir_ + "/bad.toml");
+  ASSERT_FALSE(table.ok());
+  EXPECT_NE(table.status().message().find("[[study]]"), std::string::npos)
+      << table.status().message();
+}
+
+// What the coordinator receives is re-checked: a spec naming a file (which
+// it cannot read) or an invalid study is refused.
+TEST_F(SweepStudyTest, TheCoordinatorsCheckRefusesPathsAndInvalidSpecs) {
+  SweepSpec spec;
+  spec.name = "wire";
+  spec.studies.push_back({"s", R"({"problem": {"snapshot": "x.json"}})", "x"});
+  absl::Status status = CanonicalizeSpec(&spec);
+  ASSERT_FALSE(status.ok());
+  EXPECT_NE(status.message().find("study[0] 's': problem.snapshot"), std::string::npos)
+      << status.message();
+  spec.studies[0].spec_json = R"({"problem": {"synthetic": {}}, "replicates": 1})";
+  status = CanonicalizeSpec(&spec);
+  ASSERT_FALSE(status.ok());
+  EXPECT_NE(status.message().find("replicates"), std::string::npos) << status.message();
+  spec.studies[0].spec_json = kTinyStudy;
+  TG_EXPECT_OK(CanonicalizeSpec(&spec));
+  // A study-only sweep may not carry a protocol (it would apply to nothing).
+  spec.protocol.push_back({"episodes", "2"});
+  EXPECT_FALSE(CanonicalizeSpec(&spec).ok());
+}
+
+// The shipped study sweep parses, inlines its snapshot and expands to study jobs.
+TEST(ShippedSweepsTest, StudyDemoIsValid) {
+  const std::string path = std::string(TOTALGRAD_SOURCE_DIR) + "/deploy/sweeps/study-demo.toml";
+  TG_ASSERT_OK_AND_ASSIGN(SweepSpec spec, LoadSweepFile(path, nullptr));
+  TG_ASSERT_OK(CanonicalizeSpec(&spec));
+  TG_ASSERT_OK_AND_ASSIGN(std::vector<ExpandedJob> jobs, ExpandJobs(spec));
+  ASSERT_FALSE(jobs.empty());
+  int studies = 0;
+  for (const auto& job : jobs) studies += job.kind == JobKind::kStudy;
+  EXPECT_GE(studies, 1);
+}
+
+}  // namespace study_entries
 
 }  // namespace
 }  // namespace totalgrad::sweep
