@@ -185,7 +185,11 @@ int WaitForSweep(Connection* connection, const std::string& sweep_name,
     const std::string line = absl::StrCat(
         "[", std::string(filled, '#'), std::string(kWidth - filled, '.'), "] jobs ", done, "/",
         sweep.jobs_total(), " (", sweep.jobs_running(), " running, ", sweep.jobs_failed(),
-        " failed) episodes ", sweep.episodes_stored(), "/", sweep.episodes_expected(),
+        " failed)",
+        // A sweep of study jobs only has no episodes to count.
+        sweep.episodes_expected() > 0
+            ? absl::StrCat(" episodes ", sweep.episodes_stored(), "/", sweep.episodes_expected())
+            : std::string(),
         sweep.state() == v1::SWEEP_STATE_PAUSED ? " [paused]" : "");
     const auto now = std::chrono::steady_clock::now();
     if (tty) {

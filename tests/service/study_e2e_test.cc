@@ -169,11 +169,15 @@ TEST_F(StudyEndToEndTest, StudyRowsInSqliteEqualALocalCoreRun) {
 TEST_F(StudyEndToEndTest, AStudyThatFailsOnTheWorkerIsAStoredJobFailure) {
   StartCoordinator();
   auto worker = StartWorker("a");
-  nlohmann::json snapshot = nlohmann::json::parse(ReadFile(
-      std::string(TOTALGRAD_SOURCE_DIR) + "/docs/error-vs-time/swingup_tp_seed1.json"));
-  ASSERT_TRUE(snapshot["snapshots"].is_array());
-  snapshot["snapshots"] = nlohmann::json::array({snapshot["snapshots"][0]});
-  const int present = snapshot["snapshots"][0]["episode"].get<int>();
+  const std::string text =
+      ReadFile(std::string(TOTALGRAD_SOURCE_DIR) + "/docs/error-vs-time/swingup_tp_seed1.json");
+  nlohmann::json snapshot = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
+  ASSERT_TRUE(snapshot.is_object()) << text.size();
+  ASSERT_TRUE(snapshot["snapshots"].is_array() && !snapshot["snapshots"].empty());
+  const nlohmann::json first = snapshot["snapshots"][0];
+  snapshot["snapshots"] = nlohmann::json::array();
+  snapshot["snapshots"].push_back(first);
+  const int present = first["episode"].get<int>();
   nlohmann::json study = nlohmann::json::parse(kTinyStudy);
   study["problem"] = {{"snapshot", snapshot}, {"episode", 99}};
   v1::SweepSpec spec;
@@ -205,7 +209,8 @@ TEST_F(StudyEndToEndTest, AStudyThatFailsOnTheWorkerIsAStoredJobFailure) {
   EXPECT_TRUE(worker->Running());
   EXPECT_GT(StudyRows("study-fail").cells_size(), 0);
   // A failed study stores no rows of its own.
-  for (const auto& c : StudyRows("study-fail", true).cells()) EXPECT_EQ(c.study(), "fine");
+  const v1::ListStudyRowsResponse all = StudyRows("study-fail", /*all_attempts=*/true);
+  for (const auto& c : all.cells()) EXPECT_EQ(c.study(), "fine");
   worker->Signal(SIGTERM);
   EXPECT_EQ(worker->Wait(seconds(20)), 0) << worker->Log();
 }

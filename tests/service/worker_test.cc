@@ -59,6 +59,54 @@ class FakeRunner final : public TrialRunner {
   std::atomic<int> produced{0};
 };
 
+// Study jobs by the study's seed: 21 returns 1200 cells and 3 references
+// (more than one heartbeat's worth), 22 runs until cancelled (polling
+// ShouldCancel), 23 throws, 24 returns an error.
+class FakeStudyRunner final : public StudyRunner {
+ public:
+  absl::StatusOr<StudyOutcome> Run(const std::string& spec_json, TrialProgress* progress) override {
+    const int seed = spec_json.find("\"seed\":21") != std::string::npos   ? 21
+                     : spec_json.find("\"seed\":22") != std::string::npos ? 22
+                     : spec_json.find("\"seed\":23") != std::string::npos ? 23
+                                                                             : 24;
+    if (seed == 23) throw std::runtime_error("study boom");
+    if (seed == 24) return absl::InvalidArgumentError("the inline snapshot has no episode 9");
+    if (seed == 22) {
+      for (int waited = 0; waited < 60'000; waited += 5) {
+        if (progress->ShouldCancel()) {
+          stopped = true;
+          return absl::CancelledError("study stopped");
+        }
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+      }
+      return absl::DeadlineExceededError("never cancelled");
+    }
+    StudyOutcome outcome;
+    for (int i = 0; i < 1200; ++i) {
+      v1::StudyCellRow row;
+      row.set_index(i);
+      row.set_estimator("RP");
+      row.set_method("RP");
+      row.set_particles(10 + i);
+      row.set_horizon(5);
+      row.set_replicates(3);
+      row.set_rel_rmse(0.001 * i);
+      row.set_note(std::string(200, 'n'));
+      outcome.cells.push_back(row);
+    }
+    for (int i = 0; i < 3; ++i) {
+      v1::StudyReferenceRow row;
+      row.set_index(i);
+      row.set_horizon(5 * (i + 1));
+      row.set_norm(1.5);
+      for (int k = 0; k < 500; ++k) row.add_gradient(k * 0.25);
+      outcome.references.push_back(row);
+    }
+    return outcome;
+  }
+  std::atomic<bool> stopped{false};
+};
+
 class WorkerTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -85,7 +133,8 @@ class WorkerTest : public ::testing::Test {
     control_ = v1::ControlService::NewStub(grpc::CreateChannel(
         options_.listen, grpc::InsecureChannelCredentials()));
   }
-  void StartWorker(int slots, absl::Duration drain_timeout = absl::Seconds(30)) {
+  void StartWorker(int slots, absl::Duration drain_timeout = absl::Seconds(30),
+                   bool studies = true) {
     WorkerOptions options;
     options.worker_id = "fake";
     options.host = "testhost";
@@ -95,7 +144,8 @@ class WorkerTest : public ::testing::Test {
     options.call_timeout = absl::Seconds(5);
     options.drain_timeout = drain_timeout;
     worker_ = std::make_unique<Worker>(
-        options, grpc::CreateChannel(options_.listen, grpc::InsecureChannelCredentials()), &runner_);
+        options, grpc::CreateChannel(options_.listen, grpc::InsecureChannelCredentials()), &runner_,
+        studies ? &study_runner_ : nullptr);
     worker_thread_ = std::thread([this] { summary_ = worker_->Run(); });
   }
   void Submit(const std::string& name, const std::vector<int>& seeds, int max_attempts = 3) {
@@ -112,6 +162,24 @@ class WorkerTest : public ::testing::Test {
     auto* episodes = spec->add_protocol();
     episodes->set_key("episodes");
     episodes->set_value("8");
+    grpc::ClientContext context;
+    v1::SubmitSweepResponse response;
+    const grpc::Status status = control_->SubmitSweep(&context, request, &response);
+    ASSERT_TRUE(status.ok()) << status.error_message();
+  }
+  // A sweep of study jobs, one per seed (a valid tiny study; FakeStudyRunner
+  // acts on the seed).
+  void SubmitStudies(const std::string& name, const std::vector<int>& seeds, int max_attempts = 3) {
+    v1::SubmitSweepRequest request;
+    auto* spec = request.mutable_spec();
+    spec->set_name(name);
+    spec->set_max_attempts(max_attempts);
+    for (int seed : seeds) {
+      auto* study = spec->add_studies();
+      study->set_name(absl::StrCat("s", seed));
+      study->set_spec_json(absl::StrCat(
+          R"({"problem":{"synthetic":{}},"particles":[10],"horizons":[5],"seed":)", seed, "}"));
+    }
     grpc::ClientContext context;
     v1::SubmitSweepResponse response;
     const grpc::Status status = control_->SubmitSweep(&context, request, &response);
@@ -148,6 +216,7 @@ class WorkerTest : public ::testing::Test {
   std::unique_ptr<service::Coordinator> coordinator_;
   std::unique_ptr<v1::ControlService::Stub> control_;
   FakeRunner runner_;
+  FakeStudyRunner study_runner_;
   std::unique_ptr<Worker> worker_;
   std::thread worker_thread_;
   WorkerSummary summary_;
@@ -277,6 +346,95 @@ TEST_F(WorkerTest, LeaseGrantedToACancelledPollIsReleasedAtOnce) {
   // A real worker then runs it to completion.
   StartWorker(1);
   ASSERT_TRUE(WaitFor([&] { return Finished("orphan"); }, seconds(30)));
+}
+
+// ---- study jobs ----
+
+TEST_F(WorkerTest, StudyRowsAreSentInBoundedBatchesAndTheJobCompletes) {
+  SubmitStudies("study-rows", {21});
+  StartWorker(1);
+  ASSERT_TRUE(WaitFor([&] { return Finished("study-rows"); }, seconds(60)));
+  const v1::JobInfo job = JobsBySeed("study-rows")["21"];
+  EXPECT_EQ(job.state(), v1::JOB_STATE_COMPLETED) << job.last_error();
+  EXPECT_EQ(job.kind(), v1::JOB_KIND_STUDY);
+  grpc::ClientContext context;
+  v1::ListStudyRowsRequest request;
+  request.set_sweep_name("study-rows");
+  v1::ListStudyRowsResponse rows;
+  ASSERT_TRUE(control_->ListStudyRows(&context, request, &rows).ok());
+  ASSERT_EQ(rows.cells_size(), 1200);
+  ASSERT_EQ(rows.references_size(), 3);
+  for (int i = 0; i < rows.cells_size(); ++i) {
+    EXPECT_EQ(rows.cells(i).index(), i);
+    EXPECT_EQ(rows.cells(i).particles(), 10 + i);
+    EXPECT_EQ(rows.cells(i).study(), "s21");
+  }
+  EXPECT_EQ(rows.references(2).horizon(), 15);
+  EXPECT_EQ(rows.references(2).gradient_size(), 500);
+  worker_->Drain();
+  worker_thread_.join();
+  EXPECT_EQ(summary_.completed, 1);
+}
+
+TEST_F(WorkerTest, StudyFailuresAreReportedWithTheirReasons) {
+  SubmitStudies("study-fail", {23, 24}, /*max_attempts=*/1);
+  StartWorker(1);
+  ASSERT_TRUE(WaitFor([&] { return Finished("study-fail"); }, seconds(60)));
+  auto jobs = JobsBySeed("study-fail");
+  EXPECT_EQ(jobs["23"].state(), v1::JOB_STATE_FAILED);
+  EXPECT_NE(jobs["23"].last_error().find("the study threw: study boom"), std::string::npos)
+      << jobs["23"].last_error();
+  EXPECT_EQ(jobs["24"].state(), v1::JOB_STATE_FAILED);
+  EXPECT_NE(jobs["24"].last_error().find("the inline snapshot has no episode 9"), std::string::npos)
+      << jobs["24"].last_error();
+  worker_->Drain();
+  worker_thread_.join();
+  EXPECT_EQ(summary_.failed, 2);
+}
+
+TEST_F(WorkerTest, CancelDirectiveStopsTheStudyAndReleasesIt) {
+  SubmitStudies("study-cancel", {22});
+  StartWorker(1);
+  ASSERT_TRUE(WaitFor([&] { return JobsBySeed("study-cancel")["22"].state() == v1::JOB_STATE_RUNNING; },
+                      seconds(30)));
+  grpc::ClientContext context;
+  v1::SweepRequest request;
+  request.set_name("study-cancel");
+  v1::SweepInfo info;
+  ASSERT_TRUE(control_->CancelSweep(&context, request, &info).ok());
+  const int64_t job_id = JobsBySeed("study-cancel")["22"].job_id();
+  ASSERT_TRUE(WaitFor([&] { return Log(job_id).attempts(0).state() == v1::ATTEMPT_STATE_CANCELLED; },
+                      seconds(30)));
+  EXPECT_TRUE(study_runner_.stopped.load());
+  worker_->Drain();
+  worker_thread_.join();
+  EXPECT_EQ(summary_.released, 1);
+}
+
+TEST_F(WorkerTest, DrainTimeoutStopsTheStudyAndRequeuesItWithoutBlame) {
+  SubmitStudies("study-drain", {22});
+  StartWorker(1, /*drain_timeout=*/absl::Milliseconds(300));
+  ASSERT_TRUE(WaitFor([&] { return JobsBySeed("study-drain")["22"].state() == v1::JOB_STATE_RUNNING; },
+                      seconds(30)));
+  worker_->Drain();
+  worker_thread_.join();
+  EXPECT_TRUE(study_runner_.stopped.load());
+  EXPECT_EQ(summary_.released, 1);
+  const v1::JobInfo job = JobsBySeed("study-drain")["22"];
+  EXPECT_EQ(job.state(), v1::JOB_STATE_QUEUED);
+  EXPECT_EQ(job.failures(), 0);
+}
+
+// A worker without a study runner (like an older build) is never given a
+// study job; it still takes trials.
+TEST_F(WorkerTest, WorkersThatDoNotRunStudiesGetOnlyTrials) {
+  SubmitStudies("study-only", {21});
+  Submit("trials", {1});
+  StartWorker(1, absl::Seconds(30), /*studies=*/false);
+  ASSERT_TRUE(WaitFor([&] { return Finished("trials"); }, seconds(60)));
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));  // more polls
+  EXPECT_EQ(JobsBySeed("study-only")["21"].state(), v1::JOB_STATE_QUEUED);
+  EXPECT_EQ(JobsBySeed("study-only")["21"].attempts(), 0);
 }
 
 }  // namespace
