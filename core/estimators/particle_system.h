@@ -3,9 +3,10 @@
 // Jacobians) and the policy (forces with a batched adjoint).
 //
 // The estimators only ever go through these interfaces, so the same forward
-// and backward passes run on a trial's GP model and RBF policy (GpDynamics,
-// RbfParticlePolicy: thin adapters) and, in tests, on small systems whose exact
-// gradient is known (a linear-Gaussian system with a linear policy).
+// and backward passes run on a trial's GP model and RBF policy (thin adapters:
+// GpDynamics, or FitcDynamics for a sparse GP, and RbfParticlePolicy) and, in
+// tests, on small systems whose exact gradient is known (a linear-Gaussian
+// system with a linear policy).
 //
 // Conventions (as gp::GpModel and policy::RbfPolicy): S state dimensions, one
 // scalar action, model inputs z = [x, u] (E = S + 1), particles in rows.
@@ -16,6 +17,7 @@
 #define TOTALGRAD_CORE_ESTIMATORS_PARTICLE_SYSTEM_H_
 
 #include "core/common/types.h"
+#include "core/gp/fitc.h"
 #include "core/gp/gp.h"
 #include "core/policy/rbf_policy.h"
 
@@ -68,6 +70,20 @@ class GpDynamics final : public ParticleDynamics {
 
  private:
   const gp::GpModel* model_;
+};
+
+// Adapter over a sparse (FITC) GP model (non-owning), for trials with
+// gp_inducing: the same batched contract, one call per step.
+class FitcDynamics final : public ParticleDynamics {
+ public:
+  explicit FitcDynamics(const gp::FitcModel* model) : model_(model) {}
+  int state_dim() const override { return model_->num_outputs(); }
+  void Predict(const ConstRowMatrixRef& z, double noise_variance_multiplier, RowMatrix* mean,
+               RowMatrix* variance, RowMatrix* dmean_dz, RowMatrix* dvar_dz) const override;
+  const gp::FitcModel& model() const { return *model_; }
+
+ private:
+  const gp::FitcModel* model_;
 };
 
 // Adapter over an RBF policy (non-owning).

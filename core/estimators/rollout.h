@@ -45,7 +45,8 @@ struct Problem {
   // Seams for other systems (tests and studies, e.g. a linear-Gaussian system
   // with a linear policy, whose exact gradient is known). When non-null they
   // are used instead of `model` / `policy`; the pointees must outlive the
-  // problem. A trial leaves them null.
+  // problem. A trial leaves them null, except that with a sparse GP
+  // (gp_inducing) `dynamics` is a FitcDynamics and `model` is null.
   const ParticleDynamics* dynamics = nullptr;
   const ParticlePolicy* controller = nullptr;
 };

@@ -10,6 +10,8 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "core/common/check.h"
+#include "core/gp/se_kernel.h"
 
 namespace totalgrad::gp {
 namespace {
@@ -95,13 +97,21 @@ absl::StatusOr<FitcModel> FitcModel::Create(const RowMatrix& inputs, const RowMa
   model.hyp_ = hyperparameters;
   model.inducing_ = inducing;
   model.beta_.resize(m, d);
-  model.vw_.resize(d);
+  model.outputs_.resize(d);
   for (int a = 0; a < d; ++a) {
+    Output& out = model.outputs_[a];
+    out.inv_lengthscales = (-hyperparameters.log_lengthscales.row(a)).array().exp().transpose();
+    out.signal_var = std::exp(2.0 * hyperparameters.log_signal_std(a));
+    out.noise_var = std::exp(2.0 * hyperparameters.log_noise_std(a));
+    if (!out.inv_lengthscales.allFinite() || !std::isfinite(out.signal_var) ||
+        !std::isfinite(out.noise_var)) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "FITC: hyperparameters of output ", a, " overflow (1 / l, sf^2 or sn^2 not finite)"));
+    }
+    // 1 / l^2 exactly as the NLML computes it.
     const Vector il = (-2.0 * hyperparameters.log_lengthscales.row(a).array()).exp().matrix();
-    const double sf2 = std::exp(2.0 * hyperparameters.log_signal_std(a));
-    const double sn2 = std::exp(2.0 * hyperparameters.log_noise_std(a));
     OutputTerms t;
-    if (!ComputeTerms(inputs, targets.col(a), inducing, il, sf2, sn2, &t)) {
+    if (!ComputeTerms(inputs, targets.col(a), inducing, il, out.signal_var, out.noise_var, &t)) {
       return absl::FailedPreconditionError(
           absl::StrCat("FITC: Kmm or B not positive definite for output ", a));
     }
@@ -111,51 +121,96 @@ absl::StatusOr<FitcModel> FitcModel::Create(const RowMatrix& inputs, const RowMa
     Matrix inner = Matrix::Identity(m, m) - a_inv;
     Matrix linv = t.l.matrixL().solve(Matrix::Identity(m, m));
     Matrix vw = linv.transpose() * inner * linv;
-    model.vw_[a] = 0.5 * (vw + vw.transpose());
+    // Exact symmetry: the variance Jacobian uses (Kstar Vw)_pm = (Vw k_p)_m.
+    out.variance_weights = 0.5 * (vw + vw.transpose());
+    out.scaled_inducing = inducing * out.inv_lengthscales.asDiagonal();
+    out.scaled_sq_norms = out.scaled_inducing.rowwise().squaredNorm();
+    out.beta_scaled_inducing = model.beta_.col(a).asDiagonal() * out.scaled_inducing;
+    if (!model.beta_.col(a).allFinite() || !out.variance_weights.allFinite()) {
+      return absl::FailedPreconditionError(
+          absl::StrCat("FITC: non-finite weights for output ", a));
+    }
   }
   return model;
 }
 
+namespace {
+
+// Predictive variances below this are round-off (as in gp.cc).
+constexpr double kVarianceFloor = 1e-12;
+
+// Scratch matrices of FitcModel::Predict, one set per thread (Predict is
+// const and thread-safe); no heap allocations once the shapes have been seen.
+struct FitcWorkspace {
+  RowMatrix zs;    // P x E, z / l_a
+  Vector zs_sq;    // P, |z / l_a|^2
+  Matrix kstar;    // P x M, k_a(z_p, Z_m)
+  Matrix a;        // P x M, Kstar Vw, then Kstar .* Kstar Vw
+  Vector column;   // P, one output's mean or k^T Vw k
+  Matrix product;  // P x E, Jacobian products
+};
+
+FitcWorkspace& ThreadFitcWorkspace() {
+  thread_local FitcWorkspace workspace;
+  return workspace;
+}
+
+}  // namespace
+
 void FitcModel::Predict(const ConstRowMatrixRef& z, const PredictOptions& options,
                         RowMatrix* mean, RowMatrix* variance, RowMatrix* dmean_dz,
                         RowMatrix* dvar_dz) const {
-  const int p = static_cast<int>(z.rows()), e = num_inputs(), d = num_outputs();
+  TG_CHECK(mean != nullptr);
+  TG_CHECK(variance != nullptr || dvar_dz == nullptr);
+  TG_CHECK_EQ(z.cols(), num_inputs());
+  const Eigen::Index p = z.rows();
+  const int e = num_inputs(), d = num_outputs();
   mean->resize(p, d);
-  variance->resize(p, d);
+  if (variance != nullptr) variance->resize(p, d);
   if (dmean_dz != nullptr) dmean_dz->resize(p, d * e);
   if (dvar_dz != nullptr) dvar_dz->resize(p, d * e);
-  const RowMatrix zz = z;
+  if (p == 0) return;
+
+  FitcWorkspace& ws = ThreadFitcWorkspace();
   for (int a = 0; a < d; ++a) {
-    const Vector il = (-2.0 * hyp_.log_lengthscales.row(a).array()).exp().matrix();
-    const double sf2 = std::exp(2.0 * hyp_.log_signal_std(a));
-    const double sn2 = std::exp(2.0 * hyp_.log_noise_std(a));
-    const Matrix k = SeKernel(zz, inducing_, il, sf2);  // P x M
-    const Vector b = beta_.col(a);
-    mean->col(a) = k * b;
-    const Matrix h = k * vw_[a];
-    Vector var = (sf2 - h.cwiseProduct(k).rowwise().sum().array()).matrix() +
-                 Vector::Constant(p, options.noise_variance_multiplier * sn2);
-    const Eigen::Array<bool, Eigen::Dynamic, 1> floored = var.array() < 1e-12;
-    var = var.cwiseMax(1e-12);
-    variance->col(a) = var;
+    const Output& out = outputs_[a];
+    ws.zs.noalias() = z * out.inv_lengthscales.asDiagonal();
+    ws.zs_sq.noalias() = ws.zs.rowwise().squaredNorm();
+    internal::SeCrossKernel(ws.zs, ws.zs_sq, out.scaled_inducing, out.scaled_sq_norms,
+                            out.signal_var, &ws.kstar);
+    ws.column.noalias() = ws.kstar * beta_.col(a);
+    mean->col(a) = ws.column;
+
     if (dmean_dz != nullptr) {
-      const Matrix t = k * b.asDiagonal();  // P x M
-      const Matrix tz = t * inducing_;      // P x E
-      const Vector rs = t.rowwise().sum();
-      for (int m = 0; m < e; ++m) {
-        dmean_dz->col(a * e + m) = -il(m) * (zz.col(m).cwiseProduct(rs) - tz.col(m));
-      }
+      // d mean_p / d z_pm = sum_j beta_j k_pj (zs_jm - zs_pm) / l_m
+      //                   = [(Kstar (beta .* Zs))_pm - zs_pm mean_p] / l_m.
+      ws.product.noalias() = ws.kstar * out.beta_scaled_inducing;
+      dmean_dz->middleCols(a * e, e) =
+          ((ws.product.array() - ws.zs.array().colwise() * ws.column.array()).rowwise() *
+           out.inv_lengthscales.transpose().array());
     }
+
+    if (variance == nullptr) continue;
+    // The one P x M x M product per output: row p of A is (Vw k_p)^T.
+    ws.a.noalias() = ws.kstar * out.variance_weights;
+    ws.column.noalias() = (ws.a.array() * ws.kstar.array()).rowwise().sum().matrix();
+    const double prior = out.signal_var + options.noise_variance_multiplier * out.noise_var;
+    for (Eigen::Index i = 0; i < p; ++i) {
+      const double v = prior - ws.column(i);
+      // Written so that a NaN (from a non-finite query) propagates.
+      (*variance)(i, a) = v < kVarianceFloor ? kVarianceFloor : v;
+    }
+
     if (dvar_dz != nullptr) {
-      const Matrix hk = h.cwiseProduct(k);
-      const Matrix hkz = hk * inducing_;
-      const Vector rs = hk.rowwise().sum();
-      for (int m = 0; m < e; ++m) {
-        Vector col = 2.0 * il(m) * (zz.col(m).cwiseProduct(rs) - hkz.col(m));
-        for (int i = 0; i < p; ++i) {
-          if (floored(i)) col(i) = 0.0;
-        }
-        dvar_dz->col(a * e + m) = col;
+      // d var_p / d z_pm = -2 sum_j A_pj d k_pj / d z_pm
+      //                  = -2 [((A .* Kstar) Zs)_pm - zs_pm rowsum(A .* Kstar)_p] / l_m.
+      ws.a.array() *= ws.kstar.array();
+      ws.product.noalias() = ws.a * out.scaled_inducing;
+      auto block = dvar_dz->middleCols(a * e, e);
+      block = ((ws.product.array() - ws.zs.array().colwise() * ws.column.array()).rowwise() *
+               (-2.0 * out.inv_lengthscales.transpose().array()));
+      for (Eigen::Index i = 0; i < p; ++i) {
+        if (prior - ws.column(i) < kVarianceFloor) block.row(i).setZero();
       }
     }
   }
@@ -266,6 +321,29 @@ absl::StatusOr<FitcTrainingSummary> TrainInducingInputs(const RowMatrix& inputs,
   *inducing = best;
   summary.final_nlml = best_value;
   return summary;
+}
+
+absl::StatusOr<FitcModel> FitFitcModel(const RowMatrix& inputs, const RowMatrix& targets,
+                                       const GpHyperparameters& hyperparameters,
+                                       const FitcFitOptions& options, RowMatrix* inducing, Rng* rng,
+                                       FitcTrainingSummary* summary) {
+  if (options.num_inducing < 1 || options.num_inducing > inputs.rows()) {
+    return absl::InvalidArgumentError(absl::StrCat("FITC: ", options.num_inducing,
+                                                   " inducing inputs for ", inputs.rows(),
+                                                   " data points (need 1 <= M <= N)"));
+  }
+  FitcTrainingOptions fit;
+  if (inducing->rows() != options.num_inducing || inducing->cols() != inputs.cols()) {
+    *inducing = RandomSubsetOfInputs(inputs, options.num_inducing, rng);
+    fit.max_iterations = options.first_fit_iterations;
+  } else {
+    fit.max_iterations = options.warm_fit_iterations;
+  }
+  absl::StatusOr<FitcTrainingSummary> trained =
+      TrainInducingInputs(inputs, targets, hyperparameters, fit, inducing);
+  if (!trained.ok()) return trained.status();
+  if (summary != nullptr) *summary = *trained;
+  return FitcModel::Create(inputs, targets, hyperparameters, *inducing);
 }
 
 RowMatrix RandomSubsetOfInputs(const RowMatrix& inputs, int m, Rng* rng) {

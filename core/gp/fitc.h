@@ -36,9 +36,9 @@ inline constexpr double kFitcRidge = 1e-6;
 class FitcModel {
  public:
   // inputs N x E, targets N x D, hyperparameters D x E, inducing M x E.
-  // Errors: InvalidArgument (shapes, non-finite numbers, M == 0),
-  // FailedPrecondition naming the output whose Kmm or B could not be
-  // factorised.
+  // Errors: InvalidArgument (shapes, non-finite numbers, M == 0, sf^2, sn^2 or
+  // 1 / l overflowing), FailedPrecondition naming the output whose Kmm or B
+  // could not be factorised.
   static absl::StatusOr<FitcModel> Create(const RowMatrix& inputs, const RowMatrix& targets,
                                           const GpHyperparameters& hyperparameters,
                                           const RowMatrix& inducing);
@@ -49,19 +49,41 @@ class FitcModel {
   const GpHyperparameters& hyperparameters() const { return hyp_; }
   const RowMatrix& inducing() const { return inducing_; }            // M x E
   const Vector beta(int a) const { return beta_.col(a); }            // M
-  const Matrix& variance_weights(int a) const { return vw_[a]; }     // M x M, Kmm^-1 - B^-1
+  // M x M, Kmm^-1 - B^-1, exactly symmetric.
+  const Matrix& variance_weights(int a) const { return outputs_[a].variance_weights; }
 
-  // Same contract as GpModel::Predict (mean, variance floored at 1e-12,
-  // optional Jacobians dmean_dz(p, a*E + m)), with the FITC predictive.
+  // Batched point prediction with the contract of GpModel::Predict (gp.h),
+  // with the FITC predictive in place of the exact one:
+  //   mean (P x D):      mean(p, a) = k_a(z_p, Z) beta_a
+  //   variance (P x D):  sf_a^2 - k^T Vw_a k + mult * sn_a^2, floored at 1e-12
+  //                      (where the floor binds the Jacobian row is zero)
+  //   dmean_dz, dvar_dz (P x D*E, optional): dmean_dz(p, a*E + m) =
+  //                      d mean(p, a) / d z_{p,m}.
+  // Everything that does not depend on z is cached by Create (Z / l_a,
+  // |Z / l_a|^2, beta_a .* Z / l_a, Vw_a), so P queries cost per output one
+  // P x M x E product (kernel), P x M x E products for the Jacobians and one
+  // P x M by M x M product for the variance (BLAS-3): the full GP's work with
+  // N replaced by M. `mean` must not be null; `variance` may be null when
+  // dvar_dz is null too (mean only, O(P M E)). Requesting Jacobians never
+  // changes the values. Thread-safe (per-thread scratch space).
   void Predict(const ConstRowMatrixRef& z, const PredictOptions& options, RowMatrix* mean,
                RowMatrix* variance, RowMatrix* dmean_dz, RowMatrix* dvar_dz) const;
 
  private:
+  struct Output {
+    RowMatrix scaled_inducing;       // M x E, Z / l_a
+    Vector scaled_sq_norms;          // M, |Z_m / l_a|^2
+    RowMatrix beta_scaled_inducing;  // M x E, beta_a .* Z / l_a (mean Jacobian)
+    Matrix variance_weights;         // M x M, Kmm^-1 - B^-1, symmetric
+    Vector inv_lengthscales;         // E, 1 / l_a
+    double signal_var = 0;           // sf_a^2
+    double noise_var = 0;            // sn_a^2
+  };
   FitcModel() = default;
   GpHyperparameters hyp_;
   RowMatrix inducing_;
-  Matrix beta_;             // M x D
-  std::vector<Matrix> vw_;  // D x (M x M)
+  Matrix beta_;                  // M x D
+  std::vector<Output> outputs_;  // D
 };
 
 // FITC negative log marginal likelihood summed over outputs, and its gradient
@@ -92,6 +114,27 @@ absl::StatusOr<FitcTrainingSummary> TrainInducingInputs(const RowMatrix& inputs,
                                                         const GpHyperparameters& hyperparameters,
                                                         const FitcTrainingOptions& options,
                                                         RowMatrix* inducing);
+
+// How a FITC model is fitted to a data set, as PILCO does it (pilco-spec.md
+// 4.5): inducing inputs warm-started from the previous fit when there is one,
+// else a random subset of the training inputs; then trained with the
+// hyperparameters fixed.
+struct FitcFitOptions {
+  int num_inducing = 300;           // M (PILCO: 300)
+  int first_fit_iterations = 1500;  // L-BFGS iterations from a random subset
+  int warm_fit_iterations = 500;    // from *inducing when it is already M x E
+};
+
+// Fits Z and builds the model. *inducing is the warm start (used when it is
+// num_inducing x E, otherwise replaced by RandomSubsetOfInputs drawn from
+// *rng) and receives the trained inducing inputs. `summary` may be null.
+// Errors: InvalidArgument when num_inducing < 1 or > N (a data set of at
+// most M points is the full GP's job), and those of TrainInducingInputs and
+// FitcModel::Create.
+absl::StatusOr<FitcModel> FitFitcModel(const RowMatrix& inputs, const RowMatrix& targets,
+                                       const GpHyperparameters& hyperparameters,
+                                       const FitcFitOptions& options, RowMatrix* inducing, Rng* rng,
+                                       FitcTrainingSummary* summary);
 
 // PILCO's start: M distinct training inputs chosen uniformly at random
 // (M <= N).

@@ -13,7 +13,9 @@
 #include "absl/strings/str_join.h"
 #include "core/common/blas.h"
 #include "core/estimators/estimator.h"
+#include "core/estimators/particle_system.h"
 #include "core/estimators/rollout.h"
+#include "core/gp/fitc.h"
 #include "core/pilco/angle_features.h"
 #include "core/pilco/pilco.h"
 #include "core/policy/rbf_policy.h"
@@ -223,10 +225,10 @@ absl::Status TrialOptions::Validate() const {
   if (gp_training.max_iterations < 0) return bad("gp_iterations", "must be >= 0");
   if (!std::isfinite(success_threshold)) return bad("threshold", "must be finite");
   if (gp_inducing < -1) return bad("gp_inducing", "must be -1 (auto), 0 (full GP) or a count");
-  if (method != kPilco && (angle_features == "sincos" || gp_inducing > 0))
-    return bad(method == kPilco ? "method" : (angle_features == "sincos" ? "angle_features" : "gp_inducing"),
-               "(sin/cos angle inputs and FITC) is implemented for PILCO only so far; "
-               "particle methods use the raw state and the full GP");
+  if (method != kPilco && angle_features == "sincos")
+    return bad("angle_features",
+               "'sincos' (sin/cos angle inputs) is implemented for PILCO only so far; "
+               "particle methods use the raw state");
   const auto methods = AllMethods();
   if (std::find(methods.begin(), methods.end(), method) == methods.end())
     return bad("method", absl::StrCat("'", method, "' is unknown; known: ", absl::StrJoin(methods, ", ")));
@@ -333,15 +335,36 @@ class ParticleLearner final : public PolicyLearner {
     const RowMatrix y = data.Targets();
     absl::Status status = TrainModel(x, y, options_, e, &hyperparameters_, result);
     if (!status.ok()) return status;
-    absl::StatusOr<gp::GpModel> model = gp::GpModel::Create(x, y, *hyperparameters_);
-    if (!model.ok())
-      return absl::Status(model.status().code(),
-                          absl::StrCat("episode ", e, ": GP model: ", model.status().message()));
-    for (int a = 0; a < model->num_outputs(); ++a)
-      if (model->jitter(a) > 0) result->flags.gp_jitter = true;
-
+    // The full GP, or FITC once the data exceed gp_inducing points (auto = -1
+    // means the full GP for particle methods). Inducing inputs as PILCO: a
+    // random subset the first time, then warm-started from the last episode.
     estimators::Problem problem;
-    problem.model = &*model;
+    std::optional<gp::GpModel> full_model;
+    std::optional<gp::FitcModel> sparse_model;
+    std::optional<estimators::FitcDynamics> sparse_dynamics;
+    const int num_inducing = std::max(options_.gp_inducing, 0);
+    if (num_inducing > 0 && x.rows() > num_inducing) {
+      gp::FitcFitOptions fit;
+      fit.num_inducing = num_inducing;
+      Rng inducing_rng(options_.seed, Stream::kGpInit, static_cast<uint64_t>(e));
+      absl::StatusOr<gp::FitcModel> model =
+          gp::FitFitcModel(x, y, *hyperparameters_, fit, &inducing_, &inducing_rng, nullptr);
+      if (!model.ok())
+        return absl::Status(model.status().code(),
+                            absl::StrCat("episode ", e, ": FITC model: ", model.status().message()));
+      sparse_model.emplace(*std::move(model));
+      sparse_dynamics.emplace(&*sparse_model);
+      problem.dynamics = &*sparse_dynamics;
+    } else {
+      absl::StatusOr<gp::GpModel> model = gp::GpModel::Create(x, y, *hyperparameters_);
+      if (!model.ok())
+        return absl::Status(model.status().code(),
+                            absl::StrCat("episode ", e, ": GP model: ", model.status().message()));
+      for (int a = 0; a < model->num_outputs(); ++a)
+        if (model->jitter(a) > 0) result->flags.gp_jitter = true;
+      full_model.emplace(*std::move(model));
+      problem.model = &*full_model;
+    }
     problem.policy = &policy_;
     problem.cost = scene_.cost.get();
     problem.mu0 = scene_.mu0;
@@ -393,6 +416,7 @@ class ParticleLearner final : public PolicyLearner {
   policy::RbfPolicy policy_;
   RmspropLike optimiser_;
   std::optional<gp::GpHyperparameters> hyperparameters_;
+  RowMatrix inducing_;  // FITC inducing inputs of the last sparse fit (warm start)
 };
 
 // PILCO: analytic moment matching and BFGS (core/pilco), on the features the

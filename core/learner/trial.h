@@ -52,8 +52,12 @@ struct TrialOptions {
   // How the GP and the policy see the pole angle: "raw", "sincos" (PILCO's
   // (sin, cos) augmentation) or "auto" (sincos for PILCO, raw otherwise).
   std::string angle_features = "auto";
-  // FITC inducing inputs once the data exceed this many points: -1 = auto
-  // (300 for PILCO as PILCO does, 0 = full GP for particle methods).
+  // Sparse GP (FITC, gp/fitc.h) with this many inducing inputs once the data
+  // exceed it, for every method; the full GP while N <= gp_inducing. 0 = always
+  // the full GP; -1 = auto (300 for PILCO as PILCO does, 0 for particle
+  // methods). The inducing inputs are trained with the hyperparameters fixed,
+  // from a random subset of the inputs the first time (1500 L-BFGS
+  // iterations), then warm-started from the previous episode (500).
   int gp_inducing = -1;
 
   // OK, or InvalidArgument naming the first bad field.
@@ -104,8 +108,9 @@ struct TrialSummary {
 // (core/study): the data the model of episode e was fitted on, its trained
 // hyperparameters, and the policy before (the warm start) and after episode
 // e's optimisation. Building the GP from (inputs of data, hyperparameters)
-// reproduces the particle methods' model of episode e bit for bit; PILCO's
-// FITC model (gp_inducing) is not kept.
+// reproduces the particle methods' model of episode e bit for bit when it was
+// the full GP; a FITC model (gp_inducing, PILCO's or a particle method's) is
+// not kept, and core/study refuses snapshots whose model was sparse.
 struct TrialSnapshot {
   int episode = 0;
   // The trial's options as TrialOptionPairs (so that scene, cost, horizon,

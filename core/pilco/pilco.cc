@@ -121,19 +121,12 @@ absl::StatusOr<GaussianInputGp> BuildDynamicsModel(const RowMatrix& inputs,
     return GaussianInputGpFromModel(*model);
   }
   rep.sparse = true;
-  gp::FitcTrainingOptions fit;
-  if (inducing->rows() != options.num_inducing || inducing->cols() != inputs.cols()) {
-    *inducing = gp::RandomSubsetOfInputs(inputs, options.num_inducing, rng);
-    fit.max_iterations = options.first_fit_iterations;
-  } else {
-    fit.max_iterations = options.warm_fit_iterations;
-  }
-  absl::StatusOr<gp::FitcTrainingSummary> summary =
-      gp::TrainInducingInputs(inputs, targets, hyperparameters, fit, inducing);
-  if (!summary.ok()) return summary.status();
-  rep.fitc = *summary;
+  gp::FitcFitOptions fit;
+  fit.num_inducing = options.num_inducing;
+  fit.first_fit_iterations = options.first_fit_iterations;
+  fit.warm_fit_iterations = options.warm_fit_iterations;
   absl::StatusOr<gp::FitcModel> model =
-      gp::FitcModel::Create(inputs, targets, hyperparameters, *inducing);
+      gp::FitFitcModel(inputs, targets, hyperparameters, fit, inducing, rng, &rep.fitc);
   if (!model.ok()) return model.status();
   return GaussianInputGpFromFitc(*model);
 }

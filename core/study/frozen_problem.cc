@@ -30,6 +30,13 @@ absl::StatusOr<std::unique_ptr<FrozenProblem>> FrozenProblemFromSnapshot(
         snapshot.states.cols(), ", forces ", snapshot.forces.size(), ", next_states ",
         snapshot.next_states.rows(), " x ", snapshot.next_states.cols(), ")"));
   }
+  if (options.gp_inducing > 0 && n > options.gp_inducing) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "snapshot: the trial's model of episode ", snapshot.episode, " is a sparse GP (FITC, ",
+        options.gp_inducing, " inducing inputs for N = ", n,
+        " transitions), which snapshots do not keep; gradient studies rebuild the full GP only "
+        "(run the trial with --gp-inducing 0)"));
+  }
   absl::StatusOr<tasks::Scene> scene = tasks::MakeScene(options.scene);
   if (!scene.ok()) {
     return absl::InvalidArgumentError(absl::StrCat("snapshot scene: ", scene.status().message()));

@@ -11,8 +11,9 @@
 //
 // The particle estimators see the raw state (GP inputs [x, u]); a snapshot
 // whose model was built on (sin, cos) angle features (PILCO's default) is
-// refused. PILCO's moment matching runs on the same model and policy with
-// angle_index -1 (study.h).
+// refused, and so is one whose model was a sparse GP (gp_inducing > 0 and
+// N > gp_inducing: snapshots do not keep the inducing inputs). PILCO's moment
+// matching runs on the same model and policy with angle_index -1 (study.h).
 //
 // Thread safety: a FrozenProblem is immutable once built; share it read-only.
 #ifndef TOTALGRAD_CORE_STUDY_FROZEN_PROBLEM_H_
@@ -53,8 +54,9 @@ struct FrozenProblem {
 enum class SnapshotPolicy { kBefore, kAfter };
 
 // Errors: InvalidArgument naming the problem (an unknown option key in the
-// snapshot, sin/cos angle features, data or parameter shapes that do not
-// match the options); the GP's FailedPrecondition if K cannot be factorised.
+// snapshot, sin/cos angle features, a sparse-GP episode, data or parameter
+// shapes that do not match the options); the GP's FailedPrecondition if K
+// cannot be factorised.
 absl::StatusOr<std::unique_ptr<FrozenProblem>> FrozenProblemFromSnapshot(
     const learner::TrialSnapshot& snapshot, SnapshotPolicy which);
 

@@ -107,6 +107,75 @@ TEST(TrialOptions, PairsRoundTrip) {
   EXPECT_EQ(back.optimizer.learning_rate, 1.0 / 3.0);
 }
 
+// --gp-inducing for particle methods: FITC once the data exceed M. Horizon
+// 15: episode 1 fits N = 15 <= 20 points (full GP), episode 2 N = 30 > 20
+// (FITC with 20 inducing inputs). Checked against the same trial with the
+// full GP throughout: episode 1 must agree bit for bit, episode 2's model
+// must differ (otherwise FITC was not used).
+TrialOptions TinyFitc(const std::string& method, const std::string& inducing) {
+  TrialOptions o = Tiny();
+  EXPECT_TRUE(SetTrialOption("method", method, &o).ok());
+  EXPECT_TRUE(SetTrialOption("horizon", "15", &o).ok());
+  EXPECT_TRUE(SetTrialOption("gp_inducing", inducing, &o).ok());
+  return o;
+}
+
+bool SameBits(double a, double b) { return std::memcmp(&a, &b, sizeof(double)) == 0; }
+
+class ParticleTrialFitc : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(ParticleTrialFitc, RunsFiniteAndDeterministically) {
+  const TrialOptions o = TinyFitc(GetParam(), "20");
+  ASSERT_TRUE(o.Validate().ok()) << o.Validate();
+  auto a = RunTrial(o, nullptr);
+  ASSERT_TRUE(a.ok()) << a.status();
+  auto b = RunTrial(o, nullptr);
+  ASSERT_TRUE(b.ok()) << b.status();
+  ASSERT_EQ(a->episodes.size(), 3u);
+  ASSERT_EQ(b->episodes.size(), 3u);
+  for (size_t e = 1; e < a->episodes.size(); ++e) {
+    const EpisodeResult &x = a->episodes[e], &y = b->episodes[e];
+    EXPECT_TRUE(std::isfinite(x.real_cost)) << e;
+    EXPECT_TRUE(std::isfinite(x.eval_cost_mean)) << e;
+    EXPECT_TRUE(std::isfinite(x.predicted_cost)) << e;
+    EXPECT_TRUE(x.policy_parameters.allFinite()) << e;
+    EXPECT_EQ(x.flags.non_finite_gradients, 0) << e;
+    EXPECT_TRUE(SameBits(x.real_cost, y.real_cost)) << e;
+    EXPECT_TRUE(SameBits(x.eval_cost_mean, y.eval_cost_mean)) << e;
+    EXPECT_TRUE(SameBits(x.predicted_cost, y.predicted_cost)) << e;
+    ASSERT_EQ(x.policy_parameters.size(), y.policy_parameters.size());
+    EXPECT_EQ(std::memcmp(x.policy_parameters.data(), y.policy_parameters.data(),
+                          sizeof(double) * x.policy_parameters.size()),
+              0)
+        << e;
+  }
+  auto full = RunTrial(TinyFitc(GetParam(), "0"), nullptr);
+  ASSERT_TRUE(full.ok()) << full.status();
+  // Episode 1 (N = 15 <= 20): the full GP in both runs.
+  EXPECT_TRUE(SameBits(full->episodes[1].predicted_cost, a->episodes[1].predicted_cost));
+  EXPECT_EQ(full->episodes[1].policy_parameters, a->episodes[1].policy_parameters);
+  // Episode 2 (N = 30 > 20): FITC, a different model, hence a different policy.
+  EXPECT_EQ(full->episodes[2].hyperparameters.log_lengthscales,
+            a->episodes[2].hyperparameters.log_lengthscales);
+  EXPECT_NE(full->episodes[2].predicted_cost, a->episodes[2].predicted_cost);
+  EXPECT_NE(full->episodes[2].policy_parameters, a->episodes[2].policy_parameters);
+}
+
+INSTANTIATE_TEST_SUITE_P(Methods, ParticleTrialFitc, ::testing::Values("RP", "TP"));
+
+TEST(TrialOptions, GpInducingValues) {
+  TrialOptions o = Tiny();
+  for (const char* ok : {"-1", "0", "1", "300"}) {
+    ASSERT_TRUE(SetTrialOption("gp_inducing", ok, &o).ok()) << ok;
+    EXPECT_TRUE(o.Validate().ok()) << ok << ": " << o.Validate();
+  }
+  ASSERT_TRUE(SetTrialOption("gp_inducing", "-2", &o).ok());
+  const absl::Status s = o.Validate();
+  EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(s.message().find("gp_inducing"), std::string::npos);
+  EXPECT_FALSE(SetTrialOption("gp_inducing", "many", &o).ok());
+}
+
 }  // namespace
 }  // namespace totalgrad::learner
 

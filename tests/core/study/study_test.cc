@@ -273,6 +273,24 @@ TEST(Snapshot, SinCosModelsAndBadShapesAreRefusedByName) {
   EXPECT_THAT(std::string(p.status().message()), HasSubstr("no_such_option"));
 }
 
+// With --gp-inducing a particle trial's model is FITC once N > M; snapshots do
+// not keep the inducing inputs, so such an episode is refused by name, while
+// an episode still on the full GP (N <= M) rebuilds as before.
+TEST(Snapshot, SparseGpEpisodesAreRefusedByName) {
+  learner::TrialOptions options = TinyTrial("RP");
+  ASSERT_OK(learner::SetTrialOption("gp_inducing", "10", &options));
+  SnapshotRecorder recorder({1, 2});
+  ASSERT_OK(learner::RunTrial(options, &recorder).status());
+  ASSERT_EQ(recorder.snapshots.size(), 2u);
+  ASSERT_EQ(recorder.snapshots[0].states.rows(), 8);   // <= 10: full GP
+  ASSERT_EQ(recorder.snapshots[1].states.rows(), 16);  // > 10: FITC
+  EXPECT_OK(FrozenProblemFromSnapshot(recorder.snapshots[0], SnapshotPolicy::kAfter).status());
+  absl::StatusOr<std::unique_ptr<FrozenProblem>> p =
+      FrozenProblemFromSnapshot(recorder.snapshots[1], SnapshotPolicy::kAfter);
+  EXPECT_EQ(p.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(p.status().message()), HasSubstr("sparse GP"));
+}
+
 // A PILCO trial with raw angles is a valid study problem, and PILCO's
 // gradient there agrees in direction with the particle reference.
 TEST(Snapshot, RawPilcoSnapshotRunsThePilcoRow) {
