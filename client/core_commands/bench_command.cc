@@ -1,6 +1,9 @@
 // `totalgrad bench iteration`: seconds per gradient iteration at a given size,
 // and in the same run the seconds the unavoidable matrix products alone take
 // (gemm_bound_seconds: per step and output one (P x N) * (N x N) product).
+// With --gp-inducing M (< N) the rollout runs on a sparse GP (FITC, M
+// inducing inputs: a random subset of the data, untrained, which does not
+// change the cost) and the bound is the (P x M) * (M x M) products.
 #include <time.h>
 
 #include <algorithm>
@@ -15,7 +18,9 @@
 #include "client/core_commands/commands.h"
 #include "core/common/blas.h"
 #include "core/estimators/estimator.h"
+#include "core/estimators/particle_system.h"
 #include "core/estimators/synthetic_problem.h"
+#include "core/gp/fitc.h"
 
 namespace totalgrad::cli {
 namespace {
@@ -26,6 +31,7 @@ struct BenchState {
   int horizon = 30;
   int threads = 1;
   int repeats = 7;
+  int inducing = 0;  // 0 = full GP
   std::string method = "RP";
 };
 
@@ -69,6 +75,9 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
   it->add_option("--threads", state->threads, "BLAS threads")->check(CLI::PositiveNumber);
   it->add_option("--repeats", state->repeats, "timed repetitions (median reported)")->check(CLI::PositiveNumber);
   it->add_option("--method", state->method, "estimator");
+  it->add_option("--gp-inducing", state->inducing,
+                 "sparse GP (FITC) with M < N inducing inputs (0 = full GP)")
+      ->check(CLI::NonNegativeNumber);
   it->callback([state, exit_code]() {
     SetBlasThreads(state->threads);
     estimators::SyntheticProblemOptions options;
@@ -86,7 +95,30 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
       *exit_code = 2;
       return;
     }
-    const estimators::Problem& p = (*problem)->problem;
+    if (state->inducing >= state->data) {
+      std::cerr << "totalgrad bench: --gp-inducing must be < --data (FITC is used once N > M)\n";
+      *exit_code = 2;
+      return;
+    }
+    estimators::Problem p = (*problem)->problem;
+    std::unique_ptr<gp::FitcModel> sparse;
+    std::unique_ptr<estimators::FitcDynamics> sparse_dynamics;
+    if (state->inducing > 0) {
+      const gp::GpModel& full = *(*problem)->model;
+      Rng inducing_rng(1, Stream::kGpInit);
+      absl::StatusOr<gp::FitcModel> fitc = gp::FitcModel::Create(
+          full.inputs(), full.targets(), full.hyperparameters(),
+          gp::RandomSubsetOfInputs(full.inputs(), state->inducing, &inducing_rng));
+      if (!fitc.ok()) {
+        std::cerr << "totalgrad bench: " << fitc.status().message() << "\n";
+        *exit_code = 1;
+        return;
+      }
+      sparse = std::make_unique<gp::FitcModel>(*std::move(fitc));
+      sparse_dynamics = std::make_unique<estimators::FitcDynamics>(sparse.get());
+      p.dynamics = sparse_dynamics.get();
+      p.model = nullptr;
+    }
     estimators::EstimateOptions eo;
     eo.particles = state->particles;
     estimators::GradientEstimate estimate;
@@ -102,11 +134,14 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
         iteration_cpu.push_back(s.cpu);
       }
     }
-    // The bound: horizon x outputs products of (P x N) by (N x N), as Predict does.
-    const int n = p.model->num_data(), outputs = p.model->num_outputs();
-    Matrix kstar = Matrix::Random(state->particles, n);
-    Matrix kinv = p.model->k_inverse(0);
-    Matrix product(state->particles, n);
+    // The bound: horizon x outputs products of (P x N) by (N x N), as Predict
+    // does (with FITC: (P x M) by (M x M)).
+    const gp::GpModel& full = *(*problem)->model;
+    const int n = full.num_data(), outputs = full.num_outputs();
+    const int support = sparse ? sparse->num_inducing() : n;
+    Matrix kstar = Matrix::Random(state->particles, support);
+    Matrix kinv = sparse ? sparse->variance_weights(0) : full.k_inverse(0);
+    Matrix product(state->particles, support);
     std::vector<double> gemm_times, gemm_cpu;
     for (int r = 0; r < state->repeats + 1; ++r) {
       const Timing s = TimeOnce([&] {
@@ -122,6 +157,7 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
     nlohmann::json j = {{"method", state->method},
                         {"particles", state->particles},
                         {"data", n},
+                        {"gp_inducing", state->inducing},
                         {"horizon", state->horizon},
                         {"threads", state->threads},
                         {"repeats", state->repeats},
