@@ -145,6 +145,66 @@ __attribute__((target("avx512f"))) void ExpAvx512Body(const double* x, double* y
   ExpTail(x + i, y + i, n - i);
 }
 
+// Fused kernel column: y[i] = sf2 * exp(min((dot[i] - 0.5 a_sq[i]) - half_b_sq, 0)),
+// the same IEEE operations, in the same order, as the three separate passes it
+// replaces (shift, exp, scale), so its result is bitwise theirs.
+void SeColumnTail(const double* dot, const double* a_sq, double half_b_sq, double sf2,
+                  double* y, Eigen::Index n) {
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double x = (dot[i] - 0.5 * a_sq[i]) - half_b_sq;
+    alignas(16) double in[2] = {x, 0.0};
+    alignas(16) double out[2];
+    _mm_store_pd(out, ExpPacket2(_mm_load_pd(in)));
+    y[i] = out[0] * sf2;
+  }
+}
+
+void SeColumnBaselineBody(const double* dot, const double* a_sq, double half_b_sq, double sf2,
+                          double* y, Eigen::Index n) {
+  const __m128d half = _mm_set1_pd(0.5);
+  const __m128d shift = _mm_set1_pd(half_b_sq);
+  const __m128d scale = _mm_set1_pd(sf2);
+  Eigen::Index i = 0;
+  for (; i + 2 <= n; i += 2) {
+    const __m128d x = _mm_sub_pd(
+        _mm_sub_pd(_mm_loadu_pd(dot + i), _mm_mul_pd(half, _mm_loadu_pd(a_sq + i))), shift);
+    _mm_storeu_pd(y + i, _mm_mul_pd(ExpPacket2(x), scale));
+  }
+  SeColumnTail(dot + i, a_sq + i, half_b_sq, sf2, y + i, n - i);
+}
+
+__attribute__((target("avx2"))) void SeColumnAvx2Body(const double* dot, const double* a_sq,
+                                                      double half_b_sq, double sf2, double* y,
+                                                      Eigen::Index n) {
+  const __m256d half = _mm256_set1_pd(0.5);
+  const __m256d shift = _mm256_set1_pd(half_b_sq);
+  const __m256d scale = _mm256_set1_pd(sf2);
+  Eigen::Index i = 0;
+  for (; i + 4 <= n; i += 4) {
+    const __m256d x = _mm256_sub_pd(
+        _mm256_sub_pd(_mm256_loadu_pd(dot + i), _mm256_mul_pd(half, _mm256_loadu_pd(a_sq + i))),
+        shift);
+    _mm256_storeu_pd(y + i, _mm256_mul_pd(ExpPacket4(x), scale));
+  }
+  SeColumnBaselineBody(dot + i, a_sq + i, half_b_sq, sf2, y + i, n - i);
+}
+
+__attribute__((target("avx512f"))) void SeColumnAvx512Body(const double* dot, const double* a_sq,
+                                                          double half_b_sq, double sf2,
+                                                          double* y, Eigen::Index n) {
+  const __m512d half = _mm512_set1_pd(0.5);
+  const __m512d shift = _mm512_set1_pd(half_b_sq);
+  const __m512d scale = _mm512_set1_pd(sf2);
+  Eigen::Index i = 0;
+  for (; i + 8 <= n; i += 8) {
+    const __m512d x = _mm512_sub_pd(
+        _mm512_sub_pd(_mm512_loadu_pd(dot + i), _mm512_mul_pd(half, _mm512_loadu_pd(a_sq + i))),
+        shift);
+    _mm512_storeu_pd(y + i, _mm512_mul_pd(ExpPacket8(x), scale));
+  }
+  SeColumnBaselineBody(dot + i, a_sq + i, half_b_sq, sf2, y + i, n - i);
+}
+
 bool CpuHasAvx512() {
   static const bool has = __builtin_cpu_supports("avx512f");
   return has;
@@ -193,6 +253,24 @@ void ExpNonPositive(const double* x, double* y, Eigen::Index n) {
   if (ExpNonPositiveAvx512(x, y, n)) return;
   if (ExpNonPositiveAvx2(x, y, n)) return;
   ExpNonPositiveBaseline(x, y, n);
+}
+
+void SeKernelColumn(const double* dot, const double* a_sq, double b_sq, double sf2, double* y,
+                    Eigen::Index n) {
+  const double half_b_sq = 0.5 * b_sq;
+#ifdef TOTALGRAD_GP_X86_EXP
+  if (CpuHasAvx512()) {
+    SeColumnAvx512Body(dot, a_sq, half_b_sq, sf2, y, n);
+  } else if (CpuHasAvx2()) {
+    SeColumnAvx2Body(dot, a_sq, half_b_sq, sf2, y, n);
+  } else {
+    SeColumnBaselineBody(dot, a_sq, half_b_sq, sf2, y, n);
+  }
+#else
+  for (Eigen::Index i = 0; i < n; ++i) {
+    y[i] = ExpScalar((dot[i] - 0.5 * a_sq[i]) - half_b_sq) * sf2;
+  }
+#endif
 }
 
 }  // namespace totalgrad::gp::internal

@@ -32,6 +32,13 @@ void ExpNonPositiveBaseline(const double* x, double* y, Eigen::Index n);
 bool ExpNonPositiveAvx2(const double* x, double* y, Eigen::Index n);
 bool ExpNonPositiveAvx512(const double* x, double* y, Eigen::Index n);
 
+// One column of SeCrossKernel, fused into a single pass over memory:
+// y[i] = sf2 * exp(min((dot[i] - 0.5 a_sq[i]) - 0.5 b_sq, 0)) for i < n, where
+// dot holds a_i . b; dot and y may alias. Bitwise equal to the three separate
+// passes (shift, ExpNonPositive, scale) on every SIMD path, like ExpNonPositive.
+void SeKernelColumn(const double* dot, const double* a_sq, double b_sq, double sf2, double* y,
+                    Eigen::Index n);
+
 // out (P x N, overwritten) = sf2 * exp(-1/2 |a_p - b_n|^2) for rows a_p of `a`
 // (P x E) and b_n of `b` (N x E), both already divided by the length-scales.
 // a_sq / b_sq are their squared row norms. The exponent is formed as
@@ -43,14 +50,13 @@ inline void SeCrossKernel(const ConstRowMatrixRef& a, const Vector& a_sq,
                           Matrix* out) {
   out->resize(a.rows(), b.rows());
   out->noalias() = a * b.transpose();
-  // Column by column, so that |b_n|^2 is a scalar: a broadcast row vector
-  // (rowwise() + b_sq^T) would make Eigen fall back to scalar code.
+  // Column by column, so that |b_n|^2 is a scalar; shift, exponential and
+  // scale in one pass (the matrix is L2-sized, so passes cost memory traffic).
+  const Eigen::Index rows = out->rows();
   for (Eigen::Index n = 0; n < out->cols(); ++n) {
-    auto column = out->col(n).array();
-    column = (column - 0.5 * a_sq.array()) - 0.5 * b_sq(n);
+    double* column = out->data() + n * rows;
+    SeKernelColumn(column, a_sq.data(), b_sq(n), sf2, column, rows);
   }
-  ExpNonPositive(out->data(), out->data(), out->size());  // clamps the exponent at 0
-  out->array() *= sf2;
 }
 
 // True when `llt` succeeded and K is positive definite beyond round-off: every

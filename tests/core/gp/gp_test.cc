@@ -513,5 +513,43 @@ TEST(SeKernelTest, SimdPathsAgreeBitwise) {
   if (paths == 0) GTEST_SKIP() << "CPU without AVX2: only the baseline path exists here";
 }
 
+
+// The fused kernel column must give exactly the bits of the three passes it
+// replaces (shift, exponential, scale), at every tail length of the SIMD loops
+// and with NaN and clamped arguments: fusing the passes changed no kernel value.
+TEST(SeKernelTest, FusedColumnEqualsSeparatePassesBitwise) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  std::vector<double> args = ExpTestArguments();
+  args.resize(std::min<size_t>(args.size(), 4000));
+  args.push_back(nan);
+  args.push_back(3.0);  // positive exponent: clamped to exp(0)
+  for (const double sf2 : {1.0, 0.37, 2.5e3}) {
+    for (const double b_sq : {0.0, 0.8, 7.25}) {
+      for (Eigen::Index n : {Eigen::Index{1}, Eigen::Index{3}, Eigen::Index{8},
+                             Eigen::Index{13}, static_cast<Eigen::Index>(args.size())}) {
+        std::vector<double> dot(n), a_sq(n), fused(n), separate(n);
+        for (Eigen::Index i = 0; i < n; ++i) {
+          a_sq[i] = 0.1 * static_cast<double>(i % 17);
+          // Choose dot so that the exponent is args[i] up to rounding.
+          dot[i] = args[i] + 0.5 * a_sq[i] + 0.5 * b_sq;
+        }
+        for (Eigen::Index i = 0; i < n; ++i) separate[i] = (dot[i] - 0.5 * a_sq[i]) - 0.5 * b_sq;
+        internal::ExpNonPositiveBaseline(separate.data(), separate.data(), n);
+        for (double& v : separate) v *= sf2;
+        internal::SeKernelColumn(dot.data(), a_sq.data(), b_sq, sf2, fused.data(), n);
+        for (Eigen::Index i = 0; i < n; ++i) {
+          ASSERT_EQ(std::bit_cast<uint64_t>(separate[i]), std::bit_cast<uint64_t>(fused[i]))
+              << "n = " << n << " i = " << i << " sf2 = " << sf2 << " b_sq = " << b_sq;
+        }
+        // In place (dot and y alias), as SeCrossKernel calls it.
+        internal::SeKernelColumn(dot.data(), a_sq.data(), b_sq, sf2, dot.data(), n);
+        for (Eigen::Index i = 0; i < n; ++i) {
+          ASSERT_EQ(std::bit_cast<uint64_t>(separate[i]), std::bit_cast<uint64_t>(dot[i]));
+        }
+      }
+    }
+  }
+}
+
 }  // namespace
 }  // namespace totalgrad::gp
