@@ -25,13 +25,12 @@ constexpr int kLastJitterExponent = -2;
 // free of heap allocations once the shapes have been seen (Eigen's resize is a
 // no-op when the size does not change).
 struct PredictWorkspace {
-  RowMatrix zs;      // P x E, z / l_a
-  Vector zs_sq;      // P, |z / l_a|^2
-  Matrix kstar;      // P x N, k_a(z_p, x_n)
-  Matrix a;          // P x N, Kstar K^-1, then Kstar .* Kstar K^-1
-  Vector column;     // P, one output's mean or k^T K^-1 k
-  RowMatrix rhs;     // N x E, beta .* Xs
-  Matrix product;    // P x E, Jacobian products
+  RowMatrix zs;          // P x E, z / l_a
+  Vector zs_sq;          // P, |z / l_a|^2
+  Matrix kstar;          // P x N, k_a(z_p, x_n)
+  Matrix a;              // P x N, Kstar K^-1, then Kstar .* Kstar K^-1
+  Matrix mean_product;   // P x (1 + E), Kstar [beta, beta .* Xs]
+  Matrix var_product;    // P x (1 + E), (Kstar .* Kstar K^-1) [1, Xs]
 };
 
 PredictWorkspace& ThreadWorkspace() {
@@ -163,6 +162,14 @@ absl::StatusOr<GpModel> GpModel::Create(const RowMatrix& inputs, const RowMatrix
     Matrix symmetric = 0.5 * (out.k_inverse + out.k_inverse.transpose());
     out.k_inverse.swap(symmetric);
     out.beta = llt.solve(targets.col(a));
+    // Right-hand sides that let one product per pass over Kstar (or over
+    // Kstar .* A) give a value and its Jacobian together (see Predict).
+    out.mean_rhs.resize(n, 1 + model.num_inputs_);
+    out.mean_rhs.col(0) = out.beta;
+    out.mean_rhs.rightCols(model.num_inputs_) = out.beta.asDiagonal() * out.scaled_inputs;
+    out.var_rhs.resize(n, 1 + model.num_inputs_);
+    out.var_rhs.col(0).setOnes();
+    out.var_rhs.rightCols(model.num_inputs_) = out.scaled_inputs;
   }
   return model;
 }
@@ -189,27 +196,34 @@ void GpModel::Predict(const ConstRowMatrixRef& z, const PredictOptions& options,
                             out.signal_var, &ws.kstar);
 
     // Mean and variance are computed the same way whether or not Jacobians are
-    // requested, so that asking for derivatives never changes the values.
-    ws.column.noalias() = ws.kstar * out.beta;
-    mean->col(a) = ws.column;
+    // requested, so that asking for derivatives never changes the values. The
+    // element-wise passes over the P x N matrices cost memory traffic of the
+    // same order as the P x N x N product, so each pass does all it can: one
+    // product Kstar [beta, beta .* Xs] gives the mean and the mean Jacobian's
+    // sums, one product (A .* Kstar) [1, Xs] gives k^T K^-1 k and the variance
+    // Jacobian's sums.
+    ws.mean_product.noalias() = ws.kstar * out.mean_rhs;
+    const auto mean_a = ws.mean_product.col(0);
+    mean->col(a) = mean_a;
 
     if (dmean_dz != nullptr) {
       // d mean_p / d z_pm = sum_n beta_n k_pn (xs_nm - zs_pm) / l_m
       //                   = [(Kstar (beta .* Xs))_pm - zs_pm mean_p] / l_m.
-      ws.rhs.noalias() = out.beta.asDiagonal() * out.scaled_inputs;
-      ws.product.noalias() = ws.kstar * ws.rhs;
       dmean_dz->middleCols(a * e, e) =
-          ((ws.product.array() - ws.zs.array().colwise() * ws.column.array()).rowwise() *
+          ((ws.mean_product.rightCols(e).array() - ws.zs.array().colwise() * mean_a.array())
+               .rowwise() *
            out.inv_lengthscales.transpose().array());
     }
 
     if (variance == nullptr) continue;
     // The one P x N x N product per output: row p of A is (K^-1 k_p)^T.
     ws.a.noalias() = ws.kstar * out.k_inverse;
-    ws.column.noalias() = (ws.a.array() * ws.kstar.array()).rowwise().sum().matrix();
+    ws.a.array() *= ws.kstar.array();
+    ws.var_product.noalias() = ws.a * out.var_rhs;
+    const auto quadratic = ws.var_product.col(0);  // k_p^T K^-1 k_p
     const double prior = out.signal_var + options.noise_variance_multiplier * out.noise_var;
     for (Eigen::Index i = 0; i < p; ++i) {
-      const double v = prior - ws.column(i);
+      const double v = prior - quadratic(i);
       // Written so that a NaN (from a non-finite query) propagates.
       (*variance)(i, a) = v < kVarianceFloor ? kVarianceFloor : v;
     }
@@ -217,13 +231,13 @@ void GpModel::Predict(const ConstRowMatrixRef& z, const PredictOptions& options,
     if (dvar_dz != nullptr) {
       // d var_p / d z_pm = -2 sum_n A_pn d k_pn / d z_pm
       //                  = -2 [((A .* Kstar) Xs)_pm - zs_pm rowsum(A .* Kstar)_p] / l_m.
-      ws.a.array() *= ws.kstar.array();
-      ws.product.noalias() = ws.a * out.scaled_inputs;
       auto block = dvar_dz->middleCols(a * e, e);
-      block = ((ws.product.array() - ws.zs.array().colwise() * ws.column.array()).rowwise() *
+      block = ((ws.var_product.rightCols(e).array() -
+                ws.zs.array().colwise() * quadratic.array())
+                   .rowwise() *
                (-2.0 * out.inv_lengthscales.transpose().array()));
       for (Eigen::Index i = 0; i < p; ++i) {
-        if (prior - ws.column(i) < kVarianceFloor) block.row(i).setZero();
+        if (prior - quadratic(i) < kVarianceFloor) block.row(i).setZero();
       }
     }
   }

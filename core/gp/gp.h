@@ -91,6 +91,8 @@ class GpModel {
     Vector scaled_sq_norms;   // N, |X_n / l_a|^2
     Matrix k_inverse;         // N x N, (K_a + sn_a^2 I + jitter I)^-1, symmetric
     Vector beta;              // N, K^-1 y_a
+    Matrix mean_rhs;          // N x (1 + E), [beta, beta .* Xs]
+    Matrix var_rhs;           // N x (1 + E), [1, Xs]
     Vector inv_lengthscales;  // E, 1 / l_a
     double signal_var = 0;    // sf_a^2
     double noise_var = 0;     // sn_a^2
