@@ -151,6 +151,18 @@ absl::Status BackwardPass(const Problem& problem, const Rollout& rollout,
       }
     } else if (config.jump == JumpKind::kDensityEstimation) {
       FitGaussian(step.next_state, kShapingJitter, &fit);
+      // DEL's score is d_i / (cov + jitter). When every dimension's spread is
+      // below the jitter, the fitted density is the jitter's, not the
+      // particles', and the estimate shrinks towards zero by the ratio of the
+      // two (measured ~1e-25 against a true 0.17): refuse rather than return
+      // a silently wrong gradient.
+      if (fit.covariance.diagonal().maxCoeff() < kShapingJitter) {
+        return absl::InvalidArgumentError(absl::StrCat(
+            "DEL: the ", p, " particles collapsed onto one point at step ", t + 1,
+            " (largest fitted variance ", fit.covariance.diagonal().maxCoeff(), " < jitter ",
+            kShapingJitter, "); density-estimation LR needs spread particles: use more "
+            "particles, injected noise, or a pathwise method"));
+      }
       if (config.lr_baseline == LrBaseline::kNone) baseline.setZero(p);
       else baseline = LeaveOneOutBaseline(cost_to_go);
       const Vector a = scale * (cost_to_go - baseline);

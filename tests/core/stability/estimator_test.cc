@@ -273,19 +273,36 @@ TEST(EstimatorExtremes, CollapsedParticles) {
 // FitGaussian adds an absolute base jitter (kShapingJitter = 1e-6) to the fit.
 // With a particle spread of ~1e-15 the fitted density is 1e9 times wider than
 // the cloud, so DEL's score, d_i / (cov + 1e-6), is ~1e-9 of its value and
-// the estimate collapses to ~1e-25 where the deterministic gradient is 0.17:
-// a silent wrong answer (measured). Correct behaviour: refuse with an
-// InvalidArgument naming the collapsed spread, or flag the estimate.
-// DISABLED until the estimator owner decides (relative jitter or refusal).
-TEST(EstimatorExtremes, DISABLED_DelOnCollapsedParticlesIsRefusedOrFlagged) {
+// the estimate would collapse to ~1e-25 where the deterministic gradient is
+// 0.17 (measured before the refusal existed): DEL must refuse, naming the
+// collapse, instead of returning that silently wrong answer.
+TEST(EstimatorExtremes, DelOnCollapsedParticlesIsRefused) {
   const auto sp = Synthetic(50, 10);
   const SeamDynamics dynamics(SeamDynamics::kLinear, 1e-30);
   const Problem problem = SeamProblem(*sp, &dynamics, 0.0, 10);
   auto del = Make("DEL");
   GradientEstimate g;
-  if (!EstimateWithContract(del.get(), problem, 20, 3, &g, "collapsed")) return;
-  EXPECT_FALSE(g.finite) << "DEL returned |g| = " << g.gradient.norm()
-                         << " on a collapsed particle cloud without a flag";
+  EstimateOptions options;
+  options.particles = 20;
+  Rng rng(3, Stream::kStudy, 20);
+  const absl::Status st = del->Estimate(problem, options, &rng, &g);
+  ASSERT_EQ(st.code(), absl::StatusCode::kInvalidArgument)
+      << "DEL returned |g| = " << g.gradient.norm() << " on a collapsed particle cloud";
+  EXPECT_THAT(std::string(st.message()), ::testing::HasSubstr("collapsed"));
+  EXPECT_THAT(std::string(st.message()), ::testing::HasSubstr("step 1"));
+}
+
+// With spread particles (the same seam, transition std 1e-2 instead of
+// 1e-15) DEL is not refused: the refusal tests the spread, not the method.
+TEST(EstimatorExtremes, DelOnSpreadParticlesIsNotRefused) {
+  const auto sp = Synthetic(50, 10);
+  const SeamDynamics dynamics(SeamDynamics::kLinear, 1e-4);
+  const Problem problem = SeamProblem(*sp, &dynamics, 0.0, 10);
+  auto del = Make("DEL");
+  GradientEstimate g;
+  ASSERT_TRUE(EstimateWithContract(del.get(), problem, 20, 3, &g));
+  EXPECT_TRUE(g.finite);
+  EXPECT_GT(g.gradient.norm(), 0.0);
 }
 
 // ------------------------------------------------------------------ underflow
