@@ -13,6 +13,8 @@
 #include "core/estimators/synthetic_problem.h"
 #include "core/gp/fitc.h"
 
+#include "tests/core/estimators/fixed_noise_objective.h"
+
 namespace totalgrad::estimators {
 namespace {
 
@@ -50,14 +52,7 @@ SparseProblem MakeSparseProblem(const std::string& cost) {
 }
 
 double Objective(const Problem& base, const Vector& theta, uint64_t noise_seed, int particles) {
-  policy::RbfPolicy policy = *base.policy;
-  policy.set_parameters(theta);
-  Problem problem = base;
-  problem.policy = &policy;
-  Rng rng(noise_seed, Stream::kParticleNoise);
-  Rollout rollout;
-  EXPECT_TRUE(SimulateParticles(problem, particles, {}, &rng, &rollout).ok());
-  return rollout.objective;
+  return ::totalgrad::estimators::testing::FixedNoiseObjective(base, theta, noise_seed, particles);
 }
 
 diff::CheckOptions GradientCheckOptions() {

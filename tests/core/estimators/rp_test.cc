@@ -7,6 +7,8 @@
 #include "core/diff/gradient_checker.h"
 #include "core/estimators/synthetic_problem.h"
 
+#include "tests/core/estimators/fixed_noise_objective.h"
+
 namespace totalgrad::estimators {
 namespace {
 
@@ -22,16 +24,8 @@ std::unique_ptr<SyntheticProblem> SmallProblem(const std::string& cost) {
   return *std::move(p);
 }
 
-// J(theta) with the random numbers of seed `noise_seed` held fixed.
 double Objective(const Problem& base, const Vector& theta, uint64_t noise_seed, int particles) {
-  policy::RbfPolicy policy = *base.policy;
-  policy.set_parameters(theta);
-  Problem problem = base;
-  problem.policy = &policy;
-  Rng rng(noise_seed, Stream::kParticleNoise);
-  Rollout rollout;
-  EXPECT_TRUE(SimulateParticles(problem, particles, {}, &rng, &rollout).ok());
-  return rollout.objective;
+  return ::totalgrad::estimators::testing::FixedNoiseObjective(base, theta, noise_seed, particles);
 }
 
 class RpGradient : public ::testing::TestWithParam<std::string> {};

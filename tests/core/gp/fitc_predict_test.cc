@@ -13,6 +13,7 @@
 #include "core/common/rng.h"
 #include "core/diff/gradient_checker.h"
 #include "core/gp/gp.h"
+#include "tests/core/gp/predict_check.h"
 #include "tests/testutil/testutil.h"
 
 namespace totalgrad::gp {
@@ -70,29 +71,8 @@ absl::StatusOr<FitcModel> SparseModel(const Problem& problem, int m, uint64_t se
                            RandomSubsetOfInputs(problem.inputs, m, &rng));
 }
 
-// Jacobian of vec(output) (row-major, P*D) with respect to vec(z) (row-major,
-// P*E) from Predict's per-particle blocks (block diagonal: particles are
-// predicted independently).
-Matrix BlockJacobian(const RowMatrix& per_particle, int d, int e) {
-  const Eigen::Index p = per_particle.rows();
-  Matrix j = Matrix::Zero(p * d, p * e);
-  for (Eigen::Index i = 0; i < p; ++i)
-    for (int a = 0; a < d; ++a)
-      for (int m = 0; m < e; ++m) j(i * d + a, i * e + m) = per_particle(i, a * e + m);
-  return j;
-}
-
-diff::VectorFunction PredictFunction(const FitcModel& model, const PredictOptions& options,
-                                     Eigen::Index p, bool variance) {
-  return [&model, options, p, variance](const Vector& x, Vector* value) {
-    const RowMatrix z = Eigen::Map<const RowMatrix>(x.data(), p, model.num_inputs());
-    RowMatrix mean, var;
-    model.Predict(z, options, &mean, &var, nullptr, nullptr);
-    const RowMatrix& out = variance ? var : mean;
-    *value = Eigen::Map<const Vector>(out.data(), out.size());
-    return value->allFinite();
-  };
-}
+using ::totalgrad::gp::testing::BlockJacobian;
+using ::totalgrad::gp::testing::PredictFunction;
 
 // As for the full GP (gp_test.cc): central differences with step 1e-6 have
 // truncation error ~1e-12; the variance sf^2 - k^T Vw k has round-off of

@@ -16,6 +16,7 @@
 #include "core/common/rng.h"
 #include "core/diff/gradient_checker.h"
 #include "core/gp/se_kernel.h"
+#include "tests/core/gp/predict_check.h"
 #include "tests/testutil/testutil.h"
 
 namespace totalgrad::gp {
@@ -70,30 +71,8 @@ RowMatrix MakeQueries(const Problem& problem, int p, uint64_t seed) {
   return z;
 }
 
-// Jacobian of vec(output) (row-major, P*D) with respect to vec(z) (row-major,
-// P*E), built from Predict's per-particle blocks: it is block diagonal because
-// particles are predicted independently.
-Matrix BlockJacobian(const RowMatrix& per_particle, int d, int e) {
-  const Eigen::Index p = per_particle.rows();
-  Matrix j = Matrix::Zero(p * d, p * e);
-  for (Eigen::Index i = 0; i < p; ++i)
-    for (int a = 0; a < d; ++a)
-      for (int m = 0; m < e; ++m) j(i * d + a, i * e + m) = per_particle(i, a * e + m);
-  return j;
-}
-
-// f(vec z) = vec(mean) or vec(variance), for the finite-difference checker.
-diff::VectorFunction PredictFunction(const GpModel& model, const PredictOptions& options,
-                                     Eigen::Index p, bool variance) {
-  return [&model, options, p, variance](const Vector& x, Vector* value) {
-    const RowMatrix z = Eigen::Map<const RowMatrix>(x.data(), p, model.num_inputs());
-    RowMatrix mean, var;
-    model.Predict(z, options, &mean, &var, nullptr, nullptr);
-    const RowMatrix& out = variance ? var : mean;
-    *value = Eigen::Map<const Vector>(out.data(), out.size());
-    return value->allFinite();
-  };
-}
+using ::totalgrad::gp::testing::BlockJacobian;
+using ::totalgrad::gp::testing::PredictFunction;
 
 // Central differences with step 1e-6 have truncation error ~1e-12 here; the
 // round-off of the variance (sf^2 - k^T K^-1 k, with |K^-1| ~ 1/sn^2 = 100)
