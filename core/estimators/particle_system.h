@@ -11,6 +11,12 @@
 // Conventions (as gp::GpModel and policy::RbfPolicy): S state dimensions, one
 // scalar action, model inputs z = [x, u] (E = S + 1), particles in rows.
 //
+// (sin, cos) angle features (trial option angle_features = sincos): the
+// particles stay in the raw state x; AngleFeatureDynamics and
+// AngleFeaturePolicy wrap a model and a policy whose inputs are the features
+// phi(x) = [x without x_a (in order), sin x_a, cos x_a] (core/pilco/
+// angle_features.h) and chain-rule their Jacobians back to x.
+//
 // Thread safety: implementations are immutable after construction; const
 // methods are thread-safe.
 #ifndef TOTALGRAD_CORE_ESTIMATORS_PARTICLE_SYSTEM_H_
@@ -84,6 +90,46 @@ class FitcDynamics final : public ParticleDynamics {
 
  private:
   const gp::FitcModel* model_;
+};
+
+// A model on (sin, cos) angle features as a model on the raw state
+// (non-owning): the inner model's inputs are zf = [phi(x), u] (S + 2 columns),
+// its outputs raw-state differences (S, as the trial's GP targets). Predict
+// takes z = [x, u], calls the inner Predict on zf and maps its Jacobians back
+// to z: the columns of the other state dims and of u are moved to their raw
+// positions, and d/dx_a = d/dsin cos x_a - d/dcos sin x_a.
+class AngleFeatureDynamics final : public ParticleDynamics {
+ public:
+  // angle_index in [0, S), S = inner->state_dim().
+  AngleFeatureDynamics(const ParticleDynamics* inner, int angle_index);
+  int state_dim() const override { return inner_->state_dim(); }
+  void Predict(const ConstRowMatrixRef& z, double noise_variance_multiplier, RowMatrix* mean,
+               RowMatrix* variance, RowMatrix* dmean_dz, RowMatrix* dvar_dz) const override;
+
+ private:
+  const ParticleDynamics* inner_;
+  int angle_index_;
+};
+
+// A policy on (sin, cos) angle features as a policy on the raw state
+// (non-owning): state_dim() = inner->state_dim() - 1. Evaluate passes phi(x)
+// to the inner policy, whose cache must keep its input (the features) in
+// cache.states, as RbfPolicy does (Backward reads sin x_a and cos x_a from
+// there). Backward maps the inner policy's feature adjoint to the raw state by
+// the same chain rule; the parameter adjoints are the inner policy's.
+class AngleFeaturePolicy final : public ParticlePolicy {
+ public:
+  // angle_index in [0, state_dim()).
+  AngleFeaturePolicy(const ParticlePolicy* inner, int angle_index);
+  int state_dim() const override { return inner_->state_dim() - 1; }
+  int num_parameters() const override { return inner_->num_parameters(); }
+  void Evaluate(const ConstRowMatrixRef& states, Vector* forces, PolicyCache* cache) const override;
+  void Backward(const PolicyCache& cache, const Vector& force_bar, RowMatrix* state_bar,
+                RowMatrix* per_particle_param_bar, Vector* param_bar) const override;
+
+ private:
+  const ParticlePolicy* inner_;
+  int angle_index_;
 };
 
 // Adapter over an RBF policy (non-owning).

@@ -225,10 +225,8 @@ absl::Status TrialOptions::Validate() const {
   if (gp_training.max_iterations < 0) return bad("gp_iterations", "must be >= 0");
   if (!std::isfinite(success_threshold)) return bad("threshold", "must be finite");
   if (gp_inducing < -1) return bad("gp_inducing", "must be -1 (auto), 0 (full GP) or a count");
-  if (method != kPilco && angle_features == "sincos")
-    return bad("angle_features",
-               "'sincos' (sin/cos angle inputs) is implemented for PILCO only so far; "
-               "particle methods use the raw state");
+  if (angle_features != "auto" && angle_features != "raw" && angle_features != "sincos")
+    return bad("angle_features", absl::StrCat("'", angle_features, "' is not one of auto, raw, sincos"));
   const auto methods = AllMethods();
   if (std::find(methods.begin(), methods.end(), method) == methods.end())
     return bad("method", absl::StrCat("'", method, "' is unknown; known: ", absl::StrJoin(methods, ", ")));
@@ -313,25 +311,58 @@ class PolicyLearner {
   virtual Vector Parameters() const = 0;
 };
 
+// Particle methods. With angle_index >= 0 (angle_features = sincos) the GP
+// and the RBF policy see the features [x without x_a, sin x_a, cos x_a]
+// (pilco/angle_features.h) while the particles stay in the raw state:
+// estimators::AngleFeatureDynamics / AngleFeaturePolicy map between the two.
+// With angle_index = -1 (raw, the default) the model and policy are used
+// directly, exactly as before the option existed.
 class ParticleLearner final : public PolicyLearner {
  public:
   ParticleLearner(const TrialOptions& options, const tasks::Scene& scene,
-                  std::unique_ptr<estimators::Estimator> estimator)
+                  std::unique_ptr<estimators::Estimator> estimator, int angle_index)
       : options_(options), scene_(scene), estimator_(std::move(estimator)),
-        policy_(options.basis_functions, tasks::kCartPoleStateDim, scene.plant.params().max_force),
+        angle_index_(angle_index),
+        feature_dim_(pilco::FeatureDim(tasks::kCartPoleStateDim, angle_index)),
+        policy_(options.basis_functions, feature_dim_, scene.plant.params().max_force),
         optimiser_(options.optimizer, policy_.num_parameters()) {
     Rng init_rng(options.seed, Stream::kPolicyInit);
-    policy_.Initialize(scene.mu0, Vector::Constant(tasks::kCartPoleStateDim, options.policy_centre_std),
-                       options.policy_init_lengthscale, &init_rng);
+    const Vector centre_std = Vector::Constant(tasks::kCartPoleStateDim, options.policy_centre_std);
+    if (angle_index_ < 0) {
+      policy_.Initialize(scene.mu0, centre_std, options.policy_init_lengthscale, &init_rng);
+    } else {
+      // The same draws as the raw policy (centres ~ N(mu0, centre_std^2 I) in
+      // the raw state), the centres then mapped to features; every feature
+      // length-scale = policy_init_lengthscale.
+      policy::RbfPolicy raw(options.basis_functions, tasks::kCartPoleStateDim,
+                            scene.plant.params().max_force);
+      raw.Initialize(scene.mu0, centre_std, options.policy_init_lengthscale, &init_rng);
+      RowMatrix centres;
+      pilco::StatesToFeatures(raw.centres(), angle_index_, &centres);
+      const int c = options.basis_functions;
+      Vector params(policy_.num_parameters());
+      Eigen::Map<RowMatrix>(params.data(), c, feature_dim_) = centres;
+      params.segment(c * feature_dim_, feature_dim_)
+          .setConstant(std::log(options.policy_init_lengthscale));
+      params.tail(c) = raw.weights();
+      policy_.set_parameters(params);
+    }
   }
 
   absl::Status Improve(const TrialData& data, int e, TrialObserver* observer,
                        EpisodeResult* result) override {
     const int s_dim = tasks::kCartPoleStateDim;
     const RowMatrix states = data.States();
-    RowMatrix x(states.rows(), s_dim + 1);
-    x.leftCols(s_dim) = states;
-    for (Eigen::Index r = 0; r < x.rows(); ++r) x(r, s_dim) = data.forces[r];
+    // GP inputs [x, u], or [features, u] as PILCO's (angle_features = sincos).
+    RowMatrix x(states.rows(), feature_dim_ + 1);
+    if (angle_index_ < 0) {
+      x.leftCols(s_dim) = states;
+    } else {
+      RowMatrix features;
+      pilco::StatesToFeatures(states, angle_index_, &features);
+      x.leftCols(feature_dim_) = features;
+    }
+    for (Eigen::Index r = 0; r < x.rows(); ++r) x(r, feature_dim_) = data.forces[r];
     const RowMatrix y = data.Targets();
     absl::Status status = TrainModel(x, y, options_, e, &hyperparameters_, result);
     if (!status.ok()) return status;
@@ -366,6 +397,25 @@ class ParticleLearner final : public PolicyLearner {
       problem.model = &*full_model;
     }
     problem.policy = &policy_;
+    // sin/cos features: the model and the policy behind the angle adapters
+    // (particles, start distribution and cost stay in the raw state).
+    std::optional<estimators::GpDynamics> full_dynamics;
+    std::optional<estimators::AngleFeatureDynamics> angle_dynamics;
+    std::optional<estimators::RbfParticlePolicy> rbf_controller;
+    std::optional<estimators::AngleFeaturePolicy> angle_controller;
+    if (angle_index_ >= 0) {
+      const estimators::ParticleDynamics* inner = problem.dynamics;
+      if (inner == nullptr) {
+        full_dynamics.emplace(&*full_model);
+        inner = &*full_dynamics;
+      }
+      angle_dynamics.emplace(inner, angle_index_);
+      problem.dynamics = &*angle_dynamics;
+      problem.model = nullptr;
+      rbf_controller.emplace(&policy_);
+      angle_controller.emplace(&*rbf_controller, angle_index_);
+      problem.controller = &*angle_controller;
+    }
     problem.cost = scene_.cost.get();
     problem.mu0 = scene_.mu0;
     problem.initial_std = scene_.initial_std;
@@ -404,7 +454,12 @@ class ParticleLearner final : public PolicyLearner {
 
   double Control(const tasks::State& observation) const override {
     Vector force;
-    policy_.Evaluate(observation.transpose(), &force, nullptr);
+    if (angle_index_ < 0) {
+      policy_.Evaluate(observation.transpose(), &force, nullptr);
+    } else {
+      const Vector features = pilco::StateFeatures(observation, angle_index_);
+      policy_.Evaluate(features.transpose(), &force, nullptr);
+    }
     return force(0);
   }
   Vector Parameters() const override { return policy_.parameters(); }
@@ -413,6 +468,8 @@ class ParticleLearner final : public PolicyLearner {
   const TrialOptions& options_;
   const tasks::Scene& scene_;
   std::unique_ptr<estimators::Estimator> estimator_;
+  int angle_index_;   // -1: raw state; 1: (sin, cos) of beta
+  int feature_dim_;   // policy input dimension (4 or 5)
   policy::RbfPolicy policy_;
   RmspropLike optimiser_;
   std::optional<gp::GpHyperparameters> hyperparameters_;
@@ -535,7 +592,9 @@ absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver
     absl::StatusOr<std::unique_ptr<estimators::Estimator>> estimator =
         estimators::MakeEstimator(options.method, options.estimator);
     if (!estimator.ok()) return estimator.status();
-    learner = std::make_unique<ParticleLearner>(options, scene, *std::move(estimator));
+    // Particle methods: raw unless asked for sincos ("auto" = raw).
+    const int angle_index = options.angle_features == "sincos" ? 1 : -1;
+    learner = std::make_unique<ParticleLearner>(options, scene, *std::move(estimator), angle_index);
   }
   const tasks::Controller policy_controller = [&learner](const tasks::State& observation) {
     return learner->Control(observation);

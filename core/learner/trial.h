@@ -49,8 +49,10 @@ struct TrialOptions {
   OptimizerOptions optimizer;
   gp::TrainingOptions gp_training;
   estimators::EstimatorOptions estimator;  // method-specific knobs
-  // How the GP and the policy see the pole angle: "raw", "sincos" (PILCO's
-  // (sin, cos) augmentation) or "auto" (sincos for PILCO, raw otherwise).
+  // How the GP and the policy see the pole angle, for every method: "raw",
+  // "sincos" (PILCO's (sin, cos) augmentation; particle methods keep raw
+  // particles and map through estimators::AngleFeature{Dynamics,Policy}) or
+  // "auto" (sincos for PILCO, raw for the particle methods).
   std::string angle_features = "auto";
   // Sparse GP (FITC, gp/fitc.h) with this many inducing inputs once the data
   // exceed it, for every method; the full GP while N <= gp_inducing. 0 = always
@@ -109,7 +111,7 @@ struct TrialSummary {
 // hyperparameters, and the policy before (the warm start) and after episode
 // e's optimisation. Building the GP from (inputs of data, hyperparameters)
 // reproduces the particle methods' model of episode e bit for bit when it was
-// the full GP; a FITC model (gp_inducing, PILCO's or a particle method's) is
+// the full GP on the raw state (core/study refuses sincos snapshots); a FITC model (gp_inducing, PILCO's or a particle method's) is
 // not kept, and core/study refuses snapshots whose model was sparse.
 struct TrialSnapshot {
   int episode = 0;

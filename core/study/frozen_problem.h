@@ -9,9 +9,9 @@
 //    methods build it, so the model is the trial's model of that episode;
 //  * a synthetic problem (estimators::MakeSyntheticProblem).
 //
-// The particle estimators see the raw state (GP inputs [x, u]); a snapshot
-// whose model was built on (sin, cos) angle features (PILCO's default) is
-// refused, and so is one whose model was a sparse GP (gp_inducing > 0 and
+// Studies rebuild the raw-state model (GP inputs [x, u]); a snapshot whose
+// model was built on (sin, cos) angle features (PILCO's default, or any
+// method's with angle_features = sincos) is refused, and so is one whose model was a sparse GP (gp_inducing > 0 and
 // N > gp_inducing: snapshots do not keep the inducing inputs). PILCO's moment
 // matching runs on the same model and policy with angle_index -1 (study.h).
 //

@@ -62,6 +62,14 @@ TEST_P(MethodTrial, RunsWithoutNonFiniteValues) {
   }
 }
 
+// angle_features = sincos: the GP and the policy on (sin, cos) of the angle
+// through the estimators' angle adapters, for every method.
+TEST_P(MethodTrial, SinCosAngleFeaturesRunWithoutNonFiniteValues) {
+  TrialOptions o = Tiny(GetParam(), 5);
+  ASSERT_TRUE(SetTrialOption("angle_features", "sincos", &o).ok());
+  ExpectCleanTrial(o, GetParam() + " sincos");
+}
+
 INSTANTIATE_TEST_SUITE_P(AllMethods, MethodTrial,
                          ::testing::ValuesIn(estimators::ParticleMethods()),
                          [](const auto& info) {

@@ -231,13 +231,100 @@ TEST(PilcoTrial, RawAngleLargeControlVarianceStaysFinite) {
     EXPECT_TRUE(std::isfinite(a->episodes[e].predicted_cost)) << e;
 }
 
-TEST(TrialOptions, SinCosForParticleMethodsIsAClearError) {
+// Every angle representation is valid for every method; other values are
+// refused by name.
+TEST(TrialOptions, AngleFeaturesValuesForEveryMethod) {
+  for (const char* method : {"RP", "GR", "LR", "TP", "GLR", "GTP", "GTP+sn", "DEL", "PILCO"}) {
+    for (const char* value : {"auto", "raw", "sincos"}) {
+      TrialOptions o = Tiny();
+      ASSERT_TRUE(SetTrialOption("method", method, &o).ok()) << method;
+      ASSERT_TRUE(SetTrialOption("angle_features", value, &o).ok()) << value;
+      EXPECT_TRUE(o.Validate().ok()) << method << " " << value << ": " << o.Validate();
+    }
+  }
   TrialOptions o = Tiny();
-  ASSERT_TRUE(SetTrialOption("angle_features", "sincos", &o).ok());
-  const absl::Status s = o.Validate();
+  const absl::Status s = SetTrialOption("angle_features", "polar", &o);
   EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument);
   EXPECT_NE(s.message().find("angle_features"), std::string::npos);
-  EXPECT_FALSE(SetTrialOption("angle_features", "polar", &o).ok());
+  EXPECT_NE(s.message().find("polar"), std::string::npos);
+  o.angle_features = "polar";  // set directly, bypassing SetTrialOption
+  EXPECT_EQ(o.Validate().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(o.Validate().message().find("angle_features"), std::string::npos);
+}
+
+// Particle methods on (sin, cos) features: a short trial runs with finite
+// numbers, is deterministic, has the 5-input policy, and differs from the
+// same trial on the raw state (and raw = auto, bit for bit).
+class ParticleTrialSinCos : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(ParticleTrialSinCos, RunsFiniteDeterministicallyAndDiffersFromRaw) {
+  TrialOptions o = Tiny();
+  ASSERT_TRUE(SetTrialOption("method", GetParam(), &o).ok());
+  ASSERT_TRUE(SetTrialOption("angle_features", "sincos", &o).ok());
+  ASSERT_TRUE(o.Validate().ok()) << o.Validate();
+  auto a = RunTrial(o, nullptr);
+  ASSERT_TRUE(a.ok()) << a.status();
+  auto b = RunTrial(o, nullptr);
+  ASSERT_TRUE(b.ok()) << b.status();
+  ASSERT_EQ(a->episodes.size(), 3u);
+  ASSERT_EQ(b->episodes.size(), 3u);
+  for (size_t e = 1; e < a->episodes.size(); ++e) {
+    const EpisodeResult &x = a->episodes[e], &y = b->episodes[e];
+    EXPECT_TRUE(std::isfinite(x.real_cost)) << e;
+    EXPECT_TRUE(std::isfinite(x.eval_cost_mean)) << e;
+    EXPECT_TRUE(std::isfinite(x.predicted_cost)) << e;
+    EXPECT_TRUE(x.policy_parameters.allFinite()) << e;
+    EXPECT_EQ(x.flags.non_finite_gradients, 0) << e;
+    // C = 10 basis functions on [s, s_dot, beta_dot, sin beta, cos beta].
+    EXPECT_EQ(x.policy_parameters.size(), 10 * 5 + 5 + 10) << e;
+    // GP inputs [features, u]: 6 length-scales per output.
+    EXPECT_EQ(x.hyperparameters.num_inputs(), 6) << e;
+    EXPECT_TRUE(SameBits(x.real_cost, y.real_cost)) << e;
+    EXPECT_TRUE(SameBits(x.eval_cost_mean, y.eval_cost_mean)) << e;
+    EXPECT_TRUE(SameBits(x.predicted_cost, y.predicted_cost)) << e;
+    ASSERT_EQ(x.policy_parameters.size(), y.policy_parameters.size());
+    EXPECT_EQ(std::memcmp(x.policy_parameters.data(), y.policy_parameters.data(),
+                          sizeof(double) * x.policy_parameters.size()),
+              0)
+        << e;
+  }
+  TrialOptions raw_options = o;
+  ASSERT_TRUE(SetTrialOption("angle_features", "raw", &raw_options).ok());
+  auto raw = RunTrial(raw_options, nullptr);
+  ASSERT_TRUE(raw.ok()) << raw.status();
+  EXPECT_EQ(raw->episodes[1].policy_parameters.size(), 10 * 4 + 4 + 10);
+  EXPECT_NE(raw->episodes[1].predicted_cost, a->episodes[1].predicted_cost);
+  EXPECT_NE(raw->episodes[2].real_cost, a->episodes[2].real_cost);
+  TrialOptions auto_options = o;
+  ASSERT_TRUE(SetTrialOption("angle_features", "auto", &auto_options).ok());
+  auto automatic = RunTrial(auto_options, nullptr);
+  ASSERT_TRUE(automatic.ok()) << automatic.status();
+  for (size_t e = 1; e < raw->episodes.size(); ++e) {
+    EXPECT_TRUE(SameBits(raw->episodes[e].predicted_cost, automatic->episodes[e].predicted_cost));
+    EXPECT_EQ(raw->episodes[e].policy_parameters, automatic->episodes[e].policy_parameters);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Methods, ParticleTrialSinCos, ::testing::Values("RP", "TP"));
+
+// With a sparse GP too (gp_inducing: FITC on feature inputs behind the adapter
+// once N = 30 > 20 in episode 2).
+TEST(ParticleTrialSinCosFitc, RunsFiniteAndUsesFitc) {
+  TrialOptions o = TinyFitc("RP", "20");
+  ASSERT_TRUE(SetTrialOption("angle_features", "sincos", &o).ok());
+  auto a = RunTrial(o, nullptr);
+  ASSERT_TRUE(a.ok()) << a.status();
+  TrialOptions full_options = TinyFitc("RP", "0");
+  ASSERT_TRUE(SetTrialOption("angle_features", "sincos", &full_options).ok());
+  auto full = RunTrial(full_options, nullptr);
+  ASSERT_TRUE(full.ok()) << full.status();
+  for (size_t e = 1; e < a->episodes.size(); ++e) {
+    EXPECT_TRUE(std::isfinite(a->episodes[e].predicted_cost)) << e;
+    EXPECT_TRUE(a->episodes[e].policy_parameters.allFinite()) << e;
+    EXPECT_EQ(a->episodes[e].flags.non_finite_gradients, 0) << e;
+  }
+  EXPECT_TRUE(SameBits(full->episodes[1].predicted_cost, a->episodes[1].predicted_cost));
+  EXPECT_NE(full->episodes[2].predicted_cost, a->episodes[2].predicted_cost);
 }
 
 }  // namespace

@@ -273,6 +273,27 @@ TEST(Snapshot, SinCosModelsAndBadShapesAreRefusedByName) {
   EXPECT_THAT(std::string(p.status().message()), HasSubstr("no_such_option"));
 }
 
+// A particle trial on (sin, cos) angle features: its snapshot cannot be
+// rebuilt as a raw-state study problem and is refused by name.
+TEST(Snapshot, SinCosParticleSnapshotsAreRefusedByName) {
+  learner::TrialOptions options = TinyTrial("RP");
+  options.episodes = 1;
+  ASSERT_OK(learner::SetTrialOption("angle_features", "sincos", &options));
+  SnapshotRecorder recorder({1});
+  ASSERT_OK(learner::RunTrial(options, &recorder).status());
+  ASSERT_EQ(recorder.snapshots.size(), 1u);
+  absl::StatusOr<std::unique_ptr<FrozenProblem>> p =
+      FrozenProblemFromSnapshot(recorder.snapshots[0], SnapshotPolicy::kAfter);
+  EXPECT_EQ(p.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(p.status().message()), HasSubstr("angle features"));
+  // The same trial on the raw state rebuilds.
+  ASSERT_OK(learner::SetTrialOption("angle_features", "raw", &options));
+  SnapshotRecorder raw_recorder({1});
+  ASSERT_OK(learner::RunTrial(options, &raw_recorder).status());
+  ASSERT_EQ(raw_recorder.snapshots.size(), 1u);
+  EXPECT_OK(FrozenProblemFromSnapshot(raw_recorder.snapshots[0], SnapshotPolicy::kAfter).status());
+}
+
 // With --gp-inducing a particle trial's model is FITC once N > M; snapshots do
 // not keep the inducing inputs, so such an episode is refused by name, while
 // an episode still on the full GP (N <= M) rebuilds as before.
