@@ -13,7 +13,9 @@ nlohmann::json ToJson(const Vector& v) {
   return array;
 }
 
-std::string DetailsJson(const learner::EpisodeResult& result) {
+}  // namespace
+
+std::string EpisodeDetailsJson(const learner::EpisodeResult& result) {
   nlohmann::json details;
   const gp::GpHyperparameters& h = result.hyperparameters;
   if (h.log_lengthscales.size() > 0) {
@@ -30,8 +32,14 @@ std::string DetailsJson(const learner::EpisodeResult& result) {
                       {"gp_non_finite_evaluations", result.flags.gp_non_finite_evaluations},
                       {"zero_gradient", result.flags.zero_gradient},
                       {"gp_jitter", result.flags.gp_jitter}};
+  if (result.predicted_cost_mean_per_step.size() > 0) {  // PILCO
+    details["predicted_cost_mean_per_step"] = ToJson(result.predicted_cost_mean_per_step);
+    details["predicted_cost_std_per_step"] = ToJson(result.predicted_cost_std_per_step);
+  }
   return details.dump();
 }
+
+namespace {
 
 class ObserverAdapter final : public learner::TrialObserver {
  public:
@@ -45,7 +53,7 @@ class ObserverAdapter final : public learner::TrialObserver {
     e.eval_cost_std = result.eval_cost_std;
     e.predicted_cost = result.predicted_cost;
     e.optimisation_seconds = result.optimisation_seconds;
-    e.details_json = DetailsJson(result);
+    e.details_json = EpisodeDetailsJson(result);
     progress_->OnEpisode(e);
   }
   bool ShouldCancel() override { return progress_ != nullptr && progress_->ShouldCancel(); }

@@ -2,9 +2,21 @@
 #ifndef TOTALGRAD_WORKER_LEARNER_RUNNER_H_
 #define TOTALGRAD_WORKER_LEARNER_RUNNER_H_
 
+#include <string>
+
 #include "worker/trial_runner.h"
 
+namespace totalgrad::learner {
+struct EpisodeResult;  // core/learner/trial.h; not included, so that users of
+                       // this header need not see Eigen
+}  // namespace totalgrad::learner
+
 namespace totalgrad::worker {
+
+// The JSON object stored as an episode's details_json: GP hyperparameters,
+// numerical flags and, for PILCO, "predicted_cost_mean_per_step" and
+// "predicted_cost_std_per_step" (steps 1..H). Non-finite numbers become null.
+std::string EpisodeDetailsJson(const learner::EpisodeResult& result);
 
 class LearnerTrialRunner final : public TrialRunner {
  public:

@@ -32,6 +32,14 @@ nlohmann::json EpisodeToJson(const learner::EpisodeResult& result) {
     }
     j["gp"] = gp;
   }
+  // PILCO: the model's predicted cost mean and std at each step t = 1..H.
+  if (result.predicted_cost_mean_per_step.size() > 0) {
+    nlohmann::json mean = nlohmann::json::array(), stddev = nlohmann::json::array();
+    for (double v : result.predicted_cost_mean_per_step) mean.push_back(Number(v));
+    for (double v : result.predicted_cost_std_per_step) stddev.push_back(Number(v));
+    j["predicted_cost_mean_per_step"] = mean;
+    j["predicted_cost_std_per_step"] = stddev;
+  }
   return j;
 }
 

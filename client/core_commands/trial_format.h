@@ -11,7 +11,9 @@
 namespace totalgrad::cli {
 
 // {"episode", "real_cost", "eval_cost_mean", "eval_cost_std", "predicted_cost",
-//  "seconds", "flags": {...}, "gp": {...}}; NaN becomes null.
+//  "seconds", "flags": {...}, "gp": {...}}, and for PILCO episodes
+// "predicted_cost_mean_per_step" / "predicted_cost_std_per_step" (H numbers
+// each, steps 1..H); NaN becomes null.
 nlohmann::json EpisodeToJson(const learner::EpisodeResult& result);
 
 // Short text of the set flags ("-" when none).

@@ -3,10 +3,13 @@
 // coordinator restart (replayed from the worker), CANCEL and drain behave.
 #include "worker/worker.h"
 
+#include <nlohmann/json.hpp>
+
 #include <gtest/gtest.h>
 #include <grpcpp/create_channel.h>
 
 #include <atomic>
+#include <limits>
 #include <filesystem>
 #include <thread>
 
@@ -14,6 +17,8 @@
 #include "server/service/coordinator.h"
 #include "tests/service/process_util.h"
 #include "tests/service/service_testutil.h"
+#include "core/learner/trial.h"
+#include "worker/learner_runner.h"
 
 namespace totalgrad::worker {
 namespace {
@@ -435,6 +440,26 @@ TEST_F(WorkerTest, WorkersThatDoNotRunStudiesGetOnlyTrials) {
   std::this_thread::sleep_for(std::chrono::milliseconds(1500));  // more polls
   EXPECT_EQ(JobsBySeed("study-only")["21"].state(), v1::JOB_STATE_QUEUED);
   EXPECT_EQ(JobsBySeed("study-only")["21"].attempts(), 0);
+}
+
+// The stored episode details keep PILCO's per-step predicted cost mean and
+// std (NaN as null) and leave them out for particle methods.
+TEST(EpisodeDetailsJsonTest, PilcoPerStepPredictionsAreStored) {
+  learner::EpisodeResult result;
+  result.episode = 2;
+  result.predicted_cost_mean_per_step = Vector{{0.5, 0.25, 0.125}};
+  result.predicted_cost_std_per_step =
+      Vector{{0.0625, 0.03125, std::numeric_limits<double>::quiet_NaN()}};
+  const nlohmann::json details = nlohmann::json::parse(EpisodeDetailsJson(result));
+  EXPECT_EQ(details["predicted_cost_mean_per_step"], nlohmann::json::array({0.5, 0.25, 0.125}));
+  ASSERT_EQ(details["predicted_cost_std_per_step"].size(), 3u);
+  EXPECT_EQ(details["predicted_cost_std_per_step"][1], 0.03125);
+  EXPECT_TRUE(details["predicted_cost_std_per_step"][2].is_null());
+  EXPECT_TRUE(details.contains("flags"));
+
+  const nlohmann::json particle = nlohmann::json::parse(EpisodeDetailsJson(learner::EpisodeResult{}));
+  EXPECT_FALSE(particle.contains("predicted_cost_mean_per_step"));
+  EXPECT_FALSE(particle.contains("predicted_cost_std_per_step"));
 }
 
 }  // namespace
