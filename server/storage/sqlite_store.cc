@@ -191,6 +191,16 @@ absl::Status Migrate(Db& db, int64_t from) {
   return db.Exec(absl::StrCat("PRAGMA user_version=", kSchemaVersion));
 }
 
+// The first four columns of both study-row queries: job, attempt, the job's
+// study name, and whether this attempt is the job's completed one.
+template <typename StudyRecord>
+void ReadStudyRowHeader(Statement& query, StudyRecord* record) {
+  record->job_id = query.ColumnInt(0);
+  record->attempt = static_cast<int>(query.ColumnInt(1));
+  record->study = query.ColumnText(2);
+  record->final_attempt = query.ColumnInt(3) != 0;
+}
+
 // Doubles as JSON arrays: round-trip precision; NaN and +-Inf as null.
 std::string DoublesToJson(const std::vector<double>& values) {
   nlohmann::json array = nlohmann::json::array();
@@ -1315,10 +1325,7 @@ ORDER BY c.job_id, c.attempt, c.idx)sql"));
       ASSIGN_OR_RETURN(bool row, query.Step());
       if (!row) break;
       StudyCellRecord r;
-      r.job_id = query.ColumnInt(0);
-      r.attempt = static_cast<int>(query.ColumnInt(1));
-      r.study = query.ColumnText(2);
-      r.final_attempt = query.ColumnInt(3) != 0;
+      ReadStudyRowHeader(query, &r);
       StudyCell& c = r.cell;
       c.index = static_cast<int>(query.ColumnInt(4));
       c.estimator = query.ColumnText(5);
@@ -1355,10 +1362,7 @@ ORDER BY r.job_id, r.attempt, r.idx)sql"));
       ASSIGN_OR_RETURN(bool row, refs.Step());
       if (!row) break;
       StudyReferenceRecord r;
-      r.job_id = refs.ColumnInt(0);
-      r.attempt = static_cast<int>(refs.ColumnInt(1));
-      r.study = refs.ColumnText(2);
-      r.final_attempt = refs.ColumnInt(3) != 0;
+      ReadStudyRowHeader(refs, &r);
       StudyReference& g = r.reference;
       g.index = static_cast<int>(refs.ColumnInt(4));
       g.horizon = static_cast<int>(refs.ColumnInt(5));
