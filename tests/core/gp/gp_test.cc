@@ -119,22 +119,8 @@ TEST(GpModelTest, WrongJacobianFailsTheCheck) {
   const int p = 6;
   const RowMatrix z = MakeQueries(problem, p, 2);
   const PredictOptions options{25.0};
-  RowMatrix mean, var, dmean, dvar;
-  model->Predict(z, options, &mean, &var, &dmean, &dvar);
-  const Vector x = Eigen::Map<const Vector>(z.data(), z.size());
-
-  // Typical slips: dropping the factor 2 of the variance derivative, and
-  // dividing by l once instead of l^2 (here: multiplying one output's block
-  // back by its length-scales).
-  const RowMatrix half_dvar = 0.5 * dvar;
-  EXPECT_FALSE(diff::CheckJacobian(PredictFunction(*model, options, p, true), x,
-                                   BlockJacobian(half_dvar, 2, 3), JacobianCheckOptions())
-                   .ok);
-  RowMatrix wrong_dmean = dmean;
-  for (int m = 0; m < 3; ++m) wrong_dmean.col(m) *= std::exp(problem.hyp.log_lengthscales(0, m));
-  EXPECT_FALSE(diff::CheckJacobian(PredictFunction(*model, options, p, false), x,
-                                   BlockJacobian(wrong_dmean, 2, 3), JacobianCheckOptions())
-                   .ok);
+  ::totalgrad::gp::testing::ExpectTypicalSlipsFailTheCheck(*model, z, options,
+                                                          JacobianCheckOptions());
 }
 
 TEST(GpModelTest, RecoversSmoothFunctionAndItsUncertainty) {

@@ -3,6 +3,10 @@
 #ifndef TOTALGRAD_TESTS_CORE_GP_PREDICT_CHECK_H_
 #define TOTALGRAD_TESTS_CORE_GP_PREDICT_CHECK_H_
 
+#include <gtest/gtest.h>
+
+#include <cmath>
+
 #include "core/common/types.h"
 #include "core/diff/gradient_checker.h"
 #include "core/gp/gp.h"
@@ -34,6 +38,36 @@ diff::VectorFunction PredictFunction(const Model& model, const PredictOptions& o
     *value = Eigen::Map<const Vector>(out.data(), out.size());
     return value->allFinite();
   };
+}
+
+
+// The typical slips in a hand-written predictive Jacobian must fail the
+// finite-difference check at queries z (P x E): dropping the factor 2 of the
+// variance derivative, and dividing output 0's mean block by l once instead of
+// l^2 (multiplying it back by output 0's length-scales). `model` must have
+// Jacobians that pass the same check (tested separately).
+template <typename Model>
+void ExpectTypicalSlipsFailTheCheck(const Model& model, const RowMatrix& z,
+                                    const PredictOptions& options,
+                                    const diff::CheckOptions& check_options) {
+  const int d = model.num_outputs(), e = model.num_inputs();
+  const Eigen::Index p = z.rows();
+  RowMatrix mean, var, dmean, dvar;
+  model.Predict(z, options, &mean, &var, &dmean, &dvar);
+  const Vector x = Eigen::Map<const Vector>(z.data(), z.size());
+  const RowMatrix half_dvar = 0.5 * dvar;
+  EXPECT_FALSE(diff::CheckJacobian(PredictFunction(model, options, p, true), x,
+                                   BlockJacobian(half_dvar, d, e), check_options)
+                   .ok)
+      << "half the variance Jacobian passed";
+  RowMatrix wrong_dmean = dmean;
+  for (int m = 0; m < e; ++m) {
+    wrong_dmean.col(m) *= std::exp(model.hyperparameters().log_lengthscales(0, m));
+  }
+  EXPECT_FALSE(diff::CheckJacobian(PredictFunction(model, options, p, false), x,
+                                   BlockJacobian(wrong_dmean, d, e), check_options)
+                   .ok)
+      << "a mean Jacobian divided by l instead of l^2 passed";
 }
 
 }  // namespace totalgrad::gp::testing
