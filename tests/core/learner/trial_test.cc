@@ -122,6 +122,24 @@ TrialOptions TinyFitc(const std::string& method, const std::string& inducing) {
 
 bool SameBits(double a, double b) { return std::memcmp(&a, &b, sizeof(double)) == 0; }
 
+// Learned episode e of two runs of the same trial: finite, no non-finite
+// gradient, and the same bits in costs and policy.
+void ExpectFiniteAndIdentical(const EpisodeResult& x, const EpisodeResult& y, size_t e) {
+  EXPECT_TRUE(std::isfinite(x.real_cost)) << e;
+  EXPECT_TRUE(std::isfinite(x.eval_cost_mean)) << e;
+  EXPECT_TRUE(std::isfinite(x.predicted_cost)) << e;
+  EXPECT_TRUE(x.policy_parameters.allFinite()) << e;
+  EXPECT_EQ(x.flags.non_finite_gradients, 0) << e;
+  EXPECT_TRUE(SameBits(x.real_cost, y.real_cost)) << e;
+  EXPECT_TRUE(SameBits(x.eval_cost_mean, y.eval_cost_mean)) << e;
+  EXPECT_TRUE(SameBits(x.predicted_cost, y.predicted_cost)) << e;
+  ASSERT_EQ(x.policy_parameters.size(), y.policy_parameters.size());
+  EXPECT_EQ(std::memcmp(x.policy_parameters.data(), y.policy_parameters.data(),
+                        sizeof(double) * x.policy_parameters.size()),
+            0)
+      << e;
+}
+
 class ParticleTrialFitc : public ::testing::TestWithParam<std::string> {};
 
 TEST_P(ParticleTrialFitc, RunsFiniteAndDeterministically) {
@@ -134,20 +152,7 @@ TEST_P(ParticleTrialFitc, RunsFiniteAndDeterministically) {
   ASSERT_EQ(a->episodes.size(), 3u);
   ASSERT_EQ(b->episodes.size(), 3u);
   for (size_t e = 1; e < a->episodes.size(); ++e) {
-    const EpisodeResult &x = a->episodes[e], &y = b->episodes[e];
-    EXPECT_TRUE(std::isfinite(x.real_cost)) << e;
-    EXPECT_TRUE(std::isfinite(x.eval_cost_mean)) << e;
-    EXPECT_TRUE(std::isfinite(x.predicted_cost)) << e;
-    EXPECT_TRUE(x.policy_parameters.allFinite()) << e;
-    EXPECT_EQ(x.flags.non_finite_gradients, 0) << e;
-    EXPECT_TRUE(SameBits(x.real_cost, y.real_cost)) << e;
-    EXPECT_TRUE(SameBits(x.eval_cost_mean, y.eval_cost_mean)) << e;
-    EXPECT_TRUE(SameBits(x.predicted_cost, y.predicted_cost)) << e;
-    ASSERT_EQ(x.policy_parameters.size(), y.policy_parameters.size());
-    EXPECT_EQ(std::memcmp(x.policy_parameters.data(), y.policy_parameters.data(),
-                          sizeof(double) * x.policy_parameters.size()),
-              0)
-        << e;
+    ExpectFiniteAndIdentical(a->episodes[e], b->episodes[e], e);
   }
   auto full = RunTrial(TinyFitc(GetParam(), "0"), nullptr);
   ASSERT_TRUE(full.ok()) << full.status();
@@ -269,24 +274,12 @@ TEST_P(ParticleTrialSinCos, RunsFiniteDeterministicallyAndDiffersFromRaw) {
   ASSERT_EQ(a->episodes.size(), 3u);
   ASSERT_EQ(b->episodes.size(), 3u);
   for (size_t e = 1; e < a->episodes.size(); ++e) {
-    const EpisodeResult &x = a->episodes[e], &y = b->episodes[e];
-    EXPECT_TRUE(std::isfinite(x.real_cost)) << e;
-    EXPECT_TRUE(std::isfinite(x.eval_cost_mean)) << e;
-    EXPECT_TRUE(std::isfinite(x.predicted_cost)) << e;
-    EXPECT_TRUE(x.policy_parameters.allFinite()) << e;
-    EXPECT_EQ(x.flags.non_finite_gradients, 0) << e;
+    const EpisodeResult& x = a->episodes[e];
+    ExpectFiniteAndIdentical(x, b->episodes[e], e);
     // C = 10 basis functions on [s, s_dot, beta_dot, sin beta, cos beta].
     EXPECT_EQ(x.policy_parameters.size(), 10 * 5 + 5 + 10) << e;
     // GP inputs [features, u]: 6 length-scales per output.
     EXPECT_EQ(x.hyperparameters.num_inputs(), 6) << e;
-    EXPECT_TRUE(SameBits(x.real_cost, y.real_cost)) << e;
-    EXPECT_TRUE(SameBits(x.eval_cost_mean, y.eval_cost_mean)) << e;
-    EXPECT_TRUE(SameBits(x.predicted_cost, y.predicted_cost)) << e;
-    ASSERT_EQ(x.policy_parameters.size(), y.policy_parameters.size());
-    EXPECT_EQ(std::memcmp(x.policy_parameters.data(), y.policy_parameters.data(),
-                          sizeof(double) * x.policy_parameters.size()),
-              0)
-        << e;
   }
   TrialOptions raw_options = o;
   ASSERT_TRUE(SetTrialOption("angle_features", "raw", &raw_options).ok());
