@@ -17,6 +17,7 @@
 #include "core/gp/training.h"
 #include "core/pilco/angle_features.h"
 
+#include "tests/core/estimators/rollout_test_util.h"
 namespace totalgrad::estimators {
 namespace {
 
@@ -40,15 +41,7 @@ struct FeatureModel {
 
 FeatureModel MakeFeatureModel(const std::string& cost) {
   FeatureModel out;
-  SyntheticProblemOptions o;
-  o.data = 40;
-  o.horizon = 8;
-  o.basis_functions = 10;
-  o.cost = cost;
-  o.seed = 3;
-  auto p = MakeSyntheticProblem(o);
-  EXPECT_TRUE(p.ok()) << p.status();
-  out.synthetic = *std::move(p);
+  out.synthetic = ::totalgrad::estimators::testing::SmallSyntheticProblem(cost);
   const gp::GpModel& raw = *out.synthetic->model;
   RowMatrix features;
   pilco::StatesToFeatures(raw.inputs().leftCols(kS), kAngle, &features);

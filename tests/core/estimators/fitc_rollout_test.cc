@@ -13,7 +13,7 @@
 #include "core/estimators/synthetic_problem.h"
 #include "core/gp/fitc.h"
 
-#include "tests/core/estimators/fixed_noise_objective.h"
+#include "tests/core/estimators/rollout_test_util.h"
 
 namespace totalgrad::estimators {
 namespace {
@@ -29,15 +29,7 @@ struct SparseProblem {
 
 SparseProblem MakeSparseProblem(const std::string& cost) {
   SparseProblem out;
-  SyntheticProblemOptions o;
-  o.data = 40;
-  o.horizon = 8;
-  o.basis_functions = 10;
-  o.cost = cost;
-  o.seed = 3;
-  auto p = MakeSyntheticProblem(o);
-  EXPECT_TRUE(p.ok()) << p.status();
-  out.synthetic = *std::move(p);
+  out.synthetic = ::totalgrad::estimators::testing::SmallSyntheticProblem(cost);
   const gp::GpModel& full = *out.synthetic->model;
   Rng rng(4, Stream::kGpInit);
   auto fitc = gp::FitcModel::Create(full.inputs(), full.targets(), full.hyperparameters(),

@@ -7,21 +7,13 @@
 #include "core/diff/gradient_checker.h"
 #include "core/estimators/synthetic_problem.h"
 
-#include "tests/core/estimators/fixed_noise_objective.h"
+#include "tests/core/estimators/rollout_test_util.h"
 
 namespace totalgrad::estimators {
 namespace {
 
 std::unique_ptr<SyntheticProblem> SmallProblem(const std::string& cost) {
-  SyntheticProblemOptions o;
-  o.data = 40;
-  o.horizon = 8;
-  o.basis_functions = 10;
-  o.cost = cost;
-  o.seed = 3;
-  auto p = MakeSyntheticProblem(o);
-  EXPECT_TRUE(p.ok()) << p.status();
-  return *std::move(p);
+  return ::totalgrad::estimators::testing::SmallSyntheticProblem(cost);
 }
 
 double Objective(const Problem& base, const Vector& theta, uint64_t noise_seed, int particles) {
