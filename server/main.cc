@@ -1,7 +1,7 @@
 // totalgrad-coordinator: owns the SQLite store and serves workers and users.
 //
-//   totalgrad-coordinator --db results.db --listen 0.0.0.0:7070 \
-//       --tls-cert server.pem --tls-key server.key \
+//   totalgrad-coordinator --db results.db --listen 0.0.0.0:7070
+//       --tls-cert server.pem --tls-key server.key
 //       --worker-token-file worker.token --user-token-file user.token
 //   totalgrad-coordinator --db results.db --listen 127.0.0.1:7070 --insecure
 //   totalgrad-coordinator --db results.db --backup copy.db     # consistent copy, then exit

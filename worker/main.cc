@@ -1,6 +1,6 @@
 // totalgrad-worker: runs trials for a coordinator.
 //
-//   totalgrad-worker --coordinator coord.example:7070 --ca-cert ca.pem \
+//   totalgrad-worker --coordinator coord.example:7070 --ca-cert ca.pem
 //       --token-file worker.token --slots 8
 //   totalgrad-worker --coordinator 127.0.0.1:7070 --insecure
 //

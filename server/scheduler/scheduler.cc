@@ -264,7 +264,7 @@ absl::StatusOr<HeartbeatResult> Scheduler::Heartbeat(const std::string& worker_i
   return result;
 }
 
-absl::StatusOr<EndOutcome> Scheduler::EndLocked(AttemptEnd end) {
+absl::StatusOr<EndOutcome> Scheduler::EndLocked(AttemptEnd end, LeaseBudget budget) {
   ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(end.key.job_id));
   const bool cancelled = job.state == JobState::kCancelled;
   switch (end.attempt_state) {
@@ -290,6 +290,10 @@ absl::StatusOr<EndOutcome> Scheduler::EndLocked(AttemptEnd end) {
                                 ? AttemptState::kLeaseLost
                                 : AttemptState::kCancelled;
         end.job_state = JobState::kCancelled;
+        break;
+      }
+      if (budget == LeaseBudget::kFree) {
+        end.job_state = JobState::kQueued;
         break;
       }
       end.lost_leases_delta = 1;
@@ -374,6 +378,19 @@ absl::Status Scheduler::Release(const std::string& worker_id, const LeaseKey& ke
       job.state == JobState::kCancelled ? AttemptState::kCancelled : AttemptState::kReleased;
   end.error = absl::StrCat("released: ", reason.substr(0, 1000));
   return EndLocked(std::move(end)).status();
+}
+
+absl::Status Scheduler::ReturnUndelivered(const std::string& worker_id, const LeaseKey& key,
+                                          const std::string& reason) {
+  std::lock_guard<std::mutex> lock(decision_mutex_);
+  ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(key.job_id));
+  AttemptEnd end;
+  end.key = key;
+  end.worker_id = worker_id;
+  end.attempt_state =
+      job.state == JobState::kCancelled ? AttemptState::kCancelled : AttemptState::kReleased;
+  end.error = absl::StrCat("undelivered: ", reason.substr(0, 1000));
+  return EndLocked(std::move(end), LeaseBudget::kFree).status();
 }
 
 absl::StatusOr<int> Scheduler::ExpireLeases() {

@@ -139,6 +139,12 @@ class Scheduler {
   // Ends the attempt as released (or cancelled, if the job was cancelled).
   absl::Status Release(const std::string& worker_id, const storage::LeaseKey& key,
                        const std::string& reason);
+  // Ends an attempt whose lease never reached the worker (the AcquireLease
+  // call was cancelled while the grant was committed): recorded as released
+  // with `reason`, and the job re-queued without charging its lost-lease
+  // budget, since no worker ever held it.
+  absl::Status ReturnUndelivered(const std::string& worker_id, const storage::LeaseKey& key,
+                                 const std::string& reason);
 
   // Ends every lease that expired on the coordinator's clock. Returns how many.
   absl::StatusOr<int> ExpireLeases();
@@ -162,8 +168,11 @@ class Scheduler {
   // Writes the worker's last-seen time unless it was written recently.
   absl::Status MaybeTouchWorker(const storage::WorkerIdentity& worker, int64_t now_ms);
   absl::StatusOr<std::optional<Lease>> TryAcquireLocked(const storage::WorkerIdentity& worker);
+  // Whether a released or lost lease counts against the job's max_lost_leases.
+  enum class LeaseBudget { kCharge, kFree };
   // Ends the attempt with the job's next state decided by the budgets.
-  absl::StatusOr<storage::EndOutcome> EndLocked(storage::AttemptEnd end);
+  absl::StatusOr<storage::EndOutcome> EndLocked(storage::AttemptEnd end,
+                                                LeaseBudget budget = LeaseBudget::kCharge);
   // Counts a change that may make a job claimable and wakes waiters.
   void NotifyWork();
 

@@ -37,8 +37,8 @@ grpc::Status WorkerServiceImpl::AcquireLease(grpc::ServerContext* context,
     // The caller gave up on the poll (e.g. a draining worker cancelled it)
     // while the grant was being committed: it will never see this lease, so
     // hand the job back now instead of leaving it running until the lease
-    // expires. A release, not a failure.
-    const absl::Status released = scheduler_->Release(
+    // expires. Neither a failure nor a lost lease: no worker ever held it.
+    const absl::Status released = scheduler_->ReturnUndelivered(
         request->worker().worker_id(), (**lease).key,
         "the AcquireLease call was cancelled before the lease reached the worker");
     if (!released.ok()) {

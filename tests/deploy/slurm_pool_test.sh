@@ -139,13 +139,14 @@ jobs = json.load(sys.stdin)
 print($1)"
 }
 
-# After a drain nothing may stay running, with one exception. The drain
-# cancels the worker's waiting AcquireLease; if the coordinator granted a lease
-# in that instant, the answer never reaches the worker and the job stays
-# running until its lease expires (5 s here), then is re-queued with one lost
-# lease. (A race in the service, reported; not a deployment fault.) Such a
-# job must never have reached the worker; anything else still running, or
-# any other lost lease, fails the test.
+# After a drain nothing may stay running and no lease may be charged, with
+# one exception. The drain cancels the worker's waiting AcquireLease; if the
+# coordinator granted a lease in that instant, it notices the cancellation and
+# returns the job uncharged (no lost lease). Only if the cancellation lands
+# after that check, while the answer is on its way, does the job stay running
+# until its lease expires (5 s here) and come back with one lost lease. Such a
+# job must never have reached the worker; anything else still running, or any
+# other lost lease, fails the test.
 check_after_drain() {  # check_after_drain LABEL WORKER_OUTPUT
   local label=$1 output=$2 running stranded lost job
   running=$(jobs_query "sum(j['state'] == 'running' for j in jobs)")

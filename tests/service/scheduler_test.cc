@@ -253,6 +253,31 @@ TEST_F(SchedulerTest, APoisonLeaseLoserStopsAtMaxLostLeases) {
       << job.last_error;
 }
 
+// A lease whose AcquireLease call was cancelled never reached a worker:
+// returning it re-queues the job without charging max_lost_leases, however
+// often it happens, while a release by a worker that held the lease does.
+TEST_F(SchedulerTest, UndeliveredLeasesDoNotChargeTheLostLeaseBudget) {
+  Submit("s", 1, 2, /*max_attempts=*/3, /*max_lost=*/2);
+  for (int i = 0; i < 3; ++i) {
+    const Lease lease = MustAcquire("w1");
+    TG_ASSERT_OK(scheduler_->ReturnUndelivered("w1", lease.key, "poll cancelled"));
+    TG_ASSERT_OK(scheduler_->ReturnUndelivered("w1", lease.key, "poll cancelled"));  // no-op
+    const JobRecord job = Job(lease.key.job_id);
+    EXPECT_EQ(job.state, JobState::kQueued);
+    EXPECT_EQ(job.lost_leases, 0);
+    EXPECT_EQ(job.failures, 0);
+    EXPECT_EQ(job.attempts, i + 1);
+    EXPECT_EQ(job.last_error, "undelivered: poll cancelled");
+  }
+  const Lease held = MustAcquire("w1");
+  TG_ASSERT_OK(scheduler_->Release("w1", held.key, "drain"));
+  EXPECT_EQ(Job(held.key.job_id).lost_leases, 1);
+  // Only the worker that was granted the attempt may return it.
+  const Lease again = MustAcquire("w1");
+  EXPECT_FALSE(scheduler_->ReturnUndelivered("w2", again.key, "not mine").ok());
+  EXPECT_EQ(Job(again.key.job_id).state, JobState::kRunning);
+}
+
 TEST_F(SchedulerTest, RetryGivesAFailedJobAFreshBudget) {
   Submit("s", 1, 2, /*max_attempts=*/1);
   Lease lease = MustAcquire("w1");

@@ -156,7 +156,9 @@ TEST_F(StudyEndToEndTest, StudyRowsInSqliteEqualALocalCoreRun) {
   // The cells' floors are their horizon's reference floor.
   for (const auto& c : rows.cells()) {
     for (const auto& r : rows.references()) {
-      if (r.horizon() == c.horizon()) EXPECT_EQ(c.reference_floor(), r.floor());
+      if (r.horizon() == c.horizon()) {
+        EXPECT_EQ(c.reference_floor(), r.floor());
+      }
     }
   }
   worker->Signal(SIGTERM);

@@ -342,12 +342,14 @@ TEST_F(WorkerTest, LeaseGrantedToACancelledPollIsReleasedAtOnce) {
       << "state " << JobsBySeed("orphan")["1"].state();
   const v1::JobInfo job = JobsBySeed("orphan")["1"];
   EXPECT_EQ(job.failures(), 0);
-  // Released leases share the lost-lease budget (as a drain's release does).
-  EXPECT_EQ(job.lost_leases(), 1);
+  // No worker held the lease, so it does not charge the lost-lease budget
+  // (a drain's release of a lease the worker did hold does).
+  EXPECT_EQ(job.lost_leases(), 0);
   const v1::GetJobLogResponse log = Log(job.job_id());
   ASSERT_EQ(log.attempts_size(), 1);
   EXPECT_EQ(log.attempts(0).state(), v1::ATTEMPT_STATE_RELEASED);
   EXPECT_EQ(log.attempts(0).worker_id(), "gone");
+  EXPECT_EQ(log.attempts(0).error().rfind("undelivered: ", 0), 0u) << log.attempts(0).error();
   // A real worker then runs it to completion.
   StartWorker(1);
   ASSERT_TRUE(WaitFor([&] { return Finished("orphan"); }, seconds(30)));
