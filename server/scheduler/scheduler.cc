@@ -368,29 +368,28 @@ absl::StatusOr<bool> Scheduler::Fail(const std::string& worker_id, const LeaseKe
 
 absl::Status Scheduler::Release(const std::string& worker_id, const LeaseKey& key,
                                 const std::string& reason) {
-  std::lock_guard<std::mutex> lock(decision_mutex_);
-  ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(key.job_id));
-  AttemptEnd end;
-  end.key = key;
-  end.worker_id = worker_id;
-  // A release answering CANCEL is recorded as cancelled, any other as released.
-  end.attempt_state =
-      job.state == JobState::kCancelled ? AttemptState::kCancelled : AttemptState::kReleased;
-  end.error = absl::StrCat("released: ", reason.substr(0, 1000));
-  return EndLocked(std::move(end)).status();
+  return GiveBack(worker_id, key, absl::StrCat("released: ", reason.substr(0, 1000)),
+                  LeaseBudget::kCharge);
 }
 
 absl::Status Scheduler::ReturnUndelivered(const std::string& worker_id, const LeaseKey& key,
                                           const std::string& reason) {
+  return GiveBack(worker_id, key, absl::StrCat("undelivered: ", reason.substr(0, 1000)),
+                  LeaseBudget::kFree);
+}
+
+absl::Status Scheduler::GiveBack(const std::string& worker_id, const LeaseKey& key,
+                                 std::string error, LeaseBudget budget) {
   std::lock_guard<std::mutex> lock(decision_mutex_);
   ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(key.job_id));
   AttemptEnd end;
   end.key = key;
   end.worker_id = worker_id;
+  // Given back after CANCEL: recorded as cancelled; any other time as released.
   end.attempt_state =
       job.state == JobState::kCancelled ? AttemptState::kCancelled : AttemptState::kReleased;
-  end.error = absl::StrCat("undelivered: ", reason.substr(0, 1000));
-  return EndLocked(std::move(end), LeaseBudget::kFree).status();
+  end.error = std::move(error);
+  return EndLocked(std::move(end), budget).status();
 }
 
 absl::StatusOr<int> Scheduler::ExpireLeases() {

@@ -173,6 +173,10 @@ class Scheduler {
   // Ends the attempt with the job's next state decided by the budgets.
   absl::StatusOr<storage::EndOutcome> EndLocked(storage::AttemptEnd end,
                                                 LeaseBudget budget = LeaseBudget::kCharge);
+  // Release and ReturnUndelivered: ends the attempt as released (cancelled
+  // if the job was cancelled) with `error` recorded.
+  absl::Status GiveBack(const std::string& worker_id, const storage::LeaseKey& key,
+                        std::string error, LeaseBudget budget);
   // Counts a change that may make a job claimable and wakes waiters.
   void NotifyWork();
 
