@@ -14,6 +14,7 @@
 
 #include "absl/strings/str_replace.h"
 #include "client/core_commands/commands.h"
+#include "client/core_commands/trial_flags.h"
 #include "core/study/snapshot_json.h"
 #include "client/core_commands/trial_format.h"
 #include "core/common/blas.h"
@@ -68,8 +69,8 @@ class PrintingObserver final : public learner::TrialObserver {
 };
 
 struct TrialCommandState {
-  std::map<std::string, std::string> values;
-  std::vector<std::string> sets;
+  TrialFlagValues flags;
+  int threads = 1;
   bool json = false;
   std::string snapshot_episodes;  // "1,5,10"
   std::string snapshot_file = "snapshots.json";
@@ -83,12 +84,10 @@ void AddTrialCommand(CLI::App* app, int* exit_code) {
       "trial", "Run one policy-learning trial in-process and print each episode as it finishes");
   cmd->add_flag("--json", state->json, "print one JSON object per episode instead of a table");
   // Every trial option is a flag of its own: key noise_k is --noise-k.
-  const learner::TrialOptions defaults;
-  for (const auto& [key, value] : learner::TrialOptionPairs(defaults)) {
-    const std::string flag = "--" + absl::StrReplaceAll(key, {{"_", "-"}});
-    cmd->add_option(flag, state->values[key], "trial option '" + key + "' (default " + value + ")");
-  }
-  cmd->add_option("--set", state->sets, "KEY=VALUE for any trial option (repeatable)");
+  AddTrialOptionFlags(cmd, learner::TrialOptions(), &state->flags);
+  cmd->add_option("--threads", state->threads,
+                  "threads for this trial (default 1); the results are the same bits for any value")
+      ->check(CLI::Range(1, 256));
   cmd->add_option("--snapshot-episodes", state->snapshot_episodes,
                   "save the model data, hyperparameters and policy at these learned episodes "
                   "(e.g. 1,5,10) for `totalgrad study`");
@@ -96,27 +95,7 @@ void AddTrialCommand(CLI::App* app, int* exit_code) {
                   "where --snapshot-episodes writes (default snapshots.json)");
   cmd->callback([state, exit_code]() {
     learner::TrialOptions options;
-    for (const auto& [key, value] : state->values) {
-      if (value.empty()) continue;
-      const absl::Status s = learner::SetTrialOption(key, value, &options);
-      if (!s.ok()) {
-        std::cerr << "totalgrad trial: " << s.message() << "\n";
-        *exit_code = 2;
-        return;
-      }
-    }
-    for (const std::string& kv : state->sets) {
-      const size_t eq = kv.find('=');
-      const absl::Status s = eq == std::string::npos
-                                 ? absl::InvalidArgumentError("--set expects KEY=VALUE, got '" + kv + "'")
-                                 : learner::SetTrialOption(kv.substr(0, eq), kv.substr(eq + 1), &options);
-      if (!s.ok()) {
-        std::cerr << "totalgrad trial: " << s.message() << "\n";
-        *exit_code = 2;
-        return;
-      }
-    }
-    const absl::Status valid = options.Validate();
+    const absl::Status valid = ApplyTrialOptionFlags(state->flags, &options);
     if (!valid.ok()) {
       std::cerr << "totalgrad trial: " << valid.message() << "\n";
       *exit_code = 2;
@@ -134,7 +113,9 @@ void AddTrialCommand(CLI::App* app, int* exit_code) {
     }
     SetBlasThreads(1);  // a trial is single-threaded by contract (determinism)
     PrintingObserver observer(state->json, snapshot_episodes, state->snapshot_file);
-    absl::StatusOr<learner::TrialSummary> summary = learner::RunTrial(options, &observer);
+    learner::RunOptions run;
+    run.threads = state->threads;
+    absl::StatusOr<learner::TrialSummary> summary = learner::RunTrial(options, &observer, run);
     if (!summary.ok()) {
       std::cerr << "totalgrad trial: failed: " << summary.status().ToString() << "\n";
       *exit_code = 1;

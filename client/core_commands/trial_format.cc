@@ -15,6 +15,14 @@ nlohmann::json EpisodeToJson(const learner::EpisodeResult& result) {
   j["eval_cost_std"] = Number(result.eval_cost_std);
   j["predicted_cost"] = Number(result.predicted_cost);
   j["seconds"] = result.optimisation_seconds;
+  j["cpu_seconds"] = result.cpu_seconds;
+  const learner::EpisodeTiming& t = result.timing;
+  j["timing"] = {{"model_cpu", t.model_cpu},           {"model_wall", t.model_wall},
+                 {"policy_cpu", t.policy_cpu},         {"policy_wall", t.policy_wall},
+                 {"policy_steps", t.policy_steps},     {"prediction_cpu", t.prediction_cpu},
+                 {"prediction_wall", t.prediction_wall}, {"real_episode_cpu", t.real_episode_cpu},
+                 {"real_episode_wall", t.real_episode_wall}, {"evaluation_cpu", t.evaluation_cpu},
+                 {"evaluation_wall", t.evaluation_wall}};
   j["flags"] = {{"non_finite_gradients", result.flags.non_finite_gradients},
                 {"gp_line_search_failures", result.flags.gp_line_search_failures},
                 {"gp_non_finite_evaluations", result.flags.gp_non_finite_evaluations},

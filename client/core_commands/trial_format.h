@@ -11,7 +11,10 @@
 namespace totalgrad::cli {
 
 // {"episode", "real_cost", "eval_cost_mean", "eval_cost_std", "predicted_cost",
-//  "seconds", "flags": {...}, "gp": {...}}, and for PILCO episodes
+//  "seconds" (wall, model fit + policy optimisation), "cpu_seconds" (the whole
+//  episode), "timing": {<phase>_cpu, <phase>_wall for phase in model, policy,
+//  prediction, real_episode, evaluation; policy_steps}, "flags": {...},
+//  "gp": {...}}, and for PILCO episodes
 // "predicted_cost_mean_per_step" / "predicted_cost_std_per_step" (H numbers
 // each, steps 1..H); NaN becomes null.
 nlohmann::json EpisodeToJson(const learner::EpisodeResult& result);

@@ -10,7 +10,7 @@ void GpDynamics::Predict(const ConstRowMatrixRef& z, double noise_variance_multi
                          RowMatrix* dvar_dz) const {
   gp::PredictOptions options;
   options.noise_variance_multiplier = noise_variance_multiplier;
-  model_->Predict(z, options, mean, variance, dmean_dz, dvar_dz);
+  model_->Predict(z, options, mean, variance, dmean_dz, dvar_dz, pool_);
 }
 
 void FitcDynamics::Predict(const ConstRowMatrixRef& z, double noise_variance_multiplier,
@@ -18,7 +18,7 @@ void FitcDynamics::Predict(const ConstRowMatrixRef& z, double noise_variance_mul
                            RowMatrix* dvar_dz) const {
   gp::PredictOptions options;
   options.noise_variance_multiplier = noise_variance_multiplier;
-  model_->Predict(z, options, mean, variance, dmean_dz, dvar_dz);
+  model_->Predict(z, options, mean, variance, dmean_dz, dvar_dz, pool_);
 }
 
 namespace {

@@ -68,7 +68,9 @@ class ParticlePolicy {
 // Adapter over a GP model (non-owning; the model must outlive the adapter).
 class GpDynamics final : public ParticleDynamics {
  public:
-  explicit GpDynamics(const gp::GpModel* model) : model_(model) {}
+  // `pool` (may be null) spreads Predict's outputs over threads.
+  explicit GpDynamics(const gp::GpModel* model, ThreadPool* pool = nullptr)
+      : model_(model), pool_(pool) {}
   int state_dim() const override { return model_->num_outputs(); }
   void Predict(const ConstRowMatrixRef& z, double noise_variance_multiplier, RowMatrix* mean,
                RowMatrix* variance, RowMatrix* dmean_dz, RowMatrix* dvar_dz) const override;
@@ -76,13 +78,15 @@ class GpDynamics final : public ParticleDynamics {
 
  private:
   const gp::GpModel* model_;
+  ThreadPool* pool_;
 };
 
 // Adapter over a sparse (FITC) GP model (non-owning), for trials with
 // gp_inducing: the same batched contract, one call per step.
 class FitcDynamics final : public ParticleDynamics {
  public:
-  explicit FitcDynamics(const gp::FitcModel* model) : model_(model) {}
+  explicit FitcDynamics(const gp::FitcModel* model, ThreadPool* pool = nullptr)
+      : model_(model), pool_(pool) {}
   int state_dim() const override { return model_->num_outputs(); }
   void Predict(const ConstRowMatrixRef& z, double noise_variance_multiplier, RowMatrix* mean,
                RowMatrix* variance, RowMatrix* dmean_dz, RowMatrix* dvar_dz) const override;
@@ -90,6 +94,7 @@ class FitcDynamics final : public ParticleDynamics {
 
  private:
   const gp::FitcModel* model_;
+  ThreadPool* pool_;
 };
 
 // A model on (sin, cos) angle features as a model on the raw state

@@ -49,6 +49,10 @@ struct Problem {
   // (gp_inducing) `dynamics` is a FitcDynamics and `model` is null.
   const ParticleDynamics* dynamics = nullptr;
   const ParticlePolicy* controller = nullptr;
+  // Threads for the data-parallel work of a rollout and its backward pass
+  // (may be null: the calling thread does everything). Never changes the
+  // numbers (core/common/thread_pool.h). A `dynamics` seam brings its own.
+  ThreadPool* pool = nullptr;
 };
 
 // The dynamics and policy of a problem as interfaces: its seams when set,

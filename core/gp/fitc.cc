@@ -159,7 +159,7 @@ FitcWorkspace& ThreadFitcWorkspace() {
 
 void FitcModel::Predict(const ConstRowMatrixRef& z, const PredictOptions& options,
                         RowMatrix* mean, RowMatrix* variance, RowMatrix* dmean_dz,
-                        RowMatrix* dvar_dz) const {
+                        RowMatrix* dvar_dz, ThreadPool* pool) const {
   TG_CHECK(mean != nullptr);
   TG_CHECK(variance != nullptr || dvar_dz == nullptr);
   TG_CHECK_EQ(z.cols(), num_inputs());
@@ -170,9 +170,21 @@ void FitcModel::Predict(const ConstRowMatrixRef& z, const PredictOptions& option
   if (dmean_dz != nullptr) dmean_dz->resize(p, d * e);
   if (dvar_dz != nullptr) dvar_dz->resize(p, d * e);
   if (p == 0) return;
+  if (pool == nullptr || pool->size() == 1) {
+    for (int a = 0; a < d; ++a) PredictOutput(a, z, options, mean, variance, dmean_dz, dvar_dz);
+    return;
+  }
+  // Each output writes only its own columns and uses its thread's workspace.
+  pool->ParallelFor(d, [&](int a) { PredictOutput(a, z, options, mean, variance, dmean_dz, dvar_dz); });
+}
 
+void FitcModel::PredictOutput(int a, const ConstRowMatrixRef& z, const PredictOptions& options,
+                              RowMatrix* mean, RowMatrix* variance, RowMatrix* dmean_dz,
+                              RowMatrix* dvar_dz) const {
+  const Eigen::Index p = z.rows();
+  const int e = num_inputs();
   FitcWorkspace& ws = ThreadFitcWorkspace();
-  for (int a = 0; a < d; ++a) {
+  {
     const Output& out = outputs_[a];
     ws.zs.noalias() = z * out.inv_lengthscales.asDiagonal();
     ws.zs_sq.noalias() = ws.zs.rowwise().squaredNorm();
@@ -190,7 +202,7 @@ void FitcModel::Predict(const ConstRowMatrixRef& z, const PredictOptions& option
            out.inv_lengthscales.transpose().array());
     }
 
-    if (variance == nullptr) continue;
+    if (variance == nullptr) return;
     // The one P x M x M product per output: row p of A is (Vw k_p)^T.
     ws.a.noalias() = ws.kstar * out.variance_weights;
     ws.column.noalias() = (ws.a.array() * ws.kstar.array()).rowwise().sum().matrix();

@@ -65,11 +65,17 @@ class FitcModel {
   // P x M by M x M product for the variance (BLAS-3): the full GP's work with
   // N replaced by M. `mean` must not be null; `variance` may be null when
   // dvar_dz is null too (mean only, O(P M E)). Requesting Jacobians never
-  // changes the values. Thread-safe (per-thread scratch space).
+  // changes the values. Thread-safe (per-thread scratch space). `pool` (may
+  // be null) runs one task per output; results do not depend on its size.
   void Predict(const ConstRowMatrixRef& z, const PredictOptions& options, RowMatrix* mean,
-               RowMatrix* variance, RowMatrix* dmean_dz, RowMatrix* dvar_dz) const;
+               RowMatrix* variance, RowMatrix* dmean_dz, RowMatrix* dvar_dz,
+               ThreadPool* pool = nullptr) const;
 
  private:
+  // Output a's columns of Predict's results (already sized by Predict).
+  void PredictOutput(int a, const ConstRowMatrixRef& z, const PredictOptions& options,
+                     RowMatrix* mean, RowMatrix* variance, RowMatrix* dmean_dz,
+                     RowMatrix* dvar_dz) const;
   struct Output {
     RowMatrix scaled_inducing;       // M x E, Z / l_a
     Vector scaled_sq_norms;          // M, |Z_m / l_a|^2

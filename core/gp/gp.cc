@@ -175,7 +175,8 @@ absl::StatusOr<GpModel> GpModel::Create(const RowMatrix& inputs, const RowMatrix
 }
 
 void GpModel::Predict(const ConstRowMatrixRef& z, const PredictOptions& options, RowMatrix* mean,
-                      RowMatrix* variance, RowMatrix* dmean_dz, RowMatrix* dvar_dz) const {
+                      RowMatrix* variance, RowMatrix* dmean_dz, RowMatrix* dvar_dz,
+                      ThreadPool* pool) const {
   TG_CHECK(mean != nullptr);
   TG_CHECK(variance != nullptr || dvar_dz == nullptr);
   TG_CHECK_EQ(z.cols(), num_inputs_);
@@ -186,9 +187,24 @@ void GpModel::Predict(const ConstRowMatrixRef& z, const PredictOptions& options,
   if (dmean_dz != nullptr) dmean_dz->resize(p, num_outputs_ * e);
   if (dvar_dz != nullptr) dvar_dz->resize(p, num_outputs_ * e);
   if (p == 0) return;
+  if (pool == nullptr || pool->size() == 1) {
+    for (int a = 0; a < num_outputs_; ++a)
+      PredictOutput(a, z, options, mean, variance, dmean_dz, dvar_dz);
+    return;
+  }
+  // Each output writes only its own columns and uses its thread's workspace.
+  pool->ParallelFor(num_outputs_, [&](int a) {
+    PredictOutput(a, z, options, mean, variance, dmean_dz, dvar_dz);
+  });
+}
 
+void GpModel::PredictOutput(int a, const ConstRowMatrixRef& z, const PredictOptions& options,
+                            RowMatrix* mean, RowMatrix* variance, RowMatrix* dmean_dz,
+                            RowMatrix* dvar_dz) const {
+  const Eigen::Index p = z.rows();
+  const int e = num_inputs_;
   PredictWorkspace& ws = ThreadWorkspace();
-  for (int a = 0; a < num_outputs_; ++a) {
+  {
     const Output& out = outputs_[a];
     ws.zs.noalias() = z * out.inv_lengthscales.asDiagonal();
     ws.zs_sq.noalias() = ws.zs.rowwise().squaredNorm();
@@ -215,7 +231,7 @@ void GpModel::Predict(const ConstRowMatrixRef& z, const PredictOptions& options,
            out.inv_lengthscales.transpose().array());
     }
 
-    if (variance == nullptr) continue;
+    if (variance == nullptr) return;
     // The one P x N x N product per output: row p of A is (K^-1 k_p)^T.
     ws.a.noalias() = ws.kstar * out.k_inverse;
     ws.a.array() *= ws.kstar.array();

@@ -13,12 +13,15 @@
 // matrix product per output (BLAS-3) plus O(P N E) element-wise work.
 //
 // Thread safety: a constructed GpModel is immutable; Predict is thread-safe.
+// Predict can spread its outputs over a ThreadPool; the outputs are computed
+// independently, so the numbers are the same bits for any pool size.
 #ifndef TOTALGRAD_CORE_GP_GP_H_
 #define TOTALGRAD_CORE_GP_GP_H_
 
 #include <vector>
 
 #include "absl/status/statusor.h"
+#include "core/common/thread_pool.h"
 #include "core/common/types.h"
 
 namespace totalgrad::gp {
@@ -81,9 +84,12 @@ class GpModel {
   // asked for, so an evaluation rollout pays nothing for them. `mean` must not
   // be null; `variance` may be null when dvar_dz is null too, which skips the
   // P x N x N product (a mean-only prediction costs O(P N E)). Requesting
-  // Jacobians never changes the mean and variance values.
+  // Jacobians never changes the mean and variance values. `pool` (may be
+  // null: the calling thread does everything) runs one task per output;
+  // results do not depend on its size.
   void Predict(const ConstRowMatrixRef& z, const PredictOptions& options, RowMatrix* mean,
-               RowMatrix* variance, RowMatrix* dmean_dz, RowMatrix* dvar_dz) const;
+               RowMatrix* variance, RowMatrix* dmean_dz, RowMatrix* dvar_dz,
+               ThreadPool* pool = nullptr) const;
 
  private:
   struct Output {
@@ -99,6 +105,10 @@ class GpModel {
     double jitter = 0;
   };
   GpModel() = default;
+  // Output a's columns of Predict's results (already sized by Predict).
+  void PredictOutput(int a, const ConstRowMatrixRef& z, const PredictOptions& options,
+                     RowMatrix* mean, RowMatrix* variance, RowMatrix* dmean_dz,
+                     RowMatrix* dvar_dz) const;
 
   int num_inputs_ = 0;
   int num_outputs_ = 0;

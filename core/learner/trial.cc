@@ -12,6 +12,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "core/common/blas.h"
+#include "core/common/thread_pool.h"
 #include "core/estimators/estimator.h"
 #include "core/estimators/particle_system.h"
 #include "core/estimators/rollout.h"
@@ -196,6 +197,32 @@ double Seconds(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
 }
 
+// Splits a trial's time into consecutive phases: each Lap adds the CPU and
+// wall seconds since the previous Lap (or construction) to a phase's totals.
+// CPU time is the trial thread's plus its pool's worker threads'.
+class PhaseClock {
+ public:
+  explicit PhaseClock(const ThreadPool* pool) : pool_(pool) { Restart(); }
+  void Restart() {
+    cpu_ = Cpu();
+    wall_ = std::chrono::steady_clock::now();
+  }
+  void Lap(double* cpu, double* wall) {
+    const double cpu_now = Cpu();
+    const auto wall_now = std::chrono::steady_clock::now();
+    *cpu += cpu_now - cpu_;
+    *wall += std::chrono::duration<double>(wall_now - wall_).count();
+    cpu_ = cpu_now;
+    wall_ = wall_now;
+  }
+
+ private:
+  double Cpu() const { return ThreadCpuSeconds() + (pool_ != nullptr ? pool_->WorkerCpuSeconds() : 0.0); }
+  const ThreadPool* pool_;
+  double cpu_ = 0;
+  std::chrono::steady_clock::time_point wall_;
+};
+
 // Stream indices inside a trial. Part of the reproducibility contract.
 uint64_t StepStreamIndex(int episode, int step) {
   return static_cast<uint64_t>(episode) * 1000000ULL + static_cast<uint64_t>(step);
@@ -302,9 +329,10 @@ class PolicyLearner {
  public:
   virtual ~PolicyLearner() = default;
   // Fits the model on `data`, optimises the policy, fills the model- and
-  // optimisation-related fields of *result.
+  // optimisation-related fields of *result, timing its phases with `clock`
+  // (model, policy, prediction laps into result->timing).
   virtual absl::Status Improve(const TrialData& data, int episode, TrialObserver* observer,
-                               EpisodeResult* result) = 0;
+                               PhaseClock* clock, EpisodeResult* result) = 0;
   // The current policy as a controller of the real plant (force in N).
   virtual double Control(const tasks::State& observation) const = 0;
   // The current policy's parameters (for snapshots).
@@ -320,8 +348,9 @@ class PolicyLearner {
 class ParticleLearner final : public PolicyLearner {
  public:
   ParticleLearner(const TrialOptions& options, const tasks::Scene& scene,
-                  std::unique_ptr<estimators::Estimator> estimator, int angle_index)
-      : options_(options), scene_(scene), estimator_(std::move(estimator)),
+                  std::unique_ptr<estimators::Estimator> estimator, int angle_index,
+                  ThreadPool* pool)
+      : options_(options), scene_(scene), estimator_(std::move(estimator)), pool_(pool),
         angle_index_(angle_index),
         feature_dim_(pilco::FeatureDim(tasks::kCartPoleStateDim, angle_index)),
         policy_(options.basis_functions, feature_dim_, scene.plant.params().max_force),
@@ -350,7 +379,8 @@ class ParticleLearner final : public PolicyLearner {
   }
 
   absl::Status Improve(const TrialData& data, int e, TrialObserver* observer,
-                       EpisodeResult* result) override {
+                       PhaseClock* clock, EpisodeResult* result) override {
+    EpisodeTiming& timing = result->timing;
     const int s_dim = tasks::kCartPoleStateDim;
     const RowMatrix states = data.States();
     // GP inputs [x, u], or [features, u] as PILCO's (angle_features = sincos).
@@ -384,7 +414,7 @@ class ParticleLearner final : public PolicyLearner {
         return absl::Status(model.status().code(),
                             absl::StrCat("episode ", e, ": FITC model: ", model.status().message()));
       sparse_model.emplace(*std::move(model));
-      sparse_dynamics.emplace(&*sparse_model);
+      sparse_dynamics.emplace(&*sparse_model, pool_);
       problem.dynamics = &*sparse_dynamics;
     } else {
       absl::StatusOr<gp::GpModel> model = gp::GpModel::Create(x, y, *hyperparameters_);
@@ -396,7 +426,9 @@ class ParticleLearner final : public PolicyLearner {
       full_model.emplace(*std::move(model));
       problem.model = &*full_model;
     }
+    clock->Lap(&timing.model_cpu, &timing.model_wall);
     problem.policy = &policy_;
+    problem.pool = pool_;
     // sin/cos features: the model and the policy behind the angle adapters
     // (particles, start distribution and cost stay in the raw state).
     std::optional<estimators::GpDynamics> full_dynamics;
@@ -406,7 +438,7 @@ class ParticleLearner final : public PolicyLearner {
     if (angle_index_ >= 0) {
       const estimators::ParticleDynamics* inner = problem.dynamics;
       if (inner == nullptr) {
-        full_dynamics.emplace(&*full_model);
+        full_dynamics.emplace(&*full_model, pool_);
         inner = &*full_dynamics;
       }
       angle_dynamics.emplace(inner, angle_index_);
@@ -436,17 +468,20 @@ class ParticleLearner final : public PolicyLearner {
         ++result->flags.non_finite_gradients;
         continue;
       }
+      ++timing.policy_steps;
       if (estimate.gradient.isZero(0.0)) result->flags.zero_gradient = true;
       optimiser_.Step(estimate.gradient, estimate.per_particle_variance, options_.particles, &theta);
       if (observer != nullptr)
         observer->OnPolicyStep(e, step, estimate.objective, (theta - policy_.parameters()).norm());
       policy_.set_parameters(theta);
     }
+    clock->Lap(&timing.policy_cpu, &timing.policy_wall);
     estimators::Rollout rollout;
     Rng predicted_rng(options_.seed, Stream::kParticleNoise, StepStreamIndex(e, kPredictedCostStep));
     status = estimators::SimulateParticles(problem, options_.predicted_cost_particles, {},
                                            &predicted_rng, &rollout);
     if (!status.ok()) return status;
+    clock->Lap(&timing.prediction_cpu, &timing.prediction_wall);
     result->predicted_cost = rollout.objective;
     result->policy_parameters = policy_.parameters();
     return absl::OkStatus();
@@ -468,6 +503,7 @@ class ParticleLearner final : public PolicyLearner {
   const TrialOptions& options_;
   const tasks::Scene& scene_;
   std::unique_ptr<estimators::Estimator> estimator_;
+  ThreadPool* pool_;  // may be null
   int angle_index_;   // -1: raw state; 1: (sin, cos) of beta
   int feature_dim_;   // policy input dimension (4 or 5)
   policy::RbfPolicy policy_;
@@ -510,7 +546,8 @@ class PilcoLearner final : public PolicyLearner {
   }
 
   absl::Status Improve(const TrialData& data, int e, TrialObserver* observer,
-                       EpisodeResult* result) override {
+                       PhaseClock* clock, EpisodeResult* result) override {
+    EpisodeTiming& timing = result->timing;
     const RowMatrix states = data.States();
     RowMatrix features;
     pilco::StatesToFeatures(states, angle_index_, &features);
@@ -529,6 +566,7 @@ class PilcoLearner final : public PolicyLearner {
     if (!model.ok())
       return absl::Status(model.status().code(),
                           absl::StrCat("episode ", e, ": PILCO model: ", model.status().message()));
+    clock->Lap(&timing.model_cpu, &timing.model_wall);
     pilco::PilcoOptions pilco_options;
     bool cancelled = false;
     pilco_options.bfgs.should_stop = [observer, &cancelled]() {
@@ -542,6 +580,7 @@ class PilcoLearner final : public PolicyLearner {
       return absl::Status(optimised.status().code(),
                           absl::StrCat("episode ", e, ": PILCO optimisation: ", optimised.status().message()));
     policy_.set_parameters(params);
+    clock->Lap(&timing.policy_cpu, &timing.policy_wall);
     result->predicted_cost = optimised->prediction.total_cost;
     result->predicted_cost_mean_per_step = optimised->prediction.cost_mean;
     result->predicted_cost_std_per_step = optimised->prediction.cost_std;
@@ -570,9 +609,13 @@ class PilcoLearner final : public PolicyLearner {
 
 }  // namespace
 
-absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver* observer) {
+absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver* observer,
+                                      const RunOptions& run) {
   absl::Status status = options.Validate();
   if (!status.ok()) return status;
+  if (run.threads < 1) return absl::InvalidArgumentError("threads must be >= 1");
+  std::unique_ptr<ThreadPool> pool;
+  if (run.threads > 1) pool = std::make_unique<ThreadPool>(run.threads);
   // Results must not depend on how many threads the BLAS would use on this
   // machine (a multi-threaded gemm sums in another order): one thread.
   SetBlasThreads(1);
@@ -594,7 +637,8 @@ absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver
     if (!estimator.ok()) return estimator.status();
     // Particle methods: raw unless asked for sincos ("auto" = raw).
     const int angle_index = options.angle_features == "sincos" ? 1 : -1;
-    learner = std::make_unique<ParticleLearner>(options, scene, *std::move(estimator), angle_index);
+    learner = std::make_unique<ParticleLearner>(options, scene, *std::move(estimator), angle_index,
+                                                pool.get());
   }
   const tasks::Controller policy_controller = [&learner](const tasks::State& observation) {
     return learner->Control(observation);
@@ -605,6 +649,7 @@ absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver
 
   // Episode 0: random exploration.
   {
+    PhaseClock clock(pool.get());
     Rng action_rng(seed, Stream::kExplorationAction);
     const double max_force = scene.plant.params().max_force;
     const tasks::Controller random_controller = [&](const tasks::State&) {
@@ -618,6 +663,8 @@ absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver
     EpisodeResult result;
     result.episode = 0;
     result.real_cost = episode.total_cost;
+    clock.Lap(&result.timing.real_episode_cpu, &result.timing.real_episode_wall);
+    result.cpu_seconds = result.timing.total_cpu();
     summary.episodes.push_back(result);
     if (observer != nullptr) observer->OnEpisode(result);
   }
@@ -626,10 +673,11 @@ absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver
     EpisodeResult result;
     result.episode = e;
     const auto start_time = std::chrono::steady_clock::now();
+    PhaseClock clock(pool.get());
     // 1-2. Fit the model on all data so far and optimise the policy.
     const bool snapshot = observer != nullptr && observer->WantsSnapshot(e);
     const Vector policy_before = snapshot ? learner->Parameters() : Vector();
-    status = learner->Improve(data, e, observer, &result);
+    status = learner->Improve(data, e, observer, &clock, &result);
     if (!status.ok()) return status;
     result.optimisation_seconds = Seconds(start_time);
     if (snapshot) {
@@ -645,6 +693,7 @@ absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver
       s.policy_parameters = result.policy_parameters;
       observer->OnSnapshot(s);
     }
+    clock.Restart();  // the snapshot copy above is not the trial's work
 
     // 3. One real episode with the new policy; its data are added.
     {
@@ -655,6 +704,7 @@ absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver
       data.Append(episode);
       result.real_cost = episode.total_cost;
     }
+    clock.Lap(&result.timing.real_episode_cpu, &result.timing.real_episode_wall);
 
     // 4. Evaluate the policy on independent real episodes (not added to the data).
     {
@@ -673,6 +723,8 @@ absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver
       result.eval_cost_mean = sum / n;
       result.eval_cost_std = n > 1 ? std::sqrt(std::max(0.0, (sum_sq - sum * sum / n) / (n - 1))) : 0.0;
     }
+    clock.Lap(&result.timing.evaluation_cpu, &result.timing.evaluation_wall);
+    result.cpu_seconds = result.timing.total_cpu();
     summary.episodes.push_back(result);
     if (observer != nullptr) observer->OnEpisode(result);
   }

@@ -84,6 +84,28 @@ struct EpisodeFlags {
   bool gp_jitter = false;          // K needed jitter to factorise
 };
 
+// Where an episode's time went. CPU seconds are those of the trial's own
+// threads (the calling thread plus its RunOptions::threads pool), so they are
+// the episode's cost whatever else runs in the process; wall seconds are
+// elapsed time. Phases: fitting the model (GP hyperparameters, and FITC
+// inducing inputs where used), optimising the policy (the gradient steps, or
+// PILCO's BFGS), the model-predicted cost of the optimised policy, the real
+// episode whose data are added, and the evaluation episodes.
+struct EpisodeTiming {
+  double model_cpu = 0, model_wall = 0;
+  double policy_cpu = 0, policy_wall = 0;
+  int policy_steps = 0;  // gradient steps taken (0 for PILCO and episode 0)
+  double prediction_cpu = 0, prediction_wall = 0;
+  double real_episode_cpu = 0, real_episode_wall = 0;
+  double evaluation_cpu = 0, evaluation_wall = 0;
+  double total_cpu() const {
+    return model_cpu + policy_cpu + prediction_cpu + real_episode_cpu + evaluation_cpu;
+  }
+  double total_wall() const {
+    return model_wall + policy_wall + prediction_wall + real_episode_wall + evaluation_wall;
+  }
+};
+
 struct EpisodeResult {
   static constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
   int episode = 0;                 // 0 = random episode
@@ -92,6 +114,8 @@ struct EpisodeResult {
   double eval_cost_std = kNaN;
   double predicted_cost = kNaN;    // model's expected episode cost of the optimised policy
   double optimisation_seconds = 0; // GP fit + policy optimisation wall time
+  double cpu_seconds = 0;          // the whole episode's CPU time (timing.total_cpu())
+  EpisodeTiming timing;
   gp::GpHyperparameters hyperparameters;  // of the GP used this episode (empty for 0)
   Vector policy_parameters;        // the optimised policy of this episode (empty for 0)
   EpisodeFlags flags;
@@ -145,12 +169,23 @@ class TrialObserver {
   virtual void OnSnapshot(const TrialSnapshot& snapshot) {}
 };
 
+// How a trial is executed, as opposed to what it computes: nothing here
+// changes a number of the trial.
+struct RunOptions {
+  // Threads of the trial (the caller's plus threads - 1 started for it):
+  // the GP's outputs and fixed particle blocks are spread over them
+  // (core/common/thread_pool.h), so the results are the same bits for any
+  // value. >= 1.
+  int threads = 1;
+};
+
 // Runs the trial. `observer` may be null. Sets the process's BLAS to one
 // thread (core/common/blas.h), so the numbers never depend on the core
 // count. Errors: InvalidArgument (bad options), Cancelled, Internal (a numerical failure, named, e.g. the plant
 // integrator failing or a non-finite cost), FailedPrecondition (GP could not
 // be factorised).
-absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver* observer);
+absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver* observer,
+                                      const RunOptions& run = RunOptions());
 
 }  // namespace totalgrad::learner
 

@@ -300,6 +300,67 @@ TEST_P(ParticleTrialSinCos, RunsFiniteDeterministicallyAndDiffersFromRaw) {
 
 INSTANTIATE_TEST_SUITE_P(Methods, ParticleTrialSinCos, ::testing::Values("RP", "TP"));
 
+// Threads never change the numbers: every method, with the full GP, with FITC
+// (RP and TP) and with sin/cos features, gives the same bits on 1, 2 and 3
+// threads (3 does not divide the 4 GP outputs or the particle blocks evenly).
+class TrialThreads : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(TrialThreads, SameBitsForAnyThreadCount) {
+  std::vector<TrialOptions> variants;
+  TrialOptions o = Tiny();
+  ASSERT_TRUE(SetTrialOption("method", GetParam(), &o).ok());
+  ASSERT_TRUE(SetTrialOption("particles", "70", &o).ok());  // more than one particle block
+  variants.push_back(o);
+  if (GetParam() == "RP" || GetParam() == "TP") {
+    TrialOptions fitc = TinyFitc(GetParam(), "20");
+    ASSERT_TRUE(SetTrialOption("particles", "70", &fitc).ok());
+    variants.push_back(fitc);
+    TrialOptions sincos = o;
+    ASSERT_TRUE(SetTrialOption("angle_features", "sincos", &sincos).ok());
+    variants.push_back(sincos);
+  }
+  for (const TrialOptions& options : variants) {
+    auto one = RunTrial(options, nullptr);
+    ASSERT_TRUE(one.ok()) << one.status();
+    for (int threads : {2, 3}) {
+      RunOptions run;
+      run.threads = threads;
+      auto many = RunTrial(options, nullptr, run);
+      ASSERT_TRUE(many.ok()) << many.status();
+      ASSERT_EQ(many->episodes.size(), one->episodes.size());
+      for (size_t e = 1; e < one->episodes.size(); ++e)
+        ExpectFiniteAndIdentical(one->episodes[e], many->episodes[e], e);
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Methods, TrialThreads,
+                         ::testing::Values("RP", "GR", "LR", "TP", "GLR", "GTP", "GTP+sn", "DEL",
+                                           "PILCO"),
+                         [](const ::testing::TestParamInfo<std::string>& info) {
+                           std::string name = info.param;
+                           for (char& c : name)
+                             if (c == '+') c = '_';
+                           return name;
+                         });
+
+TEST(Trial, EpisodesReportTheirCpuTimeByPhase) {
+  auto summary = RunTrial(Tiny(), nullptr);
+  ASSERT_TRUE(summary.ok()) << summary.status();
+  for (size_t e = 1; e < summary->episodes.size(); ++e) {
+    const EpisodeResult& r = summary->episodes[e];
+    const EpisodeTiming& t = r.timing;
+    EXPECT_EQ(t.policy_steps, 4) << e;
+    EXPECT_GT(t.policy_cpu, 0) << e;
+    EXPECT_GT(t.model_cpu, 0) << e;
+    EXPECT_GT(t.evaluation_cpu, 0) << e;
+    EXPECT_GE(t.prediction_cpu, 0) << e;
+    EXPECT_EQ(r.cpu_seconds, t.total_cpu()) << e;
+    // CPU time of one thread cannot exceed its wall time by more than clock granularity.
+    EXPECT_LE(t.policy_cpu, t.policy_wall + 0.01) << e;
+  }
+}
+
 // With a sparse GP too (gp_inducing: FITC on feature inputs behind the adapter
 // once N = 30 > 20 in episode 2).
 TEST(ParticleTrialSinCosFitc, RunsFiniteAndUsesFitc) {

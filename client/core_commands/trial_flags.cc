@@ -1,0 +1,46 @@
+#include "client/core_commands/trial_flags.h"
+
+#include <algorithm>
+#include <set>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_replace.h"
+
+namespace totalgrad::cli {
+
+void AddTrialOptionFlags(CLI::App* cmd, const learner::TrialOptions& defaults,
+                         TrialFlagValues* values, const std::vector<std::string>& skip) {
+  for (const auto& [key, value] : learner::TrialOptionPairs(defaults)) {
+    if (std::find(skip.begin(), skip.end(), key) != skip.end()) continue;
+    const std::string flag = "--" + absl::StrReplaceAll(key, {{"_", "-"}});
+    cmd->add_option(flag, values->values[key], "trial option '" + key + "' (default " + value + ")");
+  }
+  cmd->add_option("--set", values->sets, "KEY=VALUE for any trial option (repeatable)");
+}
+
+absl::Status ApplyTrialOptionFlags(const TrialFlagValues& values, learner::TrialOptions* options) {
+  std::set<std::string> given;
+  for (const auto& [key, value] : values.values) {
+    if (value.empty()) continue;
+    given.insert(key);
+    const absl::Status s = learner::SetTrialOption(key, value, options);
+    if (!s.ok()) return s;
+  }
+  for (const std::string& kv : values.sets) {
+    const size_t eq = kv.find('=');
+    if (eq == std::string::npos)
+      return absl::InvalidArgumentError(absl::StrCat("--set expects KEY=VALUE, got '", kv, "'"));
+    const std::string key = kv.substr(0, eq);
+    if (given.count(key) > 0) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "option '", key, "' is given twice (as --", absl::StrReplaceAll(key, {{"_", "-"}}),
+          " and as --set ", key, "=...): give it once"));
+    }
+    given.insert(key);
+    const absl::Status s = learner::SetTrialOption(key, kv.substr(eq + 1), options);
+    if (!s.ok()) return s;
+  }
+  return options->Validate();
+}
+
+}  // namespace totalgrad::cli
