@@ -4,11 +4,13 @@
 #include <CLI/CLI.hpp>
 
 #include "client/core_commands/commands.h"
+#include "core/common/blas.h"
 #ifdef TOTALGRAD_WITH_SERVICE
 #include "client/service_commands/service_commands.h"
 #endif
 
 int main(int argc, char** argv) {
+  totalgrad::SelectBlasKernels(argv);  // may re-execute this program (core/common/blas.h)
   CLI::App app{"totalgrad: total stochastic gradient experiments on the cart-pole"};
   app.require_subcommand(1);
   int exit_code = 0;

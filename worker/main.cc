@@ -13,6 +13,7 @@
 #include <fstream>
 #include <thread>
 
+#include "core/common/blas.h"
 #include "server/common/build_info.h"
 #include "server/common/signals.h"
 #include "server/common/rpc_client.h"
@@ -41,13 +42,15 @@ absl::StatusOr<std::string> ReadToken(const std::string& path) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  totalgrad::SelectBlasKernels(argv);  // may re-execute this program (core/common/blas.h)
   CLI::App app{"totalgrad-worker: runs policy-learning trials leased from a coordinator"};
   totalgrad::rpc::ConnectionOptions connection;
   totalgrad::worker::WorkerOptions options;
   options.slots = std::max(1u, std::thread::hardware_concurrency());
   options.host = HostName();
   options.worker_id = options.host + "-" + std::to_string(getpid());
-  options.build = totalgrad::BuildId();
+  // The BLAS kernels change a trial's last bits: they are part of its provenance.
+  options.build = totalgrad::BuildId() + " blas " + totalgrad::BlasCoreName();
   std::string token_file;
   double drain_seconds = 60, max_idle_seconds = -1, acquire_wait_seconds = 20;
   app.add_option("--coordinator", connection.target, "coordinator host:port")->required();
