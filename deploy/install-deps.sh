@@ -16,6 +16,8 @@ PACKAGES=(
   iproute2 openssl libssl-dev
   # deploy/ file checks (tests/deploy): unit verification, YAML and shell linters
   systemd python3 python3-yaml yamllint shellcheck
+  # bench/torch_rp_iteration.py, the PyTorch peer of bench iteration (tests/client_core)
+  python3-torch
 )
 
 missing=()

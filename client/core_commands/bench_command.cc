@@ -15,6 +15,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "client/core_commands/bench_dump_command.h"
 #include "client/core_commands/commands.h"
 #include "core/common/blas.h"
 #include "core/estimators/estimator.h"
@@ -69,6 +70,7 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
   CLI::App* bench = app->add_subcommand("bench", "Performance measurements (JSON output)");
   bench->require_subcommand(1);
   AddBenchTrialCommand(bench, exit_code);
+  AddBenchDumpIterationCommand(bench, exit_code);
   CLI::App* it = bench->add_subcommand("iteration", "Seconds per gradient iteration vs the gemm bound");
   it->add_option("--particles", state->particles, "P")->check(CLI::PositiveNumber);
   it->add_option("--data", state->data, "N, GP training points")->check(CLI::Range(2, 100000));
