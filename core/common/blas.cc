@@ -76,8 +76,14 @@ void SelectBlasKernels(char** argv) {
   const std::string core = WantedBlasCore(std::getenv("TOTALGRAD_BLAS_CORE"));
   if (core.empty()) return;
   if (setenv("OPENBLAS_CORETYPE", core.c_str(), 1) != 0 || setenv(kMarker, "1", 1) != 0) return;
+  // Through the real path, not /proc/self/exe, so that the process keeps its
+  // name (ps, pkill, systemd and Slurm see "totalgrad-worker", not "exe").
+  char path[4096];
+  const ssize_t length = readlink("/proc/self/exe", path, sizeof(path) - 1);
+  if (length <= 0) return;
+  path[length] = '\0';
   std::fflush(nullptr);
-  execv("/proc/self/exe", argv);
+  execv(path, argv);
   // Only reached when the exec failed: carry on with the kernels already
   // loaded (the variables now describe nothing that took effect).
   const int error = errno;

@@ -43,8 +43,8 @@ std::string BlasCoreName();
 std::string WantedBlasCore(const char* setting);
 
 // Call first in main(), before any thread starts. When WantedBlasCore() names
-// a core, sets OPENBLAS_CORETYPE to it and re-executes /proc/self/exe with the
-// same arguments (same pid, descriptors, and environment otherwise); at most
+// a core, sets OPENBLAS_CORETYPE to it and re-executes this program (the file
+// /proc/self/exe points to) with the same arguments (same pid, descriptors, and environment otherwise); at most
 // once per process tree (a marker variable stops a loop). Returns when nothing
 // was to be done, or when the re-execution failed (a note on stderr names why;
 // the program continues with the kernels already loaded).

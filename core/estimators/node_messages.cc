@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "core/common/check.h"
+#include "core/common/simd.h"
 
 namespace totalgrad::estimators {
 
@@ -65,6 +66,76 @@ TraceVariance RowTraceVariance(const RowMatrix& rows) {
   v.scale = deviation.cwiseAbs().maxCoeff();
   if (!(v.scale > 0)) return v;
   v.normalized = (deviation / v.scale).squaredNorm() / static_cast<double>(p - 1);
+  return v;
+}
+
+namespace {
+
+// max over i, j of |factor_i rows_ij - mean_j| (rows: p x n, row-major).
+TG_VECTOR_CLONES double MaxDeviation(const double* factor, const double* rows, Eigen::Index p,
+                                     Eigen::Index n, const double* mean) {
+  using simd::Doubles;
+  Doubles lanes = simd::Broadcast(0.0);
+  double tail = 0;
+  for (Eigen::Index i = 0; i < p; ++i) {
+    const double f = factor[i];
+    const double* r = rows + i * n;
+    Eigen::Index j = 0;
+    for (; j + simd::kLanes <= n; j += simd::kLanes) {
+      Doubles d = f * simd::Load(r + j) - simd::Load(mean + j);
+      d = simd::Select(d < 0.0, -d, d);
+      lanes = simd::Select(d > lanes, d, lanes);
+    }
+    for (; j < n; ++j) tail = std::max(tail, std::abs(f * r[j] - mean[j]));
+  }
+  for (int l = 0; l < simd::kLanes; ++l) tail = std::max(tail, lanes[l]);
+  return tail;
+}
+
+// sum over i, j of ((factor_i rows_ij - mean_j) * inv)^2: lanes over j, rows
+// in order, lanes combined in order.
+TG_VECTOR_CLONES double ScaledSquareSum(const double* factor, const double* rows, Eigen::Index p,
+                                        Eigen::Index n, const double* mean, double inv) {
+  using simd::Doubles;
+  Doubles lanes = simd::Broadcast(0.0);
+  double tail = 0;
+  for (Eigen::Index i = 0; i < p; ++i) {
+    const double f = factor[i];
+    const double* r = rows + i * n;
+    Eigen::Index j = 0;
+    for (; j + simd::kLanes <= n; j += simd::kLanes) {
+      const Doubles d = (f * simd::Load(r + j) - simd::Load(mean + j)) * inv;
+      lanes += d * d;
+    }
+    for (; j < n; ++j) {
+      const double d = (f * r[j] - mean[j]) * inv;
+      tail += d * d;
+    }
+  }
+  return simd::CombineLanes(lanes) + tail;
+}
+
+}  // namespace
+
+TraceVariance ScaledRowTraceVariance(const Vector& factor, const RowMatrix& rows, Vector* mean) {
+  TraceVariance v;
+  const Eigen::Index p = rows.rows(), n = rows.cols();
+  TG_CHECK(factor.size() == p);
+  if (!factor.allFinite() || !rows.allFinite()) {
+    // A non-finite row entry: factor_i * rows_ij, with 0 * Inf counting too.
+    v.non_finite = true;
+    v.scale = std::numeric_limits<double>::infinity();
+    return v;
+  }
+  if (p < 2) return v;
+  // Column means, summed over i in order.
+  mean->setZero(n);
+  for (Eigen::Index i = 0; i < p; ++i) mean->noalias() += factor(i) * rows.row(i).transpose();
+  *mean /= static_cast<double>(p);
+  v.scale = MaxDeviation(factor.data(), rows.data(), p, n, mean->data());
+  if (!(v.scale > 0)) return v;
+  v.normalized = ScaledSquareSum(factor.data(), rows.data(), p, n, mean->data(), 1.0 / v.scale) /
+                 static_cast<double>(p - 1);
   return v;
 }
 

@@ -54,6 +54,12 @@ struct TraceVariance {
   double value() const;   // scale^2 * normalized (Inf when that overflows or non_finite)
 };
 TraceVariance RowTraceVariance(const RowMatrix& rows);
+// The same for the rows r_i = factor_i * rows_i (factor: P), without forming
+// them: what TP needs for each branch's per-particle gradients, which share
+// the policy's Jacobian rows and differ by a scalar per particle. `mean` is
+// scratch (n entries, resized).
+TraceVariance ScaledRowTraceVariance(const Vector& factor, const RowMatrix& rows,
+                                     Vector* mean);
 
 // Total propagation's weight on the jump (LR) estimate of one node,
 // k_LR = 1 / (1 + var_LR / var_RP), with its limits made explicit:

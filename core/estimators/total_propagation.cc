@@ -21,11 +21,6 @@ T Mix(double k, const T& jump, const T& pathwise) {
   return k * jump + (1.0 - k) * pathwise;
 }
 
-// Per-particle parameter rows force_bar_i * dforce_i/dtheta (P x n).
-RowMatrix ScaledRows(const Vector& force_bar, const RowMatrix& dforce_dtheta) {
-  return force_bar.asDiagonal() * dforce_dtheta;
-}
-
 absl::Status ValidateConfig(const BackwardConfig& config) {
   if (!config.pathwise && config.jump == JumpKind::kNone)
     return absl::InvalidArgumentError("backward pass: neither a pathwise nor a jump branch");
@@ -87,7 +82,8 @@ absl::Status BackwardPass(const Problem& problem, const Rollout& rollout,
   Vector local(p);
   RowMatrix pair_baseline, rp_cost, gamma_rp, resampled, x_rp, x_jump, x_bar, state_bar, log_weights, weights;
   RowMatrix dforce_dtheta, dforce_dx;
-  Vector f_rp, f_jump, baseline;
+  Vector f_rp, f_jump, baseline, row_mean;
+  const Vector ones = Vector::Ones(p);
   ZetaCotangent zeta_rp, zeta_jump;
   GaussianFit fit;
   ExpectedCostGradient expected;
@@ -175,22 +171,23 @@ absl::Status BackwardPass(const Problem& problem, const Rollout& rollout,
     // 4-5. Combine, then cross the policy.
     if (combining && !forced) {
       // The policy's Jacobian rows (its adjoint is linear in force_bar), so
-      // that both branches' per-particle gradients exist for the variances.
+      // that both branches' per-particle gradients, f_i * dforce_i/dtheta,
+      // exist for the variances; they are never formed, only their trace
+      // variances and the combined rows.
       dforce_dtheta.setZero(p, n);
-      policy.Backward(step.policy_cache, Vector::Ones(p), &dforce_dx, &dforce_dtheta, nullptr);
-      const RowMatrix rows_rp = ScaledRows(f_rp, dforce_dtheta);
-      const RowMatrix rows_jump = ScaledRows(f_jump, dforce_dtheta);
-      const TraceVariance v_rp = RowTraceVariance(rows_rp);
-      const TraceVariance v_jump = RowTraceVariance(rows_jump);
+      policy.Backward(step.policy_cache, ones, &dforce_dx, &dforce_dtheta, nullptr);
+      const TraceVariance v_rp = ScaledRowTraceVariance(f_rp, dforce_dtheta, &row_mean);
+      const TraceVariance v_jump = ScaledRowTraceVariance(f_jump, dforce_dtheta, &row_mean);
       const double k = CombinationWeight(v_rp, v_jump);
       result->k_lr[t] = k;
       result->var_pathwise[t] = v_rp;
       result->var_jump[t] = v_jump;
-      result->per_particle += Mix(k, rows_jump, rows_rp);
+      // Mix leaves out a branch whose weight is 0 (it may hold Inf).
+      const Vector f = Mix(k, f_jump, f_rp);
+      result->per_particle.noalias() += f.asDiagonal() * dforce_dtheta;
       if (t > 0) {
-        const Vector f = Mix(k, f_jump, f_rp);
         gamma = Mix(k, x_jump, x_rp);
-        gamma += f.asDiagonal() * dforce_dx;
+        gamma.noalias() += f.asDiagonal() * dforce_dx;
       }
       continue;
     }
