@@ -5,7 +5,7 @@
 
 #include "core/common/check.h"
 #include "core/common/simd.h"
-#include "core/gp/se_kernel.h"  // ExpNonPositive: vectorised exp, bitwise the same on every CPU
+#include "core/common/vector_exp.h"
 
 namespace totalgrad::estimators {
 namespace {
@@ -233,7 +233,7 @@ void BiwLogWeights(const StepRecord& step, RowMatrix* log_weights, RowMatrix* we
     // lw - m <= 0 for a finite column maximum; a column without one (all -Inf
     // or NaN) gives NaN here and is redone below.
     Subtract(lw.row(i).data(), m.data(), p, shifted.data());
-    gp::internal::ExpNonPositive(shifted.data(), e.row(i).data(), p);
+    ExpNonPositive(shifted.data(), e.row(i).data(), p);
     Accumulate(e.row(i).data(), p, sum.data());
   }
   Eigen::RowVectorXd lse(p), inv(p);

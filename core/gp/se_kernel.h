@@ -11,33 +11,9 @@
 #include <limits>
 
 #include "core/common/types.h"
+#include "core/common/vector_exp.h"
 
 namespace totalgrad::gp::internal {
-
-// y[i] = exp(min(x[i], 0)) for i < n, the kernel's exponential; x and y may be
-// the same array. Results are within 1 ulp of the correctly rounded value;
-// exp(x) for x < -708 (below 3.3e-308, irrelevant next to any kernel value
-// that matters) is returned as exactly 0 instead of a subnormal; NaN stays
-// NaN. The same IEEE operations (no FMA) run in every SIMD width, so the
-// result is bitwise the same whether the AVX-512 or AVX2 path (chosen at run
-// time, widest first) or the baseline path runs: a trial's numbers do not
-// depend on the worker's CPU through this function. With -march=x86-64-v2,
-// Eigen's own exp is 2-wide SSE and costs more than the P x N x N product at
-// N <= 120; this one runs 8- or 4-wide where it can.
-void ExpNonPositive(const double* x, double* y, Eigen::Index n);
-// The paths, for tests: baseline (SSE2 on x86-64, scalar elsewhere), AVX2 and
-// AVX-512F; the latter two return false (and do nothing) when the CPU lacks
-// the instructions.
-void ExpNonPositiveBaseline(const double* x, double* y, Eigen::Index n);
-bool ExpNonPositiveAvx2(const double* x, double* y, Eigen::Index n);
-bool ExpNonPositiveAvx512(const double* x, double* y, Eigen::Index n);
-
-// One column of SeCrossKernel, fused into a single pass over memory:
-// y[i] = sf2 * exp(min((dot[i] - 0.5 a_sq[i]) - 0.5 b_sq, 0)) for i < n, where
-// dot holds a_i . b; dot and y may alias. Bitwise equal to the three separate
-// passes (shift, ExpNonPositive, scale) on every SIMD path, like ExpNonPositive.
-void SeKernelColumn(const double* dot, const double* a_sq, double b_sq, double sf2, double* y,
-                    Eigen::Index n);
 
 // out (P x N, overwritten) = sf2 * exp(-1/2 |a_p - b_n|^2) for rows a_p of `a`
 // (P x E) and b_n of `b` (N x E), both already divided by the length-scales.
@@ -55,7 +31,7 @@ inline void SeCrossKernel(const ConstRowMatrixRef& a, const Vector& a_sq,
   const Eigen::Index rows = out->rows();
   for (Eigen::Index n = 0; n < out->cols(); ++n) {
     double* column = out->data() + n * rows;
-    SeKernelColumn(column, a_sq.data(), b_sq(n), sf2, column, rows);
+    ::totalgrad::SeKernelColumn(column, a_sq.data(), b_sq(n), sf2, column, rows);
   }
 }
 

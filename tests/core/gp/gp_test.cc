@@ -426,7 +426,7 @@ std::vector<double> ExpTestArguments() {
 TEST(SeKernelTest, ExpIsAccurateToOneUlp) {
   const std::vector<double> x = ExpTestArguments();
   std::vector<double> y(x.size());
-  internal::ExpNonPositive(x.data(), y.data(), static_cast<Eigen::Index>(x.size()));
+  ExpNonPositive(x.data(), y.data(), static_cast<Eigen::Index>(x.size()));
   double worst = 0;
   for (size_t i = 0; i < x.size(); ++i) {
     const double expected = std::exp(x[i]);
@@ -444,7 +444,7 @@ TEST(SeKernelTest, ExpSpecialValues) {
   const double inf = std::numeric_limits<double>::infinity();
   const std::vector<double> x = {0.0, 2.5, -708.0, -708.5, -1e4, -inf, nan};
   std::vector<double> y(x.size());
-  internal::ExpNonPositive(x.data(), y.data(), static_cast<Eigen::Index>(x.size()));
+  ExpNonPositive(x.data(), y.data(), static_cast<Eigen::Index>(x.size()));
   EXPECT_EQ(y[0], 1.0);
   EXPECT_EQ(y[1], 1.0);  // the exponent is clamped at 0
   EXPECT_NEAR(y[2], std::exp(-708.0), 2 * std::numeric_limits<double>::epsilon() * y[2]);
@@ -455,7 +455,7 @@ TEST(SeKernelTest, ExpSpecialValues) {
   // In place, and every tail length of the SIMD loops.
   for (int n = 1; n <= 9; ++n) {
     std::vector<double> v(n, -0.75);
-    internal::ExpNonPositive(v.data(), v.data(), n);
+    ExpNonPositive(v.data(), v.data(), n);
     for (int i = 0; i < n; ++i) EXPECT_NEAR(v[i], std::exp(-0.75), 1e-16) << n << " " << i;
   }
 }
@@ -464,9 +464,9 @@ TEST(SeKernelTest, SimdPathsAgreeBitwise) {
   const std::vector<double> x = ExpTestArguments();
   const auto n = static_cast<Eigen::Index>(x.size());
   std::vector<double> baseline(x.size()), wide(x.size());
-  internal::ExpNonPositiveBaseline(x.data(), baseline.data(), n);
+  ExpNonPositiveBaseline(x.data(), baseline.data(), n);
   int paths = 0;
-  for (auto* path : {&internal::ExpNonPositiveAvx2, &internal::ExpNonPositiveAvx512}) {
+  for (auto* path : {&ExpNonPositiveAvx2, &ExpNonPositiveAvx512}) {
     std::fill(wide.begin(), wide.end(), -1.0);
     if (!path(x.data(), wide.data(), n)) continue;
     ++paths;
@@ -499,15 +499,15 @@ TEST(SeKernelTest, FusedColumnEqualsSeparatePassesBitwise) {
           dot[i] = args[i] + 0.5 * a_sq[i] + 0.5 * b_sq;
         }
         for (Eigen::Index i = 0; i < n; ++i) separate[i] = (dot[i] - 0.5 * a_sq[i]) - 0.5 * b_sq;
-        internal::ExpNonPositiveBaseline(separate.data(), separate.data(), n);
+        ExpNonPositiveBaseline(separate.data(), separate.data(), n);
         for (double& v : separate) v *= sf2;
-        internal::SeKernelColumn(dot.data(), a_sq.data(), b_sq, sf2, fused.data(), n);
+        SeKernelColumn(dot.data(), a_sq.data(), b_sq, sf2, fused.data(), n);
         for (Eigen::Index i = 0; i < n; ++i) {
           ASSERT_EQ(std::bit_cast<uint64_t>(separate[i]), std::bit_cast<uint64_t>(fused[i]))
               << "n = " << n << " i = " << i << " sf2 = " << sf2 << " b_sq = " << b_sq;
         }
         // In place (dot and y alias), as SeCrossKernel calls it.
-        internal::SeKernelColumn(dot.data(), a_sq.data(), b_sq, sf2, dot.data(), n);
+        SeKernelColumn(dot.data(), a_sq.data(), b_sq, sf2, dot.data(), n);
         for (Eigen::Index i = 0; i < n; ++i) {
           ASSERT_EQ(std::bit_cast<uint64_t>(separate[i]), std::bit_cast<uint64_t>(dot[i]));
         }

@@ -72,6 +72,48 @@ TEST(RbfPolicy, EvaluateMatchesDefinition) {
   }
 }
 
+// A policy on S state dimensions with spread length-scales and weights large
+// enough for the saturation's curvature to matter.
+RbfPolicy MakePolicyOfDimension(int s_dim, uint64_t seed) {
+  RbfPolicy policy(7, s_dim, 10.0);
+  Rng rng(seed, Stream::kPolicyInit);
+  policy.Initialize(Vector::LinSpaced(s_dim, -0.3, 0.8), Vector::Constant(s_dim, 1.0), 0.8, &rng);
+  Vector p = policy.parameters();
+  p.segment(7 * s_dim, s_dim) = Vector::LinSpaced(s_dim, std::log(0.7), std::log(2.0));
+  p.tail(7) *= 4.0;
+  policy.set_parameters(p);
+  return policy;
+}
+
+// d force_i / d theta against central differences, for the cart-pole's S = 4
+// (vectorised path) and other dimensions (generic path: 2, 5 = sin/cos
+// features, 6).
+class RbfPolicyDims : public ::testing::TestWithParam<int> {};
+
+TEST_P(RbfPolicyDims, ParameterGradientMatchesFiniteDifferences) {
+  const int s_dim = GetParam();
+  RbfPolicy policy = MakePolicyOfDimension(s_dim, 11);
+  Rng rng(12, Stream::kStudy);
+  RowMatrix x(5, s_dim);
+  rng.FillNormal(&x);
+  RbfPolicy::Cache cache;
+  Vector forces;
+  policy.Evaluate(x, &forces, &cache);
+  RowMatrix per_particle = RowMatrix::Zero(5, policy.num_parameters());
+  policy.Backward(cache, Vector::Ones(5), nullptr, &per_particle, nullptr);
+  const Matrix analytic = per_particle;
+  const diff::VectorFunction f = [&](const Vector& theta, Vector* out) {
+    RbfPolicy copy = policy;
+    copy.set_parameters(theta);
+    copy.Evaluate(x, out, nullptr);
+    return true;
+  };
+  const diff::CheckResult r = diff::CheckJacobian(f, policy.parameters(), analytic);
+  EXPECT_TRUE(r.ok) << r.log;
+}
+
+INSTANTIATE_TEST_SUITE_P(StateDimensions, RbfPolicyDims, ::testing::Values(2, 4, 5, 6));
+
 // d force_i / d theta and d force_i / d x_i against central differences.
 TEST(RbfPolicy, ParameterGradientMatchesFiniteDifferences) {
   RbfPolicy policy = MakePolicy(5);

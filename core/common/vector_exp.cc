@@ -1,4 +1,4 @@
-#include "core/gp/se_kernel.h"
+#include "core/common/vector_exp.h"
 
 #include <algorithm>
 
@@ -7,7 +7,7 @@
 
 #if defined(__x86_64__) && defined(__SSE2__)
 #include <immintrin.h>
-#define TOTALGRAD_GP_X86_EXP 1
+#define TOTALGRAD_X86_VECTOR_EXP 1
 // GCC 12's avx512fintrin.h passes _mm512_undefined_pd() as the unused merge
 // operand of unmasked intrinsics, which -Wmaybe-uninitialized reports inside
 // target("avx512f") functions (GCC bug 105593); the values are never read.
@@ -16,7 +16,7 @@
 #endif
 #endif
 
-namespace totalgrad::gp::internal {
+namespace totalgrad {
 namespace {
 
 // exp(x) = 2^k exp(r), k = round(x / ln 2), r = x - k ln 2 in [-ln2/2, ln2/2],
@@ -53,7 +53,7 @@ constexpr double kTaylor[kDegree + 1] = {
   return x < kMinArgument ? 0.0 : scaled;
 }
 
-#ifdef TOTALGRAD_GP_X86_EXP
+#ifdef TOTALGRAD_X86_VECTOR_EXP
 // Each function below performs exactly this sequence of IEEE operations per
 // lane, in this order; only the register width differs.
 inline __m128d ExpPacket2(__m128d x) {
@@ -215,12 +215,12 @@ bool CpuHasAvx2() {
   return has;
 }
 
-#endif  // TOTALGRAD_GP_X86_EXP
+#endif  // TOTALGRAD_X86_VECTOR_EXP
 
 }  // namespace
 
 void ExpNonPositiveBaseline(const double* x, double* y, Eigen::Index n) {
-#ifdef TOTALGRAD_GP_X86_EXP
+#ifdef TOTALGRAD_X86_VECTOR_EXP
   Eigen::Index i = 0;
   for (; i + 2 <= n; i += 2) _mm_storeu_pd(y + i, ExpPacket2(_mm_loadu_pd(x + i)));
   ExpTail(x + i, y + i, n - i);
@@ -230,7 +230,7 @@ void ExpNonPositiveBaseline(const double* x, double* y, Eigen::Index n) {
 }
 
 bool ExpNonPositiveAvx2(const double* x, double* y, Eigen::Index n) {
-#ifdef TOTALGRAD_GP_X86_EXP
+#ifdef TOTALGRAD_X86_VECTOR_EXP
   if (!CpuHasAvx2()) return false;
   ExpAvx2Body(x, y, n);
   return true;
@@ -240,7 +240,7 @@ bool ExpNonPositiveAvx2(const double* x, double* y, Eigen::Index n) {
 }
 
 bool ExpNonPositiveAvx512(const double* x, double* y, Eigen::Index n) {
-#ifdef TOTALGRAD_GP_X86_EXP
+#ifdef TOTALGRAD_X86_VECTOR_EXP
   if (!CpuHasAvx512()) return false;
   ExpAvx512Body(x, y, n);
   return true;
@@ -258,7 +258,7 @@ void ExpNonPositive(const double* x, double* y, Eigen::Index n) {
 void SeKernelColumn(const double* dot, const double* a_sq, double b_sq, double sf2, double* y,
                     Eigen::Index n) {
   const double half_b_sq = 0.5 * b_sq;
-#ifdef TOTALGRAD_GP_X86_EXP
+#ifdef TOTALGRAD_X86_VECTOR_EXP
   if (CpuHasAvx512()) {
     SeColumnAvx512Body(dot, a_sq, half_b_sq, sf2, y, n);
   } else if (CpuHasAvx2()) {
@@ -273,4 +273,4 @@ void SeKernelColumn(const double* dot, const double* a_sq, double b_sq, double s
 #endif
 }
 
-}  // namespace totalgrad::gp::internal
+}  // namespace totalgrad

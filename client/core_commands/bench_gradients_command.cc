@@ -1,0 +1,124 @@
+// `totalgrad bench gradients`: R gradient estimates of one method on a trial
+// snapshot's problem, with fixed random-number streams (replicate r draws from
+// Stream::kStudy, index 1000 + r), written as JSON. Two runs of it that differ
+// only in how the numbers are computed (BLAS kernels, a build, an
+// approximation) use common random numbers, so bench/accuracy_gate.py can
+// measure the computation's error against the estimator's own Monte Carlo
+// error (docs/results/speed.md, "accuracy gate").
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "client/core_commands/commands.h"
+#include "core/common/blas.h"
+#include "core/common/thread_pool.h"
+#include "core/estimators/estimator.h"
+#include "core/study/frozen_problem.h"
+#include "core/study/snapshot_json.h"
+
+namespace totalgrad::cli {
+namespace {
+
+struct BenchGradientsState {
+  std::string snapshot_file;
+  int episode = 0;
+  std::string policy = "before";
+  std::string method = "RP";
+  int particles = 300;
+  int horizon = 0;  // 0 = the snapshot's
+  int replicates = 20;
+  uint64_t seed = 1;
+  int threads = 1;
+  std::string out;
+};
+
+constexpr uint64_t kReplicateStreamOffset = 1000;
+
+}  // namespace
+
+void AddBenchGradientsCommand(CLI::App* bench, int* exit_code) {
+  auto state = std::make_shared<BenchGradientsState>();
+  CLI::App* cmd = bench->add_subcommand(
+      "gradients", "R gradient estimates on a trial snapshot with fixed random numbers (JSON)");
+  cmd->add_option("--snapshot", state->snapshot_file, "trial snapshot file")->required();
+  cmd->add_option("--episode", state->episode, "snapshot episode")->required();
+  cmd->add_option("--policy", state->policy, "before or after the episode's optimisation")
+      ->check(CLI::IsMember({"before", "after"}));
+  cmd->add_option("--method", state->method, "particle estimator (RP, GR, LR, TP, GLR, GTP, GTP+sn, DEL)");
+  cmd->add_option("--particles", state->particles, "P (default 300)")->check(CLI::Range(1, 1000000));
+  cmd->add_option("--horizon", state->horizon, "H (default: the snapshot's)")->check(CLI::Range(0, 100000));
+  cmd->add_option("--replicates", state->replicates, "R (default 20)")->check(CLI::Range(1, 100000));
+  cmd->add_option("--seed", state->seed, "random-number seed of the replicates (default 1)");
+  cmd->add_option("--threads", state->threads, "threads (default 1)")->check(CLI::Range(1, 256));
+  cmd->add_option("--out", state->out, "write the JSON here instead of stdout");
+  cmd->callback([state, exit_code]() {
+    auto fail = [exit_code](int code, const std::string& message) {
+      std::cerr << "totalgrad bench gradients: " << message << "\n";
+      *exit_code = code;
+    };
+    absl::StatusOr<std::vector<learner::TrialSnapshot>> snapshots =
+        study::ReadSnapshotFile(state->snapshot_file);
+    if (!snapshots.ok()) return fail(2, std::string(snapshots.status().message()));
+    const learner::TrialSnapshot* snapshot = nullptr;
+    for (const auto& s : *snapshots)
+      if (s.episode == state->episode) snapshot = &s;
+    if (snapshot == nullptr)
+      return fail(2, "no snapshot of episode " + std::to_string(state->episode) + " in " +
+                         state->snapshot_file);
+    absl::StatusOr<std::unique_ptr<study::FrozenProblem>> frozen = study::FrozenProblemFromSnapshot(
+        *snapshot, state->policy == "after" ? study::SnapshotPolicy::kAfter
+                                            : study::SnapshotPolicy::kBefore);
+    if (!frozen.ok()) return fail(2, std::string(frozen.status().message()));
+    absl::StatusOr<std::unique_ptr<estimators::Estimator>> estimator =
+        estimators::MakeEstimator(state->method, {});
+    if (!estimator.ok()) return fail(2, std::string(estimator.status().message()));
+    SetBlasThreads(1);
+    std::unique_ptr<ThreadPool> pool;
+    if (state->threads > 1) pool = std::make_unique<ThreadPool>(state->threads);
+    estimators::Problem problem = (*frozen)->problem;
+    problem.pool = pool.get();
+    if (state->horizon > 0) problem.horizon = state->horizon;
+    estimators::EstimateOptions options;
+    options.particles = state->particles;
+    nlohmann::json gradients = nlohmann::json::array(), objectives = nlohmann::json::array();
+    int non_finite = 0;
+    for (int r = 0; r < state->replicates; ++r) {
+      Rng rng(state->seed, Stream::kStudy, kReplicateStreamOffset + static_cast<uint64_t>(r));
+      estimators::GradientEstimate estimate;
+      const absl::Status st = (*estimator)->Estimate(problem, options, &rng, &estimate);
+      if (!st.ok()) return fail(1, "replicate " + std::to_string(r) + ": " + std::string(st.message()));
+      if (!estimate.finite) ++non_finite;
+      gradients.push_back(std::vector<double>(estimate.gradient.data(),
+                                              estimate.gradient.data() + estimate.gradient.size()));
+      objectives.push_back(estimate.objective);
+    }
+    nlohmann::json doc = {{"snapshot", state->snapshot_file},
+                          {"episode", state->episode},
+                          {"policy", state->policy},
+                          {"source", (*frozen)->source},
+                          {"method", state->method},
+                          {"particles", state->particles},
+                          {"horizon", problem.horizon},
+                          {"replicates", state->replicates},
+                          {"seed", state->seed},
+                          {"threads", state->threads},
+                          {"non_finite", non_finite},
+                          {"blas", BlasConfig()},
+                          {"objectives", objectives},
+                          {"gradients", gradients}};
+    if (state->out.empty()) {
+      std::cout << doc.dump() << std::endl;
+    } else {
+      std::ofstream file(state->out);
+      file << doc.dump() << "\n";
+      if (!file) return fail(1, "cannot write " + state->out);
+    }
+    *exit_code = 0;
+  });
+}
+
+}  // namespace totalgrad::cli
