@@ -18,6 +18,7 @@
 #include "client/core_commands/bench_dump_command.h"
 #include "client/core_commands/commands.h"
 #include "core/common/blas.h"
+#include "core/common/thread_pool.h"
 #include "core/estimators/estimator.h"
 #include "core/estimators/particle_system.h"
 #include "core/estimators/synthetic_problem.h"
@@ -30,7 +31,8 @@ struct BenchState {
   int particles = 300;
   int data = 450;
   int horizon = 30;
-  int threads = 1;
+  int threads = 1;       // the trial's thread pool (RunOptions::threads)
+  int blas_threads = 1;  // OpenBLAS's own threads inside each product
   int repeats = 7;
   int inducing = 0;  // 0 = full GP
   std::string method = "RP";
@@ -41,11 +43,6 @@ double Median(std::vector<double> v) {
   return v[v.size() / 2];
 }
 
-double ThreadCpuSeconds() {
-  timespec ts;
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return ts.tv_sec + 1e-9 * ts.tv_nsec;
-}
 
 struct Timing {
   double wall = 0;
@@ -54,13 +51,15 @@ struct Timing {
 
 // With one BLAS thread every flop runs on the calling thread, so its CPU time
 // is the cost of the work whatever else the machine is doing.
+// With a pool, its worker threads' CPU time counts too.
 template <typename F>
-Timing TimeOnce(F&& f) {
+Timing TimeOnce(const ThreadPool* pool, F&& f) {
+  auto cpu = [pool] { return ThreadCpuSeconds() + (pool != nullptr ? pool->WorkerCpuSeconds() : 0.0); };
   const auto start = std::chrono::steady_clock::now();
-  const double cpu_start = ThreadCpuSeconds();
+  const double cpu_start = cpu();
   f();
   return {std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
-          ThreadCpuSeconds() - cpu_start};
+          cpu() - cpu_start};
 }
 
 }  // namespace
@@ -76,14 +75,21 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
   it->add_option("--particles", state->particles, "P")->check(CLI::PositiveNumber);
   it->add_option("--data", state->data, "N, GP training points")->check(CLI::Range(2, 100000));
   it->add_option("--horizon", state->horizon, "H, steps")->check(CLI::PositiveNumber);
-  it->add_option("--threads", state->threads, "BLAS threads")->check(CLI::PositiveNumber);
+  it->add_option("--threads", state->threads,
+                 "threads of the iteration, as a trial's --threads uses them (default 1)")
+      ->check(CLI::PositiveNumber);
+  it->add_option("--blas-threads", state->blas_threads,
+                 "OpenBLAS threads inside each product (default 1; trials always use 1)")
+      ->check(CLI::PositiveNumber);
   it->add_option("--repeats", state->repeats, "timed repetitions (median reported)")->check(CLI::PositiveNumber);
   it->add_option("--method", state->method, "estimator");
   it->add_option("--gp-inducing", state->inducing,
                  "sparse GP (FITC) with M < N inducing inputs (0 = full GP)")
       ->check(CLI::NonNegativeNumber);
   it->callback([state, exit_code]() {
-    SetBlasThreads(state->threads);
+    SetBlasThreads(state->blas_threads);
+    std::unique_ptr<ThreadPool> pool;
+    if (state->threads > 1) pool = std::make_unique<ThreadPool>(state->threads);
     estimators::SyntheticProblemOptions options;
     options.data = state->data;
     options.horizon = state->horizon;
@@ -105,6 +111,7 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
       return;
     }
     estimators::Problem p = (*problem)->problem;
+    p.pool = pool.get();
     std::unique_ptr<gp::FitcModel> sparse;
     std::unique_ptr<estimators::FitcDynamics> sparse_dynamics;
     if (state->inducing > 0) {
@@ -119,7 +126,7 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
         return;
       }
       sparse = std::make_unique<gp::FitcModel>(*std::move(fitc));
-      sparse_dynamics = std::make_unique<estimators::FitcDynamics>(sparse.get());
+      sparse_dynamics = std::make_unique<estimators::FitcDynamics>(sparse.get(), pool.get());
       p.dynamics = sparse_dynamics.get();
       p.model = nullptr;
     }
@@ -146,11 +153,11 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
     std::vector<double> iteration_times, iteration_cpu, gemm_times, gemm_cpu, paired_ratio;
     for (int r = 0; r < state->repeats + 1; ++r) {
       Rng rng(1, Stream::kStudy, 100 + r);
-      const Timing it_time = TimeOnce([&] {
+      const Timing it_time = TimeOnce(pool.get(), [&] {
         absl::Status st = (*estimator)->Estimate(p, eo, &rng, &estimate);
         (void)st;
       });
-      const Timing gemm_time = TimeOnce([&] {
+      const Timing gemm_time = TimeOnce(nullptr, [&] {
         for (int t = 0; t < state->horizon; ++t) {
           for (int a = 0; a < outputs; ++a) product.noalias() = kstar[a] * kinv[a];
         }
@@ -172,6 +179,7 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
                         {"gp_inducing", state->inducing},
                         {"horizon", state->horizon},
                         {"threads", state->threads},
+                        {"blas_threads", state->blas_threads},
                         {"repeats", state->repeats},
                         {"seconds_per_iteration", iteration},
                         {"gemm_bound_seconds", bound},

@@ -3,6 +3,8 @@
 #include <pthread.h>
 #include <time.h>
 
+#include <algorithm>
+
 namespace totalgrad {
 namespace {
 
@@ -91,6 +93,21 @@ void ThreadPool::ParallelFor(int tasks, const std::function<void(int)>& fn) {
   work_done_.wait(lock, [&] { return unfinished_ == 0; });
   fn_ = nullptr;
   tasks_ = 0;
+}
+
+void ParallelForBlocks(ThreadPool* pool, int64_t n, int64_t block,
+                       const std::function<void(int64_t, int64_t)>& fn) {
+  if (n <= 0) return;
+  const int64_t blocks = (n + block - 1) / block;
+  auto run = [&](int b) {
+    const int64_t begin = static_cast<int64_t>(b) * block;
+    fn(begin, std::min(n, begin + block));
+  };
+  if (pool == nullptr || pool->size() == 1 || blocks == 1) {
+    for (int64_t b = 0; b < blocks; ++b) run(static_cast<int>(b));
+    return;
+  }
+  pool->ParallelFor(static_cast<int>(blocks), run);
 }
 
 double ThreadPool::WorkerCpuSeconds() const {

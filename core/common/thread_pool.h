@@ -69,6 +69,17 @@ class ThreadPool {
 // CPU seconds of the calling thread (CLOCK_THREAD_CPUTIME_ID).
 double ThreadCpuSeconds();
 
+// Rows of particles handed to one task by the particle loops: a constant, so
+// that the blocks (and any per-block partial result) never depend on the
+// thread count.
+constexpr int64_t kParticleBlock = 64;
+
+// Runs fn(begin, end) for the blocks [0, block), [block, 2 block), ..., of
+// [0, n) (the last may be shorter), on `pool` (may be null: in order on the
+// caller). fn must only write what its block owns.
+void ParallelForBlocks(ThreadPool* pool, int64_t n, int64_t block,
+                       const std::function<void(int64_t, int64_t)>& fn);
+
 }  // namespace totalgrad
 
 #endif  // TOTALGRAD_CORE_COMMON_THREAD_POOL_H_

@@ -22,30 +22,33 @@ void RpZetaCotangent(const StepRecord& step, const RowMatrix& gamma, ZetaCotange
 }
 
 void TransitionVjp(const StepRecord& step, const ZetaCotangent& cotangent, Vector* force_bar,
-                   RowMatrix* state_bar) {
+                   RowMatrix* state_bar, ThreadPool* pool) {
   const Eigen::Index p = step.state.rows();
   const int s_dim = static_cast<int>(step.state.cols());
   const int e_dim = s_dim + 1;
   TG_CHECK(step.dmean_dz.rows() == p && step.dmean_dz.cols() == s_dim * e_dim);
   TG_CHECK(cotangent.mean.rows() == p && cotangent.variance.rows() == p);
+  TG_CHECK(e_dim <= 64);
   force_bar->resize(p);
   if (state_bar != nullptr) *state_bar = cotangent.mean;  // mu = x_t + mean(z): identity path
-  std::vector<double> z_bar(e_dim);
-  for (Eigen::Index i = 0; i < p; ++i) {
-    std::fill(z_bar.begin(), z_bar.end(), 0.0);
-    const double* dm_row = step.dmean_dz.row(i).data();
-    const double* dv_row = step.dvar_dz.row(i).data();
-    for (int a = 0; a < s_dim; ++a) {
-      const double m_bar = cotangent.mean(i, a);
-      const double v_bar = cotangent.variance(i, a);
-      const double* dm = dm_row + a * e_dim;
-      const double* dv = dv_row + a * e_dim;
-      for (int m = 0; m < e_dim; ++m) z_bar[m] += m_bar * dm[m] + v_bar * dv[m];
+  ParallelForBlocks(pool, p, kParticleBlock, [&](int64_t begin, int64_t end) {
+    double z_bar[64];
+    for (Eigen::Index i = begin; i < end; ++i) {
+      std::fill(z_bar, z_bar + e_dim, 0.0);
+      const double* dm_row = step.dmean_dz.row(i).data();
+      const double* dv_row = step.dvar_dz.row(i).data();
+      for (int a = 0; a < s_dim; ++a) {
+        const double m_bar = cotangent.mean(i, a);
+        const double v_bar = cotangent.variance(i, a);
+        const double* dm = dm_row + a * e_dim;
+        const double* dv = dv_row + a * e_dim;
+        for (int m = 0; m < e_dim; ++m) z_bar[m] += m_bar * dm[m] + v_bar * dv[m];
+      }
+      if (state_bar != nullptr)
+        for (int m = 0; m < s_dim; ++m) (*state_bar)(i, m) += z_bar[m];
+      (*force_bar)(i) = z_bar[s_dim];
     }
-    if (state_bar != nullptr)
-      for (int m = 0; m < s_dim; ++m) (*state_bar)(i, m) += z_bar[m];
-    (*force_bar)(i) = z_bar[s_dim];
-  }
+  });
 }
 
 double TraceVariance::value() const {

@@ -15,6 +15,7 @@
 #ifndef TOTALGRAD_CORE_ESTIMATORS_NODE_MESSAGES_H_
 #define TOTALGRAD_CORE_ESTIMATORS_NODE_MESSAGES_H_
 
+#include "core/common/thread_pool.h"
 #include "core/common/types.h"
 #include "core/estimators/rollout.h"
 
@@ -40,8 +41,9 @@ void RpZetaCotangent(const StepRecord& step, const RowMatrix& gamma, ZetaCotange
 // caller adds the policy's part, force_bar_i * dforce_i/dx_t^i, and the
 // parameter contribution force_bar_i * dforce_i/dtheta. Needs a rollout
 // recorded with Jacobians.
+// `pool` (may be null) runs fixed particle blocks; same bits for any size.
 void TransitionVjp(const StepRecord& step, const ZetaCotangent& cotangent, Vector* force_bar,
-                   RowMatrix* state_bar);
+                   RowMatrix* state_bar, ThreadPool* pool = nullptr);
 
 // Sum over the rows r_i (P x n) of |r_i - mean r|^2 / (P - 1), the trace of
 // the sample covariance, kept as scale^2 * normalized so that exploding

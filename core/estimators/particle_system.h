@@ -140,19 +140,22 @@ class AngleFeaturePolicy final : public ParticlePolicy {
 // Adapter over an RBF policy (non-owning).
 class RbfParticlePolicy final : public ParticlePolicy {
  public:
-  explicit RbfParticlePolicy(const policy::RbfPolicy* policy) : policy_(policy) {}
+  // `pool` (may be null) spreads fixed particle blocks over threads.
+  explicit RbfParticlePolicy(const policy::RbfPolicy* policy, ThreadPool* pool = nullptr)
+      : policy_(policy), pool_(pool) {}
   int state_dim() const override { return policy_->state_dim(); }
   int num_parameters() const override { return policy_->num_parameters(); }
   void Evaluate(const ConstRowMatrixRef& states, Vector* forces, PolicyCache* cache) const override {
-    policy_->Evaluate(states, forces, cache);
+    policy_->Evaluate(states, forces, cache, pool_);
   }
   void Backward(const PolicyCache& cache, const Vector& force_bar, RowMatrix* state_bar,
                 RowMatrix* per_particle_param_bar, Vector* param_bar) const override {
-    policy_->Backward(cache, force_bar, state_bar, per_particle_param_bar, param_bar);
+    policy_->Backward(cache, force_bar, state_bar, per_particle_param_bar, param_bar, pool_);
   }
 
  private:
   const policy::RbfPolicy* policy_;
+  ThreadPool* pool_;
 };
 
 }  // namespace totalgrad::estimators

@@ -5,7 +5,7 @@
 namespace totalgrad::estimators {
 
 ProblemSystem::ProblemSystem(const Problem& problem)
-    : gp_adapter_(problem.model, problem.pool), rbf_adapter_(problem.policy) {
+    : gp_adapter_(problem.model, problem.pool), rbf_adapter_(problem.policy, problem.pool) {
   dynamics_ = problem.dynamics != nullptr ? problem.dynamics
               : problem.model != nullptr  ? static_cast<const ParticleDynamics*>(&gp_adapter_)
                                           : nullptr;

@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "core/common/check.h"
+#include "core/common/thread_pool.h"
 
 namespace totalgrad::estimators {
 namespace {
@@ -29,22 +30,24 @@ void RpBackward(const Problem& problem, const Rollout& rollout, Vector* gradient
     gamma.noalias() += inv_p * step.cost_gradient;
     // x_{t+1} = x_t + mean(z) + sqrt(var(z)) eps: cotangents on mean and var.
     // mean_bar = gamma, var_bar = gamma eps / (2 sqrt(var)).
-    for (Eigen::Index i = 0; i < p; ++i) {
-      double z_bar[kMaxInputs] = {};
-      for (int a = 0; a < s_dim; ++a) {
-        const double m_bar = gamma(i, a);
-        // Zero predicted variance: no variance path (see RpZetaCotangent).
-        const double v_bar = step.variance(i, a) > 0
-                                 ? gamma(i, a) * step.noise(i, a) / (2.0 * std::sqrt(step.variance(i, a)))
-                                 : 0.0;
-        const double* dm = step.dmean_dz.row(i).data() + a * e_dim;
-        const double* dv = step.dvar_dz.row(i).data() + a * e_dim;
-        for (int m = 0; m < e_dim; ++m) z_bar[m] += m_bar * dm[m] + v_bar * dv[m];
+    ParallelForBlocks(problem.pool, p, kParticleBlock, [&](int64_t begin, int64_t end) {
+      for (Eigen::Index i = begin; i < end; ++i) {
+        double z_bar[kMaxInputs] = {};
+        for (int a = 0; a < s_dim; ++a) {
+          const double m_bar = gamma(i, a);
+          // Zero predicted variance: no variance path (see RpZetaCotangent).
+          const double v_bar = step.variance(i, a) > 0
+                                   ? gamma(i, a) * step.noise(i, a) / (2.0 * std::sqrt(step.variance(i, a)))
+                                   : 0.0;
+          const double* dm = step.dmean_dz.row(i).data() + a * e_dim;
+          const double* dv = step.dvar_dz.row(i).data() + a * e_dim;
+          for (int m = 0; m < e_dim; ++m) z_bar[m] += m_bar * dm[m] + v_bar * dv[m];
+        }
+        // Direct path x_t -> x_{t+1} is the identity.
+        for (int m = 0; m < s_dim; ++m) gamma(i, m) += z_bar[m];
+        force_bar(i) = z_bar[s_dim];
       }
-      // Direct path x_t -> x_{t+1} is the identity.
-      for (int m = 0; m < s_dim; ++m) gamma(i, m) += z_bar[m];
-      force_bar(i) = z_bar[s_dim];
-    }
+    });
     policy.Backward(step.policy_cache, force_bar, &state_bar, &contributions, nullptr);
     gamma += state_bar;
   }

@@ -122,7 +122,7 @@ absl::Status BackwardPass(const Problem& problem, const Rollout& rollout,
         gamma_rp.swap(resampled);
       }
       RpZetaCotangent(step, gamma_rp, &zeta_rp);
-      TransitionVjp(step, zeta_rp, &f_rp, need_message ? &x_rp : nullptr);
+      TransitionVjp(step, zeta_rp, &f_rp, need_message ? &x_rp : nullptr, problem.pool);
     }
 
     // 3. Jump branch.
@@ -166,7 +166,8 @@ absl::Status BackwardPass(const Problem& problem, const Rollout& rollout,
       RpZetaCotangent(step, x_bar, &zeta_jump);  // one-step reparameterisation of the fit
     }
     if (config.jump != JumpKind::kNone)
-      TransitionVjp(step, zeta_jump, &f_jump, combining && need_message ? &x_jump : nullptr);
+      TransitionVjp(step, zeta_jump, &f_jump, combining && need_message ? &x_jump : nullptr,
+                    problem.pool);
 
     // 4-5. Combine, then cross the policy.
     if (combining && !forced) {

@@ -444,7 +444,7 @@ class ParticleLearner final : public PolicyLearner {
       angle_dynamics.emplace(inner, angle_index_);
       problem.dynamics = &*angle_dynamics;
       problem.model = nullptr;
-      rbf_controller.emplace(&policy_);
+      rbf_controller.emplace(&policy_, pool_);
       angle_controller.emplace(&*rbf_controller, angle_index_);
       problem.controller = &*angle_controller;
     }

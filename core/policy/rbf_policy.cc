@@ -5,6 +5,7 @@
 
 #include "core/common/check.h"
 #include "core/common/simd.h"
+#include "core/common/thread_pool.h"
 #include "core/common/vector_exp.h"
 
 namespace totalgrad::policy {
@@ -12,13 +13,24 @@ namespace {
 
 // Per-thread scratch of Evaluate and Backward (both are const and
 // thread-safe): no heap allocation per call once the shapes have been seen.
+// Shared: written by the caller's call, rows filled by the blocks.
 struct PolicyWorkspace {
-  RowMatrix xs, cs, g, gc;
-  Vector a_bar, g_rowsum;
+  RowMatrix cs, g;
+  Vector a_bar;
+};
+// Per block, on whichever thread runs it.
+struct BlockWorkspace {
+  RowMatrix xs, gc;
+  Vector g_rowsum;
 };
 
 PolicyWorkspace& ThreadWorkspace() {
   thread_local PolicyWorkspace workspace;
+  return workspace;
+}
+
+BlockWorkspace& ThreadBlockWorkspace() {
+  thread_local BlockWorkspace workspace;
   return workspace;
 }
 
@@ -116,79 +128,97 @@ void RbfPolicy::Initialize(const Vector& mean, const Vector& centre_std, double 
     params_(num_basis_ * state_dim_ + state_dim_ + k) = rng->Uniform(-bound, bound);
 }
 
-void RbfPolicy::Evaluate(const ConstRowMatrixRef& states, Vector* forces, Cache* cache) const {
+void RbfPolicy::Evaluate(const ConstRowMatrixRef& states, Vector* forces, Cache* cache,
+                         ThreadPool* pool) const {
   TG_CHECK_EQ(states.cols(), state_dim_);
   const Eigen::Index p = states.rows();
   PolicyWorkspace& ws = ThreadWorkspace();
   const Vector inv_l = (-log_lengthscales().array()).exp();
-  // Squared scaled distances through one product: |x|^2 + |c|^2 - 2 x.c.
-  ws.xs.noalias() = states * inv_l.asDiagonal();
   ws.cs.noalias() = centres() * inv_l.asDiagonal();
+  const Vector cs_sq = ws.cs.rowwise().squaredNorm();
   Cache local;
   Cache& out = cache != nullptr ? *cache : local;
-  RowMatrix& phi = out.phi;
-  phi.resize(p, num_basis_);
-  phi.noalias() = -2.0 * ws.xs * ws.cs.transpose();
-  phi.colwise() += ws.xs.rowwise().squaredNorm();
-  phi.rowwise() += ws.cs.rowwise().squaredNorm().transpose();
-  // exp(-1/2 max(d2, 0)): the argument is <= 0 (and NaN stays NaN).
-  phi = -0.5 * phi.array().max(0.0);
-  ExpNonPositive(phi.data(), phi.data(), phi.size());
-  out.pre.noalias() = phi * weights();
+  out.phi.resize(p, num_basis_);
+  out.pre.resize(p);
   forces->resize(p);
-  for (Eigen::Index i = 0; i < p; ++i) (*forces)(i) = Saturate(out.pre(i), max_force_);
+  const auto w = weights();
+  const RowMatrix& cs = ws.cs;
+  ParallelForBlocks(pool, p, kParticleBlock, [&](int64_t begin, int64_t end) {
+    const Eigen::Index rows = end - begin;
+    BlockWorkspace& bw = ThreadBlockWorkspace();
+    // Squared scaled distances through one product: |x|^2 + |c|^2 - 2 x.c.
+    bw.xs.noalias() = states.middleRows(begin, rows) * inv_l.asDiagonal();
+    auto phi = out.phi.middleRows(begin, rows);
+    phi.noalias() = -2.0 * bw.xs * cs.transpose();
+    phi.colwise() += bw.xs.rowwise().squaredNorm();
+    phi.rowwise() += cs_sq.transpose();
+    // exp(-1/2 max(d2, 0)): the argument is <= 0 (and NaN stays NaN).
+    phi = -0.5 * phi.array().max(0.0);
+    ExpNonPositive(phi.data(), phi.data(), phi.size());
+    out.pre.segment(begin, rows).noalias() = phi * w;
+    for (Eigen::Index i = begin; i < end; ++i) (*forces)(i) = Saturate(out.pre(i), max_force_);
+  });
   if (cache != nullptr) cache->states = states;
 }
 
 void RbfPolicy::Backward(const Cache& cache, const Vector& force_bar, RowMatrix* state_bar,
-                         RowMatrix* per_particle_param_bar, Vector* param_bar) const {
+                         RowMatrix* per_particle_param_bar, Vector* param_bar,
+                         ThreadPool* pool) const {
   const Eigen::Index p = cache.states.rows();
   const int c_count = num_basis_, s_dim = state_dim_;
   TG_CHECK_EQ(force_bar.size(), p);
   const Vector inv_l2 = (-2.0 * log_lengthscales().array()).exp();
   const auto c = centres();
   const auto w = weights();
-  PolicyWorkspace& ws = ThreadWorkspace();
-  // a_bar = force_bar * dforce/da.
-  Vector& a_bar = ws.a_bar;
-  a_bar.resize(p);
-  for (Eigen::Index i = 0; i < p; ++i) a_bar(i) = force_bar(i) * DaSaturate(cache.pre(i), max_force_);
-  // G(i,k) = a_bar_i w_k phi_ik: the weight of basis k in particle i's adjoint.
-  RowMatrix& g = ws.g;
-  g = cache.phi.array().rowwise() * w.transpose().array();
-  g.array().colwise() *= a_bar.array();
-  Vector& g_rowsum = ws.g_rowsum;
-  g_rowsum.noalias() = g.rowwise().sum();
-  // sum_k G_ik (x_im - c_km) = x_im rowsum_i - (G C)_im.
-  RowMatrix& gc = ws.gc;
-  gc.noalias() = g * c;  // P x S
-  // d a / d x_m = -sum_k w_k phi_k (x_m - c_km) / l_m^2.
-  if (state_bar != nullptr) {
-    state_bar->resize(p, s_dim);
-    for (Eigen::Index i = 0; i < p; ++i)
-      for (int m = 0; m < s_dim; ++m)
-        (*state_bar)(i, m) = -(cache.states(i, m) * g_rowsum(i) - gc(i, m)) * inv_l2(m);
-  }
-  if (per_particle_param_bar == nullptr && param_bar == nullptr) return;
   constexpr int centre_offset = 0;
   const int loglen_offset = c_count * s_dim;
   const int weight_offset = loglen_offset + s_dim;
+  PolicyWorkspace& ws = ThreadWorkspace();
+  Vector& a_bar = ws.a_bar;
+  RowMatrix& g = ws.g;
+  a_bar.resize(p);
+  g.resize(p, c_count);
+  if (state_bar != nullptr) state_bar->resize(p, s_dim);
   if (per_particle_param_bar != nullptr) {
-    RowMatrix& pp = *per_particle_param_bar;
-    TG_CHECK(pp.rows() == p && pp.cols() == num_parameters());
-    static_assert(centre_offset == 0, "the centre block starts each row");
-    for (Eigen::Index i = 0; i < p; ++i) {
-      if (s_dim == 4) {
-        ParticleParameterAdjoint4(cache.states.row(i).data(), g.row(i).data(), c.data(),
-                                  inv_l2.data(), cache.phi.row(i).data(), a_bar(i), c_count,
-                                  pp.row(i).data());
-      } else {
-        ParticleParameterAdjointAny(cache.states.row(i).data(), g.row(i).data(), c.data(),
+    TG_CHECK(per_particle_param_bar->rows() == p &&
+             per_particle_param_bar->cols() == num_parameters());
+  }
+  ParallelForBlocks(pool, p, kParticleBlock, [&](int64_t begin, int64_t end) {
+    const Eigen::Index rows = end - begin;
+    BlockWorkspace& bw = ThreadBlockWorkspace();
+    // a_bar = force_bar * dforce/da.
+    for (Eigen::Index i = begin; i < end; ++i)
+      a_bar(i) = force_bar(i) * DaSaturate(cache.pre(i), max_force_);
+    // G(i,k) = a_bar_i w_k phi_ik: the weight of basis k in particle i's adjoint.
+    auto g_rows = g.middleRows(begin, rows);
+    g_rows = cache.phi.middleRows(begin, rows).array().rowwise() * w.transpose().array();
+    g_rows.array().colwise() *= a_bar.segment(begin, rows).array();
+    if (state_bar != nullptr) {
+      // d a / d x_m = -sum_k w_k phi_k (x_m - c_km) / l_m^2, with
+      // sum_k G_ik (x_im - c_km) = x_im rowsum_i - (G C)_im.
+      bw.g_rowsum.noalias() = g_rows.rowwise().sum();
+      bw.gc.noalias() = g_rows * c;  // rows x S
+      for (Eigen::Index r = 0; r < rows; ++r)
+        for (int m = 0; m < s_dim; ++m)
+          (*state_bar)(begin + r, m) =
+              -(cache.states(begin + r, m) * bw.g_rowsum(r) - bw.gc(r, m)) * inv_l2(m);
+    }
+    if (per_particle_param_bar != nullptr) {
+      RowMatrix& pp = *per_particle_param_bar;
+      static_assert(centre_offset == 0, "the centre block starts each row");
+      for (Eigen::Index i = begin; i < end; ++i) {
+        if (s_dim == 4) {
+          ParticleParameterAdjoint4(cache.states.row(i).data(), g.row(i).data(), c.data(),
                                     inv_l2.data(), cache.phi.row(i).data(), a_bar(i), c_count,
-                                    s_dim, pp.row(i).data());
+                                    pp.row(i).data());
+        } else {
+          ParticleParameterAdjointAny(cache.states.row(i).data(), g.row(i).data(), c.data(),
+                                      inv_l2.data(), cache.phi.row(i).data(), a_bar(i), c_count,
+                                      s_dim, pp.row(i).data());
+        }
       }
     }
-  }
+  });
   if (param_bar != nullptr) {
     Vector& pb = *param_bar;
     TG_CHECK_EQ(pb.size(), num_parameters());

@@ -13,6 +13,7 @@
 #define TOTALGRAD_CORE_POLICY_RBF_POLICY_H_
 
 #include "core/common/rng.h"
+#include "core/common/thread_pool.h"
 #include "core/common/types.h"
 
 namespace totalgrad::policy {
@@ -49,7 +50,10 @@ class RbfPolicy {
     RowMatrix phi;      // P x C basis activations
     Vector pre;         // P pre-saturation a
   };
-  void Evaluate(const ConstRowMatrixRef& states, Vector* forces, Cache* cache) const;
+  // `pool` (may be null) runs fixed blocks of particles (kParticleBlock) on
+  // its threads; the results do not depend on its size.
+  void Evaluate(const ConstRowMatrixRef& states, Vector* forces, Cache* cache,
+                ThreadPool* pool = nullptr) const;
 
   // Adjoints. Given force_bar (P) = dJ/dforce_p:
   //  * state_bar (P x S, overwritten) = dJ/dstate through the policy;
@@ -57,8 +61,10 @@ class RbfPolicy {
   //    is ADDED to (accumulated over time steps by the caller);
   //  * param_bar (n, optional) is ADDED the column sums.
   // Any output may be null.
+  // `pool`: as Evaluate's (param_bar's column sums run on the caller).
   void Backward(const Cache& cache, const Vector& force_bar, RowMatrix* state_bar,
-                RowMatrix* per_particle_param_bar, Vector* param_bar) const;
+                RowMatrix* per_particle_param_bar, Vector* param_bar,
+                ThreadPool* pool = nullptr) const;
 
  private:
   int num_basis_;
