@@ -7,6 +7,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "core/common/check.h"
+#include "core/common/vector_exp.h"
 
 namespace totalgrad::pilco {
 namespace {
@@ -45,14 +46,13 @@ absl::Status ComputeMeanTerms(const Matrix& delta, const Matrix& s, const Vector
 // Terms of Q_ab (pilco-spec.md 4.3), with Psi = Lambda_a^-1 + Lambda_b^-1,
 // R = s Psi + I and Rs = Psi^1/2 s Psi^1/2 + I (symmetric positive definite,
 // det Rs = det R):
-//   log Q_ij = log_const + ra_i + rb_j + (Za T Zb^T)_ij,
+//   log Q_ij = log(sf_a^2 sf_b^2) - 1/2 log det R + ra_i + rb_j + (Za T Zb^T)_ij,
 //   T = R^-1 s (symmetric), Za = delta Lambda_a^-1, Zb = delta Lambda_b^-1,
 //   ra_i = -1/2 za_i . d_i + 1/2 za_i^T T za_i, rb_j likewise.
 struct PairTerms {
   Vector sqrt_psi;          // E
   Eigen::LLT<Matrix> llt;   // of Rs
   Matrix t;                 // E x E
-  double log_const = 0;
   Matrix za, zb;            // N x E
   Matrix q;                 // N x N
 };
@@ -75,7 +75,6 @@ absl::Status ComputePairTerms(const Matrix& delta, const Matrix& s, const Vector
          p->llt.solve(Matrix(p->sqrt_psi.asDiagonal() * s));
   p->t = 0.5 * (p->t + p->t.transpose()).eval();
   (void)e;
-  p->log_const = std::log(sf2a) + std::log(sf2b) - 0.5 * log_det_r;
   p->za = delta * ila.asDiagonal();
   p->zb = delta * ilb.asDiagonal();
   const Matrix zat = p->za * p->t;
@@ -84,22 +83,31 @@ absl::Status ComputePairTerms(const Matrix& delta, const Matrix& s, const Vector
   const Vector rb = -0.5 * p->zb.cwiseProduct(delta).rowwise().sum() +
                     0.5 * (p->zb * p->t).cwiseProduct(p->zb).rowwise().sum();
   p->q.noalias() = zat * p->zb.transpose();
+  // Q_ij = E[k_a(x_i, x) k_b(x_j, x)] <= sf_a^2 sf_b^2, so with the signal
+  // variances factored out the exponent is <= 0 (up to round-off, clamped):
+  // Q_ij = sf_a^2 sf_b^2 exp(((Za T Zb^T)_ij + ra_i) + (rb_j - 1/2 log det R)),
+  // one fused vectorised pass per column (SeKernelColumn computes
+  // sf2 exp(min((dot_i - a_i / 2) - b / 2, 0))).
+  const Vector minus_two_ra = -2.0 * ra;
+  const double sf2_product = sf2a * sf2b;
+  const Eigen::Index n = p->q.rows();
   if (a == b) {
-    // Q_aa is symmetric: exponentiate the lower triangle and mirror it
-    // (the exp is most of the cost of a step).
-    const Eigen::Index n = p->q.rows();
+    // Q_aa is symmetric: exponentiate the lower triangle and mirror it.
     for (Eigen::Index j = 0; j < n; ++j) {
-      auto col = p->q.col(j).tail(n - j);
-      col = (col.array() + ra.tail(n - j).array() + (rb(j) + p->log_const)).exp().matrix();
+      double* column = p->q.col(j).data() + j;
+      SeKernelColumn(column, minus_two_ra.data() + j, -2.0 * (rb(j) - 0.5 * log_det_r),
+                     sf2_product, column, n - j);
     }
     for (Eigen::Index j = 1; j < n; ++j) {
       for (Eigen::Index i = 0; i < j; ++i) p->q(i, j) = p->q(j, i);
     }
     return absl::OkStatus();
   }
-  p->q.array().colwise() += ra.array() + p->log_const;
-  p->q.array().rowwise() += rb.transpose().array();
-  p->q = p->q.array().exp().matrix();
+  for (Eigen::Index j = 0; j < n; ++j) {
+    double* column = p->q.col(j).data();
+    SeKernelColumn(column, minus_two_ra.data(), -2.0 * (rb(j) - 0.5 * log_det_r), sf2_product,
+                   column, n);
+  }
   return absl::OkStatus();
 }
 
