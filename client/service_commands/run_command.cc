@@ -204,6 +204,10 @@ int Run(const RunFlags& flags) {
     if (!connection.ok()) {
       code = ReportError(connection.status(), "run");
     } else {
+      if (absl::StatusOr<sweep::SweepCostEstimate> cost = sweep::EstimateSweepCost(*spec);
+          cost.ok()) {
+        std::cerr << "estimated cost: " << cost->Text() << "\n";
+      }
       v1::SubmitSweepRequest request;
       sweep::SweepSpecToProto(*spec, request.mutable_spec());
       request.set_source_name(flags.file);

@@ -73,6 +73,11 @@ void AddSweepCommands(CLI::App* app, int* exit_code) {
           std::cerr << "error: " << spec.status().message() << "\n";
           return 2;
         }
+        // The cost before anything is stored: a mistake of 100x shows here.
+        if (absl::StatusOr<sweep::SweepCostEstimate> cost = sweep::EstimateSweepCost(*spec);
+            cost.ok()) {
+          std::cerr << "estimated cost: " << cost->Text() << "\n";
+        }
         v1::SubmitSweepRequest request;
         sweep::SweepSpecToProto(*spec, request.mutable_spec());
         request.set_source_name(*file);

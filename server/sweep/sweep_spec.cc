@@ -1,5 +1,8 @@
 #include "server/sweep/sweep_spec.h"
 
+#include "absl/strings/str_format.h"
+#include "core/learner/cost_model.h"
+
 #include <openssl/evp.h>
 
 #include <charconv>
@@ -535,6 +538,39 @@ absl::StatusOr<OptionList> ResolveOptions(const OptionList& pairs) {
   }
   RETURN_IF_ERROR(options.Validate());
   return learner::TrialOptionPairs(options);
+}
+
+std::string SweepCostEstimate::Text() const {
+  const double hours = cpu_seconds / 3600.0;
+  std::string text = hours >= 1.0 ? absl::StrFormat("about %.1f CPU hours", hours)
+                                  : absl::StrFormat("about %.0f CPU minutes", cpu_seconds / 60.0);
+  absl::StrAppend(&text, " for ", trials, trials == 1 ? " trial" : " trials",
+                  " (cost model of docs/results/cost-model.md; reference machine: ",
+                  reference_machine, ")");
+  if (studies > 0) absl::StrAppend(&text, "; ", studies, " study jobs not estimated");
+  return text;
+}
+
+absl::StatusOr<SweepCostEstimate> EstimateSweepCost(const SweepSpec& spec) {
+  SweepSpec canonical = spec;
+  if (absl::Status st = CanonicalizeSpec(&canonical); !st.ok()) return st;
+  absl::StatusOr<std::vector<ExpandedJob>> jobs = ExpandJobs(canonical);
+  if (!jobs.ok()) return jobs.status();
+  SweepCostEstimate estimate;
+  estimate.reference_machine = learner::kReferenceMachine;
+  for (const ExpandedJob& job : *jobs) {
+    if (job.kind == JobKind::kStudy) {
+      ++estimate.studies;
+      continue;
+    }
+    learner::TrialOptions options;
+    for (const auto& [key, value] : job.options) {
+      if (absl::Status st = learner::SetTrialOption(key, value, &options); !st.ok()) return st;
+    }
+    ++estimate.trials;
+    estimate.cpu_seconds += learner::EstimateTrialCost(options).total_cpu();
+  }
+  return estimate;
 }
 
 }  // namespace totalgrad::sweep

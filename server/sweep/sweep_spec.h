@@ -127,6 +127,20 @@ absl::StatusOr<std::string> CanonicalStudySpec(const std::string& spec_json);
 // naming the grid point if the runner's whole-options validation refuses one.
 absl::StatusOr<std::vector<ExpandedJob>> ExpandJobs(const SweepSpec& spec);
 
+// The estimated CPU cost of a sweep's trial jobs (core/learner/cost_model.h),
+// on the cost model's reference machine.
+struct SweepCostEstimate {
+  int trials = 0;
+  int studies = 0;          // study jobs are not estimated
+  double cpu_seconds = 0;   // all trials
+  std::string reference_machine;
+  // "about 12.3 CPU hours for 40 trials (reference machine: ...)" plus a note
+  // on study jobs when there are any.
+  std::string Text() const;
+};
+// InvalidArgument as ExpandJobs (the spec is canonicalized on a copy first).
+absl::StatusOr<SweepCostEstimate> EstimateSweepCost(const SweepSpec& spec);
+
 // Applies option pairs to default trial options and returns the full
 // canonical list (what a worker is given). InvalidArgument naming the key.
 absl::StatusOr<OptionList> ResolveOptions(const OptionList& pairs);

@@ -43,6 +43,28 @@ episodes = 2
   EXPECT_TRUE(has_particles);
 }
 
+// The cost estimate printed by `sweep submit` and `run`: additive over the
+// jobs (twice the seeds, twice the cost), larger for a heavier protocol.
+TEST(SweepSpecTest, CostEstimateAddsUpOverTheJobs) {
+  auto estimate = [](const std::string& seeds, int steps) {
+    auto spec = ParseSweepToml(absl::StrCat("name = \"c\"\n[grid]\nmethod = [\"RP\", \"TP\"]\nseed = ",
+                                            seeds, "\n[protocol]\npolicy_steps = ", steps, "\n"),
+                               "c.toml");
+    EXPECT_TRUE(spec.ok()) << spec.status();
+    auto cost = EstimateSweepCost(*spec);
+    EXPECT_TRUE(cost.ok()) << cost.status();
+    return *cost;
+  };
+  const SweepCostEstimate one = estimate("[1]", 600), two = estimate("[1, 2]", 600);
+  EXPECT_EQ(one.trials, 2);
+  EXPECT_EQ(two.trials, 4);
+  EXPECT_GT(one.cpu_seconds, 0);
+  EXPECT_NEAR(two.cpu_seconds, 2 * one.cpu_seconds, 1e-9 * one.cpu_seconds);
+  EXPECT_LT(estimate("[1]", 60).cpu_seconds, 0.2 * one.cpu_seconds);
+  EXPECT_NE(one.Text().find("CPU minutes for 2 trials"), std::string::npos) << one.Text();
+  EXPECT_NE(estimate("[1, 2, 3, 4, 5, 6]", 600).Text().find("CPU hours for 12 trials"), std::string::npos);
+}
+
 TEST(SweepSpecTest, EqualSweepsWrittenDifferentlyHaveTheSameHash) {
   TG_ASSERT_OK_AND_ASSIGN(SweepSpec a, ParseSweepToml(
       "name = \"h\"\n[grid]\nmethod = [\"RP\"]\nnoise_k = [1]\n[protocol]\nthreshold = 15\n", "a"));
