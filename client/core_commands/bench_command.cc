@@ -69,6 +69,7 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
   CLI::App* bench = app->add_subcommand("bench", "Performance measurements (JSON output)");
   bench->require_subcommand(1);
   AddBenchTrialCommand(bench, exit_code);
+  AddBenchEstimateCommand(bench, exit_code);
   AddBenchGradientsCommand(bench, exit_code);
   AddBenchDumpIterationCommand(bench, exit_code);
   CLI::App* it = bench->add_subcommand("iteration", "Seconds per gradient iteration vs the gemm bound");

@@ -24,6 +24,7 @@
 
 #include "client/core_commands/trial_flags.h"
 #include "core/common/blas.h"
+#include "core/learner/cost_model.h"
 #include "core/learner/trial.h"
 
 namespace totalgrad::cli {
@@ -179,6 +180,33 @@ void AddBenchTrialCommand(CLI::App* bench, int* exit_code) {
         return;
       }
     }
+    *exit_code = 0;
+  });
+}
+
+void AddBenchEstimateCommand(CLI::App* bench, int* exit_code) {
+  auto flags = std::make_shared<TrialFlagValues>();
+  CLI::App* cmd = bench->add_subcommand(
+      "estimate",
+      "the cost model's estimate of a trial's CPU seconds (docs/results/cost-model.md), no run");
+  AddTrialOptionFlags(cmd, learner::TrialOptions(), flags.get());
+  cmd->callback([flags, exit_code]() {
+    learner::TrialOptions options;
+    const absl::Status valid = ApplyTrialOptionFlags(*flags, &options);
+    if (!valid.ok()) {
+      std::cerr << "totalgrad bench estimate: " << valid.message() << "\n";
+      *exit_code = 2;
+      return;
+    }
+    const learner::TrialCostEstimate e = learner::EstimateTrialCost(options);
+    nlohmann::json doc = {{"method", options.method},
+                          {"policy_cpu_seconds", e.policy_cpu},
+                          {"model_cpu_seconds", e.model_cpu},
+                          {"other_cpu_seconds", e.other_cpu},
+                          {"total_cpu_seconds", e.total_cpu()},
+                          {"total_cpu_minutes", e.total_cpu() / 60.0},
+                          {"reference_machine", learner::kReferenceMachine}};
+    std::cout << doc.dump(2) << std::endl;
     *exit_code = 0;
   });
 }

@@ -16,6 +16,8 @@ void AddTrialCommand(CLI::App* app, int* exit_code);     // trial_command.cc
 void AddBenchCommand(CLI::App* app, int* exit_code);     // bench_command.cc
 // `bench trial`, added under the `bench` subcommand by AddBenchCommand.
 void AddBenchTrialCommand(CLI::App* bench, int* exit_code);  // bench_trial_command.cc
+// `bench estimate`, likewise (bench_trial_command.cc).
+void AddBenchEstimateCommand(CLI::App* bench, int* exit_code);
 // `bench gradients`, likewise.
 void AddBenchGradientsCommand(CLI::App* bench, int* exit_code);  // bench_gradients_command.cc
 void AddPilcoCommand(CLI::App* app, int* exit_code);     // pilco_command.cc
