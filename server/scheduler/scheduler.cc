@@ -22,6 +22,11 @@ using storage::SweepState;
 using storage::WorkerIdentity;
 
 int64_t SystemClock::NowMs() { return absl::ToUnixMillis(absl::Now()); }
+int64_t SystemClock::MonotonicMs() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(
+             std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
 
 absl::Status SchedulerOptions::Validate() const {
   if (heartbeat_interval <= absl::ZeroDuration()) {
@@ -131,16 +136,27 @@ absl::Status ValidateStudyRows(const storage::StudyRows& rows) {
 }
 
 Scheduler::Scheduler(storage::Store* store, Clock* clock, SchedulerOptions options)
-    : store_(store), clock_(clock), options_(options) {}
+    : store_(store),
+      clock_(clock),
+      options_(options),
+      lease_origin_wall_ms_(clock->NowMs()),
+      lease_origin_monotonic_ms_(clock->MonotonicMs()) {}
 
-int64_t Scheduler::LeaseExpiryFrom(int64_t now_ms) const {
-  return now_ms + absl::ToInt64Milliseconds(options_.lease_timeout);
+int64_t Scheduler::LeaseNowMs() {
+  return lease_origin_wall_ms_ + (clock_->MonotonicMs() - lease_origin_monotonic_ms_);
+}
+
+int64_t Scheduler::LeaseExpiryFrom(int64_t lease_now_ms) const {
+  return lease_now_ms + absl::ToInt64Milliseconds(options_.lease_timeout);
 }
 
 absl::StatusOr<int> Scheduler::Recover() {
   std::lock_guard<std::mutex> lock(decision_mutex_);
-  const int64_t now = clock_->NowMs();
-  return store_->ExtendOpenLeases(LeaseExpiryFrom(now), now);
+  ASSIGN_OR_RETURN(int extended,
+                   store_->ExtendOpenLeases(LeaseExpiryFrom(LeaseNowMs()), clock_->NowMs(),
+                                            "on coordinator start"));
+  last_expiry_end_monotonic_ms_ = clock_->MonotonicMs();
+  return extended;
 }
 
 absl::Status Scheduler::MaybeTouchWorker(const WorkerIdentity& worker, int64_t now_ms) {
@@ -177,7 +193,7 @@ absl::StatusOr<std::optional<Lease>> Scheduler::TryAcquireLocked(const WorkerIde
     // A worker that did not say it runs studies (an older build) gets trials only.
     if (candidate.kind == storage::JobKind::kStudy && !worker.study_jobs) continue;
     const LeaseKey key{candidate.job_id, candidate.attempts + 1};
-    RETURN_IF_ERROR(store_->StartAttempt(key, worker, now, LeaseExpiryFrom(now)));
+    RETURN_IF_ERROR(store_->StartAttempt(key, worker, now, LeaseExpiryFrom(LeaseNowMs())));
     ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(candidate.job_id));
     Lease lease;
     lease.job = std::move(job);
@@ -243,13 +259,14 @@ absl::StatusOr<HeartbeatResult> Scheduler::Heartbeat(const std::string& worker_i
   std::lock_guard<std::mutex> lock(decision_mutex_);
   const int64_t now = clock_->NowMs();
   HeartbeatResult result;
+  const int64_t lease_expires = LeaseExpiryFrom(LeaseNowMs());
   if (!episodes.empty() || study.empty()) {
     ASSIGN_OR_RETURN(result.episodes_stored,
-                     store_->StoreEpisodes(key, worker_id, episodes, now, LeaseExpiryFrom(now)));
+                     store_->StoreEpisodes(key, worker_id, episodes, now, lease_expires));
   }
   if (!study.empty()) {
     ASSIGN_OR_RETURN(result.study_rows_stored,
-                     store_->StoreStudyRows(key, worker_id, study, now, LeaseExpiryFrom(now)));
+                     store_->StoreStudyRows(key, worker_id, study, now, lease_expires));
   }
   ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(key.job_id));
   auto worker = store_->GetWorker(worker_id);
@@ -392,10 +409,27 @@ absl::Status Scheduler::GiveBack(const std::string& worker_id, const LeaseKey& k
   return EndLocked(std::move(end), budget).status();
 }
 
-absl::StatusOr<int> Scheduler::ExpireLeases() {
+absl::StatusOr<int> Scheduler::ExpireLeases(ExpiryReport* report) {
   std::lock_guard<std::mutex> lock(decision_mutex_);
-  const int64_t now = clock_->NowMs();
-  ASSIGN_OR_RETURN(std::vector<LeaseKey> expired, store_->ListExpiredLeases(now));
+  ExpiryReport local;
+  if (report == nullptr) report = &local;
+  *report = ExpiryReport{};
+  const int64_t started = clock_->MonotonicMs();
+  const int64_t since_last =
+      last_expiry_end_monotonic_ms_ < 0 ? 0 : started - last_expiry_end_monotonic_ms_;
+  if (since_last > absl::ToInt64Milliseconds(options_.heartbeat_interval)) {
+    // Nothing here ran for longer than a beat, so no worker could have
+    // reached us either: their silence is ours. Extend, as after a restart.
+    ASSIGN_OR_RETURN(report->extended,
+                     store_->ExtendOpenLeases(
+                         LeaseExpiryFrom(LeaseNowMs()), clock_->NowMs(),
+                         absl::StrCat("after a coordinator stall of ", since_last,
+                                      " ms (lease loop not run)")));
+    report->stalled_ms = since_last;
+    last_expiry_end_monotonic_ms_ = clock_->MonotonicMs();
+    return 0;
+  }
+  ASSIGN_OR_RETURN(std::vector<LeaseKey> expired, store_->ListExpiredLeases(LeaseNowMs()));
   int count = 0;
   for (const LeaseKey& key : expired) {
     ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(key.job_id));
@@ -408,6 +442,8 @@ absl::StatusOr<int> Scheduler::ExpireLeases() {
     ASSIGN_OR_RETURN(EndOutcome outcome, EndLocked(std::move(end)));
     if (outcome == EndOutcome::kApplied) ++count;
   }
+  last_expiry_end_monotonic_ms_ = clock_->MonotonicMs();
+  report->expired = count;
   return count;
 }
 

@@ -6,8 +6,15 @@
 //   * A lease is one attempt of one job; its number is its epoch. A worker
 //     keeps it by heartbeating at least every heartbeat_interval; it is lost
 //     when no heartbeat arrived for lease_timeout, judged on the coordinator's
-//     clock by ExpireLeases(). A lost lease ends the attempt (lease_lost) and
-//     re-queues the job; the old worker's later writes get ABORTED.
+//     monotonic clock by ExpireLeases(). A lost lease ends the attempt
+//     (lease_lost) and re-queues the job; the old worker's later writes get
+//     ABORTED.
+//   * Lease times are measured on the monotonic clock (a wall-clock step
+//     changes nothing). If ExpireLeases() was not called for longer than a
+//     heartbeat interval (the coordinator stalled: SIGSTOP, swapping, a
+//     suspended VM), the workers could not have reached it either, so it
+//     extends every open lease by one lease timeout, as start-up recovery
+//     does, before it expires any.
 //   * Application failures (Fail) count against the sweep's max_attempts; lost
 //     leases and releases count against max_lost_leases instead. A job over
 //     either budget becomes failed.
@@ -63,6 +70,15 @@ struct Lease {
   storage::LeaseKey key;
   int64_t heartbeat_interval_ms = 0;
   int64_t lease_timeout_ms = 0;
+};
+
+// What one ExpireLeases() call did.
+struct ExpiryReport {
+  int expired = 0;  // leases lost
+  // A stall was detected: how long the lease loop had not run, and how many
+  // open leases were extended instead of expired.
+  int64_t stalled_ms = 0;
+  int extended = 0;
 };
 
 struct HeartbeatResult {
@@ -146,8 +162,13 @@ class Scheduler {
   absl::Status ReturnUndelivered(const std::string& worker_id, const storage::LeaseKey& key,
                                  const std::string& reason);
 
-  // Ends every lease that expired on the coordinator's clock. Returns how many.
-  absl::StatusOr<int> ExpireLeases();
+  // Ends every lease that expired on the coordinator's monotonic clock and
+  // returns how many. Meant to be called in a loop well within
+  // heartbeat_interval; if the previous call ended more than a heartbeat
+  // interval ago (a stall), it instead extends every open lease to now +
+  // lease_timeout and expires nothing this time. `report`, if not null,
+  // receives the details.
+  absl::StatusOr<int> ExpireLeases(ExpiryReport* report = nullptr);
 
   // ---- user calls ----
 
@@ -164,7 +185,11 @@ class Scheduler {
   bool shut_down() const;
 
  private:
-  int64_t LeaseExpiryFrom(int64_t now_ms) const;
+  // The lease clock: the monotonic clock shifted to read as wall time at
+  // construction, so stored lease deadlines stay readable but never move
+  // with a wall-clock step. Restarts are covered by Recover().
+  int64_t LeaseNowMs();
+  int64_t LeaseExpiryFrom(int64_t lease_now_ms) const;
   // Writes the worker's last-seen time unless it was written recently.
   absl::Status MaybeTouchWorker(const storage::WorkerIdentity& worker, int64_t now_ms);
   absl::StatusOr<std::optional<Lease>> TryAcquireLocked(const storage::WorkerIdentity& worker);
@@ -184,9 +209,15 @@ class Scheduler {
   Clock* const clock_;
   const SchedulerOptions options_;
 
+  const int64_t lease_origin_wall_ms_;
+  const int64_t lease_origin_monotonic_ms_;
+
   // Serialises read-decide-write sequences.
   std::mutex decision_mutex_;
   std::map<std::string, int64_t> last_touch_ms_;  // guarded by decision_mutex_
+  // Monotonic time at which the last ExpireLeases() (or Recover()) ended; -1
+  // before the first. Guarded by decision_mutex_.
+  int64_t last_expiry_end_monotonic_ms_ = -1;
 
   // Long-poll wake-ups.
   mutable std::mutex work_mutex_;

@@ -140,17 +140,28 @@ absl::StatusOr<std::unique_ptr<Coordinator>> Coordinator::Start(const Coordinato
 
 void Coordinator::ExpiryLoop() {
   // Check often relative to the timeout, so a lost lease is noticed within a
-  // few percent of lease_timeout.
-  const auto period = std::chrono::milliseconds(std::clamp<int64_t>(
-      absl::ToInt64Milliseconds(options_.scheduler.lease_timeout) / 20, 50, 1000));
+  // few percent of lease_timeout, and several times per heartbeat interval,
+  // so that a gap of more than one interval really means a stall (the
+  // scheduler then extends every lease instead of expiring it).
+  const int64_t period_ms = std::clamp<int64_t>(
+      std::min(absl::ToInt64Milliseconds(options_.scheduler.lease_timeout) / 20,
+               absl::ToInt64Milliseconds(options_.scheduler.heartbeat_interval) / 4),
+      10, 1000);
+  const auto period = std::chrono::milliseconds(period_ms);
   std::unique_lock<std::mutex> lock(mutex_);
   while (!stopping_) {
     stop_signal_.wait_for(lock, period, [&] { return stopping_; });
     if (stopping_) break;
     lock.unlock();
-    absl::StatusOr<int> expired = scheduler_->ExpireLeases();
+    scheduler::ExpiryReport report;
+    absl::StatusOr<int> expired = scheduler_->ExpireLeases(&report);
     if (!expired.ok()) {
       spdlog::warn("lease expiry check failed: {}", expired.status().ToString());
+    } else if (report.stalled_ms > 0) {
+      spdlog::warn("the coordinator stalled for {} ms (lease loop not run; SIGSTOP, swapping or "
+                   "a suspended machine?): extended {} open leases by the lease timeout instead "
+                   "of expiring them",
+                   report.stalled_ms, report.extended);
     } else if (*expired > 0) {
       spdlog::info("{} leases lost; their jobs were re-queued", *expired);
     }

@@ -908,15 +908,19 @@ absl::StatusOr<EndOutcome> SqliteStore::EndAttempt(const AttemptEnd& end) {
       return absl::InvalidArgumentError(absl::StrCat(
           "job ", key.job_id, " is a trial job; it completes with episodes, not study rows"));
     } else if (end.attempt_state == AttemptState::kCompleted) {
-      if (end.episodes_total < 1 || end.episodes_total > attempt.episodes_expected) {
+      // The job's own expected count decides, never the worker's: a
+      // completion reporting fewer episodes would count a trial with episodes
+      // missing (docs/results_schema.md promises every episode 0..expected-1).
+      if (end.episodes_total != attempt.episodes_expected) {
         return absl::InvalidArgumentError(absl::StrCat(
-            "completion of job ", key.job_id, " reports ", end.episodes_total,
-            " episodes; the trial has ", attempt.episodes_expected));
+            "completion of job ", key.job_id, " attempt ", key.attempt, " reports ",
+            end.episodes_total, " episodes; the job expects ", attempt.episodes_expected,
+            " (episodes 0..", attempt.episodes_expected - 1, ")"));
       }
       ASSIGN_OR_RETURN(Statement present,
                        Statement::Prepare(db, "SELECT episode FROM episodes WHERE job_id = ? "
                                               "AND attempt = ? AND episode < ?"));
-      present.Bind(1, key.job_id).Bind(2, key.attempt).Bind(3, end.episodes_total);
+      present.Bind(1, key.job_id).Bind(2, key.attempt).Bind(3, attempt.episodes_expected);
       std::set<int> have;
       while (true) {
         ASSIGN_OR_RETURN(bool row, present.Step());
@@ -924,13 +928,14 @@ absl::StatusOr<EndOutcome> SqliteStore::EndAttempt(const AttemptEnd& end) {
         have.insert(static_cast<int>(present.ColumnInt(0)));
       }
       std::vector<int> missing;
-      for (int e = 0; e < end.episodes_total; ++e) {
+      for (int e = 0; e < attempt.episodes_expected; ++e) {
         if (!have.count(e)) missing.push_back(e);
       }
       if (!missing.empty()) {
         return absl::FailedPreconditionError(absl::StrCat(
             "cannot complete job ", key.job_id, " attempt ", key.attempt, ": episodes ",
-            absl::StrJoin(missing, ","), " of 0..", end.episodes_total - 1, " are not stored"));
+            absl::StrJoin(missing, ","), " of 0..", attempt.episodes_expected - 1,
+            " are not stored"));
       }
     }
     ASSIGN_OR_RETURN(Statement close, Statement::Prepare(db, R"sql(
@@ -984,7 +989,8 @@ absl::Status SqliteStore::RetryJob(int64_t job_id, int64_t now_ms) {
   });
 }
 
-absl::StatusOr<int> SqliteStore::ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms) {
+absl::StatusOr<int> SqliteStore::ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms,
+                                                   const std::string& reason) {
   int changed = 0;
   const absl::Status status = InWriteTransaction([&](Db& db) -> absl::Status {
     ASSIGN_OR_RETURN(Statement update,
@@ -995,7 +1001,7 @@ absl::StatusOr<int> SqliteStore::ExtendOpenLeases(int64_t lease_expires_ms, int6
     changed = db.Changes();
     if (changed == 0) return absl::OkStatus();
     return AddEvent(db, now_ms, 0, 0, 0, "leases_extended",
-                    absl::StrCat(changed, " open leases extended on coordinator start"));
+                    absl::StrCat(changed, " open leases extended ", reason));
   });
   if (!status.ok()) return status;
   return changed;

@@ -59,7 +59,8 @@ class SqliteStore final : public Store {
                                      std::optional<int64_t> lease_expires_ms) override;
   absl::StatusOr<EndOutcome> EndAttempt(const AttemptEnd& end) override;
   absl::Status RetryJob(int64_t job_id, int64_t now_ms) override;
-  absl::StatusOr<int> ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms) override;
+  absl::StatusOr<int> ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms,
+                                       const std::string& reason) override;
   absl::Status TouchWorker(const WorkerIdentity& worker, int64_t now_ms) override;
   absl::Status SetWorkerDraining(const std::string& worker_id, bool draining,
                                  int64_t now_ms) override;

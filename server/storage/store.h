@@ -318,7 +318,8 @@ struct AttemptEnd {
   std::string error;              // kept as the attempt's and job's error
   int failures_delta = 0;         // added to the job's failure count
   int lost_leases_delta = 0;      // added to the job's lost-lease count
-  // Completion only: all episodes 0..episodes_total-1 must be stored.
+  // Completion only: must equal the job's episodes_expected, and all episodes
+  // 0..episodes_expected-1 must then be stored.
   int episodes_total = 0;
   bool success = false;
   double final_eval_cost = kNaN;
@@ -379,8 +380,9 @@ class Store {
 
   // Ends an attempt as `end` says. Aborted if the attempt is not open (unless
   // it already ended with the same attempt state: kAlreadyEnded), or belongs
-  // to another worker. For kCompleted, FailedPrecondition names the missing
-  // episodes if 0..episodes_total-1 are not all stored (nothing changes); a
+  // to another worker. For kCompleted, InvalidArgument if episodes_total is
+  // not the job's episodes_expected, FailedPrecondition naming the missing
+  // episodes if 0..episodes_expected-1 are not all stored (nothing changes); a
   // study job instead needs cells 0..study_cells_total-1 and references
   // 0..study_references_total-1 (both totals >= 1), and InvalidArgument is
   // returned for a completion of the wrong kind (episodes for a study, study
@@ -393,8 +395,10 @@ class Store {
   virtual absl::Status RetryJob(int64_t job_id, int64_t now_ms) = 0;
 
   // Sets the lease expiry of every open attempt to at least `lease_expires_ms`
-  // (coordinator start-up, so running workers can reattach). Returns how many.
-  virtual absl::StatusOr<int> ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms) = 0;
+  // (coordinator start-up or after a stall, so running workers can reattach);
+  // `reason` goes into the event log. Returns how many.
+  virtual absl::StatusOr<int> ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms,
+                                               const std::string& reason) = 0;
 
   // Inserts or refreshes a worker (host, build, slots, last seen).
   virtual absl::Status TouchWorker(const WorkerIdentity& worker, int64_t now_ms) = 0;

@@ -8,7 +8,9 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <set>
+#include <thread>
 
 #include "absl/strings/str_cat.h"
 #include "tests/service/e2e_util.h"
@@ -194,6 +196,45 @@ TEST_F(EndToEndTest, KilledCoordinatorRestartsAndLosesNothing) {
   for (const v1::JobInfo& job : Jobs("kill-coordinator")) EXPECT_EQ(job.lost_leases(), 0);
 }
 
+// Issue 12.2 with a real process: the coordinator is stopped (SIGSTOP) for
+// twice the lease timeout while two workers run trials, then continued. Its
+// lease loop notices that it did not run for longer than a heartbeat
+// interval and extends both leases instead of declaring them lost; the
+// trials finish on their first attempt with exact results. The workers are
+// stopped too and continued 0.3 s after the coordinator, so that its lease
+// loop certainly runs before any delayed heartbeat is processed (with
+// running workers that order is a race, which the expiry used to win within
+// milliseconds).
+TEST_F(EndToEndTest, CoordinatorStallDoesNotExpireLeases) {
+  StartCoordinator(0, {}, /*lease_timeout_seconds=*/1.5);
+  ASSERT_TRUE(Submit(MakeSpec("stall", {1, 2}, SlowProtocol())).ok());
+  auto worker_a = StartWorker("a");
+  auto worker_b = StartWorker("b");
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        const auto jobs = Jobs("stall");
+        return jobs.size() == 2 && jobs[0].state() == v1::JOB_STATE_RUNNING &&
+               jobs[1].state() == v1::JOB_STATE_RUNNING && jobs[0].episodes_stored() >= 1 &&
+               jobs[1].episodes_stored() >= 1;
+      },
+      seconds(60)));
+  worker_a->Signal(SIGSTOP);
+  worker_b->Signal(SIGSTOP);
+  coordinator_->Signal(SIGSTOP);
+  std::this_thread::sleep_for(seconds(3));
+  coordinator_->Signal(SIGCONT);
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  worker_a->Signal(SIGCONT);
+  worker_b->Signal(SIGCONT);
+  ASSERT_TRUE(WaitFinished("stall", seconds(120)));
+  for (const v1::JobInfo& job : Jobs("stall")) {
+    EXPECT_EQ(job.lost_leases(), 0) << "job " << job.job_id() << ": " << job.last_error();
+    EXPECT_EQ(job.attempts(), 1) << "job " << job.job_id();
+  }
+  ExpectRowsEqualReference("stall", SlowProtocol());
+  EXPECT_NE(coordinator_->Log().find("the coordinator stalled for"), std::string::npos);
+}
+
 // A worker that stops heartbeating loses its lease; its late reports are
 // refused with ABORTED and change nothing. Repeated reports are no-ops.
 TEST_F(EndToEndTest, StaleLeaseIsRefusedAndDuplicatesAreNoOps) {
@@ -268,6 +309,72 @@ TEST_F(EndToEndTest, StaleLeaseIsRefusedAndDuplicatesAreNoOps) {
   EXPECT_EQ(job.state(), v1::JOB_STATE_COMPLETED);
   EXPECT_EQ(job.final_eval_cost(), 7);
   EXPECT_EQ(job.lost_leases(), 1);
+}
+
+// Issue 12.1: a hand-made Complete that reports fewer episodes than the job
+// expects (or claims the right total with episodes missing) is refused; the
+// job stays running and nothing reaches the results table.
+TEST_F(EndToEndTest, ForgedCompletionsWithMissingEpisodesAreRefused) {
+  StartCoordinator();
+  ASSERT_TRUE(Submit(MakeSpec("forged", {1}, TinyProtocol())).ok());  // episodes = 2: 3 expected
+  v1::AcquireLeaseRequest acquire;
+  acquire.mutable_worker()->set_worker_id("forger");
+  acquire.mutable_worker()->set_slots(1);
+  acquire.set_wait_ms(1000);
+  v1::AcquireLeaseResponse granted;
+  ASSERT_TRUE(worker_stub_->AcquireLease(Context(kWorkerToken).get(), acquire, &granted).ok());
+  ASSERT_TRUE(granted.granted());
+  ASSERT_EQ(granted.lease().episodes_expected(), 3);
+  const auto episode = [](int e) {
+    v1::EpisodeReport report;
+    report.set_episode(e);
+    report.set_real_cost(10 + e);
+    report.set_eval_cost_mean(e == 0 ? std::nan("") : 5 + e);
+    report.set_predicted_cost(e == 0 ? std::nan("") : 6 + e);
+    return report;
+  };
+  v1::CompleteRequest short_total;
+  short_total.set_worker_id("forger");
+  *short_total.mutable_lease() = granted.lease().key();
+  *short_total.add_episodes() = episode(0);
+  short_total.set_episodes_total(1);
+  short_total.set_success(true);
+  short_total.set_final_eval_cost(1);
+  v1::CompleteResponse completed;
+  grpc::Status status = worker_stub_->Complete(Context(kWorkerToken).get(), short_total, &completed);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << status.error_message();
+  EXPECT_NE(status.error_message().find("reports 1 episodes; the job expects 3"), std::string::npos)
+      << status.error_message();
+
+  v1::CompleteRequest right_total_missing_rows = short_total;
+  right_total_missing_rows.set_episodes_total(3);
+  status = worker_stub_->Complete(Context(kWorkerToken).get(), right_total_missing_rows, &completed);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::FAILED_PRECONDITION) << status.error_message();
+  EXPECT_NE(status.error_message().find("episodes 1,2 of 0..2 are not stored"), std::string::npos)
+      << status.error_message();
+
+  v1::CompleteRequest too_many = short_total;
+  too_many.set_episodes_total(4);
+  status = worker_stub_->Complete(Context(kWorkerToken).get(), too_many, &completed);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << status.error_message();
+
+  // Nothing was counted: the job still runs and the results table is empty.
+  EXPECT_EQ(Jobs("forged")[0].state(), v1::JOB_STATE_RUNNING);
+  v1::SweepRequest sweep_request;
+  sweep_request.set_name("forged");
+  v1::ListTrialResultsResponse results;
+  ASSERT_TRUE(
+      control_->ListTrialResults(Context(kUserToken).get(), sweep_request, &results).ok());
+  EXPECT_EQ(results.results_size(), 0);
+
+  // Every episode, then the right total: completed.
+  v1::CompleteRequest honest = right_total_missing_rows;
+  *honest.add_episodes() = episode(1);
+  *honest.add_episodes() = episode(2);
+  status = worker_stub_->Complete(Context(kWorkerToken).get(), honest, &completed);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  EXPECT_EQ(Jobs("forged")[0].state(), v1::JOB_STATE_COMPLETED);
+  EXPECT_EQ(Export("forged", /*all_attempts=*/false).size(), 3u);
 }
 
 TEST_F(EndToEndTest, ResubmittingASweepIsIdempotent) {

@@ -74,6 +74,18 @@ class SchedulerTest : public ::testing::Test {
     EXPECT_TRUE(job.ok()) << job.status();
     return job.ok() ? *job : JobRecord{};
   }
+  // Lets `ms` of time pass while the coordinator's lease loop runs every
+  // `step_ms` (as Coordinator::ExpiryLoop does); returns the leases lost.
+  int RunLeaseLoopFor(int64_t ms, int64_t step_ms = 1000) {
+    int expired = 0;
+    for (int64_t passed = 0; passed < ms; passed += step_ms) {
+      clock_.AdvanceMs(std::min(step_ms, ms - passed));
+      auto count = scheduler_->ExpireLeases();
+      EXPECT_TRUE(count.ok()) << count.status();
+      if (count.ok()) expired += *count;
+    }
+    return expired;
+  }
   std::vector<Episode> Episodes(int from, int to) {
     std::vector<Episode> episodes;
     for (int e = from; e < to; ++e) episodes.push_back(MakeEpisode(e, 10 + e));
@@ -176,12 +188,11 @@ TEST_F(SchedulerTest, HeartbeatsKeepALeaseAlive) {
   Submit("s", 1, 3);
   const Lease lease = MustAcquire("w1");
   for (int i = 0; i < 5; ++i) {
-    clock_.AdvanceMs(80'000);
+    EXPECT_EQ(RunLeaseLoopFor(80'000), 0);
     TG_ASSERT_OK_AND_ASSIGN(HeartbeatResult beat, scheduler_->Heartbeat("w1", lease.key, {}));
     EXPECT_EQ(beat.directive, Directive::kContinue);
-    TG_ASSERT_OK_AND_ASSIGN(int expired, scheduler_->ExpireLeases());
-    EXPECT_EQ(expired, 0);
   }
+  EXPECT_EQ(RunLeaseLoopFor(91'000), 1);  // and without them it is lost
 }
 
 // T3: every worker call delivered twice leaves the same state as once.
@@ -219,8 +230,7 @@ TEST_F(SchedulerTest, FailuresCountAgainstMaxAttemptsButLostLeasesDoNot) {
   Submit("s", 1, 2, /*max_attempts=*/2, /*max_lost=*/20);
   Lease lease = MustAcquire("w1");
   for (int i = 0; i < 3; ++i) {  // three lost leases
-    clock_.AdvanceMs(91'000);
-    TG_ASSERT_OK(scheduler_->ExpireLeases());
+    EXPECT_EQ(RunLeaseLoopFor(91'000), 1);
     lease = MustAcquire("w1");
   }
   TG_ASSERT_OK(scheduler_->Release("w1", lease.key, "drain"));  // and a release
@@ -242,11 +252,9 @@ TEST_F(SchedulerTest, FailuresCountAgainstMaxAttemptsButLostLeasesDoNot) {
 TEST_F(SchedulerTest, APoisonLeaseLoserStopsAtMaxLostLeases) {
   Submit("s", 1, 2, /*max_attempts=*/3, /*max_lost=*/2);
   MustAcquire("w1");
-  clock_.AdvanceMs(91'000);
-  TG_ASSERT_OK(scheduler_->ExpireLeases());
+  EXPECT_EQ(RunLeaseLoopFor(91'000), 1);
   const Lease second = MustAcquire("w1");
-  clock_.AdvanceMs(91'000);
-  TG_ASSERT_OK(scheduler_->ExpireLeases());
+  EXPECT_EQ(RunLeaseLoopFor(91'000), 1);
   const JobRecord job = Job(second.key.job_id);
   EXPECT_EQ(job.state, JobState::kFailed);
   EXPECT_NE(job.last_error.find("gave up after 2 lost or released leases"), std::string::npos)
@@ -366,10 +374,58 @@ TEST_F(SchedulerTest, RecoveredLeaseStillExpiresIfTheWorkerIsGone) {
   const Lease lease = MustAcquire("w1");
   clock_.AdvanceMs(200'000);
   TG_ASSERT_OK(scheduler_->Recover());
-  clock_.AdvanceMs(91'000);
-  TG_ASSERT_OK_AND_ASSIGN(int expired, scheduler_->ExpireLeases());
-  EXPECT_EQ(expired, 1);
+  EXPECT_EQ(RunLeaseLoopFor(91'000), 1);
   EXPECT_EQ(Job(lease.key.job_id).state, JobState::kQueued);
+}
+
+// Issue 12.2: the coordinator stops (SIGSTOP, swapping) for longer than a
+// heartbeat interval. Its workers could not reach it, so when its lease loop
+// runs again it extends every open lease, as restart recovery does, instead
+// of declaring them all lost at once; leases still expire later if their
+// workers really are silent.
+TEST_F(SchedulerTest, StallExtendsEveryOpenLeaseBeforeExpiringAny) {
+  options_.heartbeat_interval = absl::Seconds(1);
+  options_.lease_timeout = absl::Seconds(6);
+  scheduler_ = std::make_unique<Scheduler>(faulty_.get(), &clock_, options_);
+  Submit("s", 2, 2);
+  const Lease a = MustAcquire("w1");
+  const Lease b = MustAcquire("w2");
+  EXPECT_EQ(RunLeaseLoopFor(2'000, /*step_ms=*/200), 0);
+  clock_.AdvanceMs(10'000);  // kill -STOP for 10 s: neither the loop nor the beats run
+  ExpiryReport report;
+  TG_ASSERT_OK_AND_ASSIGN(int expired, scheduler_->ExpireLeases(&report));
+  EXPECT_EQ(expired, 0);
+  EXPECT_EQ(report.stalled_ms, 10'000);
+  EXPECT_EQ(report.extended, 2);
+  EXPECT_EQ(Job(a.key.job_id).state, JobState::kRunning);
+  EXPECT_EQ(Job(b.key.job_id).state, JobState::kRunning);
+  // After kill -CONT the workers' beats arrive and the leases carry on.
+  EXPECT_EQ(RunLeaseLoopFor(500, /*step_ms=*/100), 0);
+  TG_ASSERT_OK(scheduler_->Heartbeat("w1", a.key, Episodes(0, 1)));
+  TG_ASSERT_OK(scheduler_->Heartbeat("w2", b.key, Episodes(0, 1)));
+  // w1 keeps beating; w2 is really gone: only its lease is lost, 6 s later.
+  int lost = 0;
+  for (int i = 0; i < 14; ++i) {
+    lost += RunLeaseLoopFor(500, /*step_ms=*/100);
+    TG_ASSERT_OK(scheduler_->Heartbeat("w1", a.key, {}));
+  }
+  EXPECT_EQ(lost, 1);
+  EXPECT_EQ(Job(a.key.job_id).state, JobState::kRunning);
+  EXPECT_EQ(Job(b.key.job_id).state, JobState::kQueued);
+}
+
+// Lease deadlines are on the monotonic clock: stepping the wall clock (NTP,
+// `date -s`) forward by an hour expires nothing, while time that really
+// passes still does.
+TEST_F(SchedulerTest, WallClockStepDoesNotExpireLeases) {
+  Submit("s", 1, 2);
+  const Lease lease = MustAcquire("w1");
+  EXPECT_EQ(RunLeaseLoopFor(5'000), 0);
+  clock_.StepWallMs(3'600'000);
+  EXPECT_EQ(RunLeaseLoopFor(5'000), 0);
+  EXPECT_EQ(Job(lease.key.job_id).state, JobState::kRunning);
+  clock_.StepWallMs(-7'200'000);  // and backwards
+  EXPECT_EQ(RunLeaseLoopFor(91'000), 1);
 }
 
 // A write that fails before commit leaves the job claimable; nothing leaks.

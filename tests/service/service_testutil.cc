@@ -126,8 +126,9 @@ absl::StatusOr<storage::EndOutcome> FaultyStore::EndAttempt(const storage::Attem
 absl::Status FaultyStore::RetryJob(int64_t job_id, int64_t now_ms) {
   TG_FORWARD("RetryJob", target_->RetryJob(job_id, now_ms));
 }
-absl::StatusOr<int> FaultyStore::ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms) {
-  TG_FORWARD("ExtendOpenLeases", target_->ExtendOpenLeases(lease_expires_ms, now_ms));
+absl::StatusOr<int> FaultyStore::ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms,
+                                                   const std::string& reason) {
+  TG_FORWARD("ExtendOpenLeases", target_->ExtendOpenLeases(lease_expires_ms, now_ms, reason));
 }
 absl::Status FaultyStore::TouchWorker(const storage::WorkerIdentity& worker, int64_t now_ms) {
   TG_FORWARD("TouchWorker", target_->TouchWorker(worker, now_ms));

@@ -77,7 +77,8 @@ class FaultyStore final : public storage::Store {
                                      std::optional<int64_t> lease_expires_ms) override;
   absl::StatusOr<storage::EndOutcome> EndAttempt(const storage::AttemptEnd& end) override;
   absl::Status RetryJob(int64_t job_id, int64_t now_ms) override;
-  absl::StatusOr<int> ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms) override;
+  absl::StatusOr<int> ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms,
+                                       const std::string& reason) override;
   absl::Status TouchWorker(const storage::WorkerIdentity& worker, int64_t now_ms) override;
   absl::Status SetWorkerDraining(const std::string& worker_id, bool draining,
                                  int64_t now_ms) override;

@@ -258,7 +258,7 @@ TEST_F(StorageTest, RetryOnlyFailedOrCancelledJobs) {
 
 TEST_F(StorageTest, ExtendOpenLeasesMovesOnlyEarlierExpiries) {
   const int64_t job = CreateAndLease("s");
-  TG_ASSERT_OK_AND_ASSIGN(int extended, store_->ExtendOpenLeases(kNow + 500'000, kNow));
+  TG_ASSERT_OK_AND_ASSIGN(int extended, store_->ExtendOpenLeases(kNow + 500'000, kNow, "in a test"));
   EXPECT_EQ(extended, 1);
   TG_ASSERT_OK_AND_ASSIGN(auto expired, store_->ListExpiredLeases(kNow + 400'000));
   EXPECT_TRUE(expired.empty());
