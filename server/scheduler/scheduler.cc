@@ -176,7 +176,41 @@ absl::StatusOr<std::optional<Lease>> Scheduler::TryAcquire(const WorkerIdentity&
   return TryAcquireLocked(worker);
 }
 
+absl::Status Scheduler::CheckInstanceLocked(const WorkerIdentity& worker) {
+  if (worker.instance.empty()) return absl::OkStatus();  // an older worker: cannot tell
+  const int64_t now = clock_->MonotonicMs();
+  auto [it, inserted] = instances_.try_emplace(worker.worker_id);
+  WorkerInstance& known = it->second;
+  if (inserted || known.instance == worker.instance) {
+    known.instance = worker.instance;
+    known.host = worker.host;
+    known.last_heard_monotonic_ms = now;
+    return absl::OkStatus();
+  }
+  if (std::find(known.replaced.begin(), known.replaced.end(), worker.instance) !=
+      known.replaced.end()) {
+    return absl::AlreadyExistsError(absl::StrCat(
+        "worker id '", worker.worker_id, "': this process was replaced by a newer process with "
+        "the same id on host '", known.host, "'; every worker needs its own --worker-id"));
+  }
+  const int64_t silent_ms = now - known.last_heard_monotonic_ms;
+  const bool previous_alive = silent_ms < absl::ToInt64Milliseconds(options_.lease_timeout);
+  if (previous_alive && !(worker.takes_over && worker.host == known.host)) {
+    return absl::AlreadyExistsError(absl::StrCat(
+        "worker id '", worker.worker_id, "' is in use by another live worker process on host '",
+        known.host, "' (heard from ", silent_ms, " ms ago); every worker needs its own "
+        "--worker-id"));
+  }
+  known.replaced.push_back(known.instance);
+  if (known.replaced.size() > 16) known.replaced.erase(known.replaced.begin());
+  known.instance = worker.instance;
+  known.host = worker.host;
+  known.last_heard_monotonic_ms = now;
+  return absl::OkStatus();
+}
+
 absl::StatusOr<std::optional<Lease>> Scheduler::TryAcquireLocked(const WorkerIdentity& worker) {
+  RETURN_IF_ERROR(CheckInstanceLocked(worker));
   const int64_t now = clock_->NowMs();
   // A worker asking for work is alive: always record it (not throttled), so
   // `worker list` shows idle workers too.
@@ -272,6 +306,10 @@ absl::StatusOr<HeartbeatResult> Scheduler::Heartbeat(const std::string& worker_i
   auto worker = store_->GetWorker(worker_id);
   if (worker.ok()) {
     RETURN_IF_ERROR(MaybeTouchWorker(worker->identity, now));
+  }
+  // A beat shows the id's current process is alive (only it holds leases).
+  if (auto known = instances_.find(worker_id); known != instances_.end()) {
+    known->second.last_heard_monotonic_ms = clock_->MonotonicMs();
   }
   if (job.state == JobState::kCancelled) {
     result.directive = Directive::kCancel;

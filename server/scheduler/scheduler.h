@@ -124,7 +124,11 @@ class Scheduler {
 
   // Leases the next claimable job to `worker`, or returns nullopt if there is
   // none (or the worker is draining). Study jobs go only to workers whose
-  // identity says study_jobs. Does not wait.
+  // identity says study_jobs. Does not wait. AlreadyExists if another live
+  // process uses the same worker_id: a different `instance` while the current
+  // one was heard from within lease_timeout, unless it comes from the same
+  // host with `takes_over` (it holds the host-local lock, so the earlier
+  // process has exited); an instance once replaced stays refused.
   absl::StatusOr<std::optional<Lease>> TryAcquire(const storage::WorkerIdentity& worker);
   // Like TryAcquire, but waits up to min(wait, max_acquire_wait) of real time
   // for work to appear. Returns nullopt at the deadline or after Shutdown().
@@ -190,6 +194,8 @@ class Scheduler {
   // with a wall-clock step. Restarts are covered by Recover().
   int64_t LeaseNowMs();
   int64_t LeaseExpiryFrom(int64_t lease_now_ms) const;
+  // The duplicate-worker-id rule of TryAcquire; records the instance.
+  absl::Status CheckInstanceLocked(const storage::WorkerIdentity& worker);
   // Writes the worker's last-seen time unless it was written recently.
   absl::Status MaybeTouchWorker(const storage::WorkerIdentity& worker, int64_t now_ms);
   absl::StatusOr<std::optional<Lease>> TryAcquireLocked(const storage::WorkerIdentity& worker);
@@ -215,6 +221,15 @@ class Scheduler {
   // Serialises read-decide-write sequences.
   std::mutex decision_mutex_;
   std::map<std::string, int64_t> last_touch_ms_;  // guarded by decision_mutex_
+  // The live process behind each worker id (in memory: after a restart the
+  // first caller is accepted). Guarded by decision_mutex_.
+  struct WorkerInstance {
+    std::string instance;
+    std::string host;
+    int64_t last_heard_monotonic_ms = 0;
+    std::vector<std::string> replaced;  // earlier instances, newest last (at most 16)
+  };
+  std::map<std::string, WorkerInstance> instances_;
   // Monotonic time at which the last ExpireLeases() (or Recover()) ended; -1
   // before the first. Guarded by decision_mutex_.
   int64_t last_expiry_end_monotonic_ms_ = -1;

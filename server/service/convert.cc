@@ -12,7 +12,15 @@ grpc::Status ToGrpcStatus(const absl::Status& status) {
 }
 
 storage::WorkerIdentity FromProto(const v1::WorkerIdentity& worker) {
-  return {worker.worker_id(), worker.host(), worker.build(), worker.slots(), worker.study_jobs()};
+  storage::WorkerIdentity identity;
+  identity.worker_id = worker.worker_id();
+  identity.host = worker.host();
+  identity.build = worker.build();
+  identity.slots = worker.slots();
+  identity.study_jobs = worker.study_jobs();
+  identity.instance = worker.instance();
+  identity.takes_over = worker.takes_over();
+  return identity;
 }
 
 storage::StudyCell FromProto(const v1::StudyCellRow& row) {

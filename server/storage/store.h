@@ -69,6 +69,13 @@ struct WorkerIdentity {
   int slots = 1;
   // The worker can run study jobs (not stored: sent with every AcquireLease).
   bool study_jobs = false;
+  // Not stored either; the scheduler uses them to refuse a second live
+  // process with the same worker_id (see Scheduler::TryAcquire). `instance`
+  // is unique per worker process ("" from older workers: not checked);
+  // `takes_over` says the process holds its host-local worker-id lock, so an
+  // earlier process with this id on this host has exited.
+  std::string instance;
+  bool takes_over = false;
 };
 
 // One finished episode. NaN = no value (stored as NULL).

@@ -9,6 +9,7 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <filesystem>
 #include <set>
 #include <thread>
 
@@ -556,6 +557,104 @@ TEST_F(EndToEndTest, CancelStopsRunningTrialsAndKeepsStoredResults) {
   EXPECT_EQ(control_->ResumeSweep(Context(kUserToken).get(), request, &resumed).error_code(),
             grpc::StatusCode::FAILED_PRECONDITION);
   EXPECT_TRUE(worker->Running());  // a cancel is not a reason for the worker to exit
+}
+
+// Issue 12.3: SIGTERM while the coordinator is unreachable (stopped). The
+// worker used to retry its final report for up to 30 minutes; now it exits
+// within --drain-timeout + --report-grace, keeping the unacknowledged
+// episodes and the release on local disk. The next worker with the same id
+// on this host replays them while the lease is still valid: the first
+// attempt ends released with its episodes, not lost.
+TEST_F(EndToEndTest, WorkerShutdownIsBoundedWhileTheCoordinatorIsUnreachable) {
+  StartCoordinator();
+  ASSERT_TRUE(Submit(MakeSpec("unreachable", {3}, SlowProtocol())).ok());
+  auto worker = StartWorker("w", {"--drain-timeout", "1", "--report-grace", "1"});
+  ASSERT_TRUE(WaitFor([&] { return Jobs("unreachable")[0].episodes_stored() >= 2; }, seconds(60)));
+  coordinator_->Signal(SIGSTOP);
+  const auto signalled = std::chrono::steady_clock::now();
+  worker->Signal(SIGTERM);
+  const int status = worker->Wait(seconds(8));
+  const auto took = std::chrono::steady_clock::now() - signalled;
+  coordinator_->Signal(SIGCONT);
+  ASSERT_NE(status, -1) << "the worker was still running 8 s after SIGTERM\n" << worker->Log();
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << status;
+  EXPECT_LT(took, seconds(5));
+  EXPECT_NE(worker->Log().find("for the next worker with id 'w' on this host"), std::string::npos)
+      << worker->Log();
+
+  auto successor = StartWorker("w");
+  ASSERT_TRUE(WaitFinished("unreachable", seconds(120)));
+  ExpectRowsEqualReference("unreachable", SlowProtocol());
+  const v1::JobInfo job = Jobs("unreachable")[0];
+  EXPECT_EQ(job.lost_leases(), 1);  // the release counts; no lease was lost
+  const v1::GetJobLogResponse log = JobLog(job.job_id());
+  ASSERT_EQ(log.attempts_size(), 2);
+  EXPECT_EQ(log.attempts(0).state(), v1::ATTEMPT_STATE_RELEASED) << log.attempts(0).error();
+  EXPECT_GE(log.attempts(0).episodes_stored(), 2);
+  EXPECT_NE(successor->Log().find("spooled results delivered"), std::string::npos)
+      << successor->Log();
+}
+
+// Issue 12.3: a second SIGTERM exits at once, even while final reports
+// cannot be delivered, keeping what is unfinished in the state directory.
+TEST_F(EndToEndTest, SecondSigtermExitsAtOnce) {
+  StartCoordinator();
+  ASSERT_TRUE(Submit(MakeSpec("twice", {4}, SlowProtocol())).ok());
+  auto worker = StartWorker("w", {"--drain-timeout", "60"});
+  ASSERT_TRUE(WaitFor([&] { return Jobs("twice")[0].episodes_stored() >= 1; }, seconds(60)));
+  coordinator_->Signal(SIGSTOP);
+  worker->Signal(SIGTERM);
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  const auto signalled = std::chrono::steady_clock::now();
+  worker->Signal(SIGTERM);
+  const int status = worker->Wait(seconds(5));
+  const auto took = std::chrono::steady_clock::now() - signalled;
+  coordinator_->Signal(SIGCONT);
+  ASSERT_NE(status, -1) << "still running 5 s after the second SIGTERM\n" << worker->Log();
+  EXPECT_LT(took, seconds(2));
+  EXPECT_TRUE(WIFEXITED(status)) << status;
+  bool spooled = false;
+  for (const auto& entry : std::filesystem::recursive_directory_iterator(dir_ + "/worker-state")) {
+    if (entry.path().extension() == ".pb") spooled = true;
+  }
+  EXPECT_TRUE(spooled) << worker->Log();
+}
+
+// Issue 12.3: a worker whose token the coordinator refuses (unknown, or a
+// user token) exits at once with its own exit code instead of retrying
+// forever; a supervisor can tell it from a crash.
+TEST_F(EndToEndTest, WorkerWithARefusedTokenExitsAtOnceWithItsOwnCode) {
+  StartCoordinator();
+  WriteFile(dir_ + "/wrong.token", "not-the-worker-token-0123456789");
+  for (const std::string& token_file : {dir_ + "/wrong.token", dir_ + "/user.token"}) {
+    auto worker = StartWorker("refused", {}, token_file);
+    const int status = worker->Wait(seconds(10));
+    ASSERT_NE(status, -1) << token_file << ": still retrying after 10 s\n" << worker->Log();
+    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 77) << token_file << ": " << status;
+    EXPECT_NE(worker->Log().find("refused this worker's token"), std::string::npos)
+        << worker->Log();
+  }
+}
+
+// Issue 12.6: a second worker process with an id already in use on this host
+// refuses to start (exit code 78), naming the process that holds the id.
+TEST_F(EndToEndTest, DuplicateWorkerIdIsRefused) {
+  StartCoordinator();
+  auto first = StartWorker("same");
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        v1::ListWorkersResponse workers;
+        return control_->ListWorkers(Context(kUserToken).get(), {}, &workers).ok() &&
+               workers.workers_size() == 1;
+      },
+      seconds(30)));
+  auto second = StartWorker("same");
+  const int status = second->Wait(seconds(10));
+  ASSERT_NE(status, -1) << second->Log();
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 78) << status;
+  EXPECT_NE(second->Log().find(absl::StrCat("pid ", first->pid())), std::string::npos)
+      << second->Log();
+  EXPECT_TRUE(first->Running());
 }
 
 TEST_F(EndToEndTest, WorkerDrainsOnSigtermAndTheJobIsRequeuedWithoutBlame) {

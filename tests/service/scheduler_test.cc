@@ -344,6 +344,42 @@ TEST_F(SchedulerTest, DrainingWorkerGetsDrainAndNoNewLeases) {
   EXPECT_EQ(scheduler_->DrainWorker("never-seen").status().code(), absl::StatusCode::kNotFound);
 }
 
+// Issue 12.6: two live processes with the same worker id are refused
+// (ALREADY_EXISTS) whatever host they run on; a process that holds the
+// host-local lock takes the id over from a dead predecessor on its host (and
+// the predecessor stays refused); after lease_timeout of silence anyone may
+// take the id over.
+TEST_F(SchedulerTest, DuplicateWorkerIdsAreRefused) {
+  const auto process = [](const std::string& instance, const std::string& host,
+                          bool takes_over = false) {
+    storage::WorkerIdentity worker = MakeWorker("w");
+    worker.instance = instance;
+    worker.host = host;
+    worker.takes_over = takes_over;
+    return worker;
+  };
+  TG_ASSERT_OK(scheduler_->TryAcquire(process("a", "h1")));
+  auto other_host = scheduler_->TryAcquire(process("b", "h2", /*takes_over=*/true));
+  EXPECT_EQ(other_host.status().code(), absl::StatusCode::kAlreadyExists);
+  EXPECT_NE(other_host.status().message().find("in use by another live worker process on host 'h1'"),
+            std::string::npos)
+      << other_host.status();
+  auto same_host_without_lock = scheduler_->TryAcquire(process("c", "h1"));
+  EXPECT_EQ(same_host_without_lock.status().code(), absl::StatusCode::kAlreadyExists);
+  // The successor on h1 (it holds the lock, so "a" has exited) takes over...
+  TG_ASSERT_OK(scheduler_->TryAcquire(process("d", "h1", /*takes_over=*/true)));
+  // ...and the replaced process is refused from then on.
+  auto replaced = scheduler_->TryAcquire(process("a", "h1"));
+  EXPECT_EQ(replaced.status().code(), absl::StatusCode::kAlreadyExists);
+  EXPECT_NE(replaced.status().message().find("replaced by a newer process"), std::string::npos)
+      << replaced.status();
+  // A process silent for a lease timeout is gone: another host may use the id.
+  clock_.AdvanceMs(91'000);
+  TG_ASSERT_OK(scheduler_->TryAcquire(process("e", "h2")));
+  // Workers that send no instance (older builds) are not checked.
+  TG_ASSERT_OK(scheduler_->TryAcquire(process("", "h3")));
+}
+
 TEST_F(SchedulerTest, MaxConcurrentLimitsRunningJobsPerSweep) {
   Submit("s", 4, 2, 3, 20, /*max_concurrent=*/2);
   const Lease a = MustAcquire("w1");
