@@ -68,8 +68,11 @@ absl::StatusOr<std::unique_ptr<Coordinator>> Coordinator::Start(const Coordinato
   if (!auth.ok()) return auth.status();
   c->auth_ = std::make_unique<TokenAuthenticator>(*std::move(auth));
 
+  storage::SqliteStoreOptions store_options;
+  store_options.init = options.init;
+  store_options.max_page_count = options.store_max_page_count;
   absl::StatusOr<std::unique_ptr<storage::SqliteStore>> store =
-      storage::SqliteStore::Open(options.database);
+      storage::SqliteStore::Open(options.database, store_options);
   if (!store.ok()) return store.status();
   c->store_ = *std::move(store);
   absl::StatusOr<std::string> settings = c->store_->DescribeSettings();
@@ -198,6 +201,7 @@ absl::Status Coordinator::CheckHealth() {
   if (!serving_) return absl::UnavailableError("not serving (starting or shutting down)");
   if (scheduler_->shut_down()) return absl::UnavailableError("scheduler shut down");
   absl::Status store = store_->Ping();
+  if (store.ok()) store = store_->CheckWritable();
   if (!store.ok()) return absl::UnavailableError(absl::StrCat("database: ", store.message()));
   return absl::OkStatus();
 }

@@ -14,6 +14,7 @@
 #include <thread>
 
 #include "absl/strings/str_cat.h"
+#include "server/storage/sqlite_db.h"
 #include "tests/service/e2e_util.h"
 #include "tests/service/service_testutil.h"
 
@@ -93,6 +94,97 @@ TEST_F(EndToEndTest, HealthPortAnswersPlainHttp) {
   coordinator_->Signal(SIGTERM);
   EXPECT_EQ(coordinator_->Wait(seconds(20)), 0) << coordinator_->Log();
   EXPECT_EQ(HttpGet(health_port, "/healthz"), "");
+}
+
+// Starts a coordinator that is expected to refuse to start; returns its exit
+// status after at most 10 s (-1 if it was still running: then it is killed)
+// and its log in *log.
+int StartRefusedCoordinator(const std::string& dir, const std::vector<std::string>& extra,
+                            std::string* log) {
+  static int runs = 0;
+  std::vector<std::string> argv = {TOTALGRAD_COORDINATOR_BIN, "--listen", "127.0.0.1:0",
+                                   "--insecure"};
+  argv.insert(argv.end(), extra.begin(), extra.end());
+  Process process(argv, absl::StrCat(dir, "/refused-coordinator-", runs++, ".log"));
+  const int status = process.Wait(seconds(10));
+  *log = process.Log();
+  return status;
+}
+
+// Issue 12.4: a second coordinator on the same database is refused, naming
+// the one that holds it.
+TEST_F(EndToEndTest, SecondCoordinatorOnTheSameDatabaseIsRefused) {
+  StartCoordinator();
+  std::string log;
+  const int status = StartRefusedCoordinator(dir_, {"--db", db_}, &log);
+  ASSERT_NE(status, -1) << "the second coordinator started:\n" << log;
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) != 0) << status;
+  EXPECT_NE(log.find("is in use by another coordinator"), std::string::npos) << log;
+  EXPECT_NE(log.find(absl::StrCat("pid ", coordinator_->pid())), std::string::npos) << log;
+  // The first one is unaffected.
+  ASSERT_TRUE(Submit(MakeSpec("still-mine", {1}, TinyProtocol())).ok());
+}
+
+// Issue 12.4: the database files deleted under a running coordinator. It used
+// to keep acknowledging (into the deleted file) and report /healthz ok, and
+// a restart silently began a new, empty database. Now writes are refused
+// with the problem named, /healthz says 503 with the reason, and a restart
+// without --init is refused.
+TEST_F(EndToEndTest, DeletedDatabaseIsNoLongerAcknowledgedNorSilentlyRecreated) {
+  const int health_port = FreeLoopbackPort();
+  ASSERT_GT(health_port, 0);
+  StartCoordinator(0, {"--health-listen", absl::StrCat("127.0.0.1:", health_port)});
+  ASSERT_TRUE(Submit(MakeSpec("before", {1}, TinyProtocol())).ok());
+  EXPECT_EQ(HttpGet(health_port, "/healthz").rfind("HTTP/1.1 200 OK", 0), 0u);
+  for (const char* suffix : {"", "-wal", "-shm"}) std::filesystem::remove(db_ + suffix);
+  const grpc::Status refused = Submit(MakeSpec("after", {1}, TinyProtocol()));
+  EXPECT_EQ(refused.error_code(), grpc::StatusCode::UNAVAILABLE) << refused.error_message();
+  EXPECT_NE(refused.error_message().find("was deleted"), std::string::npos)
+      << refused.error_message();
+  const std::string health = HttpGet(health_port, "/healthz");
+  EXPECT_EQ(health.rfind("HTTP/1.1 503 ", 0), 0u) << health;
+  EXPECT_NE(health.find("was deleted"), std::string::npos) << health;
+  coordinator_->Signal(SIGTERM);
+  EXPECT_EQ(coordinator_->Wait(seconds(20)), 0) << coordinator_->Log();
+  EXPECT_FALSE(std::filesystem::exists(db_));  // not recreated on the way out
+  std::string log;
+  const int status = StartRefusedCoordinator(dir_, {"--db", db_}, &log);
+  ASSERT_NE(status, -1) << "the restarted coordinator began a new database:\n" << log;
+  EXPECT_NE(log.find("is missing, but its lock file records"), std::string::npos) << log;
+  EXPECT_NE(log.find("--init"), std::string::npos) << log;
+  EXPECT_FALSE(std::filesystem::exists(db_));
+}
+
+// Issue 12.4: a 0-byte file is not silently made a new store (--init is
+// needed), and a file of a newer schema version is refused without one
+// byte of it changing.
+TEST_F(EndToEndTest, EmptyAndNewerSchemaFilesAreRefusedUntouched) {
+  const std::string empty = dir_ + "/empty.db";
+  WriteFile(empty, "");
+  std::string log;
+  int status = StartRefusedCoordinator(dir_, {"--db", empty}, &log);
+  ASSERT_NE(status, -1) << "a 0-byte file was initialised:\n" << log;
+  EXPECT_NE(log.find("an empty (0-byte) file"), std::string::npos) << log;
+  EXPECT_EQ(std::filesystem::file_size(empty), 0u);
+
+  const std::string newer = dir_ + "/newer.db";
+  {
+    auto db = storage::internal::Db::Open(newer, /*create=*/true, 1000);
+    ASSERT_TRUE(db.ok()) << db.status();
+    ASSERT_TRUE(db->Exec("CREATE TABLE meta(key TEXT PRIMARY KEY, value TEXT); "
+                         "PRAGMA user_version=99").ok());
+  }
+  const std::string before = ReadFile(newer);
+  status = StartRefusedCoordinator(dir_, {"--db", newer}, &log);
+  ASSERT_NE(status, -1) << log;
+  EXPECT_NE(log.find("schema version 99"), std::string::npos) << log;
+  EXPECT_EQ(ReadFile(newer), before);
+  EXPECT_FALSE(std::filesystem::exists(newer + "-wal"));
+
+  // With --init the empty file becomes a store.
+  db_ = empty;
+  StartCoordinator(0, {"--init"});
+  ASSERT_TRUE(Submit(MakeSpec("in-empty", {1}, TinyProtocol())).ok());
 }
 
 TEST_F(EndToEndTest, TwoWorkersStoreExactlyTheExpectedRows) {

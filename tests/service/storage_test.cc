@@ -5,10 +5,14 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 
+#include "absl/strings/str_cat.h"
+#include "tests/service/process_util.h"
 #include "tests/service/service_testutil.h"
 
 namespace totalgrad::storage {
@@ -290,13 +294,145 @@ TEST_F(StorageTest, RefusesAForeignDatabase) {
     ASSERT_TRUE(db.ok());
     TG_ASSERT_OK(db->Exec("CREATE TABLE t(x)"));
   }
-  auto opened = SqliteStore::Open(other);
-  EXPECT_EQ(opened.status().code(), absl::StatusCode::kFailedPrecondition) << opened.status();
+  SqliteStoreOptions init;
+  init.init = true;  // --init never touches a foreign file
+  for (const SqliteStoreOptions& options : {SqliteStoreOptions{}, init}) {
+    auto opened = SqliteStore::Open(other, options);
+    EXPECT_EQ(opened.status().code(), absl::StatusCode::kFailedPrecondition) << opened.status();
+    EXPECT_NE(opened.status().message().find("not a totalgrad one"), std::string::npos)
+        << opened.status();
+  }
   const std::string text = dir_ + "/text.db";
-  std::ofstream(text) << "this is not a database, just some text that is long enough......";
-  auto garbage = SqliteStore::Open(text);
-  EXPECT_FALSE(garbage.ok());
-  EXPECT_EQ(garbage.status().code(), absl::StatusCode::kDataLoss) << garbage.status();
+  const std::string content = "this is not a database, just some text that is long enough......";
+  std::ofstream(text) << content;
+  for (const SqliteStoreOptions& options : {SqliteStoreOptions{}, init}) {
+    auto garbage = SqliteStore::Open(text, options);
+    EXPECT_EQ(garbage.status().code(), absl::StatusCode::kFailedPrecondition) << garbage.status();
+    EXPECT_NE(garbage.status().message().find("is not an SQLite database"), std::string::npos)
+        << garbage.status();
+  }
+  EXPECT_EQ(testing::ReadFile(text), content);
+}
+
+// Issue 12.4: a second store (a second coordinator) on the same file is
+// refused, naming the process that holds it; once that one closes, it opens.
+TEST_F(StorageTest, SecondStoreOnTheSameFileIsRefusedNamingTheHolder) {
+  auto second = SqliteStore::Open(path_);
+  EXPECT_EQ(second.status().code(), absl::StatusCode::kFailedPrecondition) << second.status();
+  EXPECT_NE(second.status().message().find("in use by another coordinator"), std::string::npos)
+      << second.status();
+  EXPECT_NE(second.status().message().find(absl::StrCat("pid ", getpid(), " on host ")),
+            std::string::npos)
+      << second.status();
+  // A consistent read-only copy still works while the file is owned.
+  TG_ASSERT_OK(SqliteStore::BackupFile(path_, dir_ + "/copy.db"));
+  Reopen();
+}
+
+// Issue 12.4: a 0-byte file, or a database that the lock file says existed
+// but is gone, is not silently initialised as a new store: --init is needed.
+TEST_F(StorageTest, EmptyFileOrDeletedDatabaseNeedsInit) {
+  const std::string empty = dir_ + "/empty.db";
+  std::ofstream(empty).close();
+  auto refused = SqliteStore::Open(empty);
+  EXPECT_EQ(refused.status().code(), absl::StatusCode::kFailedPrecondition) << refused.status();
+  EXPECT_NE(refused.status().message().find("an empty (0-byte) file"), std::string::npos)
+      << refused.status();
+  EXPECT_NE(refused.status().message().find("--init"), std::string::npos) << refused.status();
+  SqliteStoreOptions init;
+  init.init = true;
+  TG_ASSERT_OK(SqliteStore::Open(empty, init));
+
+  // The store's own file deleted while it was closed.
+  CreateAndLease("s");
+  store_.reset();
+  for (const char* suffix : {"", "-wal", "-shm"}) std::filesystem::remove(path_ + suffix);
+  auto missing = SqliteStore::Open(path_);
+  EXPECT_EQ(missing.status().code(), absl::StatusCode::kFailedPrecondition) << missing.status();
+  EXPECT_NE(missing.status().message().find("is missing, but its lock file records"),
+            std::string::npos)
+      << missing.status();
+  EXPECT_FALSE(std::filesystem::exists(path_));  // nothing was created
+  TG_ASSERT_OK_AND_ASSIGN(store_, SqliteStore::Open(path_, init));
+  TG_ASSERT_OK_AND_ASSIGN(auto sweeps, store_->ListSweeps());
+  EXPECT_TRUE(sweeps.empty());
+}
+
+// Issue 12.4: a file of a newer schema version is refused before anything is
+// written to it: not one byte changes (it used to be switched to WAL first).
+TEST_F(StorageTest, NewerSchemaIsRefusedAndTheFileIsNotTouched) {
+  CreateAndLease("s");
+  store_.reset();
+  {
+    auto db = internal::Db::Open(path_, false, 1000);
+    ASSERT_TRUE(db.ok());
+    TG_ASSERT_OK(db->Exec("PRAGMA journal_mode=DELETE"));
+    TG_ASSERT_OK(db->Exec("PRAGMA user_version=99"));
+  }
+  ASSERT_FALSE(std::filesystem::exists(path_ + "-wal"));
+  const std::string before = testing::ReadFile(path_);
+  SqliteStoreOptions init;
+  init.init = true;
+  for (const SqliteStoreOptions& options : {SqliteStoreOptions{}, init}) {
+    auto newer = SqliteStore::Open(path_, options);
+    EXPECT_EQ(newer.status().code(), absl::StatusCode::kFailedPrecondition) << newer.status();
+    EXPECT_NE(newer.status().message().find("schema version 99"), std::string::npos)
+        << newer.status();
+  }
+  EXPECT_EQ(testing::ReadFile(path_), before);
+  EXPECT_FALSE(std::filesystem::exists(path_ + "-wal"));
+}
+
+// Issue 12.4: the database file deleted or replaced under an open store:
+// writes are refused (Unavailable, so workers keep their results) with the
+// problem named, and stay refused.
+TEST_F(StorageTest, DeletedOrReplacedDatabaseFileStopsAcknowledgingWrites) {
+  TG_ASSERT_OK(store_->CheckWritable());
+  for (const char* suffix : {"", "-wal", "-shm"}) std::filesystem::remove(path_ + suffix);
+  bool created = false;
+  auto submitted = store_->CreateSweep(MakeSweep("after", 1, 2), kNow, &created);
+  EXPECT_EQ(submitted.status().code(), absl::StatusCode::kUnavailable) << submitted.status();
+  EXPECT_NE(submitted.status().message().find("was deleted"), std::string::npos)
+      << submitted.status();
+  EXPECT_FALSE(created);
+  const absl::Status health = store_->CheckWritable();
+  EXPECT_EQ(health.code(), absl::StatusCode::kUnavailable);
+  EXPECT_NE(health.message().find("was deleted"), std::string::npos) << health;
+
+  // Replaced: another file now under the same name.
+  store_.reset();
+  const std::string other_dir = dir_ + "/replaced";
+  std::filesystem::create_directories(other_dir);
+  const std::string path = other_dir + "/store.db";
+  TG_ASSERT_OK_AND_ASSIGN(auto store, SqliteStore::Open(path));
+  std::ofstream(other_dir + "/impostor.db") << "x";
+  std::filesystem::rename(other_dir + "/impostor.db", path);
+  const absl::Status write = store->TouchWorker(MakeWorker("w"), kNow);
+  EXPECT_EQ(write.code(), absl::StatusCode::kUnavailable) << write;
+  EXPECT_NE(write.message().find("was replaced by another file"), std::string::npos) << write;
+  EXPECT_EQ(testing::ReadFile(path), "x");  // the new file was not written to
+}
+
+// Issue 12.4: a full disk (here: the database may not grow) fails a commit
+// with Unavailable, which workers retry instead of dropping their result
+// (it was RESOURCE_EXHAUSTED, which they gave up on), and CheckWritable
+// (/healthz) reports it until a commit succeeds again.
+TEST_F(StorageTest, FullDiskIsRetryableAndReportedUntilACommitSucceeds) {
+  store_.reset();
+  const int64_t pages = static_cast<int64_t>(std::filesystem::file_size(path_)) / 4096;
+  SqliteStoreOptions limited;
+  limited.max_page_count = pages + 2;
+  TG_ASSERT_OK_AND_ASSIGN(store_, SqliteStore::Open(path_, limited));
+  TG_ASSERT_OK(store_->CheckWritable());
+  bool created = false;
+  auto big = store_->CreateSweep(MakeSweep("big", 5000, 3), kNow, &created);
+  EXPECT_EQ(big.status().code(), absl::StatusCode::kUnavailable) << big.status();
+  EXPECT_NE(big.status().message().find("disk is full"), std::string::npos) << big.status();
+  const absl::Status health = store_->CheckWritable();
+  EXPECT_EQ(health.code(), absl::StatusCode::kUnavailable);
+  EXPECT_NE(health.message().find("the last database commit failed"), std::string::npos) << health;
+  TG_ASSERT_OK(store_->TouchWorker(MakeWorker("w"), kNow));  // a small commit still fits
+  TG_ASSERT_OK(store_->CheckWritable());
 }
 
 TEST_F(StorageTest, BackupIsAConsistentOpenableCopy) {
@@ -598,7 +734,7 @@ TEST_F(StorageTest, VersionOneDatabaseIsMigrated) {
   {
     auto db = internal::Db::Open(path_, false, 1000);
     ASSERT_TRUE(db.ok());
-    TG_ASSERT_OK(db->Exec("PRAGMA user_version=3"));
+    TG_ASSERT_OK(db->Exec("PRAGMA user_version=99"));
   }
   auto newer = SqliteStore::Open(path_);
   EXPECT_EQ(newer.status().code(), absl::StatusCode::kFailedPrecondition) << newer.status();
