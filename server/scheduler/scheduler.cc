@@ -324,8 +324,10 @@ absl::StatusOr<EndOutcome> Scheduler::EndLocked(AttemptEnd end, LeaseBudget budg
   const bool cancelled = job.state == JobState::kCancelled;
   switch (end.attempt_state) {
     case AttemptState::kCompleted:
-      // Results that arrive after a cancel are still results.
-      end.job_state = JobState::kCompleted;
+      // A trial that finishes after its job was cancelled keeps its episodes
+      // (the attempt is recorded as completed) but the cancel stands: only
+      // the user takes a job out of cancelled (resuming its sweep).
+      end.job_state = cancelled ? JobState::kCancelled : JobState::kCompleted;
       break;
     case AttemptState::kFailed:
       end.failures_delta = 1;
@@ -499,10 +501,9 @@ absl::StatusOr<storage::SweepRecord> Scheduler::SetSweepState(const std::string&
   std::lock_guard<std::mutex> lock(decision_mutex_);
   ASSIGN_OR_RETURN(storage::SweepRecord sweep, store_->GetSweep(name));
   if (sweep.state == state) return sweep;
-  if (sweep.state == SweepState::kCancelled) {
-    return absl::FailedPreconditionError(
-        absl::StrCat("sweep '", name, "' is cancelled; a cancelled sweep cannot be ",
-                     state == SweepState::kPaused ? "paused" : "resumed"));
+  if (sweep.state == SweepState::kCancelled && state == SweepState::kPaused) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        "sweep '", name, "' is cancelled; a cancelled sweep cannot be paused, only resumed"));
   }
   RETURN_IF_ERROR(store_->SetSweepState(name, state, clock_->NowMs()));
   NotifyWork();

@@ -20,6 +20,9 @@
 //     either budget becomes failed.
 //   * A cancelled job's running attempt gets DIRECTIVE kCancel; a draining
 //     worker gets kDrain and no new leases. Paused sweeps hand out nothing.
+//   * A cancel is final unless the user resumes the sweep: a report that
+//     arrives after it (even a completion) is stored as data but leaves the
+//     job cancelled.
 //   * Repeated Complete/Fail/Release of an attempt that already ended that way
 //     are OK and change nothing (duplicate delivery).
 //
@@ -177,8 +180,11 @@ class Scheduler {
   // ---- user calls ----
 
   absl::StatusOr<storage::SweepRecord> SubmitSweep(const storage::NewSweep& sweep, bool* created);
-  // Pause/resume/cancel with the transition rules of the proto (no-op when
-  // already there; FailedPrecondition to leave kCancelled).
+  // Pause/resume/cancel with the transition rules of the proto: no-op when
+  // already there; cancelling cancels queued and running jobs; resuming a
+  // cancelled sweep (the only way out of a cancel) re-queues its cancelled
+  // jobs (those whose attempt is still open run on); pausing a cancelled
+  // sweep is FailedPrecondition.
   absl::StatusOr<storage::SweepRecord> SetSweepState(const std::string& name,
                                                      storage::SweepState state);
   absl::StatusOr<storage::JobRecord> RetryJob(int64_t job_id);

@@ -1081,6 +1081,16 @@ absl::Status SqliteStore::SetSweepState(const std::string& name, SweepState stat
                                               "sweep_id = ? AND state IN ('queued', 'running')"));
       cancel.Bind(1, sweep_id);
       RETURN_IF_ERROR(cancel.Run());
+    } else if (previous == ToString(SweepState::kCancelled)) {
+      // Resumed by the user: cancelled jobs run again; one whose attempt is
+      // still open (its worker has not answered the cancel yet) carries on.
+      ASSIGN_OR_RETURN(Statement resume, Statement::Prepare(db, R"sql(
+UPDATE jobs SET state = CASE WHEN EXISTS(SELECT 1 FROM attempts a WHERE a.job_id = jobs.id
+                                          AND a.attempt = jobs.attempts AND a.state = 'running')
+                             THEN 'running' ELSE 'queued' END
+WHERE sweep_id = ? AND state = 'cancelled')sql"));
+      resume.Bind(1, sweep_id);
+      RETURN_IF_ERROR(resume.Run());
     }
     return AddEvent(db, now_ms, sweep_id, 0, 0, absl::StrCat("sweep_", ToString(state)),
                     absl::StrCat("was ", previous));
@@ -1235,7 +1245,9 @@ UPDATE attempts SET state = ?, ended_ms = ?, error = ? WHERE job_id = ? AND atte
     close.Bind(1, ToString(end.attempt_state)).Bind(2, end.now_ms).Bind(3, end.error);
     close.Bind(4, key.job_id).Bind(5, key.attempt);
     RETURN_IF_ERROR(close.Run());
-    const bool completed = end.attempt_state == AttemptState::kCompleted;
+    // The job's result fields only when the job completes (an attempt that
+    // completes after a cancel leaves the job cancelled, without a result).
+    const bool completed = end.job_state == JobState::kCompleted;
     ASSIGN_OR_RETURN(Statement job, Statement::Prepare(db, R"sql(
 UPDATE jobs SET state = ?, failures = failures + ?, lost_leases = lost_leases + ?,
        last_error = CASE WHEN ? = '' THEN last_error ELSE ? END,

@@ -325,8 +325,10 @@ struct AttemptEnd {
   std::string error;              // kept as the attempt's and job's error
   int failures_delta = 0;         // added to the job's failure count
   int lost_leases_delta = 0;      // added to the job's lost-lease count
-  // Completion only: must equal the job's episodes_expected, and all episodes
-  // 0..episodes_expected-1 must then be stored.
+  // Completion only (checked whatever job_state says): must equal the job's
+  // episodes_expected, and all episodes 0..episodes_expected-1 must then be
+  // stored. The job's completed_attempt, success and final_eval_cost are set
+  // only when job_state is kCompleted.
   int episodes_total = 0;
   bool success = false;
   double final_eval_cost = kNaN;
@@ -358,7 +360,8 @@ class Store {
 
   // Sets a sweep's state. kCancelled also cancels its queued and running jobs
   // (open attempts stay open until the worker answers the CANCEL directive or
-  // the lease is lost). NotFound if no such sweep.
+  // the lease is lost); kRunning from kCancelled re-queues its cancelled jobs
+  // (running again if their attempt is still open). NotFound if no such sweep.
   virtual absl::Status SetSweepState(const std::string& name, SweepState state,
                                      int64_t now_ms) = 0;
 

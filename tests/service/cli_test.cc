@@ -164,8 +164,12 @@ TEST_F(CliTest, PauseResumeAndCancelFromTheCli) {
   ASSERT_EQ(Cli({"sweep", "status", "cli", "--wait"}, &out, &err), 0) << err;
   ASSERT_EQ(Cli({"sweep", "cancel", "cli"}, &out, &err), 0) << err;  // finished: results kept
   EXPECT_EQ(Sweep("cli").jobs_completed(), 3);
-  EXPECT_EQ(Cli({"sweep", "resume", "cli"}, &out, &err), 1);
-  EXPECT_NE(err.find("cancelled sweep cannot be resumed"), std::string::npos) << err;
+  EXPECT_EQ(Cli({"sweep", "pause", "cli"}, &out, &err), 1);
+  EXPECT_NE(err.find("cancelled sweep cannot be paused, only resumed"), std::string::npos) << err;
+  // Resuming is the user's way out of a cancel; completed jobs stay completed.
+  ASSERT_EQ(Cli({"sweep", "resume", "cli", "-f", "json"}, &out, &err), 0) << err;
+  EXPECT_EQ(nlohmann::json::parse(out)[0]["state"], "running");
+  EXPECT_EQ(Sweep("cli").jobs_completed(), 3);
 }
 
 TEST_F(CliTest, BackupsByRpcAndOneShotAreConsistentCopies) {

@@ -645,8 +645,8 @@ TEST_F(EndToEndTest, CancelStopsRunningTrialsAndKeepsStoredResults) {
   EXPECT_EQ(after.jobs_cancelled() + after.jobs_completed(), 3);
   EXPECT_GE(after.jobs_cancelled(), 2);
   EXPECT_FALSE(Export("cancel-me", /*all_attempts=*/true).empty());  // kept
-  v1::SweepInfo resumed;
-  EXPECT_EQ(control_->ResumeSweep(Context(kUserToken).get(), request, &resumed).error_code(),
+  v1::SweepInfo paused;
+  EXPECT_EQ(control_->PauseSweep(Context(kUserToken).get(), request, &paused).error_code(),
             grpc::StatusCode::FAILED_PRECONDITION);
   EXPECT_TRUE(worker->Running());  // a cancel is not a reason for the worker to exit
 }

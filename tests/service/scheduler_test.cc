@@ -312,7 +312,7 @@ TEST_F(SchedulerTest, PausedSweepsHandOutNothingButRunningTrialsContinue) {
   MustAcquire("w2");
 }
 
-TEST_F(SchedulerTest, CancelTellsRunningTrialsToStopAndCannotBeUndone) {
+TEST_F(SchedulerTest, CancelTellsRunningTrialsToStopAndOnlyAResumeUndoesIt) {
   Submit("s", 3, 2);
   const Lease running = MustAcquire("w1");
   TG_ASSERT_OK_AND_ASSIGN(auto sweep, scheduler_->SetSweepState("s", SweepState::kCancelled));
@@ -327,10 +327,13 @@ TEST_F(SchedulerTest, CancelTellsRunningTrialsToStopAndCannotBeUndone) {
   EXPECT_EQ(Job(running.key.job_id).state, JobState::kCancelled);
   EXPECT_EQ(Job(running.key.job_id).lost_leases, 0);
   EXPECT_TRUE(NothingToAcquire("w2"));
-  EXPECT_EQ(scheduler_->SetSweepState("s", SweepState::kRunning).status().code(),
+  EXPECT_EQ(scheduler_->SetSweepState("s", SweepState::kPaused).status().code(),
             absl::StatusCode::kFailedPrecondition);
   EXPECT_EQ(scheduler_->SetSweepState("missing", SweepState::kPaused).status().code(),
             absl::StatusCode::kNotFound);
+  TG_ASSERT_OK_AND_ASSIGN(sweep, scheduler_->SetSweepState("s", SweepState::kRunning));
+  EXPECT_EQ(sweep.jobs_queued, 3);
+  EXPECT_EQ(MustAcquire("w2").key.job_id, running.key.job_id);
 }
 
 TEST_F(SchedulerTest, DrainingWorkerGetsDrainAndNoNewLeases) {
@@ -514,12 +517,183 @@ TEST_F(SchedulerTest, BadReportsAreRefusedWithTheFieldNamed) {
   EXPECT_EQ(Job(lease.key.job_id).episodes_stored, 0);
 }
 
-TEST_F(SchedulerTest, CompletionAfterCancelKeepsTheResult) {
-  Submit("s", 1, 2);
+// Issue 12.5: a trial that finishes after its sweep was cancelled is stored
+// as data (the attempt completed, its episodes kept) but the job stays
+// cancelled and counts nowhere as a result; it used to flip to completed.
+TEST_F(SchedulerTest, CompletionAfterCancelIsDataButTheJobStaysCancelled) {
+  Submit("s", 2, 2);
   const Lease lease = MustAcquire("w1");
   TG_ASSERT_OK(scheduler_->SetSweepState("s", SweepState::kCancelled));
   TG_ASSERT_OK(scheduler_->Complete("w1", lease.key, Episodes(0, 2), 2, true, 1));
-  EXPECT_EQ(Job(lease.key.job_id).state, JobState::kCompleted);
+  TG_ASSERT_OK(scheduler_->Complete("w1", lease.key, {}, 2, true, 1));  // repeated: no-op
+  const JobRecord job = Job(lease.key.job_id);
+  EXPECT_EQ(job.state, JobState::kCancelled);
+  EXPECT_EQ(job.completed_attempt, 0);
+  EXPECT_EQ(job.episodes_stored, 2);
+  TG_ASSERT_OK_AND_ASSIGN(auto attempts, store_->ListAttempts(lease.key.job_id));
+  EXPECT_EQ(attempts[0].state, AttemptState::kCompleted);
+  TG_ASSERT_OK_AND_ASSIGN(auto sweep, store_->GetSweep("s"));
+  EXPECT_EQ(sweep.jobs_completed, 0);
+  EXPECT_EQ(sweep.jobs_cancelled, 2);
+  TG_ASSERT_OK_AND_ASSIGN(auto results, store_->ListTrialResults("s"));
+  EXPECT_TRUE(results.empty());
+}
+
+// Issue 12.5: the job state machine, every (state, event) pair. Each row
+// builds its job in a fresh sweep, applies one event, and checks the job's
+// next state and the call's status. "tight" sweeps have max_attempts = 1
+// and max_lost_leases = 1, so a failure or lost lease is final.
+TEST_F(SchedulerTest, JobStateMachineTable) {
+  enum class Start { kQueued, kRunning, kCompleted, kFailed, kCancelledIdle, kCancelledOpen };
+  enum class Event {
+    kAcquire, kHeartbeat, kComplete, kFail, kRelease, kUndelivered, kLeaseLost,
+    kCancelSweep, kPauseSweep, kResumeSweep, kRetry
+  };
+  struct Row {
+    Start start;
+    bool tight;
+    Event event;
+    JobState expected;
+    absl::StatusCode code;
+  };
+  using S = JobState;
+  using C = absl::StatusCode;
+  const std::vector<Row> table = {
+      // queued
+      {Start::kQueued, false, Event::kAcquire, S::kRunning, C::kOk},
+      {Start::kQueued, false, Event::kHeartbeat, S::kQueued, C::kAborted},
+      {Start::kQueued, false, Event::kComplete, S::kQueued, C::kAborted},
+      {Start::kQueued, false, Event::kFail, S::kQueued, C::kAborted},
+      {Start::kQueued, false, Event::kRelease, S::kQueued, C::kAborted},
+      {Start::kQueued, false, Event::kUndelivered, S::kQueued, C::kAborted},
+      {Start::kQueued, false, Event::kLeaseLost, S::kQueued, C::kOk},
+      {Start::kQueued, false, Event::kCancelSweep, S::kCancelled, C::kOk},
+      {Start::kQueued, false, Event::kPauseSweep, S::kQueued, C::kOk},
+      {Start::kQueued, false, Event::kResumeSweep, S::kQueued, C::kOk},
+      {Start::kQueued, false, Event::kRetry, S::kQueued, C::kFailedPrecondition},
+      // running, budgets left
+      {Start::kRunning, false, Event::kAcquire, S::kRunning, C::kOk},
+      {Start::kRunning, false, Event::kHeartbeat, S::kRunning, C::kOk},
+      {Start::kRunning, false, Event::kComplete, S::kCompleted, C::kOk},
+      {Start::kRunning, false, Event::kFail, S::kQueued, C::kOk},
+      {Start::kRunning, false, Event::kRelease, S::kQueued, C::kOk},
+      {Start::kRunning, false, Event::kUndelivered, S::kQueued, C::kOk},
+      {Start::kRunning, false, Event::kLeaseLost, S::kQueued, C::kOk},
+      {Start::kRunning, false, Event::kCancelSweep, S::kCancelled, C::kOk},
+      {Start::kRunning, false, Event::kPauseSweep, S::kRunning, C::kOk},
+      {Start::kRunning, false, Event::kResumeSweep, S::kRunning, C::kOk},
+      {Start::kRunning, false, Event::kRetry, S::kRunning, C::kFailedPrecondition},
+      // running, last attempt: the budgets decide
+      {Start::kRunning, true, Event::kComplete, S::kCompleted, C::kOk},
+      {Start::kRunning, true, Event::kFail, S::kFailed, C::kOk},
+      {Start::kRunning, true, Event::kRelease, S::kFailed, C::kOk},
+      {Start::kRunning, true, Event::kUndelivered, S::kQueued, C::kOk},  // charges no budget
+      {Start::kRunning, true, Event::kLeaseLost, S::kFailed, C::kOk},
+      // completed
+      {Start::kCompleted, false, Event::kAcquire, S::kCompleted, C::kOk},
+      {Start::kCompleted, false, Event::kHeartbeat, S::kCompleted, C::kAborted},
+      {Start::kCompleted, false, Event::kComplete, S::kCompleted, C::kOk},  // a repeat
+      {Start::kCompleted, false, Event::kFail, S::kCompleted, C::kAborted},
+      {Start::kCompleted, false, Event::kRelease, S::kCompleted, C::kAborted},
+      {Start::kCompleted, false, Event::kUndelivered, S::kCompleted, C::kAborted},
+      {Start::kCompleted, false, Event::kLeaseLost, S::kCompleted, C::kOk},
+      {Start::kCompleted, false, Event::kCancelSweep, S::kCompleted, C::kOk},
+      {Start::kCompleted, false, Event::kPauseSweep, S::kCompleted, C::kOk},
+      {Start::kCompleted, false, Event::kResumeSweep, S::kCompleted, C::kOk},
+      {Start::kCompleted, false, Event::kRetry, S::kCompleted, C::kFailedPrecondition},
+      // failed (tight sweep, after its one failure)
+      {Start::kFailed, true, Event::kAcquire, S::kFailed, C::kOk},
+      {Start::kFailed, true, Event::kHeartbeat, S::kFailed, C::kAborted},
+      {Start::kFailed, true, Event::kComplete, S::kFailed, C::kAborted},
+      {Start::kFailed, true, Event::kFail, S::kFailed, C::kOk},  // a repeat
+      {Start::kFailed, true, Event::kRelease, S::kFailed, C::kAborted},
+      {Start::kFailed, true, Event::kUndelivered, S::kFailed, C::kAborted},
+      {Start::kFailed, true, Event::kLeaseLost, S::kFailed, C::kOk},
+      {Start::kFailed, true, Event::kCancelSweep, S::kFailed, C::kOk},
+      {Start::kFailed, true, Event::kPauseSweep, S::kFailed, C::kOk},
+      {Start::kFailed, true, Event::kResumeSweep, S::kFailed, C::kOk},
+      {Start::kFailed, true, Event::kRetry, S::kQueued, C::kOk},
+      // cancelled before it ran
+      {Start::kCancelledIdle, false, Event::kAcquire, S::kCancelled, C::kOk},
+      {Start::kCancelledIdle, false, Event::kHeartbeat, S::kCancelled, C::kAborted},
+      {Start::kCancelledIdle, false, Event::kComplete, S::kCancelled, C::kAborted},
+      {Start::kCancelledIdle, false, Event::kFail, S::kCancelled, C::kAborted},
+      {Start::kCancelledIdle, false, Event::kRelease, S::kCancelled, C::kAborted},
+      {Start::kCancelledIdle, false, Event::kUndelivered, S::kCancelled, C::kAborted},
+      {Start::kCancelledIdle, false, Event::kLeaseLost, S::kCancelled, C::kOk},
+      {Start::kCancelledIdle, false, Event::kCancelSweep, S::kCancelled, C::kOk},
+      {Start::kCancelledIdle, false, Event::kPauseSweep, S::kCancelled, C::kFailedPrecondition},
+      {Start::kCancelledIdle, false, Event::kResumeSweep, S::kQueued, C::kOk},
+      {Start::kCancelledIdle, false, Event::kRetry, S::kCancelled, C::kFailedPrecondition},
+      // cancelled while its attempt runs: reports are data, the cancel stands
+      {Start::kCancelledOpen, false, Event::kAcquire, S::kCancelled, C::kOk},
+      {Start::kCancelledOpen, false, Event::kHeartbeat, S::kCancelled, C::kOk},
+      {Start::kCancelledOpen, false, Event::kComplete, S::kCancelled, C::kOk},
+      {Start::kCancelledOpen, false, Event::kFail, S::kCancelled, C::kOk},
+      {Start::kCancelledOpen, false, Event::kRelease, S::kCancelled, C::kOk},
+      {Start::kCancelledOpen, false, Event::kUndelivered, S::kCancelled, C::kOk},
+      {Start::kCancelledOpen, false, Event::kLeaseLost, S::kCancelled, C::kOk},
+      {Start::kCancelledOpen, false, Event::kCancelSweep, S::kCancelled, C::kOk},
+      {Start::kCancelledOpen, false, Event::kPauseSweep, S::kCancelled, C::kFailedPrecondition},
+      {Start::kCancelledOpen, false, Event::kResumeSweep, S::kRunning, C::kOk},
+      {Start::kCancelledOpen, false, Event::kRetry, S::kCancelled, C::kFailedPrecondition},
+  };
+  int row_number = 0;
+  for (const Row& row : table) {
+    const std::string sweep = absl::StrCat("row", row_number++);
+    SCOPED_TRACE(absl::StrCat(sweep, ": start ", static_cast<int>(row.start), ", event ",
+                              static_cast<int>(row.event), ", tight ", row.tight));
+    Submit(sweep, 1, 2, row.tight ? 1 : 3, row.tight ? 1 : 20);
+    TG_ASSERT_OK_AND_ASSIGN(auto jobs, store_->ListJobs({sweep, {}, 0, 10}));
+    const int64_t job_id = jobs.at(0).id;
+    LeaseKey key{job_id, 1};  // the attempt the worker calls name (none yet for queued)
+    if (row.start != Start::kQueued && row.start != Start::kCancelledIdle) {
+      key = MustAcquire("w1").key;
+      TG_ASSERT_OK(scheduler_->Heartbeat("w1", key, Episodes(0, 1)));
+    }
+    switch (row.start) {
+      case Start::kCompleted:
+        TG_ASSERT_OK(scheduler_->Complete("w1", key, Episodes(1, 2), 2, true, 1));
+        break;
+      case Start::kFailed:
+        TG_ASSERT_OK(scheduler_->Fail("w1", key, {}, "boom"));
+        break;
+      case Start::kCancelledIdle:
+      case Start::kCancelledOpen:
+        TG_ASSERT_OK(scheduler_->SetSweepState(sweep, SweepState::kCancelled));
+        break;
+      default:
+        break;
+    }
+    absl::Status status;
+    switch (row.event) {
+      case Event::kAcquire: status = scheduler_->TryAcquire(MakeWorker("w2")).status(); break;
+      case Event::kHeartbeat: status = scheduler_->Heartbeat("w1", key, {}).status(); break;
+      case Event::kComplete:
+        status = scheduler_->Complete("w1", key, Episodes(0, 2), 2, true, 1);
+        break;
+      case Event::kFail: status = scheduler_->Fail("w1", key, {}, "boom").status(); break;
+      case Event::kRelease: status = scheduler_->Release("w1", key, "drain"); break;
+      case Event::kUndelivered: status = scheduler_->ReturnUndelivered("w1", key, "gone"); break;
+      case Event::kLeaseLost: RunLeaseLoopFor(91'000); break;
+      case Event::kCancelSweep:
+        status = scheduler_->SetSweepState(sweep, SweepState::kCancelled).status();
+        break;
+      case Event::kPauseSweep:
+        status = scheduler_->SetSweepState(sweep, SweepState::kPaused).status();
+        break;
+      case Event::kResumeSweep:
+        status = scheduler_->SetSweepState(sweep, SweepState::kRunning).status();
+        break;
+      case Event::kRetry: status = scheduler_->RetryJob(job_id).status(); break;
+    }
+    EXPECT_EQ(status.code(), row.code) << status;
+    EXPECT_EQ(Job(job_id).state, row.expected)
+        << "got " << storage::ToString(Job(job_id).state) << ", expected "
+        << storage::ToString(row.expected);
+    // Leave nothing claimable for the next row's Acquire.
+    (void)scheduler_->SetSweepState(sweep, SweepState::kCancelled);
+  }
 }
 
 // The long poll returns as soon as work appears (bounded real-time wait).
