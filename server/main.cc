@@ -16,6 +16,7 @@
 
 #include "server/common/build_info.h"
 #include "server/common/signals.h"
+#include "server/common/token_file.h"
 #include "server/service/auth.h"
 #include "server/service/coordinator.h"
 #include "server/storage/sqlite_store.h"
@@ -78,9 +79,10 @@ int main(int argc, char** argv) {
   for (auto [file, token] : {std::pair{&worker_token_file, &options.worker_token},
                              std::pair{&user_token_file, &options.user_token}}) {
     if (file->empty()) continue;
-    auto read = totalgrad::service::ReadTokenFile(*file);
+    auto read = totalgrad::ReadTokenFile(*file);
     if (!read.ok()) return Fail(read.status().ToString());
-    *token = *read;
+    if (!read->warning.empty()) spdlog::warn("{}", read->warning);
+    *token = read->token;
   }
   options.scheduler.heartbeat_interval = absl::Seconds(heartbeat_seconds);
   options.scheduler.lease_timeout = absl::Seconds(lease_timeout_seconds);

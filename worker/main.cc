@@ -21,6 +21,7 @@
 
 #include "server/common/build_info.h"
 #include "server/common/signals.h"
+#include "server/common/token_file.h"
 #include "server/common/rpc_client.h"
 #include "worker/learner_runner.h"
 #include "worker/study_runner.h"
@@ -32,16 +33,6 @@ std::string HostName() {
   char buffer[256] = {};
   if (gethostname(buffer, sizeof(buffer) - 1) != 0) return "unknown-host";
   return buffer;
-}
-
-absl::StatusOr<std::string> ReadToken(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) return absl::NotFoundError("cannot read token file " + path);
-  std::string token((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  while (!token.empty() && std::isspace(static_cast<unsigned char>(token.back()))) token.pop_back();
-  while (!token.empty() && std::isspace(static_cast<unsigned char>(token.front()))) token.erase(0, 1);
-  if (token.empty()) return absl::InvalidArgumentError("token file " + path + " is empty");
-  return token;
 }
 
 // Where the worker keeps its lock and spool unless --state-dir says:
@@ -135,13 +126,14 @@ int main(int argc, char** argv) {
   spdlog::flush_on(spdlog::level::info);
 
   if (!token_file.empty()) {
-    auto token = ReadToken(token_file);
+    auto token = totalgrad::ReadTokenFile(token_file);
     if (!token.ok()) {
       spdlog::error("{}", token.status().ToString());
       return 2;
     }
-    options.token = *token;
-    connection.token = *token;
+    if (!token->warning.empty()) spdlog::warn("{}", token->warning);
+    options.token = token->token;
+    connection.token = token->token;
   }
   options.drain_timeout = absl::Seconds(drain_seconds);
   options.report_grace = absl::Seconds(report_grace_seconds);

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <functional>
+#include <limits>
 #include <memory>
 
 #include "absl/strings/numbers.h"
@@ -41,8 +42,17 @@ absl::Status ParseDouble(const std::string& key, const std::string& text, double
 
 absl::Status ParseInt(const std::string& key, const std::string& text, int* out) {
   int v;
-  if (!absl::SimpleAtoi(text, &v))
+  if (!absl::SimpleAtoi(text, &v)) {
+    // A whole number too large for an int ("1e12", "3000000000") is out of
+    // range, not "not an integer".
+    double d;
+    if (absl::SimpleAtod(text, &d) && std::isfinite(d) && d == std::floor(d) &&
+        std::fabs(d) > std::numeric_limits<int>::max())
+      return absl::InvalidArgumentError(absl::StrCat("option '", key, "': ", text,
+                                                     " is out of range; counts are at most ",
+                                                     std::numeric_limits<int>::max()));
     return absl::InvalidArgumentError(absl::StrCat("option '", key, "': '", text, "' is not an integer"));
+  }
   *out = v;
   return absl::OkStatus();
 }

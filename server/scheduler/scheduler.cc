@@ -395,6 +395,11 @@ absl::Status Scheduler::CompleteStudy(const std::string& worker_id, const LeaseK
                                       const storage::StudyRows& rows, int cells_total,
                                       int references_total) {
   RETURN_IF_ERROR(ValidateStudyRows(rows));
+  if (cells_total > kMaxStudyRowsPerJob || references_total > kMaxStudyRowsPerJob) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "a study completes with ", cells_total, " cells and ", references_total,
+        " references; at most ", kMaxStudyRowsPerJob, " of each"));
+  }
   std::lock_guard<std::mutex> lock(decision_mutex_);
   AttemptEnd end;
   end.key = key;

@@ -98,6 +98,8 @@ inline constexpr size_t kMaxWorkerIdBytes = 128;
 inline constexpr int kMaxStudyRowsPerCall = 1000;
 inline constexpr size_t kMaxStudyTextBytes = 16 * 1024;
 inline constexpr size_t kMaxStudyVectorSize = 100000;
+// Cells or references one study job may complete with.
+inline constexpr int kMaxStudyRowsPerJob = 1000000;
 
 // InvalidArgument naming the problem: empty or over-long id, control chars.
 absl::Status ValidateWorkerIdentity(const storage::WorkerIdentity& worker);
@@ -151,7 +153,7 @@ class Scheduler {
   // Ends a study job's attempt as completed: `rows` are stored first, then
   // cells 0..cells_total-1 and references 0..references_total-1 must all be
   // stored (FailedPrecondition names the missing ones). InvalidArgument for
-  // a trial job.
+  // a trial job or a total above kMaxStudyRowsPerJob.
   absl::Status CompleteStudy(const std::string& worker_id, const storage::LeaseKey& key,
                              const storage::StudyRows& rows, int cells_total,
                              int references_total);

@@ -24,6 +24,8 @@ absl::StatusOr<storage::NewSweep> PrepareSubmission(const v1::SubmitSweepRequest
     return absl::InvalidArgumentError("source_name: at most 4096 bytes");
   }
   sweep::SweepSpec spec = FromProto(request.spec());
+  std::vector<std::string> protocol_order;
+  for (const auto& [key, value] : spec.protocol) protocol_order.push_back(key);
   absl::Status status = sweep::CanonicalizeSpec(&spec);
   if (!status.ok()) return status;
   absl::StatusOr<std::vector<sweep::ExpandedJob>> jobs = sweep::ExpandJobs(spec);
@@ -33,6 +35,9 @@ absl::StatusOr<storage::NewSweep> PrepareSubmission(const v1::SubmitSweepRequest
   sweep.description = spec.description;
   sweep.canonical_spec = sweep::CanonicalJson(spec);
   sweep.spec_hash = sweep::SpecHash(spec);
+  // Sweeps stored by builds that kept [protocol] in file order.
+  const std::string legacy_hash = sweep::LegacySpecHash(spec, protocol_order);
+  if (legacy_hash != sweep.spec_hash) sweep.equivalent_spec_hashes.push_back(legacy_hash);
   sweep.source_name = request.source_name();
   sweep.source_text = request.source_text();
   sweep.coordinator_build = coordinator_build;

@@ -6,6 +6,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
@@ -1020,7 +1021,10 @@ absl::StatusOr<SweepRecord> SqliteStore::CreateSweep(const NewSweep& sweep, int6
     existing.Bind(1, sweep.name);
     ASSIGN_OR_RETURN(bool found, existing.Step());
     if (found) {
-      if (existing.ColumnText(0) != sweep.spec_hash) {
+      const std::string stored = existing.ColumnText(0);
+      if (stored != sweep.spec_hash &&
+          std::find(sweep.equivalent_spec_hashes.begin(), sweep.equivalent_spec_hashes.end(),
+                    stored) == sweep.equivalent_spec_hashes.end()) {
         return absl::AlreadyExistsError(absl::StrCat(
             "a different sweep named '", sweep.name, "' exists (spec hash ",
             existing.ColumnText(0).substr(0, 12), ", submitted ", sweep.spec_hash.substr(0, 12),

@@ -180,6 +180,9 @@ struct NewSweep {
   std::string description;
   std::string canonical_spec;
   std::string spec_hash;
+  // Hashes an older build gave this same spec (sweep::LegacySpecHash): a
+  // stored sweep with one of them is this sweep, not a different one.
+  std::vector<std::string> equivalent_spec_hashes;
   std::string source_name;
   std::string source_text;
   std::string coordinator_build;
@@ -353,8 +356,9 @@ class Store {
   // ---- Writes ----
 
   // Stores the sweep and its jobs (all queued, ordinals in vector order).
-  // If a sweep with that name exists: same spec_hash -> returns it with
-  // *created = false and stores nothing; different hash -> AlreadyExists.
+  // If a sweep with that name exists: same spec_hash (or one of
+  // equivalent_spec_hashes) -> returns it with *created = false and stores
+  // nothing; different hash -> AlreadyExists.
   virtual absl::StatusOr<SweepRecord> CreateSweep(const NewSweep& sweep, int64_t now_ms,
                                                   bool* created) = 0;
 

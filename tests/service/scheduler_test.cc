@@ -514,6 +514,10 @@ TEST_F(SchedulerTest, BadReportsAreRefusedWithTheFieldNamed) {
   EXPECT_EQ(scheduler_->TryAcquire(MakeWorker("")).status().code(),
             absl::StatusCode::kInvalidArgument);
   EXPECT_EQ(scheduler_->Heartbeat("w1", {999, 1}, {}).status().code(), absl::StatusCode::kNotFound);
+  // A forged study total is refused before the store counts up to it.
+  const absl::Status huge_study = scheduler_->CompleteStudy("w1", lease.key, {}, 2147483647, 1);
+  EXPECT_EQ(huge_study.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(huge_study.message().find("at most 1000000"), std::string::npos) << huge_study;
   EXPECT_EQ(Job(lease.key.job_id).episodes_stored, 0);
 }
 

@@ -89,6 +89,26 @@ TEST_F(StorageTest, CreateSweepRefusesADifferentSpecUnderATakenName) {
   EXPECT_FALSE(created);
   TG_ASSERT_OK_AND_ASSIGN(SweepRecord kept, store_->GetSweep("s"));
   EXPECT_EQ(kept.jobs_total, 2);
+  // The same sweep under the hash a newer build gives it: recognised.
+  NewSweep rehashed = MakeSweep("s", 2, 3, "hash-new");
+  rehashed.equivalent_spec_hashes = {"hash-a"};
+  TG_ASSERT_OK_AND_ASSIGN(SweepRecord same, store_->CreateSweep(rehashed, kNow, &created));
+  EXPECT_FALSE(created);
+  EXPECT_EQ(same.spec_hash, "hash-a");
+}
+
+// Issue 12.6: a value that breaks a CHECK constraint (the service should
+// have refused it first) is an internal error saying so, not ALREADY_EXISTS
+// as if the sweep existed; nothing is stored.
+TEST_F(StorageTest, ConstraintViolationIsNotReportedAsAlreadyExists) {
+  NewSweep sweep = MakeSweep("bad", 1, 3);
+  sweep.jobs[0].episodes_expected = 0;  // CHECK(episodes_expected >= 1)
+  bool created = false;
+  auto refused = store_->CreateSweep(sweep, kNow, &created);
+  EXPECT_EQ(refused.status().code(), absl::StatusCode::kInternal) << refused.status();
+  EXPECT_NE(refused.status().message().find("should have refused"), std::string::npos)
+      << refused.status();
+  EXPECT_EQ(store_->GetSweep("bad").status().code(), absl::StatusCode::kNotFound);
 }
 
 TEST_F(StorageTest, NamesWithQuotesAreStoredVerbatim) {
