@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "absl/strings/str_cat.h"
+#include "absl/strings/match.h"
 #include "absl/strings/str_format.h"
 #include "server/common/rpc_client.h"
 
@@ -84,6 +85,9 @@ struct Worker::ActiveLease {
   v1::Lease lease;
   // The fields below are guarded by Worker::mutex_.
   std::vector<v1::EpisodeReport> unacked;
+  // The trial's latest checkpoint until the coordinator acknowledges it.
+  std::optional<v1::TrialCheckpoint> checkpoint;
+  bool checkpoint_too_big = false;  // warned once
   bool has_new = false;
   bool beat_in_flight = false;
   int64_t next_beat_ms = 0;
@@ -114,6 +118,28 @@ class Worker::Progress final : public TrialProgress {
     worker_->changed_.notify_all();
   }
   bool ShouldCancel() override { return active_->cancel.load(); }
+  void OnCheckpoint(int episode, int format_version, std::string data) override {
+    {
+      std::lock_guard<std::mutex> lock(worker_->mutex_);
+      if (data.size() > kMaxCheckpointBytes) {
+        // The coordinator would refuse it: the trial goes on without one.
+        if (!active_->checkpoint_too_big) {
+          spdlog::warn("{}: the checkpoint after episode {} is {} bytes, over {}; not sent (this "
+                       "attempt cannot be resumed)",
+                       Describe(active_->lease.key()), episode, data.size(), kMaxCheckpointBytes);
+        }
+        active_->checkpoint_too_big = true;
+        return;
+      }
+      v1::TrialCheckpoint checkpoint;
+      checkpoint.set_episode(episode);
+      checkpoint.set_format_version(format_version);
+      checkpoint.set_data(std::move(data));
+      active_->checkpoint = std::move(checkpoint);
+      active_->has_new = true;
+    }
+    worker_->changed_.notify_all();
+  }
 
  private:
   Worker* worker_;
@@ -220,16 +246,18 @@ void Worker::FillIdentity(v1::WorkerIdentity* identity) const {
 }
 
 v1::SpooledAttempt Worker::SpoolEntry(const v1::LeaseKey& key,
-                                      const std::vector<v1::EpisodeReport>& unacked) const {
+                                      const std::vector<v1::EpisodeReport>& unacked,
+                                      const std::optional<v1::TrialCheckpoint>& checkpoint) const {
   v1::SpooledAttempt entry;
   entry.set_format_version(kSpoolFormatVersion);
   *entry.mutable_lease() = key;
   entry.set_worker_id(options_.worker_id);
   entry.set_written_unix_ms(WallMs());
-  if (!unacked.empty()) {
+  if (!unacked.empty() || checkpoint) {
     entry.mutable_pending()->set_worker_id(options_.worker_id);
     *entry.mutable_pending()->mutable_lease() = key;
     for (const auto& e : unacked) *entry.mutable_pending()->add_episodes() = e;
+    if (checkpoint) *entry.mutable_pending()->mutable_checkpoint() = *checkpoint;
   }
   return entry;
 }
@@ -258,7 +286,8 @@ int Worker::SpoolUnfinished() {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     for (const auto& [job, active] : active_) {
-      v1::SpooledAttempt entry = SpoolEntry(active->lease.key(), active->unacked);
+      v1::SpooledAttempt entry =
+          SpoolEntry(active->lease.key(), active->unacked, active->checkpoint);
       entry.mutable_release()->set_worker_id(options_.worker_id);
       *entry.mutable_release()->mutable_lease() = active->lease.key();
       entry.mutable_release()->set_reason("worker stopped before the trial finished");
@@ -402,7 +431,33 @@ void Worker::RunLease(const v1::Lease& lease) {
   absl::StatusOr<StudyOutcome> study = absl::UnknownError("not a study");
   const char* what = is_study ? "the study" : "the trial";
   try {
-    if (!is_study) {
+    const std::string* resume = nullptr;
+    if (!is_study && lease.has_resume_from() && !lease.resume_from().data().empty()) {
+      if (lease.resume_from_build() == options_.build) {
+        resume = &lease.resume_from().data();
+      } else {
+        spdlog::warn("{}: not resuming from the checkpoint of attempt {} (after episode {}): it "
+                     "was written by another build ({}); starting over so the results are "
+                     "those of one build",
+                     Describe(lease.key()), lease.resume_from_attempt(),
+                     lease.resume_from().episode(), lease.resume_from_build());
+      }
+    }
+    if (resume != nullptr) {
+      spdlog::info("{}: resuming from the checkpoint of attempt {} after episode {}",
+                   Describe(lease.key()), lease.resume_from_attempt(),
+                   lease.resume_from().episode());
+      result = runner_->Resume(options, *resume, &progress);
+      if (!result.ok() && result.status().code() == absl::StatusCode::kFailedPrecondition &&
+          absl::StartsWith(result.status().message(), "cannot resume")) {
+        spdlog::warn("{}: {}; starting over", Describe(lease.key()),
+                     std::string(result.status().message()));
+        result = runner_->Run(options, &progress);
+      } else {
+        std::lock_guard<std::mutex> lock(mutex_);
+        ++summary_.resumed;
+      }
+    } else if (!is_study) {
       result = runner_->Run(options, &progress);
     } else if (study_runner_ == nullptr) {
       result = absl::FailedPreconditionError("this worker cannot run study jobs");
@@ -487,12 +542,18 @@ void Worker::Beat(const std::shared_ptr<ActiveLease>& active) {
   request.set_worker_id(options_.worker_id);
   *request.mutable_lease() = active->lease.key();
   std::set<int> sent;
+  int checkpoint_sent = -1;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     for (const auto& episode : active->unacked) {
       if (request.episodes_size() >= 1000) break;
       *request.add_episodes() = episode;
       sent.insert(episode.episode());
+    }
+    // The checkpoint only with (or after) the episode it follows.
+    if (active->checkpoint && request.episodes_size() == static_cast<int>(active->unacked.size())) {
+      *request.mutable_checkpoint() = *active->checkpoint;
+      checkpoint_sent = active->checkpoint->episode();
     }
     active->has_new = false;
   }
@@ -515,6 +576,9 @@ void Worker::Beat(const std::shared_ptr<ActiveLease>& active) {
     if (status.ok()) {
       std::erase_if(active->unacked,
                     [&](const v1::EpisodeReport& e) { return sent.count(e.episode()) > 0; });
+      if (active->checkpoint && active->checkpoint->episode() == checkpoint_sent) {
+        active->checkpoint.reset();  // a newer one, if it came meanwhile, stays
+      }
       active->next_beat_ms = now + interval;
       active->backoff_ms = 200;
       if (response.directive() == v1::DIRECTIVE_CANCEL && !active->cancel) {
@@ -618,7 +682,7 @@ Worker::Delivery Worker::Deliver(const v1::SpooledAttempt& attempt, const rpc::R
   };
   if (attempt.has_pending() &&
       (attempt.pending().episodes_size() > 0 || attempt.pending().study_cells_size() > 0 ||
-       attempt.pending().study_references_size() > 0)) {
+       attempt.pending().study_references_size() > 0 || attempt.pending().has_checkpoint())) {
     delivery.status = call([&](grpc::ClientContext* context) {
       v1::HeartbeatResponse response;
       return stub_->Heartbeat(context, attempt.pending(), &response);
@@ -675,6 +739,7 @@ void Worker::Finish(const std::shared_ptr<ActiveLease>& active,
   const v1::LeaseKey& key = active->lease.key();
   std::string failure, cancel_reason;
   std::vector<v1::EpisodeReport> unacked;
+  std::optional<v1::TrialCheckpoint> checkpoint;
   {
     // Take the lease away from the heartbeat thread; from here on it is a
     // final report in finishing_ (which SpoolUnfinished sees too).
@@ -688,12 +753,15 @@ void Worker::Finish(const std::shared_ptr<ActiveLease>& active,
     failure = active->failure;
     cancel_reason = active->cancel_reason;
     unacked = active->unacked;
+    checkpoint = active->checkpoint;
   }
   changed_.notify_all();
   if (failure.empty() && !result.ok() && result.status().code() != absl::StatusCode::kCancelled) {
     failure = result.status().ToString();
   }
-  v1::SpooledAttempt entry = SpoolEntry(key, {});
+  // Data first (the checkpoint too: a later attempt resumes from it), then
+  // the verdict.
+  v1::SpooledAttempt entry = SpoolEntry(key, {}, checkpoint);
   if (!failure.empty()) {
     v1::FailRequest* fail = entry.mutable_fail();
     fail->set_worker_id(options_.worker_id);
@@ -701,7 +769,7 @@ void Worker::Finish(const std::shared_ptr<ActiveLease>& active,
     for (const auto& e : unacked) *fail->add_episodes() = e;
     fail->set_error(failure);
   } else if (!result.ok()) {
-    entry = SpoolEntry(key, unacked);  // the data first, then the release
+    entry = SpoolEntry(key, unacked, checkpoint);  // the data first, then the release
     v1::ReleaseRequest* release = entry.mutable_release();
     release->set_worker_id(options_.worker_id);
     *release->mutable_lease() = key;
@@ -715,6 +783,8 @@ void Worker::Finish(const std::shared_ptr<ActiveLease>& active,
       complete->set_study_references_total(static_cast<int32_t>(study->references.size()));
     } else {
       for (const auto& e : unacked) *complete->add_episodes() = e;
+      if (checkpoint) *complete->mutable_checkpoint() = *checkpoint;
+      entry.clear_pending();  // all of it rides in the completion
       complete->set_episodes_total(result->episodes);
       complete->set_success(result->success);
       complete->set_final_eval_cost(result->final_eval_cost);

@@ -12,7 +12,12 @@
 // Guarantees:
 //   * Episodes are sent as soon as they finish and kept until the coordinator
 //     acknowledges them; after a disconnect they are replayed (the store
-//     ignores repeats), so a coordinator restart loses nothing.
+//     ignores repeats), so a coordinator restart loses nothing. The trial's
+//     checkpoint after each episode goes with it (only the latest is kept).
+//   * A lease that carries an earlier attempt's checkpoint written by this
+//     same build resumes the trial from it (TrialRunner::Resume); one of
+//     another build, or one the runner cannot use, is ignored with a log
+//     line and the trial starts over, so results stay those of one build.
 //   * A lease the coordinator refuses (ABORTED: lost, re-queued) is dropped:
 //     the trial is stopped and nothing more is sent for it.
 //   * A trial that returns an error, throws, or reports a non-finite cost is
@@ -47,6 +52,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -101,12 +107,17 @@ enum class WorkerExit {
   kWorkerIdInUse,  // another live process uses this worker id (here or on another host)
 };
 
+// Checkpoints larger than this are not sent (the coordinator refuses them:
+// scheduler::kMaxCheckpointBytes, checked equal in worker_test).
+inline constexpr size_t kMaxCheckpointBytes = 2 << 20;
+
 // Process exit codes of totalgrad-worker (main.cc), distinct so that a
 // supervisor does not restart a worker that cannot succeed (sysexits.h).
 inline constexpr int kExitAuthRefused = 77;   // EX_NOPERM
 inline constexpr int kExitWorkerIdInUse = 78;  // EX_CONFIG
 
 struct WorkerSummary {
+  int resumed = 0;    // trials resumed from an earlier attempt's checkpoint
   int completed = 0;  // Complete acknowledged
   int failed = 0;     // Fail acknowledged
   int released = 0;   // Release acknowledged
@@ -181,9 +192,11 @@ class Worker {
   void FailFatally(WorkerExit exit, const std::string& message);
   // Fills the identity fields of `identity`.
   void FillIdentity(v1::WorkerIdentity* identity) const;
-  // An attempt as a spool entry: `unacked` as its pending heartbeat.
+  // An attempt as a spool entry: `unacked` (and `checkpoint`, if any) as
+  // its pending heartbeat.
   v1::SpooledAttempt SpoolEntry(const v1::LeaseKey& key,
-                                const std::vector<v1::EpisodeReport>& unacked) const;
+                                const std::vector<v1::EpisodeReport>& unacked,
+                                const std::optional<v1::TrialCheckpoint>& checkpoint = {}) const;
   // Keeps `entry` in the spool; false (and a log line) without one.
   bool KeepInSpool(const v1::SpooledAttempt& entry, const std::string& why);
 

@@ -16,6 +16,7 @@ void AddTrialCommand(CLI::App* app, int* exit_code);     // trial_command.cc
 void AddBenchCommand(CLI::App* app, int* exit_code);     // bench_command.cc
 void AddPilcoCommand(CLI::App* app, int* exit_code);     // pilco_command.cc
 void AddStudyCommand(CLI::App* app, int* exit_code);     // study_command.cc
+void AddEvaluateCommand(CLI::App* app, int* exit_code);  // evaluate_command.cc
 
 }  // namespace totalgrad::cli
 

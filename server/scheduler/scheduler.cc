@@ -97,6 +97,21 @@ absl::Status ValidateEpisodes(const std::vector<Episode>& episodes) {
   return absl::OkStatus();
 }
 
+namespace {
+absl::Status ValidateCheckpoint(const std::optional<storage::Checkpoint>& checkpoint) {
+  if (!checkpoint) return absl::OkStatus();
+  if (checkpoint->data.size() > kMaxCheckpointBytes) {
+    return absl::InvalidArgumentError(absl::StrCat("checkpoint after episode ", checkpoint->episode,
+                                                   " is ", checkpoint->data.size(),
+                                                   " bytes; at most ", kMaxCheckpointBytes));
+  }
+  if (checkpoint->data.empty() || checkpoint->format_version < 1) {
+    return absl::InvalidArgumentError("checkpoint without data or format version");
+  }
+  return absl::OkStatus();
+}
+}  // namespace
+
 absl::Status ValidateStudyRows(const storage::StudyRows& rows) {
   if (static_cast<int>(rows.size()) > kMaxStudyRowsPerCall) {
     return absl::InvalidArgumentError(absl::StrCat(rows.size(), " study rows in one call; at most ",
@@ -230,6 +245,9 @@ absl::StatusOr<std::optional<Lease>> Scheduler::TryAcquireLocked(const WorkerIde
     RETURN_IF_ERROR(store_->StartAttempt(key, worker, now, LeaseExpiryFrom(LeaseNowMs())));
     ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(candidate.job_id));
     Lease lease;
+    if (job.kind == storage::JobKind::kTrial && key.attempt > 1) {
+      ASSIGN_OR_RETURN(lease.resume_from, store_->GetCheckpoint(job.id, 0));
+    }
     lease.job = std::move(job);
     lease.key = key;
     lease.heartbeat_interval_ms = absl::ToInt64Milliseconds(options_.heartbeat_interval);
@@ -284,12 +302,12 @@ bool Scheduler::shut_down() const {
   return shutdown_;
 }
 
-absl::StatusOr<HeartbeatResult> Scheduler::Heartbeat(const std::string& worker_id,
-                                                     const LeaseKey& key,
-                                                     const std::vector<Episode>& episodes,
-                                                     const storage::StudyRows& study) {
+absl::StatusOr<HeartbeatResult> Scheduler::Heartbeat(
+    const std::string& worker_id, const LeaseKey& key, const std::vector<Episode>& episodes,
+    const storage::StudyRows& study, const std::optional<storage::Checkpoint>& checkpoint) {
   RETURN_IF_ERROR(ValidateEpisodes(episodes));
   RETURN_IF_ERROR(ValidateStudyRows(study));
+  RETURN_IF_ERROR(ValidateCheckpoint(checkpoint));
   std::lock_guard<std::mutex> lock(decision_mutex_);
   const int64_t now = clock_->NowMs();
   HeartbeatResult result;
@@ -302,6 +320,7 @@ absl::StatusOr<HeartbeatResult> Scheduler::Heartbeat(const std::string& worker_i
     ASSIGN_OR_RETURN(result.study_rows_stored,
                      store_->StoreStudyRows(key, worker_id, study, now, lease_expires));
   }
+  if (checkpoint) RETURN_IF_ERROR(store_->StoreCheckpoint(key, worker_id, *checkpoint, now));
   ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(key.job_id));
   auto worker = store_->GetWorker(worker_id);
   if (worker.ok()) {
@@ -373,8 +392,10 @@ absl::StatusOr<EndOutcome> Scheduler::EndLocked(AttemptEnd end, LeaseBudget budg
 
 absl::Status Scheduler::Complete(const std::string& worker_id, const LeaseKey& key,
                                  const std::vector<Episode>& episodes, int episodes_total,
-                                 bool success, double final_eval_cost) {
+                                 bool success, double final_eval_cost,
+                                 const std::optional<storage::Checkpoint>& checkpoint) {
   RETURN_IF_ERROR(ValidateEpisodes(episodes));
+  RETURN_IF_ERROR(ValidateCheckpoint(checkpoint));
   if (!std::isfinite(final_eval_cost)) {
     return absl::InvalidArgumentError(
         "final_eval_cost is not finite; a trial with a non-finite cost must be reported with Fail");
@@ -388,6 +409,7 @@ absl::Status Scheduler::Complete(const std::string& worker_id, const LeaseKey& k
   end.episodes_total = episodes_total;
   end.success = success;
   end.final_eval_cost = final_eval_cost;
+  end.checkpoint = checkpoint;
   return EndLocked(std::move(end)).status();
 }
 

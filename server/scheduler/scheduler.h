@@ -73,6 +73,8 @@ struct Lease {
   storage::LeaseKey key;
   int64_t heartbeat_interval_ms = 0;
   int64_t lease_timeout_ms = 0;
+  // Trial jobs: the latest checkpoint of an earlier attempt, to resume from.
+  std::optional<storage::CheckpointRecord> resume_from;
 };
 
 // What one ExpireLeases() call did.
@@ -98,6 +100,8 @@ inline constexpr size_t kMaxWorkerIdBytes = 128;
 inline constexpr int kMaxStudyRowsPerCall = 1000;
 inline constexpr size_t kMaxStudyTextBytes = 16 * 1024;
 inline constexpr size_t kMaxStudyVectorSize = 100000;
+// Largest trial checkpoint kept (what a worker sends must fit a message).
+inline constexpr size_t kMaxCheckpointBytes = 2 << 20;
 // Cells or references one study job may complete with.
 inline constexpr int kMaxStudyRowsPerJob = 1000000;
 
@@ -139,17 +143,20 @@ class Scheduler {
   // for work to appear. Returns nullopt at the deadline or after Shutdown().
   absl::StatusOr<std::optional<Lease>> Acquire(const storage::WorkerIdentity& worker,
                                                absl::Duration wait);
-  // Stores `episodes` (trial jobs) or `study` rows (study jobs) and extends
-  // the lease. Aborted for a stale lease; InvalidArgument for rows of the
-  // wrong kind.
-  absl::StatusOr<HeartbeatResult> Heartbeat(const std::string& worker_id,
-                                            const storage::LeaseKey& key,
-                                            const std::vector<storage::Episode>& episodes,
-                                            const storage::StudyRows& study = {});
-  // Ends the attempt as completed (see Store::EndAttempt for the checks).
+  // Stores `episodes` (trial jobs) or `study` rows (study jobs), then the
+  // trial's `checkpoint` if given, and extends the lease. Aborted for a stale
+  // lease; InvalidArgument for rows of the wrong kind, or a checkpoint over
+  // kMaxCheckpointBytes or of an episode outside the trial.
+  absl::StatusOr<HeartbeatResult> Heartbeat(
+      const std::string& worker_id, const storage::LeaseKey& key,
+      const std::vector<storage::Episode>& episodes, const storage::StudyRows& study = {},
+      const std::optional<storage::Checkpoint>& checkpoint = std::nullopt);
+  // Ends the attempt as completed (see Store::EndAttempt for the checks),
+  // storing `checkpoint` (the final state) with it if given.
   absl::Status Complete(const std::string& worker_id, const storage::LeaseKey& key,
                         const std::vector<storage::Episode>& episodes, int episodes_total,
-                        bool success, double final_eval_cost);
+                        bool success, double final_eval_cost,
+                        const std::optional<storage::Checkpoint>& checkpoint = std::nullopt);
   // Ends a study job's attempt as completed: `rows` are stored first, then
   // cells 0..cells_total-1 and references 0..references_total-1 must all be
   // stored (FailedPrecondition names the missing ones). InvalidArgument for

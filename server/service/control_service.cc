@@ -191,6 +191,32 @@ grpc::Status ControlServiceImpl::GetJobLog(grpc::ServerContext* context,
   return grpc::Status::OK;
 }
 
+grpc::Status ControlServiceImpl::GetJobArtifacts(grpc::ServerContext* context,
+                                                 const v1::JobRequest* request,
+                                                 v1::GetJobArtifactsResponse* response) {
+  TG_AUTHORIZE(context);
+  absl::StatusOr<storage::JobRecord> job = store_->GetJob(request->job_id());
+  if (!job.ok()) return ToGrpcStatus(job.status());
+  // A completed job's result is its completed attempt's final state.
+  absl::StatusOr<std::optional<storage::CheckpointRecord>> checkpoint =
+      store_->GetCheckpoint(job->id, job->completed_attempt);
+  if (!checkpoint.ok()) return ToGrpcStatus(checkpoint.status());
+  if (!checkpoint->has_value()) {
+    return grpc::Status(grpc::StatusCode::NOT_FOUND,
+                        absl::StrCat("job ", job->id, " has no trial checkpoint (",
+                                     job->kind == storage::JobKind::kStudy
+                                         ? "a study job"
+                                         : "no episode reported one: none finished, or an older "
+                                           "worker ran it",
+                                     ")"));
+  }
+  ToProto(*job, response->mutable_job());
+  response->set_attempt((**checkpoint).key.attempt);
+  response->set_worker_build((**checkpoint).worker_build);
+  ToProto((**checkpoint).checkpoint, response->mutable_checkpoint());
+  return grpc::Status::OK;
+}
+
 grpc::Status ControlServiceImpl::ListTrialResults(grpc::ServerContext* context,
                                                   const v1::SweepRequest* request,
                                                   v1::ListTrialResultsResponse* response) {

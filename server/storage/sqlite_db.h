@@ -77,6 +77,7 @@ class Statement {
   Statement& Bind(int index, const char* value) { return Bind(index, absl::string_view(value)); }
   Statement& Bind(int index, const std::string& value) { return Bind(index, absl::string_view(value)); }
   Statement& BindNull(int index);
+  Statement& BindBlob(int index, absl::string_view bytes);
 
   // Advances. true: a row is available; false: done. Binding errors are
   // reported here too.
@@ -90,6 +91,7 @@ class Statement {
   // NULL reads as NaN.
   double ColumnDouble(int column) const;
   std::string ColumnText(int column) const;
+  std::string ColumnBlob(int column) const;
   bool ColumnIsNull(int column) const;
 
  private:

@@ -28,7 +28,7 @@ namespace {
 using internal::Db;
 using internal::Statement;
 
-constexpr int kSchemaVersion = 2;
+constexpr int kSchemaVersion = 3;
 
 // The schema of version 1; docs/results_schema.md explains every column. A
 // new database is created as version 1 and migrated, in one transaction, so
@@ -192,10 +192,27 @@ CREATE TABLE study_references(
 ) WITHOUT ROWID;
 )sql";
 
+// Version 2 -> 3: trial checkpoints (issue 12). The latest checkpoint of
+// each attempt (core/learner/checkpoint.h, opaque here), from which a new
+// attempt of the job resumes.
+constexpr char kMigration3[] = R"sql(
+CREATE TABLE checkpoints(
+  job_id INTEGER NOT NULL,
+  attempt INTEGER NOT NULL,
+  episode INTEGER NOT NULL CHECK(episode >= 0),
+  format_version INTEGER NOT NULL,
+  data BLOB NOT NULL,
+  reported_ms INTEGER NOT NULL,
+  PRIMARY KEY(job_id, attempt),
+  FOREIGN KEY(job_id, attempt) REFERENCES attempts(job_id, attempt)
+) WITHOUT ROWID;
+)sql";
+
 // Applies the migrations from `from` up to kSchemaVersion inside the
 // caller's transaction and sets user_version.
 absl::Status Migrate(Db& db, int64_t from) {
   if (from < 2) RETURN_IF_ERROR(db.Exec(kMigration2));
+  if (from < 3) RETURN_IF_ERROR(db.Exec(kMigration3));
   return db.Exec(absl::StrCat("PRAGMA user_version=", kSchemaVersion));
 }
 
@@ -548,6 +565,30 @@ absl::StatusOr<std::vector<int>> MissingStudyRows(Db& db, const LeaseKey& key,
     if (!have.count(i)) missing.push_back(i);
   }
   return missing;
+}
+
+// Keeps `checkpoint` for the attempt unless it holds one of a later episode.
+absl::Status UpsertCheckpoint(Db& db, const LeaseKey& key, const OpenAttempt& attempt,
+                              const Checkpoint& checkpoint, int64_t now_ms) {
+  if (attempt.kind != JobKind::kTrial) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("job ", key.job_id, " is a study job; only trials have checkpoints"));
+  }
+  if (checkpoint.episode < 0 || checkpoint.episode >= attempt.episodes_expected) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "checkpoint after episode ", checkpoint.episode, " of job ", key.job_id,
+        " is out of range: the trial has episodes 0..", attempt.episodes_expected - 1));
+  }
+  ASSIGN_OR_RETURN(Statement upsert, Statement::Prepare(db, R"sql(
+INSERT INTO checkpoints(job_id, attempt, episode, format_version, data, reported_ms)
+VALUES(?, ?, ?, ?, ?, ?)
+ON CONFLICT(job_id, attempt) DO UPDATE SET episode = excluded.episode,
+    format_version = excluded.format_version, data = excluded.data,
+    reported_ms = excluded.reported_ms
+WHERE excluded.episode >= checkpoints.episode)sql"));
+  upsert.Bind(1, key.job_id).Bind(2, key.attempt).Bind(3, checkpoint.episode);
+  upsert.Bind(4, checkpoint.format_version).BindBlob(5, checkpoint.data).Bind(6, now_ms);
+  return upsert.Run();
 }
 
 }  // namespace
@@ -1177,6 +1218,15 @@ absl::StatusOr<int> SqliteStore::StoreStudyRows(const LeaseKey& key, const std::
   return stored;
 }
 
+absl::Status SqliteStore::StoreCheckpoint(const LeaseKey& key, const std::string& worker_id,
+                                          const Checkpoint& checkpoint, int64_t now_ms) {
+  return InWriteTransaction([&](Db& db) -> absl::Status {
+    ASSIGN_OR_RETURN(OpenAttempt attempt, LoadAttempt(db, key));
+    RETURN_IF_ERROR(CheckOpen(key, attempt, worker_id));
+    return UpsertCheckpoint(db, key, attempt, checkpoint, now_ms);
+  });
+}
+
 absl::StatusOr<EndOutcome> SqliteStore::EndAttempt(const AttemptEnd& end) {
   if (end.attempt_state == AttemptState::kRunning) {
     return absl::InvalidArgumentError("EndAttempt needs a final attempt state, not running");
@@ -1192,6 +1242,7 @@ absl::StatusOr<EndOutcome> SqliteStore::EndAttempt(const AttemptEnd& end) {
     RETURN_IF_ERROR(CheckOpen(key, attempt, end.worker_id));
     RETURN_IF_ERROR(InsertEpisodes(db, key, attempt.episodes_expected, end.episodes, end.now_ms));
     RETURN_IF_ERROR(InsertStudyRows(db, key, attempt.kind, end.study, end.now_ms));
+    if (end.checkpoint) RETURN_IF_ERROR(UpsertCheckpoint(db, key, attempt, *end.checkpoint, end.now_ms));
     const bool study_totals = end.study_cells_total != 0 || end.study_references_total != 0;
     if (end.attempt_state == AttemptState::kCompleted && attempt.kind == JobKind::kStudy) {
       if (end.study_cells_total < 1 || end.study_references_total < 1) {
@@ -1406,7 +1457,9 @@ absl::StatusOr<std::vector<AttemptRecord>> SqliteStore::ListAttempts(int64_t job
   ASSIGN_OR_RETURN(Statement query, Statement::Prepare(reader_, R"sql(
 SELECT a.attempt, a.state, a.worker_id, a.worker_host, a.worker_build, a.started_ms,
        COALESCE(a.ended_ms, 0), a.lease_expires_ms, a.error,
-       (SELECT COUNT(*) FROM episodes e WHERE e.job_id = a.job_id AND e.attempt = a.attempt)
+       (SELECT COUNT(*) FROM episodes e WHERE e.job_id = a.job_id AND e.attempt = a.attempt),
+       COALESCE((SELECT c.episode FROM checkpoints c
+                 WHERE c.job_id = a.job_id AND c.attempt = a.attempt), -1)
 FROM attempts a WHERE a.job_id = ? ORDER BY a.attempt)sql"));
   query.Bind(1, job_id);
   std::vector<AttemptRecord> attempts;
@@ -1424,6 +1477,7 @@ FROM attempts a WHERE a.job_id = ? ORDER BY a.attempt)sql"));
     a.lease_expires_ms = query.ColumnInt(7);
     a.error = query.ColumnText(8);
     a.episodes_stored = static_cast<int>(query.ColumnInt(9));
+    a.checkpoint_episode = static_cast<int>(query.ColumnInt(10));
     attempts.push_back(std::move(a));
   }
   return attempts;
@@ -1443,6 +1497,26 @@ absl::StatusOr<std::vector<EventRecord>> SqliteStore::ListEvents(int64_t job_id)
                       query.ColumnText(2), query.ColumnText(3)});
   }
   return events;
+}
+
+absl::StatusOr<std::optional<CheckpointRecord>> SqliteStore::GetCheckpoint(int64_t job_id,
+                                                                           int attempt) {
+  std::lock_guard<std::mutex> lock(read_mutex_);
+  ASSIGN_OR_RETURN(Statement query, Statement::Prepare(reader_, R"sql(
+SELECT c.attempt, a.worker_build, c.episode, c.format_version, c.data
+FROM checkpoints c JOIN attempts a ON a.job_id = c.job_id AND a.attempt = c.attempt
+WHERE c.job_id = ? AND (? = 0 OR c.attempt = ?)
+ORDER BY c.episode DESC, c.attempt DESC LIMIT 1)sql"));
+  query.Bind(1, job_id).Bind(2, attempt).Bind(3, attempt);
+  ASSIGN_OR_RETURN(bool row, query.Step());
+  if (!row) return std::optional<CheckpointRecord>();
+  CheckpointRecord record;
+  record.key = {job_id, static_cast<int>(query.ColumnInt(0))};
+  record.worker_build = query.ColumnText(1);
+  record.checkpoint.episode = static_cast<int>(query.ColumnInt(2));
+  record.checkpoint.format_version = static_cast<int>(query.ColumnInt(3));
+  record.checkpoint.data = query.ColumnBlob(4);
+  return std::optional<CheckpointRecord>(std::move(record));
 }
 
 absl::StatusOr<std::vector<ClaimCandidate>> SqliteStore::ListClaimCandidates(int limit) {

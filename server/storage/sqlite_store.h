@@ -100,6 +100,8 @@ class SqliteStore final : public Store {
   absl::StatusOr<int> StoreStudyRows(const LeaseKey& key, const std::string& worker_id,
                                      const StudyRows& rows, int64_t now_ms,
                                      std::optional<int64_t> lease_expires_ms) override;
+  absl::Status StoreCheckpoint(const LeaseKey& key, const std::string& worker_id,
+                               const Checkpoint& checkpoint, int64_t now_ms) override;
   absl::StatusOr<EndOutcome> EndAttempt(const AttemptEnd& end) override;
   absl::Status RetryJob(int64_t job_id, int64_t now_ms) override;
   absl::StatusOr<int> ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms,
@@ -114,6 +116,8 @@ class SqliteStore final : public Store {
   absl::StatusOr<std::vector<JobRecord>> ListJobs(const JobFilter& filter) override;
   absl::StatusOr<std::vector<AttemptRecord>> ListAttempts(int64_t job_id) override;
   absl::StatusOr<std::vector<EventRecord>> ListEvents(int64_t job_id) override;
+  absl::StatusOr<std::optional<CheckpointRecord>> GetCheckpoint(int64_t job_id,
+                                                                int attempt) override;
   absl::StatusOr<std::vector<ClaimCandidate>> ListClaimCandidates(int limit) override;
   absl::StatusOr<std::vector<LeaseKey>> ListExpiredLeases(int64_t now_ms) override;
   absl::StatusOr<std::vector<WorkerRecord>> ListWorkers() override;

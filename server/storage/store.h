@@ -89,6 +89,20 @@ struct Episode {
   std::string details_json;
 };
 
+// A trial's state after a finished episode (core/learner/checkpoint.h),
+// opaque here: the store keeps the latest one of each attempt.
+struct Checkpoint {
+  int episode = 0;
+  int format_version = 0;
+  std::string data;
+};
+
+struct CheckpointRecord {
+  LeaseKey key;              // the attempt that stored it
+  std::string worker_build;  // of that attempt
+  Checkpoint checkpoint;
+};
+
 struct NewJob {
   std::string method;
   std::string seed;
@@ -254,6 +268,7 @@ struct AttemptRecord {
   int64_t lease_expires_ms = 0;
   std::string error;
   int episodes_stored = 0;
+  int checkpoint_episode = -1;  // of its stored checkpoint; -1: none
 };
 
 struct EventRecord {
@@ -340,6 +355,8 @@ struct AttemptEnd {
   StudyRows study;
   int study_cells_total = 0;
   int study_references_total = 0;
+  // Stored with the episodes (as StoreCheckpoint), e.g. the final state.
+  std::optional<Checkpoint> checkpoint;
   int64_t now_ms = 0;
 };
 
@@ -392,6 +409,13 @@ class Store {
                                              const StudyRows& rows, int64_t now_ms,
                                              std::optional<int64_t> lease_expires_ms) = 0;
 
+  // Keeps `checkpoint` as the latest state of an open trial attempt owned by
+  // `worker_id`, unless the attempt already has one of a later episode (a
+  // replay). Aborted: stale lease or another worker's; InvalidArgument: a
+  // study job, or an episode outside [0, episodes_expected).
+  virtual absl::Status StoreCheckpoint(const LeaseKey& key, const std::string& worker_id,
+                                       const Checkpoint& checkpoint, int64_t now_ms) = 0;
+
   // Ends an attempt as `end` says. Aborted if the attempt is not open (unless
   // it already ended with the same attempt state: kAlreadyEnded), or belongs
   // to another worker. For kCompleted, InvalidArgument if episodes_total is
@@ -429,6 +453,11 @@ class Store {
   virtual absl::StatusOr<std::vector<JobRecord>> ListJobs(const JobFilter& filter) = 0;
   virtual absl::StatusOr<std::vector<AttemptRecord>> ListAttempts(int64_t job_id) = 0;
   virtual absl::StatusOr<std::vector<EventRecord>> ListEvents(int64_t job_id) = 0;
+  // The checkpoint of attempt `attempt` of the job, or with attempt 0 the
+  // latest over all its attempts (highest episode, then highest attempt);
+  // nullopt if there is none.
+  virtual absl::StatusOr<std::optional<CheckpointRecord>> GetCheckpoint(int64_t job_id,
+                                                                        int attempt) = 0;
   // Queued jobs of running sweeps, oldest sweep first then ordinal; at most `limit`.
   virtual absl::StatusOr<std::vector<ClaimCandidate>> ListClaimCandidates(int limit) = 0;
   // Open attempts whose lease expired before `now_ms`.

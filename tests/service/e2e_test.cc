@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <map>
 #include <set>
 #include <thread>
 
@@ -283,6 +284,78 @@ TEST_F(EndToEndTest, KilledWorkersTrialIsFinishedByAnother) {
   EXPECT_GE(log.attempts(0).episodes_stored(), 2);
   EXPECT_EQ(log.attempts(1).state(), v1::ATTEMPT_STATE_COMPLETED);
   EXPECT_EQ(log.attempts(1).worker_id(), "rescuer");
+}
+
+// Issue 12.7: kill -9 of a worker in the middle of a trial. The trial's
+// checkpoints reached the coordinator with its episodes; the next attempt
+// resumes from the last one instead of starting over, re-reports the restored
+// episodes (the completed attempt holds every episode), and the counting rows
+// equal the in-process trial bit for bit. `protocol` with a small
+// gp_inducing makes the trial reach FITC before the kill, so the warm-started
+// inducing inputs must travel in the checkpoint too.
+class CheckpointTest : public ServiceFixture {
+ protected:
+  void KillAndResume(const std::string& sweep, const worker::OptionList& protocol,
+                     int kill_after_checkpoint) {
+    StartCoordinator(0, {}, /*lease_timeout_seconds=*/1.5);
+    ASSERT_TRUE(Submit(MakeSpec(sweep, {7}, protocol)).ok());
+    auto victim = StartWorker("victim");
+    ASSERT_TRUE(WaitFor(
+        [&] {
+          const auto jobs = Jobs(sweep);
+          if (jobs.empty() || jobs[0].state() != v1::JOB_STATE_RUNNING) return false;
+          const v1::GetJobLogResponse log = JobLog(jobs[0].job_id());
+          return log.attempts_size() == 1 &&
+                 log.attempts(0).checkpoint_episode() >= kill_after_checkpoint;
+        },
+        seconds(120)));
+    ASSERT_TRUE(victim->Running());
+    victim->Signal(SIGKILL);
+    victim->Wait(seconds(10));
+    auto rescuer = StartWorker("rescuer");
+    ASSERT_TRUE(WaitFinished(sweep, seconds(180)));
+    ExpectRowsEqualReference(sweep, protocol);
+
+    const v1::JobInfo job = Jobs(sweep)[0];
+    const v1::GetJobLogResponse log = JobLog(job.job_id());
+    ASSERT_EQ(log.attempts_size(), 2);
+    EXPECT_EQ(log.attempts(0).state(), v1::ATTEMPT_STATE_LEASE_LOST);
+    EXPECT_EQ(log.attempts(1).state(), v1::ATTEMPT_STATE_COMPLETED);
+    const int k = log.attempts(0).checkpoint_episode();
+    ASSERT_GE(k, kill_after_checkpoint);
+    EXPECT_EQ(log.attempts(1).episodes_stored(), job.episodes_expected());
+    EXPECT_EQ(log.attempts(1).checkpoint_episode(), job.episodes_expected() - 1);
+    EXPECT_NE(rescuer->Log().find(absl::StrCat("resuming from the checkpoint of attempt 1 after "
+                                               "episode ", k)),
+              std::string::npos)
+        << rescuer->Log();
+    // Restored, not recomputed: episodes 0..k of attempt 2 carry attempt 1's
+    // own optimisation times (wall-clock measurements never repeat exactly).
+    std::map<std::pair<int, int>, double> seconds_by_attempt_episode;
+    for (const v1::EpisodeRow& row : Export(sweep, /*all_attempts=*/true)) {
+      seconds_by_attempt_episode[{row.attempt(), row.report().episode()}] =
+          row.report().optimisation_seconds();
+    }
+    for (int e = 1; e <= k; ++e) {
+      const auto first = seconds_by_attempt_episode.find({1, e});
+      const auto second = seconds_by_attempt_episode.find({2, e});
+      ASSERT_TRUE(first != seconds_by_attempt_episode.end()) << "episode " << e;
+      ASSERT_TRUE(second != seconds_by_attempt_episode.end()) << "episode " << e;
+      EXPECT_EQ(second->second, first->second) << "episode " << e;
+    }
+  }
+};
+
+TEST_F(CheckpointTest, KilledWorkersTrialResumesFromItsCheckpointBitForBit) {
+  KillAndResume("resume", SlowProtocol(), /*kill_after_checkpoint=*/3);
+}
+
+// horizon 15 and gp_inducing 20: episode 1 fits the full GP (15 points),
+// episodes 2.. FITC (30, 45, ... points), warm-starting the inducing inputs.
+TEST_F(CheckpointTest, KilledWorkersFitcTrialResumesFromItsCheckpointBitForBit) {
+  worker::OptionList protocol = SlowProtocol();
+  protocol.emplace_back("gp_inducing", "20");
+  KillAndResume("resume-fitc", protocol, /*kill_after_checkpoint=*/3);
 }
 
 // The coordinator killed in the middle of a sweep and restarted on the same

@@ -280,6 +280,50 @@ TEST_F(StorageTest, RetryOnlyFailedOrCancelledJobs) {
   EXPECT_EQ(store_->RetryJob(12345, kNow).code(), absl::StatusCode::kNotFound);
 }
 
+// Issue 12.7: trial checkpoints are fenced like episodes, the latest one of
+// each attempt is kept (a replayed older one does not replace it), and the
+// best of all attempts is what a new attempt resumes from.
+TEST_F(StorageTest, CheckpointsAreFencedAndTheLatestIsFoundForResumption) {
+  const int64_t job = CreateAndLease("s", 1, 4);
+  const std::string bytes("\0binary\xff checkpoint", 21);  // NUL and high bytes survive
+  TG_ASSERT_OK(store_->StoreCheckpoint({job, 1}, "w1", {1, 1, bytes}, kNow));
+  TG_ASSERT_OK(store_->StoreCheckpoint({job, 1}, "w1", {0, 1, "older"}, kNow));  // a replay
+  TG_ASSERT_OK_AND_ASSIGN(auto found, store_->GetCheckpoint(job, 0));
+  ASSERT_TRUE(found.has_value());
+  EXPECT_EQ(found->key, (LeaseKey{job, 1}));
+  EXPECT_EQ(found->checkpoint.episode, 1);
+  EXPECT_EQ(found->checkpoint.data, bytes);
+  EXPECT_EQ(found->worker_build, "test-worker-build");
+  EXPECT_EQ(store_->StoreCheckpoint({job, 1}, "w1", {4, 1, "x"}, kNow).code(),
+            absl::StatusCode::kInvalidArgument);  // the trial has episodes 0..3
+  EXPECT_EQ(store_->StoreCheckpoint({job, 1}, "w2", {2, 1, "x"}, kNow).code(),
+            absl::StatusCode::kAborted);
+
+  AttemptEnd lost;
+  lost.key = {job, 1};
+  lost.worker_id = "w1";
+  lost.attempt_state = AttemptState::kLeaseLost;
+  lost.job_state = JobState::kQueued;
+  lost.now_ms = kNow;
+  TG_ASSERT_OK(store_->EndAttempt(lost));
+  EXPECT_EQ(store_->StoreCheckpoint({job, 1}, "w1", {2, 1, "late"}, kNow).code(),
+            absl::StatusCode::kAborted);
+  TG_ASSERT_OK(store_->StartAttempt({job, 2}, MakeWorker("w2"), kNow, kNow + 90'000));
+  TG_ASSERT_OK_AND_ASSIGN(found, store_->GetCheckpoint(job, 0));
+  EXPECT_EQ(found->key.attempt, 1);  // what attempt 2 resumes from
+  TG_ASSERT_OK(store_->StoreCheckpoint({job, 2}, "w2", {2, 1, "second"}, kNow));
+  TG_ASSERT_OK_AND_ASSIGN(found, store_->GetCheckpoint(job, 0));
+  EXPECT_EQ(found->key.attempt, 2);
+  EXPECT_EQ(found->checkpoint.data, "second");
+  TG_ASSERT_OK_AND_ASSIGN(found, store_->GetCheckpoint(job, 1));
+  EXPECT_EQ(found->checkpoint.data, bytes);
+  TG_ASSERT_OK_AND_ASSIGN(auto attempts, store_->ListAttempts(job));
+  EXPECT_EQ(attempts[0].checkpoint_episode, 1);
+  EXPECT_EQ(attempts[1].checkpoint_episode, 2);
+  TG_ASSERT_OK_AND_ASSIGN(auto none, store_->GetCheckpoint(job + 1000, 0));
+  EXPECT_FALSE(none.has_value());
+}
+
 TEST_F(StorageTest, ExtendOpenLeasesMovesOnlyEarlierExpiries) {
   const int64_t job = CreateAndLease("s");
   TG_ASSERT_OK_AND_ASSIGN(int extended, store_->ExtendOpenLeases(kNow + 500'000, kNow, "in a test"));
@@ -728,7 +772,7 @@ TEST_F(StorageTest, VersionOneDatabaseIsMigrated) {
     // Turn the file back into a version-1 database.
     auto db = internal::Db::Open(path_, false, 1000);
     ASSERT_TRUE(db.ok()) << db.status();
-    TG_ASSERT_OK(db->Exec("DROP TABLE study_cells; DROP TABLE study_references; "
+    TG_ASSERT_OK(db->Exec("DROP TABLE checkpoints; DROP TABLE study_cells; DROP TABLE study_references; "
                           "ALTER TABLE jobs DROP COLUMN payload; ALTER TABLE jobs DROP COLUMN kind; "
                           "PRAGMA user_version=1"));
   }
@@ -740,7 +784,7 @@ TEST_F(StorageTest, VersionOneDatabaseIsMigrated) {
                             internal::Statement::Prepare(*db, "PRAGMA user_version"));
     TG_ASSERT_OK_AND_ASSIGN(bool row, version.Step());
     ASSERT_TRUE(row);
-    EXPECT_EQ(version.ColumnInt(0), 2);
+    EXPECT_EQ(version.ColumnInt(0), 3);
   }
   TG_ASSERT_OK_AND_ASSIGN(JobRecord old, store_->GetJob(trial_job));
   EXPECT_EQ(old.kind, JobKind::kTrial);
@@ -761,7 +805,7 @@ TEST_F(StorageTest, VersionOneDatabaseIsMigrated) {
   {
     auto db = internal::Db::Open(path_, false, 1000);
     ASSERT_TRUE(db.ok());
-    TG_ASSERT_OK(db->Exec("PRAGMA user_version=2"));
+    TG_ASSERT_OK(db->Exec("PRAGMA user_version=3"));  // back to this build's version
   }
   Reopen();
 }

@@ -554,6 +554,9 @@ TEST_F(WorkerTest, WorkersThatDoNotRunStudiesGetOnlyTrials) {
   EXPECT_EQ(JobsBySeed("study-only")["21"].attempts(), 0);
 }
 
+// The worker skips checkpoints the coordinator would refuse.
+static_assert(kMaxCheckpointBytes == scheduler::kMaxCheckpointBytes);
+
 // The stored episode details keep PILCO's per-step predicted cost mean and
 // std (NaN as null) and leave them out for particle methods.
 TEST(EpisodeDetailsJsonTest, PilcoPerStepPredictionsAreStored) {
