@@ -292,7 +292,8 @@ TEST_F(CliTest, TlsWithDevCertificatesAndTokens) {
   }, seconds(30))) << coordinator.Log();
   const std::string address = absl::StrCat("127.0.0.1:", port);
   Process worker({TOTALGRAD_WORKER_BIN, "--coordinator", address, "--ca-cert", certs + "/ca.pem",
-                  "--token-file", certs + "/worker.token", "--slots", "1", "--acquire-wait", "1"},
+                  "--token-file", certs + "/worker.token", "--slots", "1", "--acquire-wait", "1",
+                  "--state-dir", dir_ + "/worker-state"},
                  dir_ + "/tls-worker.log");
   const std::string path = WriteSweep("cli.toml", kTinySweep);
   const std::vector<std::string> tls = {"--coordinator", address, "--ca-cert", certs + "/ca.pem",
