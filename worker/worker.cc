@@ -166,6 +166,7 @@ WorkerSummary Worker::Run() {
   if (!options_.state_dir.empty()) {
     absl::StatusOr<std::unique_ptr<Spool>> spool = Spool::Open(options_.state_dir, options_.worker_id);
     if (spool.ok()) {
+      std::lock_guard<std::mutex> lock(mutex_);  // SpoolUnfinished may run on a signal thread
       spool_ = *std::move(spool);
     } else if (spool.status().code() == absl::StatusCode::kFailedPrecondition) {
       // Another process here uses this id: running too would mix two
@@ -281,10 +282,10 @@ bool Worker::KeepInSpool(const v1::SpooledAttempt& entry, const std::string& why
 }
 
 int Worker::SpoolUnfinished() {
-  if (spool_ == nullptr) return 0;
   std::vector<v1::SpooledAttempt> entries;
   {
     std::lock_guard<std::mutex> lock(mutex_);
+    if (spool_ == nullptr) return 0;
     for (const auto& [job, active] : active_) {
       v1::SpooledAttempt entry =
           SpoolEntry(active->lease.key(), active->unacked, active->checkpoint);

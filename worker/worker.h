@@ -205,7 +205,9 @@ class Worker {
   TrialRunner* const runner_;
   StudyRunner* const study_runner_;
 
-  std::unique_ptr<Spool> spool_;  // null without a state_dir (or if it is unusable)
+  // Null without a state_dir (or if it is unusable). Set once at the start
+  // of Run() under mutex_; SpoolUnfinished reads it under mutex_.
+  std::unique_ptr<Spool> spool_;
 
   std::atomic<bool> draining_{false};
   std::atomic<bool> stopping_{false};   // hard stop: release at once
