@@ -12,6 +12,7 @@ PACKAGES=(
   libcli11-dev libtomlplusplus-dev nlohmann-json3-dev libfmt-dev libspdlog-dev
   libgrpc++-dev libprotobuf-dev protobuf-compiler protobuf-compiler-grpc
   libsqlite3-dev sqlite3
+  libcpp-httplib-dev
   gnuplot-nox
   iproute2 openssl libssl-dev
   # deploy/ file checks (tests/deploy): unit verification, YAML and shell linters

@@ -16,6 +16,7 @@
 
 #include "server/common/build_info.h"
 #include "server/common/signals.h"
+#include "server/common/token_file.h"
 #include "server/service/auth.h"
 #include "server/service/coordinator.h"
 #include "server/storage/sqlite_store.h"
@@ -35,8 +36,12 @@ int main(int argc, char** argv) {
   CoordinatorOptions options;
   std::string worker_token_file, user_token_file, port_file, backup_path;
   double heartbeat_seconds = 15, lease_timeout_seconds = 90;
-  app.add_option("--db", options.database, "SQLite file (created if missing; local disk only)")
+  app.add_option("--db", options.database,
+                 "SQLite file (local disk only; created on a first start, see --init)")
       ->required();
+  app.add_flag("--init", options.init,
+               "allow initialising a new database in a 0-byte file, an SQLite file without "
+               "tables, or in place of a database that its lock file says was deleted");
   app.add_option("--listen", options.listen, "host:port to serve on (port 0: any free port)")
       ->capture_default_str();
   app.add_option("--worker-token-file", worker_token_file, "file holding the worker token");
@@ -65,9 +70,8 @@ int main(int argc, char** argv) {
   spdlog::flush_on(spdlog::level::info);
 
   if (!backup_path.empty()) {
-    auto store = totalgrad::storage::SqliteStore::Open(options.database);
-    if (!store.ok()) return Fail(store.status().ToString());
-    auto bytes = (*store)->Backup(backup_path);
+    // Read-only and without the lock: works while a coordinator owns the file.
+    auto bytes = totalgrad::storage::SqliteStore::BackupFile(options.database, backup_path);
     if (!bytes.ok()) return Fail(bytes.status().ToString());
     spdlog::info("backup of {} written to {} ({} bytes)", options.database, backup_path, *bytes);
     return 0;
@@ -75,9 +79,10 @@ int main(int argc, char** argv) {
   for (auto [file, token] : {std::pair{&worker_token_file, &options.worker_token},
                              std::pair{&user_token_file, &options.user_token}}) {
     if (file->empty()) continue;
-    auto read = totalgrad::service::ReadTokenFile(*file);
+    auto read = totalgrad::ReadTokenFile(*file);
     if (!read.ok()) return Fail(read.status().ToString());
-    *token = *read;
+    if (!read->warning.empty()) spdlog::warn("{}", read->warning);
+    *token = read->token;
   }
   options.scheduler.heartbeat_interval = absl::Seconds(heartbeat_seconds);
   options.scheduler.lease_timeout = absl::Seconds(lease_timeout_seconds);

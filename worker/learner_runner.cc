@@ -2,6 +2,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "absl/strings/str_cat.h"
+#include "core/learner/checkpoint.h"
 #include "core/learner/trial.h"
 
 namespace totalgrad::worker {
@@ -57,28 +59,60 @@ class ObserverAdapter final : public learner::TrialObserver {
     progress_->OnEpisode(e);
   }
   bool ShouldCancel() override { return progress_ != nullptr && progress_->ShouldCancel(); }
+  bool WantsCheckpoints() override { return progress_ != nullptr; }
+  void OnCheckpoint(const learner::TrialCheckpoint& checkpoint) override {
+    progress_->OnCheckpoint(checkpoint.episode, learner::kCheckpointFormatVersion,
+                            learner::EncodeCheckpoint(checkpoint));
+  }
 
  private:
   TrialProgress* progress_;
 };
 
-}  // namespace
-
-absl::StatusOr<TrialOutcome> LearnerTrialRunner::Run(const OptionList& options,
-                                                     TrialProgress* progress) {
+absl::StatusOr<learner::TrialOptions> ApplyOptions(const OptionList& options) {
   learner::TrialOptions trial_options;
   for (const auto& [key, value] : options) {
     absl::Status status = learner::SetTrialOption(key, value, &trial_options);
     if (!status.ok()) return status;
   }
+  return trial_options;
+}
+
+absl::StatusOr<TrialOutcome> RunFrom(const learner::TrialOptions& options,
+                                     const learner::TrialCheckpoint* resume_from,
+                                     TrialProgress* progress) {
   ObserverAdapter observer(progress);
-  absl::StatusOr<learner::TrialSummary> summary = learner::RunTrial(trial_options, &observer);
+  absl::StatusOr<learner::TrialSummary> summary =
+      learner::RunTrial(options, &observer, resume_from);
   if (!summary.ok()) return summary.status();
   TrialOutcome outcome;
   outcome.success = summary->success;
   outcome.final_eval_cost = summary->final_eval_cost;
   outcome.episodes = static_cast<int>(summary->episodes.size());
   return outcome;
+}
+
+}  // namespace
+
+absl::StatusOr<TrialOutcome> LearnerTrialRunner::Run(const OptionList& options,
+                                                     TrialProgress* progress) {
+  absl::StatusOr<learner::TrialOptions> trial_options = ApplyOptions(options);
+  if (!trial_options.ok()) return trial_options.status();
+  return RunFrom(*trial_options, nullptr, progress);
+}
+
+absl::StatusOr<TrialOutcome> LearnerTrialRunner::Resume(const OptionList& options,
+                                                        const std::string& checkpoint,
+                                                        TrialProgress* progress) {
+  absl::StatusOr<learner::TrialOptions> trial_options = ApplyOptions(options);
+  if (!trial_options.ok()) return trial_options.status();
+  absl::StatusOr<learner::TrialCheckpoint> decoded = learner::DecodeCheckpoint(checkpoint);
+  absl::Status usable = decoded.ok() ? learner::CheckResumable(*decoded, *trial_options)
+                                     : decoded.status();
+  if (!usable.ok()) {
+    return absl::FailedPreconditionError(absl::StrCat("cannot resume: ", usable.message()));
+  }
+  return RunFrom(*trial_options, &*decoded, progress);
 }
 
 }  // namespace totalgrad::worker

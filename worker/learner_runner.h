@@ -23,6 +23,10 @@ class LearnerTrialRunner final : public TrialRunner {
   // Options go through learner::SetTrialOption, so the runner accepts exactly
   // what the core accepts. Thread-safe (RunTrial keeps no shared state).
   absl::StatusOr<TrialOutcome> Run(const OptionList& options, TrialProgress* progress) override;
+  // learner::DecodeCheckpoint + CheckResumable, then RunTrial from it.
+  absl::StatusOr<TrialOutcome> Resume(const OptionList& options, const std::string& checkpoint,
+                                      TrialProgress* progress) override;
+  // Both report a checkpoint after every episode (TrialProgress::OnCheckpoint).
 };
 
 }  // namespace totalgrad::worker

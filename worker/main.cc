@@ -5,17 +5,24 @@
 //   totalgrad-worker --coordinator 127.0.0.1:7070 --insecure
 //
 // SIGTERM/SIGINT drain (no new leases; running trials finish within
-// --drain-timeout or are released); a second signal releases at once.
+// --drain-timeout or are released; what cannot be delivered then is kept in
+// --state-dir for the next worker with the same id on this host); a second
+// signal exits at once, keeping what is unfinished in --state-dir.
+//
+// Exit codes: 0 done; 2 bad flags or files; 77 the coordinator refused the
+// token; 78 the worker id is in use by another live worker process.
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <cstdlib>
 #include <fstream>
 #include <thread>
 
 #include "core/common/blas.h"
 #include "server/common/build_info.h"
 #include "server/common/signals.h"
+#include "server/common/token_file.h"
 #include "server/common/rpc_client.h"
 #include "worker/learner_runner.h"
 #include "worker/study_runner.h"
@@ -29,14 +36,30 @@ std::string HostName() {
   return buffer;
 }
 
-absl::StatusOr<std::string> ReadToken(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) return absl::NotFoundError("cannot read token file " + path);
-  std::string token((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  while (!token.empty() && std::isspace(static_cast<unsigned char>(token.back()))) token.pop_back();
-  while (!token.empty() && std::isspace(static_cast<unsigned char>(token.front()))) token.erase(0, 1);
-  if (token.empty()) return absl::InvalidArgumentError("token file " + path + " is empty");
-  return token;
+// Where the worker keeps its lock and spool unless --state-dir says:
+// systemd's StateDirectory, then XDG_STATE_HOME, then ~/.local/state, then
+// /var/tmp (per user).
+std::string DefaultStateDir() {
+  if (const char* dir = std::getenv("STATE_DIRECTORY"); dir != nullptr && *dir != '\0') {
+    std::string first(dir);
+    return first.substr(0, first.find(':'));  // systemd lists several with ':'
+  }
+  if (const char* dir = std::getenv("XDG_STATE_HOME"); dir != nullptr && *dir != '\0') {
+    return std::string(dir) + "/totalgrad-worker";
+  }
+  if (const char* home = std::getenv("HOME"); home != nullptr && *home != '\0') {
+    return std::string(home) + "/.local/state/totalgrad-worker";
+  }
+  return "/var/tmp/totalgrad-worker-" + std::to_string(getuid());
+}
+
+int ExitCode(const totalgrad::worker::WorkerSummary& summary) {
+  switch (summary.exit) {
+    case totalgrad::worker::WorkerExit::kDone: return 0;
+    case totalgrad::worker::WorkerExit::kAuthRefused: return totalgrad::worker::kExitAuthRefused;
+    case totalgrad::worker::WorkerExit::kWorkerIdInUse: return totalgrad::worker::kExitWorkerIdInUse;
+  }
+  return 1;
 }
 
 }  // namespace
@@ -67,7 +90,25 @@ int main(int argc, char** argv) {
   app.add_option("--worker-id", options.worker_id, "unique id of this worker")
       ->capture_default_str();
   app.add_option("--drain-timeout", drain_seconds,
-                 "seconds running trials get to finish after SIGTERM")
+                 "seconds running trials get to finish after SIGTERM (then --report-grace for "
+                 "the final reports)")
+      ->capture_default_str();
+  double report_grace_seconds = 5;
+  app.add_option("--report-grace", report_grace_seconds,
+                 "seconds final reports get after --drain-timeout before they are kept in "
+                 "--state-dir instead")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  options.state_dir = DefaultStateDir();
+  app.add_option("--state-dir", options.state_dir,
+                 "directory for this worker id's lock and its spool of undelivered results "
+                 "(replayed by the next worker with the same id on this host)")
+      ->capture_default_str();
+  double worker_id_wait_seconds = 120;
+  app.add_option("--worker-id-wait", worker_id_wait_seconds,
+                 "seconds to wait while the coordinator says another live worker uses this "
+                 "--worker-id before exiting with code 78")
+      ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   app.add_option("--max-idle", max_idle_seconds,
                  "exit after this many seconds without work (default: never)");
@@ -88,15 +129,18 @@ int main(int argc, char** argv) {
   spdlog::flush_on(spdlog::level::info);
 
   if (!token_file.empty()) {
-    auto token = ReadToken(token_file);
+    auto token = totalgrad::ReadTokenFile(token_file);
     if (!token.ok()) {
       spdlog::error("{}", token.status().ToString());
       return 2;
     }
-    options.token = *token;
-    connection.token = *token;
+    if (!token->warning.empty()) spdlog::warn("{}", token->warning);
+    options.token = token->token;
+    connection.token = token->token;
   }
   options.drain_timeout = absl::Seconds(drain_seconds);
+  options.report_grace = absl::Seconds(report_grace_seconds);
+  options.worker_id_wait = absl::Seconds(worker_id_wait_seconds);
   options.acquire_wait = absl::Seconds(acquire_wait_seconds);
   if (max_idle_seconds >= 0) options.max_idle = absl::Seconds(max_idle_seconds);
 
@@ -116,13 +160,31 @@ int main(int argc, char** argv) {
   auto* study_runner = new totalgrad::worker::CoreStudyRunner();
   auto* worker_ptr = new totalgrad::worker::Worker(options, *channel, runner, study_runner);
   totalgrad::worker::Worker& worker = *worker_ptr;
-  std::thread signal_thread([&worker] {
+  // A trial notices a cancellation between gradient steps, and a model fit
+  // can take a while; after the drain timeout and the report grace a
+  // watchdog exits anyway, keeping what is unfinished, so the shutdown a
+  // supervisor (systemd, Kubernetes, Slurm) waits for is bounded.
+  const auto hard_stop_after = options.drain_timeout + options.report_grace + absl::Seconds(5);
+  std::thread signal_thread([&worker, hard_stop_after] {
     int signal_number = totalgrad::WaitForShutdownSignal();
-    spdlog::info("signal {}: draining (send again to release running trials now)", signal_number);
+    spdlog::info("signal {}: draining (send again to exit at once)", signal_number);
     worker.Drain();
+    std::thread([&worker, hard_stop_after] {
+      std::this_thread::sleep_for(
+          std::chrono::milliseconds(absl::ToInt64Milliseconds(hard_stop_after)));
+      spdlog::warn("still running {} after the signal: exiting now",
+                   absl::FormatDuration(hard_stop_after));
+      worker.Stop();
+      const int kept = worker.SpoolUnfinished();
+      spdlog::info("worker exits: {} unfinished attempts kept for the next worker", kept);
+      std::_Exit(0);
+    }).detach();
     signal_number = totalgrad::WaitForShutdownSignal();
-    spdlog::info("signal {}: releasing running trials", signal_number);
+    spdlog::info("signal {}: exiting at once", signal_number);
     worker.Stop();
+    const int kept = worker.SpoolUnfinished();
+    spdlog::info("worker exits: {} unfinished attempts kept for the next worker", kept);
+    std::_Exit(0);
   });
   signal_thread.detach();
   if (walltime_seconds >= 0) {
@@ -136,7 +198,13 @@ int main(int argc, char** argv) {
   spdlog::info("worker {} ({} slots) -> {} [{}]", options.worker_id, options.slots,
                connection.target, options.build);
   const totalgrad::worker::WorkerSummary summary = worker.Run();
-  spdlog::info("worker done: {} completed, {} failed, {} released, {} dropped", summary.completed,
-               summary.failed, summary.released, summary.dropped);
-  return 0;
+  spdlog::info("worker done: {} completed, {} failed, {} released, {} dropped, {} kept in the "
+               "spool, {} replayed from it",
+               summary.completed, summary.failed, summary.released, summary.dropped,
+               summary.spooled, summary.replayed);
+  if (summary.exit != totalgrad::worker::WorkerExit::kDone) {
+    spdlog::error("worker exits with code {}: {}", ExitCode(summary), summary.exit_message);
+  }
+  // Detached threads (signals, walltime) may still hold the worker: end now.
+  std::_Exit(ExitCode(summary));
 }

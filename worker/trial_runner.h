@@ -41,6 +41,11 @@ class TrialProgress {
   virtual void OnEpisode(const EpisodeOutcome& episode) = 0;
   // Polled often; true asks the trial to stop (it then returns Cancelled).
   virtual bool ShouldCancel() = 0;
+  // Called after each finished episode, right after OnEpisode, with the
+  // trial's state in the versioned checkpoint encoding of
+  // core/learner/checkpoint.h: what a later attempt resumes from. Default:
+  // ignored.
+  virtual void OnCheckpoint(int episode, int format_version, std::string data) {}
 };
 
 class TrialRunner {
@@ -51,6 +56,17 @@ class TrialRunner {
   // Errors: InvalidArgument (options), Cancelled (ShouldCancel), or the
   // trial's own failure (Internal, FailedPrecondition, ...), named.
   virtual absl::StatusOr<TrialOutcome> Run(const OptionList& options, TrialProgress* progress) = 0;
+  // Resumes the trial from `checkpoint` (OnCheckpoint data of an earlier run
+  // of the same trial and build): the restored episodes are reported again,
+  // then the trial continues as if never interrupted. Returns
+  // FailedPrecondition starting "cannot resume" before reporting anything if
+  // the checkpoint cannot be used (the caller then starts over). Default:
+  // ignores the checkpoint and runs from the start.
+  virtual absl::StatusOr<TrialOutcome> Resume(const OptionList& options,
+                                              const std::string& checkpoint,
+                                              TrialProgress* progress) {
+    return Run(options, progress);
+  }
 };
 
 }  // namespace totalgrad::worker

@@ -1,6 +1,7 @@
 #include "worker/worker.h"
 
 #include <spdlog/spdlog.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <cmath>
@@ -9,10 +10,35 @@
 #include <thread>
 
 #include "absl/strings/str_cat.h"
+#include "absl/strings/match.h"
+#include "absl/strings/str_format.h"
 #include "server/common/rpc_client.h"
 
 namespace totalgrad::worker {
 namespace {
+
+bool IsAuthError(grpc::StatusCode code) {
+  return code == grpc::StatusCode::UNAUTHENTICATED || code == grpc::StatusCode::PERMISSION_DENIED;
+}
+
+// The lease is gone on the coordinator (lost, ended, or re-queued): whatever
+// belongs to it can never be stored.
+bool IsLeaseGone(grpc::StatusCode code) {
+  return code == grpc::StatusCode::ABORTED || code == grpc::StatusCode::NOT_FOUND;
+}
+
+std::string RandomInstance() {
+  std::random_device device;
+  std::mt19937_64 random((static_cast<uint64_t>(device()) << 32) ^ device() ^
+                         static_cast<uint64_t>(getpid()));
+  return absl::StrFormat("%016x", random());
+}
+
+int64_t WallMs() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
 
 int64_t SteadyMs() {
   return std::chrono::duration_cast<std::chrono::milliseconds>(
@@ -59,6 +85,9 @@ struct Worker::ActiveLease {
   v1::Lease lease;
   // The fields below are guarded by Worker::mutex_.
   std::vector<v1::EpisodeReport> unacked;
+  // The trial's latest checkpoint until the coordinator acknowledges it.
+  std::optional<v1::TrialCheckpoint> checkpoint;
+  bool checkpoint_too_big = false;  // warned once
   bool has_new = false;
   bool beat_in_flight = false;
   int64_t next_beat_ms = 0;
@@ -89,15 +118,44 @@ class Worker::Progress final : public TrialProgress {
     worker_->changed_.notify_all();
   }
   bool ShouldCancel() override { return active_->cancel.load(); }
+  void OnCheckpoint(int episode, int format_version, std::string data) override {
+    {
+      std::lock_guard<std::mutex> lock(worker_->mutex_);
+      if (data.size() > kMaxCheckpointBytes) {
+        // The coordinator would refuse it: the trial goes on without one.
+        if (!active_->checkpoint_too_big) {
+          spdlog::warn("{}: the checkpoint after episode {} is {} bytes, over {}; not sent (this "
+                       "attempt cannot be resumed)",
+                       Describe(active_->lease.key()), episode, data.size(), kMaxCheckpointBytes);
+        }
+        active_->checkpoint_too_big = true;
+        return;
+      }
+      v1::TrialCheckpoint checkpoint;
+      checkpoint.set_episode(episode);
+      checkpoint.set_format_version(format_version);
+      checkpoint.set_data(std::move(data));
+      active_->checkpoint = std::move(checkpoint);
+      active_->has_new = true;
+    }
+    worker_->changed_.notify_all();
+  }
 
  private:
   Worker* worker_;
   std::shared_ptr<ActiveLease> active_;
 };
 
+namespace {
+WorkerOptions WithInstance(WorkerOptions options) {
+  if (options.instance.empty()) options.instance = RandomInstance();
+  return options;
+}
+}  // namespace
+
 Worker::Worker(WorkerOptions options, std::shared_ptr<grpc::Channel> channel, TrialRunner* runner,
                StudyRunner* study_runner)
-    : options_(std::move(options)),
+    : options_(WithInstance(std::move(options))),
       stub_(v1::WorkerService::NewStub(std::move(channel))),
       runner_(runner),
       study_runner_(study_runner) {}
@@ -105,15 +163,40 @@ Worker::Worker(WorkerOptions options, std::shared_ptr<grpc::Channel> channel, Tr
 Worker::~Worker() = default;
 
 WorkerSummary Worker::Run() {
+  if (!options_.state_dir.empty()) {
+    absl::StatusOr<std::unique_ptr<Spool>> spool = Spool::Open(options_.state_dir, options_.worker_id);
+    if (spool.ok()) {
+      std::lock_guard<std::mutex> lock(mutex_);  // SpoolUnfinished may run on a signal thread
+      spool_ = *std::move(spool);
+    } else if (spool.status().code() == absl::StatusCode::kFailedPrecondition) {
+      // Another process here uses this id: running too would mix two
+      // workers' leases under one name.
+      std::lock_guard<std::mutex> lock(mutex_);
+      summary_.exit = WorkerExit::kWorkerIdInUse;
+      summary_.exit_message = std::string(spool.status().message());
+      spdlog::error("{}", summary_.exit_message);
+      return summary_;
+    } else {
+      spdlog::warn("{}; running without a spool: results that cannot be delivered before the "
+                   "worker exits will be dropped",
+                   std::string(spool.status().message()));
+    }
+  }
+  std::thread deadlines([this] { DeadlineLoop(); });
+  if (spool_ != nullptr) ReplaySpool();
   std::thread heartbeat([this] { HeartbeatLoop(); });
   std::vector<std::thread> slots;
   for (int slot = 0; slot < options_.slots; ++slot) {
     slots.emplace_back([this, slot] { SlotLoop(slot); });
   }
   for (auto& t : slots) t.join();
-  finished_ = true;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    finished_ = true;
+  }
   changed_.notify_all();
   heartbeat.join();
+  deadlines.join();
   std::lock_guard<std::mutex> lock(mutex_);
   return summary_;
 }
@@ -121,6 +204,7 @@ WorkerSummary Worker::Run() {
 void Worker::Drain() {
   {
     std::lock_guard<std::mutex> lock(mutex_);
+    ++heartbeat_generation_;  // the heartbeat thread now watches the drain deadline
     if (!draining_.exchange(true)) {
       drain_started_ms_ = SteadyMs();
       spdlog::info("draining: no new leases; running trials have {} to finish",
@@ -128,13 +212,97 @@ void Worker::Drain() {
     }
     for (grpc::ClientContext* context : acquiring_) context->TryCancel();
   }
+  replay_calls_.CancelAll();
   changed_.notify_all();
 }
 
 void Worker::Stop() {
   stopping_ = true;
+  give_up_ = true;
   Drain();
+  calls_.CancelAll();
   CancelAll("worker stopping");
+}
+
+void Worker::FailFatally(WorkerExit exit, const std::string& message) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (summary_.exit != WorkerExit::kDone) return;  // the first reason is the one reported
+    summary_.exit = exit;
+    summary_.exit_message = message;
+  }
+  spdlog::error("{}; stopping now (retrying cannot help)", message);
+  Stop();
+}
+
+void Worker::FillIdentity(v1::WorkerIdentity* identity) const {
+  identity->set_worker_id(options_.worker_id);
+  identity->set_host(options_.host);
+  identity->set_build(options_.build);
+  identity->set_slots(options_.slots);
+  identity->set_study_jobs(study_runner_ != nullptr);
+  identity->set_instance(options_.instance);
+  // Holding the host-local lock proves any earlier process with this id here has exited.
+  identity->set_takes_over(spool_ != nullptr);
+}
+
+v1::SpooledAttempt Worker::SpoolEntry(const v1::LeaseKey& key,
+                                      const std::vector<v1::EpisodeReport>& unacked,
+                                      const std::optional<v1::TrialCheckpoint>& checkpoint) const {
+  v1::SpooledAttempt entry;
+  entry.set_format_version(kSpoolFormatVersion);
+  *entry.mutable_lease() = key;
+  entry.set_worker_id(options_.worker_id);
+  entry.set_written_unix_ms(WallMs());
+  if (!unacked.empty() || checkpoint) {
+    entry.mutable_pending()->set_worker_id(options_.worker_id);
+    *entry.mutable_pending()->mutable_lease() = key;
+    for (const auto& e : unacked) *entry.mutable_pending()->add_episodes() = e;
+    if (checkpoint) *entry.mutable_pending()->mutable_checkpoint() = *checkpoint;
+  }
+  return entry;
+}
+
+bool Worker::KeepInSpool(const v1::SpooledAttempt& entry, const std::string& why) {
+  if (spool_ == nullptr) {
+    spdlog::warn("{}: {}; no --state-dir to keep it in: dropped", Describe(entry.lease()), why);
+    return false;
+  }
+  v1::SpooledAttempt stamped = entry;
+  stamped.set_written_unix_ms(WallMs());
+  const absl::Status written = spool_->Put(stamped);
+  if (!written.ok()) {
+    spdlog::error("{}: {}; keeping it in the spool failed: {}", Describe(entry.lease()), why,
+                  written.ToString());
+    return false;
+  }
+  spdlog::warn("{}: {}; kept in {} for the next worker with id '{}' on this host",
+               Describe(entry.lease()), why, spool_->directory(), options_.worker_id);
+  return true;
+}
+
+int Worker::SpoolUnfinished() {
+  std::vector<v1::SpooledAttempt> entries;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (spool_ == nullptr) return 0;
+    for (const auto& [job, active] : active_) {
+      v1::SpooledAttempt entry =
+          SpoolEntry(active->lease.key(), active->unacked, active->checkpoint);
+      entry.mutable_release()->set_worker_id(options_.worker_id);
+      *entry.mutable_release()->mutable_lease() = active->lease.key();
+      entry.mutable_release()->set_reason("worker stopped before the trial finished");
+      entries.push_back(std::move(entry));
+    }
+    for (const auto& [job, entry] : finishing_) entries.push_back(entry);
+  }
+  int kept = 0;
+  for (const auto& entry : entries) {
+    if (KeepInSpool(entry, "the worker is exiting")) ++kept;
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  summary_.spooled += kept;
+  return kept;
 }
 
 void Worker::CancelAll(const std::string& reason) {
@@ -154,11 +322,7 @@ void Worker::SlotLoop(int slot) {
   int64_t backoff_ms = 200;
   while (!draining_ && !stopping_) {
     v1::AcquireLeaseRequest request;
-    request.mutable_worker()->set_worker_id(options_.worker_id);
-    request.mutable_worker()->set_host(options_.host);
-    request.mutable_worker()->set_build(options_.build);
-    request.mutable_worker()->set_slots(options_.slots);
-    request.mutable_worker()->set_study_jobs(study_runner_ != nullptr);
+    FillIdentity(request.mutable_worker());
     request.set_wait_ms(static_cast<int32_t>(absl::ToInt64Milliseconds(options_.acquire_wait)));
     v1::AcquireLeaseResponse response;
     grpc::ClientContext context;
@@ -182,6 +346,39 @@ void Worker::SlotLoop(int slot) {
         Finish(active, absl::CancelledError("drain"));
       }
       break;
+    }
+    if (IsAuthError(status.error_code())) {
+      FailFatally(WorkerExit::kAuthRefused,
+                  absl::StrCat("the coordinator refused this worker's token: ",
+                               status.error_message()));
+      break;
+    }
+    if (status.error_code() == grpc::StatusCode::ALREADY_EXISTS) {
+      int64_t refused_for = 0;
+      {
+        std::lock_guard<std::mutex> lock(mutex_);
+        if (id_refused_since_ms_ < 0) id_refused_since_ms_ = SteadyMs();
+        refused_for = SteadyMs() - id_refused_since_ms_;
+      }
+      // A newer process took this id over: this one is the duplicate. Else
+      // the other process may be a crashed predecessor whose silence has
+      // not yet reached the lease timeout: wait a while before giving up.
+      if (status.error_message().find("replaced by a newer process") != std::string::npos ||
+          refused_for > absl::ToInt64Milliseconds(options_.worker_id_wait)) {
+        FailFatally(WorkerExit::kWorkerIdInUse, status.error_message());
+        break;
+      }
+      if (slot == 0) {
+        spdlog::warn("{} (waiting up to {} for it to go away)", status.error_message(),
+                     absl::FormatDuration(options_.worker_id_wait));
+      }
+      std::unique_lock<std::mutex> lock(mutex_);
+      changed_.wait_for(lock, std::chrono::seconds(2), [&] { return draining_ || stopping_; });
+      continue;
+    }
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (status.ok()) id_refused_since_ms_ = -1;
     }
     if (!status.ok()) {
       spdlog::warn("slot {}: AcquireLease failed: {} ({}); retrying", slot, status.error_message(),
@@ -214,11 +411,13 @@ void Worker::RunLease(const v1::Lease& lease) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     active_[lease.key().job_id()] = active;
+    ++heartbeat_generation_;  // the heartbeat thread plans this lease's first beat
     if (stopping_) {
       active->cancel = true;
       active->cancel_reason = "worker stopping";
     }
   }
+  changed_.notify_all();
   const bool is_study = lease.kind() == v1::JOB_KIND_STUDY;
   if (is_study) {
     spdlog::info("{}: study {} (seed {})", Describe(lease.key()), lease.variant(), lease.seed());
@@ -233,7 +432,33 @@ void Worker::RunLease(const v1::Lease& lease) {
   absl::StatusOr<StudyOutcome> study = absl::UnknownError("not a study");
   const char* what = is_study ? "the study" : "the trial";
   try {
-    if (!is_study) {
+    const std::string* resume = nullptr;
+    if (!is_study && lease.has_resume_from() && !lease.resume_from().data().empty()) {
+      if (lease.resume_from_build() == options_.build) {
+        resume = &lease.resume_from().data();
+      } else {
+        spdlog::warn("{}: not resuming from the checkpoint of attempt {} (after episode {}): it "
+                     "was written by another build ({}); starting over so the results are "
+                     "those of one build",
+                     Describe(lease.key()), lease.resume_from_attempt(),
+                     lease.resume_from().episode(), lease.resume_from_build());
+      }
+    }
+    if (resume != nullptr) {
+      spdlog::info("{}: resuming from the checkpoint of attempt {} after episode {}",
+                   Describe(lease.key()), lease.resume_from_attempt(),
+                   lease.resume_from().episode());
+      result = runner_->Resume(options, *resume, &progress);
+      if (!result.ok() && result.status().code() == absl::StatusCode::kFailedPrecondition &&
+          absl::StartsWith(result.status().message(), "cannot resume")) {
+        spdlog::warn("{}: {}; starting over", Describe(lease.key()),
+                     std::string(result.status().message()));
+        result = runner_->Run(options, &progress);
+      } else {
+        std::lock_guard<std::mutex> lock(mutex_);
+        ++summary_.resumed;
+      }
+    } else if (!is_study) {
       result = runner_->Run(options, &progress);
     } else if (study_runner_ == nullptr) {
       result = absl::FailedPreconditionError("this worker cannot run study jobs");
@@ -247,29 +472,39 @@ void Worker::RunLease(const v1::Lease& lease) {
   } catch (...) {
     result = absl::InternalError(absl::StrCat(what, " threw a non-standard exception"));
   }
-  {
-    // Take the lease away from the heartbeat thread before the final report.
-    std::unique_lock<std::mutex> lock(mutex_);
-    changed_.wait(lock, [&] { return !active->beat_in_flight; });
-    active_.erase(lease.key().job_id());
-  }
-  changed_.notify_all();
   Finish(active, result, is_study && result.ok() && study.ok() ? &*study : nullptr);
+}
+
+void Worker::DeadlineLoop() {
+  // Its own thread, so that a heartbeat stuck on an unreachable coordinator
+  // cannot delay the drain deadlines.
+  std::unique_lock<std::mutex> lock(mutex_);
+  changed_.wait(lock, [&] { return finished_ || draining_; });
+  if (finished_) return;
+  const int64_t drain_deadline =
+      drain_started_ms_ + absl::ToInt64Milliseconds(options_.drain_timeout);
+  const int64_t report_deadline = drain_deadline + absl::ToInt64Milliseconds(options_.report_grace);
+  const auto at = [](int64_t ms) {
+    return std::chrono::steady_clock::time_point(std::chrono::milliseconds(ms));
+  };
+  if (changed_.wait_until(lock, at(drain_deadline), [&] { return finished_.load(); })) return;
+  for (auto& [job, active] : active_) {
+    if (!active->cancel) {
+      active->cancel_reason = "drain timeout";
+      active->cancel = true;
+    }
+  }
+  if (changed_.wait_until(lock, at(report_deadline), [&] { return finished_.load(); })) return;
+  // Whatever is still undelivered is spooled rather than waited for.
+  give_up_ = true;
+  lock.unlock();
+  calls_.CancelAll();
 }
 
 void Worker::HeartbeatLoop() {
   std::unique_lock<std::mutex> lock(mutex_);
   while (!finished_) {
     const int64_t now = SteadyMs();
-    if (draining_ && !stopping_ &&
-        now - drain_started_ms_ > absl::ToInt64Milliseconds(options_.drain_timeout)) {
-      for (auto& [job, active] : active_) {
-        if (!active->cancel) {
-          active->cancel_reason = "drain timeout";
-          active->cancel = true;
-        }
-      }
-    }
     int64_t wake = now + 1000;
     std::vector<std::shared_ptr<ActiveLease>> due;
     for (auto& [job, active] : active_) {
@@ -281,9 +516,10 @@ void Worker::HeartbeatLoop() {
       }
     }
     if (due.empty()) {
+      const uint64_t generation = heartbeat_generation_;
       changed_.wait_until(lock, std::chrono::steady_clock::time_point(std::chrono::milliseconds(wake)),
                           [&] {
-                            if (finished_) return true;
+                            if (finished_ || heartbeat_generation_ != generation) return true;
                             for (auto& [job, active] : active_) {
                               if (active->has_new && !active->beat_in_flight && !active->lost) {
                                 return true;
@@ -307,6 +543,7 @@ void Worker::Beat(const std::shared_ptr<ActiveLease>& active) {
   request.set_worker_id(options_.worker_id);
   *request.mutable_lease() = active->lease.key();
   std::set<int> sent;
+  int checkpoint_sent = -1;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     for (const auto& episode : active->unacked) {
@@ -314,12 +551,24 @@ void Worker::Beat(const std::shared_ptr<ActiveLease>& active) {
       *request.add_episodes() = episode;
       sent.insert(episode.episode());
     }
+    // The checkpoint only with (or after) the episode it follows.
+    if (active->checkpoint && request.episodes_size() == static_cast<int>(active->unacked.size())) {
+      *request.mutable_checkpoint() = *active->checkpoint;
+      checkpoint_sent = active->checkpoint->episode();
+    }
     active->has_new = false;
   }
   v1::HeartbeatResponse response;
   grpc::ClientContext context;
   rpc::PrepareContext(&context, options_.token, options_.call_timeout, /*wait_for_ready=*/false);
+  calls_.Add(&context);
   const grpc::Status status = stub_->Heartbeat(&context, request, &response);
+  calls_.Remove(&context);
+  if (IsAuthError(status.error_code())) {
+    FailFatally(WorkerExit::kAuthRefused,
+                absl::StrCat("the coordinator refused this worker's token: ", status.error_message()));
+    return;
+  }
   bool drain = false;
   {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -328,6 +577,9 @@ void Worker::Beat(const std::shared_ptr<ActiveLease>& active) {
     if (status.ok()) {
       std::erase_if(active->unacked,
                     [&](const v1::EpisodeReport& e) { return sent.count(e.episode()) > 0; });
+      if (active->checkpoint && active->checkpoint->episode() == checkpoint_sent) {
+        active->checkpoint.reset();  // a newer one, if it came meanwhile, stays
+      }
       active->next_beat_ms = now + interval;
       active->backoff_ms = 200;
       if (response.directive() == v1::DIRECTIVE_CANCEL && !active->cancel) {
@@ -391,109 +643,206 @@ grpc::Status Worker::SendStudyRows(const v1::LeaseKey& key, const StudyOutcome& 
       }
       ++rows;
     }
-    const grpc::Status status =
-        rpc::CallWithRetry(policy, options_.token, [&](grpc::ClientContext* context) {
+    const grpc::Status status = rpc::CallWithRetry(
+        policy, options_.token,
+        [&](grpc::ClientContext* context) {
           v1::HeartbeatResponse response;
           return stub_->Heartbeat(context, request, &response);
-        });
+        },
+        &give_up_, &calls_);
     if (!status.ok()) return status;
   }
   return grpc::Status::OK;
 }
 
+rpc::RetryPolicy Worker::FinalReportPolicy() const {
+  rpc::RetryPolicy policy;
+  policy.call_timeout = options_.call_timeout;
+  policy.give_up_after = options_.orphan_timeout;
+  int64_t drain_started_ms = 0;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    drain_started_ms = drain_started_ms_;
+  }
+  if (draining_) {
+    // Bounded by the drain: what is not delivered by then is spooled.
+    const int64_t left = drain_started_ms + absl::ToInt64Milliseconds(options_.drain_timeout) +
+                         absl::ToInt64Milliseconds(options_.report_grace) - SteadyMs();
+    policy.give_up_after = absl::Milliseconds(std::max<int64_t>(0, left));
+    policy.call_timeout = std::min(policy.call_timeout,
+                                   absl::Milliseconds(std::max<int64_t>(100, left)));
+  }
+  return policy;
+}
+
+Worker::Delivery Worker::Deliver(const v1::SpooledAttempt& attempt, const rpc::RetryPolicy& policy,
+                                 rpc::CallRegistry* registry) {
+  Delivery delivery;
+  const auto call = [&](const auto& send) {
+    return rpc::CallWithRetry(policy, options_.token, send, &give_up_, registry);
+  };
+  if (attempt.has_pending() &&
+      (attempt.pending().episodes_size() > 0 || attempt.pending().study_cells_size() > 0 ||
+       attempt.pending().study_references_size() > 0 || attempt.pending().has_checkpoint())) {
+    delivery.status = call([&](grpc::ClientContext* context) {
+      v1::HeartbeatResponse response;
+      return stub_->Heartbeat(context, attempt.pending(), &response);
+    });
+    if (!delivery.status.ok()) return delivery;
+  }
+  v1::FailRequest fail;
+  if (attempt.has_complete()) {
+    delivery.kind = Delivery::Kind::kComplete;
+    delivery.status = call([&](grpc::ClientContext* context) {
+      v1::CompleteResponse response;
+      return stub_->Complete(context, attempt.complete(), &response);
+    });
+    if (delivery.status.error_code() != grpc::StatusCode::INVALID_ARGUMENT &&
+        delivery.status.error_code() != grpc::StatusCode::FAILED_PRECONDITION) {
+      return delivery;
+    }
+    // A completion the coordinator will never accept: the attempt fails with the reason.
+    delivery.failure =
+        absl::StrCat("the coordinator refused the completion: ", delivery.status.error_message());
+    fail.set_worker_id(attempt.complete().worker_id());
+    *fail.mutable_lease() = attempt.complete().lease();
+    fail.set_error(delivery.failure);
+  } else if (attempt.has_fail()) {
+    fail = attempt.fail();
+  } else if (attempt.has_release()) {
+    delivery.kind = Delivery::Kind::kRelease;
+    delivery.status = call([&](grpc::ClientContext* context) {
+      v1::ReleaseResponse response;
+      return stub_->Release(context, attempt.release(), &response);
+    });
+    return delivery;
+  } else {
+    delivery.status = grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "no final report");
+    return delivery;
+  }
+  delivery.kind = Delivery::Kind::kFail;
+  delivery.status = call([&](grpc::ClientContext* context) {
+    v1::FailResponse response;
+    return stub_->Fail(context, fail, &response);
+  });
+  if (delivery.status.error_code() == grpc::StatusCode::INVALID_ARGUMENT) {
+    fail.clear_episodes();  // keep the verdict even if an episode is refused
+    delivery.status = call([&](grpc::ClientContext* context) {
+      v1::FailResponse response;
+      return stub_->Fail(context, fail, &response);
+    });
+  }
+  return delivery;
+}
+
 void Worker::Finish(const std::shared_ptr<ActiveLease>& active,
                     const absl::StatusOr<TrialOutcome>& result, const StudyOutcome* study) {
   const v1::LeaseKey& key = active->lease.key();
-  if (active->lost) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    ++summary_.dropped;
-    return;
-  }
   std::string failure, cancel_reason;
   std::vector<v1::EpisodeReport> unacked;
+  std::optional<v1::TrialCheckpoint> checkpoint;
   {
-    std::lock_guard<std::mutex> lock(mutex_);
+    // Take the lease away from the heartbeat thread; from here on it is a
+    // final report in finishing_ (which SpoolUnfinished sees too).
+    std::unique_lock<std::mutex> lock(mutex_);
+    changed_.wait(lock, [&] { return !active->beat_in_flight; });
+    active_.erase(key.job_id());
+    if (active->lost) {
+      ++summary_.dropped;
+      return;
+    }
     failure = active->failure;
     cancel_reason = active->cancel_reason;
     unacked = active->unacked;
+    checkpoint = active->checkpoint;
   }
+  changed_.notify_all();
   if (failure.empty() && !result.ok() && result.status().code() != absl::StatusCode::kCancelled) {
     failure = result.status().ToString();
   }
-  rpc::RetryPolicy policy;
-  policy.call_timeout = options_.call_timeout;
-  policy.give_up_after = stopping_ ? absl::Seconds(10) : options_.orphan_timeout;
-  enum class Kind { kComplete, kFail, kRelease } kind;
-  grpc::Status status;
+  // Data first (the checkpoint too: a later attempt resumes from it), then
+  // the verdict.
+  v1::SpooledAttempt entry = SpoolEntry(key, {}, checkpoint);
   if (!failure.empty()) {
-    kind = Kind::kFail;
+    v1::FailRequest* fail = entry.mutable_fail();
+    fail->set_worker_id(options_.worker_id);
+    *fail->mutable_lease() = key;
+    for (const auto& e : unacked) *fail->add_episodes() = e;
+    fail->set_error(failure);
   } else if (!result.ok()) {
-    kind = Kind::kRelease;
+    entry = SpoolEntry(key, unacked, checkpoint);  // the data first, then the release
+    v1::ReleaseRequest* release = entry.mutable_release();
+    release->set_worker_id(options_.worker_id);
+    *release->mutable_lease() = key;
+    release->set_reason(cancel_reason.empty() ? "cancelled" : cancel_reason);
   } else {
-    kind = Kind::kComplete;
-    v1::CompleteRequest request;
-    request.set_worker_id(options_.worker_id);
-    *request.mutable_lease() = key;
+    v1::CompleteRequest* complete = entry.mutable_complete();
+    complete->set_worker_id(options_.worker_id);
+    *complete->mutable_lease() = key;
     if (study != nullptr) {
-      // Rows first (each batch a repeatable heartbeat), then the totals.
-      status = SendStudyRows(key, *study, policy);
-      request.set_study_cells_total(static_cast<int32_t>(study->cells.size()));
-      request.set_study_references_total(static_cast<int32_t>(study->references.size()));
+      complete->set_study_cells_total(static_cast<int32_t>(study->cells.size()));
+      complete->set_study_references_total(static_cast<int32_t>(study->references.size()));
     } else {
-      for (const auto& e : unacked) *request.add_episodes() = e;
-      request.set_episodes_total(result->episodes);
-      request.set_success(result->success);
-      request.set_final_eval_cost(result->final_eval_cost);
-    }
-    if (status.ok()) {
-      status = rpc::CallWithRetry(policy, options_.token, [&](grpc::ClientContext* context) {
-        v1::CompleteResponse response;
-        return stub_->Complete(context, request, &response);
-      });
-    }
-    if (status.error_code() == grpc::StatusCode::INVALID_ARGUMENT ||
-        status.error_code() == grpc::StatusCode::FAILED_PRECONDITION) {
-      failure = absl::StrCat("the coordinator refused the completion: ", status.error_message());
-      unacked.clear();
-      kind = Kind::kFail;
+      for (const auto& e : unacked) *complete->add_episodes() = e;
+      if (checkpoint) *complete->mutable_checkpoint() = *checkpoint;
+      entry.clear_pending();  // all of it rides in the completion
+      complete->set_episodes_total(result->episodes);
+      complete->set_success(result->success);
+      complete->set_final_eval_cost(result->final_eval_cost);
     }
   }
-  if (kind == Kind::kFail) {
-    v1::FailRequest request;
-    request.set_worker_id(options_.worker_id);
-    *request.mutable_lease() = key;
-    for (const auto& e : unacked) *request.add_episodes() = e;
-    request.set_error(failure);
-    status = rpc::CallWithRetry(policy, options_.token, [&](grpc::ClientContext* context) {
-      v1::FailResponse response;
-      return stub_->Fail(context, request, &response);
-    });
-    if (status.error_code() == grpc::StatusCode::INVALID_ARGUMENT) {
-      request.clear_episodes();  // keep the verdict even if an episode is refused
-      status = rpc::CallWithRetry(policy, options_.token, [&](grpc::ClientContext* context) {
-        v1::FailResponse response;
-        return stub_->Fail(context, request, &response);
-      });
-    }
-  } else if (kind == Kind::kRelease) {
-    v1::ReleaseRequest request;
-    request.set_worker_id(options_.worker_id);
-    *request.mutable_lease() = key;
-    request.set_reason(cancel_reason.empty() ? "cancelled" : cancel_reason);
-    status = rpc::CallWithRetry(policy, options_.token, [&](grpc::ClientContext* context) {
-      v1::ReleaseResponse response;
-      return stub_->Release(context, request, &response);
-    });
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    finishing_[key.job_id()] = entry;
   }
-  std::lock_guard<std::mutex> lock(mutex_);
-  if (!status.ok()) {
-    ++summary_.dropped;
-    spdlog::warn("{}: final report not accepted: {} ({})", Describe(key), status.error_message(),
-                 static_cast<int>(status.error_code()));
+  const rpc::RetryPolicy policy = FinalReportPolicy();
+  Delivery delivery;
+  if (study != nullptr) {
+    // Rows first (each batch a repeatable heartbeat), then the totals.
+    delivery.kind = Delivery::Kind::kComplete;
+    delivery.status = SendStudyRows(key, *study, policy);
+    if (!delivery.status.ok() && !IsLeaseGone(delivery.status.error_code()) &&
+        !IsAuthError(delivery.status.error_code())) {
+      // Study rows are not spooled (they can be large; a study re-runs from
+      // the start anyway): give the job back instead.
+      entry = SpoolEntry(key, {});
+      entry.mutable_release()->set_worker_id(options_.worker_id);
+      *entry.mutable_release()->mutable_lease() = key;
+      entry.mutable_release()->set_reason("the study's rows could not be delivered");
+      std::lock_guard<std::mutex> lock(mutex_);
+      finishing_[key.job_id()] = entry;
+    }
+  }
+  if (delivery.status.ok()) delivery = Deliver(entry, policy, &calls_);
+  const grpc::Status& status = delivery.status;
+  if (!delivery.failure.empty()) failure = delivery.failure;
+  if (IsAuthError(status.error_code())) {
+    const bool kept = KeepInSpool(entry, "the coordinator refused the token");
+    FailFatally(WorkerExit::kAuthRefused,
+                absl::StrCat("the coordinator refused this worker's token: ", status.error_message()));
+    std::lock_guard<std::mutex> lock(mutex_);
+    finishing_.erase(key.job_id());
+    ++(kept ? summary_.spooled : summary_.dropped);
     return;
   }
-  switch (kind) {
-    case Kind::kComplete:
+  std::lock_guard<std::mutex> lock(mutex_);
+  finishing_.erase(key.job_id());
+  if (!status.ok()) {
+    if (IsLeaseGone(status.error_code())) {
+      ++summary_.dropped;
+      spdlog::warn("{}: the coordinator no longer holds this lease ({}); the final report is "
+                   "dropped and the job re-runs",
+                   Describe(key), status.error_message());
+    } else if (KeepInSpool(entry, absl::StrCat("the final report could not be delivered (",
+                                               status.error_message(), ")"))) {
+      ++summary_.spooled;
+    } else {
+      ++summary_.dropped;
+    }
+    return;
+  }
+  switch (delivery.kind) {
+    case Delivery::Kind::kComplete:
       ++summary_.completed;
       if (study != nullptr) {
         spdlog::info("{}: study completed ({} cells, {} references)", Describe(key),
@@ -503,14 +852,59 @@ void Worker::Finish(const std::shared_ptr<ActiveLease>& active,
                      result->success, result->final_eval_cost);
       }
       break;
-    case Kind::kFail:
+    case Delivery::Kind::kFail:
       ++summary_.failed;
       spdlog::warn("{}: failed: {}", Describe(key), failure);
       break;
-    case Kind::kRelease:
+    case Delivery::Kind::kRelease:
       ++summary_.released;
-      spdlog::info("{}: released ({})", Describe(key), cancel_reason);
+      spdlog::info("{}: released ({})", Describe(key),
+                   cancel_reason.empty() ? entry.release().reason() : cancel_reason);
       break;
+  }
+}
+
+void Worker::ReplaySpool() {
+  std::vector<std::string> skipped;
+  const std::vector<v1::SpooledAttempt> entries = spool_->List(&skipped);
+  for (const std::string& path : skipped) {
+    spdlog::warn("spool file {} is unreadable or of another format version; left in place", path);
+  }
+  if (entries.empty()) return;
+  spdlog::info("replaying {} attempts kept in {} by an earlier worker with id '{}'",
+               entries.size(), spool_->directory(), options_.worker_id);
+  rpc::RetryPolicy policy;
+  policy.call_timeout = options_.call_timeout;
+  policy.give_up_after = options_.orphan_timeout;
+  for (const v1::SpooledAttempt& entry : entries) {
+    const Delivery delivery = Deliver(entry, policy, &replay_calls_);
+    const grpc::Status& status = delivery.status;
+    if (IsAuthError(status.error_code())) {
+      FailFatally(WorkerExit::kAuthRefused,
+                  absl::StrCat("the coordinator refused this worker's token: ",
+                               status.error_message()));
+      return;  // the spool stays for a worker with a valid token
+    }
+    if (!status.ok() && !IsLeaseGone(status.error_code())) {
+      spdlog::warn("{}: replay not delivered ({}); the spool is kept for later",
+                   Describe(entry.lease()), status.error_message());
+      return;  // draining, or the coordinator is unreachable: try again next start
+    }
+    const absl::Status removed = spool_->Remove(entry.lease());
+    if (!removed.ok()) spdlog::warn("{}", removed.ToString());
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (status.ok()) {
+      ++summary_.replayed;
+      spdlog::info("{}: spooled results delivered ({})", Describe(entry.lease()),
+                   delivery.kind == Delivery::Kind::kComplete ? "completed"
+                   : delivery.kind == Delivery::Kind::kFail   ? "failed"
+                                                              : "released");
+    } else {
+      ++summary_.dropped;
+      spdlog::warn("{}: its lease ended before the spooled results could be delivered ({}); "
+                   "dropped: the job re-runs",
+                   Describe(entry.lease()), status.error_message());
+    }
   }
 }
 

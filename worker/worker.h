@@ -12,16 +12,35 @@
 // Guarantees:
 //   * Episodes are sent as soon as they finish and kept until the coordinator
 //     acknowledges them; after a disconnect they are replayed (the store
-//     ignores repeats), so a coordinator restart loses nothing.
+//     ignores repeats), so a coordinator restart loses nothing. The trial's
+//     checkpoint after each episode goes with it (only the latest is kept).
+//   * A lease that carries an earlier attempt's checkpoint written by this
+//     same build resumes the trial from it (TrialRunner::Resume); one of
+//     another build, or one the runner cannot use, is ignored with a log
+//     line and the trial starts over, so results stay those of one build.
 //   * A lease the coordinator refuses (ABORTED: lost, re-queued) is dropped:
 //     the trial is stopped and nothing more is sent for it.
 //   * A trial that returns an error, throws, or reports a non-finite cost is
 //     reported with Fail and the reason.
 //   * Drain(): no new leases; running trials may finish for drain_timeout,
-//     then are stopped and released. Stop(): stop and release at once.
+//     then are stopped and released. Final reports get report_grace more;
+//     what is still undelivered then (the coordinator is unreachable) is kept
+//     in the spool (state_dir, worker/spool.h) instead of blocking, so
+//     shutdown takes at most drain_timeout + report_grace plus the time a
+//     trial needs to notice its cancellation (main.cc bounds that too).
+//     Stop(): stop at once; SpoolUnfinished() then keeps what is left.
+//   * The next worker with the same id on the same host replays the spool
+//     when it starts: results of leases the coordinator still holds are
+//     stored; those of an ended lease are refused (ABORTED) and dropped with
+//     a log line (the job re-runs).
+//   * An auth error (UNAUTHENTICATED, PERMISSION_DENIED) or a worker id in
+//     use by another live process (ALREADY_EXISTS from AcquireLease, or the
+//     host-local lock) stops the worker at once, with results spooled, and
+//     Run() says why (WorkerSummary::exit): retrying cannot help.
 //
-// Threading: Run() blocks on the calling thread and owns one thread per slot
-// plus the heartbeat thread. Drain() and Stop() may be called from any thread.
+// Threading: Run() blocks on the calling thread and owns one thread per slot,
+// the heartbeat thread and the drain-deadline thread. Drain(), Stop() and SpoolUnfinished() may be
+// called from any thread.
 #ifndef TOTALGRAD_WORKER_WORKER_H_
 #define TOTALGRAD_WORKER_WORKER_H_
 
@@ -33,12 +52,15 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "absl/time/time.h"
 #include "server/common/rpc_client.h"
 #include "totalgrad/v1/worker_service.grpc.pb.h"
+#include "totalgrad/v1/worker_spool.pb.h"
+#include "worker/spool.h"
 #include "worker/study_runner.h"
 #include "worker/trial_runner.h"
 
@@ -57,18 +79,53 @@ struct WorkerOptions {
   absl::Duration call_timeout = absl::Seconds(15);
   // After Drain(), running trials get this long to finish before release.
   absl::Duration drain_timeout = absl::Seconds(60);
-  // A final report (Complete/Fail/Release) is retried this long, e.g. while
-  // the coordinator restarts; then the result is given up.
+  // After the drain timeout, final reports get this much longer to be
+  // delivered; then they are spooled (or, without a state_dir, dropped).
+  absl::Duration report_grace = absl::Seconds(5);
+  // Outside a drain, a final report (Complete/Fail/Release) is retried this
+  // long, e.g. while the coordinator restarts; then it is spooled.
   absl::Duration orphan_timeout = absl::Minutes(30);
+  // Directory for the host-local worker-id lock and the spool (worker/spool.h).
+  // Empty: neither (undeliverable results are dropped with a log line).
+  std::string state_dir;
+  // Unique per process, sent as WorkerIdentity.instance. Empty: a random one.
+  std::string instance;
+  // While the coordinator says another live process uses this worker id
+  // (ALREADY_EXISTS), keep asking this long before giving up with
+  // WorkerExit::kWorkerIdInUse: a process that crashed without a state_dir
+  // lock to prove it is gone counts as alive until its silence exceeds the
+  // coordinator's lease timeout (90 s by default).
+  absl::Duration worker_id_wait = absl::Seconds(120);
   // Exit when no lease was granted for this long (InfiniteDuration: never).
   absl::Duration max_idle = absl::InfiniteDuration();
 };
 
+// Why Run() returned.
+enum class WorkerExit {
+  kDone,           // drained, stopped or idle for max_idle
+  kAuthRefused,    // the coordinator refused the token (UNAUTHENTICATED/PERMISSION_DENIED)
+  kWorkerIdInUse,  // another live process uses this worker id (here or on another host)
+};
+
+// Checkpoints larger than this are not sent (the coordinator refuses them:
+// scheduler::kMaxCheckpointBytes, checked equal in worker_test).
+inline constexpr size_t kMaxCheckpointBytes = 2 << 20;
+
+// Process exit codes of totalgrad-worker (main.cc), distinct so that a
+// supervisor does not restart a worker that cannot succeed (sysexits.h).
+inline constexpr int kExitAuthRefused = 77;   // EX_NOPERM
+inline constexpr int kExitWorkerIdInUse = 78;  // EX_CONFIG
+
 struct WorkerSummary {
+  int resumed = 0;    // trials resumed from an earlier attempt's checkpoint
   int completed = 0;  // Complete acknowledged
   int failed = 0;     // Fail acknowledged
   int released = 0;   // Release acknowledged
-  int dropped = 0;    // refused by the coordinator (stale lease) or given up
+  int dropped = 0;    // refused by the coordinator (the lease had ended) or given up
+  int spooled = 0;    // kept in the spool for the next worker with this id
+  int replayed = 0;   // spooled attempts of an earlier process delivered at start
+  WorkerExit exit = WorkerExit::kDone;
+  std::string exit_message;  // the error behind a non-kDone exit
 };
 
 class Worker {
@@ -81,44 +138,96 @@ class Worker {
   Worker(const Worker&) = delete;
   Worker& operator=(const Worker&) = delete;
 
-  // Works until drained, stopped, or idle for max_idle.
+  // Replays the spool of an earlier process with this id, then works until
+  // drained, stopped, idle for max_idle, or a fatal error (summary.exit).
   WorkerSummary Run();
   void Drain();
+  // Stops at once: trials are cancelled and calls in flight cut short.
   void Stop();
+  // Writes every attempt this worker still holds (running trials, final
+  // reports not yet acknowledged) to the spool, each with its unacknowledged
+  // episodes and its final report (a release for running trials). Returns how
+  // many; 0 without a state_dir. For a process that must exit now (a second
+  // SIGTERM): call after Stop(), then exit.
+  int SpoolUnfinished();
 
  private:
   struct ActiveLease;
   class Progress;
+  // The outcome of delivering one spooled attempt (a final report).
+  struct Delivery {
+    grpc::Status status;
+    enum class Kind { kComplete, kFail, kRelease } kind = Kind::kRelease;
+    std::string failure;  // set when a refused completion became a Fail
+  };
 
   void SlotLoop(int slot);
   // Runs the trial of `lease` and reports how it ended.
   void RunLease(const v1::Lease& lease);
   void HeartbeatLoop();
+  // After Drain(): cancels running trials at the drain deadline and gives
+  // up on undelivered final reports at drain deadline + report_grace.
+  void DeadlineLoop();
   // Sends one heartbeat for `active`; updates its unacknowledged episodes.
   void Beat(const std::shared_ptr<ActiveLease>& active);
-  // Sends the final report of an attempt, retrying while it makes sense.
-  // `study` holds a finished study job's rows (null for trials).
+  // Sends the final report of an attempt, retrying while it makes sense,
+  // and spools it if it cannot be delivered in time. `study` holds a
+  // finished study job's rows (null for trials).
   void Finish(const std::shared_ptr<ActiveLease>& active, const absl::StatusOr<TrialOutcome>& result,
               const StudyOutcome* study = nullptr);
+  // Sends `attempt`: its pending heartbeat, then its final report. A refused
+  // completion (INVALID_ARGUMENT/FAILED_PRECONDITION) becomes a Fail with
+  // the reason. Calls go through `registry` and stop when it is cancelled.
+  Delivery Deliver(const v1::SpooledAttempt& attempt, const rpc::RetryPolicy& policy,
+                   rpc::CallRegistry* registry);
+  // Replays the spool of an earlier process at start.
+  void ReplaySpool();
+  // How final reports are retried now (bounded by the drain deadline).
+  rpc::RetryPolicy FinalReportPolicy() const;
   // Sends a finished study's rows in heartbeats of bounded size.
   grpc::Status SendStudyRows(const v1::LeaseKey& key, const StudyOutcome& study,
                              const rpc::RetryPolicy& policy);
   void CancelAll(const std::string& reason);
+  // Ends the worker at once for a reason retrying cannot fix.
+  void FailFatally(WorkerExit exit, const std::string& message);
+  // Fills the identity fields of `identity`.
+  void FillIdentity(v1::WorkerIdentity* identity) const;
+  // An attempt as a spool entry: `unacked` (and `checkpoint`, if any) as
+  // its pending heartbeat.
+  v1::SpooledAttempt SpoolEntry(const v1::LeaseKey& key,
+                                const std::vector<v1::EpisodeReport>& unacked,
+                                const std::optional<v1::TrialCheckpoint>& checkpoint = {}) const;
+  // Keeps `entry` in the spool; false (and a log line) without one.
+  bool KeepInSpool(const v1::SpooledAttempt& entry, const std::string& why);
 
   const WorkerOptions options_;
   std::unique_ptr<v1::WorkerService::Stub> stub_;
   TrialRunner* const runner_;
   StudyRunner* const study_runner_;
 
+  // Null without a state_dir (or if it is unusable). Set once at the start
+  // of Run() under mutex_; SpoolUnfinished reads it under mutex_.
+  std::unique_ptr<Spool> spool_;
+
   std::atomic<bool> draining_{false};
   std::atomic<bool> stopping_{false};   // hard stop: release at once
   std::atomic<bool> finished_{false};   // all slots done; heartbeat thread exits
+  // Final reports are no longer worth waiting for (drain deadline +
+  // report_grace passed, Stop(), a fatal error): undelivered ones are spooled.
+  std::atomic<bool> give_up_{false};
+  rpc::CallRegistry calls_;         // heartbeats and final reports in flight
+  rpc::CallRegistry replay_calls_;  // spool replay at start (cancelled by Drain)
 
-  std::mutex mutex_;
+  mutable std::mutex mutex_;
   std::condition_variable changed_;  // new episodes, leases ending, drain, stop
   std::map<int64_t, std::shared_ptr<ActiveLease>> active_;  // by job id; guarded by mutex_
   std::vector<grpc::ClientContext*> acquiring_;             // in-flight polls; guarded by mutex_
   int64_t drain_started_ms_ = 0;                            // guarded by mutex_
+  int64_t id_refused_since_ms_ = -1;  // first ALREADY_EXISTS in a row; guarded by mutex_
+  // Bumped when the heartbeat thread must re-plan (a new lease, a drain).
+  uint64_t heartbeat_generation_ = 0;                       // guarded by mutex_
+  // Final reports being delivered, by job id, as they would be spooled.
+  std::map<int64_t, v1::SpooledAttempt> finishing_;         // guarded by mutex_
   WorkerSummary summary_;                                   // guarded by mutex_
 };
 

@@ -22,6 +22,7 @@ void AddBenchEstimateCommand(CLI::App* bench, int* exit_code);
 void AddBenchGradientsCommand(CLI::App* bench, int* exit_code);  // bench_gradients_command.cc
 void AddPilcoCommand(CLI::App* app, int* exit_code);     // pilco_command.cc
 void AddStudyCommand(CLI::App* app, int* exit_code);     // study_command.cc
+void AddEvaluateCommand(CLI::App* app, int* exit_code);  // evaluate_command.cc
 
 }  // namespace totalgrad::cli
 

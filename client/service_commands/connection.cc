@@ -16,6 +16,7 @@
 
 #include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
+#include "server/common/token_file.h"
 #include "absl/time/time.h"
 #include "client/service_commands/stats.h"
 
@@ -93,11 +94,10 @@ absl::StatusOr<Connection> Connection::Open(const ServiceFlags& flags) {
   options.client_cert_file = flags.client_cert;
   options.client_key_file = flags.client_key;
   if (!flags.token_file.empty()) {
-    std::ifstream in(flags.token_file);
-    if (!in) return absl::NotFoundError(absl::StrCat("cannot read token file ", flags.token_file));
-    std::stringstream buffer;
-    buffer << in.rdbuf();
-    connection.token_ = std::string(absl::StripAsciiWhitespace(buffer.str()));
+    absl::StatusOr<TokenFile> token = ReadTokenFile(flags.token_file);
+    if (!token.ok()) return token.status();
+    if (!token->warning.empty()) std::cerr << "warning: " << token->warning << "\n";
+    connection.token_ = token->token;
   }
   absl::StatusOr<std::shared_ptr<grpc::Channel>> channel = rpc::MakeChannel(options);
   if (!channel.ok()) return channel.status();

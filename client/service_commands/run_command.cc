@@ -183,11 +183,14 @@ int Run(const RunFlags& flags) {
   }
   const std::string address = absl::StrCat("127.0.0.1:", port);
   std::vector<pid_t> workers;
+  // Stable worker ids and a state directory beside the database: after a
+  // Ctrl-C, worker i of the next `run` replays what worker i kept (results
+  // not yet delivered when it had to stop).
   for (int i = 0; i < flags.workers; ++i) {
     workers.push_back(Spawn({worker_bin, "--coordinator", address, "--insecure", "--token-file",
                              worker_token_file, "--slots", "1", "--worker-id",
-                             absl::StrCat("run-", getpid(), "-", i), "--drain-timeout", "5",
-                             "--acquire-wait", "5"},
+                             absl::StrCat("run-", i), "--state-dir", base + "-worker-state",
+                             "--drain-timeout", "5", "--acquire-wait", "5"},
                             absl::StrCat(base, "-worker-", i, ".log")));
   }
   std::cerr << "coordinator on " << address << " (database " << db << ", log "

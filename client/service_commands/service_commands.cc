@@ -18,6 +18,8 @@
 namespace totalgrad::cli {
 
 void AddRunCommand(CLI::App* app, int* exit_code);  // run_command.cc
+int WriteJobArtifacts(Connection* connection, int64_t job_id,
+                      const std::string& dir);  // artifacts.cc
 
 namespace {
 
@@ -237,6 +239,19 @@ void AddJobCommands(CLI::App* app, int* exit_code) {
     return code;
   }, /*with_format=*/false);
   retry->add_option("JOB", *retry_ids, "job ids")->required();
+
+  auto artifacts_id = std::make_shared<int64_t>(0);
+  auto artifacts_dir = std::make_shared<std::string>();
+  CLI::App* artifacts = AddCommand(
+      job_cmd, "artifacts",
+      "write a trial job's final policy and GP model (trial snapshot JSON) into --out DIR",
+      exit_code,
+      [artifacts_id, artifacts_dir](Connection* c) {
+        return WriteJobArtifacts(c, *artifacts_id, *artifacts_dir);
+      },
+      /*with_format=*/false);
+  artifacts->add_option("JOB", *artifacts_id, "job id")->required();
+  artifacts->add_option("--out", *artifacts_dir, "directory to write into")->required();
 
   auto log_id = std::make_shared<int64_t>(0);
   CLI::App* logs = AddCommand(job_cmd, "logs", "a job's attempts, errors and events", exit_code,

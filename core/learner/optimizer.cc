@@ -13,6 +13,14 @@ void RmspropLike::Reset() {
   first_ = true;
 }
 
+void RmspropLike::set_state(const State& state) {
+  TG_CHECK_EQ(state.v.size(), v_.size());
+  TG_CHECK_EQ(state.m.size(), m_.size());
+  v_ = state.v;
+  m_ = state.m;
+  first_ = state.first;
+}
+
 void RmspropLike::Step(const Vector& gradient, const Vector& per_particle_variance,
                        int num_particles, Vector* parameters) {
   TG_CHECK_EQ(gradient.size(), v_.size());

@@ -38,6 +38,16 @@ class RmspropLike {
             Vector* parameters);
   void Reset();
 
+  // The running averages, for trial checkpoints (core/learner/checkpoint.h).
+  struct State {
+    Vector v;  // running mean of s2 (or g^2)
+    Vector m;  // momentum
+    bool first = true;  // no step since Reset()
+  };
+  State state() const { return {v_, m_, first_}; }
+  // Restores a state() of an optimiser with the same number of parameters.
+  void set_state(const State& state);
+
  private:
   OptimizerOptions options_;
   Vector v_;

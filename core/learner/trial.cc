@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <functional>
+#include <limits>
 #include <memory>
 
 #include "absl/strings/numbers.h"
@@ -13,6 +14,7 @@
 #include "absl/strings/str_join.h"
 #include "core/common/blas.h"
 #include "core/common/thread_pool.h"
+#include "core/learner/checkpoint.h"
 #include "core/estimators/estimator.h"
 #include "core/estimators/particle_system.h"
 #include "core/estimators/rollout.h"
@@ -42,8 +44,17 @@ absl::Status ParseDouble(const std::string& key, const std::string& text, double
 
 absl::Status ParseInt(const std::string& key, const std::string& text, int* out) {
   int v;
-  if (!absl::SimpleAtoi(text, &v))
+  if (!absl::SimpleAtoi(text, &v)) {
+    // A whole number too large for an int ("1e12", "3000000000") is out of
+    // range, not "not an integer".
+    double d;
+    if (absl::SimpleAtod(text, &d) && std::isfinite(d) && d == std::floor(d) &&
+        std::fabs(d) > std::numeric_limits<int>::max())
+      return absl::InvalidArgumentError(absl::StrCat("option '", key, "': ", text,
+                                                     " is out of range; counts are at most ",
+                                                     std::numeric_limits<int>::max()));
     return absl::InvalidArgumentError(absl::StrCat("option '", key, "': '", text, "' is not an integer"));
+  }
   *out = v;
   return absl::OkStatus();
 }
@@ -337,7 +348,25 @@ class PolicyLearner {
   virtual double Control(const tasks::State& observation) const = 0;
   // The current policy's parameters (for snapshots).
   virtual Vector Parameters() const = 0;
+  // What carries over to the next episode (checkpoint.h), and back.
+  virtual void SaveState(TrialCheckpoint* checkpoint) const = 0;
+  virtual absl::Status RestoreState(const TrialCheckpoint& checkpoint) = 0;
 };
+
+// Restores the warm starts every learner keeps: policy, GP hyperparameters
+// and FITC inducing inputs.
+absl::Status RestoreCommonState(const TrialCheckpoint& checkpoint, policy::RbfPolicy* policy,
+                                std::optional<gp::GpHyperparameters>* hyperparameters,
+                                RowMatrix* inducing) {
+  if (checkpoint.policy_parameters.size() != policy->num_parameters())
+    return absl::InvalidArgumentError(absl::StrCat(
+        "trial checkpoint: the policy has ", checkpoint.policy_parameters.size(),
+        " parameters; this trial's has ", policy->num_parameters()));
+  policy->set_parameters(checkpoint.policy_parameters);
+  *hyperparameters = checkpoint.hyperparameters;
+  *inducing = checkpoint.inducing_inputs;
+  return absl::OkStatus();
+}
 
 // Particle methods. With angle_index >= 0 (angle_features = sincos) the GP
 // and the RBF policy see the features [x without x_a, sin x_a, cos x_a]
@@ -498,6 +527,21 @@ class ParticleLearner final : public PolicyLearner {
     return force(0);
   }
   Vector Parameters() const override { return policy_.parameters(); }
+  void SaveState(TrialCheckpoint* checkpoint) const override {
+    checkpoint->policy_parameters = policy_.parameters();
+    checkpoint->hyperparameters = hyperparameters_;
+    checkpoint->inducing_inputs = inducing_;
+    checkpoint->optimizer = optimiser_.state();
+  }
+  absl::Status RestoreState(const TrialCheckpoint& checkpoint) override {
+    absl::Status status = RestoreCommonState(checkpoint, &policy_, &hyperparameters_, &inducing_);
+    if (!status.ok()) return status;
+    if (!checkpoint.optimizer || checkpoint.optimizer->v.size() != policy_.num_parameters() ||
+        checkpoint.optimizer->m.size() != policy_.num_parameters())
+      return absl::InvalidArgumentError("trial checkpoint: no optimiser state of this policy's size");
+    optimiser_.set_state(*checkpoint.optimizer);
+    return absl::OkStatus();
+  }
 
  private:
   const TrialOptions& options_;
@@ -595,6 +639,14 @@ class PilcoLearner final : public PolicyLearner {
     return force(0);
   }
   Vector Parameters() const override { return policy_.parameters(); }
+  void SaveState(TrialCheckpoint* checkpoint) const override {
+    checkpoint->policy_parameters = policy_.parameters();
+    checkpoint->hyperparameters = hyperparameters_;
+    checkpoint->inducing_inputs = inducing_;
+  }
+  absl::Status RestoreState(const TrialCheckpoint& checkpoint) override {
+    return RestoreCommonState(checkpoint, &policy_, &hyperparameters_, &inducing_);
+  }
 
  private:
   const TrialOptions& options_;
@@ -611,9 +663,18 @@ class PilcoLearner final : public PolicyLearner {
 
 absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver* observer,
                                       const RunOptions& run) {
+  return RunTrial(options, observer, nullptr, run);
+}
+
+absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver* observer,
+                                      const TrialCheckpoint* resume_from, const RunOptions& run) {
   absl::Status status = options.Validate();
   if (!status.ok()) return status;
   if (run.threads < 1) return absl::InvalidArgumentError("threads must be >= 1");
+  if (resume_from != nullptr) {
+    status = CheckResumable(*resume_from, options);
+    if (!status.ok()) return status;
+  }
   std::unique_ptr<ThreadPool> pool;
   if (run.threads > 1) pool = std::make_unique<ThreadPool>(run.threads);
   // Results must not depend on how many threads the BLAS would use on this
@@ -646,9 +707,38 @@ absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver
 
   TrialData data;
   TrialSummary summary;
+  const bool checkpoints = observer != nullptr && observer->WantsCheckpoints();
+  // After episode e: everything the next episode reads (checkpoint.h).
+  const auto emit_checkpoint = [&](int e) {
+    TrialCheckpoint c;
+    c.episode = e;
+    c.options = TrialOptionPairs(options);
+    c.episodes = summary.episodes;
+    c.states = data.States();
+    c.forces = Eigen::Map<const Vector>(data.forces.data(), static_cast<Eigen::Index>(data.forces.size()));
+    c.next_states.resize(c.states.rows(), 4);
+    for (Eigen::Index r = 0; r < c.next_states.rows(); ++r) c.next_states.row(r) = data.next_states[r];
+    learner->SaveState(&c);
+    observer->OnCheckpoint(c);
+  };
+  int first_episode = 1;
+  if (resume_from != nullptr) {
+    // Resume: the data, warm starts and results of episodes 0..k as they were.
+    for (Eigen::Index r = 0; r < resume_from->forces.size(); ++r) {
+      data.states.push_back(resume_from->states.row(r));
+      data.forces.push_back(resume_from->forces(r));
+      data.next_states.push_back(resume_from->next_states.row(r));
+    }
+    status = learner->RestoreState(*resume_from);
+    if (!status.ok()) return status;
+    summary.episodes = resume_from->episodes;
+    if (observer != nullptr)
+      for (const EpisodeResult& result : summary.episodes) observer->OnEpisode(result);
+    first_episode = resume_from->episode + 1;
+  }
 
-  // Episode 0: random exploration.
-  {
+  // Episode 0: random exploration (unless resuming).
+  if (resume_from == nullptr) {
     PhaseClock clock(pool.get());
     Rng action_rng(seed, Stream::kExplorationAction);
     const double max_force = scene.plant.params().max_force;
@@ -667,9 +757,10 @@ absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver
     result.cpu_seconds = result.timing.total_cpu();
     summary.episodes.push_back(result);
     if (observer != nullptr) observer->OnEpisode(result);
+    if (checkpoints) emit_checkpoint(0);
   }
 
-  for (int e = 1; e <= options.episodes; ++e) {
+  for (int e = first_episode; e <= options.episodes; ++e) {
     EpisodeResult result;
     result.episode = e;
     const auto start_time = std::chrono::steady_clock::now();
@@ -727,6 +818,7 @@ absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver
     result.cpu_seconds = result.timing.total_cpu();
     summary.episodes.push_back(result);
     if (observer != nullptr) observer->OnEpisode(result);
+    if (checkpoints) emit_checkpoint(e);
   }
   summary.final_eval_cost = summary.episodes.back().eval_cost_mean;
   summary.success = summary.final_eval_cost < options.success_threshold;

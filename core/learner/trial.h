@@ -32,6 +32,8 @@
 
 namespace totalgrad::learner {
 
+struct TrialCheckpoint;  // core/learner/checkpoint.h
+
 struct TrialOptions {
   tasks::SceneOptions scene;
   std::string method = "RP";   // estimator name, see estimators/estimator.h
@@ -167,6 +169,11 @@ class TrialObserver {
   // Default: no snapshots (nothing is copied).
   virtual bool WantsSnapshot(int episode) { return false; }
   virtual void OnSnapshot(const TrialSnapshot& snapshot) {}
+  // Checkpoints (core/learner/checkpoint.h): asked once per trial; when true,
+  // OnCheckpoint is called after every finished episode, right after its
+  // OnEpisode, with everything the next episode reads. Default: none.
+  virtual bool WantsCheckpoints() { return false; }
+  virtual void OnCheckpoint(const TrialCheckpoint& checkpoint) {}
 };
 
 // How a trial is executed, as opposed to what it computes: nothing here
@@ -185,6 +192,15 @@ struct RunOptions {
 // integrator failing or a non-finite cost), FailedPrecondition (GP could not
 // be factorised).
 absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver* observer,
+                                      const RunOptions& run = RunOptions());
+// Resumes a trial from a checkpoint of it (`resume_from` may be null: a
+// fresh trial): episodes 0..resume_from->episode are reported to the
+// observer again from the checkpoint (OnEpisode, in order; no checkpoint
+// for them), then the trial continues with the next episode and gives the
+// same numbers as an uninterrupted run, bit for bit. InvalidArgument if the
+// checkpoint is not of this trial (learner::CheckResumable).
+absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver* observer,
+                                      const TrialCheckpoint* resume_from,
                                       const RunOptions& run = RunOptions());
 
 }  // namespace totalgrad::learner

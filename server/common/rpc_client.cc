@@ -80,17 +80,45 @@ void PrepareContext(grpc::ClientContext* context, const std::string& token,
   if (!token.empty()) context->AddMetadata("authorization", "Bearer " + token);
 }
 
+void CallRegistry::Add(grpc::ClientContext* context) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  contexts_.insert(context);
+  if (cancelled_) context->TryCancel();
+}
+
+void CallRegistry::Remove(grpc::ClientContext* context) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  contexts_.erase(context);
+}
+
+void CallRegistry::CancelAll() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  cancelled_ = true;
+  for (grpc::ClientContext* context : contexts_) context->TryCancel();
+}
+
+bool CallRegistry::cancelled() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return cancelled_;
+}
+
 grpc::Status CallWithRetry(const RetryPolicy& policy, const std::string& token,
                            const std::function<grpc::Status(grpc::ClientContext*)>& call,
-                           const std::atomic<bool>* stop) {
+                           const std::atomic<bool>* stop, CallRegistry* registry) {
   thread_local std::mt19937_64 random(std::random_device{}());
   const auto give_up = std::chrono::steady_clock::now() +
                        std::chrono::milliseconds(absl::ToInt64Milliseconds(policy.give_up_after));
   absl::Duration backoff = policy.initial_backoff;
+  grpc::Status status(grpc::StatusCode::CANCELLED, "stopped before the call was made");
   while (true) {
+    if ((stop != nullptr && stop->load()) || (registry != nullptr && registry->cancelled())) {
+      return status;
+    }
     grpc::ClientContext context;
     PrepareContext(&context, token, policy.call_timeout, policy.wait_for_ready);
-    grpc::Status status = call(&context);
+    if (registry != nullptr) registry->Add(&context);
+    status = call(&context);
+    if (registry != nullptr) registry->Remove(&context);
     if (status.ok() || !IsRetryable(status.error_code())) return status;
     std::uniform_real_distribution<double> jitter(1 - policy.jitter, 1 + policy.jitter);
     const auto sleep = std::chrono::milliseconds(
@@ -100,6 +128,7 @@ grpc::Status CallWithRetry(const RetryPolicy& policy, const std::string& token,
     const auto until = std::chrono::steady_clock::now() + sleep;
     while (std::chrono::steady_clock::now() < until) {
       if (stop != nullptr && stop->load()) return status;
+      if (registry != nullptr && registry->cancelled()) return status;
       std::this_thread::sleep_for(std::min<std::chrono::steady_clock::duration>(
           std::chrono::milliseconds(50), until - std::chrono::steady_clock::now()));
     }

@@ -16,6 +16,8 @@
 #include <atomic>
 #include <functional>
 #include <memory>
+#include <mutex>
+#include <set>
 #include <string>
 
 #include "absl/status/statusor.h"
@@ -60,13 +62,39 @@ struct RetryPolicy {
 
 bool IsRetryable(grpc::StatusCode code);
 
+// The calls in flight of one owner (e.g. a worker), so that another thread
+// can cut them short: CancelAll() cancels every registered call at once and
+// makes every later Add() cancel its call immediately (a shutdown that must
+// not wait for a call deadline).
+//
+// Threading: all methods may be called from any thread.
+class CallRegistry {
+ public:
+  CallRegistry() = default;
+  CallRegistry(const CallRegistry&) = delete;
+  CallRegistry& operator=(const CallRegistry&) = delete;
+
+  // Registers a context for the duration of its call.
+  void Add(grpc::ClientContext* context);
+  void Remove(grpc::ClientContext* context);
+  void CancelAll();
+  bool cancelled() const;
+
+ private:
+  mutable std::mutex mutex_;
+  std::set<grpc::ClientContext*> contexts_;  // guarded by mutex_
+  bool cancelled_ = false;                   // guarded by mutex_
+};
+
 // Calls `call` with a fresh context (deadline, token, wait-for-ready) until it
-// returns OK or a non-retryable status, the policy gives up, or *stop becomes
-// true (then the last status, or CANCELLED). The context is registered in
-// *current (if given) while the call runs, so another thread may TryCancel it.
+// returns OK or a non-retryable status, the policy gives up, *stop becomes
+// true, or `registry` is cancelled (then the last status, or CANCELLED if no
+// call was made). While a call runs its context is registered in `registry`
+// (if given), so CancelAll() ends it at once.
 grpc::Status CallWithRetry(const RetryPolicy& policy, const std::string& token,
                            const std::function<grpc::Status(grpc::ClientContext*)>& call,
-                           const std::atomic<bool>* stop = nullptr);
+                           const std::atomic<bool>* stop = nullptr,
+                           CallRegistry* registry = nullptr);
 
 // Prepares one context: deadline now + timeout, bearer token, wait-for-ready.
 void PrepareContext(grpc::ClientContext* context, const std::string& token,

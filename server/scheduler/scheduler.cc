@@ -22,6 +22,11 @@ using storage::SweepState;
 using storage::WorkerIdentity;
 
 int64_t SystemClock::NowMs() { return absl::ToUnixMillis(absl::Now()); }
+int64_t SystemClock::MonotonicMs() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(
+             std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
 
 absl::Status SchedulerOptions::Validate() const {
   if (heartbeat_interval <= absl::ZeroDuration()) {
@@ -92,6 +97,21 @@ absl::Status ValidateEpisodes(const std::vector<Episode>& episodes) {
   return absl::OkStatus();
 }
 
+namespace {
+absl::Status ValidateCheckpoint(const std::optional<storage::Checkpoint>& checkpoint) {
+  if (!checkpoint) return absl::OkStatus();
+  if (checkpoint->data.size() > kMaxCheckpointBytes) {
+    return absl::InvalidArgumentError(absl::StrCat("checkpoint after episode ", checkpoint->episode,
+                                                   " is ", checkpoint->data.size(),
+                                                   " bytes; at most ", kMaxCheckpointBytes));
+  }
+  if (checkpoint->data.empty() || checkpoint->format_version < 1) {
+    return absl::InvalidArgumentError("checkpoint without data or format version");
+  }
+  return absl::OkStatus();
+}
+}  // namespace
+
 absl::Status ValidateStudyRows(const storage::StudyRows& rows) {
   if (static_cast<int>(rows.size()) > kMaxStudyRowsPerCall) {
     return absl::InvalidArgumentError(absl::StrCat(rows.size(), " study rows in one call; at most ",
@@ -131,16 +151,27 @@ absl::Status ValidateStudyRows(const storage::StudyRows& rows) {
 }
 
 Scheduler::Scheduler(storage::Store* store, Clock* clock, SchedulerOptions options)
-    : store_(store), clock_(clock), options_(options) {}
+    : store_(store),
+      clock_(clock),
+      options_(options),
+      lease_origin_wall_ms_(clock->NowMs()),
+      lease_origin_monotonic_ms_(clock->MonotonicMs()) {}
 
-int64_t Scheduler::LeaseExpiryFrom(int64_t now_ms) const {
-  return now_ms + absl::ToInt64Milliseconds(options_.lease_timeout);
+int64_t Scheduler::LeaseNowMs() {
+  return lease_origin_wall_ms_ + (clock_->MonotonicMs() - lease_origin_monotonic_ms_);
+}
+
+int64_t Scheduler::LeaseExpiryFrom(int64_t lease_now_ms) const {
+  return lease_now_ms + absl::ToInt64Milliseconds(options_.lease_timeout);
 }
 
 absl::StatusOr<int> Scheduler::Recover() {
   std::lock_guard<std::mutex> lock(decision_mutex_);
-  const int64_t now = clock_->NowMs();
-  return store_->ExtendOpenLeases(LeaseExpiryFrom(now), now);
+  ASSIGN_OR_RETURN(int extended,
+                   store_->ExtendOpenLeases(LeaseExpiryFrom(LeaseNowMs()), clock_->NowMs(),
+                                            "on coordinator start"));
+  last_expiry_end_monotonic_ms_ = clock_->MonotonicMs();
+  return extended;
 }
 
 absl::Status Scheduler::MaybeTouchWorker(const WorkerIdentity& worker, int64_t now_ms) {
@@ -160,7 +191,41 @@ absl::StatusOr<std::optional<Lease>> Scheduler::TryAcquire(const WorkerIdentity&
   return TryAcquireLocked(worker);
 }
 
+absl::Status Scheduler::CheckInstanceLocked(const WorkerIdentity& worker) {
+  if (worker.instance.empty()) return absl::OkStatus();  // an older worker: cannot tell
+  const int64_t now = clock_->MonotonicMs();
+  auto [it, inserted] = instances_.try_emplace(worker.worker_id);
+  WorkerInstance& known = it->second;
+  if (inserted || known.instance == worker.instance) {
+    known.instance = worker.instance;
+    known.host = worker.host;
+    known.last_heard_monotonic_ms = now;
+    return absl::OkStatus();
+  }
+  if (std::find(known.replaced.begin(), known.replaced.end(), worker.instance) !=
+      known.replaced.end()) {
+    return absl::AlreadyExistsError(absl::StrCat(
+        "worker id '", worker.worker_id, "': this process was replaced by a newer process with "
+        "the same id on host '", known.host, "'; every worker needs its own --worker-id"));
+  }
+  const int64_t silent_ms = now - known.last_heard_monotonic_ms;
+  const bool previous_alive = silent_ms < absl::ToInt64Milliseconds(options_.lease_timeout);
+  if (previous_alive && !(worker.takes_over && worker.host == known.host)) {
+    return absl::AlreadyExistsError(absl::StrCat(
+        "worker id '", worker.worker_id, "' is in use by another live worker process on host '",
+        known.host, "' (heard from ", silent_ms, " ms ago); every worker needs its own "
+        "--worker-id"));
+  }
+  known.replaced.push_back(known.instance);
+  if (known.replaced.size() > 16) known.replaced.erase(known.replaced.begin());
+  known.instance = worker.instance;
+  known.host = worker.host;
+  known.last_heard_monotonic_ms = now;
+  return absl::OkStatus();
+}
+
 absl::StatusOr<std::optional<Lease>> Scheduler::TryAcquireLocked(const WorkerIdentity& worker) {
+  RETURN_IF_ERROR(CheckInstanceLocked(worker));
   const int64_t now = clock_->NowMs();
   // A worker asking for work is alive: always record it (not throttled), so
   // `worker list` shows idle workers too.
@@ -177,9 +242,12 @@ absl::StatusOr<std::optional<Lease>> Scheduler::TryAcquireLocked(const WorkerIde
     // A worker that did not say it runs studies (an older build) gets trials only.
     if (candidate.kind == storage::JobKind::kStudy && !worker.study_jobs) continue;
     const LeaseKey key{candidate.job_id, candidate.attempts + 1};
-    RETURN_IF_ERROR(store_->StartAttempt(key, worker, now, LeaseExpiryFrom(now)));
+    RETURN_IF_ERROR(store_->StartAttempt(key, worker, now, LeaseExpiryFrom(LeaseNowMs())));
     ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(candidate.job_id));
     Lease lease;
+    if (job.kind == storage::JobKind::kTrial && key.attempt > 1) {
+      ASSIGN_OR_RETURN(lease.resume_from, store_->GetCheckpoint(job.id, 0));
+    }
     lease.job = std::move(job);
     lease.key = key;
     lease.heartbeat_interval_ms = absl::ToInt64Milliseconds(options_.heartbeat_interval);
@@ -234,27 +302,33 @@ bool Scheduler::shut_down() const {
   return shutdown_;
 }
 
-absl::StatusOr<HeartbeatResult> Scheduler::Heartbeat(const std::string& worker_id,
-                                                     const LeaseKey& key,
-                                                     const std::vector<Episode>& episodes,
-                                                     const storage::StudyRows& study) {
+absl::StatusOr<HeartbeatResult> Scheduler::Heartbeat(
+    const std::string& worker_id, const LeaseKey& key, const std::vector<Episode>& episodes,
+    const storage::StudyRows& study, const std::optional<storage::Checkpoint>& checkpoint) {
   RETURN_IF_ERROR(ValidateEpisodes(episodes));
   RETURN_IF_ERROR(ValidateStudyRows(study));
+  RETURN_IF_ERROR(ValidateCheckpoint(checkpoint));
   std::lock_guard<std::mutex> lock(decision_mutex_);
   const int64_t now = clock_->NowMs();
   HeartbeatResult result;
+  const int64_t lease_expires = LeaseExpiryFrom(LeaseNowMs());
   if (!episodes.empty() || study.empty()) {
     ASSIGN_OR_RETURN(result.episodes_stored,
-                     store_->StoreEpisodes(key, worker_id, episodes, now, LeaseExpiryFrom(now)));
+                     store_->StoreEpisodes(key, worker_id, episodes, now, lease_expires));
   }
   if (!study.empty()) {
     ASSIGN_OR_RETURN(result.study_rows_stored,
-                     store_->StoreStudyRows(key, worker_id, study, now, LeaseExpiryFrom(now)));
+                     store_->StoreStudyRows(key, worker_id, study, now, lease_expires));
   }
+  if (checkpoint) RETURN_IF_ERROR(store_->StoreCheckpoint(key, worker_id, *checkpoint, now));
   ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(key.job_id));
   auto worker = store_->GetWorker(worker_id);
   if (worker.ok()) {
     RETURN_IF_ERROR(MaybeTouchWorker(worker->identity, now));
+  }
+  // A beat shows the id's current process is alive (only it holds leases).
+  if (auto known = instances_.find(worker_id); known != instances_.end()) {
+    known->second.last_heard_monotonic_ms = clock_->MonotonicMs();
   }
   if (job.state == JobState::kCancelled) {
     result.directive = Directive::kCancel;
@@ -269,8 +343,10 @@ absl::StatusOr<EndOutcome> Scheduler::EndLocked(AttemptEnd end, LeaseBudget budg
   const bool cancelled = job.state == JobState::kCancelled;
   switch (end.attempt_state) {
     case AttemptState::kCompleted:
-      // Results that arrive after a cancel are still results.
-      end.job_state = JobState::kCompleted;
+      // A trial that finishes after its job was cancelled keeps its episodes
+      // (the attempt is recorded as completed) but the cancel stands: only
+      // the user takes a job out of cancelled (resuming its sweep).
+      end.job_state = cancelled ? JobState::kCancelled : JobState::kCompleted;
       break;
     case AttemptState::kFailed:
       end.failures_delta = 1;
@@ -316,8 +392,10 @@ absl::StatusOr<EndOutcome> Scheduler::EndLocked(AttemptEnd end, LeaseBudget budg
 
 absl::Status Scheduler::Complete(const std::string& worker_id, const LeaseKey& key,
                                  const std::vector<Episode>& episodes, int episodes_total,
-                                 bool success, double final_eval_cost) {
+                                 bool success, double final_eval_cost,
+                                 const std::optional<storage::Checkpoint>& checkpoint) {
   RETURN_IF_ERROR(ValidateEpisodes(episodes));
+  RETURN_IF_ERROR(ValidateCheckpoint(checkpoint));
   if (!std::isfinite(final_eval_cost)) {
     return absl::InvalidArgumentError(
         "final_eval_cost is not finite; a trial with a non-finite cost must be reported with Fail");
@@ -331,6 +409,7 @@ absl::Status Scheduler::Complete(const std::string& worker_id, const LeaseKey& k
   end.episodes_total = episodes_total;
   end.success = success;
   end.final_eval_cost = final_eval_cost;
+  end.checkpoint = checkpoint;
   return EndLocked(std::move(end)).status();
 }
 
@@ -338,6 +417,11 @@ absl::Status Scheduler::CompleteStudy(const std::string& worker_id, const LeaseK
                                       const storage::StudyRows& rows, int cells_total,
                                       int references_total) {
   RETURN_IF_ERROR(ValidateStudyRows(rows));
+  if (cells_total > kMaxStudyRowsPerJob || references_total > kMaxStudyRowsPerJob) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "a study completes with ", cells_total, " cells and ", references_total,
+        " references; at most ", kMaxStudyRowsPerJob, " of each"));
+  }
   std::lock_guard<std::mutex> lock(decision_mutex_);
   AttemptEnd end;
   end.key = key;
@@ -392,10 +476,27 @@ absl::Status Scheduler::GiveBack(const std::string& worker_id, const LeaseKey& k
   return EndLocked(std::move(end), budget).status();
 }
 
-absl::StatusOr<int> Scheduler::ExpireLeases() {
+absl::StatusOr<int> Scheduler::ExpireLeases(ExpiryReport* report) {
   std::lock_guard<std::mutex> lock(decision_mutex_);
-  const int64_t now = clock_->NowMs();
-  ASSIGN_OR_RETURN(std::vector<LeaseKey> expired, store_->ListExpiredLeases(now));
+  ExpiryReport local;
+  if (report == nullptr) report = &local;
+  *report = ExpiryReport{};
+  const int64_t started = clock_->MonotonicMs();
+  const int64_t since_last =
+      last_expiry_end_monotonic_ms_ < 0 ? 0 : started - last_expiry_end_monotonic_ms_;
+  if (since_last > absl::ToInt64Milliseconds(options_.heartbeat_interval)) {
+    // Nothing here ran for longer than a beat, so no worker could have
+    // reached us either: their silence is ours. Extend, as after a restart.
+    ASSIGN_OR_RETURN(report->extended,
+                     store_->ExtendOpenLeases(
+                         LeaseExpiryFrom(LeaseNowMs()), clock_->NowMs(),
+                         absl::StrCat("after a coordinator stall of ", since_last,
+                                      " ms (lease loop not run)")));
+    report->stalled_ms = since_last;
+    last_expiry_end_monotonic_ms_ = clock_->MonotonicMs();
+    return 0;
+  }
+  ASSIGN_OR_RETURN(std::vector<LeaseKey> expired, store_->ListExpiredLeases(LeaseNowMs()));
   int count = 0;
   for (const LeaseKey& key : expired) {
     ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(key.job_id));
@@ -408,6 +509,8 @@ absl::StatusOr<int> Scheduler::ExpireLeases() {
     ASSIGN_OR_RETURN(EndOutcome outcome, EndLocked(std::move(end)));
     if (outcome == EndOutcome::kApplied) ++count;
   }
+  last_expiry_end_monotonic_ms_ = clock_->MonotonicMs();
+  report->expired = count;
   return count;
 }
 
@@ -425,10 +528,9 @@ absl::StatusOr<storage::SweepRecord> Scheduler::SetSweepState(const std::string&
   std::lock_guard<std::mutex> lock(decision_mutex_);
   ASSIGN_OR_RETURN(storage::SweepRecord sweep, store_->GetSweep(name));
   if (sweep.state == state) return sweep;
-  if (sweep.state == SweepState::kCancelled) {
-    return absl::FailedPreconditionError(
-        absl::StrCat("sweep '", name, "' is cancelled; a cancelled sweep cannot be ",
-                     state == SweepState::kPaused ? "paused" : "resumed"));
+  if (sweep.state == SweepState::kCancelled && state == SweepState::kPaused) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        "sweep '", name, "' is cancelled; a cancelled sweep cannot be paused, only resumed"));
   }
   RETURN_IF_ERROR(store_->SetSweepState(name, state, clock_->NowMs()));
   NotifyWork();

@@ -6,13 +6,23 @@
 //   * A lease is one attempt of one job; its number is its epoch. A worker
 //     keeps it by heartbeating at least every heartbeat_interval; it is lost
 //     when no heartbeat arrived for lease_timeout, judged on the coordinator's
-//     clock by ExpireLeases(). A lost lease ends the attempt (lease_lost) and
-//     re-queues the job; the old worker's later writes get ABORTED.
+//     monotonic clock by ExpireLeases(). A lost lease ends the attempt
+//     (lease_lost) and re-queues the job; the old worker's later writes get
+//     ABORTED.
+//   * Lease times are measured on the monotonic clock (a wall-clock step
+//     changes nothing). If ExpireLeases() was not called for longer than a
+//     heartbeat interval (the coordinator stalled: SIGSTOP, swapping, a
+//     suspended VM), the workers could not have reached it either, so it
+//     extends every open lease by one lease timeout, as start-up recovery
+//     does, before it expires any.
 //   * Application failures (Fail) count against the sweep's max_attempts; lost
 //     leases and releases count against max_lost_leases instead. A job over
 //     either budget becomes failed.
 //   * A cancelled job's running attempt gets DIRECTIVE kCancel; a draining
 //     worker gets kDrain and no new leases. Paused sweeps hand out nothing.
+//   * A cancel is final unless the user resumes the sweep: a report that
+//     arrives after it (even a completion) is stored as data but leaves the
+//     job cancelled.
 //   * Repeated Complete/Fail/Release of an attempt that already ended that way
 //     are OK and change nothing (duplicate delivery).
 //
@@ -63,6 +73,17 @@ struct Lease {
   storage::LeaseKey key;
   int64_t heartbeat_interval_ms = 0;
   int64_t lease_timeout_ms = 0;
+  // Trial jobs: the latest checkpoint of an earlier attempt, to resume from.
+  std::optional<storage::CheckpointRecord> resume_from;
+};
+
+// What one ExpireLeases() call did.
+struct ExpiryReport {
+  int expired = 0;  // leases lost
+  // A stall was detected: how long the lease loop had not run, and how many
+  // open leases were extended instead of expired.
+  int64_t stalled_ms = 0;
+  int extended = 0;
 };
 
 struct HeartbeatResult {
@@ -79,6 +100,10 @@ inline constexpr size_t kMaxWorkerIdBytes = 128;
 inline constexpr int kMaxStudyRowsPerCall = 1000;
 inline constexpr size_t kMaxStudyTextBytes = 16 * 1024;
 inline constexpr size_t kMaxStudyVectorSize = 100000;
+// Largest trial checkpoint kept (what a worker sends must fit a message).
+inline constexpr size_t kMaxCheckpointBytes = 2 << 20;
+// Cells or references one study job may complete with.
+inline constexpr int kMaxStudyRowsPerJob = 1000000;
 
 // InvalidArgument naming the problem: empty or over-long id, control chars.
 absl::Status ValidateWorkerIdentity(const storage::WorkerIdentity& worker);
@@ -108,27 +133,34 @@ class Scheduler {
 
   // Leases the next claimable job to `worker`, or returns nullopt if there is
   // none (or the worker is draining). Study jobs go only to workers whose
-  // identity says study_jobs. Does not wait.
+  // identity says study_jobs. Does not wait. AlreadyExists if another live
+  // process uses the same worker_id: a different `instance` while the current
+  // one was heard from within lease_timeout, unless it comes from the same
+  // host with `takes_over` (it holds the host-local lock, so the earlier
+  // process has exited); an instance once replaced stays refused.
   absl::StatusOr<std::optional<Lease>> TryAcquire(const storage::WorkerIdentity& worker);
   // Like TryAcquire, but waits up to min(wait, max_acquire_wait) of real time
   // for work to appear. Returns nullopt at the deadline or after Shutdown().
   absl::StatusOr<std::optional<Lease>> Acquire(const storage::WorkerIdentity& worker,
                                                absl::Duration wait);
-  // Stores `episodes` (trial jobs) or `study` rows (study jobs) and extends
-  // the lease. Aborted for a stale lease; InvalidArgument for rows of the
-  // wrong kind.
-  absl::StatusOr<HeartbeatResult> Heartbeat(const std::string& worker_id,
-                                            const storage::LeaseKey& key,
-                                            const std::vector<storage::Episode>& episodes,
-                                            const storage::StudyRows& study = {});
-  // Ends the attempt as completed (see Store::EndAttempt for the checks).
+  // Stores `episodes` (trial jobs) or `study` rows (study jobs), then the
+  // trial's `checkpoint` if given, and extends the lease. Aborted for a stale
+  // lease; InvalidArgument for rows of the wrong kind, or a checkpoint over
+  // kMaxCheckpointBytes or of an episode outside the trial.
+  absl::StatusOr<HeartbeatResult> Heartbeat(
+      const std::string& worker_id, const storage::LeaseKey& key,
+      const std::vector<storage::Episode>& episodes, const storage::StudyRows& study = {},
+      const std::optional<storage::Checkpoint>& checkpoint = std::nullopt);
+  // Ends the attempt as completed (see Store::EndAttempt for the checks),
+  // storing `checkpoint` (the final state) with it if given.
   absl::Status Complete(const std::string& worker_id, const storage::LeaseKey& key,
                         const std::vector<storage::Episode>& episodes, int episodes_total,
-                        bool success, double final_eval_cost);
+                        bool success, double final_eval_cost,
+                        const std::optional<storage::Checkpoint>& checkpoint = std::nullopt);
   // Ends a study job's attempt as completed: `rows` are stored first, then
   // cells 0..cells_total-1 and references 0..references_total-1 must all be
   // stored (FailedPrecondition names the missing ones). InvalidArgument for
-  // a trial job.
+  // a trial job or a total above kMaxStudyRowsPerJob.
   absl::Status CompleteStudy(const std::string& worker_id, const storage::LeaseKey& key,
                              const storage::StudyRows& rows, int cells_total,
                              int references_total);
@@ -146,14 +178,22 @@ class Scheduler {
   absl::Status ReturnUndelivered(const std::string& worker_id, const storage::LeaseKey& key,
                                  const std::string& reason);
 
-  // Ends every lease that expired on the coordinator's clock. Returns how many.
-  absl::StatusOr<int> ExpireLeases();
+  // Ends every lease that expired on the coordinator's monotonic clock and
+  // returns how many. Meant to be called in a loop well within
+  // heartbeat_interval; if the previous call ended more than a heartbeat
+  // interval ago (a stall), it instead extends every open lease to now +
+  // lease_timeout and expires nothing this time. `report`, if not null,
+  // receives the details.
+  absl::StatusOr<int> ExpireLeases(ExpiryReport* report = nullptr);
 
   // ---- user calls ----
 
   absl::StatusOr<storage::SweepRecord> SubmitSweep(const storage::NewSweep& sweep, bool* created);
-  // Pause/resume/cancel with the transition rules of the proto (no-op when
-  // already there; FailedPrecondition to leave kCancelled).
+  // Pause/resume/cancel with the transition rules of the proto: no-op when
+  // already there; cancelling cancels queued and running jobs; resuming a
+  // cancelled sweep (the only way out of a cancel) re-queues its cancelled
+  // jobs (those whose attempt is still open run on); pausing a cancelled
+  // sweep is FailedPrecondition.
   absl::StatusOr<storage::SweepRecord> SetSweepState(const std::string& name,
                                                      storage::SweepState state);
   absl::StatusOr<storage::JobRecord> RetryJob(int64_t job_id);
@@ -164,7 +204,13 @@ class Scheduler {
   bool shut_down() const;
 
  private:
-  int64_t LeaseExpiryFrom(int64_t now_ms) const;
+  // The lease clock: the monotonic clock shifted to read as wall time at
+  // construction, so stored lease deadlines stay readable but never move
+  // with a wall-clock step. Restarts are covered by Recover().
+  int64_t LeaseNowMs();
+  int64_t LeaseExpiryFrom(int64_t lease_now_ms) const;
+  // The duplicate-worker-id rule of TryAcquire; records the instance.
+  absl::Status CheckInstanceLocked(const storage::WorkerIdentity& worker);
   // Writes the worker's last-seen time unless it was written recently.
   absl::Status MaybeTouchWorker(const storage::WorkerIdentity& worker, int64_t now_ms);
   absl::StatusOr<std::optional<Lease>> TryAcquireLocked(const storage::WorkerIdentity& worker);
@@ -184,9 +230,24 @@ class Scheduler {
   Clock* const clock_;
   const SchedulerOptions options_;
 
+  const int64_t lease_origin_wall_ms_;
+  const int64_t lease_origin_monotonic_ms_;
+
   // Serialises read-decide-write sequences.
   std::mutex decision_mutex_;
   std::map<std::string, int64_t> last_touch_ms_;  // guarded by decision_mutex_
+  // The live process behind each worker id (in memory: after a restart the
+  // first caller is accepted). Guarded by decision_mutex_.
+  struct WorkerInstance {
+    std::string instance;
+    std::string host;
+    int64_t last_heard_monotonic_ms = 0;
+    std::vector<std::string> replaced;  // earlier instances, newest last (at most 16)
+  };
+  std::map<std::string, WorkerInstance> instances_;
+  // Monotonic time at which the last ExpireLeases() (or Recover()) ended; -1
+  // before the first. Guarded by decision_mutex_.
+  int64_t last_expiry_end_monotonic_ms_ = -1;
 
   // Long-poll wake-ups.
   mutable std::mutex work_mutex_;

@@ -41,9 +41,7 @@ class TokenAuthenticator {
   std::string user_token_;
 };
 
-// Reads a token from a file: surrounding whitespace is trimmed. NotFound if
-// unreadable, InvalidArgument if empty.
-absl::StatusOr<std::string> ReadTokenFile(const std::string& path);
+// Tokens are read from files with totalgrad::ReadTokenFile (server/common/token_file.h).
 
 }  // namespace totalgrad::service
 

@@ -24,6 +24,8 @@ absl::StatusOr<storage::NewSweep> PrepareSubmission(const v1::SubmitSweepRequest
     return absl::InvalidArgumentError("source_name: at most 4096 bytes");
   }
   sweep::SweepSpec spec = FromProto(request.spec());
+  std::vector<std::string> protocol_order;
+  for (const auto& [key, value] : spec.protocol) protocol_order.push_back(key);
   absl::Status status = sweep::CanonicalizeSpec(&spec);
   if (!status.ok()) return status;
   absl::StatusOr<std::vector<sweep::ExpandedJob>> jobs = sweep::ExpandJobs(spec);
@@ -33,6 +35,9 @@ absl::StatusOr<storage::NewSweep> PrepareSubmission(const v1::SubmitSweepRequest
   sweep.description = spec.description;
   sweep.canonical_spec = sweep::CanonicalJson(spec);
   sweep.spec_hash = sweep::SpecHash(spec);
+  // Sweeps stored by builds that kept [protocol] in file order.
+  const std::string legacy_hash = sweep::LegacySpecHash(spec, protocol_order);
+  if (legacy_hash != sweep.spec_hash) sweep.equivalent_spec_hashes.push_back(legacy_hash);
   sweep.source_name = request.source_name();
   sweep.source_text = request.source_text();
   sweep.coordinator_build = coordinator_build;
@@ -183,6 +188,32 @@ grpc::Status ControlServiceImpl::GetJobLog(grpc::ServerContext* context,
   ToProto(*job, response->mutable_job());
   for (const auto& attempt : *attempts) ToProto(attempt, response->add_attempts());
   for (const auto& event : *events) ToProto(event, response->add_events());
+  return grpc::Status::OK;
+}
+
+grpc::Status ControlServiceImpl::GetJobArtifacts(grpc::ServerContext* context,
+                                                 const v1::JobRequest* request,
+                                                 v1::GetJobArtifactsResponse* response) {
+  TG_AUTHORIZE(context);
+  absl::StatusOr<storage::JobRecord> job = store_->GetJob(request->job_id());
+  if (!job.ok()) return ToGrpcStatus(job.status());
+  // A completed job's result is its completed attempt's final state.
+  absl::StatusOr<std::optional<storage::CheckpointRecord>> checkpoint =
+      store_->GetCheckpoint(job->id, job->completed_attempt);
+  if (!checkpoint.ok()) return ToGrpcStatus(checkpoint.status());
+  if (!checkpoint->has_value()) {
+    return grpc::Status(grpc::StatusCode::NOT_FOUND,
+                        absl::StrCat("job ", job->id, " has no trial checkpoint (",
+                                     job->kind == storage::JobKind::kStudy
+                                         ? "a study job"
+                                         : "no episode reported one: none finished, or an older "
+                                           "worker ran it",
+                                     ")"));
+  }
+  ToProto(*job, response->mutable_job());
+  response->set_attempt((**checkpoint).key.attempt);
+  response->set_worker_build((**checkpoint).worker_build);
+  ToProto((**checkpoint).checkpoint, response->mutable_checkpoint());
   return grpc::Status::OK;
 }
 

@@ -58,6 +58,8 @@ class ControlServiceImpl final : public v1::ControlService::Service {
                         v1::JobInfo* response) override;
   grpc::Status GetJobLog(grpc::ServerContext* context, const v1::JobRequest* request,
                          v1::GetJobLogResponse* response) override;
+  grpc::Status GetJobArtifacts(grpc::ServerContext* context, const v1::JobRequest* request,
+                               v1::GetJobArtifactsResponse* response) override;
   grpc::Status ListTrialResults(grpc::ServerContext* context, const v1::SweepRequest* request,
                                 v1::ListTrialResultsResponse* response) override;
   grpc::Status ExportEpisodes(grpc::ServerContext* context,

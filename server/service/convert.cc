@@ -12,7 +12,15 @@ grpc::Status ToGrpcStatus(const absl::Status& status) {
 }
 
 storage::WorkerIdentity FromProto(const v1::WorkerIdentity& worker) {
-  return {worker.worker_id(), worker.host(), worker.build(), worker.slots(), worker.study_jobs()};
+  storage::WorkerIdentity identity;
+  identity.worker_id = worker.worker_id();
+  identity.host = worker.host();
+  identity.build = worker.build();
+  identity.slots = worker.slots();
+  identity.study_jobs = worker.study_jobs();
+  identity.instance = worker.instance();
+  identity.takes_over = worker.takes_over();
+  return identity;
 }
 
 storage::StudyCell FromProto(const v1::StudyCellRow& row) {
@@ -282,6 +290,7 @@ void ToProto(const storage::AttemptRecord& attempt, v1::AttemptInfo* out) {
   }
   out->set_error(attempt.error);
   out->set_episodes_stored(attempt.episodes_stored);
+  out->set_checkpoint_episode(attempt.checkpoint_episode);
 }
 
 void ToProto(const storage::EventRecord& event, v1::Event* out) {
@@ -359,6 +368,23 @@ void ToProto(const scheduler::Lease& lease, v1::Lease* out) {
   if (lease.job.kind == storage::JobKind::kStudy) out->set_study_spec_json(lease.job.payload);
   out->set_heartbeat_interval_ms(static_cast<int32_t>(lease.heartbeat_interval_ms));
   out->set_lease_timeout_ms(static_cast<int32_t>(lease.lease_timeout_ms));
+  if (lease.resume_from) {
+    ToProto(lease.resume_from->checkpoint, out->mutable_resume_from());
+    out->set_resume_from_attempt(lease.resume_from->key.attempt);
+    out->set_resume_from_build(lease.resume_from->worker_build);
+  }
+}
+
+std::optional<storage::Checkpoint> CheckpointFromProto(bool present,
+                                                       const v1::TrialCheckpoint& checkpoint) {
+  if (!present || checkpoint.data().empty()) return std::nullopt;
+  return storage::Checkpoint{checkpoint.episode(), checkpoint.format_version(), checkpoint.data()};
+}
+
+void ToProto(const storage::Checkpoint& checkpoint, v1::TrialCheckpoint* out) {
+  out->set_episode(checkpoint.episode);
+  out->set_format_version(checkpoint.format_version);
+  out->set_data(checkpoint.data);
 }
 
 }  // namespace totalgrad::service

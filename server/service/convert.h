@@ -35,6 +35,10 @@ storage::StudyRows StudyRowsFromProto(
     const google::protobuf::RepeatedPtrField<v1::StudyReferenceRow>& references);
 // Unspecified maps to nullopt.
 std::optional<storage::JobState> FromProto(v1::JobState state);
+// nullopt when the message carries no checkpoint (no data).
+std::optional<storage::Checkpoint> CheckpointFromProto(bool present,
+                                                       const v1::TrialCheckpoint& checkpoint);
+void ToProto(const storage::Checkpoint& checkpoint, v1::TrialCheckpoint* out);
 
 void ToProto(const sweep::SweepSpec& spec, v1::SweepSpec* out);
 void ToProto(const storage::SweepRecord& sweep, v1::SweepInfo* out);

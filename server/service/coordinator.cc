@@ -68,8 +68,11 @@ absl::StatusOr<std::unique_ptr<Coordinator>> Coordinator::Start(const Coordinato
   if (!auth.ok()) return auth.status();
   c->auth_ = std::make_unique<TokenAuthenticator>(*std::move(auth));
 
+  storage::SqliteStoreOptions store_options;
+  store_options.init = options.init;
+  store_options.max_page_count = options.store_max_page_count;
   absl::StatusOr<std::unique_ptr<storage::SqliteStore>> store =
-      storage::SqliteStore::Open(options.database);
+      storage::SqliteStore::Open(options.database, store_options);
   if (!store.ok()) return store.status();
   c->store_ = *std::move(store);
   absl::StatusOr<std::string> settings = c->store_->DescribeSettings();
@@ -140,17 +143,28 @@ absl::StatusOr<std::unique_ptr<Coordinator>> Coordinator::Start(const Coordinato
 
 void Coordinator::ExpiryLoop() {
   // Check often relative to the timeout, so a lost lease is noticed within a
-  // few percent of lease_timeout.
-  const auto period = std::chrono::milliseconds(std::clamp<int64_t>(
-      absl::ToInt64Milliseconds(options_.scheduler.lease_timeout) / 20, 50, 1000));
+  // few percent of lease_timeout, and several times per heartbeat interval,
+  // so that a gap of more than one interval really means a stall (the
+  // scheduler then extends every lease instead of expiring it).
+  const int64_t period_ms = std::clamp<int64_t>(
+      std::min(absl::ToInt64Milliseconds(options_.scheduler.lease_timeout) / 20,
+               absl::ToInt64Milliseconds(options_.scheduler.heartbeat_interval) / 4),
+      10, 1000);
+  const auto period = std::chrono::milliseconds(period_ms);
   std::unique_lock<std::mutex> lock(mutex_);
   while (!stopping_) {
     stop_signal_.wait_for(lock, period, [&] { return stopping_; });
     if (stopping_) break;
     lock.unlock();
-    absl::StatusOr<int> expired = scheduler_->ExpireLeases();
+    scheduler::ExpiryReport report;
+    absl::StatusOr<int> expired = scheduler_->ExpireLeases(&report);
     if (!expired.ok()) {
       spdlog::warn("lease expiry check failed: {}", expired.status().ToString());
+    } else if (report.stalled_ms > 0) {
+      spdlog::warn("the coordinator stalled for {} ms (lease loop not run; SIGSTOP, swapping or "
+                   "a suspended machine?): extended {} open leases by the lease timeout instead "
+                   "of expiring them",
+                   report.stalled_ms, report.extended);
     } else if (*expired > 0) {
       spdlog::info("{} leases lost; their jobs were re-queued", *expired);
     }
@@ -187,6 +201,7 @@ absl::Status Coordinator::CheckHealth() {
   if (!serving_) return absl::UnavailableError("not serving (starting or shutting down)");
   if (scheduler_->shut_down()) return absl::UnavailableError("scheduler shut down");
   absl::Status store = store_->Ping();
+  if (store.ok()) store = store_->CheckWritable();
   if (!store.ok()) return absl::UnavailableError(absl::StrCat("database: ", store.message()));
   return absl::OkStatus();
 }

@@ -35,8 +35,14 @@ namespace totalgrad::service {
 struct CoordinatorOptions {
   // host:port to listen on; port 0 picks a free port (see Coordinator::port()).
   std::string listen = "127.0.0.1:7070";
-  // The SQLite file (created if missing). Must be on a local disk.
+  // The SQLite file. Must be on a local disk. Created on a first start (no
+  // file and no lock file beside it); see SqliteStore::Open for the rest.
   std::string database;
+  // --init: may initialise a new store in a 0-byte file, an SQLite file
+  // without tables, or in place of a database the lock file says was there.
+  bool init = false;
+  // Passed to the store (tests use max_page_count to emulate a full disk).
+  int64_t store_max_page_count = 0;
   // Token contents (not file names). Both or neither.
   std::string worker_token;
   std::string user_token;
@@ -73,9 +79,10 @@ class Coordinator {
   int port() const { return port_; }
   // The bound health port (0 without health_listen).
   int health_port() const { return health_server_ ? health_server_->port() : 0; }
-  // What GET /healthz reports: OK while serving and the store answers a
-  // trivial query, else Unavailable with the reason. Thread-safe until Shutdown
-  // has stopped the health server.
+  // What GET /healthz reports: OK while serving, the store answers a trivial
+  // query and can commit (SqliteStore::CheckWritable: the file was not
+  // deleted or replaced, commits do not fail), else Unavailable with the
+  // reason. Thread-safe until Shutdown has stopped the health server.
   absl::Status CheckHealth();
   // Stops taking leases, wakes long polls, stops the server (in-flight calls
   // get up to 2 s), stops the lease timer and closes the store. Idempotent.

@@ -58,7 +58,8 @@ grpc::Status WorkerServiceImpl::Heartbeat(grpc::ServerContext* context,
   TG_AUTHORIZE(context);
   absl::StatusOr<scheduler::HeartbeatResult> result = scheduler_->Heartbeat(
       request->worker_id(), FromProto(request->lease()), FromProto(request->episodes()),
-      StudyRowsFromProto(request->study_cells(), request->study_references()));
+      StudyRowsFromProto(request->study_cells(), request->study_references()),
+      CheckpointFromProto(request->has_checkpoint(), request->checkpoint()));
   if (!result.ok()) return ToGrpcStatus(result.status());
   response->set_directive(ToProto(result->directive));
   response->set_episodes_stored(result->episodes_stored);
@@ -77,10 +78,10 @@ grpc::Status WorkerServiceImpl::Complete(grpc::ServerContext* context,
         StudyRowsFromProto(request->study_cells(), request->study_references()),
         request->study_cells_total(), request->study_references_total()));
   }
-  return ToGrpcStatus(scheduler_->Complete(request->worker_id(), FromProto(request->lease()),
-                                           FromProto(request->episodes()),
-                                           request->episodes_total(), request->success(),
-                                           request->final_eval_cost()));
+  return ToGrpcStatus(scheduler_->Complete(
+      request->worker_id(), FromProto(request->lease()), FromProto(request->episodes()),
+      request->episodes_total(), request->success(), request->final_eval_cost(),
+      CheckpointFromProto(request->has_checkpoint(), request->checkpoint())));
 }
 
 grpc::Status WorkerServiceImpl::Fail(grpc::ServerContext* context, const v1::FailRequest* request,

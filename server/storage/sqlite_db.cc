@@ -19,13 +19,20 @@ absl::Status SqliteError(int code, absl::string_view context, absl::string_view 
     case SQLITE_NOTADB:
       return absl::DataLossError(message);
     case SQLITE_FULL:
-      return absl::ResourceExhaustedError(message);
+      return absl::UnavailableError(absl::StrCat("the disk is full; nothing was committed: ", message));
+    case SQLITE_IOERR:
+    case SQLITE_READONLY:
+      return absl::UnavailableError(
+          absl::StrCat("the disk failed or became read-only; nothing was committed: ", message));
     case SQLITE_CANTOPEN:
     case SQLITE_PERM:
-    case SQLITE_READONLY:
       return absl::FailedPreconditionError(message);
     case SQLITE_CONSTRAINT:
-      return absl::AlreadyExistsError(message);
+      if (code == SQLITE_CONSTRAINT_PRIMARYKEY || code == SQLITE_CONSTRAINT_UNIQUE) {
+        return absl::AlreadyExistsError(message);
+      }
+      return absl::InternalError(
+          absl::StrCat("a value the service should have refused reached the database: ", message));
     default:
       return absl::InternalError(message);
   }
@@ -39,6 +46,20 @@ absl::StatusOr<Db> Db::Open(const std::string& path, bool create, int busy_timeo
     const std::string detail = raw ? sqlite3_errmsg(raw) : sqlite3_errstr(rc);
     sqlite3_close(raw);
     return SqliteError(rc, absl::StrCat("open ", path), detail);
+  }
+  sqlite3_extended_result_codes(raw, 1);
+  sqlite3_busy_timeout(raw, busy_timeout_ms);
+  return Db(raw);
+}
+
+absl::StatusOr<Db> Db::OpenReadOnly(const std::string& path, int busy_timeout_ms) {
+  sqlite3* raw = nullptr;
+  const int rc =
+      sqlite3_open_v2(path.c_str(), &raw, SQLITE_OPEN_READONLY | SQLITE_OPEN_NOMUTEX, nullptr);
+  if (rc != SQLITE_OK) {
+    const std::string detail = raw ? sqlite3_errmsg(raw) : sqlite3_errstr(rc);
+    sqlite3_close(raw);
+    return SqliteError(rc, absl::StrCat("open ", path, " read-only"), detail);
   }
   sqlite3_extended_result_codes(raw, 1);
   sqlite3_busy_timeout(raw, busy_timeout_ms);
@@ -115,6 +136,11 @@ Statement& Statement::Bind(int index, absl::string_view value) {
   if (rc != SQLITE_OK && bind_error_ == 0) bind_error_ = rc;
   return *this;
 }
+Statement& Statement::BindBlob(int index, absl::string_view bytes) {
+  const int rc = sqlite3_bind_blob64(stmt_, index, bytes.data(), bytes.size(), SQLITE_TRANSIENT);
+  if (rc != SQLITE_OK && bind_error_ == 0) bind_error_ = rc;
+  return *this;
+}
 Statement& Statement::BindNull(int index) {
   const int rc = sqlite3_bind_null(stmt_, index);
   if (rc != SQLITE_OK && bind_error_ == 0) bind_error_ = rc;
@@ -154,6 +180,11 @@ std::string Statement::ColumnText(int column) const {
   const unsigned char* text = sqlite3_column_text(stmt_, column);
   const int bytes = sqlite3_column_bytes(stmt_, column);
   return text ? std::string(reinterpret_cast<const char*>(text), bytes) : std::string();
+}
+std::string Statement::ColumnBlob(int column) const {
+  const void* blob = sqlite3_column_blob(stmt_, column);
+  const int bytes = sqlite3_column_bytes(stmt_, column);
+  return blob ? std::string(static_cast<const char*>(blob), bytes) : std::string();
 }
 bool Statement::ColumnIsNull(int column) const {
   return sqlite3_column_type(stmt_, column) == SQLITE_NULL;

@@ -4,8 +4,12 @@
 // Every statement is prepared and every value bound as a parameter; no SQL is
 // ever built from data. Errors are absl::Status: Unavailable for
 // SQLITE_BUSY/LOCKED (retryable), DataLoss for SQLITE_CORRUPT/NOTADB,
-// ResourceExhausted for SQLITE_FULL, Internal otherwise; each message names the
-// statement's purpose and SQLite's own text.
+// Unavailable also for SQLITE_FULL, SQLITE_IOERR and SQLITE_READONLY (the
+// disk is full or failing: nothing was committed and a retry may succeed once
+// it is fixed, so a worker keeps its results and retries), AlreadyExists for
+// a violated PRIMARY KEY or UNIQUE constraint, Internal for any other
+// constraint (validation should have refused the value first) and anything
+// else; each message names the statement's purpose and SQLite's own text.
 //
 // Threading: a Db and its Statements must be used by one thread at a time
 // (callers hold a mutex).
@@ -32,6 +36,9 @@ class Db {
  public:
   // Opens (creating if asked) the database file at `path`. Sets busy_timeout.
   static absl::StatusOr<Db> Open(const std::string& path, bool create, int busy_timeout_ms);
+  // Opens an existing database for reading only: nothing this connection
+  // does can change the file.
+  static absl::StatusOr<Db> OpenReadOnly(const std::string& path, int busy_timeout_ms);
   Db() = default;
   Db(Db&& other) noexcept;
   Db& operator=(Db&& other) noexcept;
@@ -70,6 +77,7 @@ class Statement {
   Statement& Bind(int index, const char* value) { return Bind(index, absl::string_view(value)); }
   Statement& Bind(int index, const std::string& value) { return Bind(index, absl::string_view(value)); }
   Statement& BindNull(int index);
+  Statement& BindBlob(int index, absl::string_view bytes);
 
   // Advances. true: a row is available; false: done. Binding errors are
   // reported here too.
@@ -83,6 +91,7 @@ class Statement {
   // NULL reads as NaN.
   double ColumnDouble(int column) const;
   std::string ColumnText(int column) const;
+  std::string ColumnBlob(int column) const;
   bool ColumnIsNull(int column) const;
 
  private:

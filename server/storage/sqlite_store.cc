@@ -1,10 +1,18 @@
 #include "server/storage/sqlite_store.h"
 
+#include <fcntl.h>
 #include <sqlite3.h>
+#include <sys/file.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <fstream>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <set>
@@ -20,7 +28,7 @@ namespace {
 using internal::Db;
 using internal::Statement;
 
-constexpr int kSchemaVersion = 2;
+constexpr int kSchemaVersion = 3;
 
 // The schema of version 1; docs/results_schema.md explains every column. A
 // new database is created as version 1 and migrated, in one transaction, so
@@ -184,10 +192,27 @@ CREATE TABLE study_references(
 ) WITHOUT ROWID;
 )sql";
 
+// Version 2 -> 3: trial checkpoints (issue 12). The latest checkpoint of
+// each attempt (core/learner/checkpoint.h, opaque here), from which a new
+// attempt of the job resumes.
+constexpr char kMigration3[] = R"sql(
+CREATE TABLE checkpoints(
+  job_id INTEGER NOT NULL,
+  attempt INTEGER NOT NULL,
+  episode INTEGER NOT NULL CHECK(episode >= 0),
+  format_version INTEGER NOT NULL,
+  data BLOB NOT NULL,
+  reported_ms INTEGER NOT NULL,
+  PRIMARY KEY(job_id, attempt),
+  FOREIGN KEY(job_id, attempt) REFERENCES attempts(job_id, attempt)
+) WITHOUT ROWID;
+)sql";
+
 // Applies the migrations from `from` up to kSchemaVersion inside the
 // caller's transaction and sets user_version.
 absl::Status Migrate(Db& db, int64_t from) {
   if (from < 2) RETURN_IF_ERROR(db.Exec(kMigration2));
+  if (from < 3) RETURN_IF_ERROR(db.Exec(kMigration3));
   return db.Exec(absl::StrCat("PRAGMA user_version=", kSchemaVersion));
 }
 
@@ -542,6 +567,30 @@ absl::StatusOr<std::vector<int>> MissingStudyRows(Db& db, const LeaseKey& key,
   return missing;
 }
 
+// Keeps `checkpoint` for the attempt unless it holds one of a later episode.
+absl::Status UpsertCheckpoint(Db& db, const LeaseKey& key, const OpenAttempt& attempt,
+                              const Checkpoint& checkpoint, int64_t now_ms) {
+  if (attempt.kind != JobKind::kTrial) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("job ", key.job_id, " is a study job; only trials have checkpoints"));
+  }
+  if (checkpoint.episode < 0 || checkpoint.episode >= attempt.episodes_expected) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "checkpoint after episode ", checkpoint.episode, " of job ", key.job_id,
+        " is out of range: the trial has episodes 0..", attempt.episodes_expected - 1));
+  }
+  ASSIGN_OR_RETURN(Statement upsert, Statement::Prepare(db, R"sql(
+INSERT INTO checkpoints(job_id, attempt, episode, format_version, data, reported_ms)
+VALUES(?, ?, ?, ?, ?, ?)
+ON CONFLICT(job_id, attempt) DO UPDATE SET episode = excluded.episode,
+    format_version = excluded.format_version, data = excluded.data,
+    reported_ms = excluded.reported_ms
+WHERE excluded.episode >= checkpoints.episode)sql"));
+  upsert.Bind(1, key.job_id).Bind(2, key.attempt).Bind(3, checkpoint.episode);
+  upsert.Bind(4, checkpoint.format_version).BindBlob(5, checkpoint.data).Bind(6, now_ms);
+  return upsert.Run();
+}
+
 }  // namespace
 
 // ---- enum names ----
@@ -602,87 +651,362 @@ std::optional<AttemptState> ParseAttemptState(absl::string_view text) {
 
 // ---- SqliteStore ----
 
-absl::StatusOr<std::unique_ptr<SqliteStore>> SqliteStore::Open(const std::string& path,
-                                                               const SqliteStoreOptions& options) {
-  ASSIGN_OR_RETURN(Db writer, Db::Open(path, /*create=*/true, options.busy_timeout_ms));
-  // WAL lets the reader connection (and backups) run while the writer
-  // commits; FULL makes every commit survive power loss, which matters more
-  // than write speed here (a trial costs CPU-hours, a commit a millisecond).
-  RETURN_IF_ERROR(writer.Exec("PRAGMA journal_mode=WAL"));
-  RETURN_IF_ERROR(writer.Exec("PRAGMA synchronous=FULL"));
-  RETURN_IF_ERROR(writer.Exec("PRAGMA foreign_keys=ON"));
-  {
-    ASSIGN_OR_RETURN(Statement mode, Statement::Prepare(writer, "PRAGMA journal_mode"));
-    ASSIGN_OR_RETURN(bool row, mode.Step());
-    if (!row || mode.ColumnText(0) != "wal") {
-      return absl::FailedPreconditionError(
-          absl::StrCat("sqlite: ", path, " cannot use WAL journaling (journal_mode is '",
-                       row ? mode.ColumnText(0) : "", "'); is it on a network file system?"));
-    }
-  }
-  if (options.check_integrity_on_open) {
-    ASSIGN_OR_RETURN(Statement check, Statement::Prepare(writer, "PRAGMA quick_check"));
-    ASSIGN_OR_RETURN(bool row, check.Step());
-    if (!row || check.ColumnText(0) != "ok") {
-      return absl::DataLossError(absl::StrCat("sqlite: ", path, " failed its integrity check: ",
-                                              row ? check.ColumnText(0) : "no answer"));
-    }
-  }
-  int64_t version = 0;
-  {
-    ASSIGN_OR_RETURN(Statement query, Statement::Prepare(writer, "PRAGMA user_version"));
-    ASSIGN_OR_RETURN(bool row, query.Step());
-    version = row ? query.ColumnInt(0) : 0;
-  }
-  if (version == 0) {
-    ASSIGN_OR_RETURN(Statement tables,
-                     Statement::Prepare(writer, "SELECT COUNT(*) FROM sqlite_schema"));
-    ASSIGN_OR_RETURN(bool row, tables.Step());
-    if (row && tables.ColumnInt(0) != 0) {
-      return absl::FailedPreconditionError(
-          absl::StrCat(path, " is an SQLite database but not a totalgrad one (it has tables "
-                             "and no totalgrad schema version)"));
-    }
-    RETURN_IF_ERROR(writer.Exec("BEGIN IMMEDIATE"));
-    absl::Status created = writer.Exec(kSchema);
-    if (created.ok()) created = Migrate(writer, 1);
-    if (created.ok()) created = writer.Exec("COMMIT");
-    if (!created.ok()) {
-      (void)writer.Exec("ROLLBACK");
-      return created;
-    }
-  } else if (version < kSchemaVersion) {
-    // An older totalgrad database: migrate in one transaction (all or nothing).
-    RETURN_IF_ERROR(writer.Exec("BEGIN IMMEDIATE"));
-    absl::Status migrated = Migrate(writer, version);
-    if (migrated.ok()) migrated = writer.Exec("COMMIT");
-    if (!migrated.ok()) {
-      (void)writer.Exec("ROLLBACK");
-      return absl::Status(migrated.code(),
-                          absl::StrCat(path, ": migrating from schema version ", version, " to ",
-                                       kSchemaVersion, " failed: ", migrated.message()));
-    }
-  } else if (version != kSchemaVersion) {
-    return absl::FailedPreconditionError(absl::StrCat(
-        path, " has totalgrad schema version ", version, "; this build reads version ",
-        kSchemaVersion));
-  }
-  ASSIGN_OR_RETURN(Db reader, Db::Open(path, /*create=*/false, options.busy_timeout_ms));
-  RETURN_IF_ERROR(reader.Exec("PRAGMA foreign_keys=ON"));
-  return std::unique_ptr<SqliteStore>(
-      new SqliteStore(path, options, std::move(writer), std::move(reader)));
+namespace {
+
+int64_t SteadyMs() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(
+             std::chrono::steady_clock::now().time_since_epoch())
+      .count();
 }
 
-SqliteStore::SqliteStore(std::string path, SqliteStoreOptions options, Db writer, Db reader)
+std::string HostName() {
+  char buffer[256] = {};
+  if (gethostname(buffer, sizeof(buffer) - 1) != 0) return "unknown-host";
+  return buffer;
+}
+
+std::string ErrnoText(int error) { return std::strerror(error); }
+
+// The exclusive lock beside the database. Returns its descriptor, and in
+// *recorded what the previous holder wrote (empty if nothing).
+absl::StatusOr<int> TakeLock(const std::string& path, std::string* recorded) {
+  const std::string lock_path = absl::StrCat(path, ".lock");
+  const int fd = ::open(lock_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0600);
+  if (fd < 0) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        "cannot open the lock file ", lock_path, ": ", ErrnoText(errno),
+        " (the database's directory must be writable)"));
+  }
+  char buffer[4096];
+  const ssize_t n = ::pread(fd, buffer, sizeof(buffer) - 1, 0);
+  recorded->assign(buffer, n > 0 ? static_cast<size_t>(n) : 0);
+  if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
+    const int error = errno;
+    ::close(fd);
+    if (error == EWOULDBLOCK) {
+      std::string holder = recorded->substr(0, recorded->find('\n'));
+      return absl::FailedPreconditionError(absl::StrCat(
+          "database ", path, " is in use by another coordinator (",
+          holder.empty() ? "holder unknown" : holder, "; lock file ", lock_path,
+          "); stop it first, or use a copy (--backup) for reading"));
+    }
+    return absl::FailedPreconditionError(
+        absl::StrCat("cannot lock ", lock_path, ": ", ErrnoText(error)));
+  }
+  return fd;
+}
+
+// Rewrites the lock file: who holds it, and which file is the database.
+void RecordHolder(int fd, const std::string& path, uint64_t device, uint64_t inode) {
+  const auto now = std::chrono::duration_cast<std::chrono::seconds>(
+                       std::chrono::system_clock::now().time_since_epoch())
+                       .count();
+  const std::string text =
+      absl::StrCat("pid ", getpid(), " on host ", HostName(), " since unix time ", now,
+                   "\ndatabase ", path, " device:inode ", device, ":", inode, "\n");
+  if (::ftruncate(fd, 0) == 0) (void)!::pwrite(fd, text.data(), text.size(), 0);
+  ::fsync(fd);
+}
+
+// What is at `path` before anything is written to it.
+enum class FileKind { kMissing, kEmpty, kEmptySqlite, kTotalgrad, };
+struct Inspection {
+  FileKind kind = FileKind::kMissing;
+  int64_t version = 0;
+};
+
+// Looks at the file through a read-only connection. FailedPrecondition for a
+// foreign file or a newer schema (nothing is written in either case).
+absl::StatusOr<Inspection> InspectFile(const std::string& path, int busy_timeout_ms) {
+  Inspection inspection;
+  struct stat st;
+  if (::stat(path.c_str(), &st) != 0) {
+    if (errno == ENOENT) return inspection;
+    return absl::FailedPreconditionError(absl::StrCat("cannot stat ", path, ": ", ErrnoText(errno)));
+  }
+  if (!S_ISREG(st.st_mode)) {
+    return absl::FailedPreconditionError(absl::StrCat(path, " is not a regular file"));
+  }
+  if (st.st_size == 0) {
+    inspection.kind = FileKind::kEmpty;
+    return inspection;
+  }
+  {
+    char header[16] = {};
+    std::ifstream in(path, std::ios::binary);
+    in.read(header, sizeof(header));
+    if (!in || std::memcmp(header, "SQLite format 3", 16) != 0) {
+      return absl::FailedPreconditionError(absl::StrCat(
+          path, " is not an SQLite database (a foreign file); refusing to touch it. Give --db a "
+                "new path, or the right one"));
+    }
+  }
+  ASSIGN_OR_RETURN(Db reader, Db::OpenReadOnly(path, busy_timeout_ms));
+  ASSIGN_OR_RETURN(Statement version, Statement::Prepare(reader, "PRAGMA user_version"));
+  ASSIGN_OR_RETURN(bool row, version.Step());
+  inspection.version = row ? version.ColumnInt(0) : 0;
+  ASSIGN_OR_RETURN(Statement tables, Statement::Prepare(reader, "SELECT COUNT(*) FROM sqlite_schema"));
+  ASSIGN_OR_RETURN(row, tables.Step());
+  const int64_t table_count = row ? tables.ColumnInt(0) : 0;
+  if (inspection.version == 0) {
+    if (table_count != 0) {
+      return absl::FailedPreconditionError(absl::StrCat(
+          path, " is an SQLite database but not a totalgrad one (it has tables and no totalgrad "
+                "schema version); refusing to touch it"));
+    }
+    inspection.kind = FileKind::kEmptySqlite;
+    return inspection;
+  }
+  if (inspection.version > kSchemaVersion) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        path, " has totalgrad schema version ", inspection.version, "; this build reads version ",
+        kSchemaVersion, " and older (the file was not changed): use a newer build"));
+  }
+  inspection.kind = FileKind::kTotalgrad;
+  return inspection;
+}
+
+// Copies the database at `source` (read through `reader`) into `target`.
+absl::StatusOr<int64_t> CopyDatabase(Db& source, const std::string& target, int busy_timeout_ms) {
+  std::error_code error;
+  if (std::filesystem::exists(target, error)) {
+    return absl::AlreadyExistsError(absl::StrCat("backup target ", target, " already exists"));
+  }
+  // Copy into a temporary name and rename, so a crash never leaves a
+  // half-written file under the requested name.
+  const std::string temporary = absl::StrCat(target, ".partial");
+  std::filesystem::remove(temporary, error);
+  absl::Status status;
+  {
+    ASSIGN_OR_RETURN(Db destination, Db::Open(temporary, /*create=*/true, busy_timeout_ms));
+    sqlite3_backup* backup = sqlite3_backup_init(destination.raw(), "main", source.raw(), "main");
+    if (backup == nullptr) {
+      return internal::SqliteError(sqlite3_errcode(destination.raw()), "backup init",
+                                   sqlite3_errmsg(destination.raw()));
+    }
+    // One step copies everything from one read snapshot: the copy is
+    // consistent even while the writer keeps committing.
+    const int rc = sqlite3_backup_step(backup, -1);
+    sqlite3_backup_finish(backup);
+    if (rc != SQLITE_DONE) {
+      status = internal::SqliteError(rc, "backup step", sqlite3_errstr(rc));
+    } else {
+      status = destination.Exec("PRAGMA journal_mode=DELETE");
+    }
+  }
+  if (!status.ok()) {
+    std::filesystem::remove(temporary, error);
+    return status;
+  }
+  std::filesystem::rename(temporary, target, error);
+  if (error) {
+    return absl::InternalError(absl::StrCat("backup: rename ", temporary, " -> ", target, ": ",
+                                            error.message()));
+  }
+  const auto size = std::filesystem::file_size(target, error);
+  return error ? int64_t{0} : static_cast<int64_t>(size);
+}
+
+// Storage failures (as opposed to a refusal of the request itself).
+bool IsDatabaseFailure(const absl::Status& status) {
+  switch (status.code()) {
+    case absl::StatusCode::kUnavailable:
+    case absl::StatusCode::kDataLoss:
+    case absl::StatusCode::kInternal:
+    case absl::StatusCode::kResourceExhausted:
+      return true;
+    default:
+      return false;
+  }
+}
+
+}  // namespace
+
+absl::StatusOr<std::unique_ptr<SqliteStore>> SqliteStore::Open(const std::string& path,
+                                                               const SqliteStoreOptions& options) {
+  std::string recorded;
+  ASSIGN_OR_RETURN(const int lock_fd, TakeLock(path, &recorded));
+  // From here on the lock must be released on every error.
+  absl::StatusOr<std::unique_ptr<SqliteStore>> opened = [&]()
+      -> absl::StatusOr<std::unique_ptr<SqliteStore>> {
+    ASSIGN_OR_RETURN(Inspection inspection, InspectFile(path, options.busy_timeout_ms));
+    const bool recorded_database = recorded.find("\ndatabase ") != std::string::npos;
+    switch (inspection.kind) {
+      case FileKind::kMissing:
+        if (recorded_database && !options.init) {
+          return absl::FailedPreconditionError(absl::StrCat(
+              "database ", path, " is missing, but its lock file records that a coordinator used "
+              "a database there (", recorded.substr(recorded.find("\ndatabase ") + 1,
+                                                    recorded.size()),
+              "); it was deleted or moved. Restore it (e.g. from a backup), or pass --init to "
+              "start a new, empty database"));
+        }
+        break;
+      case FileKind::kEmpty:
+      case FileKind::kEmptySqlite:
+        if (!options.init) {
+          return absl::FailedPreconditionError(absl::StrCat(
+              path, " is ", inspection.kind == FileKind::kEmpty ? "an empty (0-byte) file"
+                                                                : "an SQLite database without tables",
+              ", not a totalgrad database; pass --init to initialise it as a new one"));
+        }
+        break;
+      case FileKind::kTotalgrad:
+        break;
+    }
+    ASSIGN_OR_RETURN(Db writer, Db::Open(path, /*create=*/true, options.busy_timeout_ms));
+    // WAL lets the reader connection (and backups) run while the writer
+    // commits; FULL makes every commit survive power loss, which matters more
+    // than write speed here (a trial costs CPU-hours, a commit a millisecond).
+    RETURN_IF_ERROR(writer.Exec("PRAGMA journal_mode=WAL"));
+    RETURN_IF_ERROR(writer.Exec("PRAGMA synchronous=FULL"));
+    RETURN_IF_ERROR(writer.Exec("PRAGMA foreign_keys=ON"));
+    {
+      ASSIGN_OR_RETURN(Statement mode, Statement::Prepare(writer, "PRAGMA journal_mode"));
+      ASSIGN_OR_RETURN(bool row, mode.Step());
+      if (!row || mode.ColumnText(0) != "wal") {
+        return absl::FailedPreconditionError(
+            absl::StrCat("sqlite: ", path, " cannot use WAL journaling (journal_mode is '",
+                         row ? mode.ColumnText(0) : "", "'); is it on a network file system?"));
+      }
+    }
+    if (options.check_integrity_on_open) {
+      ASSIGN_OR_RETURN(Statement check, Statement::Prepare(writer, "PRAGMA quick_check"));
+      ASSIGN_OR_RETURN(bool row, check.Step());
+      if (!row || check.ColumnText(0) != "ok") {
+        return absl::DataLossError(absl::StrCat("sqlite: ", path, " failed its integrity check: ",
+                                                row ? check.ColumnText(0) : "no answer"));
+      }
+    }
+    if (inspection.kind != FileKind::kTotalgrad) {
+      RETURN_IF_ERROR(writer.Exec("BEGIN IMMEDIATE"));
+      absl::Status created = writer.Exec(kSchema);
+      if (created.ok()) created = Migrate(writer, 1);
+      if (created.ok()) created = writer.Exec("COMMIT");
+      if (!created.ok()) {
+        (void)writer.Exec("ROLLBACK");
+        return created;
+      }
+    } else if (inspection.version < kSchemaVersion) {
+      // An older totalgrad database: migrate in one transaction (all or nothing).
+      RETURN_IF_ERROR(writer.Exec("BEGIN IMMEDIATE"));
+      absl::Status migrated = Migrate(writer, inspection.version);
+      if (migrated.ok()) migrated = writer.Exec("COMMIT");
+      if (!migrated.ok()) {
+        (void)writer.Exec("ROLLBACK");
+        return absl::Status(migrated.code(),
+                            absl::StrCat(path, ": migrating from schema version ",
+                                         inspection.version, " to ", kSchemaVersion,
+                                         " failed: ", migrated.message()));
+      }
+    }
+    if (options.max_page_count > 0) {
+      RETURN_IF_ERROR(
+          writer.Exec(absl::StrCat("PRAGMA max_page_count=", options.max_page_count)));
+    }
+    ASSIGN_OR_RETURN(Db reader, Db::Open(path, /*create=*/false, options.busy_timeout_ms));
+    RETURN_IF_ERROR(reader.Exec("PRAGMA foreign_keys=ON"));
+    struct stat st;
+    if (::stat(path.c_str(), &st) != 0) {
+      return absl::FailedPreconditionError(
+          absl::StrCat("cannot stat ", path, " after opening it: ", ErrnoText(errno)));
+    }
+    RecordHolder(lock_fd, path, st.st_dev, st.st_ino);
+    return std::unique_ptr<SqliteStore>(new SqliteStore(path, options, std::move(writer),
+                                                        std::move(reader), lock_fd, st.st_dev,
+                                                        st.st_ino));
+  }();
+  if (!opened.ok()) ::close(lock_fd);
+  return opened;
+}
+
+absl::StatusOr<int64_t> SqliteStore::BackupFile(const std::string& path, const std::string& target) {
+  const int busy_timeout_ms = SqliteStoreOptions{}.busy_timeout_ms;
+  ASSIGN_OR_RETURN(Inspection inspection, InspectFile(path, busy_timeout_ms));
+  if (inspection.kind != FileKind::kTotalgrad) {
+    return absl::FailedPreconditionError(
+        absl::StrCat(path, " is not a totalgrad database (missing or empty); nothing to back up"));
+  }
+  ASSIGN_OR_RETURN(Db source, Db::OpenReadOnly(path, busy_timeout_ms));
+  return CopyDatabase(source, target, busy_timeout_ms);
+}
+
+SqliteStore::SqliteStore(std::string path, SqliteStoreOptions options, Db writer, Db reader,
+                         int lock_fd, uint64_t device, uint64_t inode)
     : path_(std::move(path)),
       options_(options),
+      lock_fd_(lock_fd),
+      device_(device),
+      inode_(inode),
       writer_(std::move(writer)),
       reader_(std::move(reader)) {}
 
 SqliteStore::~SqliteStore() {
+  {
+    std::lock_guard<std::mutex> lock(write_mutex_);
+    // Fold the WAL back into the main file so a copied file is complete
+    // (not into a file that replaced ours).
+    if (file_error_.ok() && CheckFileIdentityLocked().ok()) {
+      (void)writer_.Exec("PRAGMA wal_checkpoint(TRUNCATE)");
+    }
+    writer_ = Db();
+  }
+  {
+    std::lock_guard<std::mutex> lock(read_mutex_);
+    reader_ = Db();
+  }
+  ::close(lock_fd_);  // releases the lock last, after both connections closed
+}
+
+absl::Status SqliteStore::CheckFileIdentityLocked() {
+  if (!file_error_.ok()) return file_error_;
+  struct stat st;
+  std::string problem;
+  if (::stat(path_.c_str(), &st) != 0) {
+    problem = absl::StrCat("was deleted (", ErrnoText(errno), ")");
+  } else if (st.st_dev != device_ || st.st_ino != inode_) {
+    problem = absl::StrCat("was replaced by another file (device:inode ", device_, ":", inode_,
+                           " when opened, now ", st.st_dev, ":", st.st_ino, ")");
+  }
+  if (problem.empty()) return absl::OkStatus();
+  file_error_ = absl::UnavailableError(absl::StrCat(
+      "database file ", path_, " ", problem,
+      " while the coordinator was running; nothing is acknowledged any more (it would be lost "
+      "with the old file). Restore the file and restart the coordinator"));
+  return file_error_;
+}
+
+absl::Status SqliteStore::CheckWritable() {
   std::lock_guard<std::mutex> lock(write_mutex_);
-  // Fold the WAL back into the main file so a copied file is complete.
-  (void)writer_.Exec("PRAGMA wal_checkpoint(TRUNCATE)");
+  RETURN_IF_ERROR(CheckFileIdentityLocked());
+  const int64_t now = SteadyMs();
+  constexpr int64_t kProbeIntervalMs = 5000;
+  if (last_write_error_.ok() && now - last_commit_ms_ < kProbeIntervalMs) return absl::OkStatus();
+  if (!last_write_error_.ok() && now - last_failure_or_probe_ms_ < kProbeIntervalMs) {
+    return absl::UnavailableError(
+        absl::StrCat("the last database commit failed: ", last_write_error_.message()));
+  }
+  // Find out with a commit of our own.
+  last_failure_or_probe_ms_ = now;
+  absl::Status probe = writer_.Exec("BEGIN IMMEDIATE");
+  if (probe.ok()) {
+    probe = [&]() -> absl::Status {
+      ASSIGN_OR_RETURN(Statement upsert,
+                       Statement::Prepare(writer_, "INSERT INTO meta(key, value) VALUES('health_probe', ?) "
+                                                   "ON CONFLICT(key) DO UPDATE SET value = excluded.value"));
+      upsert.Bind(1, std::to_string(now));
+      RETURN_IF_ERROR(upsert.Run());
+      return writer_.Exec("COMMIT");
+    }();
+    if (!probe.ok()) (void)writer_.Exec("ROLLBACK");
+  }
+  if (!probe.ok()) {
+    last_write_error_ = probe;
+    return absl::UnavailableError(absl::StrCat("a probe commit failed: ", probe.message()));
+  }
+  last_write_error_ = absl::OkStatus();
+  last_commit_ms_ = now;
+  return absl::OkStatus();
 }
 
 absl::StatusOr<std::string> SqliteStore::DescribeSettings() {
@@ -708,13 +1032,23 @@ absl::Status SqliteStore::Ping() {
 
 absl::Status SqliteStore::InWriteTransaction(const std::function<absl::Status(Db&)>& body) {
   std::lock_guard<std::mutex> lock(write_mutex_);
+  RETURN_IF_ERROR(CheckFileIdentityLocked());
   // IMMEDIATE takes the write lock up front: a deferred transaction that reads
   // then writes can fail with SQLITE_BUSY without the busy handler being used.
-  RETURN_IF_ERROR(writer_.Exec("BEGIN IMMEDIATE"));
-  absl::Status status = body(writer_);
-  if (status.ok()) status = writer_.Exec("COMMIT");
-  if (!status.ok()) {
-    (void)writer_.Exec("ROLLBACK");  // fails harmlessly if COMMIT already ended it
+  absl::Status status = writer_.Exec("BEGIN IMMEDIATE");
+  if (status.ok()) {
+    status = body(writer_);
+    if (status.ok()) status = writer_.Exec("COMMIT");
+    if (!status.ok()) {
+      (void)writer_.Exec("ROLLBACK");  // fails harmlessly if COMMIT already ended it
+    }
+  }
+  if (status.ok()) {
+    last_write_error_ = absl::OkStatus();
+    last_commit_ms_ = SteadyMs();
+  } else if (IsDatabaseFailure(status)) {
+    last_write_error_ = status;
+    last_failure_or_probe_ms_ = SteadyMs();
   }
   return status;
 }
@@ -728,7 +1062,10 @@ absl::StatusOr<SweepRecord> SqliteStore::CreateSweep(const NewSweep& sweep, int6
     existing.Bind(1, sweep.name);
     ASSIGN_OR_RETURN(bool found, existing.Step());
     if (found) {
-      if (existing.ColumnText(0) != sweep.spec_hash) {
+      const std::string stored = existing.ColumnText(0);
+      if (stored != sweep.spec_hash &&
+          std::find(sweep.equivalent_spec_hashes.begin(), sweep.equivalent_spec_hashes.end(),
+                    stored) == sweep.equivalent_spec_hashes.end()) {
         return absl::AlreadyExistsError(absl::StrCat(
             "a different sweep named '", sweep.name, "' exists (spec hash ",
             existing.ColumnText(0).substr(0, 12), ", submitted ", sweep.spec_hash.substr(0, 12),
@@ -789,6 +1126,16 @@ absl::Status SqliteStore::SetSweepState(const std::string& name, SweepState stat
                                               "sweep_id = ? AND state IN ('queued', 'running')"));
       cancel.Bind(1, sweep_id);
       RETURN_IF_ERROR(cancel.Run());
+    } else if (previous == ToString(SweepState::kCancelled)) {
+      // Resumed by the user: cancelled jobs run again; one whose attempt is
+      // still open (its worker has not answered the cancel yet) carries on.
+      ASSIGN_OR_RETURN(Statement resume, Statement::Prepare(db, R"sql(
+UPDATE jobs SET state = CASE WHEN EXISTS(SELECT 1 FROM attempts a WHERE a.job_id = jobs.id
+                                          AND a.attempt = jobs.attempts AND a.state = 'running')
+                             THEN 'running' ELSE 'queued' END
+WHERE sweep_id = ? AND state = 'cancelled')sql"));
+      resume.Bind(1, sweep_id);
+      RETURN_IF_ERROR(resume.Run());
     }
     return AddEvent(db, now_ms, sweep_id, 0, 0, absl::StrCat("sweep_", ToString(state)),
                     absl::StrCat("was ", previous));
@@ -871,6 +1218,15 @@ absl::StatusOr<int> SqliteStore::StoreStudyRows(const LeaseKey& key, const std::
   return stored;
 }
 
+absl::Status SqliteStore::StoreCheckpoint(const LeaseKey& key, const std::string& worker_id,
+                                          const Checkpoint& checkpoint, int64_t now_ms) {
+  return InWriteTransaction([&](Db& db) -> absl::Status {
+    ASSIGN_OR_RETURN(OpenAttempt attempt, LoadAttempt(db, key));
+    RETURN_IF_ERROR(CheckOpen(key, attempt, worker_id));
+    return UpsertCheckpoint(db, key, attempt, checkpoint, now_ms);
+  });
+}
+
 absl::StatusOr<EndOutcome> SqliteStore::EndAttempt(const AttemptEnd& end) {
   if (end.attempt_state == AttemptState::kRunning) {
     return absl::InvalidArgumentError("EndAttempt needs a final attempt state, not running");
@@ -886,6 +1242,7 @@ absl::StatusOr<EndOutcome> SqliteStore::EndAttempt(const AttemptEnd& end) {
     RETURN_IF_ERROR(CheckOpen(key, attempt, end.worker_id));
     RETURN_IF_ERROR(InsertEpisodes(db, key, attempt.episodes_expected, end.episodes, end.now_ms));
     RETURN_IF_ERROR(InsertStudyRows(db, key, attempt.kind, end.study, end.now_ms));
+    if (end.checkpoint) RETURN_IF_ERROR(UpsertCheckpoint(db, key, attempt, *end.checkpoint, end.now_ms));
     const bool study_totals = end.study_cells_total != 0 || end.study_references_total != 0;
     if (end.attempt_state == AttemptState::kCompleted && attempt.kind == JobKind::kStudy) {
       if (end.study_cells_total < 1 || end.study_references_total < 1) {
@@ -908,15 +1265,19 @@ absl::StatusOr<EndOutcome> SqliteStore::EndAttempt(const AttemptEnd& end) {
       return absl::InvalidArgumentError(absl::StrCat(
           "job ", key.job_id, " is a trial job; it completes with episodes, not study rows"));
     } else if (end.attempt_state == AttemptState::kCompleted) {
-      if (end.episodes_total < 1 || end.episodes_total > attempt.episodes_expected) {
+      // The job's own expected count decides, never the worker's: a
+      // completion reporting fewer episodes would count a trial with episodes
+      // missing (docs/results_schema.md promises every episode 0..expected-1).
+      if (end.episodes_total != attempt.episodes_expected) {
         return absl::InvalidArgumentError(absl::StrCat(
-            "completion of job ", key.job_id, " reports ", end.episodes_total,
-            " episodes; the trial has ", attempt.episodes_expected));
+            "completion of job ", key.job_id, " attempt ", key.attempt, " reports ",
+            end.episodes_total, " episodes; the job expects ", attempt.episodes_expected,
+            " (episodes 0..", attempt.episodes_expected - 1, ")"));
       }
       ASSIGN_OR_RETURN(Statement present,
                        Statement::Prepare(db, "SELECT episode FROM episodes WHERE job_id = ? "
                                               "AND attempt = ? AND episode < ?"));
-      present.Bind(1, key.job_id).Bind(2, key.attempt).Bind(3, end.episodes_total);
+      present.Bind(1, key.job_id).Bind(2, key.attempt).Bind(3, attempt.episodes_expected);
       std::set<int> have;
       while (true) {
         ASSIGN_OR_RETURN(bool row, present.Step());
@@ -924,13 +1285,14 @@ absl::StatusOr<EndOutcome> SqliteStore::EndAttempt(const AttemptEnd& end) {
         have.insert(static_cast<int>(present.ColumnInt(0)));
       }
       std::vector<int> missing;
-      for (int e = 0; e < end.episodes_total; ++e) {
+      for (int e = 0; e < attempt.episodes_expected; ++e) {
         if (!have.count(e)) missing.push_back(e);
       }
       if (!missing.empty()) {
         return absl::FailedPreconditionError(absl::StrCat(
             "cannot complete job ", key.job_id, " attempt ", key.attempt, ": episodes ",
-            absl::StrJoin(missing, ","), " of 0..", end.episodes_total - 1, " are not stored"));
+            absl::StrJoin(missing, ","), " of 0..", attempt.episodes_expected - 1,
+            " are not stored"));
       }
     }
     ASSIGN_OR_RETURN(Statement close, Statement::Prepare(db, R"sql(
@@ -938,7 +1300,9 @@ UPDATE attempts SET state = ?, ended_ms = ?, error = ? WHERE job_id = ? AND atte
     close.Bind(1, ToString(end.attempt_state)).Bind(2, end.now_ms).Bind(3, end.error);
     close.Bind(4, key.job_id).Bind(5, key.attempt);
     RETURN_IF_ERROR(close.Run());
-    const bool completed = end.attempt_state == AttemptState::kCompleted;
+    // The job's result fields only when the job completes (an attempt that
+    // completes after a cancel leaves the job cancelled, without a result).
+    const bool completed = end.job_state == JobState::kCompleted;
     ASSIGN_OR_RETURN(Statement job, Statement::Prepare(db, R"sql(
 UPDATE jobs SET state = ?, failures = failures + ?, lost_leases = lost_leases + ?,
        last_error = CASE WHEN ? = '' THEN last_error ELSE ? END,
@@ -984,7 +1348,8 @@ absl::Status SqliteStore::RetryJob(int64_t job_id, int64_t now_ms) {
   });
 }
 
-absl::StatusOr<int> SqliteStore::ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms) {
+absl::StatusOr<int> SqliteStore::ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms,
+                                                   const std::string& reason) {
   int changed = 0;
   const absl::Status status = InWriteTransaction([&](Db& db) -> absl::Status {
     ASSIGN_OR_RETURN(Statement update,
@@ -995,7 +1360,7 @@ absl::StatusOr<int> SqliteStore::ExtendOpenLeases(int64_t lease_expires_ms, int6
     changed = db.Changes();
     if (changed == 0) return absl::OkStatus();
     return AddEvent(db, now_ms, 0, 0, 0, "leases_extended",
-                    absl::StrCat(changed, " open leases extended on coordinator start"));
+                    absl::StrCat(changed, " open leases extended ", reason));
   });
   if (!status.ok()) return status;
   return changed;
@@ -1092,7 +1457,9 @@ absl::StatusOr<std::vector<AttemptRecord>> SqliteStore::ListAttempts(int64_t job
   ASSIGN_OR_RETURN(Statement query, Statement::Prepare(reader_, R"sql(
 SELECT a.attempt, a.state, a.worker_id, a.worker_host, a.worker_build, a.started_ms,
        COALESCE(a.ended_ms, 0), a.lease_expires_ms, a.error,
-       (SELECT COUNT(*) FROM episodes e WHERE e.job_id = a.job_id AND e.attempt = a.attempt)
+       (SELECT COUNT(*) FROM episodes e WHERE e.job_id = a.job_id AND e.attempt = a.attempt),
+       COALESCE((SELECT c.episode FROM checkpoints c
+                 WHERE c.job_id = a.job_id AND c.attempt = a.attempt), -1)
 FROM attempts a WHERE a.job_id = ? ORDER BY a.attempt)sql"));
   query.Bind(1, job_id);
   std::vector<AttemptRecord> attempts;
@@ -1110,6 +1477,7 @@ FROM attempts a WHERE a.job_id = ? ORDER BY a.attempt)sql"));
     a.lease_expires_ms = query.ColumnInt(7);
     a.error = query.ColumnText(8);
     a.episodes_stored = static_cast<int>(query.ColumnInt(9));
+    a.checkpoint_episode = static_cast<int>(query.ColumnInt(10));
     attempts.push_back(std::move(a));
   }
   return attempts;
@@ -1129,6 +1497,26 @@ absl::StatusOr<std::vector<EventRecord>> SqliteStore::ListEvents(int64_t job_id)
                       query.ColumnText(2), query.ColumnText(3)});
   }
   return events;
+}
+
+absl::StatusOr<std::optional<CheckpointRecord>> SqliteStore::GetCheckpoint(int64_t job_id,
+                                                                           int attempt) {
+  std::lock_guard<std::mutex> lock(read_mutex_);
+  ASSIGN_OR_RETURN(Statement query, Statement::Prepare(reader_, R"sql(
+SELECT c.attempt, a.worker_build, c.episode, c.format_version, c.data
+FROM checkpoints c JOIN attempts a ON a.job_id = c.job_id AND a.attempt = c.attempt
+WHERE c.job_id = ? AND (? = 0 OR c.attempt = ?)
+ORDER BY c.episode DESC, c.attempt DESC LIMIT 1)sql"));
+  query.Bind(1, job_id).Bind(2, attempt).Bind(3, attempt);
+  ASSIGN_OR_RETURN(bool row, query.Step());
+  if (!row) return std::optional<CheckpointRecord>();
+  CheckpointRecord record;
+  record.key = {job_id, static_cast<int>(query.ColumnInt(0))};
+  record.worker_build = query.ColumnText(1);
+  record.checkpoint.episode = static_cast<int>(query.ColumnInt(2));
+  record.checkpoint.format_version = static_cast<int>(query.ColumnInt(3));
+  record.checkpoint.data = query.ColumnBlob(4);
+  return std::optional<CheckpointRecord>(std::move(record));
 }
 
 absl::StatusOr<std::vector<ClaimCandidate>> SqliteStore::ListClaimCandidates(int limit) {
@@ -1410,44 +1798,8 @@ SELECT (SELECT COUNT(*) FROM sweeps),
 }
 
 absl::StatusOr<int64_t> SqliteStore::Backup(const std::string& path) {
-  std::error_code error;
-  if (std::filesystem::exists(path, error)) {
-    return absl::AlreadyExistsError(absl::StrCat("backup target ", path, " already exists"));
-  }
-  // Copy into a temporary name and rename, so a crash never leaves a
-  // half-written file under the requested name.
-  const std::string temporary = absl::StrCat(path, ".partial");
-  std::filesystem::remove(temporary, error);
-  ASSIGN_OR_RETURN(Db source, Db::Open(path_, /*create=*/false, options_.busy_timeout_ms));
-  absl::Status status;
-  {
-    ASSIGN_OR_RETURN(Db destination, Db::Open(temporary, /*create=*/true, options_.busy_timeout_ms));
-    sqlite3_backup* backup = sqlite3_backup_init(destination.raw(), "main", source.raw(), "main");
-    if (backup == nullptr) {
-      return internal::SqliteError(sqlite3_errcode(destination.raw()), "backup init",
-                                   sqlite3_errmsg(destination.raw()));
-    }
-    // One step copies everything from one read snapshot: the copy is
-    // consistent even while the writer keeps committing.
-    const int rc = sqlite3_backup_step(backup, -1);
-    sqlite3_backup_finish(backup);
-    if (rc != SQLITE_DONE) {
-      status = internal::SqliteError(rc, "backup step", sqlite3_errstr(rc));
-    } else {
-      status = destination.Exec("PRAGMA journal_mode=DELETE");
-    }
-  }
-  if (!status.ok()) {
-    std::filesystem::remove(temporary, error);
-    return status;
-  }
-  std::filesystem::rename(temporary, path, error);
-  if (error) {
-    return absl::InternalError(absl::StrCat("backup: rename ", temporary, " -> ", path, ": ",
-                                            error.message()));
-  }
-  const auto size = std::filesystem::file_size(path, error);
-  return error ? int64_t{0} : static_cast<int64_t>(size);
+  ASSIGN_OR_RETURN(Db source, Db::OpenReadOnly(path_, options_.busy_timeout_ms));
+  return CopyDatabase(source, path, options_.busy_timeout_ms);
 }
 
 }  // namespace totalgrad::storage

@@ -9,9 +9,31 @@
 //
 // The file must be on a local disk (SQLite's WAL needs shared memory between
 // the connections of one host; never NFS).
+//
+// Ownership: Open takes an exclusive flock on "<path>.lock" (not SQLite's
+// exclusive locking mode, so read-only readers of the WAL database keep
+// working) and writes the holder (pid, host, time) and the database's
+// device:inode into it; a second SqliteStore on the same file, in this
+// process or another, is refused naming the holder. The lock file stays when
+// the store closes: its record of the database is how a later Open knows
+// that a missing database file was deleted rather than never created.
+//
+// Safety of the file (checked before anything is written to it):
+//   * missing, with no lock file recording a database: a new store (first start);
+//   * missing although the lock file records one, a 0-byte file, or an SQLite
+//     file with no tables: refused unless options.init;
+//   * anything else that is not a totalgrad database (other SQLite tables, or
+//     not SQLite at all): refused, even with init;
+//   * a newer schema version: refused, and the file is left byte for byte as
+//     it was (it is inspected through a read-only connection first).
+// While open, every write first checks that the path still names the file
+// that was opened (device and inode); once it was deleted or replaced every
+// write is refused with Unavailable naming the problem, so nothing more is
+// acknowledged that a restart would lose.
 #ifndef TOTALGRAD_SERVER_STORAGE_SQLITE_STORE_H_
 #define TOTALGRAD_SERVER_STORAGE_SQLITE_STORE_H_
 
+#include <cstdint>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -26,15 +48,29 @@ struct SqliteStoreOptions {
   int busy_timeout_ms = 5000;
   // Run PRAGMA quick_check on open; DataLoss if it reports a problem.
   bool check_integrity_on_open = true;
+  // May initialise a new store in a 0-byte file, an SQLite file without
+  // tables, or where the lock file says a database existed that is now
+  // missing (the coordinator's --init).
+  bool init = false;
+  // PRAGMA max_page_count of the writer after open (0: SQLite's default):
+  // makes commits that grow the file fail as on a full disk (tests).
+  int64_t max_page_count = 0;
 };
 
 class SqliteStore final : public Store {
  public:
-  // Opens or creates the database at `path`. FailedPrecondition if the file
-  // holds a schema of another version or is not a totalgrad database;
-  // DataLoss if the integrity check fails.
+  // Opens or creates the database at `path` (see the rules above).
+  // FailedPrecondition naming the problem: another store holds the lock (its
+  // pid and host named), the file is missing/empty without init, foreign, or
+  // of a newer schema version; DataLoss if the integrity check fails.
   static absl::StatusOr<std::unique_ptr<SqliteStore>> Open(const std::string& path,
                                                            const SqliteStoreOptions& options = {});
+  // Writes a consistent copy of the database at `path` to `target` (which
+  // must not exist) through a read-only connection: no lock is taken, so
+  // this works while a coordinator owns the file, and nothing is written to
+  // it. Refuses (FailedPrecondition) what Open would refuse as foreign or
+  // too new. Returns the copy's size in bytes.
+  static absl::StatusOr<int64_t> BackupFile(const std::string& path, const std::string& target);
   ~SqliteStore() override;
 
   const std::string& path() const { return path_; }
@@ -45,6 +81,13 @@ class SqliteStore final : public Store {
   // A trivial read (the schema table) on the reader connection: OK if the
   // database answers. For the coordinator's health endpoint.
   absl::Status Ping();
+  // Whether writes can be acknowledged: Unavailable naming the reason if the
+  // database file was deleted or replaced, or if the last write transaction
+  // failed in the database (a full or failing disk) and no commit has
+  // succeeded since. Without a successful commit in the last 5 s it commits
+  // a tiny probe (the `meta` table) to find out; after a failure at most one
+  // probe per 5 s. For the coordinator's health endpoint.
+  absl::Status CheckWritable();
 
   absl::StatusOr<SweepRecord> CreateSweep(const NewSweep& sweep, int64_t now_ms,
                                           bool* created) override;
@@ -57,9 +100,12 @@ class SqliteStore final : public Store {
   absl::StatusOr<int> StoreStudyRows(const LeaseKey& key, const std::string& worker_id,
                                      const StudyRows& rows, int64_t now_ms,
                                      std::optional<int64_t> lease_expires_ms) override;
+  absl::Status StoreCheckpoint(const LeaseKey& key, const std::string& worker_id,
+                               const Checkpoint& checkpoint, int64_t now_ms) override;
   absl::StatusOr<EndOutcome> EndAttempt(const AttemptEnd& end) override;
   absl::Status RetryJob(int64_t job_id, int64_t now_ms) override;
-  absl::StatusOr<int> ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms) override;
+  absl::StatusOr<int> ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms,
+                                       const std::string& reason) override;
   absl::Status TouchWorker(const WorkerIdentity& worker, int64_t now_ms) override;
   absl::Status SetWorkerDraining(const std::string& worker_id, bool draining,
                                  int64_t now_ms) override;
@@ -70,6 +116,8 @@ class SqliteStore final : public Store {
   absl::StatusOr<std::vector<JobRecord>> ListJobs(const JobFilter& filter) override;
   absl::StatusOr<std::vector<AttemptRecord>> ListAttempts(int64_t job_id) override;
   absl::StatusOr<std::vector<EventRecord>> ListEvents(int64_t job_id) override;
+  absl::StatusOr<std::optional<CheckpointRecord>> GetCheckpoint(int64_t job_id,
+                                                                int attempt) override;
   absl::StatusOr<std::vector<ClaimCandidate>> ListClaimCandidates(int limit) override;
   absl::StatusOr<std::vector<LeaseKey>> ListExpiredLeases(int64_t now_ms) override;
   absl::StatusOr<std::vector<WorkerRecord>> ListWorkers() override;
@@ -87,15 +135,28 @@ class SqliteStore final : public Store {
 
  private:
   SqliteStore(std::string path, SqliteStoreOptions options, internal::Db writer,
-              internal::Db reader);
+              internal::Db reader, int lock_fd, uint64_t device, uint64_t inode);
   // Runs `body` inside BEGIN IMMEDIATE ... COMMIT on the writer; rolls back
-  // if `body` or the commit fails.
+  // if `body` or the commit fails. Refuses at once once the file was deleted
+  // or replaced; records database failures for CheckWritable.
   absl::Status InWriteTransaction(const std::function<absl::Status(internal::Db&)>& body);
+  // Unavailable (and remembered) if `path_` no longer names the opened file.
+  absl::Status CheckFileIdentityLocked();
 
   const std::string path_;
   const SqliteStoreOptions options_;
+  const int lock_fd_;
+  const uint64_t device_;
+  const uint64_t inode_;
   std::mutex write_mutex_;
   internal::Db writer_;  // guarded by write_mutex_
+  // Guarded by write_mutex_: the file was deleted or replaced (sticky); the
+  // last database failure of a write and when it (or the last probe) was,
+  // and when a commit last succeeded (steady clock, ms).
+  absl::Status file_error_;
+  absl::Status last_write_error_;
+  int64_t last_failure_or_probe_ms_ = 0;
+  int64_t last_commit_ms_ = 0;
   std::mutex read_mutex_;
   internal::Db reader_;  // guarded by read_mutex_
 };

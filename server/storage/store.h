@@ -69,6 +69,13 @@ struct WorkerIdentity {
   int slots = 1;
   // The worker can run study jobs (not stored: sent with every AcquireLease).
   bool study_jobs = false;
+  // Not stored either; the scheduler uses them to refuse a second live
+  // process with the same worker_id (see Scheduler::TryAcquire). `instance`
+  // is unique per worker process ("" from older workers: not checked);
+  // `takes_over` says the process holds its host-local worker-id lock, so an
+  // earlier process with this id on this host has exited.
+  std::string instance;
+  bool takes_over = false;
 };
 
 // One finished episode. NaN = no value (stored as NULL).
@@ -80,6 +87,20 @@ struct Episode {
   double predicted_cost = kNaN;
   double optimisation_seconds = kNaN;
   std::string details_json;
+};
+
+// A trial's state after a finished episode (core/learner/checkpoint.h),
+// opaque here: the store keeps the latest one of each attempt.
+struct Checkpoint {
+  int episode = 0;
+  int format_version = 0;
+  std::string data;
+};
+
+struct CheckpointRecord {
+  LeaseKey key;              // the attempt that stored it
+  std::string worker_build;  // of that attempt
+  Checkpoint checkpoint;
 };
 
 struct NewJob {
@@ -173,6 +194,9 @@ struct NewSweep {
   std::string description;
   std::string canonical_spec;
   std::string spec_hash;
+  // Hashes an older build gave this same spec (sweep::LegacySpecHash): a
+  // stored sweep with one of them is this sweep, not a different one.
+  std::vector<std::string> equivalent_spec_hashes;
   std::string source_name;
   std::string source_text;
   std::string coordinator_build;
@@ -244,6 +268,7 @@ struct AttemptRecord {
   int64_t lease_expires_ms = 0;
   std::string error;
   int episodes_stored = 0;
+  int checkpoint_episode = -1;  // of its stored checkpoint; -1: none
 };
 
 struct EventRecord {
@@ -318,7 +343,10 @@ struct AttemptEnd {
   std::string error;              // kept as the attempt's and job's error
   int failures_delta = 0;         // added to the job's failure count
   int lost_leases_delta = 0;      // added to the job's lost-lease count
-  // Completion only: all episodes 0..episodes_total-1 must be stored.
+  // Completion only (checked whatever job_state says): must equal the job's
+  // episodes_expected, and all episodes 0..episodes_expected-1 must then be
+  // stored. The job's completed_attempt, success and final_eval_cost are set
+  // only when job_state is kCompleted.
   int episodes_total = 0;
   bool success = false;
   double final_eval_cost = kNaN;
@@ -327,6 +355,8 @@ struct AttemptEnd {
   StudyRows study;
   int study_cells_total = 0;
   int study_references_total = 0;
+  // Stored with the episodes (as StoreCheckpoint), e.g. the final state.
+  std::optional<Checkpoint> checkpoint;
   int64_t now_ms = 0;
 };
 
@@ -343,14 +373,16 @@ class Store {
   // ---- Writes ----
 
   // Stores the sweep and its jobs (all queued, ordinals in vector order).
-  // If a sweep with that name exists: same spec_hash -> returns it with
-  // *created = false and stores nothing; different hash -> AlreadyExists.
+  // If a sweep with that name exists: same spec_hash (or one of
+  // equivalent_spec_hashes) -> returns it with *created = false and stores
+  // nothing; different hash -> AlreadyExists.
   virtual absl::StatusOr<SweepRecord> CreateSweep(const NewSweep& sweep, int64_t now_ms,
                                                   bool* created) = 0;
 
   // Sets a sweep's state. kCancelled also cancels its queued and running jobs
   // (open attempts stay open until the worker answers the CANCEL directive or
-  // the lease is lost). NotFound if no such sweep.
+  // the lease is lost); kRunning from kCancelled re-queues its cancelled jobs
+  // (running again if their attempt is still open). NotFound if no such sweep.
   virtual absl::Status SetSweepState(const std::string& name, SweepState state,
                                      int64_t now_ms) = 0;
 
@@ -377,10 +409,18 @@ class Store {
                                              const StudyRows& rows, int64_t now_ms,
                                              std::optional<int64_t> lease_expires_ms) = 0;
 
+  // Keeps `checkpoint` as the latest state of an open trial attempt owned by
+  // `worker_id`, unless the attempt already has one of a later episode (a
+  // replay). Aborted: stale lease or another worker's; InvalidArgument: a
+  // study job, or an episode outside [0, episodes_expected).
+  virtual absl::Status StoreCheckpoint(const LeaseKey& key, const std::string& worker_id,
+                                       const Checkpoint& checkpoint, int64_t now_ms) = 0;
+
   // Ends an attempt as `end` says. Aborted if the attempt is not open (unless
   // it already ended with the same attempt state: kAlreadyEnded), or belongs
-  // to another worker. For kCompleted, FailedPrecondition names the missing
-  // episodes if 0..episodes_total-1 are not all stored (nothing changes); a
+  // to another worker. For kCompleted, InvalidArgument if episodes_total is
+  // not the job's episodes_expected, FailedPrecondition naming the missing
+  // episodes if 0..episodes_expected-1 are not all stored (nothing changes); a
   // study job instead needs cells 0..study_cells_total-1 and references
   // 0..study_references_total-1 (both totals >= 1), and InvalidArgument is
   // returned for a completion of the wrong kind (episodes for a study, study
@@ -393,8 +433,10 @@ class Store {
   virtual absl::Status RetryJob(int64_t job_id, int64_t now_ms) = 0;
 
   // Sets the lease expiry of every open attempt to at least `lease_expires_ms`
-  // (coordinator start-up, so running workers can reattach). Returns how many.
-  virtual absl::StatusOr<int> ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms) = 0;
+  // (coordinator start-up or after a stall, so running workers can reattach);
+  // `reason` goes into the event log. Returns how many.
+  virtual absl::StatusOr<int> ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms,
+                                               const std::string& reason) = 0;
 
   // Inserts or refreshes a worker (host, build, slots, last seen).
   virtual absl::Status TouchWorker(const WorkerIdentity& worker, int64_t now_ms) = 0;
@@ -411,6 +453,11 @@ class Store {
   virtual absl::StatusOr<std::vector<JobRecord>> ListJobs(const JobFilter& filter) = 0;
   virtual absl::StatusOr<std::vector<AttemptRecord>> ListAttempts(int64_t job_id) = 0;
   virtual absl::StatusOr<std::vector<EventRecord>> ListEvents(int64_t job_id) = 0;
+  // The checkpoint of attempt `attempt` of the job, or with attempt 0 the
+  // latest over all its attempts (highest episode, then highest attempt);
+  // nullopt if there is none.
+  virtual absl::StatusOr<std::optional<CheckpointRecord>> GetCheckpoint(int64_t job_id,
+                                                                        int attempt) = 0;
   // Queued jobs of running sweeps, oldest sweep first then ordinal; at most `limit`.
   virtual absl::StatusOr<std::vector<ClaimCandidate>> ListClaimCandidates(int limit) = 0;
   // Open attempts whose lease expired before `now_ms`.

@@ -5,7 +5,9 @@
 
 #include <openssl/evp.h>
 
+#include <algorithm>
 #include <charconv>
+#include <limits>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -15,6 +17,7 @@
 #include <string_view>
 #include <toml++/toml.h>
 
+#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "core/study/study_file.h"
@@ -66,6 +69,14 @@ absl::StatusOr<std::string> CanonicalValue(const std::string& key, const std::st
     if (k == key) return v;
   }
   return value;
+}
+
+// Accepted by the runner and within the service's limits (the value's own
+// check, before any whole-spec rule).
+absl::Status CheckValue(const std::string& key, const std::string& value) {
+  learner::TrialOptions scratch;
+  RETURN_IF_ERROR(learner::SetTrialOption(key, value, &scratch));
+  return CheckServiceLimits(key, value);
 }
 
 bool ValidName(const std::string& name) {
@@ -234,7 +245,8 @@ absl::StatusOr<SweepSpec> ParseSweepToml(absl::string_view text, const std::stri
                                 value.status().message());
             }
             learner::TrialOptions scratch;
-            const absl::Status accepted = learner::SetTrialOption(axis_key, *value, &scratch);
+            absl::Status accepted = learner::SetTrialOption(axis_key, *value, &scratch);
+            if (accepted.ok()) accepted = CheckServiceLimits(axis_key, *value);
             if (!accepted.ok()) {
               return FieldError(Where(file_name, item.source()), item_field, accepted.message());
             }
@@ -257,12 +269,16 @@ absl::StatusOr<SweepSpec> ParseSweepToml(absl::string_view text, const std::stri
             return FieldError(axis_where, field, absl::StrCat("count must be in 1..",
                                                               kMaxJobsPerSweep));
           }
-          for (int64_t v = *first; v < *first + *count; ++v) {
-            learner::TrialOptions scratch;
-            const absl::Status accepted =
-                learner::SetTrialOption(axis_key, std::to_string(v), &scratch);
+          if (*first > std::numeric_limits<int64_t>::max() - (*count - 1)) {
+            return FieldError(axis_where, field, absl::StrCat(
+                "first + count - 1 exceeds ", std::numeric_limits<int64_t>::max(),
+                ", the largest integer a sweep file holds"));
+          }
+          for (int64_t i = 0; i < *count; ++i) {
+            const std::string v = std::to_string(*first + i);
+            const absl::Status accepted = CheckValue(axis_key, v);
             if (!accepted.ok()) return FieldError(axis_where, field, accepted.message());
-            axis.values.push_back(std::to_string(v));
+            axis.values.push_back(v);
           }
         } else {
           return FieldError(axis_where, field,
@@ -290,6 +306,7 @@ absl::StatusOr<SweepSpec> ParseSweepToml(absl::string_view text, const std::stri
         learner::TrialOptions scratch;
         absl::Status accepted = learner::SetTrialOption(option_key, *value, &scratch);
         if (accepted.ok()) accepted = scratch.Validate();
+        if (accepted.ok()) accepted = CheckServiceLimits(option_key, *value);
         if (!accepted.ok()) return FieldError(option_where, field, accepted.message());
         spec.protocol.emplace_back(option_key, *value);
       }
@@ -368,6 +385,10 @@ absl::Status CanonicalizeSpec(SweepSpec* spec) {
     std::set<std::string> seen;
     for (size_t i = 0; i < axis.values.size(); ++i) {
       absl::StatusOr<std::string> canonical = CanonicalValue(axis.key, axis.values[i]);
+      if (canonical.ok()) {
+        const absl::Status limit = CheckServiceLimits(axis.key, *canonical);
+        if (!limit.ok()) canonical = limit;
+      }
       if (!canonical.ok()) {
         return absl::InvalidArgumentError(
             absl::StrCat(field, "[", i, "]: ", canonical.status().message()));
@@ -428,12 +449,45 @@ absl::Status CanonicalizeSpec(SweepSpec* spec) {
       return absl::InvalidArgumentError(absl::StrCat(field, ": given twice"));
     }
     absl::StatusOr<std::string> canonical = CanonicalValue(key, value);
+    if (canonical.ok()) {
+      const absl::Status limit = CheckServiceLimits(key, *canonical);
+      if (!limit.ok()) canonical = limit;
+    }
     if (!canonical.ok()) {
       return absl::InvalidArgumentError(absl::StrCat(field, ": ", canonical.status().message()));
     }
     value = *canonical;
   }
+  // Each key sets its own option: the order of [protocol] means nothing, so
+  // the canonical form sorts it (reordered files are the same sweep).
+  std::sort(spec->protocol.begin(), spec->protocol.end());
   return absl::OkStatus();
+}
+
+absl::Status CheckServiceLimits(const std::string& key, const std::string& value) {
+  if (key == "episodes") {
+    int64_t episodes = 0;
+    if (absl::SimpleAtoi(value, &episodes) && episodes > kMaxTrialEpisodes) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "option 'episodes' is ", value, "; the service runs trials of at most ",
+          kMaxTrialEpisodes, " learned episodes"));
+    }
+  }
+  return absl::OkStatus();
+}
+
+std::string LegacySpecHash(const SweepSpec& canonical,
+                           const std::vector<std::string>& protocol_order) {
+  SweepSpec legacy = canonical;
+  std::stable_sort(legacy.protocol.begin(), legacy.protocol.end(),
+                   [&](const auto& a, const auto& b) {
+                     const auto rank = [&](const std::string& key) {
+                       return std::find(protocol_order.begin(), protocol_order.end(), key) -
+                              protocol_order.begin();
+                     };
+                     return rank(a.first) < rank(b.first);
+                   });
+  return SpecHash(legacy);
 }
 
 std::string CanonicalJson(const SweepSpec& spec) {
@@ -488,6 +542,12 @@ absl::StatusOr<std::vector<ExpandedJob>> ExpandJobs(const SweepSpec& spec) {
     if (!valid.ok()) {
       return absl::InvalidArgumentError(
           absl::StrCat("grid point {", absl::StrJoin(point, ", "), "}: ", valid.message()));
+    }
+    if (options->episodes > kMaxTrialEpisodes) {  // e.g. a default changed; never overflow below
+      return absl::InvalidArgumentError(absl::StrCat(
+          "grid point {", absl::StrJoin(point, ", "), "}: option 'episodes' is ",
+          options->episodes, "; the service runs trials of at most ", kMaxTrialEpisodes,
+          " learned episodes"));
     }
     ExpandedJob job;
     job.method = options->method;

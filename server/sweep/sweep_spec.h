@@ -71,6 +71,10 @@ struct SweepSpec {
   std::vector<StudyEntry> studies;
 };
 
+// Learned episodes per trial the service runs (it stores one row per
+// episode and counts them in 32 bits; a trial of even 1000 episodes fits a
+// GP on far more data than is practical).
+inline constexpr int kMaxTrialEpisodes = 10000;
 inline constexpr int kDefaultMaxAttempts = 3;
 inline constexpr int kDefaultMaxLostLeases = 20;
 inline constexpr int kMaxJobsPerSweep = 100000;
@@ -106,15 +110,24 @@ absl::StatusOr<SweepSpec> ParseSweepToml(absl::string_view text, const std::stri
 absl::StatusOr<SweepSpec> LoadSweepFile(const std::string& path, std::string* source_text);
 
 // Checks the whole spec and rewrites every value in the runner's canonical
-// text (e.g. "1.0" -> "1"), so equal sweeps have equal canonical forms.
+// text (e.g. "1.0" -> "1") and sorts [protocol] by key (each key sets its
+// own option, so their order means nothing), so equal sweeps have equal
+// canonical forms. The grid keeps its order (it is the job order).
 // InvalidArgument naming the field: bad name, no method axis, empty axis,
 // duplicate values or keys, a key in both grid and protocol, bad limits, a
-// value the runner refuses, too many jobs.
+// value the runner refuses or that exceeds a limit of the service, too many
+// jobs.
 absl::Status CanonicalizeSpec(SweepSpec* spec);
 
 // Deterministic JSON of a canonicalized spec, and its SHA-256 in hex.
 std::string CanonicalJson(const SweepSpec& spec);
 std::string SpecHash(const SweepSpec& spec);
+// The hash builds before issue 12 gave the same spec: [protocol] in the
+// order of `protocol_order` (the submitted order) instead of sorted. Equal to
+// SpecHash when that order is already sorted. The coordinator accepts a
+// resubmission of a sweep stored under this hash as the same sweep.
+std::string LegacySpecHash(const SweepSpec& canonical,
+                           const std::vector<std::string>& protocol_order);
 
 // Checks one study entry's self-contained spec (what the coordinator
 // receives): a JSON object the study parser accepts, its snapshot inlined
@@ -144,6 +157,11 @@ absl::StatusOr<SweepCostEstimate> EstimateSweepCost(const SweepSpec& spec);
 // Applies option pairs to default trial options and returns the full
 // canonical list (what a worker is given). InvalidArgument naming the key.
 absl::StatusOr<OptionList> ResolveOptions(const OptionList& pairs);
+
+// The service's own limits on trial options, beyond what the runner checks:
+// InvalidArgument naming the option, its value and the limit
+// (episodes <= kMaxTrialEpisodes).
+absl::Status CheckServiceLimits(const std::string& key, const std::string& value);
 
 }  // namespace totalgrad::sweep
 

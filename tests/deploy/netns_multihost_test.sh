@@ -173,7 +173,7 @@ cli sweep submit "$work/netns.toml" >"$work/submit.out" || fail "sweep submit: $
 start_worker() {  # start_worker NAMESPACE ID SLOTS
   ip netns exec "$1" env OPENBLAS_NUM_THREADS=1 "$worker_bin" --coordinator "$coordinator_ip:7070" \
     --ca-cert "$work/certs/ca.pem" --token-file "$work/certs/worker.token" \
-    --slots "$3" --worker-id "$2" --acquire-wait 1 --drain-timeout 10 \
+    --slots "$3" --worker-id "$2" --acquire-wait 1 --drain-timeout 10 --state-dir "$work/state" \
     >"$work/$2.log" 2>&1 &
   pids+=("$!")
 }

@@ -164,8 +164,59 @@ TEST_F(CliTest, PauseResumeAndCancelFromTheCli) {
   ASSERT_EQ(Cli({"sweep", "status", "cli", "--wait"}, &out, &err), 0) << err;
   ASSERT_EQ(Cli({"sweep", "cancel", "cli"}, &out, &err), 0) << err;  // finished: results kept
   EXPECT_EQ(Sweep("cli").jobs_completed(), 3);
-  EXPECT_EQ(Cli({"sweep", "resume", "cli"}, &out, &err), 1);
-  EXPECT_NE(err.find("cancelled sweep cannot be resumed"), std::string::npos) << err;
+  EXPECT_EQ(Cli({"sweep", "pause", "cli"}, &out, &err), 1);
+  EXPECT_NE(err.find("cancelled sweep cannot be paused, only resumed"), std::string::npos) << err;
+  // Resuming is the user's way out of a cancel; completed jobs stay completed.
+  ASSERT_EQ(Cli({"sweep", "resume", "cli", "-f", "json"}, &out, &err), 0) << err;
+  EXPECT_EQ(nlohmann::json::parse(out)[0]["state"], "running");
+  EXPECT_EQ(Sweep("cli").jobs_completed(), 3);
+}
+
+// Issue 12.7: `job artifacts` writes the final policy and GP model of a job
+// as a trial snapshot file, and `evaluate` runs that policy on the real
+// plant: with the trial's own evaluation draws it reproduces the job's final
+// evaluation cost bit for bit; on another task it runs too.
+TEST_F(CliTest, JobArtifactsAndEvaluateReproduceTheFinalEvaluation) {
+  StartCoordinator();
+  auto worker = StartWorker("w");
+  const std::string path = WriteSweep("cli.toml", kTinySweep);
+  std::string out, err;
+  ASSERT_EQ(Cli({"sweep", "submit", path, "--wait"}, &out, &err), 0) << err;
+  const v1::JobInfo job = Jobs("cli")[0];
+  ASSERT_EQ(job.state(), v1::JOB_STATE_COMPLETED);
+  const std::string artifacts = dir_ + "/artifacts";
+  ASSERT_EQ(Cli({"job", "artifacts", std::to_string(job.job_id()), "--out", artifacts}, &out,
+                &err),
+            0)
+      << err;
+  const nlohmann::json manifest = nlohmann::json::parse(ReadFile(artifacts + "/artifacts.json"));
+  EXPECT_EQ(manifest["job"], job.job_id());
+  EXPECT_EQ(manifest["episode"], 2);
+  EXPECT_EQ(manifest["final_eval_cost"].get<double>(), job.final_eval_cost());
+  const nlohmann::json snapshot = nlohmann::json::parse(ReadFile(artifacts + "/snapshot.json"));
+  EXPECT_EQ(snapshot["format"], "totalgrad-trial-snapshots");
+  EXPECT_EQ(snapshot["snapshots"][0]["episode"], 2);
+  EXPECT_EQ(snapshot["snapshots"][0]["states"].size(), 20u);  // episodes 0 and 1, horizon 10
+
+  ASSERT_EQ(Cli({"evaluate", "--policy", artifacts + "/snapshot.json", "--rollouts", "2",
+                 "--json"},
+                &out, &err, /*connection_flags=*/false),
+            0)
+      << err;
+  const nlohmann::json evaluation = nlohmann::json::parse(out);
+  EXPECT_EQ(evaluation["mean"].get<double>(), job.final_eval_cost());
+  ASSERT_EQ(Cli({"evaluate", "--policy", artifacts + "/snapshot.json", "--rollouts", "3",
+                 "--noise-k", "0.5", "--seed", "99"},
+                &out, &err, /*connection_flags=*/false),
+            0)
+      << err;
+  EXPECT_NE(out.find("noise_k 0.5: mean cost"), std::string::npos) << out;
+  // Bad input is named.
+  EXPECT_EQ(Cli({"evaluate", "--policy", dir_ + "/missing.json", "--rollouts", "2"}, &out, &err,
+                /*connection_flags=*/false),
+            2);
+  EXPECT_EQ(Cli({"job", "artifacts", "424242", "--out", artifacts}, &out, &err), 2);
+  EXPECT_NE(err.find("no job with id 424242"), std::string::npos) << err;
 }
 
 TEST_F(CliTest, BackupsByRpcAndOneShotAreConsistentCopies) {
@@ -241,7 +292,8 @@ TEST_F(CliTest, TlsWithDevCertificatesAndTokens) {
   }, seconds(30))) << coordinator.Log();
   const std::string address = absl::StrCat("127.0.0.1:", port);
   Process worker({TOTALGRAD_WORKER_BIN, "--coordinator", address, "--ca-cert", certs + "/ca.pem",
-                  "--token-file", certs + "/worker.token", "--slots", "1", "--acquire-wait", "1"},
+                  "--token-file", certs + "/worker.token", "--slots", "1", "--acquire-wait", "1",
+                  "--state-dir", dir_ + "/worker-state"},
                  dir_ + "/tls-worker.log");
   const std::string path = WriteSweep("cli.toml", kTinySweep);
   const std::vector<std::string> tls = {"--coordinator", address, "--ca-cert", certs + "/ca.pem",

@@ -115,13 +115,16 @@ void ServiceFixture::StartCoordinator(int port, std::vector<std::string> extra,
 }
 
 std::unique_ptr<Process> ServiceFixture::StartWorker(const std::string& id,
-                                                     std::vector<std::string> extra) {
+                                                     std::vector<std::string> extra,
+                                                     const std::string& token_file) {
   std::vector<std::string> argv = {TOTALGRAD_WORKER_BIN,
                                    "--coordinator", absl::StrCat("127.0.0.1:", port_),
                                    "--insecure",
-                                   "--token-file", dir_ + "/worker.token",
+                                   "--token-file",
+                                   token_file.empty() ? dir_ + "/worker.token" : token_file,
                                    "--slots", "1",
                                    "--worker-id", id,
+                                   "--state-dir", dir_ + "/worker-state",
                                    "--acquire-wait", "1"};
   argv.insert(argv.end(), extra.begin(), extra.end());
   return std::make_unique<Process>(argv, absl::StrCat(dir_, "/worker-", id, ".log"));

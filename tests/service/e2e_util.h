@@ -46,7 +46,10 @@ class ServiceFixture : public ::testing::Test {
   // loaded CI machine.
   void StartCoordinator(int port = 0, std::vector<std::string> extra = {},
                         double lease_timeout_seconds = 5);
-  std::unique_ptr<Process> StartWorker(const std::string& id, std::vector<std::string> extra = {});
+  // A worker with a state directory of this test; `token_file` "" means the
+  // worker token.
+  std::unique_ptr<Process> StartWorker(const std::string& id, std::vector<std::string> extra = {},
+                                       const std::string& token_file = "");
 
   grpc::Status Submit(const v1::SweepSpec& spec, v1::SubmitSweepResponse* response = nullptr);
   v1::SweepInfo Sweep(const std::string& name);

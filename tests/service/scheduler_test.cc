@@ -74,6 +74,18 @@ class SchedulerTest : public ::testing::Test {
     EXPECT_TRUE(job.ok()) << job.status();
     return job.ok() ? *job : JobRecord{};
   }
+  // Lets `ms` of time pass while the coordinator's lease loop runs every
+  // `step_ms` (as Coordinator::ExpiryLoop does); returns the leases lost.
+  int RunLeaseLoopFor(int64_t ms, int64_t step_ms = 1000) {
+    int expired = 0;
+    for (int64_t passed = 0; passed < ms; passed += step_ms) {
+      clock_.AdvanceMs(std::min(step_ms, ms - passed));
+      auto count = scheduler_->ExpireLeases();
+      EXPECT_TRUE(count.ok()) << count.status();
+      if (count.ok()) expired += *count;
+    }
+    return expired;
+  }
   std::vector<Episode> Episodes(int from, int to) {
     std::vector<Episode> episodes;
     for (int e = from; e < to; ++e) episodes.push_back(MakeEpisode(e, 10 + e));
@@ -176,12 +188,11 @@ TEST_F(SchedulerTest, HeartbeatsKeepALeaseAlive) {
   Submit("s", 1, 3);
   const Lease lease = MustAcquire("w1");
   for (int i = 0; i < 5; ++i) {
-    clock_.AdvanceMs(80'000);
+    EXPECT_EQ(RunLeaseLoopFor(80'000), 0);
     TG_ASSERT_OK_AND_ASSIGN(HeartbeatResult beat, scheduler_->Heartbeat("w1", lease.key, {}));
     EXPECT_EQ(beat.directive, Directive::kContinue);
-    TG_ASSERT_OK_AND_ASSIGN(int expired, scheduler_->ExpireLeases());
-    EXPECT_EQ(expired, 0);
   }
+  EXPECT_EQ(RunLeaseLoopFor(91'000), 1);  // and without them it is lost
 }
 
 // T3: every worker call delivered twice leaves the same state as once.
@@ -219,8 +230,7 @@ TEST_F(SchedulerTest, FailuresCountAgainstMaxAttemptsButLostLeasesDoNot) {
   Submit("s", 1, 2, /*max_attempts=*/2, /*max_lost=*/20);
   Lease lease = MustAcquire("w1");
   for (int i = 0; i < 3; ++i) {  // three lost leases
-    clock_.AdvanceMs(91'000);
-    TG_ASSERT_OK(scheduler_->ExpireLeases());
+    EXPECT_EQ(RunLeaseLoopFor(91'000), 1);
     lease = MustAcquire("w1");
   }
   TG_ASSERT_OK(scheduler_->Release("w1", lease.key, "drain"));  // and a release
@@ -242,11 +252,9 @@ TEST_F(SchedulerTest, FailuresCountAgainstMaxAttemptsButLostLeasesDoNot) {
 TEST_F(SchedulerTest, APoisonLeaseLoserStopsAtMaxLostLeases) {
   Submit("s", 1, 2, /*max_attempts=*/3, /*max_lost=*/2);
   MustAcquire("w1");
-  clock_.AdvanceMs(91'000);
-  TG_ASSERT_OK(scheduler_->ExpireLeases());
+  EXPECT_EQ(RunLeaseLoopFor(91'000), 1);
   const Lease second = MustAcquire("w1");
-  clock_.AdvanceMs(91'000);
-  TG_ASSERT_OK(scheduler_->ExpireLeases());
+  EXPECT_EQ(RunLeaseLoopFor(91'000), 1);
   const JobRecord job = Job(second.key.job_id);
   EXPECT_EQ(job.state, JobState::kFailed);
   EXPECT_NE(job.last_error.find("gave up after 2 lost or released leases"), std::string::npos)
@@ -304,7 +312,7 @@ TEST_F(SchedulerTest, PausedSweepsHandOutNothingButRunningTrialsContinue) {
   MustAcquire("w2");
 }
 
-TEST_F(SchedulerTest, CancelTellsRunningTrialsToStopAndCannotBeUndone) {
+TEST_F(SchedulerTest, CancelTellsRunningTrialsToStopAndOnlyAResumeUndoesIt) {
   Submit("s", 3, 2);
   const Lease running = MustAcquire("w1");
   TG_ASSERT_OK_AND_ASSIGN(auto sweep, scheduler_->SetSweepState("s", SweepState::kCancelled));
@@ -319,10 +327,13 @@ TEST_F(SchedulerTest, CancelTellsRunningTrialsToStopAndCannotBeUndone) {
   EXPECT_EQ(Job(running.key.job_id).state, JobState::kCancelled);
   EXPECT_EQ(Job(running.key.job_id).lost_leases, 0);
   EXPECT_TRUE(NothingToAcquire("w2"));
-  EXPECT_EQ(scheduler_->SetSweepState("s", SweepState::kRunning).status().code(),
+  EXPECT_EQ(scheduler_->SetSweepState("s", SweepState::kPaused).status().code(),
             absl::StatusCode::kFailedPrecondition);
   EXPECT_EQ(scheduler_->SetSweepState("missing", SweepState::kPaused).status().code(),
             absl::StatusCode::kNotFound);
+  TG_ASSERT_OK_AND_ASSIGN(sweep, scheduler_->SetSweepState("s", SweepState::kRunning));
+  EXPECT_EQ(sweep.jobs_queued, 3);
+  EXPECT_EQ(MustAcquire("w2").key.job_id, running.key.job_id);
 }
 
 TEST_F(SchedulerTest, DrainingWorkerGetsDrainAndNoNewLeases) {
@@ -334,6 +345,42 @@ TEST_F(SchedulerTest, DrainingWorkerGetsDrainAndNoNewLeases) {
   EXPECT_TRUE(NothingToAcquire("w1"));
   MustAcquire("w2");
   EXPECT_EQ(scheduler_->DrainWorker("never-seen").status().code(), absl::StatusCode::kNotFound);
+}
+
+// Issue 12.6: two live processes with the same worker id are refused
+// (ALREADY_EXISTS) whatever host they run on; a process that holds the
+// host-local lock takes the id over from a dead predecessor on its host (and
+// the predecessor stays refused); after lease_timeout of silence anyone may
+// take the id over.
+TEST_F(SchedulerTest, DuplicateWorkerIdsAreRefused) {
+  const auto process = [](const std::string& instance, const std::string& host,
+                          bool takes_over = false) {
+    storage::WorkerIdentity worker = MakeWorker("w");
+    worker.instance = instance;
+    worker.host = host;
+    worker.takes_over = takes_over;
+    return worker;
+  };
+  TG_ASSERT_OK(scheduler_->TryAcquire(process("a", "h1")));
+  auto other_host = scheduler_->TryAcquire(process("b", "h2", /*takes_over=*/true));
+  EXPECT_EQ(other_host.status().code(), absl::StatusCode::kAlreadyExists);
+  EXPECT_NE(other_host.status().message().find("in use by another live worker process on host 'h1'"),
+            std::string::npos)
+      << other_host.status();
+  auto same_host_without_lock = scheduler_->TryAcquire(process("c", "h1"));
+  EXPECT_EQ(same_host_without_lock.status().code(), absl::StatusCode::kAlreadyExists);
+  // The successor on h1 (it holds the lock, so "a" has exited) takes over...
+  TG_ASSERT_OK(scheduler_->TryAcquire(process("d", "h1", /*takes_over=*/true)));
+  // ...and the replaced process is refused from then on.
+  auto replaced = scheduler_->TryAcquire(process("a", "h1"));
+  EXPECT_EQ(replaced.status().code(), absl::StatusCode::kAlreadyExists);
+  EXPECT_NE(replaced.status().message().find("replaced by a newer process"), std::string::npos)
+      << replaced.status();
+  // A process silent for a lease timeout is gone: another host may use the id.
+  clock_.AdvanceMs(91'000);
+  TG_ASSERT_OK(scheduler_->TryAcquire(process("e", "h2")));
+  // Workers that send no instance (older builds) are not checked.
+  TG_ASSERT_OK(scheduler_->TryAcquire(process("", "h3")));
 }
 
 TEST_F(SchedulerTest, MaxConcurrentLimitsRunningJobsPerSweep) {
@@ -366,10 +413,58 @@ TEST_F(SchedulerTest, RecoveredLeaseStillExpiresIfTheWorkerIsGone) {
   const Lease lease = MustAcquire("w1");
   clock_.AdvanceMs(200'000);
   TG_ASSERT_OK(scheduler_->Recover());
-  clock_.AdvanceMs(91'000);
-  TG_ASSERT_OK_AND_ASSIGN(int expired, scheduler_->ExpireLeases());
-  EXPECT_EQ(expired, 1);
+  EXPECT_EQ(RunLeaseLoopFor(91'000), 1);
   EXPECT_EQ(Job(lease.key.job_id).state, JobState::kQueued);
+}
+
+// Issue 12.2: the coordinator stops (SIGSTOP, swapping) for longer than a
+// heartbeat interval. Its workers could not reach it, so when its lease loop
+// runs again it extends every open lease, as restart recovery does, instead
+// of declaring them all lost at once; leases still expire later if their
+// workers really are silent.
+TEST_F(SchedulerTest, StallExtendsEveryOpenLeaseBeforeExpiringAny) {
+  options_.heartbeat_interval = absl::Seconds(1);
+  options_.lease_timeout = absl::Seconds(6);
+  scheduler_ = std::make_unique<Scheduler>(faulty_.get(), &clock_, options_);
+  Submit("s", 2, 2);
+  const Lease a = MustAcquire("w1");
+  const Lease b = MustAcquire("w2");
+  EXPECT_EQ(RunLeaseLoopFor(2'000, /*step_ms=*/200), 0);
+  clock_.AdvanceMs(10'000);  // kill -STOP for 10 s: neither the loop nor the beats run
+  ExpiryReport report;
+  TG_ASSERT_OK_AND_ASSIGN(int expired, scheduler_->ExpireLeases(&report));
+  EXPECT_EQ(expired, 0);
+  EXPECT_EQ(report.stalled_ms, 10'000);
+  EXPECT_EQ(report.extended, 2);
+  EXPECT_EQ(Job(a.key.job_id).state, JobState::kRunning);
+  EXPECT_EQ(Job(b.key.job_id).state, JobState::kRunning);
+  // After kill -CONT the workers' beats arrive and the leases carry on.
+  EXPECT_EQ(RunLeaseLoopFor(500, /*step_ms=*/100), 0);
+  TG_ASSERT_OK(scheduler_->Heartbeat("w1", a.key, Episodes(0, 1)));
+  TG_ASSERT_OK(scheduler_->Heartbeat("w2", b.key, Episodes(0, 1)));
+  // w1 keeps beating; w2 is really gone: only its lease is lost, 6 s later.
+  int lost = 0;
+  for (int i = 0; i < 14; ++i) {
+    lost += RunLeaseLoopFor(500, /*step_ms=*/100);
+    TG_ASSERT_OK(scheduler_->Heartbeat("w1", a.key, {}));
+  }
+  EXPECT_EQ(lost, 1);
+  EXPECT_EQ(Job(a.key.job_id).state, JobState::kRunning);
+  EXPECT_EQ(Job(b.key.job_id).state, JobState::kQueued);
+}
+
+// Lease deadlines are on the monotonic clock: stepping the wall clock (NTP,
+// `date -s`) forward by an hour expires nothing, while time that really
+// passes still does.
+TEST_F(SchedulerTest, WallClockStepDoesNotExpireLeases) {
+  Submit("s", 1, 2);
+  const Lease lease = MustAcquire("w1");
+  EXPECT_EQ(RunLeaseLoopFor(5'000), 0);
+  clock_.StepWallMs(3'600'000);
+  EXPECT_EQ(RunLeaseLoopFor(5'000), 0);
+  EXPECT_EQ(Job(lease.key.job_id).state, JobState::kRunning);
+  clock_.StepWallMs(-7'200'000);  // and backwards
+  EXPECT_EQ(RunLeaseLoopFor(91'000), 1);
 }
 
 // A write that fails before commit leaves the job claimable; nothing leaks.
@@ -419,15 +514,190 @@ TEST_F(SchedulerTest, BadReportsAreRefusedWithTheFieldNamed) {
   EXPECT_EQ(scheduler_->TryAcquire(MakeWorker("")).status().code(),
             absl::StatusCode::kInvalidArgument);
   EXPECT_EQ(scheduler_->Heartbeat("w1", {999, 1}, {}).status().code(), absl::StatusCode::kNotFound);
+  // A forged study total is refused before the store counts up to it.
+  const absl::Status huge_study = scheduler_->CompleteStudy("w1", lease.key, {}, 2147483647, 1);
+  EXPECT_EQ(huge_study.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(huge_study.message().find("at most 1000000"), std::string::npos) << huge_study;
   EXPECT_EQ(Job(lease.key.job_id).episodes_stored, 0);
 }
 
-TEST_F(SchedulerTest, CompletionAfterCancelKeepsTheResult) {
-  Submit("s", 1, 2);
+// Issue 12.5: a trial that finishes after its sweep was cancelled is stored
+// as data (the attempt completed, its episodes kept) but the job stays
+// cancelled and counts nowhere as a result; it used to flip to completed.
+TEST_F(SchedulerTest, CompletionAfterCancelIsDataButTheJobStaysCancelled) {
+  Submit("s", 2, 2);
   const Lease lease = MustAcquire("w1");
   TG_ASSERT_OK(scheduler_->SetSweepState("s", SweepState::kCancelled));
   TG_ASSERT_OK(scheduler_->Complete("w1", lease.key, Episodes(0, 2), 2, true, 1));
-  EXPECT_EQ(Job(lease.key.job_id).state, JobState::kCompleted);
+  TG_ASSERT_OK(scheduler_->Complete("w1", lease.key, {}, 2, true, 1));  // repeated: no-op
+  const JobRecord job = Job(lease.key.job_id);
+  EXPECT_EQ(job.state, JobState::kCancelled);
+  EXPECT_EQ(job.completed_attempt, 0);
+  EXPECT_EQ(job.episodes_stored, 2);
+  TG_ASSERT_OK_AND_ASSIGN(auto attempts, store_->ListAttempts(lease.key.job_id));
+  EXPECT_EQ(attempts[0].state, AttemptState::kCompleted);
+  TG_ASSERT_OK_AND_ASSIGN(auto sweep, store_->GetSweep("s"));
+  EXPECT_EQ(sweep.jobs_completed, 0);
+  EXPECT_EQ(sweep.jobs_cancelled, 2);
+  TG_ASSERT_OK_AND_ASSIGN(auto results, store_->ListTrialResults("s"));
+  EXPECT_TRUE(results.empty());
+}
+
+// Issue 12.5: the job state machine, every (state, event) pair. Each row
+// builds its job in a fresh sweep, applies one event, and checks the job's
+// next state and the call's status. "tight" sweeps have max_attempts = 1
+// and max_lost_leases = 1, so a failure or lost lease is final.
+TEST_F(SchedulerTest, JobStateMachineTable) {
+  enum class Start { kQueued, kRunning, kCompleted, kFailed, kCancelledIdle, kCancelledOpen };
+  enum class Event {
+    kAcquire, kHeartbeat, kComplete, kFail, kRelease, kUndelivered, kLeaseLost,
+    kCancelSweep, kPauseSweep, kResumeSweep, kRetry
+  };
+  struct Row {
+    Start start;
+    bool tight;
+    Event event;
+    JobState expected;
+    absl::StatusCode code;
+  };
+  using S = JobState;
+  using C = absl::StatusCode;
+  const std::vector<Row> table = {
+      // queued
+      {Start::kQueued, false, Event::kAcquire, S::kRunning, C::kOk},
+      {Start::kQueued, false, Event::kHeartbeat, S::kQueued, C::kAborted},
+      {Start::kQueued, false, Event::kComplete, S::kQueued, C::kAborted},
+      {Start::kQueued, false, Event::kFail, S::kQueued, C::kAborted},
+      {Start::kQueued, false, Event::kRelease, S::kQueued, C::kAborted},
+      {Start::kQueued, false, Event::kUndelivered, S::kQueued, C::kAborted},
+      {Start::kQueued, false, Event::kLeaseLost, S::kQueued, C::kOk},
+      {Start::kQueued, false, Event::kCancelSweep, S::kCancelled, C::kOk},
+      {Start::kQueued, false, Event::kPauseSweep, S::kQueued, C::kOk},
+      {Start::kQueued, false, Event::kResumeSweep, S::kQueued, C::kOk},
+      {Start::kQueued, false, Event::kRetry, S::kQueued, C::kFailedPrecondition},
+      // running, budgets left
+      {Start::kRunning, false, Event::kAcquire, S::kRunning, C::kOk},
+      {Start::kRunning, false, Event::kHeartbeat, S::kRunning, C::kOk},
+      {Start::kRunning, false, Event::kComplete, S::kCompleted, C::kOk},
+      {Start::kRunning, false, Event::kFail, S::kQueued, C::kOk},
+      {Start::kRunning, false, Event::kRelease, S::kQueued, C::kOk},
+      {Start::kRunning, false, Event::kUndelivered, S::kQueued, C::kOk},
+      {Start::kRunning, false, Event::kLeaseLost, S::kQueued, C::kOk},
+      {Start::kRunning, false, Event::kCancelSweep, S::kCancelled, C::kOk},
+      {Start::kRunning, false, Event::kPauseSweep, S::kRunning, C::kOk},
+      {Start::kRunning, false, Event::kResumeSweep, S::kRunning, C::kOk},
+      {Start::kRunning, false, Event::kRetry, S::kRunning, C::kFailedPrecondition},
+      // running, last attempt: the budgets decide
+      {Start::kRunning, true, Event::kComplete, S::kCompleted, C::kOk},
+      {Start::kRunning, true, Event::kFail, S::kFailed, C::kOk},
+      {Start::kRunning, true, Event::kRelease, S::kFailed, C::kOk},
+      {Start::kRunning, true, Event::kUndelivered, S::kQueued, C::kOk},  // charges no budget
+      {Start::kRunning, true, Event::kLeaseLost, S::kFailed, C::kOk},
+      // completed
+      {Start::kCompleted, false, Event::kAcquire, S::kCompleted, C::kOk},
+      {Start::kCompleted, false, Event::kHeartbeat, S::kCompleted, C::kAborted},
+      {Start::kCompleted, false, Event::kComplete, S::kCompleted, C::kOk},  // a repeat
+      {Start::kCompleted, false, Event::kFail, S::kCompleted, C::kAborted},
+      {Start::kCompleted, false, Event::kRelease, S::kCompleted, C::kAborted},
+      {Start::kCompleted, false, Event::kUndelivered, S::kCompleted, C::kAborted},
+      {Start::kCompleted, false, Event::kLeaseLost, S::kCompleted, C::kOk},
+      {Start::kCompleted, false, Event::kCancelSweep, S::kCompleted, C::kOk},
+      {Start::kCompleted, false, Event::kPauseSweep, S::kCompleted, C::kOk},
+      {Start::kCompleted, false, Event::kResumeSweep, S::kCompleted, C::kOk},
+      {Start::kCompleted, false, Event::kRetry, S::kCompleted, C::kFailedPrecondition},
+      // failed (tight sweep, after its one failure)
+      {Start::kFailed, true, Event::kAcquire, S::kFailed, C::kOk},
+      {Start::kFailed, true, Event::kHeartbeat, S::kFailed, C::kAborted},
+      {Start::kFailed, true, Event::kComplete, S::kFailed, C::kAborted},
+      {Start::kFailed, true, Event::kFail, S::kFailed, C::kOk},  // a repeat
+      {Start::kFailed, true, Event::kRelease, S::kFailed, C::kAborted},
+      {Start::kFailed, true, Event::kUndelivered, S::kFailed, C::kAborted},
+      {Start::kFailed, true, Event::kLeaseLost, S::kFailed, C::kOk},
+      {Start::kFailed, true, Event::kCancelSweep, S::kFailed, C::kOk},
+      {Start::kFailed, true, Event::kPauseSweep, S::kFailed, C::kOk},
+      {Start::kFailed, true, Event::kResumeSweep, S::kFailed, C::kOk},
+      {Start::kFailed, true, Event::kRetry, S::kQueued, C::kOk},
+      // cancelled before it ran
+      {Start::kCancelledIdle, false, Event::kAcquire, S::kCancelled, C::kOk},
+      {Start::kCancelledIdle, false, Event::kHeartbeat, S::kCancelled, C::kAborted},
+      {Start::kCancelledIdle, false, Event::kComplete, S::kCancelled, C::kAborted},
+      {Start::kCancelledIdle, false, Event::kFail, S::kCancelled, C::kAborted},
+      {Start::kCancelledIdle, false, Event::kRelease, S::kCancelled, C::kAborted},
+      {Start::kCancelledIdle, false, Event::kUndelivered, S::kCancelled, C::kAborted},
+      {Start::kCancelledIdle, false, Event::kLeaseLost, S::kCancelled, C::kOk},
+      {Start::kCancelledIdle, false, Event::kCancelSweep, S::kCancelled, C::kOk},
+      {Start::kCancelledIdle, false, Event::kPauseSweep, S::kCancelled, C::kFailedPrecondition},
+      {Start::kCancelledIdle, false, Event::kResumeSweep, S::kQueued, C::kOk},
+      {Start::kCancelledIdle, false, Event::kRetry, S::kCancelled, C::kFailedPrecondition},
+      // cancelled while its attempt runs: reports are data, the cancel stands
+      {Start::kCancelledOpen, false, Event::kAcquire, S::kCancelled, C::kOk},
+      {Start::kCancelledOpen, false, Event::kHeartbeat, S::kCancelled, C::kOk},
+      {Start::kCancelledOpen, false, Event::kComplete, S::kCancelled, C::kOk},
+      {Start::kCancelledOpen, false, Event::kFail, S::kCancelled, C::kOk},
+      {Start::kCancelledOpen, false, Event::kRelease, S::kCancelled, C::kOk},
+      {Start::kCancelledOpen, false, Event::kUndelivered, S::kCancelled, C::kOk},
+      {Start::kCancelledOpen, false, Event::kLeaseLost, S::kCancelled, C::kOk},
+      {Start::kCancelledOpen, false, Event::kCancelSweep, S::kCancelled, C::kOk},
+      {Start::kCancelledOpen, false, Event::kPauseSweep, S::kCancelled, C::kFailedPrecondition},
+      {Start::kCancelledOpen, false, Event::kResumeSweep, S::kRunning, C::kOk},
+      {Start::kCancelledOpen, false, Event::kRetry, S::kCancelled, C::kFailedPrecondition},
+  };
+  int row_number = 0;
+  for (const Row& row : table) {
+    const std::string sweep = absl::StrCat("row", row_number++);
+    SCOPED_TRACE(absl::StrCat(sweep, ": start ", static_cast<int>(row.start), ", event ",
+                              static_cast<int>(row.event), ", tight ", row.tight));
+    Submit(sweep, 1, 2, row.tight ? 1 : 3, row.tight ? 1 : 20);
+    TG_ASSERT_OK_AND_ASSIGN(auto jobs, store_->ListJobs({sweep, {}, 0, 10}));
+    const int64_t job_id = jobs.at(0).id;
+    LeaseKey key{job_id, 1};  // the attempt the worker calls name (none yet for queued)
+    if (row.start != Start::kQueued && row.start != Start::kCancelledIdle) {
+      key = MustAcquire("w1").key;
+      TG_ASSERT_OK(scheduler_->Heartbeat("w1", key, Episodes(0, 1)));
+    }
+    switch (row.start) {
+      case Start::kCompleted:
+        TG_ASSERT_OK(scheduler_->Complete("w1", key, Episodes(1, 2), 2, true, 1));
+        break;
+      case Start::kFailed:
+        TG_ASSERT_OK(scheduler_->Fail("w1", key, {}, "boom"));
+        break;
+      case Start::kCancelledIdle:
+      case Start::kCancelledOpen:
+        TG_ASSERT_OK(scheduler_->SetSweepState(sweep, SweepState::kCancelled));
+        break;
+      default:
+        break;
+    }
+    absl::Status status;
+    switch (row.event) {
+      case Event::kAcquire: status = scheduler_->TryAcquire(MakeWorker("w2")).status(); break;
+      case Event::kHeartbeat: status = scheduler_->Heartbeat("w1", key, {}).status(); break;
+      case Event::kComplete:
+        status = scheduler_->Complete("w1", key, Episodes(0, 2), 2, true, 1);
+        break;
+      case Event::kFail: status = scheduler_->Fail("w1", key, {}, "boom").status(); break;
+      case Event::kRelease: status = scheduler_->Release("w1", key, "drain"); break;
+      case Event::kUndelivered: status = scheduler_->ReturnUndelivered("w1", key, "gone"); break;
+      case Event::kLeaseLost: RunLeaseLoopFor(91'000); break;
+      case Event::kCancelSweep:
+        status = scheduler_->SetSweepState(sweep, SweepState::kCancelled).status();
+        break;
+      case Event::kPauseSweep:
+        status = scheduler_->SetSweepState(sweep, SweepState::kPaused).status();
+        break;
+      case Event::kResumeSweep:
+        status = scheduler_->SetSweepState(sweep, SweepState::kRunning).status();
+        break;
+      case Event::kRetry: status = scheduler_->RetryJob(job_id).status(); break;
+    }
+    EXPECT_EQ(status.code(), row.code) << status;
+    EXPECT_EQ(Job(job_id).state, row.expected)
+        << "got " << storage::ToString(Job(job_id).state) << ", expected "
+        << storage::ToString(row.expected);
+    // Leave nothing claimable for the next row's Acquire.
+    (void)scheduler_->SetSweepState(sweep, SweepState::kCancelled);
+  }
 }
 
 // The long poll returns as soon as work appears (bounded real-time wait).

@@ -120,14 +120,20 @@ absl::StatusOr<int> FaultyStore::StoreStudyRows(const storage::LeaseKey& key,
   TG_FORWARD("StoreStudyRows",
              target_->StoreStudyRows(key, worker_id, rows, now_ms, lease_expires_ms));
 }
+absl::Status FaultyStore::StoreCheckpoint(const storage::LeaseKey& key,
+                                          const std::string& worker_id,
+                                          const storage::Checkpoint& checkpoint, int64_t now_ms) {
+  TG_FORWARD("StoreCheckpoint", target_->StoreCheckpoint(key, worker_id, checkpoint, now_ms));
+}
 absl::StatusOr<storage::EndOutcome> FaultyStore::EndAttempt(const storage::AttemptEnd& end) {
   TG_FORWARD("EndAttempt", target_->EndAttempt(end));
 }
 absl::Status FaultyStore::RetryJob(int64_t job_id, int64_t now_ms) {
   TG_FORWARD("RetryJob", target_->RetryJob(job_id, now_ms));
 }
-absl::StatusOr<int> FaultyStore::ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms) {
-  TG_FORWARD("ExtendOpenLeases", target_->ExtendOpenLeases(lease_expires_ms, now_ms));
+absl::StatusOr<int> FaultyStore::ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms,
+                                                   const std::string& reason) {
+  TG_FORWARD("ExtendOpenLeases", target_->ExtendOpenLeases(lease_expires_ms, now_ms, reason));
 }
 absl::Status FaultyStore::TouchWorker(const storage::WorkerIdentity& worker, int64_t now_ms) {
   TG_FORWARD("TouchWorker", target_->TouchWorker(worker, now_ms));
@@ -154,6 +160,10 @@ absl::StatusOr<std::vector<storage::AttemptRecord>> FaultyStore::ListAttempts(in
 }
 absl::StatusOr<std::vector<storage::EventRecord>> FaultyStore::ListEvents(int64_t job_id) {
   TG_FORWARD("ListEvents", target_->ListEvents(job_id));
+}
+absl::StatusOr<std::optional<storage::CheckpointRecord>> FaultyStore::GetCheckpoint(
+    int64_t job_id, int attempt) {
+  return target_->GetCheckpoint(job_id, attempt);
 }
 absl::StatusOr<std::vector<storage::ClaimCandidate>> FaultyStore::ListClaimCandidates(int limit) {
   TG_FORWARD("ListClaimCandidates", target_->ListClaimCandidates(limit));

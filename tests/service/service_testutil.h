@@ -75,9 +75,12 @@ class FaultyStore final : public storage::Store {
   absl::StatusOr<int> StoreStudyRows(const storage::LeaseKey& key, const std::string& worker_id,
                                      const storage::StudyRows& rows, int64_t now_ms,
                                      std::optional<int64_t> lease_expires_ms) override;
+  absl::Status StoreCheckpoint(const storage::LeaseKey& key, const std::string& worker_id,
+                               const storage::Checkpoint& checkpoint, int64_t now_ms) override;
   absl::StatusOr<storage::EndOutcome> EndAttempt(const storage::AttemptEnd& end) override;
   absl::Status RetryJob(int64_t job_id, int64_t now_ms) override;
-  absl::StatusOr<int> ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms) override;
+  absl::StatusOr<int> ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms,
+                                       const std::string& reason) override;
   absl::Status TouchWorker(const storage::WorkerIdentity& worker, int64_t now_ms) override;
   absl::Status SetWorkerDraining(const std::string& worker_id, bool draining,
                                  int64_t now_ms) override;
@@ -87,6 +90,8 @@ class FaultyStore final : public storage::Store {
   absl::StatusOr<std::vector<storage::JobRecord>> ListJobs(const storage::JobFilter& f) override;
   absl::StatusOr<std::vector<storage::AttemptRecord>> ListAttempts(int64_t job_id) override;
   absl::StatusOr<std::vector<storage::EventRecord>> ListEvents(int64_t job_id) override;
+  absl::StatusOr<std::optional<storage::CheckpointRecord>> GetCheckpoint(int64_t job_id,
+                                                                         int attempt) override;
   absl::StatusOr<std::vector<storage::ClaimCandidate>> ListClaimCandidates(int limit) override;
   absl::StatusOr<std::vector<storage::LeaseKey>> ListExpiredLeases(int64_t now_ms) override;
   absl::StatusOr<std::vector<storage::WorkerRecord>> ListWorkers() override;

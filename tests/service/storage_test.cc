@@ -5,10 +5,14 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 
+#include "absl/strings/str_cat.h"
+#include "tests/service/process_util.h"
 #include "tests/service/service_testutil.h"
 
 namespace totalgrad::storage {
@@ -85,6 +89,26 @@ TEST_F(StorageTest, CreateSweepRefusesADifferentSpecUnderATakenName) {
   EXPECT_FALSE(created);
   TG_ASSERT_OK_AND_ASSIGN(SweepRecord kept, store_->GetSweep("s"));
   EXPECT_EQ(kept.jobs_total, 2);
+  // The same sweep under the hash a newer build gives it: recognised.
+  NewSweep rehashed = MakeSweep("s", 2, 3, "hash-new");
+  rehashed.equivalent_spec_hashes = {"hash-a"};
+  TG_ASSERT_OK_AND_ASSIGN(SweepRecord same, store_->CreateSweep(rehashed, kNow, &created));
+  EXPECT_FALSE(created);
+  EXPECT_EQ(same.spec_hash, "hash-a");
+}
+
+// Issue 12.6: a value that breaks a CHECK constraint (the service should
+// have refused it first) is an internal error saying so, not ALREADY_EXISTS
+// as if the sweep existed; nothing is stored.
+TEST_F(StorageTest, ConstraintViolationIsNotReportedAsAlreadyExists) {
+  NewSweep sweep = MakeSweep("bad", 1, 3);
+  sweep.jobs[0].episodes_expected = 0;  // CHECK(episodes_expected >= 1)
+  bool created = false;
+  auto refused = store_->CreateSweep(sweep, kNow, &created);
+  EXPECT_EQ(refused.status().code(), absl::StatusCode::kInternal) << refused.status();
+  EXPECT_NE(refused.status().message().find("should have refused"), std::string::npos)
+      << refused.status();
+  EXPECT_EQ(store_->GetSweep("bad").status().code(), absl::StatusCode::kNotFound);
 }
 
 TEST_F(StorageTest, NamesWithQuotesAreStoredVerbatim) {
@@ -256,9 +280,53 @@ TEST_F(StorageTest, RetryOnlyFailedOrCancelledJobs) {
   EXPECT_EQ(store_->RetryJob(12345, kNow).code(), absl::StatusCode::kNotFound);
 }
 
+// Issue 12.7: trial checkpoints are fenced like episodes, the latest one of
+// each attempt is kept (a replayed older one does not replace it), and the
+// best of all attempts is what a new attempt resumes from.
+TEST_F(StorageTest, CheckpointsAreFencedAndTheLatestIsFoundForResumption) {
+  const int64_t job = CreateAndLease("s", 1, 4);
+  const std::string bytes("\0binary\xff checkpoint", 21);  // NUL and high bytes survive
+  TG_ASSERT_OK(store_->StoreCheckpoint({job, 1}, "w1", {1, 1, bytes}, kNow));
+  TG_ASSERT_OK(store_->StoreCheckpoint({job, 1}, "w1", {0, 1, "older"}, kNow));  // a replay
+  TG_ASSERT_OK_AND_ASSIGN(auto found, store_->GetCheckpoint(job, 0));
+  ASSERT_TRUE(found.has_value());
+  EXPECT_EQ(found->key, (LeaseKey{job, 1}));
+  EXPECT_EQ(found->checkpoint.episode, 1);
+  EXPECT_EQ(found->checkpoint.data, bytes);
+  EXPECT_EQ(found->worker_build, "test-worker-build");
+  EXPECT_EQ(store_->StoreCheckpoint({job, 1}, "w1", {4, 1, "x"}, kNow).code(),
+            absl::StatusCode::kInvalidArgument);  // the trial has episodes 0..3
+  EXPECT_EQ(store_->StoreCheckpoint({job, 1}, "w2", {2, 1, "x"}, kNow).code(),
+            absl::StatusCode::kAborted);
+
+  AttemptEnd lost;
+  lost.key = {job, 1};
+  lost.worker_id = "w1";
+  lost.attempt_state = AttemptState::kLeaseLost;
+  lost.job_state = JobState::kQueued;
+  lost.now_ms = kNow;
+  TG_ASSERT_OK(store_->EndAttempt(lost));
+  EXPECT_EQ(store_->StoreCheckpoint({job, 1}, "w1", {2, 1, "late"}, kNow).code(),
+            absl::StatusCode::kAborted);
+  TG_ASSERT_OK(store_->StartAttempt({job, 2}, MakeWorker("w2"), kNow, kNow + 90'000));
+  TG_ASSERT_OK_AND_ASSIGN(found, store_->GetCheckpoint(job, 0));
+  EXPECT_EQ(found->key.attempt, 1);  // what attempt 2 resumes from
+  TG_ASSERT_OK(store_->StoreCheckpoint({job, 2}, "w2", {2, 1, "second"}, kNow));
+  TG_ASSERT_OK_AND_ASSIGN(found, store_->GetCheckpoint(job, 0));
+  EXPECT_EQ(found->key.attempt, 2);
+  EXPECT_EQ(found->checkpoint.data, "second");
+  TG_ASSERT_OK_AND_ASSIGN(found, store_->GetCheckpoint(job, 1));
+  EXPECT_EQ(found->checkpoint.data, bytes);
+  TG_ASSERT_OK_AND_ASSIGN(auto attempts, store_->ListAttempts(job));
+  EXPECT_EQ(attempts[0].checkpoint_episode, 1);
+  EXPECT_EQ(attempts[1].checkpoint_episode, 2);
+  TG_ASSERT_OK_AND_ASSIGN(auto none, store_->GetCheckpoint(job + 1000, 0));
+  EXPECT_FALSE(none.has_value());
+}
+
 TEST_F(StorageTest, ExtendOpenLeasesMovesOnlyEarlierExpiries) {
   const int64_t job = CreateAndLease("s");
-  TG_ASSERT_OK_AND_ASSIGN(int extended, store_->ExtendOpenLeases(kNow + 500'000, kNow));
+  TG_ASSERT_OK_AND_ASSIGN(int extended, store_->ExtendOpenLeases(kNow + 500'000, kNow, "in a test"));
   EXPECT_EQ(extended, 1);
   TG_ASSERT_OK_AND_ASSIGN(auto expired, store_->ListExpiredLeases(kNow + 400'000));
   EXPECT_TRUE(expired.empty());
@@ -290,13 +358,145 @@ TEST_F(StorageTest, RefusesAForeignDatabase) {
     ASSERT_TRUE(db.ok());
     TG_ASSERT_OK(db->Exec("CREATE TABLE t(x)"));
   }
-  auto opened = SqliteStore::Open(other);
-  EXPECT_EQ(opened.status().code(), absl::StatusCode::kFailedPrecondition) << opened.status();
+  SqliteStoreOptions init;
+  init.init = true;  // --init never touches a foreign file
+  for (const SqliteStoreOptions& options : {SqliteStoreOptions{}, init}) {
+    auto opened = SqliteStore::Open(other, options);
+    EXPECT_EQ(opened.status().code(), absl::StatusCode::kFailedPrecondition) << opened.status();
+    EXPECT_NE(opened.status().message().find("not a totalgrad one"), std::string::npos)
+        << opened.status();
+  }
   const std::string text = dir_ + "/text.db";
-  std::ofstream(text) << "this is not a database, just some text that is long enough......";
-  auto garbage = SqliteStore::Open(text);
-  EXPECT_FALSE(garbage.ok());
-  EXPECT_EQ(garbage.status().code(), absl::StatusCode::kDataLoss) << garbage.status();
+  const std::string content = "this is not a database, just some text that is long enough......";
+  std::ofstream(text) << content;
+  for (const SqliteStoreOptions& options : {SqliteStoreOptions{}, init}) {
+    auto garbage = SqliteStore::Open(text, options);
+    EXPECT_EQ(garbage.status().code(), absl::StatusCode::kFailedPrecondition) << garbage.status();
+    EXPECT_NE(garbage.status().message().find("is not an SQLite database"), std::string::npos)
+        << garbage.status();
+  }
+  EXPECT_EQ(testing::ReadFile(text), content);
+}
+
+// Issue 12.4: a second store (a second coordinator) on the same file is
+// refused, naming the process that holds it; once that one closes, it opens.
+TEST_F(StorageTest, SecondStoreOnTheSameFileIsRefusedNamingTheHolder) {
+  auto second = SqliteStore::Open(path_);
+  EXPECT_EQ(second.status().code(), absl::StatusCode::kFailedPrecondition) << second.status();
+  EXPECT_NE(second.status().message().find("in use by another coordinator"), std::string::npos)
+      << second.status();
+  EXPECT_NE(second.status().message().find(absl::StrCat("pid ", getpid(), " on host ")),
+            std::string::npos)
+      << second.status();
+  // A consistent read-only copy still works while the file is owned.
+  TG_ASSERT_OK(SqliteStore::BackupFile(path_, dir_ + "/copy.db"));
+  Reopen();
+}
+
+// Issue 12.4: a 0-byte file, or a database that the lock file says existed
+// but is gone, is not silently initialised as a new store: --init is needed.
+TEST_F(StorageTest, EmptyFileOrDeletedDatabaseNeedsInit) {
+  const std::string empty = dir_ + "/empty.db";
+  std::ofstream(empty).close();
+  auto refused = SqliteStore::Open(empty);
+  EXPECT_EQ(refused.status().code(), absl::StatusCode::kFailedPrecondition) << refused.status();
+  EXPECT_NE(refused.status().message().find("an empty (0-byte) file"), std::string::npos)
+      << refused.status();
+  EXPECT_NE(refused.status().message().find("--init"), std::string::npos) << refused.status();
+  SqliteStoreOptions init;
+  init.init = true;
+  TG_ASSERT_OK(SqliteStore::Open(empty, init));
+
+  // The store's own file deleted while it was closed.
+  CreateAndLease("s");
+  store_.reset();
+  for (const char* suffix : {"", "-wal", "-shm"}) std::filesystem::remove(path_ + suffix);
+  auto missing = SqliteStore::Open(path_);
+  EXPECT_EQ(missing.status().code(), absl::StatusCode::kFailedPrecondition) << missing.status();
+  EXPECT_NE(missing.status().message().find("is missing, but its lock file records"),
+            std::string::npos)
+      << missing.status();
+  EXPECT_FALSE(std::filesystem::exists(path_));  // nothing was created
+  TG_ASSERT_OK_AND_ASSIGN(store_, SqliteStore::Open(path_, init));
+  TG_ASSERT_OK_AND_ASSIGN(auto sweeps, store_->ListSweeps());
+  EXPECT_TRUE(sweeps.empty());
+}
+
+// Issue 12.4: a file of a newer schema version is refused before anything is
+// written to it: not one byte changes (it used to be switched to WAL first).
+TEST_F(StorageTest, NewerSchemaIsRefusedAndTheFileIsNotTouched) {
+  CreateAndLease("s");
+  store_.reset();
+  {
+    auto db = internal::Db::Open(path_, false, 1000);
+    ASSERT_TRUE(db.ok());
+    TG_ASSERT_OK(db->Exec("PRAGMA journal_mode=DELETE"));
+    TG_ASSERT_OK(db->Exec("PRAGMA user_version=99"));
+  }
+  ASSERT_FALSE(std::filesystem::exists(path_ + "-wal"));
+  const std::string before = testing::ReadFile(path_);
+  SqliteStoreOptions init;
+  init.init = true;
+  for (const SqliteStoreOptions& options : {SqliteStoreOptions{}, init}) {
+    auto newer = SqliteStore::Open(path_, options);
+    EXPECT_EQ(newer.status().code(), absl::StatusCode::kFailedPrecondition) << newer.status();
+    EXPECT_NE(newer.status().message().find("schema version 99"), std::string::npos)
+        << newer.status();
+  }
+  EXPECT_EQ(testing::ReadFile(path_), before);
+  EXPECT_FALSE(std::filesystem::exists(path_ + "-wal"));
+}
+
+// Issue 12.4: the database file deleted or replaced under an open store:
+// writes are refused (Unavailable, so workers keep their results) with the
+// problem named, and stay refused.
+TEST_F(StorageTest, DeletedOrReplacedDatabaseFileStopsAcknowledgingWrites) {
+  TG_ASSERT_OK(store_->CheckWritable());
+  for (const char* suffix : {"", "-wal", "-shm"}) std::filesystem::remove(path_ + suffix);
+  bool created = false;
+  auto submitted = store_->CreateSweep(MakeSweep("after", 1, 2), kNow, &created);
+  EXPECT_EQ(submitted.status().code(), absl::StatusCode::kUnavailable) << submitted.status();
+  EXPECT_NE(submitted.status().message().find("was deleted"), std::string::npos)
+      << submitted.status();
+  EXPECT_FALSE(created);
+  const absl::Status health = store_->CheckWritable();
+  EXPECT_EQ(health.code(), absl::StatusCode::kUnavailable);
+  EXPECT_NE(health.message().find("was deleted"), std::string::npos) << health;
+
+  // Replaced: another file now under the same name.
+  store_.reset();
+  const std::string other_dir = dir_ + "/replaced";
+  std::filesystem::create_directories(other_dir);
+  const std::string path = other_dir + "/store.db";
+  TG_ASSERT_OK_AND_ASSIGN(auto store, SqliteStore::Open(path));
+  std::ofstream(other_dir + "/impostor.db") << "x";
+  std::filesystem::rename(other_dir + "/impostor.db", path);
+  const absl::Status write = store->TouchWorker(MakeWorker("w"), kNow);
+  EXPECT_EQ(write.code(), absl::StatusCode::kUnavailable) << write;
+  EXPECT_NE(write.message().find("was replaced by another file"), std::string::npos) << write;
+  EXPECT_EQ(testing::ReadFile(path), "x");  // the new file was not written to
+}
+
+// Issue 12.4: a full disk (here: the database may not grow) fails a commit
+// with Unavailable, which workers retry instead of dropping their result
+// (it was RESOURCE_EXHAUSTED, which they gave up on), and CheckWritable
+// (/healthz) reports it until a commit succeeds again.
+TEST_F(StorageTest, FullDiskIsRetryableAndReportedUntilACommitSucceeds) {
+  store_.reset();
+  const int64_t pages = static_cast<int64_t>(std::filesystem::file_size(path_)) / 4096;
+  SqliteStoreOptions limited;
+  limited.max_page_count = pages + 2;
+  TG_ASSERT_OK_AND_ASSIGN(store_, SqliteStore::Open(path_, limited));
+  TG_ASSERT_OK(store_->CheckWritable());
+  bool created = false;
+  auto big = store_->CreateSweep(MakeSweep("big", 5000, 3), kNow, &created);
+  EXPECT_EQ(big.status().code(), absl::StatusCode::kUnavailable) << big.status();
+  EXPECT_NE(big.status().message().find("disk is full"), std::string::npos) << big.status();
+  const absl::Status health = store_->CheckWritable();
+  EXPECT_EQ(health.code(), absl::StatusCode::kUnavailable);
+  EXPECT_NE(health.message().find("the last database commit failed"), std::string::npos) << health;
+  TG_ASSERT_OK(store_->TouchWorker(MakeWorker("w"), kNow));  // a small commit still fits
+  TG_ASSERT_OK(store_->CheckWritable());
 }
 
 TEST_F(StorageTest, BackupIsAConsistentOpenableCopy) {
@@ -572,7 +772,7 @@ TEST_F(StorageTest, VersionOneDatabaseIsMigrated) {
     // Turn the file back into a version-1 database.
     auto db = internal::Db::Open(path_, false, 1000);
     ASSERT_TRUE(db.ok()) << db.status();
-    TG_ASSERT_OK(db->Exec("DROP TABLE study_cells; DROP TABLE study_references; "
+    TG_ASSERT_OK(db->Exec("DROP TABLE checkpoints; DROP TABLE study_cells; DROP TABLE study_references; "
                           "ALTER TABLE jobs DROP COLUMN payload; ALTER TABLE jobs DROP COLUMN kind; "
                           "PRAGMA user_version=1"));
   }
@@ -584,7 +784,7 @@ TEST_F(StorageTest, VersionOneDatabaseIsMigrated) {
                             internal::Statement::Prepare(*db, "PRAGMA user_version"));
     TG_ASSERT_OK_AND_ASSIGN(bool row, version.Step());
     ASSERT_TRUE(row);
-    EXPECT_EQ(version.ColumnInt(0), 2);
+    EXPECT_EQ(version.ColumnInt(0), 3);
   }
   TG_ASSERT_OK_AND_ASSIGN(JobRecord old, store_->GetJob(trial_job));
   EXPECT_EQ(old.kind, JobKind::kTrial);
@@ -598,14 +798,14 @@ TEST_F(StorageTest, VersionOneDatabaseIsMigrated) {
   {
     auto db = internal::Db::Open(path_, false, 1000);
     ASSERT_TRUE(db.ok());
-    TG_ASSERT_OK(db->Exec("PRAGMA user_version=3"));
+    TG_ASSERT_OK(db->Exec("PRAGMA user_version=99"));
   }
   auto newer = SqliteStore::Open(path_);
   EXPECT_EQ(newer.status().code(), absl::StatusCode::kFailedPrecondition) << newer.status();
   {
     auto db = internal::Db::Open(path_, false, 1000);
     ASSERT_TRUE(db.ok());
-    TG_ASSERT_OK(db->Exec("PRAGMA user_version=2"));
+    TG_ASSERT_OK(db->Exec("PRAGMA user_version=3"));  // back to this build's version
   }
   Reopen();
 }

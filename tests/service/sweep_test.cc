@@ -80,6 +80,77 @@ TEST(SweepSpecTest, EqualSweepsWrittenDifferentlyHaveTheSameHash) {
   EXPECT_NE(SpecHash(a), SpecHash(b));
 }
 
+// Issue 12.6: the order of the keys of [protocol] does not make another
+// sweep (the canonical form sorts them); a sweep stored by an older build
+// under the file-order hash is still recognised (LegacySpecHash).
+TEST(SweepSpecTest, ProtocolKeyOrderNeverMatters) {
+  TG_ASSERT_OK_AND_ASSIGN(SweepSpec a, ParseSweepToml(
+      "name = \"o\"\n[grid]\nmethod = [\"RP\"]\n[protocol]\nepisodes = 2\nparticles = 8\n"
+      "horizon = 10\n", "a"));
+  TG_ASSERT_OK_AND_ASSIGN(SweepSpec b, ParseSweepToml(
+      "name = \"o\"\n[grid]\nmethod = [\"RP\"]\n[protocol]\nhorizon = 10\nparticles = 8\n"
+      "episodes = 2\n", "b"));
+  std::vector<std::string> b_order;
+  for (const auto& [key, value] : b.protocol) b_order.push_back(key);
+  EXPECT_EQ(b_order, (std::vector<std::string>{"horizon", "particles", "episodes"}));
+  TG_ASSERT_OK(CanonicalizeSpec(&a));
+  TG_ASSERT_OK(CanonicalizeSpec(&b));
+  EXPECT_EQ(CanonicalJson(a), CanonicalJson(b));
+  EXPECT_EQ(SpecHash(a), SpecHash(b));
+  // The hash of the old, unsorted canonical form differs, and is what the
+  // coordinator also accepts for an already stored sweep.
+  const std::string legacy = LegacySpecHash(b, b_order);
+  EXPECT_NE(legacy, SpecHash(b));
+  EXPECT_EQ(LegacySpecHash(a, {"episodes", "horizon", "particles"}), SpecHash(a));
+  SweepSpec unsorted = b;
+  unsorted.protocol = {{"horizon", "10"}, {"particles", "8"}, {"episodes", "2"}};
+  EXPECT_EQ(legacy, SpecHash(unsorted));
+}
+
+// Issue 12.6: counts beyond what the service or the runner can hold are
+// refused naming the limit, never wrapped around.
+TEST(SweepSpecTest, CountsBeyondTheLimitsNameTheLimit) {
+  auto episodes = ParseSweepToml(
+      "name = \"big\"\n[grid]\nmethod = [\"RP\"]\n[protocol]\nepisodes = 2147483647\n",
+      "big.toml");
+  EXPECT_EQ(episodes.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(episodes.status().message().find(
+                "big.toml:5:12: protocol.episodes: option 'episodes' is 2147483647; the service "
+                "runs trials of at most 10000 learned episodes"),
+            std::string::npos)
+      << episodes.status();
+  auto particles = ParseSweepToml(
+      "name = \"big\"\n[grid]\nmethod = [\"RP\"]\n[protocol]\nparticles = 1e12\n", "big.toml");
+  EXPECT_EQ(particles.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(particles.status().message().find(
+                "protocol.particles: option 'particles': 1e+12 is out of range; counts are at "
+                "most 2147483647"),
+            std::string::npos)
+      << particles.status();
+  auto in_grid = ParseSweepToml(
+      "name = \"big\"\n[grid]\nmethod = [\"RP\"]\nepisodes = [2, 20000]\n", "big.toml");
+  EXPECT_NE(in_grid.status().message().find("grid.episodes[1]: option 'episodes' is 20000"),
+            std::string::npos)
+      << in_grid.status();
+  auto seeds = ParseSweepToml(
+      "name = \"big\"\n[grid]\nmethod = [\"RP\"]\n"
+      "seed = { first = 9223372036854775807, count = 2 }\n",
+      "big.toml");
+  EXPECT_NE(seeds.status().message().find(
+                "grid.seed: first + count - 1 exceeds 9223372036854775807"),
+            std::string::npos)
+      << seeds.status();
+  // The same limits for a spec that arrives over the wire (no file).
+  SweepSpec spec;
+  spec.name = "wire";
+  spec.grid = {{"method", {"RP"}}};
+  spec.protocol = {{"episodes", "2147483647"}};
+  const absl::Status status = CanonicalizeSpec(&spec);
+  EXPECT_NE(status.message().find("protocol.episodes: option 'episodes' is 2147483647"),
+            std::string::npos)
+      << status;
+}
+
 TEST(SweepSpecTest, RangesExpandToConsecutiveIntegers) {
   TG_ASSERT_OK_AND_ASSIGN(SweepSpec spec, ParseSweepToml(
       "name = \"r\"\n[grid]\nmethod = [\"RP\"]\nseed = { first = 10, count = 3 }\n", "r"));

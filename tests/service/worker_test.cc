@@ -13,6 +13,8 @@
 #include <filesystem>
 #include <thread>
 
+#include <unistd.h>
+
 #include "absl/strings/str_cat.h"
 #include "server/service/coordinator.h"
 #include "tests/service/process_util.h"
@@ -148,6 +150,8 @@ class WorkerTest : public ::testing::Test {
     options.acquire_wait = absl::Seconds(1);
     options.call_timeout = absl::Seconds(5);
     options.drain_timeout = drain_timeout;
+    options.report_grace = absl::Milliseconds(500);
+    options.state_dir = state_dir_;
     worker_ = std::make_unique<Worker>(
         options, grpc::CreateChannel(options_.listen, grpc::InsecureChannelCredentials()), &runner_,
         studies ? &study_runner_ : nullptr);
@@ -217,6 +221,7 @@ class WorkerTest : public ::testing::Test {
   }
 
   std::string dir_;
+  std::string state_dir_;  // the worker's --state-dir; empty: none
   service::CoordinatorOptions options_;
   std::unique_ptr<service::Coordinator> coordinator_;
   std::unique_ptr<v1::ControlService::Stub> control_;
@@ -305,6 +310,111 @@ TEST_F(WorkerTest, DrainLetsRunningTrialsFinishWithinTheTimeout) {
   worker_thread_.join();
   EXPECT_EQ(summary_.completed, 1);
   EXPECT_EQ(JobsBySeed("drain")["16"].state(), v1::JOB_STATE_COMPLETED);
+}
+
+// Issue 12.3: SIGTERM (Drain) while the coordinator is unreachable. The
+// drain is bounded by drain_timeout + report_grace: the unacknowledged
+// episodes and the release are kept in the spool instead of being retried
+// for the 30-minute orphan timeout. The next worker with the same id and
+// state directory replays them while the lease is still valid (the
+// restarted coordinator extended it): the episodes are stored with the first
+// attempt, which ends released, not lost.
+TEST_F(WorkerTest, DrainWhileTheCoordinatorIsDownSpoolsAndTheNextWorkerReplays) {
+  state_dir_ = dir_ + "/state";
+  Submit("spool", {16});
+  StartWorker(1, /*drain_timeout=*/absl::Milliseconds(500));
+  ASSERT_TRUE(WaitFor([&] { return JobsBySeed("spool")["16"].episodes_stored() >= 2; }, seconds(30)));
+  coordinator_->Shutdown();
+  coordinator_.reset();
+  const int produced_at_stop = runner_.produced;
+  ASSERT_TRUE(WaitFor([&] { return runner_.produced >= produced_at_stop + 1; }, seconds(30)));
+  const auto drain_start = std::chrono::steady_clock::now();
+  worker_->Drain();
+  std::atomic<bool> joined{false};
+  std::thread joiner([&] {
+    worker_thread_.join();
+    joined = true;
+  });
+  // drain_timeout 0.5 s + report_grace 0.5 s, plus slack for a loaded machine.
+  const bool bounded = WaitFor([&] { return joined.load(); }, seconds(5));
+  if (!bounded) worker_->Stop();  // let the test end either way
+  joiner.join();
+  ASSERT_TRUE(bounded) << "the drain did not end within 5 s";
+  EXPECT_LT(std::chrono::steady_clock::now() - drain_start, seconds(3));
+  EXPECT_EQ(summary_.spooled, 1);
+  const int produced = runner_.produced;
+  worker_.reset();
+
+  StartCoordinator();  // the same database: recovery extends the open lease
+  StartWorker(1);      // the same id and state directory
+  ASSERT_TRUE(WaitFor([&] { return Finished("spool"); }, seconds(60)));
+  worker_->Drain();
+  worker_thread_.join();
+  EXPECT_EQ(summary_.replayed, 1);
+  const v1::JobInfo job = JobsBySeed("spool")["16"];
+  EXPECT_EQ(job.state(), v1::JOB_STATE_COMPLETED);
+  const v1::GetJobLogResponse log = Log(job.job_id());
+  ASSERT_EQ(log.attempts_size(), 2);
+  EXPECT_EQ(log.attempts(0).state(), v1::ATTEMPT_STATE_RELEASED);
+  // Every episode the first process computed reached the database.
+  EXPECT_EQ(log.attempts(0).episodes_stored(), produced);
+  EXPECT_EQ(log.attempts(1).state(), v1::ATTEMPT_STATE_COMPLETED);
+  EXPECT_TRUE(std::filesystem::is_empty(state_dir_ + "/id-fake/spool"));
+}
+
+// A spooled attempt whose lease has expired by the time the next worker
+// starts is refused by the coordinator and dropped with a log line; the job
+// re-runs and the spool is emptied.
+TEST_F(WorkerTest, SpooledResultsOfAnExpiredLeaseAreDropped) {
+  state_dir_ = dir_ + "/state";
+  options_.scheduler.lease_timeout = absl::Seconds(1);
+  coordinator_->Shutdown();
+  coordinator_.reset();
+  StartCoordinator();
+  Submit("expired", {16});
+  StartWorker(1, /*drain_timeout=*/absl::Milliseconds(200));
+  ASSERT_TRUE(WaitFor([&] { return JobsBySeed("expired")["16"].episodes_stored() >= 1; }, seconds(30)));
+  coordinator_->Shutdown();
+  coordinator_.reset();
+  worker_->Drain();
+  worker_thread_.join();
+  ASSERT_EQ(summary_.spooled, 1);
+  worker_.reset();
+  StartCoordinator();
+  // Nobody beats for the lease: after the recovery extension it is lost.
+  ASSERT_TRUE(WaitFor([&] { return JobsBySeed("expired")["16"].lost_leases() == 1; }, seconds(30)));
+  StartWorker(1);
+  ASSERT_TRUE(WaitFor([&] { return Finished("expired"); }, seconds(60)));
+  worker_->Drain();
+  worker_thread_.join();
+  EXPECT_EQ(summary_.replayed, 0);
+  EXPECT_EQ(summary_.dropped, 1);
+  const v1::JobInfo job = JobsBySeed("expired")["16"];
+  EXPECT_EQ(job.state(), v1::JOB_STATE_COMPLETED);
+  EXPECT_EQ(Log(job.job_id()).attempts(0).state(), v1::ATTEMPT_STATE_LEASE_LOST);
+  EXPECT_TRUE(std::filesystem::is_empty(state_dir_ + "/id-fake/spool"));
+}
+
+// A second process with the same worker id and state directory on this host
+// refuses to run (it would mix two workers' leases under one name), naming
+// the holder.
+TEST_F(WorkerTest, SecondProcessWithTheSameIdOnThisHostIsRefused) {
+  state_dir_ = dir_ + "/state";
+  StartWorker(1);
+  ASSERT_TRUE(WaitFor([&] { return std::filesystem::exists(state_dir_ + "/id-fake/lock"); },
+                      seconds(10)));
+  WorkerOptions options;
+  options.worker_id = "fake";
+  options.host = "testhost";
+  options.state_dir = state_dir_;
+  Worker twin(options, grpc::CreateChannel(options_.listen, grpc::InsecureChannelCredentials()),
+              &runner_);
+  const WorkerSummary twin_summary = twin.Run();
+  EXPECT_EQ(twin_summary.exit, WorkerExit::kWorkerIdInUse);
+  EXPECT_NE(twin_summary.exit_message.find("already in use on this host"), std::string::npos)
+      << twin_summary.exit_message;
+  EXPECT_NE(twin_summary.exit_message.find(absl::StrCat("pid ", getpid())), std::string::npos)
+      << twin_summary.exit_message;
 }
 
 // A long poll cancelled by its caller (as Drain() cancels waiting
@@ -443,6 +553,9 @@ TEST_F(WorkerTest, WorkersThatDoNotRunStudiesGetOnlyTrials) {
   EXPECT_EQ(JobsBySeed("study-only")["21"].state(), v1::JOB_STATE_QUEUED);
   EXPECT_EQ(JobsBySeed("study-only")["21"].attempts(), 0);
 }
+
+// The worker skips checkpoints the coordinator would refuse.
+static_assert(kMaxCheckpointBytes == scheduler::kMaxCheckpointBytes);
 
 // The stored episode details keep PILCO's per-step predicted cost mean and
 // std (NaN as null) and leave them out for particle methods.

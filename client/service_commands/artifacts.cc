@@ -1,0 +1,110 @@
+// `totalgrad job artifacts JOB --out DIR`: the final policy and GP model of a
+// trial job, from the trial checkpoint the coordinator keeps
+// (GetJobArtifacts), written as
+//   DIR/snapshot.json   the trial snapshot format (core/study/snapshot_json.h)
+//                       of the checkpoint's last episode: the data its model
+//                       was fitted on, the model's GP hyperparameters, the
+//                       policy before and after that episode's optimisation;
+//                       `totalgrad evaluate --policy` and `totalgrad study`
+//                       read it;
+//   DIR/artifacts.json  what it is: job, sweep, method, seed, variant, the
+//                       attempt and build that wrote it, and the FITC
+//                       inducing inputs when the model was sparse (the
+//                       snapshot format has no field for them).
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+
+#include <nlohmann/json.hpp>
+
+#include "absl/strings/str_cat.h"
+#include "client/service_commands/connection.h"
+#include "core/learner/checkpoint.h"
+#include "core/study/snapshot_json.h"
+
+namespace totalgrad::cli {
+
+int WriteJobArtifacts(Connection* connection, int64_t job_id, const std::string& dir) {
+  const std::string what = absl::StrCat("job artifacts ", job_id);
+  v1::JobRequest request;
+  request.set_job_id(job_id);
+  v1::GetJobArtifactsResponse response;
+  const grpc::Status status =
+      connection->Call(&v1::ControlService::Stub::GetJobArtifacts, request, &response);
+  if (!status.ok()) return ReportError(status, what);
+  absl::StatusOr<learner::TrialCheckpoint> checkpoint =
+      learner::DecodeCheckpoint(response.checkpoint().data());
+  if (!checkpoint.ok()) {
+    std::cerr << "error: " << what << ": " << checkpoint.status().message()
+              << " (written by " << response.worker_build() << ")\n";
+    return 1;
+  }
+  const int k = checkpoint->episode;
+  if (k < 1 || !checkpoint->hyperparameters) {
+    std::cerr << "error: " << what << ": the job's checkpoint holds only the random episode; "
+              << "there is no learned policy or model yet\n";
+    return 1;
+  }
+  // Episode k's model was fitted on the data of episodes 0..k-1: the
+  // checkpoint's data without episode k's own transitions.
+  const Eigen::Index per_episode = checkpoint->forces.size() / (k + 1);
+  const Eigen::Index model_rows = per_episode * k;
+  learner::TrialSnapshot snapshot;
+  snapshot.episode = k;
+  snapshot.options = checkpoint->options;
+  snapshot.states = checkpoint->states.topRows(model_rows);
+  snapshot.forces = checkpoint->forces.head(model_rows);
+  snapshot.next_states = checkpoint->next_states.topRows(model_rows);
+  snapshot.hyperparameters = *checkpoint->hyperparameters;
+  // Before episode 1 the policy was the initial one, which a checkpoint does not keep.
+  if (k >= 2) snapshot.policy_parameters_before = checkpoint->episodes[k - 1].policy_parameters;
+  snapshot.policy_parameters = checkpoint->policy_parameters;
+
+  std::error_code error;
+  std::filesystem::create_directories(dir, error);
+  if (error) {
+    std::cerr << "error: " << what << ": cannot create " << dir << ": " << error.message() << "\n";
+    return 1;
+  }
+  const std::string snapshot_path = (std::filesystem::path(dir) / "snapshot.json").string();
+  absl::Status written = study::WriteSnapshotFile(snapshot_path, {snapshot});
+  if (!written.ok()) {
+    std::cerr << "error: " << what << ": " << written.message() << "\n";
+    return 1;
+  }
+  const v1::JobInfo& job = response.job();
+  nlohmann::ordered_json manifest;
+  manifest["format"] = "totalgrad-job-artifacts";
+  manifest["version"] = 1;
+  manifest["job"] = job.job_id();
+  manifest["sweep"] = job.sweep_name();
+  manifest["method"] = job.method();
+  manifest["seed"] = job.seed();
+  manifest["variant"] = job.variant();
+  manifest["state"] = StateName(job.state());
+  manifest["attempt"] = response.attempt();
+  manifest["episode"] = k;
+  manifest["worker_build"] = response.worker_build();
+  manifest["final_eval_cost"] = checkpoint->episodes[k].eval_cost_mean;
+  manifest["snapshot"] = "snapshot.json";
+  nlohmann::ordered_json gp;
+  gp["sparse"] = checkpoint->inducing_inputs.rows() > 0;
+  nlohmann::ordered_json inducing = nlohmann::ordered_json::array();
+  for (Eigen::Index r = 0; r < checkpoint->inducing_inputs.rows(); ++r) {
+    nlohmann::ordered_json row = nlohmann::ordered_json::array();
+    for (Eigen::Index c = 0; c < checkpoint->inducing_inputs.cols(); ++c) {
+      row.push_back(checkpoint->inducing_inputs(r, c));
+    }
+    inducing.push_back(row);
+  }
+  gp["inducing_inputs"] = inducing;  // of the last sparse fit; [] for the full GP
+  manifest["gp"] = gp;
+  const std::string manifest_path = (std::filesystem::path(dir) / "artifacts.json").string();
+  std::ofstream(manifest_path) << manifest.dump(2) << "\n";
+  std::cout << "job " << job.job_id() << " (" << job.method() << " seed " << job.seed()
+            << "), attempt " << response.attempt() << " after episode " << k << ": wrote "
+            << snapshot_path << " and " << manifest_path << "\n";
+  return 0;
+}
+
+}  // namespace totalgrad::cli

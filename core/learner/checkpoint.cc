@@ -1,0 +1,392 @@
+#include "core/learner/checkpoint.h"
+
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+
+#include "absl/strings/str_cat.h"
+#include "core/common/rng.h"
+#include "core/pilco/angle_features.h"
+#include "core/policy/rbf_policy.h"
+#include "core/tasks/scene.h"
+
+namespace totalgrad::learner {
+namespace {
+
+constexpr char kMagic[8] = {'T', 'G', 'C', 'K', 'P', 'T', '\0', '\0'};
+// No field of a checkpoint comes near this; a larger count is corruption.
+constexpr uint64_t kMaxElements = uint64_t{1} << 28;
+
+uint64_t Fnv1a(std::string_view bytes) {
+  uint64_t hash = 14695981039346656037ULL;
+  for (unsigned char c : bytes) {
+    hash ^= c;
+    hash *= 1099511628211ULL;
+  }
+  return hash;
+}
+
+class Writer {
+ public:
+  void U8(uint8_t v) { out_.push_back(static_cast<char>(v)); }
+  void U32(uint32_t v) {
+    for (int i = 0; i < 4; ++i) U8(static_cast<uint8_t>(v >> (8 * i)));
+  }
+  void U64(uint64_t v) {
+    for (int i = 0; i < 8; ++i) U8(static_cast<uint8_t>(v >> (8 * i)));
+  }
+  void I64(int64_t v) { U64(static_cast<uint64_t>(v)); }
+  void F64(double v) {
+    uint64_t bits;
+    std::memcpy(&bits, &v, sizeof(bits));
+    U64(bits);
+  }
+  void Str(const std::string& s) {
+    U64(s.size());
+    out_.append(s);
+  }
+  void Vec(const Vector& v) {
+    U64(static_cast<uint64_t>(v.size()));
+    for (Eigen::Index i = 0; i < v.size(); ++i) F64(v(i));
+  }
+  void Mat(const RowMatrix& m) {
+    U64(static_cast<uint64_t>(m.rows()));
+    U64(static_cast<uint64_t>(m.cols()));
+    for (Eigen::Index r = 0; r < m.rows(); ++r) {
+      for (Eigen::Index c = 0; c < m.cols(); ++c) F64(m(r, c));
+    }
+  }
+  void Bytes(const char* data, size_t size) { out_.append(data, size); }
+  std::string& out() { return out_; }
+
+ private:
+  std::string out_;
+};
+
+class Reader {
+ public:
+  explicit Reader(std::string_view in) : in_(in) {}
+  bool ok() const { return error_.empty(); }
+  const std::string& error() const { return error_; }
+  size_t left() const { return in_.size() - pos_; }
+
+  uint8_t U8(const char* what) {
+    if (!Need(1, what)) return 0;
+    return static_cast<uint8_t>(in_[pos_++]);
+  }
+  uint32_t U32(const char* what) {
+    uint32_t v = 0;
+    for (int i = 0; i < 4 && ok(); ++i) v |= static_cast<uint32_t>(U8(what)) << (8 * i);
+    return v;
+  }
+  uint64_t U64(const char* what) {
+    uint64_t v = 0;
+    for (int i = 0; i < 8 && ok(); ++i) v |= static_cast<uint64_t>(U8(what)) << (8 * i);
+    return v;
+  }
+  int64_t I64(const char* what) { return static_cast<int64_t>(U64(what)); }
+  double F64(const char* what) {
+    const uint64_t bits = U64(what);
+    double v;
+    std::memcpy(&v, &bits, sizeof(v));
+    return v;
+  }
+  std::string Str(const char* what) {
+    const uint64_t n = Count(what, 1);
+    if (!Need(n, what)) return "";
+    std::string s(in_.substr(pos_, n));
+    pos_ += n;
+    return s;
+  }
+  Vector Vec(const char* what) {
+    const uint64_t n = Count(what, 8);
+    Vector v(static_cast<Eigen::Index>(ok() ? n : 0));
+    for (Eigen::Index i = 0; i < v.size() && ok(); ++i) v(i) = F64(what);
+    return v;
+  }
+  RowMatrix Mat(const char* what) {
+    const uint64_t rows = Count(what, 0);
+    const uint64_t cols = Count(what, 0);
+    if (ok() && rows != 0 && cols > kMaxElements / rows) Fail(what, "too many elements");
+    if (ok() && rows * cols * 8 > left()) Fail(what, "truncated");
+    RowMatrix m(ok() ? static_cast<Eigen::Index>(rows) : 0,
+                ok() ? static_cast<Eigen::Index>(cols) : 0);
+    for (Eigen::Index r = 0; r < m.rows() && ok(); ++r) {
+      for (Eigen::Index c = 0; c < m.cols() && ok(); ++c) m(r, c) = F64(what);
+    }
+    return m;
+  }
+  void Fail(const char* what, const std::string& why) {
+    if (error_.empty()) error_ = absl::StrCat(what, ": ", why);
+  }
+
+ private:
+  // A count of elements of `element_bytes` each that must fit in what is left.
+  uint64_t Count(const char* what, uint64_t element_bytes) {
+    const uint64_t n = U64(what);
+    if (!ok()) return 0;
+    if (n > kMaxElements || (element_bytes > 0 && n * element_bytes > left())) {
+      Fail(what, absl::StrCat("a count of ", n, " does not fit the ", left(), " bytes left"));
+      return 0;
+    }
+    return n;
+  }
+  bool Need(uint64_t n, const char* what) {
+    if (!ok()) return false;
+    if (n > left()) {
+      Fail(what, "truncated");
+      return false;
+    }
+    return true;
+  }
+
+  std::string_view in_;
+  size_t pos_ = 0;
+  std::string error_;
+};
+
+void WriteHyperparameters(Writer& w, const gp::GpHyperparameters& h) {
+  w.Mat(h.log_lengthscales);
+  w.Vec(h.log_signal_std);
+  w.Vec(h.log_noise_std);
+}
+
+gp::GpHyperparameters ReadHyperparameters(Reader& r) {
+  gp::GpHyperparameters h;
+  h.log_lengthscales = r.Mat("hyperparameters.log_lengthscales");
+  h.log_signal_std = r.Vec("hyperparameters.log_signal_std");
+  h.log_noise_std = r.Vec("hyperparameters.log_noise_std");
+  return h;
+}
+
+void WriteEpisode(Writer& w, const EpisodeResult& e) {
+  w.I64(e.episode);
+  w.F64(e.real_cost);
+  w.F64(e.eval_cost_mean);
+  w.F64(e.eval_cost_std);
+  w.F64(e.predicted_cost);
+  w.F64(e.optimisation_seconds);
+  WriteHyperparameters(w, e.hyperparameters);
+  w.Vec(e.policy_parameters);
+  w.I64(e.flags.non_finite_gradients);
+  w.I64(e.flags.gp_line_search_failures);
+  w.I64(e.flags.gp_non_finite_evaluations);
+  w.U8(e.flags.zero_gradient ? 1 : 0);
+  w.U8(e.flags.gp_jitter ? 1 : 0);
+  w.Vec(e.predicted_cost_mean_per_step);
+  w.Vec(e.predicted_cost_std_per_step);
+  const EpisodeTiming& t = e.timing;
+  for (double v : {e.cpu_seconds, t.model_cpu, t.model_wall, t.policy_cpu, t.policy_wall,
+                   t.prediction_cpu, t.prediction_wall, t.real_episode_cpu, t.real_episode_wall,
+                   t.evaluation_cpu, t.evaluation_wall})
+    w.F64(v);
+  w.I64(t.policy_steps);
+}
+
+EpisodeResult ReadEpisode(Reader& r) {
+  EpisodeResult e;
+  e.episode = static_cast<int>(r.I64("episodes[].episode"));
+  e.real_cost = r.F64("episodes[].real_cost");
+  e.eval_cost_mean = r.F64("episodes[].eval_cost_mean");
+  e.eval_cost_std = r.F64("episodes[].eval_cost_std");
+  e.predicted_cost = r.F64("episodes[].predicted_cost");
+  e.optimisation_seconds = r.F64("episodes[].optimisation_seconds");
+  e.hyperparameters = ReadHyperparameters(r);
+  e.policy_parameters = r.Vec("episodes[].policy_parameters");
+  e.flags.non_finite_gradients = static_cast<int>(r.I64("episodes[].flags"));
+  e.flags.gp_line_search_failures = static_cast<int>(r.I64("episodes[].flags"));
+  e.flags.gp_non_finite_evaluations = static_cast<int>(r.I64("episodes[].flags"));
+  e.flags.zero_gradient = r.U8("episodes[].flags") != 0;
+  e.flags.gp_jitter = r.U8("episodes[].flags") != 0;
+  e.predicted_cost_mean_per_step = r.Vec("episodes[].predicted_cost_mean_per_step");
+  e.predicted_cost_std_per_step = r.Vec("episodes[].predicted_cost_std_per_step");
+  EpisodeTiming& t = e.timing;
+  for (double* v : {&e.cpu_seconds, &t.model_cpu, &t.model_wall, &t.policy_cpu, &t.policy_wall,
+                    &t.prediction_cpu, &t.prediction_wall, &t.real_episode_cpu,
+                    &t.real_episode_wall, &t.evaluation_cpu, &t.evaluation_wall})
+    *v = r.F64("episodes[].timing");
+  t.policy_steps = static_cast<int>(r.I64("episodes[].timing.policy_steps"));
+  return e;
+}
+
+absl::Status Invalid(const std::string& message) {
+  return absl::InvalidArgumentError(absl::StrCat("trial checkpoint: ", message));
+}
+
+}  // namespace
+
+std::string EncodeCheckpoint(const TrialCheckpoint& c) {
+  Writer w;
+  w.Bytes(kMagic, sizeof(kMagic));
+  w.U32(kCheckpointFormatVersion);
+  w.I64(c.episode);
+  w.U64(c.options.size());
+  for (const auto& [key, value] : c.options) {
+    w.Str(key);
+    w.Str(value);
+  }
+  w.U64(c.episodes.size());
+  for (const EpisodeResult& e : c.episodes) WriteEpisode(w, e);
+  w.Mat(c.states);
+  w.Vec(c.forces);
+  w.Mat(c.next_states);
+  w.Vec(c.policy_parameters);
+  w.U8(c.hyperparameters.has_value() ? 1 : 0);
+  if (c.hyperparameters) WriteHyperparameters(w, *c.hyperparameters);
+  w.Mat(c.inducing_inputs);
+  w.U8(c.optimizer.has_value() ? 1 : 0);
+  if (c.optimizer) {
+    w.Vec(c.optimizer->v);
+    w.Vec(c.optimizer->m);
+    w.U8(c.optimizer->first ? 1 : 0);
+  }
+  const uint64_t checksum = Fnv1a(w.out());
+  w.U64(checksum);
+  return std::move(w.out());
+}
+
+absl::StatusOr<TrialCheckpoint> DecodeCheckpoint(std::string_view bytes) {
+  if (bytes.size() < sizeof(kMagic) + 4 + 8 ||
+      std::memcmp(bytes.data(), kMagic, sizeof(kMagic)) != 0) {
+    return Invalid("not a totalgrad trial checkpoint");
+  }
+  Reader header(bytes.substr(sizeof(kMagic)));
+  const uint32_t version = header.U32("format version");
+  if (version != kCheckpointFormatVersion) {
+    return Invalid(absl::StrCat("format version ", version, "; this build reads version ",
+                                kCheckpointFormatVersion));
+  }
+  const std::string_view body = bytes.substr(0, bytes.size() - 8);
+  Reader tail(bytes.substr(bytes.size() - 8));
+  if (tail.U64("checksum") != Fnv1a(body)) {
+    return Invalid("checksum mismatch (truncated or corrupt)");
+  }
+  Reader r(body.substr(sizeof(kMagic) + 4));
+  TrialCheckpoint c;
+  c.episode = static_cast<int>(r.I64("episode"));
+  const uint64_t options = r.U64("options");
+  if (r.ok() && options > 10000) r.Fail("options", "too many");
+  for (uint64_t i = 0; i < options && r.ok(); ++i) {
+    std::string key = r.Str("options[].key");
+    std::string value = r.Str("options[].value");
+    c.options.emplace_back(std::move(key), std::move(value));
+  }
+  const uint64_t episodes = r.U64("episodes");
+  if (r.ok() && episodes > 1000000) r.Fail("episodes", "too many");
+  for (uint64_t i = 0; i < episodes && r.ok(); ++i) c.episodes.push_back(ReadEpisode(r));
+  c.states = r.Mat("states");
+  c.forces = r.Vec("forces");
+  c.next_states = r.Mat("next_states");
+  c.policy_parameters = r.Vec("policy_parameters");
+  if (r.U8("hyperparameters") != 0) c.hyperparameters = ReadHyperparameters(r);
+  c.inducing_inputs = r.Mat("inducing_inputs");
+  if (r.U8("optimizer") != 0) {
+    RmspropLike::State state;
+    state.v = r.Vec("optimizer.v");
+    state.m = r.Vec("optimizer.m");
+    state.first = r.U8("optimizer.first") != 0;
+    c.optimizer = std::move(state);
+  }
+  if (!r.ok()) return Invalid(r.error());
+  if (r.left() != 0) return Invalid(absl::StrCat(r.left(), " bytes after the last field"));
+  if (c.episode < 0 || c.episodes.size() != static_cast<size_t>(c.episode) + 1) {
+    return Invalid(absl::StrCat("episode ", c.episode, " but ", c.episodes.size(),
+                                " episode results"));
+  }
+  for (size_t i = 0; i < c.episodes.size(); ++i) {
+    if (c.episodes[i].episode != static_cast<int>(i)) {
+      return Invalid(absl::StrCat("episode result ", i, " is numbered ", c.episodes[i].episode));
+    }
+  }
+  const Eigen::Index n = c.forces.size();
+  if (c.states.rows() != n || c.next_states.rows() != n || c.states.cols() != 4 ||
+      c.next_states.cols() != 4) {
+    return Invalid(absl::StrCat("data of inconsistent sizes: states ", c.states.rows(), "x",
+                                c.states.cols(), ", forces ", n, ", next_states ",
+                                c.next_states.rows(), "x", c.next_states.cols()));
+  }
+  return c;
+}
+
+absl::Status CheckResumable(const TrialCheckpoint& checkpoint, const TrialOptions& options) {
+  const auto pairs = TrialOptionPairs(options);
+  if (pairs != checkpoint.options) {
+    for (size_t i = 0; i < pairs.size(); ++i) {
+      const std::string there =
+          i < checkpoint.options.size() ? checkpoint.options[i].first + "=" +
+                                              checkpoint.options[i].second
+                                        : std::string("(nothing)");
+      if (i >= checkpoint.options.size() || checkpoint.options[i] != pairs[i]) {
+        return Invalid(absl::StrCat("it belongs to another trial: option ", pairs[i].first, " is '",
+                                    pairs[i].second, "' here, the checkpoint has ", there));
+      }
+    }
+    return Invalid(absl::StrCat("it belongs to another trial: it has ", checkpoint.options.size(),
+                                " options, this trial ", pairs.size()));
+  }
+  if (checkpoint.episode > options.episodes) {
+    return Invalid(absl::StrCat("episode ", checkpoint.episode, " is beyond the trial's ",
+                                options.episodes, " episodes"));
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<PolicyEvaluation> EvaluatePolicy(const TrialOptions& options,
+                                                const Vector& policy_parameters, int episode,
+                                                int rollouts) {
+  absl::Status valid = options.Validate();
+  if (!valid.ok()) return valid;
+  if (rollouts < 1) return absl::InvalidArgumentError("rollouts must be >= 1");
+  if (episode < 0) return absl::InvalidArgumentError("episode must be >= 0");
+  absl::StatusOr<tasks::Scene> scene_or = tasks::MakeScene(options.scene);
+  if (!scene_or.ok()) return scene_or.status();
+  const tasks::Scene& scene = *scene_or;
+  // The policy's inputs, as RunTrial's learners see them: PILCO uses
+  // (sin, cos) of the angle unless angle_features = raw; particle methods
+  // the raw state unless angle_features = sincos.
+  const bool pilco = options.method == "PILCO";
+  const int angle_index = pilco ? (options.angle_features == "raw" ? -1 : 1)
+                                : (options.angle_features == "sincos" ? 1 : -1);
+  policy::RbfPolicy policy(options.basis_functions,
+                           pilco::FeatureDim(tasks::kCartPoleStateDim, angle_index),
+                           scene.plant.params().max_force);
+  if (policy_parameters.size() != policy.num_parameters()) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "the policy has ", policy_parameters.size(), " parameters; ", options.method, " with ",
+        options.basis_functions, " basis functions and angle_features=", options.angle_features,
+        " has ", policy.num_parameters()));
+  }
+  policy.set_parameters(policy_parameters);
+  const tasks::Controller controller = [&](const tasks::State& observation) {
+    Vector force;
+    if (angle_index < 0) {
+      policy.Evaluate(observation.transpose(), &force, nullptr);
+    } else {
+      const Vector features = pilco::StateFeatures(observation, angle_index);
+      policy.Evaluate(features.transpose(), &force, nullptr);
+    }
+    return force(0);
+  };
+  PolicyEvaluation evaluation;
+  double sum = 0, sum_sq = 0;
+  for (int r = 0; r < rollouts; ++r) {
+    // The streams of RunTrial's evaluation of episode `episode`, rollout r.
+    const uint64_t index = static_cast<uint64_t>(episode) * 100000ULL + static_cast<uint64_t>(r);
+    Rng start_rng(options.seed, Stream::kEvaluation, 2 * index);
+    Rng noise_rng(options.seed, Stream::kEvaluation, 2 * index + 1);
+    tasks::Episode run;
+    absl::Status status = tasks::RunEpisode(scene, controller, &start_rng, &noise_rng, &run);
+    if (!status.ok()) {
+      return absl::InternalError(absl::StrCat("rollout ", r, ": ", status.message()));
+    }
+    evaluation.costs.push_back(run.total_cost);
+    sum += run.total_cost;
+    sum_sq += run.total_cost * run.total_cost;
+  }
+  const double n = rollouts;
+  evaluation.mean = sum / n;
+  evaluation.std = n > 1 ? std::sqrt(std::max(0.0, (sum_sq - sum * sum / n) / (n - 1))) : 0.0;
+  return evaluation;
+}
+
+}  // namespace totalgrad::learner
