@@ -34,6 +34,19 @@ std::string EpisodeDetailsJson(const learner::EpisodeResult& result) {
                       {"gp_non_finite_evaluations", result.flags.gp_non_finite_evaluations},
                       {"zero_gradient", result.flags.zero_gradient},
                       {"gp_jitter", result.flags.gp_jitter}};
+  details["cpu_seconds"] = result.cpu_seconds;
+  const learner::EpisodeTiming& t = result.timing;
+  details["timing"] = {{"model_cpu", t.model_cpu},
+                       {"model_wall", t.model_wall},
+                       {"policy_cpu", t.policy_cpu},
+                       {"policy_wall", t.policy_wall},
+                       {"policy_steps", t.policy_steps},
+                       {"prediction_cpu", t.prediction_cpu},
+                       {"prediction_wall", t.prediction_wall},
+                       {"real_episode_cpu", t.real_episode_cpu},
+                       {"real_episode_wall", t.real_episode_wall},
+                       {"evaluation_cpu", t.evaluation_cpu},
+                       {"evaluation_wall", t.evaluation_wall}};
   if (result.predicted_cost_mean_per_step.size() > 0) {  // PILCO
     details["predicted_cost_mean_per_step"] = ToJson(result.predicted_cost_mean_per_step);
     details["predicted_cost_std_per_step"] = ToJson(result.predicted_cost_std_per_step);
@@ -79,11 +92,13 @@ absl::StatusOr<learner::TrialOptions> ApplyOptions(const OptionList& options) {
 }
 
 absl::StatusOr<TrialOutcome> RunFrom(const learner::TrialOptions& options,
-                                     const learner::TrialCheckpoint* resume_from,
+                                     const learner::TrialCheckpoint* resume_from, int threads,
                                      TrialProgress* progress) {
   ObserverAdapter observer(progress);
+  learner::RunOptions run;
+  run.threads = threads;
   absl::StatusOr<learner::TrialSummary> summary =
-      learner::RunTrial(options, &observer, resume_from);
+      learner::RunTrial(options, &observer, resume_from, run);
   if (!summary.ok()) return summary.status();
   TrialOutcome outcome;
   outcome.success = summary->success;
@@ -98,7 +113,7 @@ absl::StatusOr<TrialOutcome> LearnerTrialRunner::Run(const OptionList& options,
                                                      TrialProgress* progress) {
   absl::StatusOr<learner::TrialOptions> trial_options = ApplyOptions(options);
   if (!trial_options.ok()) return trial_options.status();
-  return RunFrom(*trial_options, nullptr, progress);
+  return RunFrom(*trial_options, nullptr, threads_, progress);
 }
 
 absl::StatusOr<TrialOutcome> LearnerTrialRunner::Resume(const OptionList& options,
@@ -112,7 +127,7 @@ absl::StatusOr<TrialOutcome> LearnerTrialRunner::Resume(const OptionList& option
   if (!usable.ok()) {
     return absl::FailedPreconditionError(absl::StrCat("cannot resume: ", usable.message()));
   }
-  return RunFrom(*trial_options, &*decoded, progress);
+  return RunFrom(*trial_options, &*decoded, threads_, progress);
 }
 
 }  // namespace totalgrad::worker

@@ -14,12 +14,16 @@ struct EpisodeResult;  // core/learner/trial.h; not included, so that users of
 namespace totalgrad::worker {
 
 // The JSON object stored as an episode's details_json: GP hyperparameters,
-// numerical flags and, for PILCO, "predicted_cost_mean_per_step" and
+// numerical flags, "cpu_seconds" (the whole episode's CPU time) and "timing"
+// (CPU and wall seconds per phase, learner::EpisodeTiming) and, for PILCO, "predicted_cost_mean_per_step" and
 // "predicted_cost_std_per_step" (steps 1..H). Non-finite numbers become null.
 std::string EpisodeDetailsJson(const learner::EpisodeResult& result);
 
 class LearnerTrialRunner final : public TrialRunner {
  public:
+  // Every trial runs on `threads_per_trial` threads (learner::RunOptions;
+  // the numbers do not depend on it). >= 1.
+  explicit LearnerTrialRunner(int threads_per_trial = 1) : threads_(threads_per_trial) {}
   // Options go through learner::SetTrialOption, so the runner accepts exactly
   // what the core accepts. Thread-safe (RunTrial keeps no shared state).
   absl::StatusOr<TrialOutcome> Run(const OptionList& options, TrialProgress* progress) override;
@@ -27,6 +31,9 @@ class LearnerTrialRunner final : public TrialRunner {
   absl::StatusOr<TrialOutcome> Resume(const OptionList& options, const std::string& checkpoint,
                                       TrialProgress* progress) override;
   // Both report a checkpoint after every episode (TrialProgress::OnCheckpoint).
+
+ private:
+  int threads_;
 };
 
 }  // namespace totalgrad::worker

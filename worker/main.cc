@@ -80,6 +80,12 @@ int main(int argc, char** argv) {
   app.add_option("--slots", options.slots, "trials run at once (default: one per core)")
       ->check(CLI::Range(1, 4096))
       ->capture_default_str();
+  int threads_per_slot = 1;
+  app.add_option("--threads-per-slot", threads_per_slot,
+                 "threads each trial runs on (default 1); results are the same bits for any "
+                 "value, so a job gives the same numbers on any worker")
+      ->check(CLI::Range(1, 256))
+      ->capture_default_str();
   app.add_option("--token-file", token_file, "file holding the worker token");
   app.add_option("--ca-cert", connection.ca_cert_file, "CA certificate to trust (PEM)");
   app.add_option("--client-cert", connection.client_cert_file, "client certificate (PEM)");
@@ -156,7 +162,7 @@ int main(int argc, char** argv) {
 
   // Deliberately never destroyed: the detached signal thread may still hold
   // them while the process exits.
-  auto* runner = new totalgrad::worker::LearnerTrialRunner();
+  auto* runner = new totalgrad::worker::LearnerTrialRunner(threads_per_slot);
   auto* study_runner = new totalgrad::worker::CoreStudyRunner();
   auto* worker_ptr = new totalgrad::worker::Worker(options, *channel, runner, study_runner);
   totalgrad::worker::Worker& worker = *worker_ptr;
@@ -195,8 +201,8 @@ int main(int argc, char** argv) {
       worker.Drain();
     }).detach();
   }
-  spdlog::info("worker {} ({} slots) -> {} [{}]", options.worker_id, options.slots,
-               connection.target, options.build);
+  spdlog::info("worker {} ({} slots x {} threads per trial) -> {} [{}]", options.worker_id,
+               options.slots, threads_per_slot, connection.target, options.build);
   const totalgrad::worker::WorkerSummary summary = worker.Run();
   spdlog::info("worker done: {} completed, {} failed, {} released, {} dropped, {} kept in the "
                "spool, {} replayed from it",

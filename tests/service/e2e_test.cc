@@ -15,6 +15,8 @@
 #include <set>
 #include <thread>
 
+#include <nlohmann/json.hpp>
+
 #include "absl/strings/str_cat.h"
 #include "server/storage/sqlite_db.h"
 #include "tests/service/e2e_util.h"
@@ -251,6 +253,30 @@ TEST_F(EndToEndTest, TwoWorkersStoreExactlyTheExpectedRows) {
   worker_b->Signal(SIGTERM);
   EXPECT_EQ(worker_a->Wait(seconds(20)), 0) << worker_a->Log();
   EXPECT_EQ(worker_b->Wait(seconds(20)), 0) << worker_b->Log();
+}
+
+// --threads-per-slot: a worker whose trials run on 2 threads stores exactly
+// the rows of the single-threaded in-process trials, and every episode's
+// details carry its CPU seconds by phase (issue 11).
+TEST_F(EndToEndTest, ThreadsPerSlotGiveTheSameRowsAndRecordCpuTime) {
+  StartCoordinator();
+  auto worker = StartWorker("threads", {"--threads-per-slot", "2"});
+  worker::OptionList protocol = TinyProtocol();
+  for (auto& [key, value] : protocol)
+    if (key == "particles") value = "70";  // more than one 64-particle block
+  ASSERT_TRUE(Submit(MakeSpec("threads", {1, 2}, protocol)).ok());
+  ASSERT_TRUE(WaitFinished("threads", seconds(60)));
+  EXPECT_NE(worker->Log().find("x 2 threads per trial"), std::string::npos) << worker->Log();
+  ExpectRowsEqualReference("threads", protocol);
+  for (const v1::EpisodeRow& row : Export("threads", /*all_attempts=*/false)) {
+    const nlohmann::json details = nlohmann::json::parse(row.report().details_json());
+    ASSERT_TRUE(details.contains("cpu_seconds")) << row.report().details_json();
+    EXPECT_GT(details["cpu_seconds"].get<double>(), 0.0);
+    if (row.report().episode() > 0) {
+      EXPECT_GT(details["timing"]["policy_cpu"].get<double>(), 0.0);
+      EXPECT_GT(details["timing"]["policy_steps"].get<int>(), 0);
+    }
+  }
 }
 
 // A worker killed in the middle of a trial: the lease is lost, the job is
@@ -767,7 +793,12 @@ TEST_F(EndToEndTest, CancelStopsRunningTrialsAndKeepsStoredResults) {
 // attempt ends released with its episodes, not lost.
 TEST_F(EndToEndTest, WorkerShutdownIsBoundedWhileTheCoordinatorIsUnreachable) {
   StartCoordinator();
-  ASSERT_TRUE(Submit(MakeSpec("unreachable", {3}, SlowProtocol())).ok());
+  // The trial must still be running well after the drain deadline: five times
+  // SlowProtocol's gradient steps (a few seconds per episode at N >= 60).
+  worker::OptionList protocol = SlowProtocol();
+  for (auto& [key, value] : protocol)
+    if (key == "policy_steps") value = "400";
+  ASSERT_TRUE(Submit(MakeSpec("unreachable", {3}, protocol)).ok());
   auto worker = StartWorker("w", {"--drain-timeout", "1", "--report-grace", "1"});
   ASSERT_TRUE(WaitFor([&] { return Jobs("unreachable")[0].episodes_stored() >= 2; }, seconds(60)));
   coordinator_->Signal(SIGSTOP);
@@ -784,7 +815,7 @@ TEST_F(EndToEndTest, WorkerShutdownIsBoundedWhileTheCoordinatorIsUnreachable) {
 
   auto successor = StartWorker("w");
   ASSERT_TRUE(WaitFinished("unreachable", seconds(120)));
-  ExpectRowsEqualReference("unreachable", SlowProtocol());
+  ExpectRowsEqualReference("unreachable", protocol);
   const v1::JobInfo job = Jobs("unreachable")[0];
   EXPECT_EQ(job.lost_leases(), 1);  // the release counts; no lease was lost
   const v1::GetJobLogResponse log = JobLog(job.job_id());
