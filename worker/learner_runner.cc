@@ -68,6 +68,7 @@ class ObserverAdapter final : public learner::TrialObserver {
     e.eval_cost_std = result.eval_cost_std;
     e.predicted_cost = result.predicted_cost;
     e.optimisation_seconds = result.optimisation_seconds;
+    e.cpu_seconds = result.cpu_seconds;
     e.details_json = EpisodeDetailsJson(result);
     progress_->OnEpisode(e);
   }

@@ -25,6 +25,7 @@ struct EpisodeOutcome {
   double eval_cost_std = kNaN;
   double predicted_cost = kNaN;
   double optimisation_seconds = kNaN;
+  double cpu_seconds = kNaN;
   std::string details_json;  // JSON object: hyperparameters, numerical flags
 };
 

@@ -57,7 +57,8 @@ std::string NonFiniteReason(const EpisodeOutcome& e) {
     if (!std::isfinite(e.predicted_cost)) return describe("predicted_cost", e.predicted_cost);
   }
   for (auto [field, value] : {std::pair{"eval_cost_std", e.eval_cost_std},
-                              std::pair{"optimisation_seconds", e.optimisation_seconds}}) {
+                              std::pair{"optimisation_seconds", e.optimisation_seconds},
+                              std::pair{"cpu_seconds", e.cpu_seconds}}) {
     if (std::isinf(value)) return describe(field, value);
   }
   return "";
@@ -71,6 +72,7 @@ v1::EpisodeReport ToReport(const EpisodeOutcome& e) {
   report.set_eval_cost_std(e.eval_cost_std);
   report.set_predicted_cost(e.predicted_cost);
   report.set_optimisation_seconds(e.optimisation_seconds);
+  if (!std::isnan(e.cpu_seconds)) report.set_cpu_seconds(e.cpu_seconds);
   report.set_details_json(e.details_json);
   return report;
 }

@@ -18,6 +18,7 @@
 #include "absl/strings/str_cat.h"
 #include "server/common/token_file.h"
 #include "absl/time/time.h"
+#include "client/service_commands/local_store.h"
 #include "client/service_commands/stats.h"
 
 namespace totalgrad::cli {
@@ -73,6 +74,13 @@ void AddConnectionFlags(CLI::App* command, ServiceFlags* flags, bool with_format
                     "plaintext; only to a loopback coordinator [env TOTALGRAD_INSECURE=1]");
   command->add_option("--timeout", flags->timeout_seconds, "seconds per call")
       ->capture_default_str();
+  command->add_option("--connect-timeout", flags->connect_timeout_seconds,
+                      "seconds to wait for the coordinator to answer before giving up")
+      ->capture_default_str();
+  flags->db = Env("TOTALGRAD_DB", "");
+  command->add_option("--db", flags->db,
+                      "read this coordinator database file directly instead of asking a "
+                      "coordinator (read-only; safe while a coordinator writes it) [env TOTALGRAD_DB]");
   if (with_format) {
     command->add_option("-f,--format", flags->format, "output: table, json or csv")
         ->check(CLI::IsMember({"table", "json", "csv"}))
@@ -85,6 +93,16 @@ absl::StatusOr<Connection> Connection::Open(const ServiceFlags& flags) {
   if (!ParseFormat(flags.format, &connection.format_)) {
     return absl::InvalidArgumentError(absl::StrCat("--format: '", flags.format,
                                                    "' is not table, json or csv"));
+  }
+  connection.policy_.call_timeout = absl::Seconds(flags.timeout_seconds);
+  connection.policy_.give_up_after = absl::Seconds(flags.timeout_seconds);
+  connection.policy_.wait_for_ready = false;
+  if (!flags.db.empty()) {
+    absl::StatusOr<std::shared_ptr<LocalCoordinator>> local = LocalCoordinator::Open(flags.db);
+    if (!local.ok()) return local.status();
+    connection.local_ = *std::move(local);
+    connection.stub_ = v1::ControlService::NewStub(connection.local_->channel());
+    return connection;
   }
   rpc::ConnectionOptions options;
   options.target = flags.coordinator;
@@ -101,12 +119,26 @@ absl::StatusOr<Connection> Connection::Open(const ServiceFlags& flags) {
   }
   absl::StatusOr<std::shared_ptr<grpc::Channel>> channel = rpc::MakeChannel(options);
   if (!channel.ok()) return channel.status();
+  // Fail fast, with what to do, when nothing usable answers: retrying for the
+  // whole call timeout only hides the cause.
+  const auto deadline = std::chrono::system_clock::now() +
+                        std::chrono::milliseconds(static_cast<int64_t>(
+                            1000 * std::max(0.1, flags.connect_timeout_seconds)));
+  if (!(*channel)->WaitForConnected(deadline)) {
+    const std::string security =
+        flags.insecure ? "plaintext, --insecure" : "TLS";
+    return absl::UnavailableError(absl::StrCat(
+        "no coordinator answered at ", flags.coordinator, " within ",
+        flags.connect_timeout_seconds, " s (", security,
+        "). Start one (`totalgrad-coordinator --db FILE ...`, or `totalgrad run SWEEP.toml` on "
+        "this machine), or point to it with --coordinator / TOTALGRAD_COORDINATOR, or read a "
+        "database file without a coordinator with --db FILE. If a coordinator does run there, "
+        "check that both sides use ",
+        flags.insecure ? "plaintext (the coordinator was started with --insecure)"
+                       : "TLS (--ca-cert here, --tls-cert/--tls-key there; or --insecure on both "
+                         "for loopback)"));
+  }
   connection.stub_ = v1::ControlService::NewStub(*channel);
-  connection.policy_.call_timeout = absl::Seconds(flags.timeout_seconds);
-  connection.policy_.give_up_after = absl::Seconds(flags.timeout_seconds);
-  // Fail fast on a connection problem so the user sees its cause (refused,
-  // TLS handshake, ...) rather than a bare deadline; retries still cover restarts.
-  connection.policy_.wait_for_ready = false;
   return connection;
 }
 

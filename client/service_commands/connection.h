@@ -19,8 +19,11 @@ namespace totalgrad::cli {
 
 // Flags of every service command. Defaults come from the environment:
 // TOTALGRAD_COORDINATOR (else 127.0.0.1:7070), TOTALGRAD_TOKEN_FILE,
-// TOTALGRAD_CA_CERT, TOTALGRAD_INSECURE=1.
+// TOTALGRAD_CA_CERT, TOTALGRAD_INSECURE=1, TOTALGRAD_DB.
 struct ServiceFlags {
+  // A coordinator database to read directly instead of a coordinator
+  // (local_store.h): reads work, writes are refused.
+  std::string db;
   std::string coordinator;
   std::string token_file;
   std::string ca_cert;
@@ -30,15 +33,23 @@ struct ServiceFlags {
   bool insecure = false;
   std::string format = "table";
   double timeout_seconds = 60;
+  // How long to wait for a connection to the coordinator before giving up
+  // with a hint (no coordinator there, or TLS against plaintext).
+  double connect_timeout_seconds = 5;
 };
 
 // Adds the connection flags (and -f/--format when `with_format`) to `command`.
 void AddConnectionFlags(CLI::App* command, ServiceFlags* flags, bool with_format = true);
 
+class LocalCoordinator;  // local_store.h
+
 class Connection {
  public:
   // InvalidArgument: bad flags (plaintext to a remote host, bad format);
-  // NotFound: unreadable token or certificate file.
+  // NotFound: unreadable token or certificate file; Unavailable (within
+  // --connect-timeout) naming what to do when nothing answers at the address
+  // or the answer is not gRPC with the expected security; with --db, the
+  // errors of SqliteStore::OpenReadOnly.
   static absl::StatusOr<Connection> Open(const ServiceFlags& flags);
 
   v1::ControlService::Stub* control() { return stub_.get(); }
@@ -57,6 +68,7 @@ class Connection {
   }
 
  private:
+  std::shared_ptr<LocalCoordinator> local_;  // --db: the in-process service
   std::shared_ptr<v1::ControlService::Stub> stub_;
   std::string token_;
   Format format_ = Format::kTable;

@@ -1,5 +1,7 @@
 #include "server/service/convert.h"
 
+#include <cmath>
+
 #include "server/sweep/sweep_proto.h"
 
 #include <string>
@@ -160,6 +162,7 @@ storage::Episode FromProto(const v1::EpisodeReport& report) {
   e.eval_cost_std = report.eval_cost_std();
   e.predicted_cost = report.predicted_cost();
   e.optimisation_seconds = report.optimisation_seconds();
+  e.cpu_seconds = report.has_cpu_seconds() ? report.cpu_seconds() : storage::kNaN;
   e.details_json = report.details_json();
   return e;
 }
@@ -337,6 +340,7 @@ void ToProto(const storage::Episode& episode, v1::EpisodeReport* out) {
   out->set_eval_cost_std(episode.eval_cost_std);
   out->set_predicted_cost(episode.predicted_cost);
   out->set_optimisation_seconds(episode.optimisation_seconds);
+  if (!std::isnan(episode.cpu_seconds)) out->set_cpu_seconds(episode.cpu_seconds);
   out->set_details_json(episode.details_json);
 }
 

@@ -21,200 +21,15 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "server/common/status_macros.h"
+#include "server/storage/sqlite_schema.h"
 
 namespace totalgrad::storage {
 namespace {
 
 using internal::Db;
+using internal::kSchemaVersion;
+using internal::Migrate;
 using internal::Statement;
-
-constexpr int kSchemaVersion = 3;
-
-// The schema of version 1; docs/results_schema.md explains every column. A
-// new database is created as version 1 and migrated, in one transaction, so
-// new and migrated databases have the same schema.
-constexpr char kSchema[] = R"sql(
-CREATE TABLE meta(
-  key TEXT PRIMARY KEY,
-  value TEXT NOT NULL
-) WITHOUT ROWID;
-CREATE TABLE sweeps(
-  id INTEGER PRIMARY KEY,
-  name TEXT NOT NULL UNIQUE,
-  description TEXT NOT NULL DEFAULT '',
-  state TEXT NOT NULL CHECK(state IN ('running', 'paused', 'cancelled')),
-  canonical_spec TEXT NOT NULL,
-  spec_hash TEXT NOT NULL,
-  source_name TEXT NOT NULL DEFAULT '',
-  source_text TEXT NOT NULL DEFAULT '',
-  coordinator_build TEXT NOT NULL,
-  max_attempts INTEGER NOT NULL CHECK(max_attempts >= 1),
-  max_lost_leases INTEGER NOT NULL CHECK(max_lost_leases >= 1),
-  max_concurrent INTEGER NOT NULL CHECK(max_concurrent >= 0),
-  created_ms INTEGER NOT NULL
-);
-CREATE TABLE jobs(
-  id INTEGER PRIMARY KEY,
-  sweep_id INTEGER NOT NULL REFERENCES sweeps(id),
-  ordinal INTEGER NOT NULL,
-  method TEXT NOT NULL,
-  seed TEXT NOT NULL,
-  variant TEXT NOT NULL,
-  options_json TEXT NOT NULL,
-  episodes_expected INTEGER NOT NULL CHECK(episodes_expected >= 1),
-  state TEXT NOT NULL
-      CHECK(state IN ('queued', 'running', 'completed', 'failed', 'cancelled')),
-  attempts INTEGER NOT NULL DEFAULT 0,
-  failures INTEGER NOT NULL DEFAULT 0,
-  lost_leases INTEGER NOT NULL DEFAULT 0,
-  completed_attempt INTEGER,
-  success INTEGER,
-  final_eval_cost REAL,
-  last_error TEXT NOT NULL DEFAULT '',
-  UNIQUE(sweep_id, ordinal)
-);
-CREATE INDEX jobs_by_state ON jobs(state, sweep_id, ordinal);
-CREATE TABLE attempts(
-  job_id INTEGER NOT NULL REFERENCES jobs(id),
-  attempt INTEGER NOT NULL CHECK(attempt >= 1),
-  state TEXT NOT NULL CHECK(state IN
-      ('running', 'completed', 'failed', 'lease_lost', 'released', 'cancelled')),
-  worker_id TEXT NOT NULL,
-  worker_host TEXT NOT NULL,
-  worker_build TEXT NOT NULL,
-  started_ms INTEGER NOT NULL,
-  lease_expires_ms INTEGER NOT NULL,
-  ended_ms INTEGER,
-  error TEXT NOT NULL DEFAULT '',
-  PRIMARY KEY(job_id, attempt)
-) WITHOUT ROWID;
-CREATE INDEX open_attempts_by_expiry ON attempts(lease_expires_ms) WHERE state = 'running';
-CREATE INDEX open_attempts_by_worker ON attempts(worker_id) WHERE state = 'running';
-CREATE TABLE episodes(
-  job_id INTEGER NOT NULL,
-  attempt INTEGER NOT NULL,
-  episode INTEGER NOT NULL CHECK(episode >= 0),
-  real_cost REAL,
-  eval_cost_mean REAL,
-  eval_cost_std REAL,
-  predicted_cost REAL,
-  optimisation_seconds REAL,
-  details_json TEXT NOT NULL DEFAULT '',
-  reported_ms INTEGER NOT NULL,
-  PRIMARY KEY(job_id, attempt, episode),
-  FOREIGN KEY(job_id, attempt) REFERENCES attempts(job_id, attempt)
-) WITHOUT ROWID;
-CREATE TABLE workers(
-  worker_id TEXT PRIMARY KEY,
-  host TEXT NOT NULL,
-  build TEXT NOT NULL,
-  slots INTEGER NOT NULL,
-  first_seen_ms INTEGER NOT NULL,
-  last_seen_ms INTEGER NOT NULL,
-  draining INTEGER NOT NULL DEFAULT 0
-) WITHOUT ROWID;
-CREATE TABLE events(
-  id INTEGER PRIMARY KEY,
-  ms INTEGER NOT NULL,
-  sweep_id INTEGER REFERENCES sweeps(id),
-  job_id INTEGER REFERENCES jobs(id),
-  attempt INTEGER NOT NULL DEFAULT 0,
-  kind TEXT NOT NULL,
-  message TEXT NOT NULL DEFAULT ''
-);
-CREATE INDEX events_by_job ON events(job_id, id);
-)sql";
-
-// Version 1 -> 2: study jobs (issue 6). A job has a kind and, for studies, a
-// payload (the self-contained study spec); study results go in study_cells
-// (one row per study::CellResult, the columns of the study's table.csv) and
-// study_references (one per horizon, references.csv plus the vectors), keyed
-// like episodes by (job, attempt, index). Study jobs store
-// episodes_expected = 1 (the column's CHECK) and read it back as 0.
-constexpr char kMigration2[] = R"sql(
-ALTER TABLE jobs ADD COLUMN kind TEXT NOT NULL DEFAULT 'trial' CHECK(kind IN ('trial', 'study'));
-ALTER TABLE jobs ADD COLUMN payload TEXT NOT NULL DEFAULT '';
-CREATE TABLE study_cells(
-  job_id INTEGER NOT NULL,
-  attempt INTEGER NOT NULL,
-  idx INTEGER NOT NULL CHECK(idx >= 0),
-  estimator TEXT NOT NULL,
-  method TEXT NOT NULL,
-  particles INTEGER NOT NULL,
-  horizon INTEGER NOT NULL,
-  replicates INTEGER NOT NULL,
-  nonfinite INTEGER NOT NULL,
-  errors INTEGER NOT NULL,
-  time_min_s REAL,
-  time_median_s REAL,
-  rel_rmse REAL,
-  rel_bias REAL,
-  rel_bias_noise REAL,
-  total_variance REAL,
-  cos_mean REAL,
-  objective_mean REAL,
-  ess_mean REAL,
-  ess_min REAL,
-  k_lr_mean REAL,
-  reference_agrees INTEGER NOT NULL,
-  reference_floor REAL,
-  budget_hit INTEGER NOT NULL,
-  omitted INTEGER NOT NULL,
-  note TEXT NOT NULL DEFAULT '',
-  error TEXT NOT NULL DEFAULT '',
-  omission_reason TEXT NOT NULL DEFAULT '',
-  k_lr_per_step_json TEXT NOT NULL DEFAULT '[]',
-  reported_ms INTEGER NOT NULL,
-  PRIMARY KEY(job_id, attempt, idx),
-  FOREIGN KEY(job_id, attempt) REFERENCES attempts(job_id, attempt)
-) WITHOUT ROWID;
-CREATE TABLE study_references(
-  job_id INTEGER NOT NULL,
-  attempt INTEGER NOT NULL,
-  idx INTEGER NOT NULL CHECK(idx >= 0),
-  horizon INTEGER NOT NULL,
-  norm REAL,
-  relative_error REAL,
-  floor REAL,
-  objective REAL,
-  used_json TEXT NOT NULL DEFAULT '[]',
-  replicates_json TEXT NOT NULL DEFAULT '[]',
-  agreement_max_z REAL,
-  agreement_mean_z2 REAL,
-  agree INTEGER NOT NULL,
-  seconds REAL,
-  note TEXT NOT NULL DEFAULT '',
-  gradient_json TEXT NOT NULL DEFAULT '[]',
-  standard_error_json TEXT NOT NULL DEFAULT '[]',
-  reported_ms INTEGER NOT NULL,
-  PRIMARY KEY(job_id, attempt, idx),
-  FOREIGN KEY(job_id, attempt) REFERENCES attempts(job_id, attempt)
-) WITHOUT ROWID;
-)sql";
-
-// Version 2 -> 3: trial checkpoints (issue 12). The latest checkpoint of
-// each attempt (core/learner/checkpoint.h, opaque here), from which a new
-// attempt of the job resumes.
-constexpr char kMigration3[] = R"sql(
-CREATE TABLE checkpoints(
-  job_id INTEGER NOT NULL,
-  attempt INTEGER NOT NULL,
-  episode INTEGER NOT NULL CHECK(episode >= 0),
-  format_version INTEGER NOT NULL,
-  data BLOB NOT NULL,
-  reported_ms INTEGER NOT NULL,
-  PRIMARY KEY(job_id, attempt),
-  FOREIGN KEY(job_id, attempt) REFERENCES attempts(job_id, attempt)
-) WITHOUT ROWID;
-)sql";
-
-// Applies the migrations from `from` up to kSchemaVersion inside the
-// caller's transaction and sets user_version.
-absl::Status Migrate(Db& db, int64_t from) {
-  if (from < 2) RETURN_IF_ERROR(db.Exec(kMigration2));
-  if (from < 3) RETURN_IF_ERROR(db.Exec(kMigration3));
-  return db.Exec(absl::StrCat("PRAGMA user_version=", kSchemaVersion));
-}
 
 // The first four columns of both study-row queries: job, attempt, the job's
 // study name, and whether this attempt is the job's completed one.
@@ -453,8 +268,8 @@ absl::Status InsertEpisodes(Db& db, const LeaseKey& key, int episodes_expected,
   ASSIGN_OR_RETURN(Statement insert,
                    Statement::Prepare(db, R"sql(
 INSERT INTO episodes(job_id, attempt, episode, real_cost, eval_cost_mean, eval_cost_std,
-                     predicted_cost, optimisation_seconds, details_json, reported_ms)
-VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?)
+                     predicted_cost, optimisation_seconds, details_json, reported_ms, cpu_seconds)
+VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)
 ON CONFLICT(job_id, attempt, episode) DO NOTHING)sql"));
   for (const Episode& episode : episodes) {
     if (episodes_expected == 0) {
@@ -470,6 +285,7 @@ ON CONFLICT(job_id, attempt, episode) DO NOTHING)sql"));
     insert.Bind(4, episode.real_cost).Bind(5, episode.eval_cost_mean);
     insert.Bind(6, episode.eval_cost_std).Bind(7, episode.predicted_cost);
     insert.Bind(8, episode.optimisation_seconds).Bind(9, episode.details_json).Bind(10, now_ms);
+    insert.Bind(11, episode.cpu_seconds);
     RETURN_IF_ERROR(insert.Run());
     insert.Reset();
   }
@@ -880,7 +696,7 @@ absl::StatusOr<std::unique_ptr<SqliteStore>> SqliteStore::Open(const std::string
     }
     if (inspection.kind != FileKind::kTotalgrad) {
       RETURN_IF_ERROR(writer.Exec("BEGIN IMMEDIATE"));
-      absl::Status created = writer.Exec(kSchema);
+      absl::Status created = writer.Exec(internal::SchemaText());
       if (created.ok()) created = Migrate(writer, 1);
       if (created.ok()) created = writer.Exec("COMMIT");
       if (!created.ok()) {
@@ -888,7 +704,20 @@ absl::StatusOr<std::unique_ptr<SqliteStore>> SqliteStore::Open(const std::string
         return created;
       }
     } else if (inspection.version < kSchemaVersion) {
-      // An older totalgrad database: migrate in one transaction (all or nothing).
+      // An older totalgrad database: first a copy of it as it is (an older
+      // build refuses the migrated file, and a migration is a one-way step),
+      // then the migration in one transaction (all or nothing).
+      std::string backup = absl::StrCat(path, ".schema-v", inspection.version, "-backup");
+      for (int n = 1; std::filesystem::exists(backup); ++n) {
+        backup = absl::StrCat(path, ".schema-v", inspection.version, "-backup.", n);
+      }
+      absl::StatusOr<int64_t> copied = BackupFile(path, backup);
+      if (!copied.ok()) {
+        return absl::Status(copied.status().code(),
+                            absl::StrCat(path, ": not migrating from schema version ",
+                                         inspection.version, ": the backup copy failed: ",
+                                         copied.status().message()));
+      }
       RETURN_IF_ERROR(writer.Exec("BEGIN IMMEDIATE"));
       absl::Status migrated = Migrate(writer, inspection.version);
       if (migrated.ok()) migrated = writer.Exec("COMMIT");
@@ -920,6 +749,36 @@ absl::StatusOr<std::unique_ptr<SqliteStore>> SqliteStore::Open(const std::string
   return opened;
 }
 
+absl::StatusOr<std::unique_ptr<SqliteStore>> SqliteStore::OpenReadOnly(const std::string& path) {
+  const SqliteStoreOptions options;
+  ASSIGN_OR_RETURN(Inspection inspection, InspectFile(path, options.busy_timeout_ms));
+  if (inspection.kind != FileKind::kTotalgrad) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        path, inspection.kind == FileKind::kMissing ? " does not exist"
+                                                     : " is not a totalgrad database",
+        " (nothing to read)"));
+  }
+  if (inspection.version != kSchemaVersion) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        path, " has schema version ", inspection.version, "; this build reads version ",
+        kSchemaVersion,
+        inspection.version < kSchemaVersion
+            ? ": start a coordinator of this build on it once (it migrates the file, keeping a "
+              "copy of the old one), or read it with the build that wrote it"
+            : ": use a newer build"));
+  }
+  ASSIGN_OR_RETURN(Db writer, Db::OpenReadOnly(path, options.busy_timeout_ms));
+  ASSIGN_OR_RETURN(Db reader, Db::OpenReadOnly(path, options.busy_timeout_ms));
+  struct stat st;
+  if (::stat(path.c_str(), &st) != 0) {
+    return absl::FailedPreconditionError(
+        absl::StrCat("cannot stat ", path, " after opening it: ", ErrnoText(errno)));
+  }
+  return std::unique_ptr<SqliteStore>(new SqliteStore(path, options, std::move(writer),
+                                                      std::move(reader), /*lock_fd=*/-1,
+                                                      st.st_dev, st.st_ino));
+}
+
 absl::StatusOr<int64_t> SqliteStore::BackupFile(const std::string& path, const std::string& target) {
   const int busy_timeout_ms = SqliteStoreOptions{}.busy_timeout_ms;
   ASSIGN_OR_RETURN(Inspection inspection, InspectFile(path, busy_timeout_ms));
@@ -945,8 +804,8 @@ SqliteStore::~SqliteStore() {
   {
     std::lock_guard<std::mutex> lock(write_mutex_);
     // Fold the WAL back into the main file so a copied file is complete
-    // (not into a file that replaced ours).
-    if (file_error_.ok() && CheckFileIdentityLocked().ok()) {
+    // (not into a file that replaced ours; never from a read-only view).
+    if (lock_fd_ >= 0 && file_error_.ok() && CheckFileIdentityLocked().ok()) {
       (void)writer_.Exec("PRAGMA wal_checkpoint(TRUNCATE)");
     }
     writer_ = Db();
@@ -955,7 +814,7 @@ SqliteStore::~SqliteStore() {
     std::lock_guard<std::mutex> lock(read_mutex_);
     reader_ = Db();
   }
-  ::close(lock_fd_);  // releases the lock last, after both connections closed
+  if (lock_fd_ >= 0) ::close(lock_fd_);  // releases the lock last, after both connections closed
 }
 
 absl::Status SqliteStore::CheckFileIdentityLocked() {
@@ -1031,6 +890,10 @@ absl::Status SqliteStore::Ping() {
 }
 
 absl::Status SqliteStore::InWriteTransaction(const std::function<absl::Status(Db&)>& body) {
+  if (lock_fd_ < 0) {
+    return absl::FailedPreconditionError(
+        absl::StrCat(path_, " is open read-only here; writes go through its coordinator"));
+  }
   std::lock_guard<std::mutex> lock(write_mutex_);
   RETURN_IF_ERROR(CheckFileIdentityLocked());
   // IMMEDIATE takes the write lock up front: a deferred transaction that reads
@@ -1096,7 +959,10 @@ VALUES(?, ?, ?, ?, ?, ?, ?, 'queued', ?, ?))sql"));
       job_insert.Bind(8, ToString(job.kind)).Bind(9, job.payload);
       RETURN_IF_ERROR(job_insert.Run());
       job_insert.Reset();
+      RETURN_IF_ERROR(internal::WriteJobOptions(db, db.LastInsertRowId(), job.method, job.seed,
+                                                job.variant));
     }
+    RETURN_IF_ERROR(internal::CreateSweepView(db, sweep_id, sweep.name));
     *created = true;
     return AddEvent(db, now_ms, sweep_id, 0, 0, "sweep_submitted",
                     absl::StrCat(sweep.jobs.size(), " jobs, spec ", sweep.spec_hash));
@@ -1652,7 +1518,7 @@ absl::Status SqliteStore::ExportEpisodes(
   ASSIGN_OR_RETURN(Statement query, Statement::Prepare(db, R"sql(
 SELECT e.job_id, e.attempt, j.method, j.seed, j.variant, e.episode, e.real_cost, e.eval_cost_mean,
        e.eval_cost_std, e.predicted_cost, e.optimisation_seconds, e.details_json, e.reported_ms,
-       COALESCE(j.completed_attempt, 0) = e.attempt
+       COALESCE(j.completed_attempt, 0) = e.attempt, e.cpu_seconds
 FROM episodes e JOIN jobs j ON j.id = e.job_id
 WHERE j.sweep_id = ? AND (? OR e.attempt = COALESCE(j.completed_attempt, j.attempts))
 ORDER BY e.job_id, e.attempt, e.episode)sql"));
@@ -1676,6 +1542,7 @@ ORDER BY e.job_id, e.attempt, e.episode)sql"));
     r.episode.details_json = query.ColumnText(11);
     r.reported_ms = query.ColumnInt(12);
     r.final_attempt = query.ColumnInt(13) != 0;
+    r.episode.cpu_seconds = query.ColumnDouble(14);
     batch.push_back(std::move(r));
     if (static_cast<int>(batch.size()) >= batch_size) {
       RETURN_IF_ERROR(sink(std::move(batch)));

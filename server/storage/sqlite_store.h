@@ -65,6 +65,13 @@ class SqliteStore final : public Store {
   // of a newer schema version; DataLoss if the integrity check fails.
   static absl::StatusOr<std::unique_ptr<SqliteStore>> Open(const std::string& path,
                                                            const SqliteStoreOptions& options = {});
+  // Opens an existing database for reading only (`totalgrad results --db`):
+  // no lock is taken, so this works beside the coordinator that owns the file
+  // (SQLite's WAL lets readers run while it commits), and nothing is ever
+  // written: every write returns FailedPrecondition. FailedPrecondition for a
+  // file that is missing, not a totalgrad database, or of another schema
+  // version (the message says how to migrate it); DataLoss if it is corrupt.
+  static absl::StatusOr<std::unique_ptr<SqliteStore>> OpenReadOnly(const std::string& path);
   // Writes a consistent copy of the database at `path` to `target` (which
   // must not exist) through a read-only connection: no lock is taken, so
   // this works while a coordinator owns the file, and nothing is written to
@@ -145,7 +152,7 @@ class SqliteStore final : public Store {
 
   const std::string path_;
   const SqliteStoreOptions options_;
-  const int lock_fd_;
+  const int lock_fd_;  // -1: opened read-only, no lock held
   const uint64_t device_;
   const uint64_t inode_;
   std::mutex write_mutex_;

@@ -85,7 +85,8 @@ struct Episode {
   double eval_cost_mean = kNaN;
   double eval_cost_std = kNaN;
   double predicted_cost = kNaN;
-  double optimisation_seconds = kNaN;
+  double optimisation_seconds = kNaN;  // wall time of model fit + policy optimisation
+  double cpu_seconds = kNaN;           // CPU time of the whole episode
   std::string details_json;
 };
 

@@ -763,6 +763,47 @@ TEST_F(StorageTest, StudyCompletionNamesMissingRowsAndRowsOfTheWrongKindAreRefus
 
 // A database written by a build before study jobs (schema version 1) is
 // migrated on open: its sweeps are kept and study jobs can be added.
+// Schema 4 (issue 15): the file answers questions without the coordinator. The
+// view "episodes/<sweep>" has one typed column per swept key, numbers as
+// numbers (seeds as integers), and each episode's CPU seconds.
+TEST_F(StorageTest, SweepViewHasOneTypedColumnPerSweptKey) {
+  NewSweep sweep = MakeSweep("typed", 2, 3);
+  sweep.jobs[0].variant = "cost=tip noise_k=0.01";
+  sweep.jobs[1].variant = "cost=angle noise_k=1";
+  sweep.jobs[1].method = "TP";
+  bool created = false;
+  TG_ASSERT_OK(store_->CreateSweep(sweep, kNow, &created).status());
+  TG_ASSERT_OK_AND_ASSIGN(std::vector<JobRecord> jobs, store_->ListJobs({"typed", {}, 0, 10}));
+  TG_ASSERT_OK(store_->StartAttempt({jobs[0].id, 1}, MakeWorker("w1"), kNow, kNow + 90'000));
+  Episode episode = MakeEpisode(0);
+  episode.cpu_seconds = 1.5;
+  TG_ASSERT_OK(store_->StoreEpisodes({jobs[0].id, 1}, "w1", {episode}, kNow, std::nullopt).status());
+  auto db = internal::Db::OpenReadOnly(path_, 1000);
+  ASSERT_TRUE(db.ok()) << db.status();
+  TG_ASSERT_OK_AND_ASSIGN(internal::Statement query, internal::Statement::Prepare(*db, R"sql(
+SELECT method, seed, typeof(seed), cost, typeof(cost), noise_k, typeof(noise_k), cpu_seconds,
+       final_attempt, worker_build FROM "episodes/typed")sql"));
+  TG_ASSERT_OK_AND_ASSIGN(bool row, query.Step());
+  ASSERT_TRUE(row);
+  EXPECT_EQ(query.ColumnText(0), "RP");
+  EXPECT_EQ(query.ColumnInt(1), 1);
+  EXPECT_EQ(query.ColumnText(2), "integer");
+  EXPECT_EQ(query.ColumnText(3), "tip");
+  EXPECT_EQ(query.ColumnText(4), "text");
+  EXPECT_EQ(query.ColumnDouble(5), 0.01);
+  EXPECT_EQ(query.ColumnText(6), "real");
+  EXPECT_EQ(query.ColumnDouble(7), 1.5);
+  EXPECT_EQ(query.ColumnInt(8), 1);
+  EXPECT_EQ(query.ColumnText(9), MakeWorker("w1").build);
+  TG_ASSERT_OK_AND_ASSIGN(bool more, query.Step());
+  EXPECT_FALSE(more);
+  TG_ASSERT_OK_AND_ASSIGN(internal::Statement meta, internal::Statement::Prepare(
+      *db, "SELECT value FROM meta WHERE key = 'schema_version'"));
+  TG_ASSERT_OK_AND_ASSIGN(bool meta_row, meta.Step());
+  ASSERT_TRUE(meta_row);
+  EXPECT_EQ(meta.ColumnText(0), "4");
+}
+
 TEST_F(StorageTest, VersionOneDatabaseIsMigrated) {
   const int64_t trial_job = CreateAndLease("old");
   TG_ASSERT_OK(store_->StoreEpisodes({trial_job, 1}, "w1", {MakeEpisode(0)}, kNow, std::nullopt)
@@ -772,7 +813,10 @@ TEST_F(StorageTest, VersionOneDatabaseIsMigrated) {
     // Turn the file back into a version-1 database.
     auto db = internal::Db::Open(path_, false, 1000);
     ASSERT_TRUE(db.ok()) << db.status();
-    TG_ASSERT_OK(db->Exec("DROP TABLE checkpoints; DROP TABLE study_cells; DROP TABLE study_references; "
+    TG_ASSERT_OK(db->Exec("DROP VIEW \"episodes/old\"; DROP VIEW episode_rows; "
+                          "DROP TABLE job_options; ALTER TABLE episodes DROP COLUMN cpu_seconds; "
+                          "DELETE FROM meta; "
+                          "DROP TABLE checkpoints; DROP TABLE study_cells; DROP TABLE study_references; "
                           "ALTER TABLE jobs DROP COLUMN payload; ALTER TABLE jobs DROP COLUMN kind; "
                           "PRAGMA user_version=1"));
   }
@@ -784,8 +828,10 @@ TEST_F(StorageTest, VersionOneDatabaseIsMigrated) {
                             internal::Statement::Prepare(*db, "PRAGMA user_version"));
     TG_ASSERT_OK_AND_ASSIGN(bool row, version.Step());
     ASSERT_TRUE(row);
-    EXPECT_EQ(version.ColumnInt(0), 3);
+    EXPECT_EQ(version.ColumnInt(0), 4);
   }
+  // The old file was copied before it was changed.
+  EXPECT_TRUE(std::filesystem::exists(path_ + ".schema-v1-backup"));
   TG_ASSERT_OK_AND_ASSIGN(JobRecord old, store_->GetJob(trial_job));
   EXPECT_EQ(old.kind, JobKind::kTrial);
   EXPECT_EQ(old.episodes_stored, 1);
@@ -805,7 +851,7 @@ TEST_F(StorageTest, VersionOneDatabaseIsMigrated) {
   {
     auto db = internal::Db::Open(path_, false, 1000);
     ASSERT_TRUE(db.ok());
-    TG_ASSERT_OK(db->Exec("PRAGMA user_version=3"));  // back to this build's version
+    TG_ASSERT_OK(db->Exec("PRAGMA user_version=4"));  // back to this build's version
   }
   Reopen();
 }

@@ -1,0 +1,347 @@
+#include "server/storage/sqlite_schema.h"
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+#include "absl/strings/str_split.h"
+#include "server/common/status_macros.h"
+
+namespace totalgrad::storage::internal {
+namespace {
+
+
+// The schema of version 1; docs/results_schema.md explains every column. A
+// new database is created as version 1 and migrated, in one transaction, so
+// new and migrated databases have the same schema.
+constexpr char kSchema[] = R"sql(
+CREATE TABLE meta(
+  key TEXT PRIMARY KEY,
+  value TEXT NOT NULL
+) WITHOUT ROWID;
+CREATE TABLE sweeps(
+  id INTEGER PRIMARY KEY,
+  name TEXT NOT NULL UNIQUE,
+  description TEXT NOT NULL DEFAULT '',
+  state TEXT NOT NULL CHECK(state IN ('running', 'paused', 'cancelled')),
+  canonical_spec TEXT NOT NULL,
+  spec_hash TEXT NOT NULL,
+  source_name TEXT NOT NULL DEFAULT '',
+  source_text TEXT NOT NULL DEFAULT '',
+  coordinator_build TEXT NOT NULL,
+  max_attempts INTEGER NOT NULL CHECK(max_attempts >= 1),
+  max_lost_leases INTEGER NOT NULL CHECK(max_lost_leases >= 1),
+  max_concurrent INTEGER NOT NULL CHECK(max_concurrent >= 0),
+  created_ms INTEGER NOT NULL
+);
+CREATE TABLE jobs(
+  id INTEGER PRIMARY KEY,
+  sweep_id INTEGER NOT NULL REFERENCES sweeps(id),
+  ordinal INTEGER NOT NULL,
+  method TEXT NOT NULL,
+  seed TEXT NOT NULL,
+  variant TEXT NOT NULL,
+  options_json TEXT NOT NULL,
+  episodes_expected INTEGER NOT NULL CHECK(episodes_expected >= 1),
+  state TEXT NOT NULL
+      CHECK(state IN ('queued', 'running', 'completed', 'failed', 'cancelled')),
+  attempts INTEGER NOT NULL DEFAULT 0,
+  failures INTEGER NOT NULL DEFAULT 0,
+  lost_leases INTEGER NOT NULL DEFAULT 0,
+  completed_attempt INTEGER,
+  success INTEGER,
+  final_eval_cost REAL,
+  last_error TEXT NOT NULL DEFAULT '',
+  UNIQUE(sweep_id, ordinal)
+);
+CREATE INDEX jobs_by_state ON jobs(state, sweep_id, ordinal);
+CREATE TABLE attempts(
+  job_id INTEGER NOT NULL REFERENCES jobs(id),
+  attempt INTEGER NOT NULL CHECK(attempt >= 1),
+  state TEXT NOT NULL CHECK(state IN
+      ('running', 'completed', 'failed', 'lease_lost', 'released', 'cancelled')),
+  worker_id TEXT NOT NULL,
+  worker_host TEXT NOT NULL,
+  worker_build TEXT NOT NULL,
+  started_ms INTEGER NOT NULL,
+  lease_expires_ms INTEGER NOT NULL,
+  ended_ms INTEGER,
+  error TEXT NOT NULL DEFAULT '',
+  PRIMARY KEY(job_id, attempt)
+) WITHOUT ROWID;
+CREATE INDEX open_attempts_by_expiry ON attempts(lease_expires_ms) WHERE state = 'running';
+CREATE INDEX open_attempts_by_worker ON attempts(worker_id) WHERE state = 'running';
+CREATE TABLE episodes(
+  job_id INTEGER NOT NULL,
+  attempt INTEGER NOT NULL,
+  episode INTEGER NOT NULL CHECK(episode >= 0),
+  real_cost REAL,
+  eval_cost_mean REAL,
+  eval_cost_std REAL,
+  predicted_cost REAL,
+  optimisation_seconds REAL,
+  details_json TEXT NOT NULL DEFAULT '',
+  reported_ms INTEGER NOT NULL,
+  PRIMARY KEY(job_id, attempt, episode),
+  FOREIGN KEY(job_id, attempt) REFERENCES attempts(job_id, attempt)
+) WITHOUT ROWID;
+CREATE TABLE workers(
+  worker_id TEXT PRIMARY KEY,
+  host TEXT NOT NULL,
+  build TEXT NOT NULL,
+  slots INTEGER NOT NULL,
+  first_seen_ms INTEGER NOT NULL,
+  last_seen_ms INTEGER NOT NULL,
+  draining INTEGER NOT NULL DEFAULT 0
+) WITHOUT ROWID;
+CREATE TABLE events(
+  id INTEGER PRIMARY KEY,
+  ms INTEGER NOT NULL,
+  sweep_id INTEGER REFERENCES sweeps(id),
+  job_id INTEGER REFERENCES jobs(id),
+  attempt INTEGER NOT NULL DEFAULT 0,
+  kind TEXT NOT NULL,
+  message TEXT NOT NULL DEFAULT ''
+);
+CREATE INDEX events_by_job ON events(job_id, id);
+)sql";
+
+// Version 1 -> 2: study jobs (issue 6). A job has a kind and, for studies, a
+// payload (the self-contained study spec); study results go in study_cells
+// (one row per study::CellResult, the columns of the study's table.csv) and
+// study_references (one per horizon, references.csv plus the vectors), keyed
+// like episodes by (job, attempt, index). Study jobs store
+// episodes_expected = 1 (the column's CHECK) and read it back as 0.
+constexpr char kMigration2[] = R"sql(
+ALTER TABLE jobs ADD COLUMN kind TEXT NOT NULL DEFAULT 'trial' CHECK(kind IN ('trial', 'study'));
+ALTER TABLE jobs ADD COLUMN payload TEXT NOT NULL DEFAULT '';
+CREATE TABLE study_cells(
+  job_id INTEGER NOT NULL,
+  attempt INTEGER NOT NULL,
+  idx INTEGER NOT NULL CHECK(idx >= 0),
+  estimator TEXT NOT NULL,
+  method TEXT NOT NULL,
+  particles INTEGER NOT NULL,
+  horizon INTEGER NOT NULL,
+  replicates INTEGER NOT NULL,
+  nonfinite INTEGER NOT NULL,
+  errors INTEGER NOT NULL,
+  time_min_s REAL,
+  time_median_s REAL,
+  rel_rmse REAL,
+  rel_bias REAL,
+  rel_bias_noise REAL,
+  total_variance REAL,
+  cos_mean REAL,
+  objective_mean REAL,
+  ess_mean REAL,
+  ess_min REAL,
+  k_lr_mean REAL,
+  reference_agrees INTEGER NOT NULL,
+  reference_floor REAL,
+  budget_hit INTEGER NOT NULL,
+  omitted INTEGER NOT NULL,
+  note TEXT NOT NULL DEFAULT '',
+  error TEXT NOT NULL DEFAULT '',
+  omission_reason TEXT NOT NULL DEFAULT '',
+  k_lr_per_step_json TEXT NOT NULL DEFAULT '[]',
+  reported_ms INTEGER NOT NULL,
+  PRIMARY KEY(job_id, attempt, idx),
+  FOREIGN KEY(job_id, attempt) REFERENCES attempts(job_id, attempt)
+) WITHOUT ROWID;
+CREATE TABLE study_references(
+  job_id INTEGER NOT NULL,
+  attempt INTEGER NOT NULL,
+  idx INTEGER NOT NULL CHECK(idx >= 0),
+  horizon INTEGER NOT NULL,
+  norm REAL,
+  relative_error REAL,
+  floor REAL,
+  objective REAL,
+  used_json TEXT NOT NULL DEFAULT '[]',
+  replicates_json TEXT NOT NULL DEFAULT '[]',
+  agreement_max_z REAL,
+  agreement_mean_z2 REAL,
+  agree INTEGER NOT NULL,
+  seconds REAL,
+  note TEXT NOT NULL DEFAULT '',
+  gradient_json TEXT NOT NULL DEFAULT '[]',
+  standard_error_json TEXT NOT NULL DEFAULT '[]',
+  reported_ms INTEGER NOT NULL,
+  PRIMARY KEY(job_id, attempt, idx),
+  FOREIGN KEY(job_id, attempt) REFERENCES attempts(job_id, attempt)
+) WITHOUT ROWID;
+)sql";
+
+// Version 2 -> 3: trial checkpoints (issue 12). The latest checkpoint of
+// each attempt (core/learner/checkpoint.h, opaque here), from which a new
+// attempt of the job resumes.
+constexpr char kMigration3[] = R"sql(
+CREATE TABLE checkpoints(
+  job_id INTEGER NOT NULL,
+  attempt INTEGER NOT NULL,
+  episode INTEGER NOT NULL CHECK(episode >= 0),
+  format_version INTEGER NOT NULL,
+  data BLOB NOT NULL,
+  reported_ms INTEGER NOT NULL,
+  PRIMARY KEY(job_id, attempt),
+  FOREIGN KEY(job_id, attempt) REFERENCES attempts(job_id, attempt)
+) WITHOUT ROWID;
+)sql";
+
+
+// Version 3 -> 4 (issue 15): what a reader of the file needs without the
+// coordinator. job_options: one row per job and swept key (the grid axes:
+// method, seed and the variant's keys), the value as its canonical text and,
+// when it is a number, as a number (so SQL and pandas compare numbers);
+// episodes.cpu_seconds: the episode's CPU time (also in details_json, where
+// older workers do not have it: NULL then); meta: what the file is.
+constexpr char kMigration4[] = R"sql(
+CREATE TABLE job_options(
+  job_id INTEGER NOT NULL REFERENCES jobs(id),
+  key TEXT NOT NULL,
+  value TEXT NOT NULL,
+  number NUMERIC,
+  PRIMARY KEY(job_id, key)
+) WITHOUT ROWID;
+ALTER TABLE episodes ADD COLUMN cpu_seconds REAL;
+UPDATE episodes SET cpu_seconds = json_extract(details_json, '$.cpu_seconds')
+  WHERE json_valid(details_json) AND json_type(details_json, '$.cpu_seconds') IN ('real', 'integer');
+CREATE VIEW episode_rows AS
+  SELECT s.name AS sweep, j.id AS job_id, j.method AS method, CAST(j.seed AS INTEGER) AS seed,
+         j.variant AS variant, e.attempt AS attempt,
+         (e.attempt = COALESCE(j.completed_attempt, j.attempts)) AS final_attempt,
+         e.episode AS episode, e.real_cost AS real_cost, e.eval_cost_mean AS eval_cost_mean,
+         e.eval_cost_std AS eval_cost_std, e.predicted_cost AS predicted_cost,
+         e.optimisation_seconds AS wall_seconds, e.cpu_seconds AS cpu_seconds,
+         j.state AS job_state, j.success AS success, j.final_eval_cost AS final_eval_cost,
+         a.worker_build AS worker_build
+  FROM episodes e JOIN jobs j ON j.id = e.job_id JOIN sweeps s ON s.id = j.sweep_id
+       JOIN attempts a ON a.job_id = e.job_id AND a.attempt = e.attempt;
+)sql";
+
+// A value's number, when its canonical text is one: integers (seeds,
+// counts) as INTEGER, others as REAL.
+void BindNumber(Statement& statement, int index, const std::string& text) {
+  int64_t integer;
+  double real;
+  if (absl::SimpleAtoi(text, &integer)) {
+    statement.Bind(index, integer);
+  } else if (absl::SimpleAtod(text, &real) && std::isfinite(real)) {
+    statement.Bind(index, real);
+  } else {
+    statement.BindNull(index);
+  }
+}
+
+// "key=value key=value" -> pairs (values never hold spaces: canonical texts).
+std::vector<std::pair<std::string, std::string>> VariantPairs(const std::string& variant) {
+  std::vector<std::pair<std::string, std::string>> pairs;
+  for (absl::string_view item : absl::StrSplit(variant, ' ', absl::SkipEmpty())) {
+    const size_t eq = item.find('=');
+    if (eq == absl::string_view::npos) continue;
+    pairs.emplace_back(std::string(item.substr(0, eq)), std::string(item.substr(eq + 1)));
+  }
+  return pairs;
+}
+
+// An SQL identifier in double quotes (a sweep name is A-Z a-z 0-9 . _ -, so
+// it never contains a quote; doubling them keeps that true regardless).
+std::string QuoteIdentifier(const std::string& name) {
+  std::string quoted = "\"";
+  for (char c : name) {
+    if (c == '"') quoted += '"';
+    quoted += c;
+  }
+  return quoted + "\"";
+}
+
+}  // namespace
+
+const char* SchemaText() { return kSchema; }
+
+absl::Status WriteJobOptions(Db& db, int64_t job_id, const std::string& method,
+                             const std::string& seed, const std::string& variant) {
+  ASSIGN_OR_RETURN(Statement insert,
+                   Statement::Prepare(db, "INSERT OR REPLACE INTO job_options(job_id, key, value, "
+                                          "number) VALUES(?, ?, ?, ?)"));
+  std::vector<std::pair<std::string, std::string>> pairs = {{"method", method}, {"seed", seed}};
+  for (auto& pair : VariantPairs(variant)) pairs.push_back(std::move(pair));
+  for (const auto& [key, value] : pairs) {
+    insert.Bind(1, job_id).Bind(2, key).Bind(3, value);
+    BindNumber(insert, 4, value);
+    RETURN_IF_ERROR(insert.Run());
+    insert.Reset();
+  }
+  return absl::OkStatus();
+}
+
+std::string SweepViewName(const std::string& sweep_name) { return "episodes/" + sweep_name; }
+
+absl::Status CreateSweepView(Db& db, int64_t sweep_id, const std::string& sweep_name) {
+  // The swept keys other than method and seed, in the order of first use.
+  ASSIGN_OR_RETURN(Statement keys, Statement::Prepare(db, R"sql(
+SELECT o.key FROM job_options o JOIN jobs j ON j.id = o.job_id
+WHERE j.sweep_id = ? AND o.key NOT IN ('method', 'seed')
+GROUP BY o.key ORDER BY MIN(j.ordinal), o.key)sql"));
+  keys.Bind(1, sweep_id);
+  std::vector<std::string> columns;
+  for (;;) {
+    ASSIGN_OR_RETURN(bool row, keys.Step());
+    if (!row) break;
+    columns.push_back(keys.ColumnText(0));
+  }
+  std::string select = "SELECT r.sweep, r.job_id, r.method, r.seed";
+  for (const std::string& key : columns) {
+    // Keys are trial option names ([a-z_0-9]): safe as identifiers; the
+    // value is bound per row by the subquery, never built from data.
+    absl::StrAppend(&select, ", (SELECT COALESCE(o.number, o.value) FROM job_options o WHERE "
+                    "o.job_id = r.job_id AND o.key = '", key, "') AS ", QuoteIdentifier(key));
+  }
+  absl::StrAppend(&select,
+                  ", r.attempt, r.final_attempt, r.episode, r.real_cost, r.eval_cost_mean, "
+                  "r.eval_cost_std, r.predicted_cost, r.wall_seconds, r.cpu_seconds, r.job_state, "
+                  "r.success, r.final_eval_cost, r.worker_build FROM episode_rows r WHERE r.sweep = ",
+                  "(SELECT name FROM sweeps WHERE id = ", sweep_id, ")");
+  const std::string view = QuoteIdentifier(SweepViewName(sweep_name));
+  RETURN_IF_ERROR(db.Exec(absl::StrCat("DROP VIEW IF EXISTS ", view)));
+  return db.Exec(absl::StrCat("CREATE VIEW ", view, " AS ", select));
+}
+
+absl::Status DropSweepView(Db& db, const std::string& sweep_name) {
+  return db.Exec(
+      absl::StrCat("DROP VIEW IF EXISTS ", QuoteIdentifier(SweepViewName(sweep_name))));
+}
+
+absl::Status Migrate(Db& db, int64_t from) {
+  if (from < 2) RETURN_IF_ERROR(db.Exec(kMigration2));
+  if (from < 3) RETURN_IF_ERROR(db.Exec(kMigration3));
+  if (from < 4) {
+    RETURN_IF_ERROR(db.Exec(kMigration4));
+    ASSIGN_OR_RETURN(Statement jobs,
+                     Statement::Prepare(db, "SELECT id, method, seed, variant FROM jobs"));
+    for (;;) {
+      ASSIGN_OR_RETURN(bool row, jobs.Step());
+      if (!row) break;
+      RETURN_IF_ERROR(WriteJobOptions(db, jobs.ColumnInt(0), jobs.ColumnText(1),
+                                      jobs.ColumnText(2), jobs.ColumnText(3)));
+    }
+    ASSIGN_OR_RETURN(Statement sweeps, Statement::Prepare(db, "SELECT id, name FROM sweeps"));
+    for (;;) {
+      ASSIGN_OR_RETURN(bool row, sweeps.Step());
+      if (!row) break;
+      RETURN_IF_ERROR(CreateSweepView(db, sweeps.ColumnInt(0), sweeps.ColumnText(1)));
+    }
+  }
+  RETURN_IF_ERROR(db.Exec(absl::StrCat(
+      "INSERT OR REPLACE INTO meta(key, value) VALUES ('format', 'totalgrad coordinator database'), "
+      "('schema_version', '", kSchemaVersion, "'), ('documentation', 'docs/results_schema.md')")));
+  return db.Exec(absl::StrCat("PRAGMA user_version=", kSchemaVersion));
+}
+
+}  // namespace totalgrad::storage::internal
