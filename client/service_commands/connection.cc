@@ -142,6 +142,22 @@ absl::StatusOr<Connection> Connection::Open(const ServiceFlags& flags) {
   return connection;
 }
 
+CLI::App* AddCommand(CLI::App* parent, const std::string& name, const std::string& help,
+                     int* exit_code, std::function<int(Connection*)> body, bool with_format) {
+  CLI::App* command = parent->add_subcommand(name, help);
+  auto flags = std::make_shared<ServiceFlags>();
+  AddConnectionFlags(command, flags.get(), with_format);
+  command->callback([flags, exit_code, body = std::move(body), name] {
+    absl::StatusOr<Connection> connection = Connection::Open(*flags);
+    if (!connection.ok()) {
+      *exit_code = ReportError(connection.status(), name);
+      return;
+    }
+    *exit_code = body(&*connection);
+  });
+  return command;
+}
+
 int ReportError(const grpc::Status& status, const std::string& what) {
   std::cerr << "error: " << what << ": " << CodeName(status.error_code()) << ": "
             << status.error_message() << "\n";

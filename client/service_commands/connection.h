@@ -75,6 +75,16 @@ class Connection {
   rpc::RetryPolicy policy_;
 };
 
+// Adds subcommand `name` to `parent` with the connection flags (and
+// -f/--format when `with_format`); its callback opens the connection and
+// stores body's exit code in *exit_code (a connection error is reported).
+CLI::App* AddCommand(CLI::App* parent, const std::string& name, const std::string& help,
+                     int* exit_code, std::function<int(Connection*)> body,
+                     bool with_format = true);
+
+// `results export` and `results import` (archive_commands.cc).
+void AddArchiveCommands(CLI::App* results, int* exit_code);
+
 // Prints "error: <what>: <message>" and returns the exit code for `status`:
 // 3 for UNAVAILABLE/DEADLINE_EXCEEDED, 2 for INVALID_ARGUMENT/NOT_FOUND/
 // ALREADY_EXISTS/UNAUTHENTICATED/PERMISSION_DENIED, 1 otherwise.

@@ -42,22 +42,6 @@ void PrintSweeps(const std::vector<const v1::SweepInfo*>& sweeps, Format format)
 }
 
 // Adds a command whose callback receives an open connection.
-CLI::App* AddCommand(CLI::App* parent, const std::string& name, const std::string& help,
-                     int* exit_code, std::function<int(Connection*)> body,
-                     bool with_format = true) {
-  CLI::App* command = parent->add_subcommand(name, help);
-  auto flags = std::make_shared<ServiceFlags>();
-  AddConnectionFlags(command, flags.get(), with_format);
-  command->callback([flags, exit_code, body = std::move(body), name] {
-    absl::StatusOr<Connection> connection = Connection::Open(*flags);
-    if (!connection.ok()) {
-      *exit_code = ReportError(connection.status(), name);
-      return;
-    }
-    *exit_code = body(&*connection);
-  });
-  return command;
-}
 
 void AddSweepCommands(CLI::App* app, int* exit_code) {
   CLI::App* sweep_cmd = app->add_subcommand("sweep", "submit and control sweeps");
@@ -349,72 +333,7 @@ void AddResultsCommands(CLI::App* app, int* exit_code) {
   curves->add_option("SWEEP", *curves_sweep, "sweep name")->required();
   curves->add_option("--plot", *plot, "also draw the curves into FILE.svg or FILE.png (gnuplot)");
 
-  auto export_sweep = std::make_shared<std::string>();
-  auto all_attempts = std::make_shared<bool>(false);
-  auto output = std::make_shared<std::string>();
-  CLI::App* export_cmd = AddCommand(results, "export", "stream every episode row (csv or json)",
-                                    exit_code, [export_sweep, all_attempts, output](Connection* c) {
-    if (c->format() == Format::kTable) {
-      std::cerr << "error: results export: --format must be csv or json\n";
-      return 2;
-    }
-    std::ofstream file;
-    if (!output->empty()) {
-      file.open(*output);
-      if (!file) {
-        std::cerr << "error: results export: cannot write " << *output << "\n";
-        return 1;
-      }
-    }
-    std::ostream& out = output->empty() ? std::cout : file;
-    v1::ExportEpisodesRequest request;
-    request.set_sweep_name(*export_sweep);
-    request.set_all_attempts(*all_attempts);
-    // Rows are written as they arrive (JSON: one object per line), so an
-    // export of any size runs in constant memory.
-    grpc::ClientContext context;
-    rpc::PrepareContext(&context, c->token(), absl::Minutes(30), /*wait_for_ready=*/false);
-    auto reader = c->control()->ExportEpisodes(&context, request);
-    if (c->format() == Format::kCsv) {
-      out << "job_id,attempt,final_attempt,method,seed,variant,episode,real_cost,eval_cost_mean,"
-             "eval_cost_std,predicted_cost,optimisation_seconds,reported_unix_ms,details_json\n";
-    }
-    v1::ExportEpisodesResponse batch;
-    int64_t rows = 0;
-    while (reader->Read(&batch)) {
-      for (const auto& r : batch.rows()) {
-        const auto& e = r.report();
-        ++rows;
-        if (c->format() == Format::kCsv) {
-          out << r.job_id() << "," << r.attempt() << "," << (r.final_attempt() ? 1 : 0) << ","
-              << CsvField(r.method()) << "," << CsvField(r.seed()) << "," << CsvField(r.variant())
-              << "," << e.episode() << "," << FormatNumber(e.real_cost()) << ","
-              << FormatNumber(e.eval_cost_mean()) << "," << FormatNumber(e.eval_cost_std()) << ","
-              << FormatNumber(e.predicted_cost()) << "," << FormatNumber(e.optimisation_seconds())
-              << "," << r.reported_unix_ms() << "," << CsvField(e.details_json()) << "\n";
-        } else {
-          nlohmann::json object = {
-              {"job_id", r.job_id()}, {"attempt", r.attempt()}, {"final_attempt", r.final_attempt()},
-              {"method", r.method()}, {"seed", r.seed()}, {"variant", r.variant()},
-              {"episode", e.episode()}, {"real_cost", e.real_cost()},
-              {"eval_cost_mean", e.eval_cost_mean()}, {"eval_cost_std", e.eval_cost_std()},
-              {"predicted_cost", e.predicted_cost()},
-              {"optimisation_seconds", e.optimisation_seconds()},
-              {"reported_unix_ms", r.reported_unix_ms()}};
-          object["details"] = nlohmann::json::parse(e.details_json(), nullptr, false);
-          if (object["details"].is_discarded()) object["details"] = e.details_json();
-          out << object.dump() << "\n";
-        }
-      }
-    }
-    const grpc::Status status = reader->Finish();
-    if (!status.ok()) return ReportError(status, "results export " + *export_sweep);
-    if (!output->empty()) std::cerr << rows << " rows written to " << *output << "\n";
-    return 0;
-  });
-  export_cmd->add_option("SWEEP", *export_sweep, "sweep name")->required();
-  export_cmd->add_flag("--all-attempts", *all_attempts, "include failed and lost attempts");
-  export_cmd->add_option("-o,--output", *output, "write to FILE instead of stdout");
+  AddArchiveCommands(results, exit_code);  // export, import (archive_commands.cc)
 
   auto study_sweep = std::make_shared<std::string>();
   auto study_references = std::make_shared<bool>(false);

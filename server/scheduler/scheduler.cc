@@ -523,6 +523,16 @@ absl::StatusOr<storage::SweepRecord> Scheduler::SubmitSweep(const storage::NewSw
   return record;
 }
 
+absl::StatusOr<storage::ImportResult> Scheduler::ImportSweep(
+    const std::optional<storage::NewSweep>& create, const std::string& sweep_name,
+    const std::vector<storage::ImportedJob>& jobs, const std::string& source) {
+  std::lock_guard<std::mutex> lock(decision_mutex_);
+  ASSIGN_OR_RETURN(storage::ImportResult result,
+                   store_->ImportJobs(create, sweep_name, jobs, source, clock_->NowMs()));
+  NotifyWork();
+  return result;
+}
+
 absl::StatusOr<storage::SweepRecord> Scheduler::SetSweepState(const std::string& name,
                                                               SweepState state) {
   std::lock_guard<std::mutex> lock(decision_mutex_);

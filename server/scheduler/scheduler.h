@@ -189,6 +189,12 @@ class Scheduler {
   // ---- user calls ----
 
   absl::StatusOr<storage::SweepRecord> SubmitSweep(const storage::NewSweep& sweep, bool* created);
+  // Store::ImportJobs, then wakes waiting workers (a created sweep has
+  // queued jobs).
+  absl::StatusOr<storage::ImportResult> ImportSweep(const std::optional<storage::NewSweep>& create,
+                                                    const std::string& sweep_name,
+                                                    const std::vector<storage::ImportedJob>& jobs,
+                                                    const std::string& source);
   // Pause/resume/cancel with the transition rules of the proto: no-op when
   // already there; cancelling cancels queued and running jobs; resuming a
   // cancelled sweep (the only way out of a cancel) re-queues its cancelled

@@ -1,5 +1,7 @@
 #include "server/service/control_service.h"
 
+#include "server/service/sweep_archive.h"
+
 #include <filesystem>
 
 #include "absl/strings/str_cat.h"
@@ -333,6 +335,78 @@ grpc::Status ControlServiceImpl::Backup(grpc::ServerContext* context,
   if (!bytes.ok()) return ToGrpcStatus(bytes.status());
   response->set_path(path);
   response->set_bytes(*bytes);
+  return grpc::Status::OK;
+}
+
+grpc::Status ControlServiceImpl::ImportSweep(grpc::ServerContext* context,
+                                             grpc::ServerReader<v1::ImportSweepChunk>* reader,
+                                             v1::ImportSweepResponse* response) {
+  TG_AUTHORIZE(context);
+  constexpr size_t kMaxArchiveBytes = size_t{1} << 30;
+  std::string text, source = "an archive";
+  v1::ImportSweepChunk chunk;
+  while (reader->Read(&chunk)) {
+    if (!chunk.source_name().empty()) source = chunk.source_name();
+    if (text.size() + chunk.data().size() > kMaxArchiveBytes) {
+      return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                          absl::StrCat("the archive exceeds ", kMaxArchiveBytes, " bytes"));
+    }
+    text += chunk.data();
+  }
+  absl::StatusOr<ParsedSweepArchive> archive = ParseSweepArchive(text);
+  if (!archive.ok()) return ToGrpcStatus(archive.status());
+  // A sweep of that name here must be this one; otherwise it is created from
+  // the canonical spec, and this build must expand it to the same jobs.
+  std::optional<storage::NewSweep> create;
+  absl::StatusOr<storage::SweepRecord> existing = store_->GetSweep(archive->name);
+  if (existing.ok()) {
+    if (existing->spec_hash != archive->spec_hash) {
+      return grpc::Status(grpc::StatusCode::ALREADY_EXISTS,
+                          absl::StrCat("a different sweep named '", archive->name,
+                                       "' exists here (spec hash ",
+                                       existing->spec_hash.substr(0, 12), ", archive ",
+                                       archive->spec_hash.substr(0, 12), ")"));
+    }
+  } else if (existing.status().code() == absl::StatusCode::kNotFound) {
+    absl::StatusOr<sweep::SweepSpec> spec = sweep::SpecFromCanonicalJson(archive->canonical_spec);
+    if (!spec.ok()) return ToGrpcStatus(spec.status());
+    v1::SubmitSweepRequest request;
+    ToProto(*spec, request.mutable_spec());
+    request.set_source_name(source);
+    absl::StatusOr<storage::NewSweep> prepared = PrepareSubmission(request, options_.build);
+    if (!prepared.ok()) return ToGrpcStatus(prepared.status());
+    if (prepared->spec_hash != archive->spec_hash) {
+      return grpc::Status(
+          grpc::StatusCode::FAILED_PRECONDITION,
+          absl::StrCat("this build expands the archived spec of '", archive->name,
+                       "' to another hash (", prepared->spec_hash.substr(0, 12), " vs ",
+                       archive->spec_hash.substr(0, 12),
+                       "): its jobs would not be the archive's; import it with the build that "
+                       "wrote it (",
+                       "see the archive's exported_by)"));
+    }
+    create = *std::move(prepared);
+  } else {
+    return ToGrpcStatus(existing.status());
+  }
+  absl::StatusOr<storage::ImportResult> result =
+      scheduler_->ImportSweep(create, archive->name, archive->jobs, source);
+  if (!result.ok()) return ToGrpcStatus(result.status());
+  if (result->sweep_created && archive->state != storage::SweepState::kRunning) {
+    absl::StatusOr<storage::SweepRecord> state = scheduler_->SetSweepState(archive->name, archive->state);
+    if (!state.ok()) return ToGrpcStatus(state.status());
+  }
+  absl::StatusOr<storage::SweepRecord> record = store_->GetSweep(archive->name);
+  if (!record.ok()) return ToGrpcStatus(record.status());
+  ToProto(*record, response->mutable_sweep());
+  response->set_sweep_created(result->sweep_created);
+  response->set_jobs_imported(result->jobs_imported);
+  response->set_jobs_already_complete(result->jobs_already_complete);
+  response->set_jobs_not_completed(result->jobs_not_completed);
+  response->set_jobs_running_here(result->jobs_running_here);
+  response->set_jobs_unknown(result->jobs_unknown);
+  response->set_episodes_imported(result->episodes_imported);
+  response->set_study_rows_imported(result->study_rows_imported);
   return grpc::Status::OK;
 }
 

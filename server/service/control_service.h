@@ -75,6 +75,9 @@ class ControlServiceImpl final : public v1::ControlService::Service {
                       v1::HealthResponse* response) override;
   grpc::Status Backup(grpc::ServerContext* context, const v1::BackupRequest* request,
                       v1::BackupResponse* response) override;
+  grpc::Status ImportSweep(grpc::ServerContext* context,
+                           grpc::ServerReader<v1::ImportSweepChunk>* reader,
+                           v1::ImportSweepResponse* response) override;
 
  private:
   grpc::Status SetState(grpc::ServerContext* context, const v1::SweepRequest* request,

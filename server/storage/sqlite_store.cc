@@ -636,6 +636,58 @@ bool IsDatabaseFailure(const absl::Status& status) {
   }
 }
 
+// CreateSweep inside the caller's transaction: *created tells whether it
+// was inserted (false: a sweep of that name and hash existed).
+absl::Status InsertSweep(Db& db, const NewSweep& sweep, int64_t now_ms, bool* created) {
+  *created = false;
+    ASSIGN_OR_RETURN(Statement existing,
+                   Statement::Prepare(db, "SELECT spec_hash FROM sweeps WHERE name = ?"));
+  existing.Bind(1, sweep.name);
+  ASSIGN_OR_RETURN(bool found, existing.Step());
+  if (found) {
+    const std::string stored = existing.ColumnText(0);
+    if (stored != sweep.spec_hash &&
+        std::find(sweep.equivalent_spec_hashes.begin(), sweep.equivalent_spec_hashes.end(),
+                  stored) == sweep.equivalent_spec_hashes.end()) {
+      return absl::AlreadyExistsError(absl::StrCat(
+          "a different sweep named '", sweep.name, "' exists (spec hash ",
+          existing.ColumnText(0).substr(0, 12), ", submitted ", sweep.spec_hash.substr(0, 12),
+          "); rename the sweep or cancel and use a new name"));
+    }
+    return absl::OkStatus();
+  }
+  ASSIGN_OR_RETURN(Statement insert, Statement::Prepare(db, R"sql(
+INSERT INTO sweeps(name, description, state, canonical_spec, spec_hash, source_name, source_text,
+                 coordinator_build, max_attempts, max_lost_leases, max_concurrent, created_ms)
+VALUES(?, ?, 'running', ?, ?, ?, ?, ?, ?, ?, ?, ?))sql"));
+  insert.Bind(1, sweep.name).Bind(2, sweep.description).Bind(3, sweep.canonical_spec);
+  insert.Bind(4, sweep.spec_hash).Bind(5, sweep.source_name).Bind(6, sweep.source_text);
+  insert.Bind(7, sweep.coordinator_build).Bind(8, sweep.max_attempts);
+  insert.Bind(9, sweep.max_lost_leases).Bind(10, sweep.max_concurrent).Bind(11, now_ms);
+  RETURN_IF_ERROR(insert.Run());
+  const int64_t sweep_id = db.LastInsertRowId();
+  ASSIGN_OR_RETURN(Statement job_insert, Statement::Prepare(db, R"sql(
+INSERT INTO jobs(sweep_id, ordinal, method, seed, variant, options_json, episodes_expected, state,
+               kind, payload)
+VALUES(?, ?, ?, ?, ?, ?, ?, 'queued', ?, ?))sql"));
+  for (size_t i = 0; i < sweep.jobs.size(); ++i) {
+    const NewJob& job = sweep.jobs[i];
+    job_insert.Bind(1, sweep_id).Bind(2, static_cast<int64_t>(i)).Bind(3, job.method);
+    job_insert.Bind(4, job.seed).Bind(5, job.variant).Bind(6, OptionsToJson(job.options));
+    // Study jobs report no episodes; the column's CHECK wants >= 1 (read back as 0).
+    job_insert.Bind(7, job.kind == JobKind::kStudy ? 1 : job.episodes_expected);
+    job_insert.Bind(8, ToString(job.kind)).Bind(9, job.payload);
+    RETURN_IF_ERROR(job_insert.Run());
+    job_insert.Reset();
+    RETURN_IF_ERROR(internal::WriteJobOptions(db, db.LastInsertRowId(), job.method, job.seed,
+                                              job.variant));
+  }
+  RETURN_IF_ERROR(internal::CreateSweepView(db, sweep_id, sweep.name));
+  *created = true;
+  return AddEvent(db, now_ms, sweep_id, 0, 0, "sweep_submitted",
+                  absl::StrCat(sweep.jobs.size(), " jobs, spec ", sweep.spec_hash));
+}
+
 }  // namespace
 
 absl::StatusOr<std::unique_ptr<SqliteStore>> SqliteStore::Open(const std::string& path,
@@ -919,54 +971,8 @@ absl::Status SqliteStore::InWriteTransaction(const std::function<absl::Status(Db
 absl::StatusOr<SweepRecord> SqliteStore::CreateSweep(const NewSweep& sweep, int64_t now_ms,
                                                      bool* created) {
   *created = false;
-  const absl::Status status = InWriteTransaction([&](Db& db) -> absl::Status {
-    ASSIGN_OR_RETURN(Statement existing,
-                     Statement::Prepare(db, "SELECT spec_hash FROM sweeps WHERE name = ?"));
-    existing.Bind(1, sweep.name);
-    ASSIGN_OR_RETURN(bool found, existing.Step());
-    if (found) {
-      const std::string stored = existing.ColumnText(0);
-      if (stored != sweep.spec_hash &&
-          std::find(sweep.equivalent_spec_hashes.begin(), sweep.equivalent_spec_hashes.end(),
-                    stored) == sweep.equivalent_spec_hashes.end()) {
-        return absl::AlreadyExistsError(absl::StrCat(
-            "a different sweep named '", sweep.name, "' exists (spec hash ",
-            existing.ColumnText(0).substr(0, 12), ", submitted ", sweep.spec_hash.substr(0, 12),
-            "); rename the sweep or cancel and use a new name"));
-      }
-      return absl::OkStatus();
-    }
-    ASSIGN_OR_RETURN(Statement insert, Statement::Prepare(db, R"sql(
-INSERT INTO sweeps(name, description, state, canonical_spec, spec_hash, source_name, source_text,
-                   coordinator_build, max_attempts, max_lost_leases, max_concurrent, created_ms)
-VALUES(?, ?, 'running', ?, ?, ?, ?, ?, ?, ?, ?, ?))sql"));
-    insert.Bind(1, sweep.name).Bind(2, sweep.description).Bind(3, sweep.canonical_spec);
-    insert.Bind(4, sweep.spec_hash).Bind(5, sweep.source_name).Bind(6, sweep.source_text);
-    insert.Bind(7, sweep.coordinator_build).Bind(8, sweep.max_attempts);
-    insert.Bind(9, sweep.max_lost_leases).Bind(10, sweep.max_concurrent).Bind(11, now_ms);
-    RETURN_IF_ERROR(insert.Run());
-    const int64_t sweep_id = db.LastInsertRowId();
-    ASSIGN_OR_RETURN(Statement job_insert, Statement::Prepare(db, R"sql(
-INSERT INTO jobs(sweep_id, ordinal, method, seed, variant, options_json, episodes_expected, state,
-                 kind, payload)
-VALUES(?, ?, ?, ?, ?, ?, ?, 'queued', ?, ?))sql"));
-    for (size_t i = 0; i < sweep.jobs.size(); ++i) {
-      const NewJob& job = sweep.jobs[i];
-      job_insert.Bind(1, sweep_id).Bind(2, static_cast<int64_t>(i)).Bind(3, job.method);
-      job_insert.Bind(4, job.seed).Bind(5, job.variant).Bind(6, OptionsToJson(job.options));
-      // Study jobs report no episodes; the column's CHECK wants >= 1 (read back as 0).
-      job_insert.Bind(7, job.kind == JobKind::kStudy ? 1 : job.episodes_expected);
-      job_insert.Bind(8, ToString(job.kind)).Bind(9, job.payload);
-      RETURN_IF_ERROR(job_insert.Run());
-      job_insert.Reset();
-      RETURN_IF_ERROR(internal::WriteJobOptions(db, db.LastInsertRowId(), job.method, job.seed,
-                                                job.variant));
-    }
-    RETURN_IF_ERROR(internal::CreateSweepView(db, sweep_id, sweep.name));
-    *created = true;
-    return AddEvent(db, now_ms, sweep_id, 0, 0, "sweep_submitted",
-                    absl::StrCat(sweep.jobs.size(), " jobs, spec ", sweep.spec_hash));
-  });
+  const absl::Status status = InWriteTransaction(
+      [&](Db& db) -> absl::Status { return InsertSweep(db, sweep, now_ms, created); });
   if (!status.ok()) return status;
   return GetSweep(sweep.name);
 }
@@ -1667,6 +1673,125 @@ SELECT (SELECT COUNT(*) FROM sweeps),
 absl::StatusOr<int64_t> SqliteStore::Backup(const std::string& path) {
   ASSIGN_OR_RETURN(Db source, Db::OpenReadOnly(path_, options_.busy_timeout_ms));
   return CopyDatabase(source, path, options_.busy_timeout_ms);
+}
+
+absl::StatusOr<ImportResult> SqliteStore::ImportJobs(const std::optional<NewSweep>& create,
+                                                    const std::string& sweep_name,
+                                                    const std::vector<ImportedJob>& jobs,
+                                                    const std::string& source, int64_t now_ms) {
+  ImportResult result;
+  const absl::Status status = InWriteTransaction([&](Db& db) -> absl::Status {
+    result = ImportResult();
+    if (create.has_value()) {
+      RETURN_IF_ERROR(InsertSweep(db, *create, now_ms, &result.sweep_created));
+    }
+    ASSIGN_OR_RETURN(Statement sweep_query,
+                     Statement::Prepare(db, "SELECT id FROM sweeps WHERE name = ?"));
+    sweep_query.Bind(1, sweep_name);
+    ASSIGN_OR_RETURN(bool found, sweep_query.Step());
+    if (!found) return absl::NotFoundError(absl::StrCat("no sweep named '", sweep_name, "'"));
+    const int64_t sweep_id = sweep_query.ColumnInt(0);
+    ASSIGN_OR_RETURN(Statement job_query, Statement::Prepare(db, R"sql(
+SELECT id, state, attempts, episodes_expected FROM jobs
+WHERE sweep_id = ? AND kind = ? AND method = ? AND seed = ? AND variant = ?)sql"));
+    ASSIGN_OR_RETURN(Statement attempt_insert, Statement::Prepare(db, R"sql(
+INSERT INTO attempts(job_id, attempt, state, worker_id, worker_host, worker_build, started_ms,
+                     lease_expires_ms, ended_ms, error)
+VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?))sql"));
+    ASSIGN_OR_RETURN(Statement episode_insert, Statement::Prepare(db, R"sql(
+INSERT INTO episodes(job_id, attempt, episode, real_cost, eval_cost_mean, eval_cost_std,
+                     predicted_cost, optimisation_seconds, details_json, reported_ms, cpu_seconds)
+VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?))sql"));
+    ASSIGN_OR_RETURN(Statement job_update, Statement::Prepare(db, R"sql(
+UPDATE jobs SET state = 'completed', attempts = ?, completed_attempt = ?, success = ?,
+                final_eval_cost = ?, failures = failures + ?, lost_leases = lost_leases + ?,
+                last_error = ?
+WHERE id = ?)sql"));
+    for (const ImportedJob& job : jobs) {
+      job_query.Bind(1, sweep_id).Bind(2, ToString(job.kind)).Bind(3, job.method);
+      job_query.Bind(4, job.seed).Bind(5, job.variant);
+      ASSIGN_OR_RETURN(bool match, job_query.Step());
+      const int64_t job_id = match ? job_query.ColumnInt(0) : 0;
+      const std::string state = match ? job_query.ColumnText(1) : "";
+      const int attempts_here = match ? static_cast<int>(job_query.ColumnInt(2)) : 0;
+      const int episodes_expected = match ? static_cast<int>(job_query.ColumnInt(3)) : 0;
+      job_query.Reset();
+      if (!match) {
+        ++result.jobs_unknown;
+        continue;
+      }
+      if (state == ToString(JobState::kCompleted)) {
+        ++result.jobs_already_complete;
+        continue;
+      }
+      if (job.state != JobState::kCompleted || job.completed_attempt <= 0) {
+        ++result.jobs_not_completed;
+        continue;
+      }
+      if (state == ToString(JobState::kRunning)) {
+        ++result.jobs_running_here;
+        continue;
+      }
+      int completed_here = 0;
+      for (size_t i = 0; i < job.attempts.size(); ++i) {
+        const ImportedAttempt& a = job.attempts[i];
+        const int number = attempts_here + static_cast<int>(i) + 1;
+        if (a.attempt == job.completed_attempt) completed_here = number;
+        // An attempt that was still open where the archive was written ran
+        // nowhere here: it arrives released.
+        const AttemptState arrived =
+            a.state == AttemptState::kRunning ? AttemptState::kReleased : a.state;
+        attempt_insert.Bind(1, job_id).Bind(2, number).Bind(3, ToString(arrived));
+        attempt_insert.Bind(4, a.worker_id).Bind(5, a.worker_host).Bind(6, a.worker_build);
+        attempt_insert.Bind(7, a.started_ms).Bind(8, a.ended_ms > 0 ? a.ended_ms : a.started_ms);
+        attempt_insert.Bind(9, a.ended_ms > 0 ? a.ended_ms : now_ms).Bind(10, a.error);
+        RETURN_IF_ERROR(attempt_insert.Run());
+        attempt_insert.Reset();
+        for (const auto& [episode, reported_ms] : a.episodes) {
+          if (episode.episode < 0 || episode.episode >= episodes_expected ||
+              job.kind != JobKind::kTrial) {
+            return absl::InvalidArgumentError(absl::StrCat(
+                "archive: job ", job.method, " seed ", job.seed, " ", job.variant, " attempt ",
+                a.attempt, ": episode ", episode.episode, " is out of range 0..",
+                episodes_expected - 1));
+          }
+          episode_insert.Bind(1, job_id).Bind(2, number).Bind(3, episode.episode);
+          episode_insert.Bind(4, episode.real_cost).Bind(5, episode.eval_cost_mean);
+          episode_insert.Bind(6, episode.eval_cost_std).Bind(7, episode.predicted_cost);
+          episode_insert.Bind(8, episode.optimisation_seconds).Bind(9, episode.details_json);
+          episode_insert.Bind(10, reported_ms).Bind(11, episode.cpu_seconds);
+          RETURN_IF_ERROR(episode_insert.Run());
+          episode_insert.Reset();
+          ++result.episodes_imported;
+        }
+        if (!a.study.empty()) {
+          RETURN_IF_ERROR(InsertStudyRows(db, {job_id, number}, job.kind, a.study, now_ms));
+          result.study_rows_imported += static_cast<int64_t>(a.study.size());
+        }
+      }
+      if (completed_here == 0) {
+        return absl::InvalidArgumentError(absl::StrCat(
+            "archive: job ", job.method, " seed ", job.seed, " ", job.variant,
+            " is completed by attempt ", job.completed_attempt, ", which the archive lacks"));
+      }
+      job_update.Bind(1, attempts_here + static_cast<int>(job.attempts.size()));
+      job_update.Bind(2, completed_here).Bind(3, job.success ? 1 : 0);
+      job_update.Bind(4, job.final_eval_cost).Bind(5, job.failures).Bind(6, job.lost_leases);
+      job_update.Bind(7, job.last_error).Bind(8, job_id);
+      RETURN_IF_ERROR(job_update.Run());
+      job_update.Reset();
+      RETURN_IF_ERROR(AddEvent(db, now_ms, sweep_id, job_id, completed_here, "imported",
+                               absl::StrCat("completed attempt ", job.completed_attempt, " of ",
+                                            source, " (now attempt ", completed_here, ")")));
+      ++result.jobs_imported;
+    }
+    return AddEvent(db, now_ms, sweep_id, 0, 0, "sweep_imported",
+                    absl::StrCat(source, ": ", result.jobs_imported, " jobs taken over, ",
+                                 result.jobs_already_complete, " already complete here, ",
+                                 result.jobs_not_completed, " not completed there"));
+  });
+  if (!status.ok()) return status;
+  return result;
 }
 
 }  // namespace totalgrad::storage

@@ -110,6 +110,10 @@ class SqliteStore final : public Store {
   absl::Status StoreCheckpoint(const LeaseKey& key, const std::string& worker_id,
                                const Checkpoint& checkpoint, int64_t now_ms) override;
   absl::StatusOr<EndOutcome> EndAttempt(const AttemptEnd& end) override;
+  absl::StatusOr<ImportResult> ImportJobs(const std::optional<NewSweep>& create,
+                                          const std::string& sweep_name,
+                                          const std::vector<ImportedJob>& jobs,
+                                          const std::string& source, int64_t now_ms) override;
   absl::Status RetryJob(int64_t job_id, int64_t now_ms) override;
   absl::StatusOr<int> ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms,
                                        const std::string& reason) override;

@@ -361,6 +361,48 @@ struct AttemptEnd {
   int64_t now_ms = 0;
 };
 
+// One attempt of a job as a sweep archive carries it (`results export` on
+// one coordinator, `results import` on another).
+struct ImportedAttempt {
+  int attempt = 0;  // its number where it ran (renumbered where it lands)
+  AttemptState state = AttemptState::kCompleted;
+  std::string worker_id;
+  std::string worker_host;
+  std::string worker_build;
+  int64_t started_ms = 0;
+  int64_t ended_ms = 0;
+  std::string error;
+  std::vector<std::pair<Episode, int64_t>> episodes;  // with the time it was reported
+  StudyRows study;
+};
+
+// A job of a sweep archive, identified by (kind, method, seed, variant).
+struct ImportedJob {
+  JobKind kind = JobKind::kTrial;
+  std::string method;
+  std::string seed;
+  std::string variant;
+  JobState state = JobState::kQueued;
+  int failures = 0;
+  int lost_leases = 0;
+  std::string last_error;
+  int completed_attempt = 0;  // archive numbering; 0 unless completed
+  bool success = false;
+  double final_eval_cost = kNaN;
+  std::vector<ImportedAttempt> attempts;
+};
+
+struct ImportResult {
+  bool sweep_created = false;
+  int jobs_imported = 0;           // completed in the archive, not yet here: taken over
+  int jobs_already_complete = 0;   // completed here: kept, the archive's copy ignored
+  int jobs_not_completed = 0;      // not completed in the archive: nothing to take
+  int jobs_running_here = 0;       // running here: left alone
+  int jobs_unknown = 0;            // not a job of the sweep here
+  int64_t episodes_imported = 0;
+  int64_t study_rows_imported = 0;
+};
+
 enum class EndOutcome {
   kApplied,
   // The attempt had already ended the same way; nothing changed.
@@ -427,6 +469,21 @@ class Store {
   // returned for a completion of the wrong kind (episodes for a study, study
   // totals for a trial).
   virtual absl::StatusOr<EndOutcome> EndAttempt(const AttemptEnd& end) = 0;
+
+  // Takes over the completed jobs of a sweep archive, in one transaction.
+  // With `create` the sweep is created first (AlreadyExists if a sweep of
+  // that name exists with another spec hash; with the same hash it is used
+  // as is). Each archived job is matched by (kind, method, seed, variant); a
+  // job completed in the archive and not completed (nor running) here gets
+  // the archive's attempts appended after its own (renumbered), with their
+  // episodes and study rows, and becomes completed as in the archive. Every
+  // other job is left alone and counted in the result. A duplicate is thus
+  // refused by its key: an episode row never exists twice. NotFound if the
+  // sweep does not exist and `create` is null.
+  virtual absl::StatusOr<ImportResult> ImportJobs(const std::optional<NewSweep>& create,
+                                                  const std::string& sweep_name,
+                                                  const std::vector<ImportedJob>& jobs,
+                                                  const std::string& source, int64_t now_ms) = 0;
 
   // Puts a failed or cancelled job back in the queue with zeroed failure and
   // lost-lease counts. FailedPrecondition otherwise, or if its sweep is

@@ -511,6 +511,56 @@ std::string CanonicalJson(const SweepSpec& spec) {
   return json.dump();  // keys sorted, no whitespace: deterministic
 }
 
+absl::StatusOr<SweepSpec> SpecFromCanonicalJson(const std::string& text) {
+  const nlohmann::json json = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (!json.is_object()) return absl::InvalidArgumentError("canonical spec: not a JSON object");
+  auto bad = [](const std::string& field) {
+    return absl::InvalidArgumentError(absl::StrCat("canonical spec: '", field, "' is missing or mistyped"));
+  };
+  SweepSpec spec;
+  if (!json.contains("name") || !json["name"].is_string()) return bad("name");
+  spec.name = json["name"].get<std::string>();
+  if (!json.contains("description") || !json["description"].is_string()) return bad("description");
+  spec.description = json["description"].get<std::string>();
+  for (const char* key : {"max_attempts", "max_lost_leases", "max_concurrent"}) {
+    if (!json.contains(key) || !json[key].is_number_integer()) return bad(key);
+  }
+  spec.max_attempts = json["max_attempts"].get<int>();
+  spec.max_lost_leases = json["max_lost_leases"].get<int>();
+  spec.max_concurrent = json["max_concurrent"].get<int>();
+  if (!json.contains("grid") || !json["grid"].is_array()) return bad("grid");
+  for (const auto& axis : json["grid"]) {
+    if (!axis.is_array() || axis.size() != 2 || !axis[0].is_string() || !axis[1].is_array())
+      return bad("grid[]");
+    GridAxis g;
+    g.key = axis[0].get<std::string>();
+    for (const auto& value : axis[1]) {
+      if (!value.is_string()) return bad("grid[].values");
+      g.values.push_back(value.get<std::string>());
+    }
+    spec.grid.push_back(std::move(g));
+  }
+  if (!json.contains("protocol") || !json["protocol"].is_array()) return bad("protocol");
+  for (const auto& pair : json["protocol"]) {
+    if (!pair.is_array() || pair.size() != 2 || !pair[0].is_string() || !pair[1].is_string())
+      return bad("protocol[]");
+    spec.protocol.emplace_back(pair[0].get<std::string>(), pair[1].get<std::string>());
+  }
+  if (json.contains("studies")) {
+    if (!json["studies"].is_array()) return bad("studies");
+    for (const auto& entry : json["studies"]) {
+      if (!entry.is_array() || entry.size() != 2 || !entry[0].is_string() || !entry[1].is_string())
+        return bad("studies[]");
+      StudyEntry study;
+      study.name = entry[0].get<std::string>();
+      study.spec_json = entry[1].get<std::string>();
+      study.source = "inline";
+      spec.studies.push_back(std::move(study));
+    }
+  }
+  return spec;
+}
+
 std::string SpecHash(const SweepSpec& spec) {
   const std::string text = CanonicalJson(spec);
   unsigned char digest[EVP_MAX_MD_SIZE];

@@ -122,6 +122,11 @@ absl::Status CanonicalizeSpec(SweepSpec* spec);
 // Deterministic JSON of a canonicalized spec, and its SHA-256 in hex.
 std::string CanonicalJson(const SweepSpec& spec);
 std::string SpecHash(const SweepSpec& spec);
+// The inverse of CanonicalJson (for `results import`: a sweep moved between
+// coordinators is re-created from its canonical form).
+// CanonicalJson(*SpecFromCanonicalJson(CanonicalJson(s))) == CanonicalJson(s).
+// InvalidArgument naming the field that is missing or mistyped.
+absl::StatusOr<SweepSpec> SpecFromCanonicalJson(const std::string& text);
 // The hash builds before issue 12 gave the same spec: [protocol] in the
 // order of `protocol_order` (the submitted order) instead of sorted. Equal to
 // SpecHash when that order is already sorted. The coordinator accepts a

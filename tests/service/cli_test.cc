@@ -121,13 +121,28 @@ TEST_F(CliTest, SubmitWaitAndQueryResultsInEveryFormat) {
   ASSERT_EQ(Cli({"results", "export", "cli", "-f", "csv"}, &out, &err), 0) << err;
   std::vector<std::string> lines = absl::StrSplit(out, '\n', absl::SkipEmpty());
   EXPECT_EQ(lines.size(), 1u + 9u);
-  ASSERT_EQ(Cli({"results", "export", "cli", "-f", "json"}, &out, &err), 0) << err;
+  EXPECT_NE(lines[0].find(",wall_seconds,cpu_seconds,"), std::string::npos) << lines[0];
+  std::string default_format;
+  ASSERT_EQ(Cli({"results", "export", "cli"}, &default_format, &err), 0) << err;  // csv
+  EXPECT_EQ(default_format, out);
+  ASSERT_EQ(Cli({"results", "export", "cli", "-f", "jsonl"}, &out, &err), 0) << err;
   lines = absl::StrSplit(out, '\n', absl::SkipEmpty());
   ASSERT_EQ(lines.size(), 9u);
   const nlohmann::json row = nlohmann::json::parse(lines[1]);
   EXPECT_EQ(row["episode"], 1);
+  EXPECT_TRUE(row["seed"].is_number_integer()) << row;
+  EXPECT_GT(row["cpu_seconds"].get<double>(), 0.0) << row;
   EXPECT_TRUE(row["details"].is_object());
-  EXPECT_EQ(Cli({"results", "export", "cli"}, &out, &err), 2);  // table is not an export format
+  ASSERT_EQ(Cli({"results", "export", "cli", "-f", "json"}, &out, &err), 0) << err;
+  const nlohmann::json archive = nlohmann::json::parse(out);
+  EXPECT_EQ(archive["format"], "totalgrad-sweep-archive");
+  EXPECT_EQ(archive["sweep"]["name"], "cli");
+  ASSERT_EQ(archive["jobs"].size(), 3u);
+  EXPECT_EQ(archive["jobs"][0]["options"]["particles"], "8");
+  EXPECT_EQ(archive["jobs"][0]["attempt_log"][0]["episodes"].size(), 3u);
+  EXPECT_NE(archive["jobs"][0]["attempt_log"][0]["worker_build"].get<std::string>().find("totalgrad"),
+            std::string::npos);
+  EXPECT_EQ(Cli({"results", "export", "cli", "-f", "table"}, &out, &err), 2);  // not an export format
 
   ASSERT_EQ(Cli({"job", "list", "--sweep", "cli", "-f", "json"}, &out, &err), 0) << err;
   const nlohmann::json jobs = nlohmann::json::parse(out);
@@ -145,6 +160,74 @@ TEST_F(CliTest, SubmitWaitAndQueryResultsInEveryFormat) {
   EXPECT_EQ(nlohmann::json::parse(out)[0]["completed"], 3);
   EXPECT_EQ(Cli({"sweep", "status", "nope"}, &out, &err), 2);
   EXPECT_NE(err.find("NOT_FOUND: no sweep named 'nope'"), std::string::npos) << err;
+}
+
+// Issue 15: a sweep moves between coordinators. The archive of a finished
+// sweep, imported into a fresh coordinator, gives the same rows (ids,
+// attempts, costs, report times); importing it again takes over nothing; the
+// results can be read from either database file without a coordinator, and
+// writes through --db are refused.
+TEST_F(CliTest, ExportImportMovesASweepAndDatabasesReadWithoutACoordinator) {
+  StartCoordinator();
+  auto worker = StartWorker("mover");
+  const std::string path = WriteSweep("cli.toml", kTinySweep);
+  std::string out, err;
+  ASSERT_EQ(Cli({"sweep", "submit", path, "--wait"}, &out, &err), 0) << out << err;
+  const std::string archive = dir_ + "/cli-archive.json";
+  ASSERT_EQ(Cli({"results", "export", "cli", "-f", "json", "-o", archive}, &out, &err), 0) << err;
+  std::string rows_a, table_a;
+  ASSERT_EQ(Cli({"results", "export", "cli", "-f", "csv"}, &rows_a, &err), 0) << err;
+  ASSERT_EQ(Cli({"results", "table", "cli"}, &table_a, &err), 0) << err;
+  // The file, read while its coordinator runs and holds it.
+  const std::string db_a = db_;
+  ASSERT_EQ(Cli({"results", "table", "cli", "--db", db_a}, &out, &err, false), 0) << err;
+  EXPECT_EQ(out, table_a);
+  EXPECT_NE(Cli({"sweep", "cancel", "cli", "--db", db_a}, &out, &err, false), 0);
+  EXPECT_NE(err.find("read-only"), std::string::npos) << err;
+  worker->Signal(SIGTERM);
+  EXPECT_EQ(worker->Wait(seconds(20)), 0);
+  coordinator_.reset();
+  ASSERT_EQ(Cli({"results", "export", "cli", "-f", "csv", "--db", db_a}, &out, &err, false), 0) << err;
+  EXPECT_EQ(out, rows_a);
+
+  db_ = dir_ + "/second.db";
+  StartCoordinator();
+  ASSERT_EQ(Cli({"results", "import", archive}, &out, &err), 0) << err;
+  EXPECT_NE(out.find("created sweep cli: 3 jobs taken over (9 episodes"), std::string::npos) << out;
+  std::string rows_b;
+  ASSERT_EQ(Cli({"results", "export", "cli", "-f", "csv"}, &rows_b, &err), 0) << err;
+  EXPECT_EQ(rows_b, rows_a);
+  ASSERT_EQ(Cli({"results", "table", "cli"}, &out, &err), 0) << err;
+  EXPECT_EQ(out, table_a);
+  // Again: every job is complete here; no row is stored twice.
+  ASSERT_EQ(Cli({"results", "import", archive}, &out, &err), 0) << err;
+  EXPECT_NE(out.find("0 jobs taken over (0 episodes, 0 study rows); 3 already complete here"),
+            std::string::npos) << out;
+  ASSERT_EQ(Cli({"results", "export", "cli", "-f", "csv"}, &out, &err), 0) << err;
+  EXPECT_EQ(out, rows_a);
+  // The sweep file resubmitted here is the same sweep: nothing to run.
+  ASSERT_EQ(Cli({"sweep", "submit", path}, &out, &err), 0) << err;
+  EXPECT_NE(out.find("already submitted (no change)"), std::string::npos) << out;
+  EXPECT_TRUE(Sweep("cli").finished());
+  // A broken archive is refused naming what is wrong, and changes nothing.
+  WriteFile(dir_ + "/broken.json", "{\"format\": \"totalgrad-sweep-archive\", \"version\": 7}");
+  EXPECT_EQ(Cli({"results", "import", dir_ + "/broken.json"}, &out, &err), 2);
+  EXPECT_NE(err.find("version 7"), std::string::npos) << err;
+}
+
+// Issue 15: no coordinator at the address: the client gives up within its
+// connect timeout (5 s) and says what to do, instead of retrying for a minute.
+TEST_F(CliTest, NoCoordinatorFailsFastWithWhatToDo) {
+  std::string out, err;
+  const auto start = std::chrono::steady_clock::now();
+  EXPECT_EQ(Cli({"sweep", "list", "--coordinator", "127.0.0.1:9", "--insecure"}, &out, &err,
+                false),
+            3);
+  EXPECT_LT(std::chrono::steady_clock::now() - start, seconds(8));
+  EXPECT_NE(err.find("no coordinator answered at 127.0.0.1:9"), std::string::npos) << err;
+  EXPECT_NE(err.find("--db FILE"), std::string::npos) << err;
+  EXPECT_EQ(Cli({"results", "table", "x", "--db", dir_ + "/missing.db"}, &out, &err, false), 1);
+  EXPECT_NE(err.find("does not exist"), std::string::npos) << err;
 }
 
 TEST_F(CliTest, PauseResumeAndCancelFromTheCli) {

@@ -128,6 +128,11 @@ absl::Status FaultyStore::StoreCheckpoint(const storage::LeaseKey& key,
 absl::StatusOr<storage::EndOutcome> FaultyStore::EndAttempt(const storage::AttemptEnd& end) {
   TG_FORWARD("EndAttempt", target_->EndAttempt(end));
 }
+absl::StatusOr<storage::ImportResult> FaultyStore::ImportJobs(
+    const std::optional<storage::NewSweep>& create, const std::string& sweep_name,
+    const std::vector<storage::ImportedJob>& jobs, const std::string& source, int64_t now_ms) {
+  TG_FORWARD("ImportJobs", target_->ImportJobs(create, sweep_name, jobs, source, now_ms));
+}
 absl::Status FaultyStore::RetryJob(int64_t job_id, int64_t now_ms) {
   TG_FORWARD("RetryJob", target_->RetryJob(job_id, now_ms));
 }

@@ -78,6 +78,11 @@ class FaultyStore final : public storage::Store {
   absl::Status StoreCheckpoint(const storage::LeaseKey& key, const std::string& worker_id,
                                const storage::Checkpoint& checkpoint, int64_t now_ms) override;
   absl::StatusOr<storage::EndOutcome> EndAttempt(const storage::AttemptEnd& end) override;
+  absl::StatusOr<storage::ImportResult> ImportJobs(const std::optional<storage::NewSweep>& create,
+                                                   const std::string& sweep_name,
+                                                   const std::vector<storage::ImportedJob>& jobs,
+                                                   const std::string& source,
+                                                   int64_t now_ms) override;
   absl::Status RetryJob(int64_t job_id, int64_t now_ms) override;
   absl::StatusOr<int> ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms,
                                        const std::string& reason) override;
