@@ -221,8 +221,14 @@ int Run(const RunFlags& flags) {
       if (!status.ok()) {
         code = ReportError(status, "run: submit " + flags.file);
       } else {
-        std::cerr << (response.created() ? "submitted" : "already in the database")
-                  << ": sweep " << spec->name << ", " << response.sweep().jobs_total() << " jobs\n";
+        if (response.jobs_added() > 0) {
+          std::cerr << "grew sweep " << spec->name << " by " << response.jobs_added()
+                    << " jobs (now " << response.sweep().jobs_total() << ")\n";
+        } else {
+          std::cerr << (response.created() ? "submitted" : "already in the database")
+                    << ": sweep " << spec->name << ", " << response.sweep().jobs_total()
+                    << " jobs\n";
+        }
         code = WaitForSweep(&*connection, spec->name, &g_interrupted);
         if (code == 130) {
           std::cerr << "interrupted: stopping the workers (running trials are released) and the "

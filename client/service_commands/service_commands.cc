@@ -81,9 +81,20 @@ void AddSweepCommands(CLI::App* app, int* exit_code) {
                     << info.spec_hash().substr(0, 12) << ")\n";
           return 0;
         }
-        std::cout << (response.created() ? "submitted" : "already submitted (no change)")
-                  << ": sweep " << info.name() << ", " << info.jobs_total() << " jobs, spec "
-                  << info.spec_hash().substr(0, 12) << "\n";
+        if (response.jobs_added() > 0) {
+          std::cout << "grew sweep " << info.name() << " by " << response.jobs_added()
+                    << " jobs (now " << info.jobs_total() << " jobs, spec "
+                    << info.spec_hash().substr(0, 12) << ")";
+          if (info.state() == v1::SWEEP_STATE_CANCELLED) {
+            std::cout << "; the sweep is cancelled: `totalgrad sweep resume " << info.name()
+                      << "` runs them";
+          }
+          std::cout << "\n";
+        } else {
+          std::cout << (response.created() ? "submitted" : "already submitted (no change)")
+                    << ": sweep " << info.name() << ", " << info.jobs_total() << " jobs, spec "
+                    << info.spec_hash().substr(0, 12) << "\n";
+        }
         if (!*wait) return 0;
         return WaitForSweep(connection, info.name());
       });

@@ -523,6 +523,13 @@ absl::StatusOr<storage::SweepRecord> Scheduler::SubmitSweep(const storage::NewSw
   return record;
 }
 
+absl::StatusOr<int> Scheduler::GrowSweep(const storage::NewSweep& grown) {
+  std::lock_guard<std::mutex> lock(decision_mutex_);
+  ASSIGN_OR_RETURN(int added, store_->GrowSweep(grown, clock_->NowMs()));
+  if (added > 0) NotifyWork();
+  return added;
+}
+
 absl::StatusOr<storage::ImportResult> Scheduler::ImportSweep(
     const std::optional<storage::NewSweep>& create, const std::string& sweep_name,
     const std::vector<storage::ImportedJob>& jobs, const std::string& source) {

@@ -189,6 +189,8 @@ class Scheduler {
   // ---- user calls ----
 
   absl::StatusOr<storage::SweepRecord> SubmitSweep(const storage::NewSweep& sweep, bool* created);
+  // Store::GrowSweep, then wakes waiting workers.
+  absl::StatusOr<int> GrowSweep(const storage::NewSweep& grown);
   // Store::ImportJobs, then wakes waiting workers (a created sweep has
   // queued jobs).
   absl::StatusOr<storage::ImportResult> ImportSweep(const std::optional<storage::NewSweep>& create,

@@ -1,5 +1,7 @@
 #include "server/service/control_service.h"
 
+#include <algorithm>
+
 #include "server/service/sweep_archive.h"
 
 #include <filesystem>
@@ -83,6 +85,36 @@ grpc::Status ControlServiceImpl::SubmitSweep(grpc::ServerContext* context,
     for (const auto& job : sweep->jobs) preview.episodes_expected += job.episodes_expected;
     ToProto(preview, response->mutable_sweep());
     response->set_created(false);
+    return grpc::Status::OK;
+  }
+  // A sweep of this name with another spec: the submission may grow it.
+  absl::StatusOr<storage::SweepRecord> existing = store_->GetSweep(sweep->name);
+  if (existing.ok() && existing->spec_hash != sweep->spec_hash &&
+      std::find(sweep->equivalent_spec_hashes.begin(), sweep->equivalent_spec_hashes.end(),
+                existing->spec_hash) == sweep->equivalent_spec_hashes.end()) {
+    absl::StatusOr<sweep::SweepSpec> stored = sweep::SpecFromCanonicalJson(existing->canonical_spec);
+    if (!stored.ok()) return ToGrpcStatus(stored.status());
+    absl::StatusOr<sweep::SweepSpec> submitted = sweep::SpecFromCanonicalJson(sweep->canonical_spec);
+    if (!submitted.ok()) return ToGrpcStatus(submitted.status());
+    absl::StatusOr<sweep::SweepSpec> merged = sweep::UnionOfSweeps(*stored, *submitted);
+    if (!merged.ok()) return ToGrpcStatus(merged.status());
+    v1::SubmitSweepRequest union_request;
+    ToProto(*merged, union_request.mutable_spec());
+    union_request.set_source_name(request->source_name());
+    union_request.set_source_text(request->source_text());
+    absl::StatusOr<storage::NewSweep> grown = PrepareSubmission(union_request, options_.build);
+    if (!grown.ok()) return ToGrpcStatus(grown.status());
+    int added = 0;
+    if (grown->spec_hash != existing->spec_hash) {
+      absl::StatusOr<int> result = scheduler_->GrowSweep(*grown);
+      if (!result.ok()) return ToGrpcStatus(result.status());
+      added = *result;
+    }
+    absl::StatusOr<storage::SweepRecord> record = store_->GetSweep(sweep->name);
+    if (!record.ok()) return ToGrpcStatus(record.status());
+    ToProto(*record, response->mutable_sweep());
+    response->set_created(false);
+    response->set_jobs_added(added);
     return grpc::Status::OK;
   }
   bool created = false;

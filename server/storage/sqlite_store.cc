@@ -1794,4 +1794,58 @@ WHERE id = ?)sql"));
   return result;
 }
 
+absl::StatusOr<int> SqliteStore::GrowSweep(const NewSweep& grown, int64_t now_ms) {
+  int added = 0;
+  const absl::Status status = InWriteTransaction([&](Db& db) -> absl::Status {
+    added = 0;
+    ASSIGN_OR_RETURN(Statement sweep_query,
+                     Statement::Prepare(db, "SELECT id, spec_hash FROM sweeps WHERE name = ?"));
+    sweep_query.Bind(1, grown.name);
+    ASSIGN_OR_RETURN(bool found, sweep_query.Step());
+    if (!found) return absl::NotFoundError(absl::StrCat("no sweep named '", grown.name, "'"));
+    const int64_t sweep_id = sweep_query.ColumnInt(0);
+    const std::string previous_hash = sweep_query.ColumnText(1);
+    ASSIGN_OR_RETURN(Statement exists, Statement::Prepare(db, R"sql(
+SELECT 1 FROM jobs WHERE sweep_id = ? AND kind = ? AND method = ? AND seed = ? AND variant = ?)sql"));
+    ASSIGN_OR_RETURN(Statement last, Statement::Prepare(
+        db, "SELECT COALESCE(MAX(ordinal), -1) FROM jobs WHERE sweep_id = ?"));
+    last.Bind(1, sweep_id);
+    ASSIGN_OR_RETURN(bool any, last.Step());
+    int64_t ordinal = any ? last.ColumnInt(0) : -1;
+    ASSIGN_OR_RETURN(Statement job_insert, Statement::Prepare(db, R"sql(
+INSERT INTO jobs(sweep_id, ordinal, method, seed, variant, options_json, episodes_expected, state,
+                 kind, payload)
+VALUES(?, ?, ?, ?, ?, ?, ?, 'queued', ?, ?))sql"));
+    for (const NewJob& job : grown.jobs) {
+      exists.Bind(1, sweep_id).Bind(2, ToString(job.kind)).Bind(3, job.method);
+      exists.Bind(4, job.seed).Bind(5, job.variant);
+      ASSIGN_OR_RETURN(bool present, exists.Step());
+      exists.Reset();
+      if (present) continue;
+      job_insert.Bind(1, sweep_id).Bind(2, ++ordinal).Bind(3, job.method).Bind(4, job.seed);
+      job_insert.Bind(5, job.variant).Bind(6, OptionsToJson(job.options));
+      job_insert.Bind(7, job.kind == JobKind::kStudy ? 1 : job.episodes_expected);
+      job_insert.Bind(8, ToString(job.kind)).Bind(9, job.payload);
+      RETURN_IF_ERROR(job_insert.Run());
+      job_insert.Reset();
+      RETURN_IF_ERROR(internal::WriteJobOptions(db, db.LastInsertRowId(), job.method, job.seed,
+                                                job.variant));
+      ++added;
+    }
+    ASSIGN_OR_RETURN(Statement update, Statement::Prepare(db, R"sql(
+UPDATE sweeps SET canonical_spec = ?, spec_hash = ?, description = ?, source_name = ?,
+                  source_text = ?
+WHERE id = ?)sql"));
+    update.Bind(1, grown.canonical_spec).Bind(2, grown.spec_hash).Bind(3, grown.description);
+    update.Bind(4, grown.source_name).Bind(5, grown.source_text).Bind(6, sweep_id);
+    RETURN_IF_ERROR(update.Run());
+    RETURN_IF_ERROR(internal::CreateSweepView(db, sweep_id, grown.name));
+    return AddEvent(db, now_ms, sweep_id, 0, 0, "sweep_grown",
+                    absl::StrCat(added, " jobs added; spec ", previous_hash.substr(0, 12), " -> ",
+                                 grown.spec_hash.substr(0, 12)));
+  });
+  if (!status.ok()) return status;
+  return added;
+}
+
 }  // namespace totalgrad::storage

@@ -110,6 +110,7 @@ class SqliteStore final : public Store {
   absl::Status StoreCheckpoint(const LeaseKey& key, const std::string& worker_id,
                                const Checkpoint& checkpoint, int64_t now_ms) override;
   absl::StatusOr<EndOutcome> EndAttempt(const AttemptEnd& end) override;
+  absl::StatusOr<int> GrowSweep(const NewSweep& grown, int64_t now_ms) override;
   absl::StatusOr<ImportResult> ImportJobs(const std::optional<NewSweep>& create,
                                           const std::string& sweep_name,
                                           const std::vector<ImportedJob>& jobs,

@@ -470,6 +470,13 @@ class Store {
   // totals for a trial).
   virtual absl::StatusOr<EndOutcome> EndAttempt(const AttemptEnd& end) = 0;
 
+  // Grows an existing sweep to `grown` (the union of its spec and a
+  // resubmission, sweep::UnionOfSweeps): stores its jobs that the sweep lacks
+  // (identity (kind, method, seed, variant); ordinals after the last), and
+  // the new canonical spec, hash, description and source. Returns how many
+  // jobs were added. NotFound if there is no sweep of that name.
+  virtual absl::StatusOr<int> GrowSweep(const NewSweep& grown, int64_t now_ms) = 0;
+
   // Takes over the completed jobs of a sweep archive, in one transaction.
   // With `create` the sweep is created first (AlreadyExists if a sweep of
   // that name exists with another spec hash; with the same hash it is used

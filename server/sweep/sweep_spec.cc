@@ -511,6 +511,57 @@ std::string CanonicalJson(const SweepSpec& spec) {
   return json.dump();  // keys sorted, no whitespace: deterministic
 }
 
+absl::StatusOr<SweepSpec> UnionOfSweeps(const SweepSpec& stored, const SweepSpec& submitted) {
+  auto differs = [&](const std::string& what) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        "sweep '", stored.name, "' exists with another ", what,
+        "; a submitted sweep may only add values to the grid's axes or add studies (use a new "
+        "sweep name for another protocol)"));
+  };
+  if (stored.grid.size() != submitted.grid.size()) {
+    return differs(absl::StrCat("grid (", stored.grid.size(), " axes there, ",
+                                submitted.grid.size(), " here)"));
+  }
+  SweepSpec merged = stored;
+  merged.description = submitted.description;
+  for (size_t a = 0; a < stored.grid.size(); ++a) {
+    if (stored.grid[a].key != submitted.grid[a].key) {
+      return differs(absl::StrCat("grid: axis ", a + 1, " is '", stored.grid[a].key,
+                                  "' there and '", submitted.grid[a].key, "' here"));
+    }
+    std::vector<std::string>& values = merged.grid[a].values;
+    for (const std::string& value : submitted.grid[a].values) {
+      if (std::find(values.begin(), values.end(), value) == values.end()) values.push_back(value);
+    }
+  }
+  std::map<std::string, std::string> stored_protocol(stored.protocol.begin(), stored.protocol.end());
+  std::map<std::string, std::string> submitted_protocol(submitted.protocol.begin(),
+                                                        submitted.protocol.end());
+  for (const auto& [key, value] : submitted_protocol) {
+    auto it = stored_protocol.find(key);
+    if (it == stored_protocol.end()) return differs(absl::StrCat("protocol (no '", key, "' there)"));
+    if (it->second != value) {
+      return differs(absl::StrCat("protocol (", key, " = ", it->second, " there, ", value, " here)"));
+    }
+  }
+  for (const auto& [key, value] : stored_protocol) {
+    if (submitted_protocol.count(key) == 0) return differs(absl::StrCat("protocol (no '", key, "' here)"));
+  }
+  if (stored.max_attempts != submitted.max_attempts) return differs("max_attempts");
+  if (stored.max_lost_leases != submitted.max_lost_leases) return differs("max_lost_leases");
+  if (stored.max_concurrent != submitted.max_concurrent) return differs("max_concurrent");
+  for (const StudyEntry& study : submitted.studies) {
+    auto it = std::find_if(merged.studies.begin(), merged.studies.end(),
+                           [&](const StudyEntry& s) { return s.name == study.name; });
+    if (it == merged.studies.end()) {
+      merged.studies.push_back(study);
+    } else if (it->spec_json != study.spec_json) {
+      return differs(absl::StrCat("study '", study.name, "'"));
+    }
+  }
+  return merged;
+}
+
 absl::StatusOr<SweepSpec> SpecFromCanonicalJson(const std::string& text) {
   const nlohmann::json json = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
   if (!json.is_object()) return absl::InvalidArgumentError("canonical spec: not a JSON object");

@@ -140,6 +140,17 @@ std::string LegacySpecHash(const SweepSpec& canonical,
 // files). Returns the canonical JSON text. InvalidArgument naming the field.
 absl::StatusOr<std::string> CanonicalStudySpec(const std::string& spec_json);
 
+// A stored sweep and a resubmission of it with more values (issue 15: sweeps
+// that grow). The union keeps the stored grid's axes in their order, each
+// axis's stored values in their order followed by the submitted values it
+// lacks, and the stored studies followed by new ones; the description is the
+// submitted one. FailedPrecondition naming what differs otherwise: the grid's
+// axes (added, removed or reordered: every job's identity would change), a
+// protocol key or value, a limit, or a study of the same name with another
+// spec. Both specs must be canonical. A job's identity is (kind, method,
+// seed, variant), so the stored jobs are among the union's.
+absl::StatusOr<SweepSpec> UnionOfSweeps(const SweepSpec& stored, const SweepSpec& submitted);
+
 // Expands a canonicalized spec into its jobs, in grid order, then one job
 // per study entry. InvalidArgument
 // naming the grid point if the runner's whole-options validation refuses one.

@@ -215,6 +215,43 @@ TEST_F(CliTest, ExportImportMovesASweepAndDatabasesReadWithoutACoordinator) {
   EXPECT_NE(err.find("version 7"), std::string::npos) << err;
 }
 
+// Issue 15: sweeps that grow. A job's identity is (method, seed, variant), so
+// resubmitting the file with more seeds or methods adds only the new jobs;
+// the old file is then part of the sweep (no change); another protocol is
+// refused naming what changed.
+TEST_F(CliTest, ResubmittingWithMoreValuesGrowsTheSweep) {
+  StartCoordinator();
+  auto worker = StartWorker("grower");
+  const std::string path = WriteSweep("cli.toml", kTinySweep);
+  std::string out, err;
+  ASSERT_EQ(Cli({"sweep", "submit", path, "--wait"}, &out, &err), 0) << out << err;
+  std::string more = kTinySweep;
+  more.replace(more.find("seed = [1, 2, 3]"), 16, "seed = [1, 2, 3, 4, 5]");
+  ASSERT_EQ(Cli({"sweep", "submit", WriteSweep("more.toml", more), "--wait"}, &out, &err), 0)
+      << out << err;
+  EXPECT_NE(out.find("grew sweep cli by 2 jobs (now 5 jobs"), std::string::npos) << out;
+  std::vector<v1::JobInfo> jobs = Jobs("cli");
+  ASSERT_EQ(jobs.size(), 5u);
+  for (const v1::JobInfo& job : jobs) {
+    EXPECT_EQ(job.state(), v1::JOB_STATE_COMPLETED) << job.seed();
+    EXPECT_EQ(job.attempts(), 1) << job.seed();  // the first three did not run again
+  }
+  ASSERT_EQ(Cli({"sweep", "submit", path}, &out, &err), 0) << err;
+  EXPECT_NE(out.find("already submitted (no change): sweep cli, 5 jobs"), std::string::npos) << out;
+  std::string methods = more;
+  const std::string one_method = "method = [\"RP\"]";
+  methods.replace(methods.find(one_method), one_method.size(), "method = [\"RP\", \"GR\"]");
+  ASSERT_EQ(Cli({"sweep", "submit", WriteSweep("methods.toml", methods), "--wait"}, &out, &err), 0)
+      << out << err;
+  EXPECT_NE(out.find("grew sweep cli by 5 jobs (now 10 jobs"), std::string::npos) << out;
+  ExpectRowsEqualReference("cli", TinyProtocol());
+  std::string other = kTinySweep;
+  other.replace(other.find("particles = 8"), 13, "particles = 9");
+  EXPECT_NE(Cli({"sweep", "submit", WriteSweep("other.toml", other)}, &out, &err), 0);
+  EXPECT_NE(err.find("protocol (particles = 8 there, 9 here)"), std::string::npos) << err;
+  EXPECT_EQ(Jobs("cli").size(), 10u);
+}
+
 // Issue 15: no coordinator at the address: the client gives up within its
 // connect timeout (5 s) and says what to do, instead of retrying for a minute.
 TEST_F(CliTest, NoCoordinatorFailsFastWithWhatToDo) {

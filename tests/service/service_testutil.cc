@@ -128,6 +128,9 @@ absl::Status FaultyStore::StoreCheckpoint(const storage::LeaseKey& key,
 absl::StatusOr<storage::EndOutcome> FaultyStore::EndAttempt(const storage::AttemptEnd& end) {
   TG_FORWARD("EndAttempt", target_->EndAttempt(end));
 }
+absl::StatusOr<int> FaultyStore::GrowSweep(const storage::NewSweep& grown, int64_t now_ms) {
+  TG_FORWARD("GrowSweep", target_->GrowSweep(grown, now_ms));
+}
 absl::StatusOr<storage::ImportResult> FaultyStore::ImportJobs(
     const std::optional<storage::NewSweep>& create, const std::string& sweep_name,
     const std::vector<storage::ImportedJob>& jobs, const std::string& source, int64_t now_ms) {

@@ -78,6 +78,7 @@ class FaultyStore final : public storage::Store {
   absl::Status StoreCheckpoint(const storage::LeaseKey& key, const std::string& worker_id,
                                const storage::Checkpoint& checkpoint, int64_t now_ms) override;
   absl::StatusOr<storage::EndOutcome> EndAttempt(const storage::AttemptEnd& end) override;
+  absl::StatusOr<int> GrowSweep(const storage::NewSweep& grown, int64_t now_ms) override;
   absl::StatusOr<storage::ImportResult> ImportJobs(const std::optional<storage::NewSweep>& create,
                                                    const std::string& sweep_name,
                                                    const std::vector<storage::ImportedJob>& jobs,
