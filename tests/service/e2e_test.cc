@@ -627,11 +627,20 @@ TEST_F(EndToEndTest, ResubmittingASweepIsIdempotent) {
   ASSERT_TRUE(status.ok()) << status.error_message();
   EXPECT_FALSE(fourth.created());
   EXPECT_EQ(fourth.sweep().spec_hash(), first.sweep().spec_hash());
-  // A different spec under the same name is refused and stores nothing.
-  const v1::SweepSpec different = MakeSpec("again", {1, 2, 3}, TinyProtocol());
-  status = Submit(different);
-  EXPECT_EQ(status.error_code(), grpc::StatusCode::ALREADY_EXISTS) << status.error_message();
+  // Another protocol under the same name is refused and stores nothing.
+  worker::OptionList other_protocol = TinyProtocol();
+  other_protocol[0].second = "3";  // episodes
+  status = Submit(MakeSpec("again", {1, 2}, other_protocol));
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::FAILED_PRECONDITION) << status.error_message();
+  EXPECT_NE(status.error_message().find("protocol (episodes = 2 there, 3 here)"), std::string::npos)
+      << status.error_message();
   EXPECT_EQ(Sweep("again").jobs_total(), 2);
+  // More seeds grow it (issue 15): only the new job is added.
+  v1::SubmitSweepResponse grown;
+  ASSERT_TRUE(Submit(MakeSpec("again", {1, 2, 3}, TinyProtocol()), &grown).ok());
+  EXPECT_FALSE(grown.created());
+  EXPECT_EQ(grown.jobs_added(), 1);
+  EXPECT_EQ(Sweep("again").jobs_total(), 3);
   v1::ListSweepsResponse sweeps;
   ASSERT_TRUE(control_->ListSweeps(Context(kUserToken).get(), {}, &sweeps).ok());
   EXPECT_EQ(sweeps.sweeps_size(), 1);
