@@ -1,19 +1,39 @@
 #include "client/core_commands/trial_flags.h"
 
 #include <algorithm>
+#include <charconv>
+#include <cmath>
 #include <set>
+
+#include "absl/strings/numbers.h"
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_replace.h"
 
 namespace totalgrad::cli {
 
+namespace {
+
+// A number as people write it: the shortest text that reads back as the same
+// double ("0.1", not the canonical "0.10000000000000001"); other text as is.
+std::string DisplayValue(const std::string& text) {
+  double value;
+  if (!absl::SimpleAtod(text, &value) || !std::isfinite(value)) return text;
+  char buffer[64];
+  const std::to_chars_result result = std::to_chars(buffer, buffer + sizeof(buffer), value);
+  if (result.ec != std::errc()) return text;
+  return std::string(buffer, result.ptr);
+}
+
+}  // namespace
+
 void AddTrialOptionFlags(CLI::App* cmd, const learner::TrialOptions& defaults,
                          TrialFlagValues* values, const std::vector<std::string>& skip) {
   for (const auto& [key, value] : learner::TrialOptionPairs(defaults)) {
     if (std::find(skip.begin(), skip.end(), key) != skip.end()) continue;
     const std::string flag = "--" + absl::StrReplaceAll(key, {{"_", "-"}});
-    cmd->add_option(flag, values->values[key], "trial option '" + key + "' (default " + value + ")");
+    cmd->add_option(flag, values->values[key],
+                    "trial option '" + key + "' (default " + DisplayValue(value) + ")");
   }
   cmd->add_option("--set", values->sets, "KEY=VALUE for any trial option (repeatable)");
 }
