@@ -58,6 +58,8 @@ int ExitCode(const totalgrad::worker::WorkerSummary& summary) {
     case totalgrad::worker::WorkerExit::kDone: return 0;
     case totalgrad::worker::WorkerExit::kAuthRefused: return totalgrad::worker::kExitAuthRefused;
     case totalgrad::worker::WorkerExit::kWorkerIdInUse: return totalgrad::worker::kExitWorkerIdInUse;
+    case totalgrad::worker::WorkerExit::kCoordinatorUnreachable:
+      return totalgrad::worker::kExitCoordinatorUnreachable;
   }
   return 1;
 }
@@ -117,7 +119,15 @@ int main(int argc, char** argv) {
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   app.add_option("--max-idle", max_idle_seconds,
-                 "exit after this many seconds without work (default: never)");
+                 "exit after this many seconds without work, time without a coordinator "
+                 "included (default: never)");
+  double max_unreachable_seconds = 600;
+  app.add_option("--max-unreachable", max_unreachable_seconds,
+                 "exit with code 69 after this many seconds in which the coordinator never "
+                 "answered and no trial ran (codes: 0 done, 69 no coordinator, 77 token refused, "
+                 "78 worker id in use)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   app.add_option("--acquire-wait", acquire_wait_seconds, "long-poll length, seconds")
       ->capture_default_str();
   // Batch allocations (deploy/slurm): drain --trial-time before the end of
@@ -149,6 +159,7 @@ int main(int argc, char** argv) {
   options.worker_id_wait = absl::Seconds(worker_id_wait_seconds);
   options.acquire_wait = absl::Seconds(acquire_wait_seconds);
   if (max_idle_seconds >= 0) options.max_idle = absl::Seconds(max_idle_seconds);
+  options.max_unreachable = absl::Seconds(max_unreachable_seconds);
 
   auto channel = totalgrad::rpc::MakeChannel(connection);
   if (!channel.ok()) {

@@ -321,6 +321,7 @@ void Worker::CancelAll(const std::string& reason) {
 void Worker::SlotLoop(int slot) {
   thread_local std::mt19937_64 random(std::random_device{}() + slot);
   int64_t last_work_ms = SteadyMs();
+  int64_t last_answer_ms = SteadyMs();  // the coordinator's last answer (granted or not)
   int64_t backoff_ms = 200;
   while (!draining_ && !stopping_) {
     v1::AcquireLeaseRequest request;
@@ -383,6 +384,20 @@ void Worker::SlotLoop(int slot) {
       if (status.ok()) id_refused_since_ms_ = -1;
     }
     if (!status.ok()) {
+      // Without a coordinator the worker can do nothing: give up after
+      // max_unreachable (or max_idle) instead of retrying for ever.
+      const int64_t silent_ms = SteadyMs() - last_answer_ms;
+      const absl::Duration limit = std::min(options_.max_unreachable, options_.max_idle);
+      if (limit != absl::InfiniteDuration() && silent_ms > absl::ToInt64Milliseconds(limit)) {
+        FailFatally(WorkerExit::kCoordinatorUnreachable,
+                    absl::StrCat("no answer from the coordinator for ",
+                                 absl::FormatDuration(absl::Milliseconds(silent_ms)),
+                                 " (last error: ", status.error_message(),
+                                 "); giving up (--max-unreachable ",
+                                 absl::FormatDuration(options_.max_unreachable), ", --max-idle ",
+                                 absl::FormatDuration(options_.max_idle), ")"));
+        break;
+      }
       spdlog::warn("slot {}: AcquireLease failed: {} ({}); retrying", slot, status.error_message(),
                    static_cast<int>(status.error_code()));
       std::uniform_real_distribution<double> jitter(0.8, 1.2);
@@ -393,6 +408,7 @@ void Worker::SlotLoop(int slot) {
       continue;
     }
     backoff_ms = 200;
+    last_answer_ms = SteadyMs();
     if (!response.granted()) {
       if (options_.max_idle != absl::InfiniteDuration() &&
           SteadyMs() - last_work_ms > absl::ToInt64Milliseconds(options_.max_idle)) {

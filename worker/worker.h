@@ -96,8 +96,13 @@ struct WorkerOptions {
   // lock to prove it is gone counts as alive until its silence exceeds the
   // coordinator's lease timeout (90 s by default).
   absl::Duration worker_id_wait = absl::Seconds(120);
-  // Exit when no lease was granted for this long (InfiniteDuration: never).
+  // Exit when no lease was granted for this long (InfiniteDuration: never);
+  // time without any answer from the coordinator counts too.
   absl::Duration max_idle = absl::InfiniteDuration();
+  // Exit (WorkerExit::kCoordinatorUnreachable) when the coordinator has not
+  // answered a lease request for this long while no trial runs: a batch job
+  // must not spend its allocation waiting for a coordinator that is gone.
+  absl::Duration max_unreachable = absl::Minutes(10);
 };
 
 // Why Run() returned.
@@ -105,6 +110,7 @@ enum class WorkerExit {
   kDone,           // drained, stopped or idle for max_idle
   kAuthRefused,    // the coordinator refused the token (UNAUTHENTICATED/PERMISSION_DENIED)
   kWorkerIdInUse,  // another live process uses this worker id (here or on another host)
+  kCoordinatorUnreachable,  // no answer for max_unreachable (or max_idle)
 };
 
 // Checkpoints larger than this are not sent (the coordinator refuses them:
@@ -115,6 +121,7 @@ inline constexpr size_t kMaxCheckpointBytes = 2 << 20;
 // supervisor does not restart a worker that cannot succeed (sysexits.h).
 inline constexpr int kExitAuthRefused = 77;   // EX_NOPERM
 inline constexpr int kExitWorkerIdInUse = 78;  // EX_CONFIG
+inline constexpr int kExitCoordinatorUnreachable = 69;  // EX_UNAVAILABLE
 
 struct WorkerSummary {
   int resumed = 0;    // trials resumed from an earlier attempt's checkpoint

@@ -876,6 +876,21 @@ TEST_F(EndToEndTest, WorkerWithARefusedTokenExitsAtOnceWithItsOwnCode) {
   }
 }
 
+// Issue 15: a worker pointed at an address where no coordinator answers gives
+// up after --max-unreachable (with its own exit code, so a batch job can tell)
+// instead of retrying for ever and burning the allocation.
+TEST_F(EndToEndTest, WorkerWithoutACoordinatorGivesUpWithItsOwnCode) {
+  std::vector<std::string> argv = {TOTALGRAD_WORKER_BIN, "--coordinator", "127.0.0.1:9",
+                                   "--insecure", "--token-file", dir_ + "/worker.token",
+                                   "--worker-id", "lonely", "--state-dir", dir_ + "/lonely-state",
+                                   "--max-unreachable", "1", "--acquire-wait", "1"};
+  Process worker(argv, dir_ + "/worker-lonely.log");
+  const int status = worker.Wait(seconds(30));
+  ASSERT_NE(status, -1) << "still retrying after 30 s\n" << worker.Log();
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 69) << status << "\n" << worker.Log();
+  EXPECT_NE(worker.Log().find("no answer from the coordinator"), std::string::npos) << worker.Log();
+}
+
 // Issue 12.6: a token file that others may read is accepted with a warning
 // naming the file and the fix; a 0600 file gets none.
 TEST_F(EndToEndTest, TokenFilesReadableByOthersAreWarnedAbout) {
