@@ -96,7 +96,7 @@ TEST(CurvesPlotTest, ScriptUsesAbsolutePathsAndRedrawsFromAnotherDirectory) {
   EXPECT_NE(script.find("\"" + dir + "/relative.png.dat\" index 0"), std::string::npos) << script;
   std::filesystem::remove(dir + "/relative.png");
   std::string out, err;
-  ASSERT_EQ(testing::RunCommand({"sh", "-c", "cd / && gnuplot '" + dir + "/relative.png.gp'"},
+  ASSERT_EQ(testing::RunCommand({"/bin/sh", "-c", "cd / && gnuplot '" + dir + "/relative.png.gp'"},
                                 &out, &err),
             0)
       << err;

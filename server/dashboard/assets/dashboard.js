@@ -127,6 +127,13 @@ function jobCounts(sweep) {
   return parts.join(', ');
 }
 
+// "completed" / "finished" (some jobs failed or were cancelled) once nothing
+// is queued or running, else the stored state (running, paused, cancelled).
+function sweepState(sweep) {
+  if (!sweep.finished) return sweep.state;
+  return sweep.jobs_completed === sweep.jobs_total ? 'completed' : 'finished';
+}
+
 function etaText(sweep) {
   if (sweep.finished) return 'finished';
   const eta = sweep.eta || {};
@@ -140,8 +147,7 @@ async function renderOverview(view) {
   document.getElementById('build').textContent = `coordinator ${data.build}; database ${data.database}`;
   const rows = data.sweeps.map(s => el('tr', {'data-sweep': s.name},
       el('td', {}, el('a', {href: '#/sweep/' + encodeURIComponent(s.name), text: s.name})),
-      el('td', {}, stateSpan(s.finished ? (s.jobs_completed === s.jobs_total ? 'completed' : 'finished')
-                                        : s.state)),
+      el('td', {}, stateSpan(sweepState(s))),
       el('td', {}, progressBar(s)),
       el('td', {text: jobCounts(s)}),
       el('td', {class: 'eta', title: (s.eta && s.eta.basis) || '', text: etaText(s)}),
@@ -196,8 +202,10 @@ function ticks(low, high, count) {
 
 // One panel: quartile bands, median curves, the threshold, a legend with n.
 function curvePanel(panel) {
-  const width = 480, height = 320;
-  const margin = {left: 52, right: 12, top: 26, bottom: 38};
+  // The legend sits right of the plot: costs fall from the top left, and
+  // any corner inside would hide some curve.
+  const width = 560, height = 320;
+  const margin = {left: 52, right: 136, top: 26, bottom: 38};
   const plotW = width - margin.left - margin.right, plotH = height - margin.top - margin.bottom;
   const root = svg('svg', {class: 'panel', width, height, viewBox: `0 0 ${width} ${height}`,
                            'data-variant': panel.variant});
@@ -256,7 +264,7 @@ function curvePanel(panel) {
   }
   const legend = svg('g', {class: 'legend'});
   let row = 0;
-  const legendX = margin.left + plotW - 118, legendY = margin.top + 8;
+  const legendX = margin.left + plotW + 14, legendY = margin.top + 8;
   const entries = panel.methods.map(m => ({label: `${m.method} (n=${m.trials})`, colour: m.colour, dash: null}));
   if (panel.threshold !== null) {
     const yT = y(panel.threshold);
@@ -340,7 +348,7 @@ async function renderSweep(view, name) {
   view.replaceChildren(
       el('h2', {text: s.name}),
       el('p', {class: 'muted', text: s.description}),
-      el('p', {id: 'sweep-progress'}, stateSpan(s.state), ' ', progressBar(s), ' ', jobCounts(s), '. ',
+      el('p', {id: 'sweep-progress'}, stateSpan(sweepState(s)), ' ', progressBar(s), ' ', jobCounts(s), '. ',
          el('span', {class: 'eta', title: s.eta.basis, text: 'Time to finish: ' + etaText(s)}),
          el('span', {class: 'muted', text: s.eta.known || s.finished ? '' : ` (${s.eta.basis})`})),
       el('h3', {text: 'Success rate [95% Wilson interval] n=trials, median final cost (Table 1)'}),
