@@ -76,7 +76,7 @@ std::string WriteCurvesPlot(const CurvesPlotInput& input, const std::string& pat
 
   const int columns = Columns(variants.size());
   const int rows = static_cast<int>((variants.size() + columns - 1) / columns);
-  const int width = 620 * columns, height = 440 * rows + 40;
+  const int width = 760 * columns, height = 440 * rows + 40;
   const std::string script_path = output + ".gp";
   {
     std::ofstream script(script_path);
@@ -92,7 +92,9 @@ std::string WriteCurvesPlot(const CurvesPlotInput& input, const std::string& pat
            << "set style fill transparent solid 0.18 noborder\n"
            << "set grid\nset xlabel \"episode\"\nset ylabel \"evaluation cost\"\n"
            << (last_episode <= 20 ? "set xtics 1\n" : "")
-           << "set key top right opaque box font \",9\" samplen 2 spacing 0.9\n"
+           // Beside the plot, not in a corner of it: costs start high on the
+           // left and fall, so any inside corner hides some curve.
+           << "set key outside right top vertical box font \",9\" samplen 2 spacing 0.9\n"
            << "set multiplot layout " << rows << "," << columns << " title "
            << Quote("sweep " + input.sweep_name +
                     ": evaluation cost per episode, median and quartiles over trials "

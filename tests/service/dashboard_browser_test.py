@@ -282,6 +282,7 @@ def main():
 
         # Watch the page while the worker runs: (episodes stored, jobs text, curve points).
         observations = []
+        shot = False
         deadline = time.time() + 240
         while time.time() < deadline:
             try:
@@ -296,6 +297,15 @@ def main():
                 continue
             if not observations or observations[-1][:4] != (episodes, text, points, shape):
                 observations.append((episodes, text, points, shape))
+            # The picture for docs/: the page half-way, a trial running.
+            if args.screenshot and not shot and 30 <= episodes <= 50 and jobs_running(text) > 0:
+                height = driver.execute_script("return document.documentElement.scrollHeight")
+                driver.set_window_size(1500, min(int(height) + 40, 4000))
+                time.sleep(0.3)
+                driver.save_screenshot(args.screenshot)
+                driver.set_window_size(1500, 1200)
+                shot = True
+                print("screenshot (mid-run): " + args.screenshot)
             if "72/72 episodes" in text and jobs_running(text) == 0:
                 break
             time.sleep(0.4)
@@ -340,13 +350,6 @@ def main():
             driver.back()
             wait_for(lambda: find("#table1"), 15)
         tls_checks(args, work, driver, processes)
-        if args.screenshot:
-            time.sleep(3.5)
-            height = driver.execute_script("return document.documentElement.scrollHeight")
-            driver.set_window_size(1500, min(int(height) + 40, 4000))
-            time.sleep(0.5)
-            driver.save_screenshot(args.screenshot)
-            print("screenshot: " + args.screenshot)
     finally:
         if driver is not None:
             driver.quit()
