@@ -66,11 +66,12 @@ int main(int argc, char** argv) {
                  "host:port of the HTTP port: GET /healthz for probes (no token) and the "
                  "read-only dashboard at / (HTTPS + user token when TLS is configured; "
                  "plaintext: dashboard on loopback only)");
-  app.add_flag("--no-dashboard{false}", options.serve_dashboard,
-               "serve only /healthz on the HTTP port");
+  bool no_dashboard = false;
+  app.add_flag("--no-dashboard", no_dashboard, "serve only /healthz on the HTTP port");
   app.add_option("--port-file", port_file, "write the bound port to this file once serving");
   app.set_version_flag("--version", totalgrad::BuildId());
   CLI11_PARSE(app, argc, argv);
+  options.serve_dashboard = !no_dashboard;
   spdlog::flush_on(spdlog::level::info);
 
   if (!backup_path.empty()) {

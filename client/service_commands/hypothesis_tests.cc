@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numbers>
 #include <numeric>
 
 namespace totalgrad::cli {
@@ -119,7 +120,7 @@ double NormalQuantile(double p) {
   }
   double z = 0.5 * (low + high);
   for (int i = 0; i < 3; ++i) {
-    const double density = std::exp(-0.5 * z * z) / std::sqrt(2 * M_PI);
+    const double density = std::exp(-0.5 * z * z) / std::sqrt(2 * std::numbers::pi);
     if (density <= 0) break;
     z -= (NormalCdf(z) - p) / density;
   }

@@ -92,10 +92,9 @@ struct WilcoxonResult {
 // Exact null distribution (all 2^n sign assignments equally likely, ranks
 // as observed, midranks for ties: the exact conditional test) for n <=
 // kWilcoxonExactMaxN, else the normal approximation with the tie-corrected
-// variance and no continuity correction (SciPy's wilcoxon(mode="approx")).
-// With no ties the exact p equals SciPy's wilcoxon(mode="exact"). NaN
-// differences must be removed by the caller (CHECK-style: they are ignored
-// and counted nowhere).
+// variance and no continuity correction (SciPy's wilcoxon(method="approx")).
+// With no ties the exact p equals SciPy's wilcoxon(method="exact"). NaN
+// differences are ignored (counted neither in n nor in zeros).
 inline constexpr int kWilcoxonExactMaxN = 50;
 WilcoxonResult WilcoxonSignedRank(const std::vector<double>& differences);
 

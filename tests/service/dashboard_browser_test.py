@@ -119,6 +119,36 @@ def start_browser(profile_dir):
     return driver, None
 
 
+def cli_checks(args, work, connection, base):
+    """`results compare` and `results curves --plot` on the same live sweep:
+    the CLI's numbers are the dashboard's, and the plot has its panels."""
+    compared = subprocess.run([args.cli, "results", "compare", "browser", "--baseline", "TP", "-f", "json"]
+                              + connection, capture_output=True, text=True)
+    if not check(compared.returncode == 0, "results compare --baseline TP -f json: " + compared.stderr.strip()):
+        return
+    rows = json.loads(compared.stdout)
+    status, body = http_get(base + "/api/compare?name=browser&baseline=TP", USER_TOKEN)
+    api = json.loads(body)["comparisons"] if status == 200 else []
+    check(len(rows) == 2 and len(api) == 2, f"two comparisons from the CLI and the API ({len(rows)}, {len(api)})")
+    same = all(r["variant"] == a["variant"] and r["method"] == "RP" and r["vs"] == "TP"
+               and all(abs(r[k] - a[k]) < 1e-12 for k in ("mcnemar_p", "wilcoxon_p", "fisher_p",
+                                                          "cost_shift_hl", "wilcoxon_power"))
+               for r, a in zip(rows, api))
+    check(same, "the CLI's and the dashboard's comparison numbers agree")
+    table = subprocess.run([args.cli, "results", "compare", "browser", "--baseline", "PILCO"] + connection,
+                           capture_output=True, text=True)
+    check(table.returncode == 2 and "'PILCO'" in table.stderr and "RP, TP" in table.stderr,
+          "an unknown baseline is refused naming the methods: " + table.stderr.strip())
+    plot = os.path.join(work, "plot", "curves.svg")
+    os.makedirs(os.path.dirname(plot))
+    drawn = subprocess.run([args.cli, "results", "curves", "browser", "--plot", plot] + connection,
+                           capture_output=True, text=True)
+    if check(drawn.returncode == 0 and os.path.exists(plot), "results curves --plot draws " + plot):
+        script = open(plot + ".gp").read()
+        check(script.count("set title ") == 2 and script.count('"success threshold 15"') == 2,
+              "the plot has a panel per variant, each with the threshold line")
+
+
 def tls_checks(args, work, driver, processes):
     """A coordinator with TLS and tokens serves the HTTP port over HTTPS with
     the same certificate and asks for the user token; a plaintext one off
@@ -349,6 +379,7 @@ def main():
                 check(find("#attempts") and find("#events"), "and its attempts and events (logs)")
             driver.back()
             wait_for(lambda: find("#table1"), 15)
+        cli_checks(args, work, connection, base)
         tls_checks(args, work, driver, processes)
     finally:
         if driver is not None:
