@@ -19,6 +19,9 @@ PACKAGES=(
   systemd python3 python3-yaml yamllint shellcheck
   # bench/torch_rp_iteration.py, the PyTorch peer of bench iteration (tests/client_core)
   python3-torch
+  # tests only: the comparison statistics against SciPy (tests/service/stats_scipy_test.py)
+  # and the dashboard in a real headless browser (tests/service/dashboard_browser_test.py)
+  python3-scipy chromium chromium-driver python3-selenium
 )
 
 missing=()

@@ -5,7 +5,7 @@
 //       --worker-token-file worker.token --user-token-file user.token
 //   totalgrad-coordinator --db results.db --listen 127.0.0.1:7070 --insecure
 //   totalgrad-coordinator --db results.db --backup copy.db     # consistent copy, then exit
-//   ... --health-listen 0.0.0.0:8080   # plain HTTP GET /healthz for Kubernetes probes
+//   ... --http-listen 0.0.0.0:8080   # GET /healthz for probes, the dashboard at /
 //
 // SIGINT/SIGTERM stop it gracefully (in-flight calls finish, WAL checkpointed).
 #include <spdlog/spdlog.h>
@@ -62,11 +62,16 @@ int main(int argc, char** argv) {
                  "write a consistent copy of --db to this path and exit");
   app.add_option("--max-message-bytes", options.max_message_bytes, "largest gRPC message")
       ->capture_default_str();
-  app.add_option("--health-listen", options.health_listen,
-                 "host:port for plain HTTP GET /healthz (no TLS, no token; liveness only)");
+  app.add_option("--http-listen,--health-listen", options.health_listen,
+                 "host:port of the HTTP port: GET /healthz for probes (no token) and the "
+                 "read-only dashboard at / (HTTPS + user token when TLS is configured; "
+                 "plaintext: dashboard on loopback only)");
+  bool no_dashboard = false;
+  app.add_flag("--no-dashboard", no_dashboard, "serve only /healthz on the HTTP port");
   app.add_option("--port-file", port_file, "write the bound port to this file once serving");
   app.set_version_flag("--version", totalgrad::BuildId());
   CLI11_PARSE(app, argc, argv);
+  options.serve_dashboard = !no_dashboard;
   spdlog::flush_on(spdlog::level::info);
 
   if (!backup_path.empty()) {

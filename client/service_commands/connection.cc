@@ -18,6 +18,7 @@
 #include "absl/strings/str_cat.h"
 #include "server/common/token_file.h"
 #include "absl/time/time.h"
+#include "client/service_commands/curves_plot.h"
 #include "client/service_commands/local_store.h"
 #include "client/service_commands/stats.h"
 
@@ -332,76 +333,6 @@ int PrintResultsTable(Connection* connection, const std::string& sweep_name, For
   return 0;
 }
 
-namespace {
-
-// Writes the curves as a gnuplot picture; returns "" or what went wrong.
-std::string Plot(const std::vector<CurvePoint>& curves, const std::string& sweep_name,
-                 const std::string& path) {
-  const std::string extension = std::filesystem::path(path).extension().string();
-  std::string terminal;
-  if (extension == ".svg") terminal = "svg size 900,560 dynamic";
-  else if (extension == ".png") terminal = "pngcairo size 900,560";
-  else return "--plot: the file must end in .svg or .png";
-  std::vector<std::string> series;
-  std::map<std::string, std::vector<const CurvePoint*>> points;
-  for (const CurvePoint& p : curves) {
-    const std::string name = p.variant.empty() ? p.method : p.method + " (" + p.variant + ")";
-    if (!points.count(name)) series.push_back(name);
-    points[name].push_back(&p);
-  }
-  const std::string data_path = path + ".dat";
-  {
-    std::ofstream data(data_path);
-    if (!data) return "cannot write " + data_path;
-    for (const std::string& name : series) {
-      data << "# " << name << "\n";
-      for (const CurvePoint* p : points[name]) {
-        data << p->episode << " " << p->q25 << " " << p->median << " " << p->q75 << "\n";
-      }
-      data << "\n\n";
-    }
-  }
-  const std::string script_path = path + ".gp";
-  {
-    std::ofstream script(script_path);
-    if (!script) return "cannot write " + script_path;
-    auto quote = [](std::string text) {
-      std::string out;
-      for (char c : text) {
-        if (c == '"' || c == '\\') out += '\\';
-        out += c;
-      }
-      return "\"" + out + "\"";
-    };
-    script << "set terminal " << terminal << "\n"
-           << "set output " << quote(path) << "\n"
-           << "set title " << quote("Evaluation cost per episode, sweep " + sweep_name +
-                                    " (median and quartiles over trials)") << "\n"
-           << "set termoption noenhanced\n"  // option names hold underscores
-           << "set xtics 1\nset xlabel \"episode\"\nset ylabel \"evaluation cost\"\n"
-           << "set key outside right\nset grid\nset style fill transparent solid 0.2 noborder\n"
-           << "plot ";
-    for (size_t i = 0; i < series.size(); ++i) {
-      script << (i ? ", \\\n     " : "") << quote(data_path) << " index " << i
-             << " using 1:2:4 with filledcurves lc " << i + 1 << " notitle, " << quote(data_path)
-             << " index " << i << " using 1:3 with linespoints lc " << i + 1 << " lw 2 title "
-             << quote(series[i]);
-    }
-    script << "\n";
-  }
-  const std::string command = "gnuplot " + script_path + " 2>&1";
-  FILE* pipe = popen(command.c_str(), "r");
-  if (pipe == nullptr) return "cannot run gnuplot (install gnuplot-nox)";
-  std::string output;
-  char buffer[256];
-  while (fgets(buffer, sizeof(buffer), pipe) != nullptr) output += buffer;
-  const int rc = pclose(pipe);
-  if (rc != 0) return "gnuplot failed (is gnuplot-nox installed?): " + output;
-  return "";
-}
-
-}  // namespace
-
 int PrintCurves(Connection* connection, const std::string& sweep_name, Format format,
                 const std::string& plot_path, bool print_table) {
   v1::ExportEpisodesRequest request;
@@ -443,7 +374,9 @@ int PrintCurves(Connection* connection, const std::string& sweep_name, Format fo
                 << ": no completed trial has evaluation costs yet; nothing to plot\n";
       return 1;
     }
-    const std::string problem = Plot(curves, sweep_name, plot_path);
+    CurvesPlotInput plot{sweep_name, curves, {}};
+    std::string problem = FetchCurvePanels(connection, sweep_name, &plot.panels);
+    if (problem.empty()) problem = WriteCurvesPlot(plot, plot_path);
     if (!problem.empty()) {
       std::cerr << "error: results curves --plot: " << problem << "\n";
       return 1;

@@ -20,6 +20,7 @@ namespace totalgrad::cli {
 void AddRunCommand(CLI::App* app, int* exit_code);  // run_command.cc
 int WriteJobArtifacts(Connection* connection, int64_t job_id,
                       const std::string& dir);  // artifacts.cc
+void AddCompareCommand(CLI::App* results, int* exit_code);  // compare.cc
 
 namespace {
 
@@ -345,6 +346,7 @@ void AddResultsCommands(CLI::App* app, int* exit_code) {
   curves->add_option("--plot", *plot, "also draw the curves into FILE.svg or FILE.png (gnuplot)");
 
   AddArchiveCommands(results, exit_code);  // export, import (archive_commands.cc)
+  AddCompareCommand(results, exit_code);
 
   auto study_sweep = std::make_shared<std::string>();
   auto study_references = std::make_shared<bool>(false);

@@ -45,12 +45,20 @@ absl::Status TokenAuthenticator::Check(const grpc::ServerContext& context, Role 
     return absl::UnauthenticatedError(
         "missing 'authorization: Bearer <token>' metadata; pass --token-file");
   }
-  std::string value(found->second.data(), found->second.size());
+  const std::string value(found->second.data(), found->second.size());
+  return CheckBearer(&value, role);
+}
+
+absl::Status TokenAuthenticator::CheckBearer(const std::string* authorization, Role role) const {
+  if (!enabled()) return absl::OkStatus();
+  if (authorization == nullptr) {
+    return absl::UnauthenticatedError("missing 'authorization: Bearer <token>'");
+  }
   constexpr absl::string_view kBearer = "Bearer ";
-  if (!absl::StartsWith(value, kBearer)) {
+  if (!absl::StartsWith(*authorization, kBearer)) {
     return absl::UnauthenticatedError("authorization metadata is not 'Bearer <token>'");
   }
-  const std::string token = value.substr(kBearer.size());
+  const std::string token = authorization->substr(kBearer.size());
   const bool is_worker = SameToken(token, worker_token_);
   const bool is_user = SameToken(token, user_token_);
   if (!is_worker && !is_user) return absl::UnauthenticatedError("unknown token");

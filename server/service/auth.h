@@ -33,6 +33,10 @@ class TokenAuthenticator {
 
   // OK, Unauthenticated or PermissionDenied as described above.
   absl::Status Check(const grpc::ServerContext& context, Role role) const;
+  // The same check of an authorization value ("Bearer <token>") that came
+  // by another way than gRPC metadata (the dashboard's HTTP requests);
+  // nullptr means the request carried none.
+  absl::Status CheckBearer(const std::string* authorization, Role role) const;
 
  private:
   TokenAuthenticator(std::string worker_token, std::string user_token)

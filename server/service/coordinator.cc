@@ -125,12 +125,46 @@ absl::StatusOr<std::unique_ptr<Coordinator>> Coordinator::Start(const Coordinato
                                                " (address in use, or not an address?)"));
   }
   if (!options.health_listen.empty()) {
-    absl::StatusOr<std::unique_ptr<HealthServer>> health =
-        HealthServer::Start(options.health_listen, [raw = c.get()] { return raw->CheckHealth(); });
+    HttpPortOptions http;
+    if (!options.insecure) {
+      http.tls_cert_file = options.tls_cert_file;
+      http.tls_key_file = options.tls_key_file;
+    }
+    // Plaintext leaves the machine only from a non-loopback address: the
+    // dashboard (sweep names, errors, hosts) is then not served at all.
+    const bool dashboard = options.serve_dashboard &&
+                           (!options.insecure || IsLoopbackAddress(options.health_listen));
+    if (dashboard) {
+      dashboard::DashboardOptions view;
+      view.build = BuildId();
+      view.database = options.database;
+      view.lease_timeout_ms = absl::ToInt64Milliseconds(options.scheduler.lease_timeout);
+      c->dashboard_ = std::make_unique<dashboard::Dashboard>(
+          c->store_.get(), view,
+          [auth = c->auth_.get()](const std::string* authorization) {
+            return auth->CheckBearer(authorization, Role::kUser);
+          },
+          [clock] { return clock->NowMs(); });
+      http.add_routes = [raw = c->dashboard_.get()](httplib::Server* server) {
+        raw->Register(server);
+      };
+    } else if (options.serve_dashboard) {
+      spdlog::warn("dashboard not served: the HTTP port {} is plaintext (--insecure) on an "
+                   "address that is not loopback; it serves /healthz alone. Use TLS, or a "
+                   "loopback address and an SSH tunnel",
+                   options.health_listen);
+    }
+    absl::StatusOr<std::unique_ptr<HealthServer>> health = HealthServer::Start(
+        options.health_listen, [raw = c.get()] { return raw->CheckHealth(); }, std::move(http));
     if (!health.ok()) return health.status();
     c->health_server_ = *std::move(health);
-    spdlog::info("health endpoint: http://{}/healthz (port {})", options.health_listen,
+    const char* scheme = c->health_server_->tls() ? "https" : "http";
+    spdlog::info("health endpoint: {}://{}/healthz (port {})", scheme, options.health_listen,
                  c->health_server_->port());
+    if (dashboard) {
+      spdlog::info("dashboard: {}://{}/ ({})", scheme, options.health_listen,
+                   c->auth_->enabled() ? "asks for the user token" : "no token configured");
+    }
   }
   c->control_service_->SetServing(true);
   c->serving_ = true;

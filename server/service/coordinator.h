@@ -22,6 +22,7 @@
 #include <thread>
 
 #include "absl/status/statusor.h"
+#include "server/dashboard/dashboard.h"
 #include "server/scheduler/clock.h"
 #include "server/scheduler/scheduler.h"
 #include "server/service/auth.h"
@@ -56,9 +57,17 @@ struct CoordinatorOptions {
   std::string backup_dir;
   // Largest request or response message, bytes.
   int max_message_bytes = 4 << 20;
-  // host:port of the plain HTTP liveness endpoint (GET /healthz, see
-  // health_server.h); empty: none. Port 0 picks a free port.
+  // host:port of the HTTP port (--http-listen, also --health-listen): GET
+  // /healthz for probes (health_server.h), never behind a token, and the
+  // read-only dashboard (server/dashboard/dashboard.h). Empty: no HTTP port.
+  // Port 0 picks a free port. With TLS configured the port is HTTPS with the
+  // same certificate and key, and the dashboard's API asks for the user
+  // token. Plaintext (--insecure) serves the dashboard only on a loopback
+  // address (its API then asks for the user token if tokens are set); on
+  // any other address the port serves /healthz alone.
   std::string health_listen;
+  // False: the HTTP port serves /healthz alone (--no-dashboard).
+  bool serve_dashboard = true;
 
   // InvalidArgument naming the flag at fault.
   absl::Status Validate() const;
@@ -79,6 +88,8 @@ class Coordinator {
   int port() const { return port_; }
   // The bound health port (0 without health_listen).
   int health_port() const { return health_server_ ? health_server_->port() : 0; }
+  // Whether the HTTP port serves the dashboard (see health_listen).
+  bool dashboard_served() const { return dashboard_ != nullptr; }
   // What GET /healthz reports: OK while serving, the store answers a trivial
   // query and can commit (SqliteStore::CheckWritable: the file was not
   // deleted or replaced, commits do not fail), else Unavailable with the
@@ -105,6 +116,8 @@ class Coordinator {
   std::unique_ptr<ControlServiceImpl> control_service_;
   std::unique_ptr<grpc::Server> server_;
   int port_ = 0;
+  // Declared before health_server_ so it outlives the server's last request.
+  std::unique_ptr<dashboard::Dashboard> dashboard_;
   std::unique_ptr<HealthServer> health_server_;
   std::atomic<bool> serving_{false};
 

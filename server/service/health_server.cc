@@ -6,10 +6,8 @@
 
 namespace totalgrad::service {
 
-HealthServer::HealthServer() : server_(std::make_unique<httplib::Server>()) {}
-
 absl::StatusOr<std::unique_ptr<HealthServer>> HealthServer::Start(
-    const std::string& listen, std::function<absl::Status()> check) {
+    const std::string& listen, std::function<absl::Status()> check, HttpPortOptions options) {
   const size_t colon = listen.rfind(':');
   if (colon == std::string::npos || colon + 1 == listen.size()) {
     return absl::InvalidArgumentError(
@@ -27,6 +25,22 @@ absl::StatusOr<std::unique_ptr<HealthServer>> HealthServer::Start(
   }
   if (host.empty()) host = "0.0.0.0";
   std::unique_ptr<HealthServer> health(new HealthServer());
+  if (options.tls_cert_file.empty() != options.tls_key_file.empty()) {
+    return absl::InvalidArgumentError("HTTPS needs both a certificate and a key file");
+  }
+  if (!options.tls_cert_file.empty()) {
+    auto tls_server = std::make_unique<httplib::SSLServer>(options.tls_cert_file.c_str(),
+                                                           options.tls_key_file.c_str());
+    if (!tls_server->is_valid()) {
+      return absl::FailedPreconditionError(
+          absl::StrCat("HTTP port: cannot load the TLS certificate ", options.tls_cert_file,
+                       " or key ", options.tls_key_file));
+    }
+    health->server_ = std::move(tls_server);
+    health->tls_ = true;
+  } else {
+    health->server_ = std::make_unique<httplib::Server>();
+  }
   httplib::Server& server = *health->server_;
   server.new_task_queue = [] { return new httplib::ThreadPool(kHealthThreads); };
   server.set_read_timeout(2, 0);
@@ -44,6 +58,7 @@ absl::StatusOr<std::unique_ptr<HealthServer>> HealthServer::Start(
       response.set_content(absl::StrCat(status.message(), "\n"), "text/plain; charset=utf-8");
     }
   });
+  if (options.add_routes) options.add_routes(&server);
   const int port = std::stoi(port_text);
   if (port == 0) {
     health->port_ = server.bind_to_any_port(host.c_str());

@@ -1,17 +1,22 @@
-// A plain HTTP/1.1 liveness endpoint for Kubernetes probes, on its own port,
-// served by cpp-httplib (Debian's libcpp-httplib-dev) on a small thread pool
-// of its own (no TLS, no token: it exposes nothing but "ok" or the reason
-// for not being ok).
+// The coordinator's HTTP port: a liveness endpoint for Kubernetes probes
+// and, when the coordinator adds them, the dashboard's routes
+// (server/dashboard/dashboard.h), served by cpp-httplib (Debian's
+// libcpp-httplib-dev, built with OpenSSL) on a small thread pool of its own.
 //
-//   GET /healthz  -> 200 "ok\n" when `check` returns OK, else 503 "<reason>\n"
+//   GET /healthz  -> 200 "ok\n" when `check` returns OK, else 503 "<reason>\n";
+//                    never asks for a token (it exposes nothing but "ok" or
+//                    the reason for not being ok)
+//   routes added by HttpPortOptions::add_routes
 //   other paths or methods -> 404; malformed requests -> 400 (the library's)
 //
-// Every connection is closed after one answer; a connection that sends no
-// complete request head is dropped after 2 s. Connections are served by
-// kHealthThreads threads, so a few idle or slow clients do not delay a probe
-// (the hand-written server this replaces served one connection at a time,
-// and five idle connections held a probe up for 10 s). Never touches the
-// gRPC server; Stop() stops the library's listener and joins its thread.
+// Plain HTTP, or HTTPS with the given certificate and key (then probes use
+// scheme HTTPS). Every connection is closed after one answer; a connection
+// that sends no complete request head is dropped after 2 s. Connections are
+// served by kHealthThreads threads, so a few idle or slow clients do not
+// delay a probe (the hand-written server this replaces served one
+// connection at a time, and five idle connections held a probe up for
+// 10 s). Never touches the gRPC server; Stop() stops the library's listener
+// and joins its thread.
 #ifndef TOTALGRAD_SERVER_SERVICE_HEALTH_SERVER_H_
 #define TOTALGRAD_SERVER_SERVICE_HEALTH_SERVER_H_
 
@@ -32,28 +37,40 @@ namespace totalgrad::service {
 // Threads answering health connections at once.
 inline constexpr int kHealthThreads = 8;
 
+struct HttpPortOptions {
+  // PEM files of the certificate chain and key: serve HTTPS (both or neither).
+  std::string tls_cert_file;
+  std::string tls_key_file;
+  // Called once before serving to add routes besides /healthz; null: none.
+  std::function<void(httplib::Server*)> add_routes;
+};
+
 class HealthServer {
  public:
   // Binds "host:port" ("[v6]:port" too; port 0: any free port) and starts
   // serving. `check` runs on the server's threads for each GET /healthz and
-  // must be thread-safe. InvalidArgument for a malformed address, Unavailable
-  // if it cannot be bound.
+  // must be thread-safe. InvalidArgument for a malformed address or only one
+  // of the TLS files, FailedPrecondition if the certificate or key cannot be
+  // loaded, Unavailable if the address cannot be bound.
   static absl::StatusOr<std::unique_ptr<HealthServer>> Start(const std::string& listen,
-                                                             std::function<absl::Status()> check);
+                                                             std::function<absl::Status()> check,
+                                                             HttpPortOptions options = {});
   ~HealthServer();  // Stop()
   HealthServer(const HealthServer&) = delete;
   HealthServer& operator=(const HealthServer&) = delete;
 
   int port() const { return port_; }
+  bool tls() const { return tls_; }
   // Stops accepting and joins the thread. Idempotent; from the controlling
   // thread only.
   void Stop();
 
  private:
-  HealthServer();
+  HealthServer() = default;
 
   std::unique_ptr<httplib::Server> server_;
   int port_ = 0;
+  bool tls_ = false;
   std::thread thread_;
 };
 

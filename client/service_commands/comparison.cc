@@ -1,0 +1,144 @@
+#include "client/service_commands/comparison.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+
+namespace totalgrad::cli {
+namespace {
+
+void AddOnce(std::vector<std::string>* list, const std::string& value) {
+  if (std::find(list->begin(), list->end(), value) == list->end()) list->push_back(value);
+}
+
+// The outcome of one trial, by seed, for one (method, variant).
+using BySeed = std::map<std::string, const ComparedTrial*>;
+
+Comparison Compare(const std::string& variant, const std::string& method,
+                   const std::string& other, const BySeed& first, const BySeed& second,
+                   double alpha) {
+  Comparison c;
+  c.variant = variant;
+  c.method = method;
+  c.other = other;
+  std::vector<double> cost_differences;
+  for (const auto& [seed, trial] : first) {
+    auto partner = second.find(seed);
+    if (partner == second.end()) continue;
+    ++c.pairs;
+    const bool a = trial->success, b = partner->second->success;
+    if (a && b) ++c.both_succeeded;
+    else if (a) ++c.method_only;
+    else if (b) ++c.other_only;
+    else ++c.neither;
+    const double difference = trial->final_cost - partner->second->final_cost;
+    if (!std::isnan(difference)) cost_differences.push_back(difference);
+  }
+  c.success_difference =
+      c.pairs == 0 ? std::nan("") : static_cast<double>(c.method_only - c.other_only) / c.pairs;
+  c.mcnemar_p = McNemarExactP(c.method_only, c.other_only);
+  c.mcnemar_power =
+      c.pairs == 0 ? std::nan("")
+                   : McNemarExactPower(c.pairs, static_cast<double>(c.method_only) / c.pairs,
+                                       static_cast<double>(c.other_only) / c.pairs, alpha);
+
+  c.cost_pairs = static_cast<int>(cost_differences.size());
+  c.wilcoxon = WilcoxonSignedRank(cost_differences);
+  c.wilcoxon_power = c.cost_pairs == 0 ? std::nan("")
+                                       : WilcoxonPowerNoether(
+                                             c.cost_pairs, WalshPositiveFraction(cost_differences),
+                                             alpha);
+
+  for (const auto& [seed, trial] : first) {
+    ++c.method_trials;
+    if (trial->success) ++c.method_successes;
+  }
+  for (const auto& [seed, trial] : second) {
+    ++c.other_trials;
+    if (trial->success) ++c.other_successes;
+  }
+  const double method_rate = static_cast<double>(c.method_successes) / c.method_trials;
+  const double other_rate = static_cast<double>(c.other_successes) / c.other_trials;
+  c.rate_difference = method_rate - other_rate;
+  const int a = c.method_successes, b = c.method_trials - c.method_successes;
+  const int cc = c.other_successes, d = c.other_trials - c.other_successes;
+  c.odds_ratio = OddsRatio(a, b, cc, d);
+  c.fisher_p = FisherExactP(a, b, cc, d);
+  c.fisher_power = FisherExactPower(c.method_trials, method_rate, c.other_trials, other_rate, alpha);
+  return c;
+}
+
+}  // namespace
+
+absl::StatusOr<ComparisonReport> CompareMethods(const std::vector<ComparedTrial>& trials,
+                                                const ComparisonOptions& options) {
+  if (!(options.alpha > 0 && options.alpha < 1)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("alpha must be in (0, 1), got ", options.alpha));
+  }
+  ComparisonReport report;
+  std::map<std::pair<std::string, std::string>, BySeed> groups;  // (variant, method) -> seeds
+  for (const ComparedTrial& trial : trials) {
+    AddOnce(&report.methods, trial.method);
+    AddOnce(&report.variants, trial.variant);
+    BySeed& seeds = groups[{trial.variant, trial.method}];
+    if (!seeds.emplace(trial.seed, &trial).second) ++report.duplicate_trials;
+  }
+  if (!options.baseline.empty() &&
+      std::find(report.methods.begin(), report.methods.end(), options.baseline) ==
+          report.methods.end()) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "--baseline: '", options.baseline, "' has no completed trial in this sweep (methods: ",
+        report.methods.empty() ? "none yet" : absl::StrJoin(report.methods, ", "), ")"));
+  }
+  for (const std::string& variant : report.variants) {
+    const size_t first_of_variant = report.comparisons.size();
+    auto group = [&](const std::string& method) -> const BySeed* {
+      auto it = groups.find({variant, method});
+      return it == groups.end() ? nullptr : &it->second;
+    };
+    if (!options.baseline.empty()) {
+      const BySeed* baseline = group(options.baseline);
+      if (baseline == nullptr) continue;
+      for (const std::string& method : report.methods) {
+        const BySeed* mine = group(method);
+        if (method == options.baseline || mine == nullptr) continue;
+        report.comparisons.push_back(
+            Compare(variant, method, options.baseline, *mine, *baseline, options.alpha));
+      }
+    } else {
+      for (size_t i = 0; i < report.methods.size(); ++i) {
+        for (size_t j = i + 1; j < report.methods.size(); ++j) {
+          const BySeed* first = group(report.methods[i]);
+          const BySeed* second = group(report.methods[j]);
+          if (first == nullptr || second == nullptr) continue;
+          report.comparisons.push_back(Compare(variant, report.methods[i], report.methods[j],
+                                               *first, *second, options.alpha));
+        }
+      }
+    }
+    // Holm over this variant's comparisons, one family per test.
+    std::vector<double> mcnemar, wilcoxon, fisher;
+    for (size_t k = first_of_variant; k < report.comparisons.size(); ++k) {
+      mcnemar.push_back(report.comparisons[k].mcnemar_p);
+      wilcoxon.push_back(report.comparisons[k].wilcoxon.p);
+      fisher.push_back(report.comparisons[k].fisher_p);
+    }
+    mcnemar = HolmAdjust(mcnemar);
+    wilcoxon = HolmAdjust(wilcoxon);
+    fisher = HolmAdjust(fisher);
+    for (size_t k = first_of_variant; k < report.comparisons.size(); ++k) {
+      Comparison& c = report.comparisons[k];
+      c.mcnemar_p_holm = mcnemar[k - first_of_variant];
+      c.wilcoxon_p_holm = wilcoxon[k - first_of_variant];
+      c.fisher_p_holm = fisher[k - first_of_variant];
+    }
+  }
+  return report;
+}
+
+}  // namespace totalgrad::cli

@@ -1,0 +1,94 @@
+// Method-against-method comparisons of a sweep's completed trials (`totalgrad
+// results compare` and the dashboard): in each task variant, trials of two
+// methods with the same seed form a pair (a sweep runs every method on the
+// same seeds), so success is compared with McNemar's exact test and final
+// costs with the Wilcoxon signed-rank test; Fisher's exact test on all
+// completed trials of each method is the unpaired check. Within a variant
+// the p-values of each test are Holm-corrected over that variant's
+// comparisons. Pure functions; see hypothesis_tests.h for the tests.
+#ifndef TOTALGRAD_CLIENT_SERVICE_COMMANDS_COMPARISON_H_
+#define TOTALGRAD_CLIENT_SERVICE_COMMANDS_COMPARISON_H_
+
+#include <string>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "client/service_commands/hypothesis_tests.h"
+
+namespace totalgrad::cli {
+
+// One completed trial (the job's counting attempt).
+struct ComparedTrial {
+  std::string method;
+  std::string seed;
+  std::string variant;
+  bool success = false;
+  double final_cost = 0;  // NaN: no cost (left out of the cost test)
+};
+
+struct ComparisonOptions {
+  // Compare every other method with this one; empty: every pair of methods.
+  std::string baseline;
+  double alpha = kDefaultAlpha;
+};
+
+// `method` against `other` in one variant. Differences and effects are
+// method minus other: a negative cost shift means `method` reached lower
+// final costs.
+struct Comparison {
+  std::string variant;
+  std::string method;
+  std::string other;
+
+  // Paired by seed.
+  int pairs = 0;          // seeds where both completed
+  int both_succeeded = 0;
+  int method_only = 0;    // discordant: only `method` succeeded
+  int other_only = 0;     // discordant: only `other` succeeded
+  int neither = 0;
+  double success_difference = 0;  // (method_only - other_only) / pairs: paired rate difference
+  double mcnemar_p = 1;
+  double mcnemar_p_holm = 1;
+  double mcnemar_power = 0;  // at the observed discordant rates and this number of pairs
+
+  int cost_pairs = 0;  // pairs where both final costs are numbers
+  WilcoxonResult wilcoxon;
+  double wilcoxon_p_holm = 1;
+  double wilcoxon_power = 0;  // Noether's approximation at the observed P(D + D' > 0)
+
+  // Unpaired: every completed trial of each method in the variant.
+  int method_trials = 0;
+  int method_successes = 0;
+  int other_trials = 0;
+  int other_successes = 0;
+  double rate_difference = 0;  // method rate - other rate
+  // OddsRatio of (method successes, failures; other successes, failures).
+  double odds_ratio = 0;
+  double fisher_p = 1;
+  double fisher_p_holm = 1;
+  double fisher_power = 0;  // at the observed rates and trial counts
+};
+
+struct ComparisonReport {
+  std::vector<std::string> methods;   // first-appearance order
+  std::vector<std::string> variants;  // first-appearance order
+  // Grouped by variant (in `variants` order), then methods in `methods`
+  // order: with a baseline every method after it in turn; without, every
+  // pair (i < j) as methods[i] against methods[j].
+  std::vector<Comparison> comparisons;
+  // Trials in a variant that had no partner of the same seed for at least
+  // one of their comparisons show up as pairs < trials; this counts seeds
+  // that appear more than once for the same method and variant (only the
+  // first is used; a sweep never makes two).
+  int duplicate_trials = 0;
+};
+
+// Compares the methods. InvalidArgument when the baseline is not among the
+// methods (naming those that are), or alpha is not in (0, 1). A variant with
+// a single method yields no comparison.
+absl::StatusOr<ComparisonReport> CompareMethods(const std::vector<ComparedTrial>& trials,
+                                                const ComparisonOptions& options);
+
+}  // namespace totalgrad::cli
+
+#endif  // TOTALGRAD_CLIENT_SERVICE_COMMANDS_COMPARISON_H_

@@ -1,0 +1,513 @@
+#include "server/dashboard/dashboard_data.h"
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "client/service_commands/comparison.h"
+#include "client/service_commands/plot_style.h"
+#include "client/service_commands/stats.h"
+
+namespace totalgrad::dashboard {
+namespace {
+
+using nlohmann::json;
+
+// NaN and infinities are not JSON numbers: null.
+json Number(double value) { return std::isfinite(value) ? json(value) : json(nullptr); }
+
+double Median(std::vector<double> values) { return cli::Quantile(std::move(values), 0.5); }
+
+json SweepJson(const storage::SweepRecord& s) {
+  return {{"name", s.name},
+          {"description", s.description},
+          {"state", std::string(storage::ToString(s.state))},
+          {"finished", s.finished()},
+          {"created_ms", s.created_ms},
+          {"spec_hash", s.spec_hash},
+          {"source_name", s.source_name},
+          {"jobs_total", s.jobs_total},
+          {"jobs_queued", s.jobs_queued},
+          {"jobs_running", s.jobs_running},
+          {"jobs_completed", s.jobs_completed},
+          {"jobs_failed", s.jobs_failed},
+          {"jobs_cancelled", s.jobs_cancelled},
+          {"episodes_stored", s.episodes_stored},
+          {"episodes_expected", s.episodes_expected}};
+}
+
+json EstimateJson(const FinishEstimate& e) {
+  return {{"known", e.known},
+          {"seconds", e.known ? json(e.seconds) : json(nullptr)},
+          {"remaining_work_s", Number(e.remaining_work_s)},
+          {"throughput", Number(e.throughput)},
+          {"basis", e.basis}};
+}
+
+json JobJson(const storage::JobRecord& j) {
+  const bool completed = j.state == storage::JobState::kCompleted;
+  return {{"id", j.id},
+          {"kind", std::string(storage::ToString(j.kind))},
+          {"method", j.method},
+          {"seed", j.seed},
+          {"variant", j.variant},
+          {"state", std::string(storage::ToString(j.state))},
+          {"attempts", j.attempts},
+          {"failures", j.failures},
+          {"lost_leases", j.lost_leases},
+          {"episodes_stored", j.episodes_stored},
+          {"episodes_expected", j.episodes_expected},
+          {"worker", j.worker_id},
+          {"success", completed ? json(j.success) : json(nullptr)},
+          {"final_cost", completed ? Number(j.final_eval_cost) : json(nullptr)},
+          {"last_error", j.last_error}};
+}
+
+json EpisodeJson(const storage::Episode& e) {
+  return {{"episode", e.episode},
+          {"real_cost", Number(e.real_cost)},
+          {"eval_cost_mean", Number(e.eval_cost_mean)},
+          {"eval_cost_std", Number(e.eval_cost_std)},
+          {"predicted_cost", Number(e.predicted_cost)},
+          {"optimisation_seconds", Number(e.optimisation_seconds)},
+          {"work_seconds", Number(EpisodeWorkSeconds(e.details_json, e.optimisation_seconds))}};
+}
+
+std::string FormatSeconds(double seconds) {
+  if (seconds < 120) return absl::StrFormat("%.0f s", seconds);
+  if (seconds < 7200) return absl::StrFormat("%.0f min", seconds / 60);
+  return absl::StrFormat("%.1f h", seconds / 3600);
+}
+
+// Stops an export once the rows of the wanted job are past (rows come
+// ordered by job): not an error.
+constexpr absl::string_view kPastTheJob = "past the job";
+
+}  // namespace
+
+double EpisodeWorkSeconds(const std::string& details_json, double fallback) {
+  const json details = json::parse(details_json, nullptr, /*allow_exceptions=*/false);
+  if (details.is_object()) {
+    auto timing = details.find("timing");
+    if (timing != details.end() && timing->is_object()) {
+      double wall = 0;
+      bool any = false;
+      for (auto it = timing->begin(); it != timing->end(); ++it) {
+        const std::string& key = it.key();
+        if (key.size() > 5 && key.compare(key.size() - 5, 5, "_wall") == 0 &&
+            it->is_number()) {
+          wall += it->get<double>();
+          any = true;
+        }
+      }
+      if (any) return wall;
+    }
+  }
+  return fallback;
+}
+
+FinishEstimate EstimateFinish(const std::vector<RemainingJob>& remaining,
+                              const std::vector<EpisodeWork>& episodes, int64_t now_ms,
+                              int64_t window_ms) {
+  FinishEstimate estimate;
+  int64_t missing_episodes = 0;
+  for (const RemainingJob& job : remaining) {
+    missing_episodes += std::max(0, job.episodes_expected - job.episodes_stored);
+  }
+  if (missing_episodes == 0) {
+    estimate.basis = "no episode left to run";
+    return estimate;
+  }
+  std::map<int, std::vector<double>> by_index;
+  int64_t first_ms = now_ms;
+  for (const EpisodeWork& e : episodes) {
+    if (!std::isfinite(e.work_seconds) || e.work_seconds < 0) continue;
+    by_index[e.episode].push_back(e.work_seconds);
+    first_ms = std::min(first_ms, e.reported_ms);
+  }
+  if (by_index.empty()) {
+    estimate.basis = "no episode finished yet";
+    return estimate;
+  }
+  std::map<int, double> typical;  // median work per episode index
+  for (auto& [index, values] : by_index) typical[index] = Median(values);
+  auto work_of = [&](int index) {
+    auto it = typical.upper_bound(index);  // first index > `index`
+    if (it == typical.begin()) return it->second;  // only later indices seen
+    return std::prev(it)->second;                  // this index, or the nearest lower one
+  };
+  for (const RemainingJob& job : remaining) {
+    for (int e = std::max(0, job.episodes_stored); e < job.episodes_expected; ++e) {
+      estimate.remaining_work_s += work_of(e);
+    }
+  }
+  const int64_t window_start = std::max(now_ms - window_ms, first_ms);
+  const double window_s = std::max(1.0, (now_ms - window_start) / 1000.0);
+  double done = 0;
+  for (const EpisodeWork& e : episodes) {
+    if (e.reported_ms >= window_start && std::isfinite(e.work_seconds) && e.work_seconds >= 0) {
+      done += e.work_seconds;
+    }
+  }
+  estimate.throughput = done / window_s;
+  if (done <= 0) {
+    estimate.basis = absl::StrCat("no episode stored in the last ", FormatSeconds(window_s),
+                                  " (no worker running it?)");
+    return estimate;
+  }
+  estimate.known = true;
+  estimate.seconds = estimate.remaining_work_s / estimate.throughput;
+  estimate.basis = absl::StrFormat(
+      "%s of trial work left (%d episodes, each at the median time of its index so far); "
+      "%.1f worker-seconds of work done per second over the last %s",
+      FormatSeconds(estimate.remaining_work_s), missing_episodes, estimate.throughput,
+      FormatSeconds(window_s));
+  return estimate;
+}
+
+absl::StatusOr<std::vector<storage::JobRecord>> DashboardData::AllJobs(
+    const std::string& sweep_name) {
+  std::vector<storage::JobRecord> all;
+  storage::JobFilter filter;
+  filter.sweep_name = sweep_name;
+  filter.limit = 1000;
+  while (true) {
+    absl::StatusOr<std::vector<storage::JobRecord>> page = store_->ListJobs(filter);
+    if (!page.ok()) return page.status();
+    const bool full = static_cast<int>(page->size()) == filter.limit;
+    for (auto& job : *page) all.push_back(std::move(job));
+    if (!full) break;
+    filter.after_job_id = all.back().id;
+  }
+  return all;
+}
+
+absl::StatusOr<FinishEstimate> DashboardData::Estimate(const storage::SweepRecord& sweep,
+                                                       int64_t now_ms) {
+  FinishEstimate none;
+  if (sweep.finished()) {
+    none.basis = "finished";
+    return none;
+  }
+  if (sweep.state == storage::SweepState::kPaused) {
+    none.basis = "paused: no new jobs are handed out";
+    return none;
+  }
+  if (sweep.state == storage::SweepState::kCancelled) {
+    none.basis = "cancelled";
+    return none;
+  }
+  const std::string key =
+      absl::StrCat(sweep.episodes_stored, "/", sweep.jobs_queued, "/", sweep.jobs_running, "/",
+                   sweep.jobs_completed, "/", sweep.jobs_failed, "/", sweep.jobs_cancelled);
+  {
+    std::lock_guard<std::mutex> lock(cache_mutex_);
+    auto it = eta_cache_.find(sweep.id);
+    if (it != eta_cache_.end() && it->second.key == key &&
+        now_ms - it->second.computed_ms < 60 * 1000) {
+      FinishEstimate cached = it->second.estimate;
+      if (cached.known) {
+        cached.seconds = std::max(0.0, cached.seconds - (now_ms - it->second.computed_ms) / 1e3);
+      }
+      return cached;
+    }
+  }
+  absl::StatusOr<std::vector<storage::JobRecord>> jobs = AllJobs(sweep.name);
+  if (!jobs.ok()) return jobs.status();
+  std::vector<RemainingJob> remaining;
+  for (const storage::JobRecord& job : *jobs) {
+    if (job.kind != storage::JobKind::kTrial) continue;
+    if (job.state == storage::JobState::kQueued || job.state == storage::JobState::kRunning) {
+      remaining.push_back({job.episodes_stored, job.episodes_expected});
+    }
+  }
+  std::vector<EpisodeWork> episodes;
+  const absl::Status exported = store_->ExportEpisodes(
+      sweep.name, /*all_attempts=*/false, /*batch_size=*/2000,
+      [&](std::vector<storage::EpisodeRowRecord> rows) {
+        for (const storage::EpisodeRowRecord& row : rows) {
+          episodes.push_back(
+              {row.episode.episode,
+               EpisodeWorkSeconds(row.episode.details_json, row.episode.optimisation_seconds),
+               row.reported_ms});
+        }
+        return absl::OkStatus();
+      });
+  if (!exported.ok()) return exported;
+  FinishEstimate estimate = EstimateFinish(remaining, episodes, now_ms, options_.eta_window_ms);
+  if (!remaining.empty() && remaining.size() < static_cast<size_t>(sweep.jobs_queued + sweep.jobs_running)) {
+    estimate.basis += "; study jobs not counted";
+  }
+  std::lock_guard<std::mutex> lock(cache_mutex_);
+  eta_cache_[sweep.id] = {key, now_ms, estimate};
+  return estimate;
+}
+
+absl::StatusOr<json> DashboardData::Overview(int64_t now_ms) {
+  absl::StatusOr<std::vector<storage::SweepRecord>> sweeps = store_->ListSweeps();
+  if (!sweeps.ok()) return sweeps.status();
+  json out = {{"build", options_.build},
+              {"database", options_.database},
+              {"now_ms", now_ms},
+              {"sweeps", json::array()},
+              {"workers", json::array()}};
+  for (const storage::SweepRecord& sweep : *sweeps) {
+    json entry = SweepJson(sweep);
+    absl::StatusOr<FinishEstimate> eta = Estimate(sweep, now_ms);
+    if (!eta.ok()) return eta.status();
+    entry["eta"] = EstimateJson(*eta);
+    out["sweeps"].push_back(std::move(entry));
+  }
+  absl::StatusOr<std::vector<storage::WorkerRecord>> workers = store_->ListWorkers();
+  if (!workers.ok()) return workers.status();
+  for (const storage::WorkerRecord& w : *workers) {
+    const bool gone = now_ms - w.last_seen_ms > options_.lease_timeout_ms;
+    out["workers"].push_back({{"id", w.identity.worker_id},
+                              {"host", w.identity.host},
+                              {"build", w.identity.build},
+                              {"slots", w.identity.slots},
+                              {"running", w.running},
+                              {"state", gone ? "gone" : w.draining ? "draining" : "active"},
+                              {"last_seen_ms", w.last_seen_ms}});
+  }
+  return out;
+}
+
+absl::StatusOr<json> DashboardData::Sweep(const std::string& name, int64_t now_ms) {
+  absl::StatusOr<storage::SweepRecord> sweep = store_->GetSweep(name);
+  if (!sweep.ok()) return sweep.status();
+  json out = {{"sweep", SweepJson(*sweep)}};
+  absl::StatusOr<FinishEstimate> eta = Estimate(*sweep, now_ms);
+  if (!eta.ok()) return eta.status();
+  out["sweep"]["eta"] = EstimateJson(*eta);
+
+  absl::StatusOr<std::vector<storage::TrialResultRecord>> results =
+      store_->ListTrialResults(name);
+  if (!results.ok()) return results.status();
+  std::vector<cli::TrialRow> rows;
+  for (const auto& r : *results) {
+    rows.push_back({r.method, r.variant, r.success, r.final_eval_cost});
+  }
+  json table = {{"methods", json::array()}, {"variants", json::array()}, {"cells", json::array()}};
+  for (const cli::TableCell& cell : cli::SuccessTable(rows)) {
+    if (std::find(table["methods"].begin(), table["methods"].end(), cell.method) ==
+        table["methods"].end()) {
+      table["methods"].push_back(cell.method);
+    }
+    if (std::find(table["variants"].begin(), table["variants"].end(), cell.variant) ==
+        table["variants"].end()) {
+      table["variants"].push_back(cell.variant);
+    }
+    table["cells"].push_back({{"method", cell.method},
+                              {"variant", cell.variant},
+                              {"trials", cell.trials},
+                              {"successes", cell.successes},
+                              {"rate", Number(cell.rate)},
+                              {"wilson_low", Number(cell.low)},
+                              {"wilson_high", Number(cell.high)},
+                              {"median_final_cost", Number(cell.median_final_cost)}});
+  }
+  out["table"] = std::move(table);
+  return out;
+}
+
+absl::StatusOr<json> DashboardData::Curves(const std::string& name, bool include_running) {
+  absl::StatusOr<std::vector<storage::JobRecord>> jobs = AllJobs(name);
+  if (!jobs.ok()) return jobs.status();
+  if (jobs->empty()) {
+    absl::StatusOr<storage::SweepRecord> sweep = store_->GetSweep(name);  // NotFound?
+    if (!sweep.ok()) return sweep.status();
+  }
+  std::map<int64_t, storage::JobState> state_of;
+  std::vector<cli::CurvePanel> panels;
+  std::set<std::string> described;
+  for (const storage::JobRecord& job : *jobs) {
+    if (job.kind != storage::JobKind::kTrial) continue;
+    state_of[job.id] = job.state;
+    if (described.insert(job.variant).second) {
+      panels.push_back(cli::DescribePanel(job.variant, job.options));
+    }
+  }
+  std::vector<cli::EpisodeValue> values;
+  std::set<int64_t> trials_in_curves;
+  const absl::Status exported = store_->ExportEpisodes(
+      name, /*all_attempts=*/false, /*batch_size=*/2000,
+      [&](std::vector<storage::EpisodeRowRecord> rows) {
+        for (const storage::EpisodeRowRecord& row : rows) {
+          auto state = state_of.find(row.job_id);
+          if (state == state_of.end()) continue;
+          const bool completed = state->second == storage::JobState::kCompleted;
+          const bool unfinished = state->second == storage::JobState::kRunning ||
+                                  state->second == storage::JobState::kQueued;
+          if (!completed && !(include_running && unfinished)) continue;
+          trials_in_curves.insert(row.job_id);
+          values.push_back({row.method, row.variant, row.episode.episode,
+                            row.episode.eval_cost_mean});
+        }
+        return absl::OkStatus();
+      });
+  if (!exported.ok()) return exported;
+
+  json out = {{"include_running", include_running},
+              {"trials", trials_in_curves.size()},
+              {"panels", json::array()}};
+  std::map<std::string, json> by_variant;
+  for (const cli::CurvePanel& panel : panels) {
+    by_variant[panel.variant] = {{"variant", panel.variant},
+                                 {"title", panel.title},
+                                 {"threshold", Number(panel.threshold)},
+                                 {"methods", json::array()}};
+  }
+  std::map<std::pair<std::string, std::string>, size_t> method_slot;
+  for (const cli::CurvePoint& p : cli::Curves(values)) {
+    json& panel = by_variant[p.variant];
+    if (panel.is_null()) {
+      const cli::CurvePanel described_panel = cli::DescribePanel(p.variant, {});
+      panel = {{"variant", p.variant}, {"title", described_panel.title},
+               {"threshold", nullptr}, {"methods", json::array()}};
+    }
+    auto [slot, inserted] = method_slot.emplace(std::pair{p.variant, p.method},
+                                                panel["methods"].size());
+    if (inserted) {
+      panel["methods"].push_back({{"method", p.method},
+                                  {"colour", cli::MethodColour(p.method)},
+                                  {"trials", 0},
+                                  {"points", json::array()}});
+    }
+    json& method = panel["methods"][slot->second];
+    method["trials"] = std::max(method["trials"].get<int>(), p.trials);
+    method["points"].push_back({{"episode", p.episode},
+                                {"n", p.trials},
+                                {"q25", Number(p.q25)},
+                                {"median", Number(p.median)},
+                                {"q75", Number(p.q75)}});
+  }
+  for (const cli::CurvePanel& panel : panels) out["panels"].push_back(by_variant[panel.variant]);
+  for (auto& [variant, panel] : by_variant) {
+    if (!described.count(variant)) out["panels"].push_back(panel);
+  }
+  return out;
+}
+
+absl::StatusOr<json> DashboardData::Compare(const std::string& name, const std::string& baseline) {
+  absl::StatusOr<std::vector<storage::TrialResultRecord>> results =
+      store_->ListTrialResults(name);
+  if (!results.ok()) return results.status();
+  std::vector<cli::ComparedTrial> trials;
+  for (const auto& r : *results) {
+    trials.push_back({r.method, r.seed, r.variant, r.success, r.final_eval_cost});
+  }
+  cli::ComparisonOptions options;
+  options.baseline = baseline;
+  absl::StatusOr<cli::ComparisonReport> report = cli::CompareMethods(trials, options);
+  if (!report.ok()) return report.status();
+  json out = {{"alpha", options.alpha},
+              {"baseline", baseline},
+              {"methods", report->methods},
+              {"variants", report->variants},
+              {"comparisons", json::array()}};
+  for (const cli::Comparison& c : report->comparisons) {
+    out["comparisons"].push_back(
+        {{"variant", c.variant},
+         {"method", c.method},
+         {"vs", c.other},
+         {"pairs", c.pairs},
+         {"both_succeeded", c.both_succeeded},
+         {"method_only", c.method_only},
+         {"vs_only", c.other_only},
+         {"neither", c.neither},
+         {"success_difference", Number(c.success_difference)},
+         {"mcnemar_p", Number(c.mcnemar_p)},
+         {"mcnemar_p_holm", Number(c.mcnemar_p_holm)},
+         {"mcnemar_power", Number(c.mcnemar_power)},
+         {"cost_pairs", c.cost_pairs},
+         {"cost_shift_hl", Number(c.wilcoxon.hodges_lehmann)},
+         {"rank_biserial", Number(c.wilcoxon.rank_biserial)},
+         {"wilcoxon_w_plus", Number(c.wilcoxon.w_plus)},
+         {"wilcoxon_exact", c.wilcoxon.exact},
+         {"wilcoxon_p", Number(c.wilcoxon.p)},
+         {"wilcoxon_p_holm", Number(c.wilcoxon_p_holm)},
+         {"wilcoxon_power", Number(c.wilcoxon_power)},
+         {"method_trials", c.method_trials},
+         {"method_successes", c.method_successes},
+         {"vs_trials", c.other_trials},
+         {"vs_successes", c.other_successes},
+         {"rate_difference", Number(c.rate_difference)},
+         {"odds_ratio", std::isinf(c.odds_ratio) ? json("inf") : Number(c.odds_ratio)},
+         {"fisher_p", Number(c.fisher_p)},
+         {"fisher_p_holm", Number(c.fisher_p_holm)},
+         {"fisher_power", Number(c.fisher_power)}});
+  }
+  return out;
+}
+
+absl::StatusOr<json> DashboardData::Jobs(const std::string& name, int64_t after, int limit) {
+  if (limit < 1 || limit > 10000) {
+    return absl::InvalidArgumentError("limit must be in 1..10000");
+  }
+  absl::StatusOr<storage::SweepRecord> sweep = store_->GetSweep(name);
+  if (!sweep.ok()) return sweep.status();
+  storage::JobFilter filter;
+  filter.sweep_name = name;
+  filter.after_job_id = after;
+  filter.limit = limit;
+  absl::StatusOr<std::vector<storage::JobRecord>> jobs = store_->ListJobs(filter);
+  if (!jobs.ok()) return jobs.status();
+  json out = {{"jobs", json::array()}, {"next_after", nullptr}};
+  for (const storage::JobRecord& job : *jobs) out["jobs"].push_back(JobJson(job));
+  if (static_cast<int>(jobs->size()) == limit) out["next_after"] = jobs->back().id;
+  return out;
+}
+
+absl::StatusOr<json> DashboardData::Job(int64_t job_id) {
+  absl::StatusOr<storage::JobRecord> job = store_->GetJob(job_id);
+  if (!job.ok()) return job.status();
+  absl::StatusOr<std::vector<storage::AttemptRecord>> attempts = store_->ListAttempts(job_id);
+  if (!attempts.ok()) return attempts.status();
+  absl::StatusOr<std::vector<storage::EventRecord>> events = store_->ListEvents(job_id);
+  if (!events.ok()) return events.status();
+  json out = {{"job", JobJson(*job)},
+              {"sweep", job->sweep_name},
+              {"options", json::array()},
+              {"attempts", json::array()},
+              {"events", json::array()},
+              {"episodes", json::array()}};
+  for (const auto& [key, value] : job->options) out["options"].push_back({key, value});
+  for (const storage::AttemptRecord& a : *attempts) {
+    out["attempts"].push_back({{"attempt", a.key.attempt},
+                               {"state", std::string(storage::ToString(a.state))},
+                               {"worker", a.worker_id},
+                               {"host", a.worker_host},
+                               {"build", a.worker_build},
+                               {"started_ms", a.started_ms},
+                               {"ended_ms", a.ended_ms},
+                               {"episodes_stored", a.episodes_stored},
+                               {"error", a.error}});
+  }
+  for (const storage::EventRecord& e : *events) {
+    out["events"].push_back(
+        {{"ms", e.ms}, {"attempt", e.attempt}, {"kind", e.kind}, {"message", e.message}});
+  }
+  // Every attempt's episodes of this job; rows are ordered by job, so the
+  // export stops once it is past this one.
+  const absl::Status exported = store_->ExportEpisodes(
+      job->sweep_name, /*all_attempts=*/true, /*batch_size=*/500,
+      [&](std::vector<storage::EpisodeRowRecord> rows) -> absl::Status {
+        for (const storage::EpisodeRowRecord& row : rows) {
+          if (row.job_id < job_id) continue;
+          if (row.job_id > job_id) return absl::CancelledError(kPastTheJob);
+          json episode = EpisodeJson(row.episode);
+          episode["attempt"] = row.attempt;
+          episode["final_attempt"] = row.final_attempt;
+          episode["reported_ms"] = row.reported_ms;
+          out["episodes"].push_back(std::move(episode));
+        }
+        return absl::OkStatus();
+      });
+  if (!exported.ok() && exported.message() != kPastTheJob) return exported;
+  return out;
+}
+
+}  // namespace totalgrad::dashboard

@@ -1,0 +1,116 @@
+// What the dashboard shows, as JSON documents built from the store's read
+// interface (server/storage/store.h, the same calls the gRPC handlers make)
+// and the CLI's results statistics (client/service_commands: Wilson
+// intervals, quartile curves, comparisons). Nothing here writes.
+//
+// Every function returns the document or the store's error (NotFound for an
+// unknown sweep or job, InvalidArgument for a bad parameter, Unavailable
+// and others from SQLite). Thread-safe as the store is; the ETA cache is
+// guarded by its own mutex.
+#ifndef TOTALGRAD_SERVER_DASHBOARD_DASHBOARD_DATA_H_
+#define TOTALGRAD_SERVER_DASHBOARD_DASHBOARD_DATA_H_
+
+#include <cstdint>
+#include <map>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "server/storage/store.h"
+
+namespace totalgrad::dashboard {
+
+// ---- Estimated time to finish (pure, unit-tested) ----
+
+// A job that is not finished: episodes its counting attempt has and needs.
+struct RemainingJob {
+  int episodes_stored = 0;
+  int episodes_expected = 0;
+};
+
+// A stored episode: its index, the wall seconds the worker spent on it
+// (`work_seconds`, from the episode's timing) and when it was stored.
+struct EpisodeWork {
+  int episode = 0;
+  double work_seconds = 0;
+  int64_t reported_ms = 0;
+};
+
+struct FinishEstimate {
+  bool known = false;
+  double seconds = 0;            // to finish, if known
+  double remaining_work_s = 0;   // worker-seconds of trial work left
+  double throughput = 0;         // worker-seconds of work done per second, recently
+  std::string basis;             // how it was estimated, or why it is unknown
+};
+
+// The work left is the sum over unfinished jobs and their missing episodes
+// of the median work of stored episodes with that index (episodes grow
+// slower as the data grow, so index matters; an index not seen yet takes
+// the nearest lower one seen: an underestimate while only early episodes
+// are in). The rate is the work stored in the last `window_ms` (or since
+// the first episode, if later) per second of that window. Unknown when
+// nothing is left, no episode is stored yet, or none in the window.
+FinishEstimate EstimateFinish(const std::vector<RemainingJob>& remaining,
+                              const std::vector<EpisodeWork>& episodes, int64_t now_ms,
+                              int64_t window_ms);
+
+// Wall seconds of an episode from its details_json ("timing": the sum of
+// the *_wall phases), else `fallback` (the optimisation seconds).
+double EpisodeWorkSeconds(const std::string& details_json, double fallback);
+
+// ---- The documents ----
+
+struct DashboardOptions {
+  std::string build;     // the coordinator's BuildId()
+  std::string database;  // the SQLite file's path
+  int64_t lease_timeout_ms = 90000;  // workers unseen for longer are shown as gone
+  int64_t eta_window_ms = 10 * 60 * 1000;
+};
+
+class DashboardData {
+ public:
+  // `store` is not owned and must outlive this object.
+  DashboardData(storage::Store* store, DashboardOptions options)
+      : store_(store), options_(std::move(options)) {}
+
+  // Sweeps (newest first) with progress and an estimated time to finish,
+  // the workers, the coordinator's build and database.
+  absl::StatusOr<nlohmann::json> Overview(int64_t now_ms);
+  // One sweep: its progress, the Table 1 cells (success rate, 95% Wilson
+  // interval, n, median final cost) and the panels (one per task variant).
+  absl::StatusOr<nlohmann::json> Sweep(const std::string& name, int64_t now_ms);
+  // Median and quartiles of the evaluation cost per method, variant and
+  // episode, over completed trials and, with `include_running`, the
+  // episodes running (and queued, partly done) trials have stored so far.
+  absl::StatusOr<nlohmann::json> Curves(const std::string& name, bool include_running);
+  // Methods compared per variant (comparison.h); `baseline` may be empty.
+  absl::StatusOr<nlohmann::json> Compare(const std::string& name, const std::string& baseline);
+  // The sweep's jobs (at most `limit`, from job id `after`).
+  absl::StatusOr<nlohmann::json> Jobs(const std::string& name, int64_t after, int limit);
+  // One job: its options, attempts, events and every attempt's episodes.
+  absl::StatusOr<nlohmann::json> Job(int64_t job_id);
+
+ private:
+  absl::StatusOr<FinishEstimate> Estimate(const storage::SweepRecord& sweep, int64_t now_ms);
+  absl::StatusOr<std::vector<storage::JobRecord>> AllJobs(const std::string& sweep_name);
+
+  storage::Store* const store_;
+  const DashboardOptions options_;
+
+  // ETAs are recomputed only when a sweep's stored episodes or job counts
+  // change (or a minute has passed), not on every poll of every browser.
+  struct CachedEstimate {
+    std::string key;
+    int64_t computed_ms = 0;
+    FinishEstimate estimate;
+  };
+  std::mutex cache_mutex_;
+  std::map<int64_t, CachedEstimate> eta_cache_;  // by sweep id; guarded by cache_mutex_
+};
+
+}  // namespace totalgrad::dashboard
+
+#endif  // TOTALGRAD_SERVER_DASHBOARD_DASHBOARD_DATA_H_
