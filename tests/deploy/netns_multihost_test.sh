@@ -230,8 +230,8 @@ log "w1's late report refused $(( ($(date +%s%N) - restored_at) / 1000000 )) ms 
 wait_for 120 "both jobs to complete" job_query \
   "len(jobs) == 2 and all(j['state'] == 'completed' for j in jobs)"
 log "sweep finished"
-cli results export netns -f json >"$work/rows.jsonl"
-cli results export netns -f json --all-attempts >"$work/all-rows.jsonl"
+cli results export netns -f jsonl >"$work/rows.jsonl"
+cli results export netns -f jsonl --all-attempts >"$work/all-rows.jsonl"
 cli job list --sweep netns >"$work/jobs.txt"
 cat "$work/jobs.txt"
 
