@@ -11,6 +11,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "client/service_commands/comparison.h"
 #include "client/service_commands/format.h"
 #include "server/common/rpc_client.h"
 #include "totalgrad/v1/control_service.grpc.pb.h"
@@ -110,6 +111,9 @@ int PrintResultsTable(Connection* connection, const std::string& sweep_name, For
 // reference gradients, with every stored column.
 int PrintStudyResults(Connection* connection, const std::string& sweep_name, Format format,
                       bool references, bool all_attempts, std::ostream& out);
+// The paired comparisons of the sweep's methods (compare.cc; `results compare`).
+int PrintComparison(Connection* connection, const std::string& sweep_name,
+                    const ComparisonOptions& options, Format format);
 // Per-method curves; optionally a gnuplot picture at `plot_path` (.svg/.png).
 int PrintCurves(Connection* connection, const std::string& sweep_name, Format format,
                 const std::string& plot_path, bool print_table);

@@ -6,7 +6,10 @@
 // Everything goes through the same binaries and RPCs as a multi-machine
 // deployment, so `run` exercises the real service. The database stays, so
 // running the same file again is a no-op that prints the stored results.
+#include <arpa/inet.h>
 #include <fcntl.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
 #include <signal.h>
 #include <sys/prctl.h>
 #include <sys/stat.h>
@@ -110,6 +113,23 @@ void Terminate(const std::vector<pid_t>& pids, std::chrono::seconds grace) {
   }
 }
 
+int FreeLoopbackPort() {
+  const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  if (fd < 0) return -1;
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  address.sin_port = 0;
+  socklen_t length = sizeof(address);
+  int port = -1;
+  if (bind(fd, reinterpret_cast<sockaddr*>(&address), sizeof(address)) == 0 &&
+      getsockname(fd, reinterpret_cast<sockaddr*>(&address), &length) == 0) {
+    port = ntohs(address.sin_port);
+  }
+  close(fd);
+  return port;
+}
+
 struct RunFlags {
   std::string file;
   int workers = std::max(1u, std::thread::hardware_concurrency());
@@ -150,6 +170,14 @@ int Run(const RunFlags& flags) {
   const std::string worker_token = RandomToken(), user_token = RandomToken();
   const std::string worker_token_file = base + ".worker-token", user_token_file = base + ".user-token";
   const std::string port_file = base + ".port";
+  // The dashboard's port: one the system has just handed out (bound and
+  // released here; another process taking it in between is unlikely on a
+  // workstation, and then the coordinator reports it and the run stops).
+  const int http_port = FreeLoopbackPort();
+  if (http_port <= 0) {
+    std::cerr << "error: run: no free loopback port for the dashboard\n";
+    return 1;
+  }
   if (!WriteSecret(worker_token_file, worker_token) || !WriteSecret(user_token_file, user_token)) {
     std::cerr << "error: run: cannot write token files in " << flags.dir << "\n";
     return 1;
@@ -166,7 +194,8 @@ int Run(const RunFlags& flags) {
       {coordinator_bin, "--db", db, "--listen", "127.0.0.1:0", "--insecure", "--worker-token-file",
        worker_token_file, "--user-token-file", user_token_file, "--port-file", port_file,
        "--heartbeat-interval", absl::StrCat(flags.heartbeat_seconds), "--lease-timeout",
-       absl::StrCat(flags.lease_timeout_seconds)},
+       absl::StrCat(flags.lease_timeout_seconds), "--http-listen",
+       absl::StrCat("127.0.0.1:", http_port)},
       coordinator_log);
   int port = 0;
   for (int i = 0; i < 600 && port == 0; ++i) {  // up to 30 s
@@ -195,6 +224,9 @@ int Run(const RunFlags& flags) {
   }
   std::cerr << "coordinator on " << address << " (database " << db << ", log "
             << coordinator_log << "), " << flags.workers << " workers\n";
+  std::cerr << "dashboard: http://127.0.0.1:" << http_port
+            << "/ while this runs (the page asks for the user token: " << user_token_file
+            << ")\n";
 
   int code = 0;
   {
@@ -244,14 +276,25 @@ int Run(const RunFlags& flags) {
                                                 std::cout);
             if (table == 0) table = study;
           }
-          if (!plot.empty() && !spec->grid.empty()) {
+          if (!spec->grid.empty() && format == Format::kTable) {
+            // The story of the sweep: which method is better, and how they learned.
+            std::cout << "\n";
+            const int compared = PrintComparison(&*connection, spec->name, ComparisonOptions(),
+                                                 format);
+            if (compared != 0 && code == 0) code = compared;
+            std::cout << "\n";
+          }
+          if (!spec->grid.empty()) {
             const int curves = PrintCurves(&*connection, spec->name, format, plot,
-                                           /*print_table=*/false);
+                                           /*print_table=*/format == Format::kTable);
             if (curves != 0 && code == 0) code = curves;
           }
           if (table != 0 && code == 0) code = table;
-          std::cerr << "results stored in " << db << " (query them with `totalgrad results ... "
-                    << "--coordinator` against a coordinator on that file)\n";
+          std::cerr << "results stored in " << db << "; read them any time without a "
+                    << "coordinator, e.g. `totalgrad results table " << spec->name << " --db "
+                    << db << "`, `totalgrad results compare " << spec->name << " --db " << db
+                    << "`, or in Python: pandas.read_sql('SELECT * FROM \"episodes/" << spec->name
+                    << "\"', sqlite3.connect('" << db << "')) (docs/results_schema.md)\n";
         }
       }
     }
