@@ -22,6 +22,8 @@ PACKAGES=(
   # tests only: the comparison statistics against SciPy (tests/service/stats_scipy_test.py)
   # and the dashboard in a real headless browser (tests/service/dashboard_browser_test.py)
   python3-scipy chromium chromium-driver python3-selenium
+  # tests/service/pandas_view_test.py: the results recipe of docs/results_schema.md
+  python3-pandas
 )
 
 missing=()

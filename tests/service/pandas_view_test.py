@@ -1,0 +1,70 @@
+#!/usr/bin/python3
+"""The recipe of docs/results_schema.md, run as a user would: one sweep on
+this machine (`totalgrad run`), then one pandas.read_sql of the sweep's view
+gives one row per episode with every swept key as a typed column.
+
+    pandas_view_test.py TOTALGRAD_BIN WORK_DIR
+
+Debian's python3-pandas (/usr/bin/python3; a `python3` earlier on PATH may
+lack it). Exit 0 on success, 1 with the failed check on stderr.
+"""
+import os
+import shutil
+import sqlite3
+import subprocess
+import sys
+
+import pandas
+
+SWEEP = """name = "pandas"
+[grid]
+method = ["RP", "TP"]
+noise_k = [0.01, 1.0]
+seed = [3, 4]
+[protocol]
+episodes = 2
+policy_steps = 3
+particles = 8
+eval_rollouts = 2
+horizon = 10
+"""
+
+
+def check(condition, message):
+    if not condition:
+        print("FAIL: " + message, file=sys.stderr)
+        sys.exit(1)
+
+
+def main():
+    binary, work = sys.argv[1], sys.argv[2]
+    shutil.rmtree(work, ignore_errors=True)  # a fresh database every run
+    os.makedirs(work)
+    sweep_file = os.path.join(work, "pandas.toml")
+    with open(sweep_file, "w") as f:
+        f.write(SWEEP)
+    run = subprocess.run([binary, "run", sweep_file, "--dir", work, "--workers", "2", "--no-plot"],
+                         capture_output=True, text=True, timeout=300)
+    check(run.returncode == 0, "totalgrad run failed:\n" + run.stdout + run.stderr)
+    db = os.path.join(work, "pandas.db")
+    # The whole recipe: one query of the sweep's view.
+    frame = pandas.read_sql('SELECT * FROM "episodes/pandas"', sqlite3.connect(db))
+    check(len(frame) == 8 * 3, f"expected 24 episode rows (8 jobs x 3 episodes), got {len(frame)}")
+    for column in ("method", "seed", "noise_k", "episode", "eval_cost_mean", "cpu_seconds",
+                   "wall_seconds", "final_attempt", "worker_build"):
+        check(column in frame.columns, f"column {column} missing: {list(frame.columns)}")
+    check(str(frame["seed"].dtype).startswith("int"), f"seed is {frame['seed'].dtype}, not an integer")
+    check(str(frame["noise_k"].dtype).startswith("float"), f"noise_k is {frame['noise_k'].dtype}")
+    check(sorted(frame["noise_k"].unique().tolist()) == [0.01, 1.0], "noise_k values")
+    check(sorted(frame["seed"].unique().tolist()) == [3, 4], "seed values")
+    check((frame["cpu_seconds"] > 0).all(), "every episode has its CPU seconds")
+    # What a researcher does next: the final evaluation cost per method and noise level.
+    last = frame[(frame["episode"] == 2) & (frame["final_attempt"] == 1)]
+    table = last.groupby(["method", "noise_k"])["eval_cost_mean"].median()
+    check(len(table) == 4, f"4 (method, noise_k) groups expected, got {len(table)}")
+    print(table.to_string())
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
