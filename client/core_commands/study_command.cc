@@ -1,4 +1,4 @@
-#include "core/study/study_file.h"
+#include "io/study_file.h"
 
 #include <algorithm>
 #include <cmath>
@@ -16,19 +16,19 @@
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
 #include "client/core_commands/commands.h"
-#include "core/study/snapshot_json.h"
+#include "io/snapshot_json.h"
 #include "core/common/blas.h"
 #include "core/learner/trial.h"
 
 namespace totalgrad::cli {
 namespace {
 
-using study::InlineStudyDocument;
-using study::LoadStudyProblem;
-using study::ParseStudySpec;
-using study::ReadStudyDocument;
-using study::StudyCellNote;
-using study::StudySpec;
+using io::InlineStudyDocument;
+using io::LoadStudyProblem;
+using io::ParseStudySpec;
+using io::ReadStudyDocument;
+using io::StudyCellNote;
+using io::StudySpec;
 
 using Json = nlohmann::json;
 using OrderedJson = nlohmann::ordered_json;
@@ -444,7 +444,7 @@ void AddStudyCommand(CLI::App* app, int* exit_code) {
   CLI::App* cmd = app->add_subcommand(
       "study", "Gradient error against run time for every estimator on a frozen problem "
                "(docs/error-vs-time.md)");
-  cmd->add_option("file", state->file, "study file (JSON; format in core/study/study_file.h)")
+  cmd->add_option("file", state->file, "study file (JSON; format in io/study_file.h)")
       ->required();
   cmd->add_option("--format", state->format, "stdout format: text, csv or json (default text)")
       ->check(CLI::IsMember({"text", "csv", "json"}));

@@ -2,7 +2,7 @@
 // JSON file, printed as a table (text, CSV or JSON) and, with --output-dir,
 // written there with log-log work-precision plots (gnuplot, PNG).
 //
-// The study file format and its parser: core/study/study_file.h.
+// The study file format and its parser: io/study_file.h.
 //
 // The formatting and plotting are exposed for in-process tests.
 #ifndef TOTALGRAD_CLIENT_CORE_COMMANDS_STUDY_COMMAND_H_
@@ -15,7 +15,7 @@
 
 #include "absl/status/statusor.h"
 #include "core/study/study.h"
-#include "core/study/study_file.h"
+#include "io/study_file.h"
 
 namespace totalgrad::cli {
 
@@ -24,7 +24,7 @@ namespace totalgrad::cli {
 std::string StudyTableText(const study::StudyResult& result);
 std::string StudyTableCsv(const study::StudyResult& result);
 std::string StudyReferenceCsv(const study::StudyResult& result);
-nlohmann::ordered_json StudyToJson(const study::StudyResult& result, const study::StudySpec& spec);
+nlohmann::ordered_json StudyToJson(const study::StudyResult& result, const io::StudySpec& spec);
 
 // Writes the gnuplot data and scripts of the work-precision plot (relative
 // RMSE against seconds per gradient, log-log, one panel per horizon, one
@@ -35,7 +35,7 @@ nlohmann::ordered_json StudyToJson(const study::StudyResult& result, const study
 // whose horizon's reference estimators disagree are not drawn (they are
 // listed in the table's omissions).
 absl::StatusOr<std::vector<std::string>> WriteStudyPlots(const study::StudyResult& result,
-                                                         const study::StudySpec& spec,
+                                                         const io::StudySpec& spec,
                                                          const std::string& dir, bool run_gnuplot);
 
 }  // namespace totalgrad::cli

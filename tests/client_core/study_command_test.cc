@@ -17,7 +17,7 @@
 #include <nlohmann/json.hpp>
 
 #include "client/core_commands/commands.h"
-#include "core/study/snapshot_json.h"
+#include "io/snapshot_json.h"
 #include "tests/testutil/testutil.h"
 
 namespace totalgrad::cli {
@@ -26,17 +26,17 @@ namespace {
 using ::testing::HasSubstr;
 // The study file parser and snapshot files live in core/study; the table and
 // plots in the CLI: this file tests both, as `totalgrad study` uses them.
-using study::InlineStudyDocument;
-using study::LoadStudyProblem;
-using study::ParseEpisodeList;
-using study::ParseStudySpec;
-using study::ReadSnapshotFile;
-using study::ReadStudyDocument;
-using study::SnapshotsFromJson;
-using study::SnapshotsToJson;
-using study::StudyCellNote;
-using study::StudySpec;
-using study::WriteSnapshotFile;
+using io::InlineStudyDocument;
+using io::LoadStudyProblem;
+using io::ParseEpisodeList;
+using io::ParseStudySpec;
+using io::ReadSnapshotFile;
+using io::ReadStudyDocument;
+using io::SnapshotsFromJson;
+using io::SnapshotsToJson;
+using io::StudyCellNote;
+using io::StudySpec;
+using io::WriteSnapshotFile;
 
 struct CommandRun {
   int exit_code = -1;

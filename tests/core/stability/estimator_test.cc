@@ -81,7 +81,9 @@ bool EstimateWithContract(Estimator* estimator, const Problem& problem, int part
 }
 
 std::unique_ptr<Estimator> Make(const std::string& name) {
-  absl::StatusOr<std::unique_ptr<Estimator>> e = MakeEstimator(name, EstimatorOptions{});
+  absl::StatusOr<Method> method = ParseMethod(name);
+  EXPECT_TRUE(method.ok()) << method.status();
+  absl::StatusOr<std::unique_ptr<Estimator>> e = MakeEstimator(*method, EstimatorOptions{});
   EXPECT_TRUE(e.ok()) << e.status();
   return *std::move(e);
 }
@@ -151,7 +153,7 @@ TEST(EstimatorExtremes, LeaveOneOutBaselineForOneAndTwoParticles) {
 
 TEST(EstimatorExtremes, OneAndTwoParticlesAreFiniteOrRefused) {
   const auto sp = Synthetic(100, 10);
-  for (const std::string& name : ParticleMethods()) {
+  for (const std::string& name : ParticleMethodNames()) {
     auto estimator = Make(name);
     for (int particles : {1, 2}) {
       GradientEstimate g;
@@ -176,7 +178,7 @@ TEST(EstimatorExtremes, OneAndTwoParticlesAreUnbiased) {
   const int n = sp->policy->num_parameters();
   auto mean_and_se2 = [&](const std::string& name, const EstimatorOptions& eo, int particles,
                           int replicates, Vector* mean, Vector* se2) {
-    absl::StatusOr<std::unique_ptr<Estimator>> estimator = MakeEstimator(name, eo);
+    absl::StatusOr<std::unique_ptr<Estimator>> estimator = MakeEstimator(*ParseMethod(name), eo);
     ASSERT_OK(estimator.status());
     Vector sum = Vector::Zero(n), sum2 = Vector::Zero(n);
     EstimateOptions options;
@@ -256,7 +258,7 @@ TEST(EstimatorExtremes, CollapsedParticles) {
   ASSERT_TRUE(EstimateWithContract(rp.get(), problem, 1, 3, &single));
   ASSERT_TRUE(single.finite);
   ASSERT_GT(single.gradient.norm(), 0.0);
-  for (const std::string& name : ParticleMethods()) {
+  for (const std::string& name : ParticleMethodNames()) {
     auto estimator = Make(name);
     GradientEstimate g;
     if (!EstimateWithContract(estimator.get(), problem, 20, 3, &g)) continue;
@@ -335,7 +337,7 @@ TEST(EstimatorExtremes, ImportanceWeightsUnderflowInLinearSpace) {
     EXPECT_TRUE(baseline.allFinite());
   }
   GradientEstimate tp_estimate, lr_estimate;
-  for (const std::string& name : ParticleMethods()) {
+  for (const std::string& name : ParticleMethodNames()) {
     auto estimator = Make(name);
     GradientEstimate g;
     if (!EstimateWithContract(estimator.get(), problem, 16, 5, &g)) continue;
@@ -361,7 +363,7 @@ TEST(EstimatorExtremes, ExplodingRpGradientsMoveTpWeightToLr) {
   const SeamDynamics dynamics(SeamDynamics::kChaotic, 1e-4);
   const Problem problem = SeamProblem(*sp, &dynamics, 0.3, 200);
   GradientEstimate tp, lr;
-  for (const std::string& name : ParticleMethods()) {
+  for (const std::string& name : ParticleMethodNames()) {
     auto estimator = Make(name);
     GradientEstimate g;
     if (!EstimateWithContract(estimator.get(), problem, 30, 9, &g)) continue;
@@ -423,7 +425,7 @@ TEST(EstimatorExtremes, SaturatedCostGivesExactlyZeroGradient) {
   const auto sp = Synthetic(50, 5);
   Problem problem = sp->problem;
   problem.initial_std = Vector::Constant(4, 1000.0);
-  for (const std::string& name : ParticleMethods()) {
+  for (const std::string& name : ParticleMethodNames()) {
     auto estimator = Make(name);
     GradientEstimate g;
     if (!EstimateWithContract(estimator.get(), problem, 20, 13, &g)) continue;
