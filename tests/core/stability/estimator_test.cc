@@ -179,14 +179,14 @@ TEST(EstimatorExtremes, OneAndTwoParticlesAreUnbiased) {
   auto mean_and_se2 = [&](const std::string& name, const EstimatorOptions& eo, int particles,
                           int replicates, Vector* mean, Vector* se2) {
     absl::StatusOr<std::unique_ptr<Estimator>> estimator = MakeEstimator(*ParseMethod(name), eo);
-    ASSERT_OK(estimator.status());
+    TG_ASSERT_OK(estimator.status());
     Vector sum = Vector::Zero(n), sum2 = Vector::Zero(n);
     EstimateOptions options;
     options.particles = particles;
     GradientEstimate g;
     for (int r = 0; r < replicates; ++r) {
       Rng rng(7, Stream::kStudy, static_cast<uint64_t>(1000000 * particles + r));
-      ASSERT_OK((*estimator)->Estimate(problem, options, &rng, &g));
+      TG_ASSERT_OK((*estimator)->Estimate(problem, options, &rng, &g));
       ASSERT_TRUE(g.finite);
       sum += g.gradient;
       sum2 += g.gradient.cwiseAbs2();
@@ -323,7 +323,7 @@ TEST(EstimatorExtremes, ImportanceWeightsUnderflowInLinearSpace) {
     Rng rng(5, Stream::kStudy);
     RolloutRecording recording;
     recording.jacobians = true;
-    ASSERT_OK(SimulateParticles(problem, 16, recording, &rng, &rollout));
+    TG_ASSERT_OK(SimulateParticles(problem, 16, recording, &rng, &rollout));
     RowMatrix log_weights;
     BiwLogWeights(rollout.steps[3], &log_weights);
     ASSERT_FALSE(log_weights.array().isNaN().any());
@@ -448,7 +448,7 @@ TEST(EstimatorExtremes, SaturatedCostIsFlaggedInTheTrialRecord) {
              {"eval_rollouts", "1"}, {"horizon", "5"}, {"basis_functions", "5"},
              {"gp_iterations", "10"}, {"predicted_cost_particles", "10"}, {"seed", "2"},
              {"initial_std", "1000"}, {"method", method}, {"angle_features", "raw"}}) {
-      ASSERT_OK(learner::SetTrialOption(key, value, &o));
+      TG_ASSERT_OK(learner::SetTrialOption(key, value, &o));
     }
     absl::StatusOr<learner::TrialSummary> summary = learner::RunTrial(o, nullptr);
     ASSERT_TRUE(summary.ok()) << method << ": " << summary.status();
