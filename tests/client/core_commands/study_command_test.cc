@@ -2,7 +2,8 @@
 // files round-trip bit for bit, study files are parsed with every error
 // named, and a tiny study runs end to end from a trial's snapshot to the
 // table, CSV, JSON and gnuplot plots.
-#include "client/core_commands/study_command.h"
+#include "client/core_commands/study_format.h"
+#include "client/core_commands/study_plots.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>

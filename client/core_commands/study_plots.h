@@ -1,30 +1,16 @@
-// `totalgrad study FILE`: a gradient study (core/study/study.h) described by a
-// JSON file, printed as a table (text, CSV or JSON) and, with --output-dir,
-// written there with log-log work-precision plots (gnuplot, PNG).
-//
-// The study file format and its parser: io/study_file.h.
-//
-// The formatting and plotting are exposed for in-process tests.
-#ifndef TOTALGRAD_CLIENT_CORE_COMMANDS_STUDY_COMMAND_H_
-#define TOTALGRAD_CLIENT_CORE_COMMANDS_STUDY_COMMAND_H_
+// The work-precision plots of a gradient study (gnuplot data and scripts,
+// and PNGs when gnuplot runs), written by `totalgrad study --output-dir`.
+#ifndef TOTALGRAD_CLIENT_CORE_COMMANDS_STUDY_PLOTS_H_
+#define TOTALGRAD_CLIENT_CORE_COMMANDS_STUDY_PLOTS_H_
 
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "absl/status/statusor.h"
 #include "core/study/study.h"
 #include "io/study_file.h"
 
 namespace totalgrad::cli {
-
-// The result as a fixed-width table (references, cells, omissions), as CSV
-// (one row per cell, header first) and as JSON (NaN as null).
-std::string StudyTableText(const study::StudyResult& result);
-std::string StudyTableCsv(const study::StudyResult& result);
-std::string StudyReferenceCsv(const study::StudyResult& result);
-nlohmann::ordered_json StudyToJson(const study::StudyResult& result, const io::StudySpec& spec);
 
 // Writes the gnuplot data and scripts of the work-precision plot (relative
 // RMSE against seconds per gradient, log-log, one panel per horizon, one
@@ -40,4 +26,4 @@ absl::StatusOr<std::vector<std::string>> WriteStudyPlots(const study::StudyResul
 
 }  // namespace totalgrad::cli
 
-#endif  // TOTALGRAD_CLIENT_CORE_COMMANDS_STUDY_COMMAND_H_
+#endif  // TOTALGRAD_CLIENT_CORE_COMMANDS_STUDY_PLOTS_H_
