@@ -101,7 +101,7 @@ int Run(const Args& args) {
 
   // The policy: the paper's optimiser with RP gradients on the model.
   {
-    auto rp = estimators::MakeEstimator("RP", {});
+    auto rp = estimators::MakeEstimator(estimators::Method::kRp, {});
     learner::RmspropLike optimiser(learner::OptimizerOptions{}, policy.num_parameters());
     estimators::EstimateOptions eo;
     eo.particles = args.policy_particles;

@@ -17,7 +17,7 @@ PACKAGES=(
   iproute2 openssl libssl-dev
   # deploy/ file checks (tests/deploy): unit verification, YAML and shell linters
   systemd python3 python3-yaml yamllint shellcheck
-  # bench/torch_rp_iteration.py, the PyTorch peer of bench iteration (tests/client_core)
+  # bench/torch_rp_iteration.py, the PyTorch peer of bench iteration (tests/client/core_commands)
   python3-torch
   # tests only: the comparison statistics against SciPy (tests/service/stats_scipy_test.py)
   # and the dashboard in a real headless browser (tests/service/dashboard_browser_test.py)

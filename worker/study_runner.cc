@@ -3,7 +3,7 @@
 #include <nlohmann/json.hpp>
 
 #include "absl/strings/str_cat.h"
-#include "core/study/study_file.h"
+#include "io/study_file.h"
 #include "core/common/blas.h"
 #include "core/study/study.h"
 
@@ -15,7 +15,7 @@ absl::StatusOr<StudyOutcome> CoreStudyRunner::Run(const std::string& spec_json,
   if (doc.is_discarded() || !doc.is_object()) {
     return absl::InvalidArgumentError("study job: the spec is not a JSON object");
   }
-  absl::StatusOr<study::StudySpec> spec = study::ParseStudySpec(doc, /*base_dir=*/"");
+  absl::StatusOr<io::StudySpec> spec = io::ParseStudySpec(doc, /*base_dir=*/"");
   if (!spec.ok()) {
     return absl::InvalidArgumentError(absl::StrCat("study job: ", spec.status().message()));
   }
@@ -24,7 +24,7 @@ absl::StatusOr<StudyOutcome> CoreStudyRunner::Run(const std::string& spec_json,
         "study job: problem.snapshot names a file ('", spec->snapshot_file,
         "'); a study job carries its snapshot inline"));
   }
-  absl::StatusOr<std::unique_ptr<study::FrozenProblem>> problem = study::LoadStudyProblem(*spec);
+  absl::StatusOr<std::unique_ptr<study::FrozenProblem>> problem = io::LoadStudyProblem(*spec);
   if (!problem.ok()) {
     return absl::Status(problem.status().code(),
                         absl::StrCat("study job: ", problem.status().message()));
@@ -88,7 +88,7 @@ absl::StatusOr<StudyOutcome> CoreStudyRunner::Run(const std::string& spec_json,
     row.set_reference_floor(floor);
     row.set_budget_hit(c.budget_hit);
     row.set_omitted(c.omitted);
-    row.set_note(study::StudyCellNote(c));
+    row.set_note(io::StudyCellNote(c));
     row.set_error(c.error);
     row.set_omission_reason(c.omission_reason);
     for (double v : c.k_lr_per_step) row.add_k_lr_per_step(v);

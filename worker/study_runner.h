@@ -1,6 +1,6 @@
 // The seam between the worker runtime and the gradient-study code (issue 6):
 // a StudyRunner runs one study job from its self-contained spec (the study
-// file's JSON, snapshot inlined; core/study/study_file.h) and
+// file's JSON, snapshot inlined; io/study_file.h) and
 // returns its rows. The real one (CoreStudyRunner) calls study::RunStudy;
 // tests inject fakes.
 //

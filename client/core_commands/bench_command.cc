@@ -100,7 +100,9 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
       *exit_code = 1;
       return;
     }
-    auto estimator = estimators::MakeEstimator(state->method, {});
+    absl::StatusOr<estimators::Method> method = estimators::ParseMethod(state->method);
+    absl::StatusOr<std::unique_ptr<estimators::Estimator>> estimator =
+        method.ok() ? estimators::MakeEstimator(*method, {}) : method.status();
     if (!estimator.ok()) {
       std::cerr << "totalgrad bench: " << estimator.status().message() << "\n";
       *exit_code = 2;
@@ -111,7 +113,13 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
       *exit_code = 2;
       return;
     }
+    // The synthetic problem's model and policy behind adapters that use the
+    // iteration's thread pool, as a trial's ModelProblem gives them its pool.
+    estimators::GpDynamics full_dynamics((*problem)->model.get(), pool.get());
+    estimators::RbfParticlePolicy particle_policy((*problem)->policy.get(), pool.get());
     estimators::Problem p = (*problem)->problem;
+    p.dynamics = &full_dynamics;
+    p.policy = &particle_policy;
     p.pool = pool.get();
     std::unique_ptr<gp::FitcModel> sparse;
     std::unique_ptr<estimators::FitcDynamics> sparse_dynamics;
@@ -129,7 +137,6 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
       sparse = std::make_unique<gp::FitcModel>(*std::move(fitc));
       sparse_dynamics = std::make_unique<estimators::FitcDynamics>(sparse.get(), pool.get());
       p.dynamics = sparse_dynamics.get();
-      p.model = nullptr;
     }
     estimators::EstimateOptions eo;
     eo.particles = state->particles;

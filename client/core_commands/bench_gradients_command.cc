@@ -18,7 +18,7 @@
 #include "core/common/thread_pool.h"
 #include "core/estimators/estimator.h"
 #include "core/study/frozen_problem.h"
-#include "core/study/snapshot_json.h"
+#include "io/snapshot_json.h"
 
 namespace totalgrad::cli {
 namespace {
@@ -61,7 +61,7 @@ void AddBenchGradientsCommand(CLI::App* bench, int* exit_code) {
       *exit_code = code;
     };
     absl::StatusOr<std::vector<learner::TrialSnapshot>> snapshots =
-        study::ReadSnapshotFile(state->snapshot_file);
+        io::ReadSnapshotFile(state->snapshot_file);
     if (!snapshots.ok()) return fail(2, std::string(snapshots.status().message()));
     const learner::TrialSnapshot* snapshot = nullptr;
     for (const auto& s : *snapshots)
@@ -73,13 +73,21 @@ void AddBenchGradientsCommand(CLI::App* bench, int* exit_code) {
         *snapshot, state->policy == "after" ? study::SnapshotPolicy::kAfter
                                             : study::SnapshotPolicy::kBefore);
     if (!frozen.ok()) return fail(2, std::string(frozen.status().message()));
+    absl::StatusOr<estimators::Method> method = estimators::ParseMethod(state->method);
+    if (!method.ok()) return fail(2, std::string(method.status().message()));
     absl::StatusOr<std::unique_ptr<estimators::Estimator>> estimator =
-        estimators::MakeEstimator(state->method, {});
+        estimators::MakeEstimator(*method, {});
     if (!estimator.ok()) return fail(2, std::string(estimator.status().message()));
     SetBlasThreads(1);
     std::unique_ptr<ThreadPool> pool;
     if (state->threads > 1) pool = std::make_unique<ThreadPool>(state->threads);
+    // The snapshot's model (a full GP on the raw state) and policy behind
+    // adapters that use this command's thread pool.
+    estimators::GpDynamics dynamics((*frozen)->model, pool.get());
+    estimators::RbfParticlePolicy particle_policy((*frozen)->policy, pool.get());
     estimators::Problem problem = (*frozen)->problem;
+    problem.dynamics = &dynamics;
+    problem.policy = &particle_policy;
     problem.pool = pool.get();
     if (state->horizon > 0) problem.horizon = state->horizon;
     estimators::EstimateOptions options;

@@ -82,7 +82,7 @@ void AddBenchTrialCommand(CLI::App* bench, int* exit_code) {
       *exit_code = 2;
       return;
     }
-    const bool pilco = options.method == "PILCO";
+    const bool pilco = options.method == estimators::Method::kPilco;
     const int full_steps = options.policy_steps;
     const int run_steps = pilco ? full_steps : std::min(state->policy_steps, full_steps);
     options.policy_steps = run_steps;
@@ -91,7 +91,7 @@ void AddBenchTrialCommand(CLI::App* bench, int* exit_code) {
     learner::RunOptions run;
     run.threads = state->threads;
     std::fprintf(stderr, "bench trial: %s, %d of %d gradient steps per episode, %d thread(s)\n",
-                 options.method.c_str(), pilco ? 0 : run_steps, pilco ? 0 : full_steps,
+                 estimators::MethodName(options.method).c_str(), pilco ? 0 : run_steps, pilco ? 0 : full_steps,
                  state->threads);
     absl::StatusOr<learner::TrialSummary> summary = learner::RunTrial(options, &observer, run);
     if (!summary.ok()) {
@@ -150,7 +150,7 @@ void AddBenchTrialCommand(CLI::App* bench, int* exit_code) {
     for (const auto& [key, value] : learner::TrialOptionPairs(options)) options_json[key] = value;
     options_json["policy_steps"] = std::to_string(full_steps);
     nlohmann::json doc = {
-        {"method", options.method},
+        {"method", estimators::MethodName(options.method)},
         {"options", options_json},
         {"policy_steps_run", pilco ? 0 : run_steps},
         {"policy_steps_full", pilco ? 0 : full_steps},
@@ -199,7 +199,7 @@ void AddBenchEstimateCommand(CLI::App* bench, int* exit_code) {
       return;
     }
     const learner::TrialCostEstimate e = learner::EstimateTrialCost(options);
-    nlohmann::json doc = {{"method", options.method},
+    nlohmann::json doc = {{"method", estimators::MethodName(options.method)},
                           {"policy_cpu_seconds", e.policy_cpu},
                           {"model_cpu_seconds", e.model_cpu},
                           {"other_cpu_seconds", e.other_cpu},

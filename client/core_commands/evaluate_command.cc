@@ -19,8 +19,8 @@
 
 #include "absl/strings/str_cat.h"
 #include "client/core_commands/commands.h"
-#include "core/learner/checkpoint.h"
-#include "core/study/snapshot_json.h"
+#include "core/learner/evaluation.h"
+#include "io/snapshot_json.h"
 
 namespace totalgrad::cli {
 namespace {
@@ -37,7 +37,7 @@ struct EvaluateFlags {
 
 int RunEvaluate(const EvaluateFlags& flags) {
   absl::StatusOr<std::vector<learner::TrialSnapshot>> snapshots =
-      study::ReadSnapshotFile(flags.policy_file);
+      io::ReadSnapshotFile(flags.policy_file);
   if (!snapshots.ok()) {
     std::cerr << "evaluate: " << snapshots.status().message() << "\n";
     return 2;
@@ -98,7 +98,7 @@ int RunEvaluate(const EvaluateFlags& flags) {
     nlohmann::ordered_json out;
     out["policy_file"] = flags.policy_file;
     out["snapshot_episode"] = snapshot->episode;
-    out["method"] = options.method;
+    out["method"] = estimators::MethodName(options.method);
     out["seed"] = options.seed;
     out["scene"] = options.scene.scene;
     out["cost"] = options.scene.cost;
@@ -110,7 +110,7 @@ int RunEvaluate(const EvaluateFlags& flags) {
     out["costs"] = evaluation->costs;
     std::cout << out.dump() << "\n";
   } else {
-    std::cout << "policy of episode " << snapshot->episode << " (" << options.method << ", seed "
+    std::cout << "policy of episode " << snapshot->episode << " (" << estimators::MethodName(options.method) << ", seed "
               << options.seed << ") on " << options.scene.scene << ", cost " << options.scene.cost
               << ", noise_k " << options.scene.noise_k << ": mean cost "
               << absl::StrCat(evaluation->mean) << ", std " << absl::StrCat(evaluation->std)

@@ -15,7 +15,7 @@
 #include "absl/strings/str_replace.h"
 #include "client/core_commands/commands.h"
 #include "client/core_commands/trial_flags.h"
-#include "core/study/snapshot_json.h"
+#include "io/snapshot_json.h"
 #include "client/core_commands/trial_format.h"
 #include "core/common/blas.h"
 #include "core/learner/trial.h"
@@ -34,7 +34,7 @@ class PrintingObserver final : public learner::TrialObserver {
   bool WantsSnapshot(int episode) override { return snapshot_episodes_.count(episode) > 0; }
   void OnSnapshot(const learner::TrialSnapshot& snapshot) override {
     snapshots_.push_back(snapshot);
-    const absl::Status st = study::WriteSnapshotFile(snapshot_file_, snapshots_);
+    const absl::Status st = io::WriteSnapshotFile(snapshot_file_, snapshots_);
     if (!st.ok()) {
       std::cerr << "totalgrad trial: snapshot of episode " << snapshot.episode << ": " << st.message()
                 << "\n";
@@ -103,7 +103,7 @@ void AddTrialCommand(CLI::App* app, int* exit_code) {
     }
     std::set<int> snapshot_episodes;
     if (!state->snapshot_episodes.empty()) {
-      absl::StatusOr<std::vector<int>> episodes = study::ParseEpisodeList(state->snapshot_episodes);
+      absl::StatusOr<std::vector<int>> episodes = io::ParseEpisodeList(state->snapshot_episodes);
       if (!episodes.ok()) {
         std::cerr << "totalgrad trial: --snapshot-episodes: " << episodes.status().message() << "\n";
         *exit_code = 2;

@@ -28,17 +28,20 @@ nlohmann::json EpisodeToJson(const learner::EpisodeResult& result) {
                 {"gp_non_finite_evaluations", result.flags.gp_non_finite_evaluations},
                 {"zero_gradient", result.flags.zero_gradient},
                 {"gp_jitter", result.flags.gp_jitter}};
+  // The GP as the service stores it (details_json, docs/results_schema.md):
+  // an object of arrays, log_lengthscales D x E (one row per output).
   const auto& h = result.hyperparameters;
   if (h.num_outputs() > 0) {
-    nlohmann::json gp = nlohmann::json::array();
+    nlohmann::json lengthscales = nlohmann::json::array();
     for (int a = 0; a < h.num_outputs(); ++a) {
-      std::vector<double> ls(h.log_lengthscales.row(a).data(),
-                             h.log_lengthscales.row(a).data() + h.num_inputs());
-      gp.push_back({{"log_lengthscales", ls},
-                    {"log_signal_std", h.log_signal_std(a)},
-                    {"log_noise_std", h.log_noise_std(a)}});
+      lengthscales.push_back(std::vector<double>(h.log_lengthscales.row(a).data(),
+                                                 h.log_lengthscales.row(a).data() + h.num_inputs()));
     }
-    j["gp"] = gp;
+    j["gp"] = {{"log_lengthscales", lengthscales},
+               {"log_signal_std", std::vector<double>(h.log_signal_std.data(),
+                                                      h.log_signal_std.data() + h.num_outputs())},
+               {"log_noise_std", std::vector<double>(h.log_noise_std.data(),
+                                                     h.log_noise_std.data() + h.num_outputs())}};
   }
   // PILCO: the model's predicted cost mean and std at each step t = 1..H.
   if (result.predicted_cost_mean_per_step.size() > 0) {

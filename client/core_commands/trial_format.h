@@ -14,7 +14,9 @@ namespace totalgrad::cli {
 //  "seconds" (wall, model fit + policy optimisation), "cpu_seconds" (the whole
 //  episode), "timing": {<phase>_cpu, <phase>_wall for phase in model, policy,
 //  prediction, real_episode, evaluation; policy_steps}, "flags": {...},
-//  "gp": {...}}, and for PILCO episodes
+//  "gp": {"log_lengthscales": [[...] x E] x D, "log_signal_std": [D],
+//  "log_noise_std": [D]}} (the layout of the stored details_json,
+//  docs/results_schema.md), and for PILCO episodes
 // "predicted_cost_mean_per_step" / "predicted_cost_std_per_step" (H numbers
 // each, steps 1..H); NaN becomes null.
 nlohmann::json EpisodeToJson(const learner::EpisodeResult& result);

@@ -1,7 +1,7 @@
 // `totalgrad job artifacts JOB --out DIR`: the final policy and GP model of a
 // trial job, from the trial checkpoint the coordinator keeps
 // (GetJobArtifacts), written as
-//   DIR/snapshot.json   the trial snapshot format (core/study/snapshot_json.h)
+//   DIR/snapshot.json   the trial snapshot format (io/snapshot_json.h)
 //                       of the checkpoint's last episode: the data its model
 //                       was fitted on, the model's GP hyperparameters, the
 //                       policy before and after that episode's optimisation;
@@ -20,7 +20,7 @@
 #include "absl/strings/str_cat.h"
 #include "client/service_commands/connection.h"
 #include "core/learner/checkpoint.h"
-#include "core/study/snapshot_json.h"
+#include "io/snapshot_json.h"
 
 namespace totalgrad::cli {
 
@@ -67,7 +67,7 @@ int WriteJobArtifacts(Connection* connection, int64_t job_id, const std::string&
     return 1;
   }
   const std::string snapshot_path = (std::filesystem::path(dir) / "snapshot.json").string();
-  absl::Status written = study::WriteSnapshotFile(snapshot_path, {snapshot});
+  absl::Status written = io::WriteSnapshotFile(snapshot_path, {snapshot});
   if (!written.ok()) {
     std::cerr << "error: " << what << ": " << written.message() << "\n";
     return 1;

@@ -1,5 +1,7 @@
 #include "core/estimators/estimator.h"
 
+#include <cmath>
+
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "core/estimators/rp.h"
@@ -7,62 +9,80 @@
 
 namespace totalgrad::estimators {
 
-std::vector<std::string> ParticleMethods() {
-  return {"RP", "GR", "LR", "TP", "GLR", "GTP", "GTP+sn", "DEL"};
-}
-
-absl::StatusOr<std::unique_ptr<Estimator>> MakeEstimator(const std::string& name,
+absl::StatusOr<std::unique_ptr<Estimator>> MakeEstimator(Method method,
                                                          const EstimatorOptions& options) {
+  if (absl::Status st = options.Validate(); !st.ok()) return st;
+  if (!IsNamedEnum(MethodNames(), method))
+    return absl::InvalidArgumentError("MakeEstimator: a method value outside the enum");
+  if (!IsParticleMethod(method))
+    return absl::InvalidArgumentError(absl::StrCat(
+        MethodName(method), " is not a particle method (it runs in core/pilco); particle methods: ",
+        absl::StrJoin(ParticleMethods(), ", ", [](std::string* out, Method m) {
+          out->append(MethodName(m));
+        })));
   // RP keeps its dedicated pass: the reference the composed passes are tested against.
-  if (name == "RP") return std::unique_ptr<Estimator>(new RpEstimator());
-  for (const std::string& method : ParticleMethods()) {
-    if (method != name) continue;
-    absl::StatusOr<MethodRecipe> recipe = RecipeFor(name, options);
-    if (!recipe.ok()) return recipe.status();
-    return std::unique_ptr<Estimator>(new ParticleEstimator(name, *std::move(recipe)));
-  }
-  return absl::InvalidArgumentError(absl::StrCat("unknown method '", name, "'; known: ",
-                                                 absl::StrJoin(ParticleMethods(), ", ")));
+  if (method == Method::kRp) return std::unique_ptr<Estimator>(new RpEstimator());
+  absl::StatusOr<MethodRecipe> recipe = RecipeFor(method, options);
+  if (!recipe.ok()) return recipe.status();
+  return std::unique_ptr<Estimator>(new ParticleEstimator(method, *std::move(recipe)));
 }
 
-std::string LrWeightsName(LrWeights w) {
-  return w == LrWeights::kBatchImportance ? "biw" : "plain";
+const EnumNames<LrWeights>& LrWeightsNames() {
+  static const EnumNames<LrWeights>* names =
+      new EnumNames<LrWeights>{{LrWeights::kBatchImportance, "biw"}, {LrWeights::kPlain, "plain"}};
+  return *names;
 }
 
-std::string LrBaselineName(LrBaseline b) {
-  switch (b) {
-    case LrBaseline::kBatchImportance: return "biw";
-    case LrBaseline::kBatchImportancePair: return "biw_pair";
-    case LrBaseline::kLeaveOneOut: return "loo";
-    case LrBaseline::kNone: return "none";
-  }
-  return "";
+const EnumNames<LrBaseline>& LrBaselineNames() {
+  static const EnumNames<LrBaseline>* names = new EnumNames<LrBaseline>{
+      {LrBaseline::kBatchImportance, "biw"},
+      {LrBaseline::kBatchImportancePair, "biw_pair"},
+      {LrBaseline::kLeaveOneOut, "loo"},
+      {LrBaseline::kNone, "none"}};
+  return *names;
 }
 
-std::string GsDerivativeName(GsDerivative d) {
-  return d == GsDerivative::kSampled ? "sampled" : "exact";
+const EnumNames<GsDerivative>& GsDerivativeNames() {
+  static const EnumNames<GsDerivative>* names = new EnumNames<GsDerivative>{
+      {GsDerivative::kSampled, "sampled"}, {GsDerivative::kExact, "exact"}};
+  return *names;
 }
+
+std::string LrWeightsName(LrWeights w) { return EnumName(LrWeightsNames(), w); }
+std::string LrBaselineName(LrBaseline b) { return EnumName(LrBaselineNames(), b); }
+std::string GsDerivativeName(GsDerivative d) { return EnumName(GsDerivativeNames(), d); }
 
 absl::Status ParseLrWeights(const std::string& text, LrWeights* out) {
-  if (text == "biw") *out = LrWeights::kBatchImportance;
-  else if (text == "plain") *out = LrWeights::kPlain;
-  else return absl::InvalidArgumentError(absl::StrCat("LR weights '", text, "' is not one of biw, plain"));
-  return absl::OkStatus();
+  return ParseEnum("lr_weights", text, LrWeightsNames(), out);
 }
-
 absl::Status ParseLrBaseline(const std::string& text, LrBaseline* out) {
-  if (text == "biw") *out = LrBaseline::kBatchImportance;
-  else if (text == "biw_pair") *out = LrBaseline::kBatchImportancePair;
-  else if (text == "loo") *out = LrBaseline::kLeaveOneOut;
-  else if (text == "none") *out = LrBaseline::kNone;
-  else return absl::InvalidArgumentError(absl::StrCat("LR baseline '", text, "' is not one of biw, biw_pair, loo, none"));
-  return absl::OkStatus();
+  return ParseEnum("lr_baseline", text, LrBaselineNames(), out);
+}
+absl::Status ParseGsDerivative(const std::string& text, GsDerivative* out) {
+  return ParseEnum("gs_derivative", text, GsDerivativeNames(), out);
 }
 
-absl::Status ParseGsDerivative(const std::string& text, GsDerivative* out) {
-  if (text == "sampled") *out = GsDerivative::kSampled;
-  else if (text == "exact") *out = GsDerivative::kExact;
-  else return absl::InvalidArgumentError(absl::StrCat("shaping derivative '", text, "' is not one of sampled, exact"));
+const OptionTable<EstimatorOptions>& EstimatorOptions::Table() {
+  static const OptionTable<EstimatorOptions>* table = [] {
+    auto* t = new OptionTable<EstimatorOptions>();
+    t->Enum("lr_weights", &EstimatorOptions::lr_weights, LrWeightsNames())
+        .Enum("lr_baseline", &EstimatorOptions::lr_baseline, LrBaselineNames())
+        .Enum("gs_derivative", &EstimatorOptions::gs_derivative, GsDerivativeNames())
+        .Double("sn_noise_multiplier", &EstimatorOptions::sn_noise_multiplier)
+        .Double("forced_k_lr", &EstimatorOptions::forced_k_lr);
+    return t;
+  }();
+  return *table;
+}
+
+absl::Status EstimatorOptions::Validate() const {
+  if (!IsNamedEnum(LrWeightsNames(), lr_weights)) return InvalidOption("lr_weights", "is not a known value");
+  if (!IsNamedEnum(LrBaselineNames(), lr_baseline)) return InvalidOption("lr_baseline", "is not a known value");
+  if (!IsNamedEnum(GsDerivativeNames(), gs_derivative))
+    return InvalidOption("gs_derivative", "is not a known value");
+  if (!(sn_noise_multiplier >= 0) || !std::isfinite(sn_noise_multiplier))
+    return InvalidOption("sn_noise_multiplier", "must be finite and >= 0");
+  if (!std::isfinite(forced_k_lr)) return InvalidOption("forced_k_lr", "must be finite");
   return absl::OkStatus();
 }
 

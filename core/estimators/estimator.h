@@ -6,7 +6,7 @@
 // Every estimate comes with the per-particle gradients' sample variance, which
 // the paper's optimiser uses to normalise its step.
 //
-// Methods by name (ParticleMethods()):
+// Methods (estimators/method.h, ParticleMethods()):
 //   RP      reparameterisation gradient (backpropagation through time)
 //   GR      RP with Gaussian resampling of the particles at every step
 //   LR      BIW-LR with the BIW baseline (batch importance weighted LR)
@@ -26,7 +26,9 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
+#include "core/common/option_table.h"
 #include "core/common/rng.h"
+#include "core/estimators/method.h"
 #include "core/estimators/rollout.h"
 
 namespace totalgrad::estimators {
@@ -80,6 +82,12 @@ enum class GsDerivative {
   kExact,    // "exact": closed form (angle and tip costs only)
 };
 
+// The canonical names of the enum values above ("biw", "plain"; "biw",
+// "biw_pair", "loo", "none"; "sampled", "exact").
+const EnumNames<LrWeights>& LrWeightsNames();
+const EnumNames<LrBaseline>& LrBaselineNames();
+const EnumNames<GsDerivative>& GsDerivativeNames();
+
 // Options shared by the estimator family (method-specific knobs live here so
 // one key=value space configures every method). Each is ignored by methods
 // that do not use it.
@@ -92,10 +100,18 @@ struct EstimatorOptions {
   // variance rule (k = 0 reproduces the pathwise estimate, k = 1 the jump
   // one); anything else (the default, -1) uses the rule.
   double forced_k_lr = -1.0;
+
+  // Option keys (the trial's and the study file's estimator options):
+  // lr_weights, lr_baseline, gs_derivative, sn_noise_multiplier, forced_k_lr.
+  static const OptionTable<EstimatorOptions>& Table();
+  // InvalidArgument naming the key: sn_noise_multiplier not finite or < 0,
+  // an enum value outside its names.
+  absl::Status Validate() const;
+  bool operator==(const EstimatorOptions&) const = default;
 };
 
-// Text forms used by the trial options ("biw", "plain", "loo", "none",
-// "sampled", "exact"). Parse* return InvalidArgument naming the valid values.
+// Text forms of the enums (their *Names() tables). Parse* return
+// InvalidArgument naming the valid values.
 std::string LrWeightsName(LrWeights w);
 std::string LrBaselineName(LrBaseline b);
 std::string GsDerivativeName(GsDerivative d);
@@ -103,12 +119,10 @@ absl::Status ParseLrWeights(const std::string& text, LrWeights* out);
 absl::Status ParseLrBaseline(const std::string& text, LrBaseline* out);
 absl::Status ParseGsDerivative(const std::string& text, GsDerivative* out);
 
-// The particle methods available by name ("RP", ...). PILCO is not a
-// particle method and is handled by the learner.
-std::vector<std::string> ParticleMethods();
-
-// InvalidArgument naming an unknown method or an out-of-range option.
-absl::StatusOr<std::unique_ptr<Estimator>> MakeEstimator(const std::string& name,
+// The estimator of a particle method. InvalidArgument for PILCO (not a
+// particle method: core/pilco), a value outside the enum, or invalid
+// options (options.Validate()).
+absl::StatusOr<std::unique_ptr<Estimator>> MakeEstimator(Method method,
                                                          const EstimatorOptions& options);
 
 // Sample variance over rows of a P x n matrix (0 when P == 1).

@@ -23,22 +23,6 @@ void SampledExpectedCostGradient(const tasks::StateCost& cost, const GaussianFit
   out->dcov = CholeskyBackward(fit.chol, chol_bar);
 }
 
-absl::StatusOr<pilco::GaussianCost> GaussianCostFor(const tasks::StateCost& cost) {
-  if (const auto* angle = dynamic_cast<const tasks::AngleCost*>(&cost)) {
-    const Vector target = angle->target();
-    const Matrix q = angle->q_diagonal().asDiagonal();
-    return pilco::GaussianCost::Angle(target, q);
-  }
-  if (const auto* tip = dynamic_cast<const tasks::TipCost*>(&cost)) {
-    return pilco::GaussianCost::Tip(tasks::kCartPoleStateDim, /*position_index=*/0,
-                                    /*angle_index=*/1, tip->pendulum_length(), tip->width(),
-                                    tip->target_position());
-  }
-  return absl::InvalidArgumentError(
-      "exact Gaussian-shaping derivatives need the angle or the tip cost; got '" + cost.Name() +
-      "' (use gs_derivative=sampled)");
-}
-
 absl::Status ExactExpectedCostGradient(const pilco::GaussianCost& cost, const GaussianFit& fit,
                                        ExpectedCostGradient* out) {
   Matrix cov = fit.covariance;

@@ -51,11 +51,8 @@ struct ExpectedCostGradient {
 void SampledExpectedCostGradient(const tasks::StateCost& cost, const GaussianFit& fit,
                                  int samples, Rng* rng, ExpectedCostGradient* out);
 
-// The closed form of `cost` under a Gaussian: the angle cost and the tip cost
-// (tasks::AngleCost, tasks::TipCost). InvalidArgument for any other cost.
-absl::StatusOr<pilco::GaussianCost> GaussianCostFor(const tasks::StateCost& cost);
-
-// Exact derivatives at N(fit.mean, fit.covariance + jitter I). Errors as
+// Exact derivatives at N(fit.mean, fit.covariance + jitter I) from the
+// cost's closed form (tasks::StateCost::GaussianExpectation). Errors as
 // pilco::GaussianCost::Evaluate (non-finite fit).
 absl::Status ExactExpectedCostGradient(const pilco::GaussianCost& cost, const GaussianFit& fit,
                                        ExpectedCostGradient* out);

@@ -38,6 +38,8 @@ class ParticleDynamics {
  public:
   virtual ~ParticleDynamics() = default;
   virtual int state_dim() const = 0;  // S; the inputs are z = [x, u], E = S + 1
+  // E as the model was built (a GP's input columns); must be S + 1.
+  virtual int input_dim() const { return state_dim() + 1; }
   // For P inputs z (P x E): mean (P x S) of x_{t+1} - x_t and diagonal
   // predictive variance (P x S, > 0) with the observation-noise part scaled by
   // noise_variance_multiplier. Jacobians (P x S*E, optional, null = not
@@ -72,6 +74,7 @@ class GpDynamics final : public ParticleDynamics {
   explicit GpDynamics(const gp::GpModel* model, ThreadPool* pool = nullptr)
       : model_(model), pool_(pool) {}
   int state_dim() const override { return model_->num_outputs(); }
+  int input_dim() const override { return model_->num_inputs(); }
   void Predict(const ConstRowMatrixRef& z, double noise_variance_multiplier, RowMatrix* mean,
                RowMatrix* variance, RowMatrix* dmean_dz, RowMatrix* dvar_dz) const override;
   const gp::GpModel& model() const { return *model_; }
@@ -88,6 +91,7 @@ class FitcDynamics final : public ParticleDynamics {
   explicit FitcDynamics(const gp::FitcModel* model, ThreadPool* pool = nullptr)
       : model_(model), pool_(pool) {}
   int state_dim() const override { return model_->num_outputs(); }
+  int input_dim() const override { return model_->num_inputs(); }
   void Predict(const ConstRowMatrixRef& z, double noise_variance_multiplier, RowMatrix* mean,
                RowMatrix* variance, RowMatrix* dmean_dz, RowMatrix* dvar_dz) const override;
   const gp::FitcModel& model() const { return *model_; }

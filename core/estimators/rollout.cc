@@ -4,29 +4,17 @@
 
 namespace totalgrad::estimators {
 
-ProblemSystem::ProblemSystem(const Problem& problem)
-    : gp_adapter_(problem.model, problem.pool), rbf_adapter_(problem.policy, problem.pool) {
-  dynamics_ = problem.dynamics != nullptr ? problem.dynamics
-              : problem.model != nullptr  ? static_cast<const ParticleDynamics*>(&gp_adapter_)
-                                          : nullptr;
-  policy_ = problem.controller != nullptr ? problem.controller
-            : problem.policy != nullptr   ? static_cast<const ParticlePolicy*>(&rbf_adapter_)
-                                          : nullptr;
-}
-
 absl::Status SimulateParticles(const Problem& problem, int particles,
                                const RolloutRecording& recording, Rng* rng, Rollout* rollout) {
-  const ProblemSystem system(problem);
-  if (!system.complete() || problem.cost == nullptr)
+  if (!problem.complete())
     return absl::InvalidArgumentError("rollout problem needs a model, a policy and a cost");
   if (particles < 1) return absl::InvalidArgumentError("particles must be >= 1");
   if (problem.horizon < 1) return absl::InvalidArgumentError("horizon must be >= 1");
-  const ParticleDynamics& dynamics = system.dynamics();
-  const ParticlePolicy& policy = system.policy();
+  const ParticleDynamics& dynamics = *problem.dynamics;
+  const ParticlePolicy& policy = *problem.policy;
   const int s_dim = policy.state_dim();
   if (problem.mu0.size() != s_dim || problem.initial_std.size() != s_dim ||
-      dynamics.state_dim() != s_dim ||
-      (problem.dynamics == nullptr && problem.model->num_inputs() != s_dim + 1))
+      dynamics.state_dim() != s_dim || dynamics.input_dim() != s_dim + 1)
     return absl::InvalidArgumentError("rollout problem: model, policy and start state dimensions disagree");
 
   const int e_dim = s_dim + 1;

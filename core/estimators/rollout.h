@@ -31,48 +31,28 @@
 
 namespace totalgrad::estimators {
 
-// The frozen problem an estimator differentiates: model, policy, start
+// The frozen problem an estimator differentiates: dynamics, policy, start
 // distribution, cost and horizon. Non-owning: everything pointed to must
-// outlive the problem.
+// outlive the problem. A trial's or a study's model and policy reach it
+// through the adapters of particle_system.h (GpDynamics or FitcDynamics,
+// RbfParticlePolicy, and the angle-feature wrappers), built and owned by
+// learner::ModelProblem (core/learner/problem_builder.h); tests plug in
+// other systems (a linear-Gaussian one with an exact gradient).
 struct Problem {
-  const gp::GpModel* model = nullptr;
-  const policy::RbfPolicy* policy = nullptr;
+  const ParticleDynamics* dynamics = nullptr;  // S state dims, inputs [x, u]
+  const ParticlePolicy* policy = nullptr;      // S state dims
   const tasks::StateCost* cost = nullptr;
   Vector mu0;          // S
   Vector initial_std;  // S
   int horizon = 30;
   double noise_variance_multiplier = 1.0;  // GTP+sigma_n uses 25
-  // Seams for other systems (tests and studies, e.g. a linear-Gaussian system
-  // with a linear policy, whose exact gradient is known). When non-null they
-  // are used instead of `model` / `policy`; the pointees must outlive the
-  // problem. A trial leaves them null, except that with a sparse GP
-  // (gp_inducing) `dynamics` is a FitcDynamics and `model` is null.
-  const ParticleDynamics* dynamics = nullptr;
-  const ParticlePolicy* controller = nullptr;
-  // Threads for the data-parallel work of a rollout and its backward pass
-  // (may be null: the calling thread does everything). Never changes the
-  // numbers (core/common/thread_pool.h). A `dynamics` seam brings its own.
+  // Threads for the per-particle work of the estimators' own passes (may be
+  // null: the calling thread does everything). Never changes the numbers
+  // (core/common/thread_pool.h). The dynamics and the policy bring their own.
   ThreadPool* pool = nullptr;
-};
 
-// The dynamics and policy of a problem as interfaces: its seams when set,
-// otherwise adapters over `model` and `policy`. Holds pointers into `problem`'s
-// pointees, not into `problem` itself.
-class ProblemSystem {
- public:
-  explicit ProblemSystem(const Problem& problem);
-  ProblemSystem(const ProblemSystem&) = delete;
-  ProblemSystem& operator=(const ProblemSystem&) = delete;
-  // False when the problem has no model or no policy.
-  bool complete() const { return dynamics_ != nullptr && policy_ != nullptr; }
-  const ParticleDynamics& dynamics() const { return *dynamics_; }
-  const ParticlePolicy& policy() const { return *policy_; }
-
- private:
-  GpDynamics gp_adapter_;
-  RbfParticlePolicy rbf_adapter_;
-  const ParticleDynamics* dynamics_ = nullptr;
-  const ParticlePolicy* policy_ = nullptr;
+  // True when the problem has dynamics, a policy and a cost.
+  bool complete() const { return dynamics != nullptr && policy != nullptr && cost != nullptr; }
 };
 
 struct StepRecord;

@@ -12,8 +12,8 @@ constexpr int kMaxInputs = 16;  // E = S + 1; the cart-pole has 5
 
 void RpBackward(const Problem& problem, const Rollout& rollout, Vector* gradient,
                 RowMatrix* per_particle) {
-  const ProblemSystem system(problem);
-  const ParticlePolicy& policy = system.policy();
+  TG_CHECK(problem.policy != nullptr);
+  const ParticlePolicy& policy = *problem.policy;
   const int s_dim = policy.state_dim();
   const int e_dim = s_dim + 1;
   const int n = policy.num_parameters();

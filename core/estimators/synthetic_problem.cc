@@ -50,9 +50,11 @@ absl::StatusOr<std::unique_ptr<SyntheticProblem>> MakeSyntheticProblem(
   Rng policy_rng(options.seed, Stream::kPolicyInit);
   out->policy->Initialize(sc.mu0, Vector::Constant(4, 1.0), 1.0, &policy_rng);
 
+  out->dynamics = std::make_unique<GpDynamics>(out->model.get());
+  out->controller = std::make_unique<RbfParticlePolicy>(out->policy.get());
   Problem& p = out->problem;
-  p.model = out->model.get();
-  p.policy = out->policy.get();
+  p.dynamics = out->dynamics.get();
+  p.policy = out->controller.get();
   p.cost = sc.cost.get();
   p.mu0 = sc.mu0;
   p.initial_std = sc.initial_std;

@@ -28,12 +28,16 @@ struct SyntheticProblemOptions {
   double noise_variance_multiplier = 1.0;
 };
 
-// Owns the model, policy and scene that `problem` points into. Not copyable
-// (the problem holds pointers into it).
+// Owns the model, policy and scene and the adapters `problem` points into
+// (problem.dynamics = *dynamics over *model, problem.policy = *controller
+// over *policy, both without a thread pool). Not copyable (the problem holds
+// pointers into it).
 struct SyntheticProblem {
   std::unique_ptr<gp::GpModel> model;
   std::unique_ptr<policy::RbfPolicy> policy;
   std::unique_ptr<tasks::Scene> scene;
+  std::unique_ptr<GpDynamics> dynamics;
+  std::unique_ptr<RbfParticlePolicy> controller;
   Problem problem;
 
   SyntheticProblem() = default;

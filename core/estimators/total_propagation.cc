@@ -34,11 +34,10 @@ absl::Status ValidateConfig(const BackwardConfig& config) {
 absl::Status BackwardPass(const Problem& problem, const Rollout& rollout,
                           const BackwardConfig& config, Rng* rng, BackwardResult* result) {
   if (absl::Status st = ValidateConfig(config); !st.ok()) return st;
-  const ProblemSystem system(problem);
-  if (!system.complete() || problem.cost == nullptr)
+  if (!problem.complete())
     return absl::InvalidArgumentError("backward pass: problem needs a model, a policy and a cost");
   if (rollout.steps.empty()) return absl::InvalidArgumentError("backward pass: empty rollout");
-  const ParticlePolicy& policy = system.policy();
+  const ParticlePolicy& policy = *problem.policy;
   const int s_dim = policy.state_dim();
   const int n = policy.num_parameters();
   const Eigen::Index p = rollout.steps.front().state.rows();
@@ -53,8 +52,10 @@ absl::Status BackwardPass(const Problem& problem, const Rollout& rollout,
   }
   std::optional<pilco::GaussianCost> exact_cost;
   if (config.cost == CostNodeKind::kGaussianShaped && config.gs_derivative == GsDerivative::kExact) {
-    absl::StatusOr<pilco::GaussianCost> c = GaussianCostFor(*problem.cost);
-    if (!c.ok()) return c.status();
+    absl::StatusOr<pilco::GaussianCost> c = problem.cost->GaussianExpectation();
+    if (!c.ok())
+      return absl::InvalidArgumentError(absl::StrCat("exact Gaussian-shaping derivatives: ", c.status().message(),
+                                                     " (use gs_derivative=sampled)"));
     exact_cost = *std::move(c);
   } else if (config.cost == CostNodeKind::kGaussianShaped && rng == nullptr) {
     return absl::InvalidArgumentError("backward pass: sampled shaping derivatives need an Rng");
@@ -210,46 +211,54 @@ absl::Status BackwardPass(const Problem& problem, const Rollout& rollout,
   return absl::OkStatus();
 }
 
-absl::StatusOr<MethodRecipe> RecipeFor(const std::string& name, const EstimatorOptions& options) {
-  if (!(options.sn_noise_multiplier >= 0) || !std::isfinite(options.sn_noise_multiplier))
-    return absl::InvalidArgumentError("estimator option sn_noise_multiplier must be finite and >= 0");
+absl::StatusOr<MethodRecipe> RecipeFor(Method method, const EstimatorOptions& options) {
+  if (absl::Status st = options.Validate(); !st.ok()) return st;
   MethodRecipe r;
   BackwardConfig& b = r.backward;
   b.lr_weights = options.lr_weights;
   b.lr_baseline = options.lr_baseline;
   b.gs_derivative = options.gs_derivative;
   b.forced_k_lr = options.forced_k_lr;
-  if (name == "RP") {
-    b.pathwise = true;
-  } else if (name == "GR") {
-    b.pathwise = true;
-    r.resample = true;
-  } else if (name == "LR") {
-    b.pathwise = false;
-    b.jump = JumpKind::kLikelihoodRatio;
-  } else if (name == "TP") {
-    b.pathwise = true;
-    b.jump = JumpKind::kLikelihoodRatio;
-  } else if (name == "GLR") {
-    b.cost = CostNodeKind::kGaussianShaped;
-    b.pathwise = false;
-    b.jump = JumpKind::kLikelihoodRatio;
-  } else if (name == "GTP" || name == "GTP+sn") {
-    b.cost = CostNodeKind::kGaussianShaped;
-    b.pathwise = true;
-    b.jump = JumpKind::kLikelihoodRatio;
-    if (name == "GTP+sn") r.noise_variance_factor = options.sn_noise_multiplier;
-  } else if (name == "DEL") {
-    b.pathwise = false;
-    b.jump = JumpKind::kDensityEstimation;
-  } else {
-    return absl::InvalidArgumentError(absl::StrCat("no particle recipe for method '", name, "'"));
+  switch (method) {
+    case Method::kRp:
+      b.pathwise = true;
+      return r;
+    case Method::kGr:
+      b.pathwise = true;
+      r.resample = true;
+      return r;
+    case Method::kLr:
+      b.pathwise = false;
+      b.jump = JumpKind::kLikelihoodRatio;
+      return r;
+    case Method::kTp:
+      b.pathwise = true;
+      b.jump = JumpKind::kLikelihoodRatio;
+      return r;
+    case Method::kGlr:
+      b.cost = CostNodeKind::kGaussianShaped;
+      b.pathwise = false;
+      b.jump = JumpKind::kLikelihoodRatio;
+      return r;
+    case Method::kGtp:
+    case Method::kGtpSn:
+      b.cost = CostNodeKind::kGaussianShaped;
+      b.pathwise = true;
+      b.jump = JumpKind::kLikelihoodRatio;
+      if (method == Method::kGtpSn) r.noise_variance_factor = options.sn_noise_multiplier;
+      return r;
+    case Method::kDel:
+      b.pathwise = false;
+      b.jump = JumpKind::kDensityEstimation;
+      return r;
+    case Method::kPilco:
+      break;
   }
-  return r;
+  return absl::InvalidArgumentError(absl::StrCat("no particle recipe for method '", MethodName(method), "'"));
 }
 
-ParticleEstimator::ParticleEstimator(std::string name, MethodRecipe recipe)
-    : name_(std::move(name)), recipe_(std::move(recipe)) {}
+ParticleEstimator::ParticleEstimator(Method method, MethodRecipe recipe)
+    : method_(method), recipe_(std::move(recipe)) {}
 
 absl::Status ParticleEstimator::Estimate(const Problem& problem, const EstimateOptions& options,
                                          Rng* rng, GradientEstimate* estimate) {

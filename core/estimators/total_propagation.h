@@ -83,17 +83,18 @@ struct MethodRecipe {
   double noise_variance_factor = 1.0;    // multiplies problem.noise_variance_multiplier
 };
 
-// The recipe of GR, LR, TP, GLR, GTP, GTP+sn or DEL ("RP" too, although
-// MakeEstimator gives RP its dedicated RpEstimator). InvalidArgument for any
-// other name or an out-of-range option.
-absl::StatusOr<MethodRecipe> RecipeFor(const std::string& name, const EstimatorOptions& options);
+// The recipe of GR, LR, TP, GLR, GTP, GTP+sn or DEL (RP too, although
+// MakeEstimator gives RP its dedicated RpEstimator). InvalidArgument for
+// PILCO or invalid options (EstimatorOptions::Validate()).
+absl::StatusOr<MethodRecipe> RecipeFor(Method method, const EstimatorOptions& options);
 
 // An Estimator assembled from a recipe: forward pass, BackwardPass, and the
 // per-particle gradients g^(i) = P * contribution_i with their variance.
 class ParticleEstimator final : public Estimator {
  public:
-  ParticleEstimator(std::string name, MethodRecipe recipe);
-  std::string Name() const override { return name_; }
+  ParticleEstimator(Method method, MethodRecipe recipe);
+  std::string Name() const override { return MethodName(method_); }
+  Method method() const { return method_; }
   absl::Status Estimate(const Problem& problem, const EstimateOptions& options, Rng* rng,
                         GradientEstimate* estimate) override;
   const MethodRecipe& recipe() const { return recipe_; }
@@ -101,7 +102,7 @@ class ParticleEstimator final : public Estimator {
   const BackwardResult& last_backward() const { return backward_; }
 
  private:
-  std::string name_;
+  Method method_;
   MethodRecipe recipe_;
   GaussianResampler resampler_;  // used when recipe_.resample
   Rollout rollout_;          // reused between calls to avoid reallocations

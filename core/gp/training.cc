@@ -86,6 +86,42 @@ absl::Status ValidateTrainingArguments(const RowMatrix& inputs, const RowMatrix&
 
 }  // namespace
 
+const OptionTable<PenaltyOptions>& PenaltyOptions::Table() {
+  static const OptionTable<PenaltyOptions>* table = [] {
+    auto* t = new OptionTable<PenaltyOptions>();
+    t->Bool("gp_penalty", &PenaltyOptions::enabled)
+        .Double("gp_penalty_lengthscale_ratio", &PenaltyOptions::lengthscale_ratio)
+        .Double("gp_penalty_signal_to_noise", &PenaltyOptions::signal_to_noise)
+        .Int("gp_penalty_power", &PenaltyOptions::power);
+    return t;
+  }();
+  return *table;
+}
+
+absl::Status PenaltyOptions::Validate() const {
+  if (!(lengthscale_ratio > 1) || !std::isfinite(lengthscale_ratio))
+    return InvalidOption("gp_penalty_lengthscale_ratio", "must be finite and > 1");
+  if (!(signal_to_noise > 1) || !std::isfinite(signal_to_noise))
+    return InvalidOption("gp_penalty_signal_to_noise", "must be finite and > 1");
+  if (power < 2 || power % 2 != 0) return InvalidOption("gp_penalty_power", "must be an even integer >= 2");
+  return absl::OkStatus();
+}
+
+const OptionTable<TrainingOptions>& TrainingOptions::Table() {
+  static const OptionTable<TrainingOptions>* table = [] {
+    auto* t = new OptionTable<TrainingOptions>();
+    t->Int("gp_iterations", &TrainingOptions::max_iterations)
+        .Nest(&TrainingOptions::penalty, PenaltyOptions::Table());
+    return t;
+  }();
+  return *table;
+}
+
+absl::Status TrainingOptions::Validate() const {
+  if (max_iterations < 0) return InvalidOption("gp_iterations", "must be >= 0");
+  return penalty.Validate();
+}
+
 std::string TrainingSummary::BriefReport() const {
   std::ostringstream os;
   os << "GP training: " << final_loss.size() << " outputs; loss [";

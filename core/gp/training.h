@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
+#include "core/common/option_table.h"
 #include "core/common/types.h"
 #include "core/gp/gp.h"
 
@@ -30,11 +31,26 @@ struct PenaltyOptions {
   double lengthscale_ratio = 100.0;  // curb.ls
   double signal_to_noise = 1000.0;   // curb.snr
   int power = 30;                    // p
+
+  // Trial option keys gp_penalty (enabled), gp_penalty_lengthscale_ratio,
+  // gp_penalty_signal_to_noise, gp_penalty_power.
+  static const OptionTable<PenaltyOptions>& Table();
+  // InvalidArgument naming the key: ratios must be finite and > 1 (their logs
+  // divide), the power an even integer >= 2 (the penalty must grow on both
+  // sides).
+  absl::Status Validate() const;
+  bool operator==(const PenaltyOptions&) const = default;
 };
 
 struct TrainingOptions {
   int max_iterations = 300;  // L-BFGS iterations per output (PILCO: 300 line searches)
   PenaltyOptions penalty;
+
+  // Trial option keys gp_iterations and the penalty's (PenaltyOptions::Table()).
+  static const OptionTable<TrainingOptions>& Table();
+  // InvalidArgument naming the key (gp_iterations < 0, or the penalty's).
+  absl::Status Validate() const;
+  bool operator==(const TrainingOptions&) const = default;
 };
 
 struct TrainingSummary {

@@ -6,9 +6,6 @@
 
 #include "absl/strings/str_cat.h"
 #include "core/common/rng.h"
-#include "core/pilco/angle_features.h"
-#include "core/policy/rbf_policy.h"
-#include "core/tasks/scene.h"
 
 namespace totalgrad::learner {
 namespace {
@@ -309,84 +306,24 @@ absl::StatusOr<TrialCheckpoint> DecodeCheckpoint(std::string_view bytes) {
 }
 
 absl::Status CheckResumable(const TrialCheckpoint& checkpoint, const TrialOptions& options) {
+  // Compared as options, not as texts: a checkpoint written before an option
+  // existed lists no pair for it, and resumes a trial that keeps its default.
+  absl::StatusOr<TrialOptions> theirs = TrialOptionsFromPairs(checkpoint.options);
+  if (!theirs.ok()) return Invalid(absl::StrCat("its options do not parse: ", theirs.status().message()));
   const auto pairs = TrialOptionPairs(options);
-  if (pairs != checkpoint.options) {
-    for (size_t i = 0; i < pairs.size(); ++i) {
-      const std::string there =
-          i < checkpoint.options.size() ? checkpoint.options[i].first + "=" +
-                                              checkpoint.options[i].second
-                                        : std::string("(nothing)");
-      if (i >= checkpoint.options.size() || checkpoint.options[i] != pairs[i]) {
-        return Invalid(absl::StrCat("it belongs to another trial: option ", pairs[i].first, " is '",
-                                    pairs[i].second, "' here, the checkpoint has ", there));
-      }
+  const auto there = TrialOptionPairs(*theirs);
+  for (size_t i = 0; i < pairs.size(); ++i) {
+    if (there[i] != pairs[i]) {
+      return Invalid(absl::StrCat("it belongs to another trial: option ", pairs[i].first, " is '",
+                                  pairs[i].second, "' here, the checkpoint has ", there[i].first,
+                                  "=", there[i].second));
     }
-    return Invalid(absl::StrCat("it belongs to another trial: it has ", checkpoint.options.size(),
-                                " options, this trial ", pairs.size()));
   }
   if (checkpoint.episode > options.episodes) {
     return Invalid(absl::StrCat("episode ", checkpoint.episode, " is beyond the trial's ",
                                 options.episodes, " episodes"));
   }
   return absl::OkStatus();
-}
-
-absl::StatusOr<PolicyEvaluation> EvaluatePolicy(const TrialOptions& options,
-                                                const Vector& policy_parameters, int episode,
-                                                int rollouts) {
-  absl::Status valid = options.Validate();
-  if (!valid.ok()) return valid;
-  if (rollouts < 1) return absl::InvalidArgumentError("rollouts must be >= 1");
-  if (episode < 0) return absl::InvalidArgumentError("episode must be >= 0");
-  absl::StatusOr<tasks::Scene> scene_or = tasks::MakeScene(options.scene);
-  if (!scene_or.ok()) return scene_or.status();
-  const tasks::Scene& scene = *scene_or;
-  // The policy's inputs, as RunTrial's learners see them: PILCO uses
-  // (sin, cos) of the angle unless angle_features = raw; particle methods
-  // the raw state unless angle_features = sincos.
-  const bool pilco = options.method == "PILCO";
-  const int angle_index = pilco ? (options.angle_features == "raw" ? -1 : 1)
-                                : (options.angle_features == "sincos" ? 1 : -1);
-  policy::RbfPolicy policy(options.basis_functions,
-                           pilco::FeatureDim(tasks::kCartPoleStateDim, angle_index),
-                           scene.plant.params().max_force);
-  if (policy_parameters.size() != policy.num_parameters()) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "the policy has ", policy_parameters.size(), " parameters; ", options.method, " with ",
-        options.basis_functions, " basis functions and angle_features=", options.angle_features,
-        " has ", policy.num_parameters()));
-  }
-  policy.set_parameters(policy_parameters);
-  const tasks::Controller controller = [&](const tasks::State& observation) {
-    Vector force;
-    if (angle_index < 0) {
-      policy.Evaluate(observation.transpose(), &force, nullptr);
-    } else {
-      const Vector features = pilco::StateFeatures(observation, angle_index);
-      policy.Evaluate(features.transpose(), &force, nullptr);
-    }
-    return force(0);
-  };
-  PolicyEvaluation evaluation;
-  double sum = 0, sum_sq = 0;
-  for (int r = 0; r < rollouts; ++r) {
-    // The streams of RunTrial's evaluation of episode `episode`, rollout r.
-    const uint64_t index = static_cast<uint64_t>(episode) * 100000ULL + static_cast<uint64_t>(r);
-    Rng start_rng(options.seed, Stream::kEvaluation, 2 * index);
-    Rng noise_rng(options.seed, Stream::kEvaluation, 2 * index + 1);
-    tasks::Episode run;
-    absl::Status status = tasks::RunEpisode(scene, controller, &start_rng, &noise_rng, &run);
-    if (!status.ok()) {
-      return absl::InternalError(absl::StrCat("rollout ", r, ": ", status.message()));
-    }
-    evaluation.costs.push_back(run.total_cost);
-    sum += run.total_cost;
-    sum_sq += run.total_cost * run.total_cost;
-  }
-  const double n = rollouts;
-  evaluation.mean = sum / n;
-  evaluation.std = n > 1 ? std::sqrt(std::max(0.0, (sum_sq - sum * sum / n) / (n - 1))) : 0.0;
-  return evaluation;
 }
 
 }  // namespace totalgrad::learner

@@ -75,23 +75,6 @@ absl::StatusOr<TrialCheckpoint> DecodeCheckpoint(std::string_view bytes);
 // naming the first difference otherwise.
 absl::Status CheckResumable(const TrialCheckpoint& checkpoint, const TrialOptions& options);
 
-// A trial's controller evaluated on the real plant, as RunTrial evaluates
-// the policy of episode `episode`: rollout r uses the evaluation streams of
-// (seed, episode, r), so for the trial's own seed and episode the mean is
-// bit for bit the trial's eval_cost_mean.
-struct PolicyEvaluation {
-  std::vector<double> costs;  // one per rollout
-  double mean = 0;
-  double std = 0;  // sample standard deviation (0 for one rollout)
-};
-// `options` give the scene, cost, method and angle features (which decide
-// the policy's input features) and the seed; `policy_parameters` must have
-// the size of that policy. InvalidArgument for bad options, sizes, or
-// rollouts < 1; Internal if the plant fails.
-absl::StatusOr<PolicyEvaluation> EvaluatePolicy(const TrialOptions& options,
-                                                const Vector& policy_parameters, int episode,
-                                                int rollouts);
-
 }  // namespace totalgrad::learner
 
 #endif  // TOTALGRAD_CORE_LEARNER_CHECKPOINT_H_

@@ -19,14 +19,16 @@ constexpr double kStepPerDataSquared = 7.96e-11;
 // over RP at P = 300 (bench trial) split by TP's scan over P = 100, 300, 1000
 // (bench iteration at N = 120): one third linear in P, two thirds in P^2.
 struct MethodCost {
-  const char* name;
+  estimators::Method method;
   double per_particle;  // a_m
   double per_pair;      // q_m
 };
+using estimators::Method;
 constexpr MethodCost kMethodCosts[] = {
-    {"RP", 0.0, 0.0},          {"GR", 5.6e-8, 0.0},       {"LR", 2.30e-7, 1.53e-9},
-    {"TP", 4.04e-7, 2.69e-9},  {"GLR", 2.52e-7, 1.68e-9}, {"GTP", 3.89e-7, 2.59e-9},
-    {"GTP+sn", 4.07e-7, 2.72e-9}, {"DEL", 0.0, 0.0},
+    {Method::kRp, 0.0, 0.0},          {Method::kGr, 5.6e-8, 0.0},
+    {Method::kLr, 2.30e-7, 1.53e-9},  {Method::kTp, 4.04e-7, 2.69e-9},
+    {Method::kGlr, 2.52e-7, 1.68e-9}, {Method::kGtp, 3.89e-7, 2.59e-9},
+    {Method::kGtpSn, 4.07e-7, 2.72e-9}, {Method::kDel, 0.0, 0.0},
 };
 
 // GP hyperparameter training per episode: g N^3 (default iteration budget).
@@ -53,9 +55,9 @@ double StepSeconds(const MethodCost& m, double n, double particles, int horizon)
          horizon * m.per_pair * particles * particles;
 }
 
-const MethodCost& CostOf(const std::string& method) {
+const MethodCost& CostOf(estimators::Method method) {
   for (const MethodCost& m : kMethodCosts)
-    if (method == m.name) return m;
+    if (method == m.method) return m;
   return kMethodCosts[0];
 }
 
@@ -66,8 +68,8 @@ TrialCostEstimate EstimateTrialCost(const TrialOptions& options) {
   const int horizon = std::max(options.scene.horizon, 1);
   const double plant_episode = kPlantStep * horizon;
   estimate.other_cpu += plant_episode;  // the random episode
-  const bool pilco = options.method == "PILCO";
-  const int inducing = options.gp_inducing < 0 ? (pilco ? 300 : 0) : options.gp_inducing;
+  const bool pilco = options.method == estimators::Method::kPilco;
+  const int inducing = InducingInputs(options);
   bool fitted_before = false;
   for (int e = 1; e <= options.episodes; ++e) {
     const double n = static_cast<double>(horizon) * e;

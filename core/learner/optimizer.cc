@@ -4,6 +4,37 @@
 
 namespace totalgrad::learner {
 
+const EnumNames<Normalisation>& NormalisationNames() {
+  static const EnumNames<Normalisation>* names = new EnumNames<Normalisation>{
+      {Normalisation::kParticleStd, "particle_std"},
+      {Normalisation::kMeanStd, "mean_std"},
+      {Normalisation::kRmsprop, "rmsprop"}};
+  return *names;
+}
+
+const OptionTable<OptimizerOptions>& OptimizerOptions::Table() {
+  static const OptionTable<OptimizerOptions>* table = [] {
+    auto* t = new OptionTable<OptimizerOptions>();
+    t->Double("learning_rate", &OptimizerOptions::learning_rate)
+        .Double("momentum", &OptimizerOptions::momentum)
+        .Double("decay", &OptimizerOptions::decay)
+        .Double("epsilon", &OptimizerOptions::epsilon)
+        .Enum("normalisation", &OptimizerOptions::normalisation, NormalisationNames());
+    return t;
+  }();
+  return *table;
+}
+
+absl::Status OptimizerOptions::Validate() const {
+  if (!(learning_rate > 0)) return InvalidOption("learning_rate", "must be > 0");
+  if (!(momentum >= 0 && momentum < 1)) return InvalidOption("momentum", "must be in [0, 1)");
+  if (!(decay >= 0 && decay < 1)) return InvalidOption("decay", "must be in [0, 1)");
+  if (!(epsilon >= 0)) return InvalidOption("epsilon", "must be >= 0");
+  if (!IsNamedEnum(NormalisationNames(), normalisation))
+    return InvalidOption("normalisation", "is not a known value");
+  return absl::OkStatus();
+}
+
 RmspropLike::RmspropLike(const OptimizerOptions& options, int num_parameters)
     : options_(options), v_(Vector::Zero(num_parameters)), m_(Vector::Zero(num_parameters)) {}
 

@@ -14,11 +14,15 @@
 #ifndef TOTALGRAD_CORE_LEARNER_OPTIMIZER_H_
 #define TOTALGRAD_CORE_LEARNER_OPTIMIZER_H_
 
+#include "absl/status/status.h"
+#include "core/common/option_table.h"
 #include "core/common/types.h"
 
 namespace totalgrad::learner {
 
 enum class Normalisation { kParticleStd, kMeanStd, kRmsprop };
+// "particle_std", "mean_std", "rmsprop".
+const EnumNames<Normalisation>& NormalisationNames();
 
 struct OptimizerOptions {
   double learning_rate = 5e-4;
@@ -26,6 +30,13 @@ struct OptimizerOptions {
   double decay = 0.9;  // rho
   double epsilon = 1e-8;
   Normalisation normalisation = Normalisation::kMeanStd;  // chosen by measurement: docs/optimizer.md
+
+  // Trial option keys learning_rate, momentum, decay, epsilon, normalisation.
+  static const OptionTable<OptimizerOptions>& Table();
+  // InvalidArgument naming the key: learning_rate <= 0, momentum or decay
+  // outside [0, 1), epsilon < 0, a normalisation outside its names.
+  absl::Status Validate() const;
+  bool operator==(const OptimizerOptions&) const = default;
 };
 
 class RmspropLike {

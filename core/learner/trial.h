@@ -14,6 +14,10 @@
 // Determinism: the same TrialOptions (including the seed) and the same build
 // give the same numbers, bit for bit (one thread per trial; every random
 // number comes from a named substream of the seed).
+//
+// Options: core/learner/trial_options.h. Problems (the GP's data, the model,
+// the adapters, PILCO's problem): core/learner/problem_builder.h. The
+// learners of the two method families: particle_learner.h, pilco_learner.h.
 #ifndef TOTALGRAD_CORE_LEARNER_TRIAL_H_
 #define TOTALGRAD_CORE_LEARNER_TRIAL_H_
 
@@ -24,59 +28,12 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
-#include "core/estimators/estimator.h"
 #include "core/gp/gp.h"
-#include "core/gp/training.h"
-#include "core/learner/optimizer.h"
-#include "core/tasks/scene.h"
+#include "core/learner/trial_options.h"
 
 namespace totalgrad::learner {
 
 struct TrialCheckpoint;  // core/learner/checkpoint.h
-
-struct TrialOptions {
-  tasks::SceneOptions scene;
-  std::string method = "RP";   // estimator name, see estimators/estimator.h
-  uint64_t seed = 1;
-  int episodes = 15;           // learned episodes after the random one
-  int policy_steps = 600;      // gradient steps per policy optimisation
-  int particles = 300;         // particles per gradient estimate
-  int eval_rollouts = 30;      // real evaluation episodes per learned episode
-  double success_threshold = 15.0;  // success: last evaluation mean below this
-  int basis_functions = 50;    // RBF policy size
-  double model_noise_multiplier = 1.0;  // GP noise variance x this in policy optimisation
-  int predicted_cost_particles = 1000;  // particles for the reported model-predicted cost
-  double policy_init_lengthscale = 1.0; // initial length-scale of every basis function
-  double policy_centre_std = 1.0;       // centres ~ N(mu0, policy_centre_std^2 I)
-  OptimizerOptions optimizer;
-  gp::TrainingOptions gp_training;
-  estimators::EstimatorOptions estimator;  // method-specific knobs
-  // How the GP and the policy see the pole angle, for every method: "raw",
-  // "sincos" (PILCO's (sin, cos) augmentation; particle methods keep raw
-  // particles and map through estimators::AngleFeature{Dynamics,Policy}) or
-  // "auto" (sincos for PILCO, raw for the particle methods).
-  std::string angle_features = "auto";
-  // Sparse GP (FITC, gp/fitc.h) with this many inducing inputs once the data
-  // exceed it, for every method; the full GP while N <= gp_inducing. 0 = always
-  // the full GP; -1 = auto (300 for PILCO as PILCO does, 0 for particle
-  // methods). The inducing inputs are trained with the hyperparameters fixed,
-  // from a random subset of the inputs the first time (1500 L-BFGS
-  // iterations), then warm-started from the previous episode (500).
-  int gp_inducing = -1;
-
-  // OK, or InvalidArgument naming the first bad field.
-  absl::Status Validate() const;
-};
-
-// Sets one option by its key (the names listed by TrialOptionKeys(), e.g.
-// "particles", "noise_k", "learning_rate") from text. InvalidArgument names an
-// unknown key or an unparsable / out-of-range value. Used by the CLI flags,
-// sweep files and the service, so every option has one name everywhere.
-absl::Status SetTrialOption(const std::string& key, const std::string& value, TrialOptions* options);
-// Every option as (key, canonical text), in a fixed order; SetTrialOption of
-// each pair on default options reproduces `options`.
-std::vector<std::pair<std::string, std::string>> TrialOptionPairs(const TrialOptions& options);
-std::vector<std::string> TrialOptionKeys();
 
 struct EpisodeFlags {
   int non_finite_gradients = 0;    // gradient estimates dropped for non-finite values
@@ -135,10 +92,11 @@ struct TrialSummary {
 // The state of a trial at one learned episode e, for gradient studies
 // (core/study): the data the model of episode e was fitted on, its trained
 // hyperparameters, and the policy before (the warm start) and after episode
-// e's optimisation. Building the GP from (inputs of data, hyperparameters)
+// e's optimisation. Building the problem from them (learner::ModelProblem)
 // reproduces the particle methods' model of episode e bit for bit when it was
-// the full GP on the raw state (core/study refuses sincos snapshots); a FITC model (gp_inducing, PILCO's or a particle method's) is
-// not kept, and core/study refuses snapshots whose model was sparse.
+// the full GP on the raw state (core/study refuses sincos snapshots); a FITC
+// model (gp_inducing, PILCO's or a particle method's) is not kept, and
+// core/study refuses snapshots whose model was sparse.
 struct TrialSnapshot {
   int episode = 0;
   // The trial's options as TrialOptionPairs (so that scene, cost, horizon,

@@ -42,7 +42,23 @@ bool AllFinite(const OdeState& v) {
   return std::all_of(v.begin(), v.end(), [](double e) { return std::isfinite(e); });
 }
 
-absl::Status ValidateOptions(const IntegratorOptions& o) {
+}  // namespace
+
+const OptionTable<IntegratorOptions>& IntegratorOptions::Table() {
+  static const OptionTable<IntegratorOptions>* table = [] {
+    auto* t = new OptionTable<IntegratorOptions>();
+    t->Double("integrator_relative_tolerance", &IntegratorOptions::relative_tolerance)
+        .Double("integrator_absolute_tolerance", &IntegratorOptions::absolute_tolerance)
+        .Double("integrator_initial_step", &IntegratorOptions::initial_step)
+        .Double("integrator_min_step", &IntegratorOptions::min_step)
+        .Int("integrator_max_steps", &IntegratorOptions::max_steps);
+    return t;
+  }();
+  return *table;
+}
+
+absl::Status IntegratorOptions::Validate() const {
+  const IntegratorOptions& o = *this;
   if (!(o.relative_tolerance >= 0) || !std::isfinite(o.relative_tolerance)) {
     return absl::InvalidArgumentError(
         absl::StrCat("integrator: relative_tolerance must be finite and >= 0, got ",
@@ -72,8 +88,6 @@ absl::Status ValidateOptions(const IntegratorOptions& o) {
   return absl::OkStatus();
 }
 
-}  // namespace
-
 absl::Status IntegrateAdaptive(const Rhs& rhs, double duration, const IntegratorOptions& options,
                                Vector* state, IntegrationReport* report) {
   TG_CHECK(state != nullptr);
@@ -85,7 +99,7 @@ absl::Status IntegrateAdaptive(const Rhs& rhs, double duration, const Integrator
     return absl::InvalidArgumentError(
         absl::StrCat("integrator: duration must be finite and > 0, got ", duration));
   }
-  if (absl::Status st = ValidateOptions(options); !st.ok()) return st;
+  if (absl::Status st = options.Validate(); !st.ok()) return st;
   if (!state->allFinite()) {
     return absl::InvalidArgumentError("integrator: start state is not finite");
   }

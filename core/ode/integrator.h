@@ -17,6 +17,7 @@
 #include <functional>
 
 #include "absl/status/status.h"
+#include "core/common/option_table.h"
 #include "core/common/types.h"
 
 namespace totalgrad::ode {
@@ -30,6 +31,14 @@ struct IntegratorOptions {
   double initial_step = 1e-3;  // seconds
   double min_step = 1e-14;     // below this the integration is declared stiff/failed
   int max_steps = 200000;      // accepted + rejected steps per call
+
+  // Trial option keys integrator_relative_tolerance, integrator_absolute_tolerance,
+  // integrator_initial_step, integrator_min_step, integrator_max_steps.
+  static const OptionTable<IntegratorOptions>& Table();
+  // InvalidArgument naming the field: negative or non-finite tolerances, both
+  // tolerances 0, initial_step <= 0, min_step < 0, max_steps < 1.
+  absl::Status Validate() const;
+  bool operator==(const IntegratorOptions&) const = default;
 };
 
 struct IntegrationReport {
@@ -46,9 +55,8 @@ struct IntegrationReport {
 // unchanged and the status says why (InvalidArgument for a non-finite start
 // or duration <= 0, ResourceExhausted for the step budget, Internal for a
 // non-finite intermediate state or step-size underflow). `report` may be null;
-// it is filled on failure too. Invalid options (negative or non-finite
-// tolerances, both tolerances 0, initial_step <= 0, min_step < 0,
-// max_steps < 1) are InvalidArgument. A non-finite f(x) at the start state is
+// it is filled on failure too. Invalid options (options.Validate()) are
+// InvalidArgument. A non-finite f(x) at the start state is
 // Internal. The result is taken at exactly t = duration (the last step is
 // shortened to land there).
 absl::Status IntegrateAdaptive(const Rhs& rhs, double duration, const IntegratorOptions& options,

@@ -4,9 +4,10 @@
 //
 // Two sources:
 //  * a trial snapshot (learner::TrialSnapshot, saved at a chosen episode by
-//    `totalgrad trial --snapshot-episodes`): the GP is rebuilt from the
-//    snapshot's data and hyperparameters exactly as the trial's particle
-//    methods build it, so the model is the trial's model of that episode;
+//    `totalgrad trial --snapshot-episodes`): the problem is built from the
+//    snapshot's data and hyperparameters by the trial's own builder
+//    (learner::ModelProblem), so the model is the trial's model of that
+//    episode;
 //  * a synthetic problem (estimators::MakeSyntheticProblem).
 //
 // Studies rebuild the raw-state model (GP inputs [x, u]); a snapshot whose
@@ -26,6 +27,7 @@
 #include "core/estimators/rollout.h"
 #include "core/estimators/synthetic_problem.h"
 #include "core/gp/gp.h"
+#include "core/learner/problem_builder.h"
 #include "core/learner/trial.h"
 #include "core/policy/rbf_policy.h"
 #include "core/tasks/scene.h"
@@ -33,15 +35,20 @@
 namespace totalgrad::study {
 
 struct FrozenProblem {
-  std::unique_ptr<gp::GpModel> model;
-  std::unique_ptr<policy::RbfPolicy> policy;
-  std::unique_ptr<tasks::Scene> scene;
-  // Points into the members above. horizon is the scene's; a study
-  // overrides it per cell.
+  // The problem the estimators differentiate; its horizon is the scene's, a
+  // study overrides it per cell.
   estimators::Problem problem;
+  const gp::GpModel* model = nullptr;         // the full GP its dynamics predict with (raw state)
+  const policy::RbfPolicy* policy = nullptr;  // the policy at the studied parameters
   // Human-readable provenance, e.g. "trial snapshot, episode 3 (policy
   // before optimisation), N = 90".
   std::string source;
+
+  // Owners of what the members above point into (those of the source used).
+  std::unique_ptr<tasks::Scene> scene;
+  std::unique_ptr<policy::RbfPolicy> owned_policy;
+  std::unique_ptr<learner::ModelProblem> model_problem;
+  std::unique_ptr<estimators::SyntheticProblem> synthetic;
 
   FrozenProblem() = default;
   FrozenProblem(const FrozenProblem&) = delete;

@@ -10,7 +10,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "core/common/rng.h"
-#include "core/estimators/gaussian_shaping.h"
+#include "core/learner/problem_builder.h"
 #include "core/estimators/likelihood_ratio.h"
 #include "core/estimators/total_propagation.h"
 #include "core/pilco/gp_moments.h"
@@ -251,25 +251,23 @@ CellResult RunPilcoCell(const FrozenProblem& frozen, const pilco::GaussianInputG
                         const estimators::Problem& problem, const StudyOptions& options,
                         const ReferenceGradient& reference) {
   CellResult cell;
-  cell.method = kPilcoMethod;
+  cell.method = estimators::MethodName(estimators::Method::kPilco);
   cell.particles = 0;
   cell.horizon = problem.horizon;
   cell.reference_agrees = reference.agree;
-  absl::StatusOr<pilco::GaussianCost> cost = estimators::GaussianCostFor(*problem.cost);
-  if (!cost.ok()) {
+  // PILCO's problem on the particles' raw state, built as the trial builds it.
+  absl::StatusOr<pilco::PilcoProblem> built = learner::MakePilcoProblem(
+      *problem.cost, problem.mu0, problem.initial_std, problem.horizon, /*angle_index=*/-1,
+      frozen.policy->num_basis(), frozen.policy->max_force());
+  if (!built.ok()) {
     cell.omitted = true;
-    cell.omission_reason = absl::StrCat("no closed-form cost: ", cost.status().message());
+    cell.omission_reason = absl::StrCat("no closed-form cost: ", built.status().message());
     return cell;
   }
-  pilco::PilcoProblem pp;
-  pp.mu0 = problem.mu0;
-  pp.S0 = problem.initial_std.array().square().matrix().asDiagonal();
-  pp.horizon = problem.horizon;
-  pp.cost = std::make_shared<pilco::GaussianCost>(*std::move(cost));
-  pp.propagation.angle_index = -1;
+  pilco::PilcoProblem& pp = *built;
+  // The particles' transitions include the model noise whenever its
+  // multiplier is > 0; PILCO's predictions then include it too.
   pp.propagation.prediction_includes_noise = problem.noise_variance_multiplier > 0;
-  pp.propagation.max_force = frozen.policy->max_force();
-  pp.propagation.num_basis = frozen.policy->num_basis();
   if (problem.noise_variance_multiplier != 0 && problem.noise_variance_multiplier != 1) {
     cell.error = absl::StrCat("PILCO adds the noise variance once; the particles use it x",
                               problem.noise_variance_multiplier);
@@ -317,10 +315,9 @@ CellResult RunPilcoCell(const FrozenProblem& frozen, const pilco::GaussianInputG
 
 std::vector<EstimatorSpec> DefaultEstimators() {
   std::vector<EstimatorSpec> specs;
-  for (const std::string& name : estimators::ParticleMethods()) {
-    specs.push_back({name, name, estimators::EstimatorOptions{}});
+  for (const auto& [method, name] : estimators::MethodNames()) {
+    specs.push_back({name, method, estimators::EstimatorOptions{}});
   }
-  specs.push_back({kPilcoMethod, kPilcoMethod, estimators::EstimatorOptions{}});
   return specs;
 }
 
@@ -328,7 +325,8 @@ std::vector<EstimatorSpec> DefaultReferenceEstimators() {
   estimators::EstimatorOptions plain_loo;
   plain_loo.lr_weights = estimators::LrWeights::kPlain;
   plain_loo.lr_baseline = estimators::LrBaseline::kLeaveOneOut;
-  return {{"RP", "RP", estimators::EstimatorOptions{}}, {"LR(plain,loo)", "LR", plain_loo}};
+  return {{"RP", estimators::Method::kRp, estimators::EstimatorOptions{}},
+          {"LR(plain,loo)", estimators::Method::kLr, plain_loo}};
 }
 
 absl::Status StudyOptions::Validate() const {
@@ -362,13 +360,17 @@ absl::Status StudyOptions::Validate() const {
     if (!labels.insert(spec.label).second) {
       return bad("estimators", absl::StrCat("has the label '", spec.label, "' twice"));
     }
-    if (spec.method == kPilcoMethod) continue;
+    if (spec.method == estimators::Method::kPilco) {
+      if (absl::Status st = spec.options.Validate(); !st.ok())
+        return bad("estimators", absl::StrCat("'", spec.label, "': ", st.message()));
+      continue;
+    }
     absl::StatusOr<std::unique_ptr<estimators::Estimator>> e =
         estimators::MakeEstimator(spec.method, spec.options);
     if (!e.ok()) return bad("estimators", absl::StrCat("'", spec.label, "': ", e.status().message()));
   }
   for (const EstimatorSpec& spec : reference.estimators) {
-    if (spec.method == kPilcoMethod) {
+    if (spec.method == estimators::Method::kPilco) {
       return bad("reference.estimators", "cannot use PILCO (another objective)");
     }
     absl::StatusOr<std::unique_ptr<estimators::Estimator>> e =
@@ -473,8 +475,7 @@ absl::StatusOr<StudyResult> RunStudy(const FrozenProblem& problem, const StudyOp
   const auto stopped = [&should_stop] { return should_stop && should_stop(); };
   const absl::Status kStopped = absl::CancelledError("study stopped before it finished");
   if (absl::Status st = options.Validate(); !st.ok()) return st;
-  const estimators::ProblemSystem system(problem.problem);
-  if (!system.complete() || problem.problem.cost == nullptr || problem.policy == nullptr) {
+  if (!problem.problem.complete() || problem.policy == nullptr) {
     return absl::InvalidArgumentError("study: the frozen problem needs a model, a policy and a cost");
   }
   const Clock::time_point start = Clock::now();
@@ -497,14 +498,14 @@ absl::StatusOr<StudyResult> RunStudy(const FrozenProblem& problem, const StudyOp
 
   std::unique_ptr<pilco::GaussianInputGp> pilco_gp;
   for (const EstimatorSpec& spec : options.estimators) {
-    if (spec.method == kPilcoMethod) {
+    if (spec.method == estimators::Method::kPilco) {
       for (size_t hi = 0; hi < options.horizons.size(); ++hi) {
         if (stopped()) return kStopped;
         estimators::Problem p = problem.problem;
         p.horizon = options.horizons[hi];
         CellResult cell;
-        if (problem.model == nullptr || problem.problem.dynamics != nullptr) {
-          cell.method = kPilcoMethod;
+        if (problem.model == nullptr) {
+          cell.method = estimators::MethodName(estimators::Method::kPilco);
           cell.horizon = p.horizon;
           cell.omitted = true;
           cell.omission_reason = "PILCO needs the problem's GP model";
@@ -538,7 +539,7 @@ absl::StatusOr<StudyResult> RunStudy(const FrozenProblem& problem, const StudyOp
         const ReferenceGradient& ref = result.references[hi];
         CellResult cell;
         cell.estimator = spec.label;
-        cell.method = spec.method;
+        cell.method = estimators::MethodName(spec.method);
         cell.particles = particles;
         cell.horizon = p.horizon;
         cell.reference_agrees = ref.agree;

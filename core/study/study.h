@@ -63,19 +63,17 @@
 
 namespace totalgrad::study {
 
-inline constexpr char kPilcoMethod[] = "PILCO";
-
-// One estimator configuration: a MakeEstimator name (or "PILCO") with its
-// options, shown under `label`.
+// One estimator configuration: a method (a particle estimator, or PILCO's
+// moment matching) with its options, shown under `label`.
 struct EstimatorSpec {
   std::string label;
-  std::string method;
+  estimators::Method method = estimators::Method::kRp;
   estimators::EstimatorOptions options;
 };
 
-// Every method MakeEstimator accepts (estimators::ParticleMethods(), default
-// options, label = name) followed by PILCO: new estimators appear here
-// without any change to the study.
+// Every method of estimators::MethodNames() (the particle methods, then
+// PILCO), default options, label = name: new estimators appear here without
+// any change to the study.
 std::vector<EstimatorSpec> DefaultEstimators();
 // RP, and LR with plain weights and the leave-one-out baseline, labelled
 // "LR(plain,loo)".
@@ -131,7 +129,7 @@ struct ReferenceGradient {
 struct CellResult {
   static constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
   std::string estimator;   // label
-  std::string method;
+  std::string method;      // estimators::MethodName of the spec's method
   int particles = 0;       // 0 for PILCO
   int horizon = 0;
   int replicates = 0;      // finite estimates the statistics use

@@ -7,6 +7,22 @@
 
 namespace totalgrad::tasks {
 
+const OptionTable<CartPoleParams>& CartPoleParams::Table() {
+  static const OptionTable<CartPoleParams>* table = [] {
+    auto* t = new OptionTable<CartPoleParams>();
+    t->Double("cart_mass", &CartPoleParams::cart_mass)
+        .Double("pole_mass", &CartPoleParams::pole_mass)
+        .Double("pole_length", &CartPoleParams::pole_length)
+        .Double("friction", &CartPoleParams::friction)
+        .Double("dt", &CartPoleParams::dt)
+        .Double("max_force", &CartPoleParams::max_force)
+        .Double("gravity", &CartPoleParams::gravity)
+        .Nest(&CartPoleParams::integrator, ode::IntegratorOptions::Table());
+    return t;
+  }();
+  return *table;
+}
+
 // PILCO's dynamics_cp (pilco-spec.md 1.2) with x = s, v = s_dot,
 // omega = beta_dot, theta = beta. Derived from the Lagrangian of a cart with a
 // uniform rod (inertia m l^2 / 12 about its centre, centre at l / 2) and

@@ -14,6 +14,7 @@
 #include <Eigen/Core>
 
 #include "absl/status/status.h"
+#include "core/common/option_table.h"
 #include "core/common/types.h"
 #include "core/ode/integrator.h"
 
@@ -31,6 +32,11 @@ struct CartPoleParams {
   double dt = 0.1;           // s, control period
   double max_force = 10.0;   // N, bound of the policy's saturated output
   ode::IntegratorOptions integrator;
+
+  // Trial option keys cart_mass, pole_mass, pole_length, friction, dt,
+  // max_force, gravity and the integrator's (ode::IntegratorOptions::Table()).
+  static const OptionTable<CartPoleParams>& Table();
+  bool operator==(const CartPoleParams&) const = default;
 };
 
 class CartPole {

@@ -8,6 +8,22 @@
 
 namespace totalgrad::tasks {
 
+absl::StatusOr<pilco::GaussianCost> StateCost::GaussianExpectation() const {
+  return absl::InvalidArgumentError(
+      absl::StrCat("the cost '", Name(), "' has no closed-form expectation under a Gaussian state"));
+}
+
+absl::StatusOr<pilco::GaussianCost> AngleCost::GaussianExpectation() const {
+  const Vector target = target_;
+  const Matrix q = q_.asDiagonal();
+  return pilco::GaussianCost::Angle(target, q);
+}
+
+absl::StatusOr<pilco::GaussianCost> TipCost::GaussianExpectation() const {
+  return pilco::GaussianCost::Tip(kCartPoleStateDim, /*position_index=*/0, /*angle_index=*/1, length_,
+                                  width_, target_position_);
+}
+
 double StateCost::Value(const State& x) const {
   RowMatrix batch(1, kCartPoleStateDim);
   batch.row(0) = x.transpose();

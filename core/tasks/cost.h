@@ -11,6 +11,11 @@
 // Batched evaluation: x is P x 4 (one state per row), cost is P, the optional
 // gradient is P x 4 with grad(i, m) = dc(x_i)/dx_im.
 //
+// Each cost also states its expectation under a Gaussian state in closed form
+// (GaussianExpectation(): PILCO's lossSat form, core/pilco/expected_cost.h),
+// which PILCO's moment matching and the exact Gaussian-shaping derivatives
+// use: the closed form lives with the cost it belongs to.
+//
 // Thread safety: const methods are thread-safe.
 #ifndef TOTALGRAD_CORE_TASKS_COST_H_
 #define TOTALGRAD_CORE_TASKS_COST_H_
@@ -20,6 +25,7 @@
 
 #include "absl/status/statusor.h"
 #include "core/common/types.h"
+#include "core/pilco/expected_cost.h"
 #include "core/tasks/cartpole.h"
 
 namespace totalgrad::tasks {
@@ -31,6 +37,9 @@ class StateCost {
   // Output sizes are set by the call.
   virtual void Evaluate(const ConstRowMatrixRef& x, Vector* cost, RowMatrix* grad) const = 0;
   virtual std::string Name() const = 0;
+  // E[c(x)], Var[c(x)] and their gradients for x ~ N(m, S) in closed form.
+  // InvalidArgument naming the cost when it has none (the default).
+  virtual absl::StatusOr<pilco::GaussianCost> GaussianExpectation() const;
   // Convenience for one state.
   double Value(const State& x) const;
 };
@@ -40,6 +49,8 @@ class AngleCost final : public StateCost {
   AngleCost(const State& target, const State& q_diagonal);
   void Evaluate(const ConstRowMatrixRef& x, Vector* cost, RowMatrix* grad) const override;
   std::string Name() const override { return "angle"; }
+  // W = 2 Q on the raw state (pilco::GaussianCost::Angle).
+  absl::StatusOr<pilco::GaussianCost> GaussianExpectation() const override;
   const State& target() const { return target_; }
   const State& q_diagonal() const { return q_; }
 
@@ -53,6 +64,9 @@ class TipCost final : public StateCost {
   TipCost(double target_position, double pendulum_length = 0.5, double width = 0.25);
   void Evaluate(const ConstRowMatrixRef& x, Vector* cost, RowMatrix* grad) const override;
   std::string Name() const override { return "tip"; }
+  // On the Gaussian approximation of [x; sin beta; cos beta], as PILCO's
+  // loss_cp (pilco::GaussianCost::Tip with position index 0, angle index 1).
+  absl::StatusOr<pilco::GaussianCost> GaussianExpectation() const override;
   double target_position() const { return target_position_; }
   double pendulum_length() const { return length_; }
   double width() const { return width_; }

@@ -38,7 +38,7 @@ absl::Status ValidatePlant(const CartPoleParams& p) {
                           RequirePositive("plant.max_force", p.max_force)}) {
     if (!st.ok()) return st;
   }
-  return absl::OkStatus();
+  return p.integrator.Validate();
 }
 
 std::string StepError(int step, const absl::Status& cause) {
@@ -46,6 +46,20 @@ std::string StepError(int step, const absl::Status& cause) {
 }
 
 }  // namespace
+
+const OptionTable<SceneOptions>& SceneOptions::Table() {
+  static const OptionTable<SceneOptions>* table = [] {
+    auto* t = new OptionTable<SceneOptions>();
+    t->String("scene", &SceneOptions::scene)
+        .String("cost", &SceneOptions::cost)
+        .Double("noise_k", &SceneOptions::noise_k)
+        .Int("horizon", &SceneOptions::horizon)
+        .Double("initial_std", &SceneOptions::initial_std)
+        .Nest(&SceneOptions::plant, CartPoleParams::Table());
+    return t;
+  }();
+  return *table;
+}
 
 absl::StatusOr<Scene> MakeScene(const SceneOptions& options) {
   Scene scene;

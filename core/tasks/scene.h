@@ -29,6 +29,11 @@ struct SceneOptions {
   int horizon = 30;                        // control steps per episode
   double initial_std = 0.1;                // std of every start-state dimension
   CartPoleParams plant;
+
+  // Trial option keys scene, cost, noise_k, horizon, initial_std and the
+  // plant's (CartPoleParams::Table()).
+  static const OptionTable<SceneOptions>& Table();
+  bool operator==(const SceneOptions&) const = default;
 };
 
 struct Scene {
@@ -40,12 +45,16 @@ struct Scene {
   State observation_noise_std;  // sqrt(k) * base std
   int horizon = 30;
   std::shared_ptr<const StateCost> cost;
+  // The state index of the pole angle: where PILCO's (sin, cos) features of
+  // the GP's and the policy's inputs act (pilco/angle_features.h).
+  int angle_index = 1;
 };
 
 // InvalidArgument names the bad field (unknown scene or cost, k < 0,
 // horizon < 1, non-finite numbers).
 // Also rejected: initial_std < 0; plant masses, pole_length, dt or max_force
-// <= 0; friction or gravity < 0 (the field is named as "plant.<field>").
+// <= 0; friction or gravity < 0 (the field is named as "plant.<field>");
+// invalid integrator options (ode::IntegratorOptions::Validate()).
 // The tip cost measures the tip of this plant's pole, so it uses
 // plant.pole_length (PILCO: cost length = pole length = 0.5 m).
 absl::StatusOr<Scene> MakeScene(const SceneOptions& options);

@@ -20,7 +20,7 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
-#include "core/study/study_file.h"
+#include "io/study_file.h"
 #include "core/learner/trial.h"
 #include "server/common/status_macros.h"
 
@@ -141,7 +141,7 @@ absl::StatusOr<StudyEntry> ParseStudyEntry(const toml::table& table, size_t inde
   if (file) {
     std::filesystem::path path(*file);
     if (path.is_relative()) path = sweep_dir / path;
-    absl::StatusOr<nlohmann::json> read = study::ReadStudyDocument(path.string());
+    absl::StatusOr<nlohmann::json> read = io::ReadStudyDocument(path.string());
     if (!read.ok()) {
       return FieldError(Where(file_name, table["file"].node()->source()), field,
                         read.status().message());
@@ -158,7 +158,7 @@ absl::StatusOr<StudyEntry> ParseStudyEntry(const toml::table& table, size_t inde
     entry.source = "inline";
   }
   const std::string study_where = file ? absl::StrCat(field, " (", entry.source, ")") : field;
-  absl::StatusOr<nlohmann::json> inlined = study::InlineStudyDocument(doc, base_dir);
+  absl::StatusOr<nlohmann::json> inlined = io::InlineStudyDocument(doc, base_dir);
   if (!inlined.ok()) return FieldError(entry_where, study_where, inlined.status().message());
   absl::StatusOr<std::string> canonical = CanonicalStudySpec(inlined->dump());
   if (!canonical.ok()) return FieldError(entry_where, study_where, canonical.status().message());
@@ -178,7 +178,7 @@ absl::StatusOr<std::string> CanonicalStudySpec(const std::string& spec_json) {
   if (doc.is_discarded() || !doc.is_object()) {
     return absl::InvalidArgumentError("the study spec is not a JSON object");
   }
-  absl::StatusOr<study::StudySpec> spec = study::ParseStudySpec(doc, /*base_dir=*/"");
+  absl::StatusOr<io::StudySpec> spec = io::ParseStudySpec(doc, /*base_dir=*/"");
   if (!spec.ok()) return spec.status();
   if (!spec->snapshot_file.empty()) {
     return absl::InvalidArgumentError(
@@ -651,7 +651,7 @@ absl::StatusOr<std::vector<ExpandedJob>> ExpandJobs(const SweepSpec& spec) {
           " learned episodes"));
     }
     ExpandedJob job;
-    job.method = options->method;
+    job.method = estimators::MethodName(options->method);
     job.seed = std::to_string(options->seed);
     job.variant = absl::StrJoin(variant, " ");
     job.options = learner::TrialOptionPairs(*options);
@@ -672,9 +672,9 @@ absl::StatusOr<std::vector<ExpandedJob>> ExpandJobs(const SweepSpec& spec) {
     const StudyEntry& entry = spec.studies[i];
     const nlohmann::json doc =
         nlohmann::json::parse(entry.spec_json, nullptr, /*allow_exceptions=*/false);
-    absl::StatusOr<study::StudySpec> parsed =
-        doc.is_object() ? study::ParseStudySpec(doc, "")
-                        : absl::StatusOr<study::StudySpec>(
+    absl::StatusOr<io::StudySpec> parsed =
+        doc.is_object() ? io::ParseStudySpec(doc, "")
+                        : absl::StatusOr<io::StudySpec>(
                               absl::InvalidArgumentError("not a JSON object"));
     if (!parsed.ok()) {
       return absl::InvalidArgumentError(

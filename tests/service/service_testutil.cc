@@ -1,26 +1,8 @@
 #include "tests/service/service_testutil.h"
 
-#include <stdlib.h>
-
-#include <filesystem>
-
 #include "absl/strings/str_cat.h"
 
 namespace totalgrad::testing {
-
-std::string MakeTempDir() {
-  const char* base = std::getenv("TEST_TMPDIR");
-  std::string pattern =
-      (std::filesystem::path(base ? base : std::filesystem::temp_directory_path().string()) /
-       "totalgrad_service_XXXXXX")
-          .string();
-  char* made = mkdtemp(pattern.data());
-  if (made == nullptr) {
-    ADD_FAILURE() << "mkdtemp failed for " << pattern;
-    return "/tmp";
-  }
-  return made;
-}
 
 storage::NewSweep MakeSweep(const std::string& name, int jobs, int episodes,
                             const std::string& spec_hash) {

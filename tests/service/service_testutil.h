@@ -1,5 +1,5 @@
-// Helpers for the service tests: status assertions, temporary directories,
-// sweep builders and FaultyStore (a Store wrapper that injects errors, in the
+// Helpers for the service tests (status assertions and temporary
+// directories: tests/testutil/test_base.h): sweep builders and FaultyStore (a Store wrapper that injects errors, in the
 // spirit of leveldb's ErrorEnv).
 #ifndef TOTALGRAD_TESTS_SERVICE_SERVICE_TESTUTIL_H_
 #define TOTALGRAD_TESTS_SERVICE_SERVICE_TESTUTIL_H_
@@ -13,35 +13,9 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "server/storage/store.h"
-
-#define TG_EXPECT_OK(expr)                                           \
-  do {                                                               \
-    const ::absl::Status tg_st_ = ::totalgrad::testing::ToStatus(expr); \
-    EXPECT_TRUE(tg_st_.ok()) << #expr << ": " << tg_st_.ToString();  \
-  } while (0)
-#define TG_ASSERT_OK(expr)                                           \
-  do {                                                               \
-    const ::absl::Status tg_st_ = ::totalgrad::testing::ToStatus(expr); \
-    ASSERT_TRUE(tg_st_.ok()) << #expr << ": " << tg_st_.ToString();  \
-  } while (0)
-#define TG_ASSERT_OK_AND_ASSIGN(lhs, expr)                                   \
-  auto TG_TU_CONCAT(tg_sor_, __LINE__) = (expr);                             \
-  ASSERT_TRUE(TG_TU_CONCAT(tg_sor_, __LINE__).ok())                          \
-      << #expr << ": " << TG_TU_CONCAT(tg_sor_, __LINE__).status().ToString(); \
-  lhs = std::move(*TG_TU_CONCAT(tg_sor_, __LINE__))
-#define TG_TU_CONCAT_INNER(a, b) a##b
-#define TG_TU_CONCAT(a, b) TG_TU_CONCAT_INNER(a, b)
+#include "tests/testutil/test_base.h"  // TG_EXPECT_OK, TG_ASSERT_OK*, MakeTempDir
 
 namespace totalgrad::testing {
-
-inline absl::Status ToStatus(const absl::Status& status) { return status; }
-template <typename T>
-absl::Status ToStatus(const absl::StatusOr<T>& status_or) {
-  return status_or.status();
-}
-
-// A fresh empty directory for one test (under $TEST_TMPDIR or /tmp).
-std::string MakeTempDir();
 
 // A sweep named `name` with `jobs` jobs (method "RP", seeds 1..jobs, variant
 // "noise_k=1"), each expecting `episodes` episodes.

@@ -11,7 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "absl/strings/str_cat.h"
-#include "core/study/study_file.h"
+#include "io/study_file.h"
 #include "core/common/blas.h"
 #include "core/study/study.h"
 #include "tests/service/e2e_util.h"
@@ -75,10 +75,10 @@ TEST_F(StudyEndToEndTest, StudyRowsInSqliteEqualALocalCoreRun) {
   ExpectRowsEqualReference("study-e2e", TinyProtocol());
 
   // The same study in this process.
-  absl::StatusOr<study::StudySpec> local_spec =
-      study::ParseStudySpec(nlohmann::json::parse(study_json), "");
+  absl::StatusOr<io::StudySpec> local_spec =
+      io::ParseStudySpec(nlohmann::json::parse(study_json), "");
   ASSERT_TRUE(local_spec.ok()) << local_spec.status();
-  auto problem = study::LoadStudyProblem(*local_spec);
+  auto problem = io::LoadStudyProblem(*local_spec);
   ASSERT_TRUE(problem.ok()) << problem.status();
   SetBlasThreads(1);
   absl::StatusOr<study::StudyResult> local = study::RunStudy(**problem, local_spec->options);
@@ -108,7 +108,7 @@ TEST_F(StudyEndToEndTest, StudyRowsInSqliteEqualALocalCoreRun) {
     EXPECT_EQ(s.omission_reason(), l.omission_reason);
     EXPECT_EQ(s.error(), l.error);
     EXPECT_EQ(s.reference_agrees(), l.reference_agrees);
-    EXPECT_EQ(s.note(), study::StudyCellNote(l));
+    EXPECT_EQ(s.note(), io::StudyCellNote(l));
     for (auto [stored, expected, name] :
          {std::tuple{s.rel_rmse(), l.rel_rmse, "rel_rmse"},
           std::tuple{s.rel_bias(), l.rel_bias, "rel_bias"},

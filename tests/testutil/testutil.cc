@@ -1,10 +1,7 @@
 #include "tests/testutil/testutil.h"
 
-#include <unistd.h>
-
 #include <algorithm>
 #include <cmath>
-#include <filesystem>
 #include <sstream>
 
 namespace totalgrad::testing {
@@ -27,14 +24,6 @@ namespace totalgrad::testing {
     }
   }
   return ::testing::AssertionSuccess();
-}
-
-std::string TempDir() {
-  const char* base = std::getenv("TEST_TMPDIR");
-  std::filesystem::path dir = base ? base : std::filesystem::temp_directory_path();
-  dir /= "totalgrad_test_" + std::to_string(::getpid());
-  std::filesystem::create_directories(dir);
-  return dir.string();
 }
 
 }  // namespace totalgrad::testing

@@ -244,10 +244,8 @@ std::unique_ptr<FeatureProblem> MakeFeatureProblem(const std::string& cost, cons
   out->dynamics = std::make_unique<AngleFeatureDynamics>(out->inner_dynamics.get(), kAngle);
   out->policy = MakeFeaturePolicy(theta);
   out->problem = out->fm.synthetic->problem;  // cost, start distribution, horizon (raw state)
-  out->problem.model = nullptr;
-  out->problem.policy = nullptr;
   out->problem.dynamics = out->dynamics.get();
-  out->problem.controller = out->policy.outer.get();
+  out->problem.policy = out->policy.outer.get();
   return out;
 }
 
@@ -255,7 +253,7 @@ double FixedNoiseObjective(const FeatureProblem& base, const Vector& theta, uint
                            int particles) {
   const FeaturePolicy q = MakeFeaturePolicy(theta);
   Problem problem = base.problem;
-  problem.controller = q.outer.get();
+  problem.policy = q.outer.get();
   Rng rng(noise_seed, Stream::kParticleNoise);
   Rollout rollout;
   EXPECT_TRUE(SimulateParticles(problem, particles, {}, &rng, &rollout).ok());
@@ -295,7 +293,7 @@ INSTANTIATE_TEST_SUITE_P(Costs, AngleFeatureRpGradient, ::testing::Values("angle
 TEST(AngleFeatureProblem, EveryParticleMethodEstimates) {
   const Vector theta = InitialFeaturePolicyParameters();
   const auto fp = MakeFeatureProblem("angle", theta);
-  for (const std::string& method : ParticleMethods()) {
+  for (const Method method : ParticleMethods()) {
     auto estimator = MakeEstimator(method, EstimatorOptions{});
     ASSERT_TRUE(estimator.ok()) << method << ": " << estimator.status();
     Rng rng(5, Stream::kParticleNoise);

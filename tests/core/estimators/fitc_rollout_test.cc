@@ -38,13 +38,14 @@ SparseProblem MakeSparseProblem(const std::string& cost) {
   out.fitc = std::make_unique<gp::FitcModel>(*std::move(fitc));
   out.dynamics = std::make_unique<FitcDynamics>(out.fitc.get());
   out.problem = out.synthetic->problem;
-  out.problem.model = nullptr;  // as a trial with gp_inducing sets it up
-  out.problem.dynamics = out.dynamics.get();
+  out.problem.dynamics = out.dynamics.get();  // as a trial with gp_inducing sets it up
   return out;
 }
 
-double Objective(const Problem& base, const Vector& theta, uint64_t noise_seed, int particles) {
-  return ::totalgrad::estimators::testing::FixedNoiseObjective(base, theta, noise_seed, particles);
+double Objective(const SparseProblem& sp, const Problem& base, const Vector& theta,
+                 uint64_t noise_seed, int particles) {
+  return ::totalgrad::estimators::testing::FixedNoiseObjective(base, *sp.synthetic->policy, theta,
+                                                                noise_seed, particles);
 }
 
 diff::CheckOptions GradientCheckOptions() {
@@ -61,22 +62,22 @@ TEST_P(FitcRpGradient, MatchesFiniteDifferencesWithFixedNoise) {
   const Problem& problem = sp.problem;
   const int particles = 5;
   Rng rng(11, Stream::kParticleNoise);
-  auto rp = MakeEstimator("RP", {});
+  auto rp = MakeEstimator(Method::kRp, {});
   ASSERT_TRUE(rp.ok());
   EstimateOptions eo;
   eo.particles = particles;
   GradientEstimate estimate;
   ASSERT_TRUE((*rp)->Estimate(problem, eo, &rng, &estimate).ok());
   ASSERT_TRUE(estimate.finite);
-  const Vector theta = problem.policy->parameters();
-  EXPECT_NEAR(estimate.objective, Objective(problem, theta, 11, particles), 1e-12);
+  const Vector theta = sp.synthetic->policy->parameters();
+  EXPECT_NEAR(estimate.objective, Objective(sp, problem, theta, 11, particles), 1e-12);
   // The sparse model is really the one used: J differs from the full GP's.
-  EXPECT_GT(std::abs(estimate.objective - Objective(sp.synthetic->problem, theta, 11, particles)),
+  EXPECT_GT(std::abs(estimate.objective - Objective(sp, sp.synthetic->problem, theta, 11, particles)),
             1e-6);
 
   const diff::VectorFunction f = [&](const Vector& t, Vector* out) {
     out->resize(1);
-    (*out)(0) = Objective(problem, t, 11, particles);
+    (*out)(0) = Objective(sp, problem, t, 11, particles);
     return std::isfinite((*out)(0));
   };
   const diff::CheckResult r =
@@ -101,11 +102,11 @@ TEST(FitcRpGradientCheck, IgnoringTheVariancePathFails) {
   RpBackward(problem, rollout, &wrong, nullptr);
   const diff::VectorFunction f = [&](const Vector& t, Vector* out) {
     out->resize(1);
-    (*out)(0) = Objective(problem, t, 11, 5);
+    (*out)(0) = Objective(sp, problem, t, 11, 5);
     return true;
   };
   EXPECT_FALSE(
-      diff::CheckJacobian(f, problem.policy->parameters(), wrong.transpose(), GradientCheckOptions())
+      diff::CheckJacobian(f, sp.synthetic->policy->parameters(), wrong.transpose(), GradientCheckOptions())
           .ok);
 }
 

@@ -188,7 +188,7 @@ TEST(GrEstimator, MatchesFiniteDifferencesWithFixedNoise) {
   ASSERT_TRUE(sp.ok()) << sp.status();
   const Problem& problem = (*sp)->problem;
   const int particles = 8;
-  auto estimator = MakeEstimator("GR", {});
+  auto estimator = MakeEstimator(Method::kGr, {});
   ASSERT_TRUE(estimator.ok());
   Rng rng(11, Stream::kParticleNoise);
   EstimateOptions eo;
@@ -203,10 +203,11 @@ TEST(GrEstimator, MatchesFiniteDifferencesWithFixedNoise) {
 
   GaussianResampler resampler;
   const diff::VectorFunction f = [&](const Vector& theta, Vector* out) {
-    policy::RbfPolicy policy = *problem.policy;
+    policy::RbfPolicy policy = *(*sp)->policy;
     policy.set_parameters(theta);
+    const RbfParticlePolicy adapter(&policy);
     Problem pr = problem;
-    pr.policy = &policy;
+    pr.policy = &adapter;
     Rng r(11, Stream::kParticleNoise);
     Rollout rollout;
     RolloutRecording rec;
@@ -220,7 +221,7 @@ TEST(GrEstimator, MatchesFiniteDifferencesWithFixedNoise) {
   options.relative_tolerance = 1e-5;
   options.absolute_tolerance = 1e-8;
   const diff::CheckResult r =
-      diff::CheckJacobian(f, problem.policy->parameters(), estimate.gradient.transpose(), options);
+      diff::CheckJacobian(f, (*sp)->policy->parameters(), estimate.gradient.transpose(), options);
   EXPECT_TRUE(r.ok) << r.log;
 }
 

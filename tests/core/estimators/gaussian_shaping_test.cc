@@ -60,7 +60,7 @@ TEST(ShapedValues, SumToZeroAtEveryStep) {
     Rng rng(4, Stream::kParticleNoise);
     Rollout rollout;
     ASSERT_TRUE(SimulateParticles(sp->problem, 20, {}, &rng, &rollout).ok());
-    const auto exact = GaussianCostFor(*sp->problem.cost);
+    const auto exact = sp->problem.cost->GaussianExpectation();
     ASSERT_TRUE(exact.ok());
     for (const StepRecord& step : rollout.steps) {
       GaussianFit fit;
@@ -109,7 +109,7 @@ TEST(ExactExpectedCost, DerivativesMatchFiniteDifferences) {
   const GaussianFit fit = UprightFit(40, 6);
   for (const std::string name : {"angle", "tip"}) {
     auto cost = Cost(name);
-    auto gc = GaussianCostFor(*cost);
+    auto gc = cost->GaussianExpectation();
     ASSERT_TRUE(gc.ok());
     ExpectedCostGradient e;
     ASSERT_TRUE(ExactExpectedCostGradient(*gc, fit, &e).ok());
@@ -170,7 +170,7 @@ TEST(ExactExpectedCost, DerivativesMatchFiniteDifferences) {
 TEST(SampledExpectedCost, AgreesWithExactOnAverage) {
   const GaussianFit fit = UprightFit(40, 8);
   auto cost = Cost("angle");
-  auto gc = GaussianCostFor(*cost);
+  auto gc = cost->GaussianExpectation();
   ASSERT_TRUE(gc.ok());
   ExpectedCostGradient exact;
   ASSERT_TRUE(ExactExpectedCostGradient(*gc, fit, &exact).ok());
@@ -199,7 +199,7 @@ TEST(SampledExpectedCost, AgreesWithExactOnAverage) {
 
 TEST(ExactExpectedCost, UnsupportedCostIsAnError) {
   testing::QuadraticCost cost(Vector::Zero(2), Vector::Ones(2));
-  const auto gc = GaussianCostFor(cost);
+  const auto gc = cost.GaussianExpectation();
   ASSERT_FALSE(gc.ok());
   EXPECT_EQ(gc.status().code(), absl::StatusCode::kInvalidArgument);
 }
@@ -216,7 +216,7 @@ TEST(GaussianShapedPathwise, MatchesFiniteDifferencesWithFixedNoise) {
     EstimatorOptions options;
     options.gs_derivative = GsDerivative::kExact;
     options.forced_k_lr = 0.0;
-    auto gtp = MakeEstimator("GTP", options);
+    auto gtp = MakeEstimator(Method::kGtp, options);
     ASSERT_TRUE(gtp.ok());
     Rng rng(11, Stream::kParticleNoise);
     EstimateOptions eo;
@@ -224,13 +224,14 @@ TEST(GaussianShapedPathwise, MatchesFiniteDifferencesWithFixedNoise) {
     GradientEstimate estimate;
     ASSERT_TRUE((*gtp)->Estimate(problem, eo, &rng, &estimate).ok());
     ASSERT_TRUE(estimate.finite);
-    const auto gc = GaussianCostFor(*problem.cost);
+    const auto gc = problem.cost->GaussianExpectation();
     ASSERT_TRUE(gc.ok());
     const diff::VectorFunction f = [&](const Vector& theta, Vector* out) {
-      policy::RbfPolicy policy = *problem.policy;
+      policy::RbfPolicy policy = *sp->policy;
       policy.set_parameters(theta);
+      const RbfParticlePolicy adapter(&policy);
       Problem pr = problem;
-      pr.policy = &policy;
+      pr.policy = &adapter;
       Rng r(11, Stream::kParticleNoise);
       Rollout rollout;
       if (!SimulateParticles(pr, particles, {}, &r, &rollout).ok()) return false;
@@ -250,7 +251,7 @@ TEST(GaussianShapedPathwise, MatchesFiniteDifferencesWithFixedNoise) {
     check.relative_tolerance = 1e-5;
     check.absolute_tolerance = 1e-8;
     const diff::CheckResult r =
-        diff::CheckJacobian(f, problem.policy->parameters(), estimate.gradient.transpose(), check);
+        diff::CheckJacobian(f, sp->policy->parameters(), estimate.gradient.transpose(), check);
     EXPECT_TRUE(r.ok) << name << ": " << r.log;
     EXPECT_GT(estimate.gradient.norm(), 1e-6);
   }

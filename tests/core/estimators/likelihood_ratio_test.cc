@@ -163,10 +163,10 @@ TEST(LrOnTheGpModel, AgreesWithRp) {
   EstimatorOptions plain;
   plain.lr_weights = LrWeights::kPlain;
   plain.lr_baseline = LrBaseline::kLeaveOneOut;
-  auto rp = MakeEstimator("RP", {});
-  auto lr = MakeEstimator("LR", plain);
+  auto rp = MakeEstimator(Method::kRp, {});
+  auto lr = MakeEstimator(Method::kLr, plain);
   ASSERT_TRUE(rp.ok() && lr.ok());
-  const int n = sp->problem.policy->num_parameters();
+  const int n = sp->policy->num_parameters();
   const int replicates = 4000;
   EstimateOptions eo;
   eo.particles = 40;

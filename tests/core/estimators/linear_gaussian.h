@@ -116,7 +116,7 @@ struct LinearGaussian {
   LinearGaussian(LinearDynamics d, LinearPolicy p, QuadraticCost c, Vector mu0, Vector s0, int horizon)
       : dynamics(std::move(d)), policy(std::move(p)), cost(std::move(c)) {
     problem.dynamics = &dynamics;
-    problem.controller = &policy;
+    problem.policy = &policy;
     problem.cost = &cost;
     problem.mu0 = std::move(mu0);
     problem.initial_std = std::move(s0);

@@ -39,7 +39,7 @@ Average Replicate(Estimator* estimator, const Problem& problem, int particles, i
                   uint64_t seed) {
   EstimateOptions eo;
   eo.particles = particles;
-  const int n = problem.controller->num_parameters();
+  const int n = problem.policy->num_parameters();
   Vector sum = Vector::Zero(n), sum_sq = Vector::Zero(n), pp_var = Vector::Zero(n);
   GradientEstimate e;
   for (int r = 0; r < replicates; ++r) {
@@ -77,7 +77,9 @@ std::string Describe(const std::string& name, const Average& a, const Vector& re
 }
 
 std::unique_ptr<Estimator> Make(const std::string& name, const EstimatorOptions& options = {}) {
-  auto e = MakeEstimator(name, options);
+  absl::StatusOr<Method> method = ParseMethod(name);
+  EXPECT_TRUE(method.ok()) << method.status();
+  auto e = MakeEstimator(*method, options);
   EXPECT_TRUE(e.ok()) << e.status();
   return *std::move(e);
 }
@@ -277,7 +279,7 @@ TEST(DensityEstimationLr, ConvergesToTheGaussianFitLimitNotTheGradient) {
   testing::QuadraticCost cost(Vector::Constant(1, target), Vector::Constant(1, q));
   Problem problem;
   problem.dynamics = &dynamics;
-  problem.controller = &policy;
+  problem.policy = &policy;
   problem.cost = &cost;
   problem.mu0 = Vector::Constant(1, m0);
   problem.initial_std = Vector::Constant(1, s0);

@@ -32,14 +32,15 @@ inline std::unique_ptr<SyntheticProblem> SmallSyntheticProblem(const std::string
   return p.ok() ? *std::move(p) : nullptr;
 }
 
-// J(theta) of `base` with its policy's parameters replaced by theta and the
-// random numbers of seed `noise_seed` held fixed (P = particles).
-inline double FixedNoiseObjective(const Problem& base, const Vector& theta, uint64_t noise_seed,
-                                  int particles) {
-  policy::RbfPolicy policy = *base.policy;
+// J(theta) of `base` with its policy replaced by `rbf` at parameters theta
+// and the random numbers of seed `noise_seed` held fixed (P = particles).
+inline double FixedNoiseObjective(const Problem& base, const policy::RbfPolicy& rbf,
+                                  const Vector& theta, uint64_t noise_seed, int particles) {
+  policy::RbfPolicy policy = rbf;
   policy.set_parameters(theta);
+  const RbfParticlePolicy adapter(&policy);
   Problem problem = base;
-  problem.policy = &policy;
+  problem.policy = &adapter;
   Rng rng(noise_seed, Stream::kParticleNoise);
   Rollout rollout;
   EXPECT_TRUE(SimulateParticles(problem, particles, {}, &rng, &rollout).ok());

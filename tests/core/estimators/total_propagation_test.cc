@@ -31,9 +31,17 @@ std::unique_ptr<SyntheticProblem> SmallProblem(int horizon, const std::string& c
   return *std::move(p);
 }
 
+std::unique_ptr<Estimator> MakeByName(const std::string& name, const EstimatorOptions& options) {
+  absl::StatusOr<Method> method = ParseMethod(name);
+  EXPECT_TRUE(method.ok()) << method.status();
+  auto e = MakeEstimator(*method, options);
+  EXPECT_TRUE(e.ok()) << e.status();
+  return e.ok() ? *std::move(e) : nullptr;
+}
+
 GradientEstimate RunMethod(const std::string& method, const EstimatorOptions& options, const Problem& problem,
                      int particles, uint64_t seed) {
-  auto e = MakeEstimator(method, options);
+  absl::StatusOr<std::unique_ptr<Estimator>> e = MakeByName(method, options);
   EXPECT_TRUE(e.ok()) << e.status();
   Rng rng(seed, Stream::kParticleNoise);
   EstimateOptions eo;
@@ -149,7 +157,7 @@ TEST(TotalPropagation, WeightsStayInTheUnitInterval) {
 // variance is the sample variance of those rows.
 TEST(AllMethods, PerParticleGradientsAverageToTheEstimate) {
   auto sp = SmallProblem(6);
-  for (const std::string& method : ParticleMethods()) {
+  for (const std::string& method : ParticleMethodNames()) {
     const GradientEstimate e = RunMethod(method, {}, sp->problem, 7, 2);
     ASSERT_TRUE(e.finite) << method;
     ASSERT_EQ(e.per_particle.rows(), 7) << method;
@@ -207,7 +215,7 @@ TEST(BackwardPass, ConfigurationErrors) {
       << "resampler without a resampled rollout";
   EstimatorOptions bad;
   bad.sn_noise_multiplier = -1;
-  EXPECT_FALSE(MakeEstimator("GTP+sn", bad).ok());
+  EXPECT_FALSE(MakeEstimator(Method::kGtpSn, bad).ok());
 }
 
 // A rollout that overflows (an explosive linear system) is a non-finite
@@ -223,17 +231,17 @@ TEST(AllMethods, OverflowingRolloutIsANonFiniteEstimateNotAnError) {
   tasks::AngleCost cost(target, q);
   Problem problem;
   problem.dynamics = &dynamics;
-  problem.controller = &policy;
+  problem.policy = &policy;
   problem.cost = &cost;
   problem.mu0 = Vector::Constant(4, 0.1);
   problem.initial_std = Vector::Constant(4, 0.1);
   problem.horizon = 8;
-  for (const std::string& method : ParticleMethods()) {
+  for (const std::string& method : ParticleMethodNames()) {
     for (const GsDerivative d : {GsDerivative::kSampled, GsDerivative::kExact}) {
       EstimatorOptions options;
       options.gs_derivative = d;
-      auto e = MakeEstimator(method, options);
-      ASSERT_TRUE(e.ok());
+      absl::StatusOr<std::unique_ptr<Estimator>> e = MakeByName(method, options);
+      ASSERT_TRUE(e.ok() && *e != nullptr);
       Rng rng(1, Stream::kParticleNoise);
       EstimateOptions eo;
       eo.particles = 5;
@@ -248,9 +256,11 @@ TEST(AllMethods, OverflowingRolloutIsANonFiniteEstimateNotAnError) {
 
 TEST(Registry, EveryMethodByName) {
   const std::vector<std::string> expected = {"RP", "GR", "LR", "TP", "GLR", "GTP", "GTP+sn", "DEL"};
-  EXPECT_EQ(ParticleMethods(), expected);
+  EXPECT_EQ(ParticleMethodNames(), expected);
   for (const std::string& m : expected) {
-    auto e = MakeEstimator(m, {});
+    absl::StatusOr<Method> method = ParseMethod(m);
+    ASSERT_TRUE(method.ok()) << m;
+    auto e = MakeEstimator(*method, {});
     ASSERT_TRUE(e.ok()) << m;
     EXPECT_EQ((*e)->Name(), m);
   }

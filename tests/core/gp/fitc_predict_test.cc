@@ -89,7 +89,7 @@ diff::CheckOptions JacobianCheckOptions() {
 TEST(FitcPredictTest, JacobiansMatchFiniteDifferences) {
   const Problem problem = MakeProblem(60, 1);
   absl::StatusOr<FitcModel> model = SparseModel(problem, 15, 2);
-  ASSERT_OK(model.status());
+  TG_ASSERT_OK(model.status());
   const int p = 6;
   const RowMatrix z = MakeQueries(problem, p, 3);
   const PredictOptions options{25.0};  // GTP+sigma_n's multiplier: exercises the noise term
@@ -115,7 +115,7 @@ TEST(FitcPredictTest, JacobiansMatchFiniteDifferences) {
 TEST(FitcPredictTest, WrongJacobiansFailTheCheck) {
   const Problem problem = MakeProblem(60, 1);
   absl::StatusOr<FitcModel> model = SparseModel(problem, 15, 2);
-  ASSERT_OK(model.status());
+  TG_ASSERT_OK(model.status());
   const int p = 6;
   const RowMatrix z = MakeQueries(problem, p, 3);
   const PredictOptions options{25.0};
@@ -144,10 +144,10 @@ TEST(FitcPredictTest, WrongJacobiansFailTheCheck) {
 TEST(FitcPredictTest, InducingInputsAtTheDataAgreeWithTheFullGp) {
   const Problem problem = MakeProblem(40, 4, 0.3, 0.4);
   absl::StatusOr<GpModel> full = GpModel::Create(problem.inputs, problem.targets, problem.hyp);
-  ASSERT_OK(full.status());
+  TG_ASSERT_OK(full.status());
   absl::StatusOr<FitcModel> sparse =
       FitcModel::Create(problem.inputs, problem.targets, problem.hyp, problem.inputs);
-  ASSERT_OK(sparse.status());
+  TG_ASSERT_OK(sparse.status());
   const RowMatrix z = MakeQueries(problem, 12, 5);
   for (const double mult : {0.0, 1.0, 25.0}) {
     RowMatrix fm, fv, fdm, fdv, sm, sv, sdm, sdv;
@@ -159,7 +159,7 @@ TEST(FitcPredictTest, InducingInputsAtTheDataAgreeWithTheFullGp) {
     EXPECT_TRUE(MatricesNear(sdv, fdv, 5e-5, 5e-5)) << "mult " << mult;
   }
   absl::StatusOr<FitcModel> half = SparseModel(problem, 20, 6);
-  ASSERT_OK(half.status());
+  TG_ASSERT_OK(half.status());
   RowMatrix fm, fv, hm, hv;
   full->Predict(z, PredictOptions{}, &fm, &fv, nullptr, nullptr);
   half->Predict(z, PredictOptions{}, &hm, &hv, nullptr, nullptr);
@@ -169,7 +169,7 @@ TEST(FitcPredictTest, InducingInputsAtTheDataAgreeWithTheFullGp) {
 TEST(FitcPredictTest, BatchEqualsSingleRowsAndRequestsDoNotChangeValues) {
   const Problem problem = MakeProblem(60, 7);
   absl::StatusOr<FitcModel> model = SparseModel(problem, 20, 8);
-  ASSERT_OK(model.status());
+  TG_ASSERT_OK(model.status());
   const int p = 11;
   const RowMatrix z = MakeQueries(problem, p, 9);
   const PredictOptions options{25.0};
@@ -214,14 +214,14 @@ TEST(FitcFitTest, FitsFromARandomSubsetThenWarmStarts) {
   FitcTrainingSummary summary;
   absl::StatusOr<FitcModel> first =
       FitFitcModel(problem.inputs, problem.targets, problem.hyp, options, &inducing, &rng, &summary);
-  ASSERT_OK(first.status());
+  TG_ASSERT_OK(first.status());
   EXPECT_EQ(inducing.rows(), 10);
   EXPECT_EQ(first->inducing(), inducing);
   EXPECT_LT(summary.final_nlml, summary.initial_nlml);
   const double first_final = summary.final_nlml;
   absl::StatusOr<FitcModel> warm =
       FitFitcModel(problem.inputs, problem.targets, problem.hyp, options, &inducing, &rng, &summary);
-  ASSERT_OK(warm.status());
+  TG_ASSERT_OK(warm.status());
   EXPECT_DOUBLE_EQ(summary.initial_nlml, first_final);  // started where the first fit ended
   options.num_inducing = 51;
   EXPECT_EQ(FitFitcModel(problem.inputs, problem.targets, problem.hyp, options, &inducing, &rng,

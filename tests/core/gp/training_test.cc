@@ -237,7 +237,7 @@ TEST(TrainHyperparametersTest, ImprovesLossAndRecoversNoiseLevel) {
 
   absl::StatusOr<TrainingSummary> summary =
       TrainHyperparameters(data.inputs, data.targets, TrainingOptions{}, &hyp);
-  ASSERT_OK(summary.status());
+  TG_ASSERT_OK(summary.status());
   // A well-posed problem converges without any failure.
   EXPECT_EQ(summary->line_search_failures, 0) << summary->BriefReport();
   EXPECT_EQ(summary->non_finite_evaluations, 0) << summary->BriefReport();
@@ -259,13 +259,13 @@ TEST(TrainHyperparametersTest, ImprovesLossAndRecoversNoiseLevel) {
     EXPECT_EQ(summary->final_loss[a], TotalStartLoss(data, hyp, a));
   }
   EXPECT_TRUE(hyp.log_lengthscales.allFinite());
-  ASSERT_OK(GpModel::Create(data.inputs, data.targets, hyp).status());
+  TG_ASSERT_OK(GpModel::Create(data.inputs, data.targets, hyp).status());
 
   // Warm start from the optimum: no worse, and far fewer iterations.
   GpHyperparameters again = hyp;
   absl::StatusOr<TrainingSummary> second =
       TrainHyperparameters(data.inputs, data.targets, TrainingOptions{}, &again);
-  ASSERT_OK(second.status());
+  TG_ASSERT_OK(second.status());
   for (int a = 0; a < 2; ++a) {
     EXPECT_LE(second->final_loss[a], summary->final_loss[a]);
     EXPECT_LT(second->iterations[a], summary->iterations[a]);
@@ -282,7 +282,7 @@ TEST(TrainHyperparametersTest, ZeroIterationsReturnsTheStartPoint) {
   options.max_iterations = 0;
   absl::StatusOr<TrainingSummary> summary =
       TrainHyperparameters(data.inputs, data.targets, options, &hyp);
-  ASSERT_OK(summary.status());
+  TG_ASSERT_OK(summary.status());
   EXPECT_EQ(hyp.Packed(0), start.Packed(0));
   EXPECT_EQ(hyp.Packed(1), start.Packed(1));
   EXPECT_EQ(summary->iterations[0], 0);
@@ -315,7 +315,7 @@ TEST(TrainHyperparametersTest, DegenerateDataDoesNotCrash) {
     EXPECT_GT(summary->non_finite_evaluations, 0);
     // The result must be usable: the model builds (jitter allowed) and predicts.
     absl::StatusOr<GpModel> model = GpModel::Create(inputs, targets, hyp);
-    ASSERT_OK(model.status());
+    TG_ASSERT_OK(model.status());
     RowMatrix mean, var;
     model->Predict(inputs.topRows(5), PredictOptions{}, &mean, &var, nullptr, nullptr);
     EXPECT_TRUE(mean.allFinite() && var.allFinite());

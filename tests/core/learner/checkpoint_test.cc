@@ -4,6 +4,7 @@
 // started inducing inputs, PILCO); EvaluatePolicy reproduces the trial's own
 // evaluation of its final policy.
 #include "core/learner/checkpoint.h"
+#include "core/learner/evaluation.h"
 
 #include <gtest/gtest.h>
 

@@ -252,7 +252,7 @@ TEST(TrialOptions, AngleFeaturesValuesForEveryMethod) {
   EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument);
   EXPECT_NE(s.message().find("angle_features"), std::string::npos);
   EXPECT_NE(s.message().find("polar"), std::string::npos);
-  o.angle_features = "polar";  // set directly, bypassing SetTrialOption
+  o.angle_features = static_cast<AngleFeatures>(99);  // set directly, bypassing SetTrialOption
   EXPECT_EQ(o.Validate().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_NE(o.Validate().message().find("angle_features"), std::string::npos);
 }

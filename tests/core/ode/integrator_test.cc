@@ -38,7 +38,7 @@ TEST(IntegrateAdaptiveTest, HarmonicOscillatorMeetsTolerance) {
   IntegratorOptions options;  // 1e-10 relative and absolute
   Vector x = Vec2(1.0, 0.0);
   IntegrationReport report;
-  ASSERT_OK(IntegrateAdaptive(Oscillator(w), duration, options, &x, &report));
+  TG_ASSERT_OK(IntegrateAdaptive(Oscillator(w), duration, options, &x, &report));
   const Vector exact = Vec2(std::cos(w * duration), -w * std::sin(w * duration));
   const double error = (x - exact).lpNorm<Eigen::Infinity>();
   // Each accepted step commits a local error of at most tol * (1 + |x| +
@@ -65,7 +65,7 @@ TEST(IntegrateAdaptiveTest, ExponentialDecayErrorFollowsTolerance) {
     options.relative_tolerance = options.absolute_tolerance = tol;
     Vector x = Vector::Constant(1, 1.0);
     IntegrationReport report;
-    ASSERT_OK(IntegrateAdaptive(decay, duration, options, &x, &report));
+    TG_ASSERT_OK(IntegrateAdaptive(decay, duration, options, &x, &report));
     const double error = std::abs(x(0) - exact);
     // The decay contracts errors, so the global error is below the sum of
     // the local tolerances (scale 1 + |x| + dt |x'| <= 3).
@@ -82,7 +82,7 @@ TEST(IntegrateAdaptiveTest, LandsExactlyOnDuration) {
   for (double duration : {1e-6, 0.1, 0.123, 3.7}) {
     Vector x = Vector::Zero(1);
     IntegrationReport report;
-    ASSERT_OK(IntegrateAdaptive(clock, duration, {}, &x, &report));
+    TG_ASSERT_OK(IntegrateAdaptive(clock, duration, {}, &x, &report));
     EXPECT_NEAR(x(0), duration, 8 * std::numeric_limits<double>::epsilon() * duration)
         << "duration " << duration;
   }
@@ -93,7 +93,7 @@ TEST(IntegrateAdaptiveTest, AgreesWithFineRk4OnNonlinearPendulum) {
   Vector reference = Vec2(3.0, 0.0);  // near the top: strongly nonlinear
   IntegrateRk4(Pendulum, duration, 50000, &reference);
   Vector x = Vec2(3.0, 0.0);
-  ASSERT_OK(IntegrateAdaptive(Pendulum, duration, {}, &x, nullptr));
+  TG_ASSERT_OK(IntegrateAdaptive(Pendulum, duration, {}, &x, nullptr));
   const double diff = (x - reference).lpNorm<Eigen::Infinity>();
   EXPECT_LT(diff, 1e-8);
   std::printf("pendulum: |adaptive - rk4(50000)| = %.3g\n", diff);

@@ -59,9 +59,9 @@ Data MakeData(int n, int e, int d, uint64_t seed, double noise_std = 0.05) {
 TEST(FitcTest, InducingInputsAtTheDataReproduceTheFullGp) {
   const Data data = MakeData(40, 3, 2, 1, /*noise_std=*/0.3);
   auto fitc = gp::FitcModel::Create(data.x, data.y, data.hyp, data.x);
-  ASSERT_OK(fitc.status());
+  TG_ASSERT_OK(fitc.status());
   auto full = GaussianInputGpFromData(data.x, data.y, data.log_hyp);
-  ASSERT_OK(full.status());
+  TG_ASSERT_OK(full.status());
   // Point predictions at new inputs.
   std::mt19937_64 rng(2);
   const RowMatrix z = testing::GaussianSampler(Vector::Zero(3), Matrix::Identity(3, 3)).Sample(20, &rng);
@@ -85,8 +85,8 @@ TEST(FitcTest, InducingInputsAtTheDataReproduceTheFullGp) {
   GaussianPrediction ps, pf;
   const Vector m = Eigen::Vector3d(0.2, -0.1, 0.3);
   const Matrix s = 0.2 * Matrix::Identity(3, 3);
-  ASSERT_OK(PredictGaussian(sparse, m, s, GaussianPredictionOptions(), &ps));
-  ASSERT_OK(PredictGaussian(*full, m, s, GaussianPredictionOptions(), &pf));
+  TG_ASSERT_OK(PredictGaussian(sparse, m, s, GaussianPredictionOptions(), &ps));
+  TG_ASSERT_OK(PredictGaussian(*full, m, s, GaussianPredictionOptions(), &pf));
   EXPECT_TRUE(::totalgrad::testing::MatricesNear(ps.mean, pf.mean, 3e-5, 0));
   EXPECT_TRUE(::totalgrad::testing::MatricesNear(ps.cov, pf.cov, 3e-5, 0));
   EXPECT_TRUE(::totalgrad::testing::MatricesNear(ps.cross, pf.cross, 3e-5, 0));
@@ -123,7 +123,7 @@ TEST(FitcTest, PredictJacobiansMatchFiniteDifferences) {
   Rng rng(6, Stream::kGpInit);
   auto fitc = gp::FitcModel::Create(data.x, data.y, data.hyp,
                                     gp::RandomSubsetOfInputs(data.x, 10, &rng));
-  ASSERT_OK(fitc.status());
+  TG_ASSERT_OK(fitc.status());
   const Vector z0 = Eigen::Vector3d(0.3, -0.2, 0.5);
   RowMatrix mean, var, dm, dv;
   fitc->Predict(z0.transpose(), gp::PredictOptions{1.0}, &mean, &var, &dm, &dv);
@@ -153,7 +153,7 @@ TEST(FitcTest, TrainingReducesTheNlml) {
   gp::FitcTrainingOptions options;
   options.max_iterations = 50;
   auto summary = gp::TrainInducingInputs(data.x, data.y, data.hyp, options, &z);
-  ASSERT_OK(summary.status());
+  TG_ASSERT_OK(summary.status());
   EXPECT_LT(summary->final_nlml, summary->initial_nlml - 1.0) << summary->BriefReport();
   double check;
   ASSERT_TRUE(gp::FitcNlml(data.x, data.y, data.hyp, z, &check, nullptr));
@@ -174,13 +174,13 @@ TEST(FitcTest, GaussianInputMomentsMatchMonteCarlo) {
   Rng rng(11, Stream::kGpInit);
   auto fitc = gp::FitcModel::Create(data.x, data.y, data.hyp,
                                     gp::RandomSubsetOfInputs(data.x, 15, &rng));
-  ASSERT_OK(fitc.status());
+  TG_ASSERT_OK(fitc.status());
   const GaussianInputGp sparse = GaussianInputGpFromFitc(*fitc);
   std::mt19937_64 gen(12);
   const Vector m = testing::RandomVector(4, 0.3, &gen);
   const Matrix s = testing::RandomCovariance(4, 0.3, &gen);
   GaussianPrediction pred;
-  ASSERT_OK(PredictGaussian(sparse, m, s, GaussianPredictionOptions(), &pred));
+  TG_ASSERT_OK(PredictGaussian(sparse, m, s, GaussianPredictionOptions(), &pred));
   const testing::GaussianSampler sampler(m, s);
   testing::MomentAccumulator acc(4 + 2 + 2);
   Vector shift = Vector::Zero(8);
@@ -227,14 +227,14 @@ TEST(FitcTest, ChainedGradientWithFitcMatchesFiniteDifferences) {
   hyp.log_noise_std = Vector::Constant(4, std::log(0.01));
   Rng rng(14, Stream::kGpInit);
   auto fitc = gp::FitcModel::Create(x, y, hyp, gp::RandomSubsetOfInputs(x, 25, &rng));
-  ASSERT_OK(fitc.status());
+  TG_ASSERT_OK(fitc.status());
   const GaussianInputGp sparse = GaussianInputGpFromFitc(*fitc);
   PropagationOptions options;
   options.angle_index = 1;
   options.num_basis = 5;
   const Propagator prop(&sparse, options);
   auto cost = GaussianCost::Tip(4, 0, 1, 0.5, 0.25);
-  ASSERT_OK(cost.status());
+  TG_ASSERT_OK(cost.status());
   Vector params(prop.num_parameters());
   params.head(25) = testing::RandomVector(25, 0.3, &gen);
   params.segment(25, 5).setZero();
@@ -243,7 +243,7 @@ TEST(FitcTest, ChainedGradientWithFitcMatchesFiniteDifferences) {
   const Matrix s0 = 0.01 * Matrix::Identity(4, 4);
   Trajectory tr;
   Vector grad;
-  ASSERT_OK(PredictTrajectory(prop, *cost, params, mu0, s0, 30, &tr, &grad));
+  TG_ASSERT_OK(PredictTrajectory(prop, *cost, params, mu0, s0, 30, &tr, &grad));
   const diff::VectorFunction j = [&](const Vector& th, Vector* out) {
     Trajectory t;
     if (!PredictTrajectory(prop, *cost, th, mu0, s0, 30, &t, nullptr).ok()) return false;

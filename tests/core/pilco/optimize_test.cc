@@ -146,7 +146,7 @@ TEST(PilcoApiTest, InitialPolicyFollowsPilco) {
   const PilcoProblem problem = SwingUpProblem(1);
   Rng rng(7, Stream::kPolicyInit);
   absl::StatusOr<Vector> params = InitialPolicyParameters(problem, &rng);
-  ASSERT_OK(params.status());
+  TG_ASSERT_OK(params.status());
   ASSERT_EQ(params->size(), 5 * 5 + 5 + 5);
   const Eigen::Map<const RowMatrix> centres(params->data(), 5, 5);
   // Centres near the start features [0, 0, 0, sin 0, cos 0].
@@ -165,19 +165,19 @@ TEST(PilcoApiTest, OptimizePolicyReducesJAndReportsThePrediction) {
     problem.mu0(1) = M_PI;
     Rng rng(3, Stream::kPolicyInit);
     absl::StatusOr<Vector> params = InitialPolicyParameters(problem, &rng);
-    ASSERT_OK(params.status());
+    TG_ASSERT_OK(params.status());
     absl::StatusOr<Trajectory> before = Propagate(gp, problem, *params);
-    ASSERT_OK(before.status());
+    TG_ASSERT_OK(before.status());
     PilcoOptions options;
     options.bfgs.max_line_searches = 20;
     absl::StatusOr<PilcoResult> result = OptimizePolicy(gp, problem, options, &*params);
-    ASSERT_OK(result.status());
+    TG_ASSERT_OK(result.status());
     EXPECT_LT(result->prediction.total_cost, before->total_cost - 0.1) << result->BriefReport();
     EXPECT_EQ(result->prediction.means.size(), 16u);
     EXPECT_EQ(result->prediction.cost_std.size(), 15);
     EXPECT_LE(result->optimizer.line_searches, 20);
     absl::StatusOr<Trajectory> after = Propagate(gp, problem, *params);
-    ASSERT_OK(after.status());
+    TG_ASSERT_OK(after.status());
     EXPECT_DOUBLE_EQ(after->total_cost, result->prediction.total_cost);
     EXPECT_DOUBLE_EQ(after->total_cost, result->optimizer.final_value);
   }
@@ -209,7 +209,7 @@ TEST(PilcoApiTest, GpModelConversionMatchesFromData) {
     targets.col(a) = ref.variance_weights[a].ldlt().solve(ref.beta.col(a));
   }
   auto model = gp::GpModel::Create(ref.inputs, targets, hyp);
-  ASSERT_OK(model.status());
+  TG_ASSERT_OK(model.status());
   const GaussianInputGp conv = GaussianInputGpFromModel(*model);
   for (int a = 0; a < 4; ++a) EXPECT_EQ(model->jitter(a), 0.0);
   EXPECT_TRUE(::totalgrad::testing::MatricesNear(conv.beta, ref.beta, 1e-8, 1e-6));
@@ -220,8 +220,8 @@ TEST(PilcoApiTest, GpModelConversionMatchesFromData) {
   const Vector params = *InitialPolicyParameters(problem, &prng);
   auto a = Propagate(conv, problem, params);
   auto b = Propagate(ref, problem, params);
-  ASSERT_OK(a.status());
-  ASSERT_OK(b.status());
+  TG_ASSERT_OK(a.status());
+  TG_ASSERT_OK(b.status());
   EXPECT_NEAR(a->total_cost, b->total_cost, 1e-8);
 }
 
@@ -241,13 +241,13 @@ TEST(PilcoApiTest, BuildDynamicsModelSwitchesToFitcAboveM) {
   Rng rng(1, Stream::kGpInit);
   DynamicsModelReport report;
   auto full = BuildDynamicsModel(ref.inputs, targets, hyp, options, &z, &rng, &report);
-  ASSERT_OK(full.status());
+  TG_ASSERT_OK(full.status());
   EXPECT_FALSE(report.sparse);
   EXPECT_EQ(full->num_points(), 40);
   options.num_inducing = 15;
   options.first_fit_iterations = 10;
   auto sparse = BuildDynamicsModel(ref.inputs, targets, hyp, options, &z, &rng, &report);
-  ASSERT_OK(sparse.status());
+  TG_ASSERT_OK(sparse.status());
   EXPECT_TRUE(report.sparse);
   EXPECT_EQ(sparse->num_points(), 15);
   EXPECT_EQ(z.rows(), 15);
@@ -255,7 +255,7 @@ TEST(PilcoApiTest, BuildDynamicsModelSwitchesToFitcAboveM) {
   // Warm start keeps Z's size and improves further (or stays).
   const double first = report.fitc.final_nlml;
   auto again = BuildDynamicsModel(ref.inputs, targets, hyp, options, &z, &rng, &report);
-  ASSERT_OK(again.status());
+  TG_ASSERT_OK(again.status());
   EXPECT_NEAR(report.fitc.initial_nlml, first, 1e-9 * std::abs(first));
 }
 

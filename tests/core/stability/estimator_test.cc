@@ -81,7 +81,9 @@ bool EstimateWithContract(Estimator* estimator, const Problem& problem, int part
 }
 
 std::unique_ptr<Estimator> Make(const std::string& name) {
-  absl::StatusOr<std::unique_ptr<Estimator>> e = MakeEstimator(name, EstimatorOptions{});
+  absl::StatusOr<Method> method = ParseMethod(name);
+  EXPECT_TRUE(method.ok()) << method.status();
+  absl::StatusOr<std::unique_ptr<Estimator>> e = MakeEstimator(*method, EstimatorOptions{});
   EXPECT_TRUE(e.ok()) << e.status();
   return *std::move(e);
 }
@@ -151,7 +153,7 @@ TEST(EstimatorExtremes, LeaveOneOutBaselineForOneAndTwoParticles) {
 
 TEST(EstimatorExtremes, OneAndTwoParticlesAreFiniteOrRefused) {
   const auto sp = Synthetic(100, 10);
-  for (const std::string& name : ParticleMethods()) {
+  for (const std::string& name : ParticleMethodNames()) {
     auto estimator = Make(name);
     for (int particles : {1, 2}) {
       GradientEstimate g;
@@ -176,15 +178,15 @@ TEST(EstimatorExtremes, OneAndTwoParticlesAreUnbiased) {
   const int n = sp->policy->num_parameters();
   auto mean_and_se2 = [&](const std::string& name, const EstimatorOptions& eo, int particles,
                           int replicates, Vector* mean, Vector* se2) {
-    absl::StatusOr<std::unique_ptr<Estimator>> estimator = MakeEstimator(name, eo);
-    ASSERT_OK(estimator.status());
+    absl::StatusOr<std::unique_ptr<Estimator>> estimator = MakeEstimator(*ParseMethod(name), eo);
+    TG_ASSERT_OK(estimator.status());
     Vector sum = Vector::Zero(n), sum2 = Vector::Zero(n);
     EstimateOptions options;
     options.particles = particles;
     GradientEstimate g;
     for (int r = 0; r < replicates; ++r) {
       Rng rng(7, Stream::kStudy, static_cast<uint64_t>(1000000 * particles + r));
-      ASSERT_OK((*estimator)->Estimate(problem, options, &rng, &g));
+      TG_ASSERT_OK((*estimator)->Estimate(problem, options, &rng, &g));
       ASSERT_TRUE(g.finite);
       sum += g.gradient;
       sum2 += g.gradient.cwiseAbs2();
@@ -256,7 +258,7 @@ TEST(EstimatorExtremes, CollapsedParticles) {
   ASSERT_TRUE(EstimateWithContract(rp.get(), problem, 1, 3, &single));
   ASSERT_TRUE(single.finite);
   ASSERT_GT(single.gradient.norm(), 0.0);
-  for (const std::string& name : ParticleMethods()) {
+  for (const std::string& name : ParticleMethodNames()) {
     auto estimator = Make(name);
     GradientEstimate g;
     if (!EstimateWithContract(estimator.get(), problem, 20, 3, &g)) continue;
@@ -321,7 +323,7 @@ TEST(EstimatorExtremes, ImportanceWeightsUnderflowInLinearSpace) {
     Rng rng(5, Stream::kStudy);
     RolloutRecording recording;
     recording.jacobians = true;
-    ASSERT_OK(SimulateParticles(problem, 16, recording, &rng, &rollout));
+    TG_ASSERT_OK(SimulateParticles(problem, 16, recording, &rng, &rollout));
     RowMatrix log_weights;
     BiwLogWeights(rollout.steps[3], &log_weights);
     ASSERT_FALSE(log_weights.array().isNaN().any());
@@ -335,7 +337,7 @@ TEST(EstimatorExtremes, ImportanceWeightsUnderflowInLinearSpace) {
     EXPECT_TRUE(baseline.allFinite());
   }
   GradientEstimate tp_estimate, lr_estimate;
-  for (const std::string& name : ParticleMethods()) {
+  for (const std::string& name : ParticleMethodNames()) {
     auto estimator = Make(name);
     GradientEstimate g;
     if (!EstimateWithContract(estimator.get(), problem, 16, 5, &g)) continue;
@@ -361,7 +363,7 @@ TEST(EstimatorExtremes, ExplodingRpGradientsMoveTpWeightToLr) {
   const SeamDynamics dynamics(SeamDynamics::kChaotic, 1e-4);
   const Problem problem = SeamProblem(*sp, &dynamics, 0.3, 200);
   GradientEstimate tp, lr;
-  for (const std::string& name : ParticleMethods()) {
+  for (const std::string& name : ParticleMethodNames()) {
     auto estimator = Make(name);
     GradientEstimate g;
     if (!EstimateWithContract(estimator.get(), problem, 30, 9, &g)) continue;
@@ -423,7 +425,7 @@ TEST(EstimatorExtremes, SaturatedCostGivesExactlyZeroGradient) {
   const auto sp = Synthetic(50, 5);
   Problem problem = sp->problem;
   problem.initial_std = Vector::Constant(4, 1000.0);
-  for (const std::string& name : ParticleMethods()) {
+  for (const std::string& name : ParticleMethodNames()) {
     auto estimator = Make(name);
     GradientEstimate g;
     if (!EstimateWithContract(estimator.get(), problem, 20, 13, &g)) continue;
@@ -446,7 +448,7 @@ TEST(EstimatorExtremes, SaturatedCostIsFlaggedInTheTrialRecord) {
              {"eval_rollouts", "1"}, {"horizon", "5"}, {"basis_functions", "5"},
              {"gp_iterations", "10"}, {"predicted_cost_particles", "10"}, {"seed", "2"},
              {"initial_std", "1000"}, {"method", method}, {"angle_features", "raw"}}) {
-      ASSERT_OK(learner::SetTrialOption(key, value, &o));
+      TG_ASSERT_OK(learner::SetTrialOption(key, value, &o));
     }
     absl::StatusOr<learner::TrialSummary> summary = learner::RunTrial(o, nullptr);
     ASSERT_TRUE(summary.ok()) << method << ": " << summary.status();

@@ -83,8 +83,8 @@ TEST(GpExtremes, DuplicateInputsAreTheLimitOfNearDuplicates) {
   const GpHyperparameters hyp = Hyp(0.7, 1.0, 0.1);
   absl::StatusOr<GpModel> dup = GpModel::Create(x, y, hyp);
   absl::StatusOr<GpModel> near = GpModel::Create(x_near, y, hyp);
-  ASSERT_OK(dup.status());
-  ASSERT_OK(near.status());
+  TG_ASSERT_OK(dup.status());
+  TG_ASSERT_OK(near.status());
   EXPECT_EQ(dup->jitter(0), 0.0);
   const RowMatrix z = MakeData(20, -2.5, 2.5, 0, 2).x;
   const Prediction a = Predict(*dup, z), b = Predict(*near, z);
@@ -122,7 +122,7 @@ TEST(GpExtremes, NoiseStd1em8UsesRecordedJitterOrFailsClearly) {
     // posterior is continuous in sn; measured difference ~3e-6).
     const RowMatrix held_out = MakeData(30, -1.5, 1.5, 0.0, 33).x;
     absl::StatusOr<GpModel> reference = GpModel::Create(d.x, d.y, Hyp(1.0, 1.0, 1e-6));
-    ASSERT_OK(reference.status());
+    TG_ASSERT_OK(reference.status());
     const Prediction q = Predict(*model, held_out), r = Predict(*reference, held_out);
     ASSERT_TRUE(q.Finite());
     EXPECT_TRUE(testing::MatricesNear(q.mean, r.mean, 1e-4, 0));
@@ -158,7 +158,7 @@ TEST(GpExtremes, LengthScale1em4RevertsToThePriorBetweenTheData) {
   }
   const double sf = 1.5, sn = 0.2;
   absl::StatusOr<GpModel> model = GpModel::Create(x, y, Hyp(1e-4, sf, sn));
-  ASSERT_OK(model.status());
+  TG_ASSERT_OK(model.status());
   EXPECT_EQ(model->jitter(0), 0.0);
   const Prediction at = Predict(*model, x);
   ASSERT_TRUE(at.Finite());
@@ -182,7 +182,7 @@ TEST(GpExtremes, LengthScale1e6IsAConstantModel) {
   {
     const double sf = 1.0, sn = 0.1;
     absl::StatusOr<GpModel> model = GpModel::Create(d.x, d.y, Hyp(1e6, sf, sn));
-    ASSERT_OK(model.status());
+    TG_ASSERT_OK(model.status());
     const Prediction p = Predict(*model, z);
     ASSERT_TRUE(p.Finite());
     const int n = 50;
@@ -235,16 +235,16 @@ TEST(GpExtremes, InputsScaledBy1e6GiveTheSameModel) {
   absl::StatusOr<TrainingSummary> s = TrainHyperparameters(d.x, d.y, options, &hyp);
   absl::StatusOr<TrainingSummary> s_scaled =
       TrainHyperparameters(x_scaled, d.y, options, &hyp_scaled);
-  ASSERT_OK(s.status());
-  ASSERT_OK(s_scaled.status());
+  TG_ASSERT_OK(s.status());
+  TG_ASSERT_OK(s_scaled.status());
   std::printf("  loss %.12g (m) vs %.12g (um)\n", s->final_loss[0], s_scaled->final_loss[0]);
   EXPECT_NEAR(s->final_loss[0], s_scaled->final_loss[0], 1e-6 * std::abs(s->final_loss[0]));
   EXPECT_TRUE(testing::MatricesNear(hyp.log_lengthscales.array() + std::log(1e6),
                                     hyp_scaled.log_lengthscales, 1e-4, 0));
   absl::StatusOr<GpModel> model = GpModel::Create(d.x, d.y, hyp);
   absl::StatusOr<GpModel> model_scaled = GpModel::Create(x_scaled, d.y, hyp_scaled);
-  ASSERT_OK(model.status());
-  ASSERT_OK(model_scaled.status());
+  TG_ASSERT_OK(model.status());
+  TG_ASSERT_OK(model_scaled.status());
   const RowMatrix z = MakeData(15, 0.5, 3.5, 0, 9).x;
   const Prediction p = Predict(*model, z), q = Predict(*model_scaled, 1e6 * z);
   ASSERT_TRUE(p.Finite() && q.Finite());
@@ -272,7 +272,7 @@ TEST(GpExtremes, NlmlOptimiserSurvivesLineSearchFailures) {
   ASSERT_TRUE(PenalisedNlml(x, y.col(0), Vector::Ones(2), hyp.Packed(0), options.penalty,
                             &start_loss, nullptr));
   absl::StatusOr<TrainingSummary> summary = TrainHyperparameters(x, y, options, &hyp);
-  ASSERT_OK(summary.status());
+  TG_ASSERT_OK(summary.status());
   std::printf("  %s\n", summary->BriefReport().c_str());
   EXPECT_GT(summary->line_search_failures, 0);
   EXPECT_GT(summary->non_finite_evaluations, 0);

@@ -180,7 +180,7 @@ TEST_P(PilcoExtremes, AngleVariance1e3) {
   StepCache cache;
   Vector m1;
   Matrix s1;
-  ASSERT_OK(prop.Step(params_, problem_.mu0, s0, &m1, &s1, &cache));
+  TG_ASSERT_OK(prop.Step(params_, problem_.mu0, s0, &m1, &s1, &cache));
   // y = [x; sin beta; cos beta] with beta ~ N(0, 1e3).
   EXPECT_LT(std::abs(cache.y_mean(4)), 1e-200);
   EXPECT_NEAR(cache.y_mean(5), std::exp(-500.0), 1e-230);

@@ -42,7 +42,7 @@ void ExpectStepMatchesReference(const CartPole& plant, const State& x, double fo
                                 int substeps, double tolerance, ode::IntegrationReport* report) {
   State next;
   const absl::Status st = plant.Step(x, force, &next, report);
-  ASSERT_OK(st);
+  TG_ASSERT_OK(st);
   ASSERT_TRUE(next.allFinite());
   const State fine = Rk4Reference(plant, x, force, substeps);
   const State finer = Rk4Reference(plant, x, force, 2 * substeps);
@@ -151,7 +151,7 @@ TEST(StiffPlant, EpisodesOnStiffPlantsStayFinite) {
     options.horizon = 8;
     options.plant = c.plant;
     absl::StatusOr<Scene> scene = MakeScene(options);
-    ASSERT_OK(scene.status());
+    TG_ASSERT_OK(scene.status());
     Rng start(3, Stream::kInitialState), noise(3, Stream::kObservationNoise);
     const Controller bang = [](const State& o) { return o(2) > 0 ? -10.0 : 10.0; };
     Episode episode;
@@ -173,7 +173,7 @@ TEST(StiffPlant, EpisodeOnInfeasiblePlantNamesTheStepAndTheBudget) {
   options.plant.pole_mass = 1e-4;
   options.plant.integrator.max_steps = 20000;  // keep the test fast
   absl::StatusOr<Scene> scene = MakeScene(options);
-  ASSERT_OK(scene.status());
+  TG_ASSERT_OK(scene.status());
   Rng start(3, Stream::kInitialState), noise(3, Stream::kObservationNoise);
   Episode episode;
   const absl::Status st = RunEpisode(

@@ -88,7 +88,7 @@ TEST(CartPoleTest, PositiveForceFromHangingMovesCartPositive) {
   EXPECT_GT(d(2), 0.0);
   EXPECT_LT(d(3), 0.0);
   State next;
-  ASSERT_OK(plant.Step(State::Zero(), 10.0, &next));
+  TG_ASSERT_OK(plant.Step(State::Zero(), 10.0, &next));
   EXPECT_GT(next(0), 0.0);
   EXPECT_GT(next(2), 0.0);
   EXPECT_LT(next(1), 0.0);
@@ -136,7 +136,7 @@ TEST(CartPoleTest, EnergyConservedWithoutFrictionAndForce) {
     State x = start;
     for (int k = 0; k < 30; ++k) {  // 3 s
       State next;
-      ASSERT_OK(plant.Step(x, 0.0, &next));
+      TG_ASSERT_OK(plant.Step(x, 0.0, &next));
       x = next;
       const double drift = std::abs(plant.Energy(x) - e0) / std::abs(e0);
       worst = std::max(worst, drift);
@@ -153,7 +153,7 @@ TEST(CartPoleTest, StepMatchesFineRk4) {
                          MakeState(-0.3, 1.0, 2.0, -14.0), MakeState(1.0, 10.0, -3.0, 9.0)}) {
     for (double force : {0.0, 10.0, -10.0, 3.3}) {
       State next;
-      ASSERT_OK(plant.Step(x, force, &next));
+      TG_ASSERT_OK(plant.Step(x, force, &next));
       Vector reference = x;
       const ode::Rhs rhs = [&](const Vector& z, Vector* dzdt) {
         *dzdt = plant.Derivative(State(z), force);

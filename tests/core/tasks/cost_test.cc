@@ -173,13 +173,13 @@ TEST(MakeCostTest, RejectsUnknownNameAndNonFiniteTarget) {
 
 TEST(MakeCostTest, DefaultParameters) {
   absl::StatusOr<std::unique_ptr<StateCost>> angle = MakeCost("angle", kUpright);
-  ASSERT_OK(angle.status());
+  TG_ASSERT_OK(angle.status());
   const auto* a = dynamic_cast<const AngleCost*>(angle->get());
   ASSERT_NE(a, nullptr);
   EXPECT_EQ(a->q_diagonal(), MakeState(1, 1, 0, 0));
   EXPECT_EQ(a->target(), kUpright);
   absl::StatusOr<std::unique_ptr<StateCost>> tip = MakeCost("tip", kUpright);
-  ASSERT_OK(tip.status());
+  TG_ASSERT_OK(tip.status());
   const auto* t = dynamic_cast<const TipCost*>(tip->get());
   ASSERT_NE(t, nullptr);
   EXPECT_EQ(t->target_position(), 0.0);

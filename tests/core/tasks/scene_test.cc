@@ -104,7 +104,7 @@ TEST(MakeSceneTest, ErrorsNameTheBadField) {
   }
   SceneOptions zero_noise;
   zero_noise.noise_k = 0.0;  // noise-free observations are allowed
-  EXPECT_OK(MakeScene(zero_noise).status());
+  TG_EXPECT_OK(MakeScene(zero_noise).status());
 }
 
 absl::Status RunSeeded(const Scene& scene, uint64_t start_seed, uint64_t noise_seed,
@@ -117,18 +117,18 @@ absl::Status RunSeeded(const Scene& scene, uint64_t start_seed, uint64_t noise_s
 TEST(RunEpisodeTest, DeterministicForEqualSeedsDifferentOtherwise) {
   const Scene scene = MustMakeScene({});
   Episode a, b, other_start, other_noise;
-  ASSERT_OK(RunSeeded(scene, 1, 2, &a));
-  ASSERT_OK(RunSeeded(scene, 1, 2, &b));
+  TG_ASSERT_OK(RunSeeded(scene, 1, 2, &a));
+  TG_ASSERT_OK(RunSeeded(scene, 1, 2, &b));
   EXPECT_EQ(a.states, b.states);
   EXPECT_EQ(a.observations, b.observations);
   EXPECT_EQ(a.forces, b.forces);
   EXPECT_EQ(a.costs, b.costs);
   EXPECT_EQ(a.total_cost, b.total_cost);
 
-  ASSERT_OK(RunSeeded(scene, 3, 2, &other_start));
+  TG_ASSERT_OK(RunSeeded(scene, 3, 2, &other_start));
   EXPECT_NE(other_start.states.row(0), a.states.row(0));
 
-  ASSERT_OK(RunSeeded(scene, 1, 4, &other_noise));
+  TG_ASSERT_OK(RunSeeded(scene, 1, 4, &other_noise));
   EXPECT_EQ(other_noise.states.row(0), a.states.row(0));  // same start stream
   EXPECT_NE(other_noise.observations.row(0), a.observations.row(0));
   EXPECT_NE(other_noise.states.row(scene.horizon), a.states.row(scene.horizon));
@@ -145,7 +145,7 @@ TEST(RunEpisodeTest, EpisodeIsConsistent) {
       return Feedback(o);
     };
     Episode ep;
-    ASSERT_OK(RunSeeded(scene, 11, 12, &ep, recording));
+    TG_ASSERT_OK(RunSeeded(scene, 11, 12, &ep, recording));
     const int h = scene.horizon;
     ASSERT_EQ(ep.states.rows(), h + 1);
     ASSERT_EQ(ep.states.cols(), 4);
@@ -171,7 +171,7 @@ TEST(RunEpisodeTest, EpisodeIsConsistent) {
       EXPECT_LE(ep.costs(t), 1.0);
       // The true state follows the plant exactly.
       State stepped;
-      ASSERT_OK(scene.plant.Step(ep.states.row(t).transpose(), ep.forces(t), &stepped));
+      TG_ASSERT_OK(scene.plant.Step(ep.states.row(t).transpose(), ep.forces(t), &stepped));
       EXPECT_EQ(stepped, next) << "step " << t;
       sum += ep.costs(t);
     }
@@ -187,7 +187,7 @@ TEST(RunEpisodeTest, ObservationNoiseHasTheSceneStd) {
   options.noise_k = 2.0;
   const Scene scene = MustMakeScene(options);
   Episode ep;
-  ASSERT_OK(RunSeeded(scene, 5, 6, &ep, [](const State&) { return 0.0; }));
+  TG_ASSERT_OK(RunSeeded(scene, 5, 6, &ep, [](const State&) { return 0.0; }));
   const RowMatrix residual = ep.observations - ep.states;
   const double n = static_cast<double>(residual.rows());
   for (int m = 0; m < 4; ++m) {
@@ -207,7 +207,7 @@ TEST(RunEpisodeTest, ZeroNoiseObservesTheTrueState) {
   options.scene = "cartpole-balance";
   const Scene scene = MustMakeScene(options);
   Episode ep;
-  ASSERT_OK(RunSeeded(scene, 7, 8, &ep));
+  TG_ASSERT_OK(RunSeeded(scene, 7, 8, &ep));
   EXPECT_EQ(ep.observations, ep.states);
 }
 

@@ -71,7 +71,7 @@ TEST_P(MethodTrial, SinCosAngleFeaturesRunWithoutNonFiniteValues) {
 }
 
 INSTANTIATE_TEST_SUITE_P(AllMethods, MethodTrial,
-                         ::testing::ValuesIn(estimators::ParticleMethods()),
+                         ::testing::ValuesIn(estimators::ParticleMethodNames()),
                          [](const auto& info) {
                            std::string s = info.param;
                            for (char& c : s)

@@ -18,9 +18,10 @@ namespace totalgrad::cli {
 namespace {
 
 std::string ExamplePath(const std::string& name) {
-  const std::filesystem::path here(__FILE__);
-  return (here.parent_path().parent_path().parent_path() / "docs" / "pilco-examples" / name)
-      .string();
+  // This file is tests/client/core_commands/pilco_command_test.cc.
+  const std::filesystem::path root =
+      std::filesystem::path(__FILE__).parent_path().parent_path().parent_path().parent_path();
+  return (root / "docs" / "pilco-examples" / name).string();
 }
 
 nlohmann::json Load(const std::string& name) {
@@ -42,9 +43,9 @@ class PilcoExampleTest : public ::testing::TestWithParam<const char*> {};
 TEST_P(PilcoExampleTest, RunsWithDocumentedShapeAndGradient) {
   const nlohmann::json doc = Load(GetParam());
   absl::StatusOr<PilcoScenario> s = ParsePilcoScenario(doc);
-  ASSERT_OK(s.status());
+  TG_ASSERT_OK(s.status());
   absl::StatusOr<nlohmann::ordered_json> out = RunPilcoPropagate(*s);
-  ASSERT_OK(out.status());
+  TG_ASSERT_OK(out.status());
   const int h = doc["horizon"].get<int>();
   const int c = static_cast<int>(doc["policy"]["centres"].size());
   const int ep = static_cast<int>(doc["policy"]["log_lengthscales"].size());
@@ -98,9 +99,9 @@ INSTANTIATE_TEST_SUITE_P(Examples, PilcoExampleTest,
 TEST(PilcoCommandTest, PseudoTargetsAndTheirWeightsGiveTheSamePrediction) {
   nlohmann::json doc = Load("swingup_sincos_tip.json");
   absl::StatusOr<PilcoScenario> s = ParsePilcoScenario(doc);
-  ASSERT_OK(s.status());
+  TG_ASSERT_OK(s.status());
   absl::StatusOr<nlohmann::ordered_json> a = RunPilcoPropagate(*s);
-  ASSERT_OK(a.status());
+  TG_ASSERT_OK(a.status());
   doc["policy"].erase("targets");
   doc["policy"]["weights"] = (*a)["weights"];
   EXPECT_NEAR(RunJ(doc), (*a)["J"].get<double>(), 1e-12);
@@ -134,7 +135,7 @@ TEST(PilcoCommandTest, BadInputIsNamed) {
   nlohmann::json d = good;
   d["policy"]["log_lengthscales"] = {0.0, 0.0};
   absl::StatusOr<PilcoScenario> s = ParsePilcoScenario(d);
-  ASSERT_OK(s.status());
+  TG_ASSERT_OK(s.status());
   absl::StatusOr<nlohmann::ordered_json> out = RunPilcoPropagate(*s);
   ASSERT_FALSE(out.ok());
   EXPECT_NE(out.status().message().find("policy.log_lengthscales"), std::string::npos);
@@ -142,7 +143,7 @@ TEST(PilcoCommandTest, BadInputIsNamed) {
   d = good;
   d["S0"][1][1] = -1.0;
   s = ParsePilcoScenario(d);
-  ASSERT_OK(s.status());
+  TG_ASSERT_OK(s.status());
   out = RunPilcoPropagate(*s);
   ASSERT_FALSE(out.ok());
   EXPECT_EQ(out.status().code(), absl::StatusCode::kFailedPrecondition) << out.status();

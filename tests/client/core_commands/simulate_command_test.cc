@@ -17,10 +17,10 @@ namespace {
 
 TEST(ParseNumberListTest, ParsesCompleteFiniteNumbers) {
   absl::StatusOr<std::vector<double>> v = ParseNumberList(" 1, -2.5,+3e-1 ,0 ", "--x");
-  ASSERT_OK(v.status());
+  TG_ASSERT_OK(v.status());
   EXPECT_EQ(*v, (std::vector<double>{1.0, -2.5, 0.3, 0.0}));
   v = ParseNumberList("", "--x");
-  ASSERT_OK(v.status());
+  TG_ASSERT_OK(v.status());
   EXPECT_TRUE(v->empty());
 }
 
@@ -44,7 +44,7 @@ TEST(ParseNumberListTest, ErrorsNameOptionAndEntry) {
 
 TEST(ParseSimulateRequestTest, ValidatesEveryOption) {
   absl::StatusOr<SimulateRequest> r = ParseSimulateRequest("cartpole", "0,3.1,0,0", "1,-2", "0.05");
-  ASSERT_OK(r.status());
+  TG_ASSERT_OK(r.status());
   EXPECT_EQ(r->start(1), 3.1);
   EXPECT_EQ(r->forces, (std::vector<double>{1.0, -2.0}));
   EXPECT_EQ(r->dt, 0.05);
@@ -74,7 +74,7 @@ TEST(RunSimulationTest, StatesFollowThePlant) {
   request.start << 0.1, 0.2, 0.3, 0.4;
   request.forces = {10.0, -10.0, 0.0};
   SimulateResult result;
-  ASSERT_OK(RunSimulation(request, &result));
+  TG_ASSERT_OK(RunSimulation(request, &result));
   ASSERT_EQ(result.states.size(), 4u);
   ASSERT_EQ(result.energy.size(), 4u);
   EXPECT_EQ(result.states[0], request.start);
@@ -82,7 +82,7 @@ TEST(RunSimulationTest, StatesFollowThePlant) {
   tasks::State x = request.start;
   for (size_t k = 0; k < request.forces.size(); ++k) {
     tasks::State next;
-    ASSERT_OK(plant.Step(x, request.forces[k], &next));
+    TG_ASSERT_OK(plant.Step(x, request.forces[k], &next));
     EXPECT_EQ(result.states[k + 1], next) << "step " << k;
     EXPECT_EQ(result.energy[k + 1], plant.Energy(next));
     x = next;
@@ -104,7 +104,7 @@ TEST(FormatTest, JsonRoundTripsAndTableHasOneRowPerState) {
   request.start << 0.0, 3.0, 0.0, 0.0;
   request.forces = {2.0, 2.0};
   SimulateResult result;
-  ASSERT_OK(RunSimulation(request, &result));
+  TG_ASSERT_OK(RunSimulation(request, &result));
 
   const nlohmann::json doc = nlohmann::json::parse(FormatSimulationJson(result));
   EXPECT_EQ(doc.at("dt").get<double>(), 0.1);

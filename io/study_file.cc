@@ -1,4 +1,4 @@
-#include "core/study/study_file.h"
+#include "io/study_file.h"
 
 #include <algorithm>
 #include <cmath>
@@ -9,10 +9,12 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
+#include "core/common/option_table.h"
+#include "core/estimators/method.h"
 #include "core/learner/trial.h"
-#include "core/study/snapshot_json.h"
+#include "io/snapshot_json.h"
 
-namespace totalgrad::study {
+namespace totalgrad::io {
 namespace {
 
 using Json = nlohmann::json;
@@ -71,7 +73,8 @@ absl::Status ReadIntList(const Json& obj, const std::string& key, const std::str
 
 absl::StatusOr<estimators::EstimatorOptions> ParseEstimatorOptions(const Json& obj,
                                                                   const std::string& where) {
-  learner::TrialOptions trial;  // the trial's option names for the estimator knobs
+  const OptionTable<estimators::EstimatorOptions>& table = estimators::EstimatorOptions::Table();
+  estimators::EstimatorOptions options;
   for (auto it = obj.begin(); it != obj.end(); ++it) {
     const std::string& key = it.key();
     std::string text;
@@ -82,24 +85,15 @@ absl::StatusOr<estimators::EstimatorOptions> ParseEstimatorOptions(const Json& o
     } else {
       return absl::InvalidArgumentError(absl::StrCat(where, key, ": not a string or number"));
     }
-    if (key == "forced_k_lr") {
-      if (!it->is_number()) {
-        return absl::InvalidArgumentError(absl::StrCat(where, key, ": not a number"));
-      }
-      trial.estimator.forced_k_lr = it->get<double>();
-      continue;
+    if (!table.Has(key)) {
+      return absl::InvalidArgumentError(absl::StrCat(where, "unknown estimator option '", key,
+                                                     "' (known: ", absl::StrJoin(table.Keys(), ", "), ")"));
     }
-    if (key != "lr_weights" && key != "lr_baseline" && key != "gs_derivative" &&
-        key != "sn_noise_multiplier") {
-      return absl::InvalidArgumentError(absl::StrCat(
-          where, "unknown estimator option '", key,
-          "' (known: lr_weights, lr_baseline, gs_derivative, sn_noise_multiplier, forced_k_lr)"));
-    }
-    if (absl::Status st = learner::SetTrialOption(key, text, &trial); !st.ok()) {
+    if (absl::Status st = table.Set(key, text, &options); !st.ok()) {
       return absl::InvalidArgumentError(absl::StrCat(where, st.message()));
     }
   }
-  return trial.estimator;
+  return options;
 }
 
 absl::StatusOr<std::vector<study::EstimatorSpec>> ParseEstimatorList(const Json& v,
@@ -110,7 +104,9 @@ absl::StatusOr<std::vector<study::EstimatorSpec>> ParseEstimatorList(const Json&
     const std::string at = absl::StrCat(where, "[", i, "]");
     const Json& e = v[i];
     if (e.is_string()) {
-      out.push_back({e.get<std::string>(), e.get<std::string>(), {}});
+      absl::StatusOr<estimators::Method> method = estimators::ParseMethod(e.get<std::string>());
+      if (!method.ok()) return absl::InvalidArgumentError(absl::StrCat(at, ": ", method.status().message()));
+      out.push_back({e.get<std::string>(), *method, {}});
       continue;
     }
     if (!e.is_object()) {
@@ -122,8 +118,10 @@ absl::StatusOr<std::vector<study::EstimatorSpec>> ParseEstimatorList(const Json&
       return absl::InvalidArgumentError(absl::StrCat(at, ".method: missing or not a string"));
     }
     study::EstimatorSpec spec;
-    spec.method = method->get<std::string>();
-    spec.label = spec.method;
+    absl::StatusOr<estimators::Method> parsed = estimators::ParseMethod(method->get<std::string>());
+    if (!parsed.ok()) return absl::InvalidArgumentError(absl::StrCat(at, ".method: ", parsed.status().message()));
+    spec.method = *parsed;
+    spec.label = method->get<std::string>();
     if (const Json* label = Find(e, "label"); label != nullptr) {
       if (!label->is_string()) return absl::InvalidArgumentError(absl::StrCat(at, ".label: not a string"));
       spec.label = label->get<std::string>();
@@ -372,4 +370,4 @@ std::string StudyCellNote(const study::CellResult& c) {
 }
 
 
-}  // namespace totalgrad::study
+}  // namespace totalgrad::io

@@ -2,7 +2,8 @@
 // files round-trip bit for bit, study files are parsed with every error
 // named, and a tiny study runs end to end from a trial's snapshot to the
 // table, CSV, JSON and gnuplot plots.
-#include "client/core_commands/study_command.h"
+#include "client/core_commands/study_format.h"
+#include "client/core_commands/study_plots.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -17,7 +18,7 @@
 #include <nlohmann/json.hpp>
 
 #include "client/core_commands/commands.h"
-#include "core/study/snapshot_json.h"
+#include "io/snapshot_json.h"
 #include "tests/testutil/testutil.h"
 
 namespace totalgrad::cli {
@@ -26,17 +27,17 @@ namespace {
 using ::testing::HasSubstr;
 // The study file parser and snapshot files live in core/study; the table and
 // plots in the CLI: this file tests both, as `totalgrad study` uses them.
-using study::InlineStudyDocument;
-using study::LoadStudyProblem;
-using study::ParseEpisodeList;
-using study::ParseStudySpec;
-using study::ReadSnapshotFile;
-using study::ReadStudyDocument;
-using study::SnapshotsFromJson;
-using study::SnapshotsToJson;
-using study::StudyCellNote;
-using study::StudySpec;
-using study::WriteSnapshotFile;
+using io::InlineStudyDocument;
+using io::LoadStudyProblem;
+using io::ParseEpisodeList;
+using io::ParseStudySpec;
+using io::ReadSnapshotFile;
+using io::ReadStudyDocument;
+using io::SnapshotsFromJson;
+using io::SnapshotsToJson;
+using io::StudyCellNote;
+using io::StudySpec;
+using io::WriteSnapshotFile;
 
 struct CommandRun {
   int exit_code = -1;
@@ -65,7 +66,7 @@ CommandRun RunCommand(std::vector<std::string> args) {
 }
 
 std::string Dir(const std::string& name) {
-  const std::string dir = (std::filesystem::path(testing::TempDir()) / name).string();
+  const std::string dir = (std::filesystem::path(testing::MakeTempDir()) / name).string();
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   return dir;
@@ -82,7 +83,7 @@ const std::vector<std::string> kTinyTrial = {
 
 TEST(EpisodeList, ParsesAndNamesBadEntries) {
   absl::StatusOr<std::vector<int>> e = ParseEpisodeList("1, 5,10");
-  ASSERT_OK(e.status());
+  TG_ASSERT_OK(e.status());
   EXPECT_EQ(*e, (std::vector<int>{1, 5, 10}));
   EXPECT_THAT(std::string(ParseEpisodeList("1,x").status().message()), HasSubstr("'x'"));
   EXPECT_THAT(std::string(ParseEpisodeList("0").status().message()), HasSubstr("positive"));
@@ -98,15 +99,15 @@ TEST(TrialSnapshots, FileRoundTripsBitForBit) {
   const CommandRun run = RunCommand(args);
   ASSERT_EQ(run.exit_code, 0) << run.err;
   absl::StatusOr<std::vector<learner::TrialSnapshot>> read = ReadSnapshotFile(file);
-  ASSERT_OK(read.status());
+  TG_ASSERT_OK(read.status());
   ASSERT_EQ(read->size(), 2u);
   EXPECT_EQ((*read)[0].episode, 1);
   EXPECT_EQ((*read)[1].episode, 2);
   EXPECT_EQ((*read)[1].states.rows(), 16);
   // Writing what was read and reading it again changes nothing, bit for bit.
-  ASSERT_OK(WriteSnapshotFile(dir + "/t.json", *read));
+  TG_ASSERT_OK(WriteSnapshotFile(dir + "/t.json", *read));
   absl::StatusOr<std::vector<learner::TrialSnapshot>> again = ReadSnapshotFile(dir + "/t.json");
-  ASSERT_OK(again.status());
+  TG_ASSERT_OK(again.status());
   for (size_t i = 0; i < 2; ++i) {
     const auto &a = (*read)[i], &b = (*again)[i];
     EXPECT_EQ(a.options, b.options);
@@ -124,7 +125,7 @@ TEST(TrialSnapshots, FileRoundTripsBitForBit) {
   // (Checked bit for bit in tests/core/study; here only that it loads.)
   absl::StatusOr<std::unique_ptr<study::FrozenProblem>> p =
       study::FrozenProblemFromSnapshot((*read)[1], study::SnapshotPolicy::kAfter);
-  ASSERT_OK(p.status());
+  TG_ASSERT_OK(p.status());
 }
 
 TEST(TrialSnapshots, BadEpisodeListIsUsageError) {
@@ -150,7 +151,7 @@ TEST(SnapshotJson, ErrorsNameTheField) {
 TEST(ParseStudySpec, DefaultsAndNamedErrors) {
   nlohmann::json doc = {{"problem", {{"snapshot", "snaps.json"}}}};
   absl::StatusOr<StudySpec> spec = ParseStudySpec(doc, "/base");
-  ASSERT_OK(spec.status());
+  TG_ASSERT_OK(spec.status());
   EXPECT_TRUE(spec->from_snapshot);
   EXPECT_EQ(spec->snapshot_file, "/base/snaps.json");
   EXPECT_EQ(spec->snapshot_policy, study::SnapshotPolicy::kBefore);
@@ -164,7 +165,7 @@ TEST(ParseStudySpec, DefaultsAndNamedErrors) {
          {"particles", {5, 50}},
          {"reference", {{"particles", 77}}}};
   spec = ParseStudySpec(doc, "");
-  ASSERT_OK(spec.status());
+  TG_ASSERT_OK(spec.status());
   EXPECT_FALSE(spec->from_snapshot);
   EXPECT_EQ(spec->synthetic.data, 30);
   EXPECT_EQ(spec->synthetic.seed, 3u);

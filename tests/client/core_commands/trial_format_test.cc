@@ -33,5 +33,21 @@ TEST(EpisodeToJson, PrintsPilcosPerStepPredictionsOnlyWhenPresent) {
   EXPECT_TRUE(k["real_cost"].is_null());  // NaN
 }
 
+// The GP hyperparameters have the layout of the stored details_json (an
+// object of arrays; docs/results_schema.md), not one object per output.
+TEST(EpisodeToJson, GpIsAnObjectOfArraysAsStored) {
+  learner::EpisodeResult result;
+  result.hyperparameters.log_lengthscales = RowMatrix{{1.0, 2.0, 3.0}, {4.0, 5.0, 6.0}};
+  result.hyperparameters.log_signal_std = Vector{{0.5, 0.25}};
+  result.hyperparameters.log_noise_std = Vector{{-1.0, -2.0}};
+  const nlohmann::json j = EpisodeToJson(result);
+  ASSERT_TRUE(j.contains("gp"));
+  ASSERT_TRUE(j["gp"].is_object());
+  EXPECT_EQ(j["gp"]["log_lengthscales"], nlohmann::json::parse("[[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]"));
+  EXPECT_EQ(j["gp"]["log_signal_std"], nlohmann::json::array({0.5, 0.25}));
+  EXPECT_EQ(j["gp"]["log_noise_std"], nlohmann::json::array({-1.0, -2.0}));
+  EXPECT_FALSE(EpisodeToJson(learner::EpisodeResult{}).contains("gp"));
+}
+
 }  // namespace
 }  // namespace totalgrad::cli

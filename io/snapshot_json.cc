@@ -1,4 +1,4 @@
-#include "core/study/snapshot_json.h"
+#include "io/snapshot_json.h"
 
 #include <cmath>
 #include <cstdio>
@@ -8,7 +8,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
 
-namespace totalgrad::study {
+namespace totalgrad::io {
 namespace {
 
 using Json = nlohmann::json;
@@ -211,4 +211,4 @@ absl::StatusOr<std::vector<int>> ParseEpisodeList(const std::string& text) {
   return out;
 }
 
-}  // namespace totalgrad::study
+}  // namespace totalgrad::io

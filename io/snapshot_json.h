@@ -16,8 +16,8 @@
 //       "policy_parameters_before": [...],
 //       "policy_parameters": [...]},
 //      ...]}
-#ifndef TOTALGRAD_CORE_STUDY_SNAPSHOT_JSON_H_
-#define TOTALGRAD_CORE_STUDY_SNAPSHOT_JSON_H_
+#ifndef TOTALGRAD_IO_SNAPSHOT_JSON_H_
+#define TOTALGRAD_IO_SNAPSHOT_JSON_H_
 
 #include <string>
 #include <vector>
@@ -27,7 +27,7 @@
 #include "absl/status/statusor.h"
 #include "core/learner/trial.h"
 
-namespace totalgrad::study {
+namespace totalgrad::io {
 
 nlohmann::ordered_json SnapshotsToJson(const std::vector<learner::TrialSnapshot>& snapshots);
 
@@ -44,6 +44,6 @@ absl::StatusOr<std::vector<learner::TrialSnapshot>> ReadSnapshotFile(const std::
 // "1,5,10" -> {1, 5, 10}; InvalidArgument for anything but positive integers.
 absl::StatusOr<std::vector<int>> ParseEpisodeList(const std::string& text);
 
-}  // namespace totalgrad::study
+}  // namespace totalgrad::io
 
-#endif  // TOTALGRAD_CORE_STUDY_SNAPSHOT_JSON_H_
+#endif  // TOTALGRAD_IO_SNAPSHOT_JSON_H_

@@ -1,8 +1,9 @@
 // A gradient study described by a JSON document (the study file of
 // `totalgrad study FILE` and of `[[study]]` jobs in sweep files): parsing
 // with errors that name the field, resolving and inlining the trial snapshot
-// it starts from, and building its frozen problem. JSON in, core types out:
-// shared by the CLI, the worker and the coordinator's sweep parser.
+// it starts from, and building its frozen problem. JSON and files in, core
+// types out: shared by the CLI, the worker and the coordinator's sweep
+// parser (core/ itself reads no files).
 //
 // Study file (every field but "problem" optional; defaults in brackets):
 //   {"problem": {"snapshot": "snapshots.json",   // relative to the study file, or
@@ -24,12 +25,13 @@
 //                  "budget_seconds": 120, "agreement_max_z": 4.5,
 //                  "agreement_mean_z2": 3},
 //    "sweep_particles": 100}                      // P of the horizon-sweep plot
-// Estimator option keys: lr_weights, lr_baseline, gs_derivative,
-// sn_noise_multiplier (as the trial options of the same names) and
-// forced_k_lr. Values may be strings or numbers.
+// Estimator option keys: those of estimators::EstimatorOptions::Table()
+// (lr_weights, lr_baseline, gs_derivative, sn_noise_multiplier, forced_k_lr;
+// the trial options of the same names). Values may be strings or numbers.
+// Methods: estimators::MethodNames() (parsed here, once).
 //
-#ifndef TOTALGRAD_CORE_STUDY_STUDY_FILE_H_
-#define TOTALGRAD_CORE_STUDY_STUDY_FILE_H_
+#ifndef TOTALGRAD_IO_STUDY_FILE_H_
+#define TOTALGRAD_IO_STUDY_FILE_H_
 
 #include <memory>
 #include <string>
@@ -43,16 +45,16 @@
 #include "core/study/frozen_problem.h"
 #include "core/study/study.h"
 
-namespace totalgrad::study {
+namespace totalgrad::io {
 
 struct StudySpec {
   bool from_snapshot = false;
   std::string snapshot_file;  // resolved path; empty when the snapshots are inlined
   std::vector<learner::TrialSnapshot> inline_snapshots;  // problem.snapshot as an object
   int snapshot_episode = -1;  // -1: the first snapshot in the file
-  SnapshotPolicy snapshot_policy = SnapshotPolicy::kBefore;
+  study::SnapshotPolicy snapshot_policy = study::SnapshotPolicy::kBefore;
   estimators::SyntheticProblemOptions synthetic;
-  StudyOptions options;
+  study::StudyOptions options;
   int sweep_particles = 100;
 };
 
@@ -74,12 +76,12 @@ absl::StatusOr<nlohmann::json> InlineStudyDocument(const nlohmann::json& doc,
 
 // Builds the frozen problem the spec names (reads the snapshot file, or
 // uses the inlined snapshots).
-absl::StatusOr<std::unique_ptr<FrozenProblem>> LoadStudyProblem(const StudySpec& spec);
+absl::StatusOr<std::unique_ptr<study::FrozenProblem>> LoadStudyProblem(const StudySpec& spec);
 
 // The `note` column of table.csv for one cell (omission, budget, reference
 // disagreement, first error), "" when there is nothing to note.
-std::string StudyCellNote(const CellResult& cell);
+std::string StudyCellNote(const study::CellResult& cell);
 
-}  // namespace totalgrad::study
+}  // namespace totalgrad::io
 
-#endif  // TOTALGRAD_CORE_STUDY_STUDY_FILE_H_
+#endif  // TOTALGRAD_IO_STUDY_FILE_H_

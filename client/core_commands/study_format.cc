@@ -1,0 +1,204 @@
+#include "client/core_commands/study_format.h"
+
+#include <cmath>
+#include <map>
+#include <sstream>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "absl/strings/str_join.h"
+#include "core/common/blas.h"
+
+namespace totalgrad::cli {
+namespace {
+
+using io::StudyCellNote;
+using io::StudySpec;
+
+using Json = nlohmann::json;
+using OrderedJson = nlohmann::ordered_json;
+
+std::string Num(double v, const char* format = "%.3g") {
+  return std::isfinite(v) ? absl::StrFormat(format, v) : std::string("-");
+}
+
+OrderedJson JsonNumber(double v) { return std::isfinite(v) ? OrderedJson(v) : OrderedJson(nullptr); }
+
+OrderedJson VectorJson(const Vector& v) {
+  OrderedJson a = OrderedJson::array();
+  for (Eigen::Index i = 0; i < v.size(); ++i) a.push_back(JsonNumber(v(i)));
+  return a;
+}
+
+}  // namespace
+
+const study::ReferenceGradient* ReferenceFor(const study::StudyResult& r, int horizon) {
+  for (const auto& ref : r.references) {
+    if (ref.horizon == horizon) return &ref;
+  }
+  return nullptr;
+}
+
+std::string StudyTableText(const study::StudyResult& r) {
+  std::ostringstream os;
+  os << "problem: " << r.source << "; " << r.num_parameters << " policy parameters; study "
+     << Num(r.seconds, "%.1f") << " s\n\n";
+  os << "reference gradients (pooled; floor = 1.96 |SE| / |g*|):\n";
+  os << absl::StrFormat("%5s %10s %9s %8s %9s %-28s %8s %8s %5s  %s\n", "H", "|g*|", "rel_SE",
+                        "floor", "J", "estimators (replicates)", "max|z|", "mean_z2", "agree", "note");
+  for (const auto& ref : r.references) {
+    std::vector<std::string> used;
+    for (size_t k = 0; k < ref.used.size(); ++k) {
+      used.push_back(absl::StrCat(ref.used[k], " (", ref.replicates[k], ")"));
+    }
+    os << absl::StrFormat("%5d %10s %9s %8s %9s %-28s %8s %8s %5s  %s\n", ref.horizon,
+                          Num(ref.norm, "%.4g"), Num(ref.relative_error), Num(ref.floor),
+                          Num(ref.objective, "%.4g"), absl::StrJoin(used, ", "),
+                          Num(ref.agreement_max_z), Num(ref.agreement_mean_z2),
+                          ref.agree ? "yes" : "NO", ref.note);
+  }
+  os << "\n";
+  os << absl::StrFormat("%-14s %5s %4s %5s %10s %9s %9s %9s %7s %7s %7s %6s %5s  %s\n", "estimator",
+                        "P", "H", "reps", "t_min_ms", "rel_rmse", "rel_bias", "bias_noise", "cos",
+                        "ess", "k_lr", "nonfin", "err", "note");
+  std::vector<std::string> omissions;
+  for (const auto& c : r.cells) {
+    os << absl::StrFormat("%-14s %5s %4d %5d %10s %9s %9s %9s %7s %7s %7s %6d %5d  %s\n", c.estimator,
+                          c.particles > 0 ? std::to_string(c.particles) : "-", c.horizon,
+                          c.replicates, Num(c.time_min_s * 1e3, "%.4g"), Num(c.rel_rmse),
+                          Num(c.rel_bias), Num(c.rel_bias_noise), Num(c.cos_mean, "%.3f"),
+                          Num(c.ess_mean, "%.3f"), Num(c.k_lr_mean, "%.3f"), c.nonfinite, c.errors,
+                          StudyCellNote(c));
+    if (c.omitted || !c.reference_agrees || c.nonfinite > 0 || c.errors > 0) {
+      omissions.push_back(absl::StrCat(c.estimator, " P=", c.particles, " H=", c.horizon, ": ",
+                                       c.omitted ? c.omission_reason
+                                                 : absl::StrCat(c.nonfinite, " non-finite, ",
+                                                                c.errors, " errors"),
+                                       c.reference_agrees ? "" : " (reference disagrees: not plotted)"));
+    }
+  }
+  if (!omissions.empty()) {
+    os << "\nomissions and failures:\n";
+    for (const auto& line : omissions) os << "  " << line << "\n";
+  }
+  return os.str();
+}
+
+std::string StudyTableCsv(const study::StudyResult& r) {
+  std::ostringstream os;
+  os << "estimator,method,particles,horizon,replicates,nonfinite,errors,time_min_s,time_median_s,"
+        "rel_rmse,rel_bias,rel_bias_noise,total_variance,cos_mean,objective_mean,ess_mean,ess_min,"
+        "k_lr_mean,reference_agrees,reference_floor,budget_hit,omitted,note\n";
+  auto csv = [](double v) { return std::isfinite(v) ? absl::StrFormat("%.9g", v) : std::string(); };
+  auto text = [](std::string s) {
+    for (char& ch : s) {
+      if (ch == '"') ch = '\'';
+    }
+    return "\"" + s + "\"";
+  };
+  for (const auto& c : r.cells) {
+    const study::ReferenceGradient* ref = ReferenceFor(r, c.horizon);
+    os << text(c.estimator) << "," << text(c.method) << "," << c.particles << "," << c.horizon << ","
+       << c.replicates << "," << c.nonfinite << "," << c.errors << "," << csv(c.time_min_s) << ","
+       << csv(c.time_median_s) << "," << csv(c.rel_rmse) << "," << csv(c.rel_bias) << ","
+       << csv(c.rel_bias_noise) << "," << csv(c.total_variance) << "," << csv(c.cos_mean) << ","
+       << csv(c.objective_mean) << "," << csv(c.ess_mean) << "," << csv(c.ess_min) << ","
+       << csv(c.k_lr_mean) << "," << (c.reference_agrees ? 1 : 0) << ","
+       << csv(ref != nullptr ? ref->floor : study::CellResult::kNaN) << "," << (c.budget_hit ? 1 : 0)
+       << "," << (c.omitted ? 1 : 0) << "," << text(StudyCellNote(c)) << "\n";
+  }
+  return os.str();
+}
+
+std::string StudyReferenceCsv(const study::StudyResult& r) {
+  std::ostringstream os;
+  os << "horizon,norm,relative_error,floor,objective,used,replicates,agreement_max_z,"
+        "agreement_mean_z2,agree,seconds,note\n";
+  for (const auto& ref : r.references) {
+    std::vector<std::string> reps;
+    for (int n : ref.replicates) reps.push_back(std::to_string(n));
+    os << ref.horizon << "," << absl::StrFormat("%.9g,%.9g,%.9g,%.9g", ref.norm, ref.relative_error,
+                                                ref.floor, ref.objective)
+       << ",\"" << absl::StrJoin(ref.used, ";") << "\",\"" << absl::StrJoin(reps, ";") << "\","
+       << absl::StrFormat("%.6g,%.6g", ref.agreement_max_z, ref.agreement_mean_z2) << ","
+       << (ref.agree ? 1 : 0) << "," << absl::StrFormat("%.3f", ref.seconds) << ",\"" << ref.note
+       << "\"\n";
+  }
+  return os.str();
+}
+
+OrderedJson StudyToJson(const study::StudyResult& r, const StudySpec& spec) {
+  OrderedJson j;
+  j["source"] = r.source;
+  j["num_parameters"] = r.num_parameters;
+  j["seconds"] = r.seconds;
+  j["blas"] = BlasConfig();
+  const study::StudyOptions& o = spec.options;
+  OrderedJson estimators = OrderedJson::array();
+  for (const auto& e : o.estimators) estimators.push_back(e.label);
+  OrderedJson ref_estimators = OrderedJson::array();
+  for (const auto& e : o.reference.estimators) ref_estimators.push_back(e.label);
+  j["options"] = {{"estimators", estimators},
+                  {"particles", o.particles},
+                  {"horizons", o.horizons},
+                  {"replicates", o.replicates},
+                  {"seed", o.seed},
+                  {"cell_budget_seconds", o.cell_budget_seconds},
+                  {"ess_replicates", o.ess_replicates},
+                  {"reference", {{"estimators", ref_estimators},
+                                 {"particles", o.reference.particles},
+                                 {"replicates", o.reference.replicates},
+                                 {"agreement_max_z", o.reference.agreement_max_z},
+                                 {"agreement_mean_z2", o.reference.agreement_mean_z2}}}};
+  OrderedJson refs = OrderedJson::array();
+  for (const auto& ref : r.references) {
+    refs.push_back({{"horizon", ref.horizon},
+                    {"norm", JsonNumber(ref.norm)},
+                    {"relative_error", JsonNumber(ref.relative_error)},
+                    {"floor", JsonNumber(ref.floor)},
+                    {"objective", JsonNumber(ref.objective)},
+                    {"used", ref.used},
+                    {"replicates", ref.replicates},
+                    {"agreement_max_z", JsonNumber(ref.agreement_max_z)},
+                    {"agreement_mean_z2", JsonNumber(ref.agreement_mean_z2)},
+                    {"agree", ref.agree},
+                    {"note", ref.note},
+                    {"seconds", ref.seconds},
+                    {"gradient", VectorJson(ref.gradient)},
+                    {"standard_error", VectorJson(ref.standard_error)}});
+  }
+  j["references"] = refs;
+  OrderedJson cells = OrderedJson::array();
+  for (const auto& c : r.cells) {
+    OrderedJson k_lr = OrderedJson::array();
+    for (double v : c.k_lr_per_step) k_lr.push_back(JsonNumber(v));
+    cells.push_back({{"estimator", c.estimator},
+                     {"method", c.method},
+                     {"particles", c.particles},
+                     {"horizon", c.horizon},
+                     {"replicates", c.replicates},
+                     {"nonfinite", c.nonfinite},
+                     {"errors", c.errors},
+                     {"error", c.error},
+                     {"budget_hit", c.budget_hit},
+                     {"omitted", c.omitted},
+                     {"omission_reason", c.omission_reason},
+                     {"time_min_s", JsonNumber(c.time_min_s)},
+                     {"time_median_s", JsonNumber(c.time_median_s)},
+                     {"rel_rmse", JsonNumber(c.rel_rmse)},
+                     {"rel_bias", JsonNumber(c.rel_bias)},
+                     {"rel_bias_noise", JsonNumber(c.rel_bias_noise)},
+                     {"total_variance", JsonNumber(c.total_variance)},
+                     {"cos_mean", JsonNumber(c.cos_mean)},
+                     {"objective_mean", JsonNumber(c.objective_mean)},
+                     {"ess_mean", JsonNumber(c.ess_mean)},
+                     {"ess_min", JsonNumber(c.ess_min)},
+                     {"k_lr_mean", JsonNumber(c.k_lr_mean)},
+                     {"k_lr_per_step", k_lr},
+                     {"reference_agrees", c.reference_agrees}});
+  }
+  j["cells"] = cells;
+  return j;
+}
+
+}  // namespace totalgrad::cli

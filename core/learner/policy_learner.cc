@@ -1,0 +1,55 @@
+#include "core/learner/policy_learner.h"
+
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "core/gp/training.h"
+#include "core/pilco/angle_features.h"
+
+namespace totalgrad::learner {
+
+PolicyLearner::PolicyLearner(const TrialOptions& options, const tasks::Scene& scene, int angle_index)
+    : options_(options),
+      scene_(scene),
+      angle_index_(angle_index),
+      policy_(options.basis_functions, pilco::FeatureDim(tasks::kCartPoleStateDim, angle_index),
+              scene.plant.params().max_force) {}
+
+absl::Status PolicyLearner::TrainModel(const GpTrainingSet& data, int episode, EpisodeResult* result) {
+  if (!hyperparameters_) hyperparameters_ = gp::InitialHyperparameters(data.inputs, data.targets);
+  absl::StatusOr<gp::TrainingSummary> training =
+      gp::TrainHyperparameters(data.inputs, data.targets, options_.gp_training, &*hyperparameters_);
+  if (!training.ok())
+    return absl::Status(training.status().code(),
+                        absl::StrCat("episode ", episode, ": GP training: ", training.status().message()));
+  result->flags.gp_line_search_failures = training->line_search_failures;
+  result->flags.gp_non_finite_evaluations = training->non_finite_evaluations;
+  result->hyperparameters = *hyperparameters_;
+  return absl::OkStatus();
+}
+
+void PolicyLearner::SaveState(TrialCheckpoint* checkpoint) const {
+  checkpoint->policy_parameters = policy_.parameters();
+  checkpoint->hyperparameters = hyperparameters_;
+  checkpoint->inducing_inputs = inducing_;
+}
+
+absl::Status PolicyLearner::RestoreState(const TrialCheckpoint& checkpoint) {
+  if (checkpoint.policy_parameters.size() != policy_.num_parameters())
+    return absl::InvalidArgumentError(absl::StrCat(
+        "trial checkpoint: the policy has ", checkpoint.policy_parameters.size(),
+        " parameters; this trial's has ", policy_.num_parameters()));
+  policy_.set_parameters(checkpoint.policy_parameters);
+  hyperparameters_ = checkpoint.hyperparameters;
+  inducing_ = checkpoint.inducing_inputs;
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::unique_ptr<PolicyLearner>> MakePolicyLearner(const TrialOptions& options,
+                                                                 const tasks::Scene& scene,
+                                                                 ThreadPool* pool) {
+  if (options.method == estimators::Method::kPilco) return MakePilcoLearner(options, scene);
+  return MakeParticleLearner(options, scene, pool);
+}
+
+}  // namespace totalgrad::learner

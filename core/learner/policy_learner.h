@@ -1,0 +1,74 @@
+// How a method turns a trial's data into a policy, one object per trial
+// (its policy, GP hyperparameters and inducing inputs persist across
+// episodes as warm starts). RunTrial (trial.cc) drives it; the particle
+// methods' learner is in particle_learner.cc, PILCO's in pilco_learner.cc.
+// Internal to core/learner.
+//
+// Thread safety: one learner per trial, used from the trial's thread.
+#ifndef TOTALGRAD_CORE_LEARNER_POLICY_LEARNER_H_
+#define TOTALGRAD_CORE_LEARNER_POLICY_LEARNER_H_
+
+#include <memory>
+#include <optional>
+
+#include "absl/status/statusor.h"
+#include "core/common/thread_pool.h"
+#include "core/gp/gp.h"
+#include "core/learner/checkpoint.h"
+#include "core/learner/phase_clock.h"
+#include "core/learner/problem_builder.h"
+#include "core/learner/trial.h"
+#include "core/policy/rbf_policy.h"
+#include "core/tasks/scene.h"
+
+namespace totalgrad::learner {
+
+class PolicyLearner {
+ public:
+  virtual ~PolicyLearner() = default;
+  // Fits the model on `data`, optimises the policy, fills the model- and
+  // optimisation-related fields of *result, timing its phases with `clock`
+  // (model, policy, prediction laps into result->timing). Errors name the
+  // episode; Cancelled when the observer asked.
+  virtual absl::Status Improve(const Transitions& data, int episode, TrialObserver* observer,
+                               PhaseClock* clock, EpisodeResult* result) = 0;
+  // What carries over to the next episode (checkpoint.h), and back.
+  virtual void SaveState(TrialCheckpoint* checkpoint) const;
+  virtual absl::Status RestoreState(const TrialCheckpoint& checkpoint);
+
+  // The current policy as a controller of the real plant (force in N); it
+  // follows the policy's later changes (it holds a pointer to it).
+  tasks::Controller Controller() const { return FeaturePolicyController(&policy_, angle_index_); }
+  const Vector& Parameters() const { return policy_.parameters(); }
+
+ protected:
+  // angle_index: -1 (raw) or the scene's angle (sin, cos features).
+  PolicyLearner(const TrialOptions& options, const tasks::Scene& scene, int angle_index);
+  // Trains the GP hyperparameters on `data` (warm-started from the last
+  // episode's) and records the training's flags in *result.
+  absl::Status TrainModel(const GpTrainingSet& data, int episode, EpisodeResult* result);
+
+  const TrialOptions& options_;
+  const tasks::Scene& scene_;
+  const int angle_index_;
+  policy::RbfPolicy policy_;
+  std::optional<gp::GpHyperparameters> hyperparameters_;
+  RowMatrix inducing_;  // FITC inducing inputs of the last sparse fit (warm start)
+};
+
+// The learner of options.method: PILCO's, or the particle methods' with its
+// estimator. `options` and `scene` must outlive it; `pool` (may be null)
+// spreads the particle methods' work. Errors: InvalidArgument (estimator
+// options, a cost without a closed form for PILCO), PILCO's initial policy.
+absl::StatusOr<std::unique_ptr<PolicyLearner>> MakePolicyLearner(const TrialOptions& options,
+                                                                 const tasks::Scene& scene,
+                                                                 ThreadPool* pool);
+absl::StatusOr<std::unique_ptr<PolicyLearner>> MakeParticleLearner(const TrialOptions& options,
+                                                                   const tasks::Scene& scene,
+                                                                   ThreadPool* pool);
+absl::StatusOr<std::unique_ptr<PolicyLearner>> MakePilcoLearner(const TrialOptions& options,
+                                                                const tasks::Scene& scene);
+
+}  // namespace totalgrad::learner
+
+#endif  // TOTALGRAD_CORE_LEARNER_POLICY_LEARNER_H_

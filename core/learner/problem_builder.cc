@@ -1,0 +1,125 @@
+#include "core/learner/problem_builder.h"
+
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "core/common/check.h"
+#include "core/pilco/angle_features.h"
+
+namespace totalgrad::learner {
+
+void Transitions::Append(const tasks::Episode& episode) {
+  const Eigen::Index h = episode.forces.size();
+  const Eigen::Index n = forces.size();
+  const Eigen::Index s = episode.observations.cols();
+  if (n == 0) {
+    states.resize(0, s);
+    next_states.resize(0, s);
+  }
+  TG_CHECK_EQ(states.cols(), s);
+  states.conservativeResize(n + h, s);
+  next_states.conservativeResize(n + h, s);
+  forces.conservativeResize(n + h);
+  states.bottomRows(h) = episode.observations.topRows(h);
+  next_states.bottomRows(h) = episode.observations.bottomRows(h);
+  forces.tail(h) = episode.forces;
+}
+
+GpTrainingSet MakeGpTrainingSet(const Transitions& data, int angle_index) {
+  TG_CHECK(data.states.rows() == data.size() && data.next_states.rows() == data.size());
+  RowMatrix features;
+  pilco::StatesToFeatures(data.states, angle_index, &features);
+  GpTrainingSet set;
+  set.inputs.resize(data.size(), features.cols() + 1);
+  set.inputs.leftCols(features.cols()) = features;
+  set.inputs.col(features.cols()) = data.forces;
+  set.targets = data.next_states - data.states;
+  return set;
+}
+
+absl::StatusOr<ModelProblem> ModelProblem::Build(const GpTrainingSet& data,
+                                                 const gp::GpHyperparameters& hyperparameters,
+                                                 const SparseModelFit& sparse, int angle_index,
+                                                 const policy::RbfPolicy* policy,
+                                                 const tasks::Scene& scene,
+                                                 double noise_variance_multiplier,
+                                                 ThreadPool* pool) {
+  TG_CHECK(policy != nullptr);
+  ModelProblem out;
+  if (sparse.num_inducing > 0 && data.inputs.rows() > sparse.num_inducing) {
+    TG_CHECK(sparse.inducing != nullptr && sparse.rng != nullptr);
+    gp::FitcFitOptions fit;
+    fit.num_inducing = sparse.num_inducing;
+    absl::StatusOr<gp::FitcModel> model = gp::FitFitcModel(
+        data.inputs, data.targets, hyperparameters, fit, sparse.inducing, sparse.rng, nullptr);
+    if (!model.ok())
+      return absl::Status(model.status().code(), absl::StrCat("FITC model: ", model.status().message()));
+    out.sparse_ = std::make_unique<gp::FitcModel>(*std::move(model));
+    out.model_dynamics_ = std::make_unique<estimators::FitcDynamics>(out.sparse_.get(), pool);
+  } else {
+    absl::StatusOr<gp::GpModel> model = gp::GpModel::Create(data.inputs, data.targets, hyperparameters);
+    if (!model.ok())
+      return absl::Status(model.status().code(), absl::StrCat("GP model: ", model.status().message()));
+    out.full_ = std::make_unique<gp::GpModel>(*std::move(model));
+    out.model_dynamics_ = std::make_unique<estimators::GpDynamics>(out.full_.get(), pool);
+  }
+  out.rbf_policy_ = std::make_unique<estimators::RbfParticlePolicy>(policy, pool);
+  estimators::Problem& p = out.problem_;
+  p.dynamics = out.model_dynamics_.get();
+  p.policy = out.rbf_policy_.get();
+  if (angle_index >= 0) {
+    out.feature_dynamics_ =
+        std::make_unique<estimators::AngleFeatureDynamics>(out.model_dynamics_.get(), angle_index);
+    out.feature_policy_ =
+        std::make_unique<estimators::AngleFeaturePolicy>(out.rbf_policy_.get(), angle_index);
+    p.dynamics = out.feature_dynamics_.get();
+    p.policy = out.feature_policy_.get();
+  }
+  p.cost = scene.cost.get();
+  p.mu0 = scene.mu0;
+  p.initial_std = scene.initial_std;
+  p.horizon = scene.horizon;
+  p.noise_variance_multiplier = noise_variance_multiplier;
+  p.pool = pool;
+  return out;
+}
+
+bool ModelProblem::jitter() const {
+  if (full_ == nullptr) return false;
+  for (int a = 0; a < full_->num_outputs(); ++a)
+    if (full_->jitter(a) > 0) return true;
+  return false;
+}
+
+absl::StatusOr<pilco::PilcoProblem> MakePilcoProblem(const tasks::StateCost& cost,
+                                                     const Vector& mu0, const Vector& initial_std,
+                                                     int horizon, int angle_index, int num_basis,
+                                                     double max_force) {
+  absl::StatusOr<pilco::GaussianCost> gaussian_cost = cost.GaussianExpectation();
+  if (!gaussian_cost.ok()) return gaussian_cost.status();
+  pilco::PilcoProblem problem;
+  problem.mu0 = mu0;
+  problem.S0 = initial_std.array().square().matrix().asDiagonal();
+  problem.horizon = horizon;
+  problem.cost = std::make_shared<pilco::GaussianCost>(*std::move(gaussian_cost));
+  problem.propagation.angle_index = angle_index;
+  problem.propagation.max_force = max_force;
+  problem.propagation.num_basis = num_basis;
+  return problem;
+}
+
+tasks::Controller FeaturePolicyController(const policy::RbfPolicy* policy, int angle_index) {
+  TG_CHECK(policy != nullptr);
+  return [policy, angle_index](const tasks::State& observation) {
+    Vector force;
+    if (angle_index < 0) {
+      policy->Evaluate(observation.transpose(), &force, nullptr);
+    } else {
+      const Vector features = pilco::StateFeatures(observation, angle_index);
+      policy->Evaluate(features.transpose(), &force, nullptr);
+    }
+    return force(0);
+  };
+}
+
+}  // namespace totalgrad::learner

@@ -1,0 +1,106 @@
+#include "core/learner/trial_options.h"
+
+#include <cmath>
+
+#include "absl/status/statusor.h"
+#include "absl/strings/str_cat.h"
+
+namespace totalgrad::learner {
+
+const EnumNames<AngleFeatures>& AngleFeaturesNames() {
+  static const EnumNames<AngleFeatures>* names = new EnumNames<AngleFeatures>{
+      {AngleFeatures::kAuto, "auto"}, {AngleFeatures::kRaw, "raw"}, {AngleFeatures::kSinCos, "sincos"}};
+  return *names;
+}
+
+const OptionTable<TrialOptions>& TrialOptions::Table() {
+  using O = TrialOptions;
+  static const OptionTable<O>* table = [] {
+    auto* t = new OptionTable<O>();
+    t->Nest(&O::scene, tasks::SceneOptions::Table())
+        .Custom(
+            "method",
+            [](absl::string_view text, O* o) {
+              absl::StatusOr<estimators::Method> method = estimators::ParseMethod(text);
+              if (!method.ok())
+                return absl::InvalidArgumentError(absl::StrCat("option 'method': ", method.status().message()));
+              o->method = *method;
+              return absl::OkStatus();
+            },
+            [](const O& o) { return estimators::MethodName(o.method); })
+        .Uint64("seed", &O::seed)
+        .Int("episodes", &O::episodes)
+        .Int("policy_steps", &O::policy_steps)
+        .Int("particles", &O::particles)
+        .Int("eval_rollouts", &O::eval_rollouts)
+        .Double("threshold", &O::success_threshold)
+        .Int("basis_functions", &O::basis_functions)
+        .Double("model_noise_multiplier", &O::model_noise_multiplier)
+        .Int("predicted_cost_particles", &O::predicted_cost_particles)
+        .Double("policy_init_lengthscale", &O::policy_init_lengthscale)
+        .Double("policy_centre_std", &O::policy_centre_std)
+        .Nest(&O::optimizer, OptimizerOptions::Table())
+        .Nest(&O::gp_training, gp::TrainingOptions::Table())
+        .Enum("angle_features", &O::angle_features, AngleFeaturesNames())
+        .Int("gp_inducing", &O::gp_inducing)
+        .Nest(&O::estimator, estimators::EstimatorOptions::Table());
+    return t;
+  }();
+  return *table;
+}
+
+absl::Status TrialOptions::Validate() const {
+  if (episodes < 1) return InvalidOption("episodes", "must be >= 1");
+  if (policy_steps < 0) return InvalidOption("policy_steps", "must be >= 0");
+  if (particles < 1) return InvalidOption("particles", "must be >= 1");
+  if (eval_rollouts < 1) return InvalidOption("eval_rollouts", "must be >= 1");
+  if (basis_functions < 1) return InvalidOption("basis_functions", "must be >= 1");
+  if (!(model_noise_multiplier >= 0) || !std::isfinite(model_noise_multiplier))
+    return InvalidOption("model_noise_multiplier", "must be finite and >= 0");
+  if (predicted_cost_particles < 1) return InvalidOption("predicted_cost_particles", "must be >= 1");
+  if (!(policy_init_lengthscale > 0)) return InvalidOption("policy_init_lengthscale", "must be > 0");
+  if (!(policy_centre_std >= 0)) return InvalidOption("policy_centre_std", "must be >= 0");
+  if (absl::Status st = optimizer.Validate(); !st.ok()) return st;
+  if (absl::Status st = gp_training.Validate(); !st.ok()) return st;
+  if (!std::isfinite(success_threshold)) return InvalidOption("threshold", "must be finite");
+  if (gp_inducing < -1) return InvalidOption("gp_inducing", "must be -1 (auto), 0 (full GP) or a count");
+  if (!IsNamedEnum(AngleFeaturesNames(), angle_features))
+    return InvalidOption("angle_features", "is not one of auto, raw, sincos");
+  if (!IsNamedEnum(estimators::MethodNames(), method)) return InvalidOption("method", "is not a known method");
+  if (absl::Status st = estimator.Validate(); !st.ok()) return st;
+  return tasks::MakeScene(scene).status();
+}
+
+bool UsesSinCosFeatures(estimators::Method method, AngleFeatures choice) {
+  switch (choice) {
+    case AngleFeatures::kSinCos: return true;
+    case AngleFeatures::kRaw: return false;
+    case AngleFeatures::kAuto: return method == estimators::Method::kPilco;
+  }
+  return false;
+}
+
+int InducingInputs(const TrialOptions& options) {
+  if (options.gp_inducing >= 0) return options.gp_inducing;
+  return options.method == estimators::Method::kPilco ? 300 : 0;
+}
+
+absl::Status SetTrialOption(const std::string& key, const std::string& value, TrialOptions* options) {
+  return TrialOptions::Table().Set(key, value, options);
+}
+
+std::vector<std::pair<std::string, std::string>> TrialOptionPairs(const TrialOptions& options) {
+  return TrialOptions::Table().Pairs(options);
+}
+
+std::vector<std::string> TrialOptionKeys() { return TrialOptions::Table().Keys(); }
+
+absl::StatusOr<TrialOptions> TrialOptionsFromPairs(
+    const std::vector<std::pair<std::string, std::string>>& pairs) {
+  TrialOptions options;
+  for (const auto& [key, value] : pairs)
+    if (absl::Status st = SetTrialOption(key, value, &options); !st.ok()) return st;
+  return options;
+}
+
+}  // namespace totalgrad::learner

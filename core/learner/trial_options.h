@@ -1,0 +1,108 @@
+// What a policy-learning trial computes (learner::RunTrial), as one options
+// struct composed of the options of the modules it configures. Each module's
+// struct owns its field table (keys, parsers, canonical texts):
+//
+//   tasks::SceneOptions          scene, cost, noise_k, horizon, initial_std,
+//     tasks::CartPoleParams        cart_mass, ..., gravity,
+//       ode::IntegratorOptions       integrator_*
+//   (the trial's own fields)     method, seed, episodes, ..., policy_centre_std
+//   OptimizerOptions             learning_rate, momentum, decay, epsilon, normalisation
+//   gp::TrainingOptions          gp_iterations,
+//     gp::PenaltyOptions           gp_penalty, gp_penalty_*
+//   (the trial's own fields)     angle_features, gp_inducing
+//   estimators::EstimatorOptions lr_weights, lr_baseline, gs_derivative,
+//                                sn_noise_multiplier, forced_k_lr
+//
+// TrialOptions::Table() nests them in that order, so every option has one key
+// everywhere (CLI flags, sweep files, the service's option pairs, trial
+// snapshots and checkpoints). Adding an option to a module is a change in its
+// table only (docs/core.md, "Adding an option").
+//
+// The method and the angle-feature choice are enums, parsed from text once
+// by the table (or by estimators::ParseMethod at another edge).
+#ifndef TOTALGRAD_CORE_LEARNER_TRIAL_OPTIONS_H_
+#define TOTALGRAD_CORE_LEARNER_TRIAL_OPTIONS_H_
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "core/common/option_table.h"
+#include "core/estimators/estimator.h"
+#include "core/estimators/method.h"
+#include "core/gp/training.h"
+#include "core/learner/optimizer.h"
+#include "core/tasks/scene.h"
+
+namespace totalgrad::learner {
+
+// How the GP and the policy see the pole angle: "raw" state, "sincos"
+// (PILCO's (sin, cos) augmentation; particle methods keep raw particles and
+// map through estimators::AngleFeature{Dynamics,Policy}) or "auto" (the
+// method's own default: sincos for PILCO, raw for the particle methods; see
+// UsesSinCosFeatures).
+enum class AngleFeatures { kAuto, kRaw, kSinCos };
+const EnumNames<AngleFeatures>& AngleFeaturesNames();  // "auto", "raw", "sincos"
+
+struct TrialOptions {
+  tasks::SceneOptions scene;
+  estimators::Method method = estimators::Method::kRp;
+  uint64_t seed = 1;
+  int episodes = 15;           // learned episodes after the random one
+  int policy_steps = 600;      // gradient steps per policy optimisation
+  int particles = 300;         // particles per gradient estimate
+  int eval_rollouts = 30;      // real evaluation episodes per learned episode
+  double success_threshold = 15.0;  // key "threshold"; success: last evaluation mean below this
+  int basis_functions = 50;    // RBF policy size
+  double model_noise_multiplier = 1.0;  // GP noise variance x this in policy optimisation
+  int predicted_cost_particles = 1000;  // particles for the reported model-predicted cost
+  double policy_init_lengthscale = 1.0; // initial length-scale of every basis function
+  double policy_centre_std = 1.0;       // centres ~ N(mu0, policy_centre_std^2 I)
+  OptimizerOptions optimizer;
+  gp::TrainingOptions gp_training;
+  AngleFeatures angle_features = AngleFeatures::kAuto;
+  // Sparse GP (FITC, gp/fitc.h) with this many inducing inputs once the data
+  // exceed it, for every method; the full GP while N <= gp_inducing. 0 = always
+  // the full GP; -1 = auto (300 for PILCO as PILCO does, 0 for particle
+  // methods; see InducingInputs). The inducing inputs are trained with the
+  // hyperparameters fixed, from a random subset of the inputs the first time
+  // (1500 L-BFGS iterations), then warm-started from the previous episode (500).
+  int gp_inducing = -1;
+  estimators::EstimatorOptions estimator;  // method-specific knobs
+
+  // The composed table described above.
+  static const OptionTable<TrialOptions>& Table();
+  // OK, or InvalidArgument naming the first bad field (the key), including
+  // the nested modules' Validate() and tasks::MakeScene's checks.
+  absl::Status Validate() const;
+  bool operator==(const TrialOptions&) const = default;
+};
+
+// Whether the GP and the policy see (sin, cos) of the angle: "sincos", or
+// "auto" for PILCO. The one place that says what "auto" means.
+bool UsesSinCosFeatures(estimators::Method method, AngleFeatures choice);
+inline bool UsesSinCosFeatures(const TrialOptions& options) {
+  return UsesSinCosFeatures(options.method, options.angle_features);
+}
+// The inducing-input count gp_inducing resolves to: -1 (auto) is 300 for
+// PILCO (PILCO's own setting) and 0 (full GP) for the particle methods.
+int InducingInputs(const TrialOptions& options);
+
+// TrialOptions::Table() as free functions (the names every caller uses).
+// Sets one option by its key from text; InvalidArgument names an unknown key
+// or an unparsable value (range checks are Validate()'s). Pairs: every option
+// as (key, canonical text) in the table's order; SetTrialOption of each pair
+// on default options reproduces `options`.
+absl::Status SetTrialOption(const std::string& key, const std::string& value, TrialOptions* options);
+std::vector<std::pair<std::string, std::string>> TrialOptionPairs(const TrialOptions& options);
+std::vector<std::string> TrialOptionKeys();
+// Default options with `pairs` applied in order (InvalidArgument from the
+// first pair that fails; no Validate()).
+absl::StatusOr<TrialOptions> TrialOptionsFromPairs(
+    const std::vector<std::pair<std::string, std::string>>& pairs);
+
+}  // namespace totalgrad::learner
+
+#endif  // TOTALGRAD_CORE_LEARNER_TRIAL_OPTIONS_H_

@@ -1,0 +1,170 @@
+// The trial's options as one table composed of the modules' tables: every
+// field has a key, and the whole struct round-trips through option pairs and
+// checkpoints (snapshots: tests/io/snapshot_json_test.cc; sweep files:
+// tests/service/trial_options_sweep_test.cc).
+#include "core/learner/trial_options.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <set>
+#include <string>
+
+#include "core/learner/checkpoint.h"
+#include "tests/testutil/every_option.h"
+#include "tests/testutil/test_base.h"
+
+namespace totalgrad::learner {
+namespace {
+
+using ::totalgrad::testing::EveryOptionChanged;
+using ::totalgrad::testing::KeysAtDefault;
+
+TEST(TrialOptionTable, KeysAreUniqueAndComposeTheModulesTables) {
+  const std::vector<std::string> keys = TrialOptionKeys();
+  EXPECT_EQ(std::set<std::string>(keys.begin(), keys.end()).size(), keys.size());
+  // Every module's keys appear in the trial's table, each exactly once.
+  for (const std::vector<std::string>& module :
+       {tasks::SceneOptions::Table().Keys(), tasks::CartPoleParams::Table().Keys(),
+        ode::IntegratorOptions::Table().Keys(), OptimizerOptions::Table().Keys(),
+        gp::TrainingOptions::Table().Keys(), gp::PenaltyOptions::Table().Keys(),
+        estimators::EstimatorOptions::Table().Keys()}) {
+    for (const std::string& key : module)
+      EXPECT_EQ(std::count(keys.begin(), keys.end(), key), 1) << key;
+  }
+  // The options the issue found missing have keys now.
+  for (const char* key : {"forced_k_lr", "gravity", "gp_penalty_power", "gp_penalty_lengthscale_ratio",
+                          "gp_penalty_signal_to_noise", "integrator_relative_tolerance",
+                          "integrator_absolute_tolerance", "integrator_initial_step",
+                          "integrator_min_step", "integrator_max_steps"})
+    EXPECT_TRUE(TrialOptions::Table().Has(key)) << key;
+}
+
+// The existing keys and their canonical texts are what stored sweeps,
+// snapshots and checkpoints hold: they must not change.
+TEST(TrialOptionTable, ExistingKeysAndDefaultTextsAreUnchanged) {
+  const std::vector<std::pair<std::string, std::string>> stored = {
+      {"scene", "cartpole-swingup"}, {"cost", "angle"}, {"noise_k", "1"}, {"horizon", "30"},
+      {"initial_std", "0.10000000000000001"}, {"cart_mass", "0.5"}, {"pole_mass", "0.5"},
+      {"pole_length", "0.5"}, {"friction", "0.10000000000000001"}, {"dt", "0.10000000000000001"},
+      {"max_force", "10"}, {"method", "RP"}, {"seed", "1"}, {"episodes", "15"},
+      {"policy_steps", "600"}, {"particles", "300"}, {"eval_rollouts", "30"}, {"threshold", "15"},
+      {"basis_functions", "50"}, {"model_noise_multiplier", "1"},
+      {"predicted_cost_particles", "1000"}, {"policy_init_lengthscale", "1"},
+      {"policy_centre_std", "1"}, {"learning_rate", "0.00050000000000000001"},
+      {"momentum", "0.90000000000000002"}, {"decay", "0.90000000000000002"},
+      {"epsilon", "1e-08"}, {"normalisation", "mean_std"}, {"gp_iterations", "300"},
+      {"angle_features", "auto"}, {"gp_inducing", "-1"}, {"gp_penalty", "true"},
+      {"lr_weights", "biw"}, {"lr_baseline", "biw"}, {"gs_derivative", "sampled"},
+      {"sn_noise_multiplier", "25"}};
+  const auto pairs = TrialOptionPairs(TrialOptions());
+  for (const auto& expected : stored)
+    EXPECT_NE(std::find(pairs.begin(), pairs.end(), expected), pairs.end())
+        << expected.first << "=" << expected.second;
+}
+
+TEST(TrialOptionTable, EveryFieldRoundTripsThroughPairs) {
+  const TrialOptions changed = EveryOptionChanged();
+  TG_ASSERT_OK(changed.Validate());
+  EXPECT_EQ(KeysAtDefault(changed), std::vector<std::string>{})
+      << "a key of TrialOptions::Table() keeps its default in EveryOptionChanged()";
+  absl::StatusOr<TrialOptions> back = TrialOptionsFromPairs(TrialOptionPairs(changed));
+  TG_ASSERT_OK(back.status());
+  EXPECT_TRUE(*back == changed) << "a field of TrialOptions is missing from its module's table";
+  // And the other way: a default struct is not equal (operator== can fail).
+  EXPECT_FALSE(TrialOptions() == changed);
+}
+
+// A checkpoint keeps the options as pairs: a decoded checkpoint resumes
+// exactly the trial it was taken from, and no other.
+TEST(TrialOptionTable, EveryFieldRoundTripsThroughCheckpoints) {
+  const TrialOptions changed = EveryOptionChanged();
+  TrialCheckpoint checkpoint;
+  checkpoint.episode = 0;
+  checkpoint.options = TrialOptionPairs(changed);
+  checkpoint.episodes.resize(1);
+  checkpoint.states.resize(0, 4);
+  checkpoint.next_states.resize(0, 4);
+  absl::StatusOr<TrialCheckpoint> decoded = DecodeCheckpoint(EncodeCheckpoint(checkpoint));
+  TG_ASSERT_OK(decoded.status());
+  absl::StatusOr<TrialOptions> back = TrialOptionsFromPairs(decoded->options);
+  TG_ASSERT_OK(back.status());
+  EXPECT_TRUE(*back == changed);
+  TG_EXPECT_OK(CheckResumable(*decoded, changed));
+  TrialOptions other = changed;
+  other.estimator.forced_k_lr = 0.5;
+  const absl::Status refused = CheckResumable(*decoded, other);
+  EXPECT_EQ(refused.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(refused.message().find("forced_k_lr"), std::string::npos) << refused;
+}
+
+// A checkpoint written before an option existed lists no pair for it: it
+// resumes a trial that keeps that option's default, and no other.
+TEST(TrialOptionTable, CheckpointsWithoutANewerOptionResumeItsDefault) {
+  TrialCheckpoint checkpoint;
+  checkpoint.episodes.resize(1);
+  for (const auto& pair : TrialOptionPairs(TrialOptions()))
+    if (pair.first != "forced_k_lr") checkpoint.options.push_back(pair);
+  TG_EXPECT_OK(CheckResumable(checkpoint, TrialOptions()));
+  TrialOptions forced;
+  forced.estimator.forced_k_lr = 0.0;
+  EXPECT_FALSE(CheckResumable(checkpoint, forced).ok());
+}
+
+TEST(TrialOptionTable, ErrorsNameTheKeyAndLeaveTheOptionsUnchanged) {
+  TrialOptions o;
+  absl::Status s = SetTrialOption("gravity", "fast", &o);
+  EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(s.message().find("'gravity'"), std::string::npos) << s;
+  EXPECT_EQ(o.scene.plant.gravity, 9.82);
+  s = SetTrialOption("normalisation", "adam", &o);
+  EXPECT_NE(s.message().find("particle_std, mean_std, rmsprop"), std::string::npos) << s;
+  s = SetTrialOption("method", "XYZ", &o);
+  EXPECT_NE(s.message().find("option 'method': unknown method 'XYZ'"), std::string::npos) << s;
+  s = SetTrialOption("seed", "-1", &o);
+  EXPECT_NE(s.message().find("not a non-negative integer"), std::string::npos) << s;
+  s = SetTrialOption("gp_penalty", "maybe", &o);
+  EXPECT_NE(s.message().find("true/false"), std::string::npos) << s;
+  EXPECT_TRUE(o == TrialOptions());
+}
+
+// Each module validates its own fields; the message names the key (or, for
+// the plant and its integrator, the field as tasks::MakeScene names it).
+TEST(TrialOptionTable, ModulesValidateTheirOwnFields) {
+  struct Case {
+    const char* key;
+    const char* value;
+    const char* named;
+  };
+  for (const Case& c : {Case{"gp_penalty_power", "3", "gp_penalty_power"},
+                        Case{"gp_penalty_lengthscale_ratio", "1", "gp_penalty_lengthscale_ratio"},
+                        Case{"gp_penalty_signal_to_noise", "0.5", "gp_penalty_signal_to_noise"},
+                        Case{"sn_noise_multiplier", "-1", "sn_noise_multiplier"},
+                        Case{"learning_rate", "0", "learning_rate"},
+                        Case{"integrator_max_steps", "0", "max_steps"},
+                        Case{"integrator_relative_tolerance", "-1", "relative_tolerance"},
+                        Case{"gravity", "-9.82", "plant.gravity"}}) {
+    TrialOptions o;
+    TG_ASSERT_OK(SetTrialOption(c.key, c.value, &o));
+    const absl::Status s = o.Validate();
+    EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument) << c.key;
+    EXPECT_NE(s.message().find(c.named), std::string::npos) << c.key << ": " << s;
+  }
+}
+
+TEST(TrialOptionTable, AutoFeaturesAndInducingInputsAreResolvedInOnePlace) {
+  using estimators::Method;
+  EXPECT_TRUE(UsesSinCosFeatures(Method::kPilco, AngleFeatures::kAuto));
+  EXPECT_FALSE(UsesSinCosFeatures(Method::kRp, AngleFeatures::kAuto));
+  EXPECT_TRUE(UsesSinCosFeatures(Method::kRp, AngleFeatures::kSinCos));
+  EXPECT_FALSE(UsesSinCosFeatures(Method::kPilco, AngleFeatures::kRaw));
+  TrialOptions o;
+  EXPECT_EQ(InducingInputs(o), 0);
+  o.method = Method::kPilco;
+  EXPECT_EQ(InducingInputs(o), 300);
+  o.gp_inducing = 0;
+  EXPECT_EQ(InducingInputs(o), 0);
+}
+
+}  // namespace
+}  // namespace totalgrad::learner
