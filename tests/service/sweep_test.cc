@@ -200,7 +200,10 @@ TEST(ShippedSweepsTest, DemoParsesAndIsSmall) {
   TG_ASSERT_OK(CanonicalizeSpec(&spec));
   TG_ASSERT_OK_AND_ASSIGN(std::vector<ExpandedJob> jobs, ExpandJobs(spec));
   EXPECT_EQ(spec.name, "demo");
-  EXPECT_LE(jobs.size(), 8u);
+  EXPECT_LE(jobs.size(), 12u);
+  // "About a minute on 2 cores": at most 3 CPU minutes by the cost model.
+  TG_ASSERT_OK_AND_ASSIGN(SweepCostEstimate cost, EstimateSweepCost(spec));
+  EXPECT_LE(cost.cpu_seconds, 180.0) << cost.Text();
 }
 
 // table1.toml lists every method of the paper; it is valid exactly when the
