@@ -473,6 +473,16 @@ absl::Status CheckServiceLimits(const std::string& key, const std::string& value
           kMaxTrialEpisodes, " learned episodes"));
     }
   }
+  if (key == "seed") {
+    // Seeds travel as JSON numbers (archives, the dashboard, pandas); a double
+    // holds every integer below 2^53 exactly and no larger one reliably.
+    uint64_t seed = 0;
+    if (absl::SimpleAtoi(value, &seed) && seed >= kMaxExactSeed) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "seed ", value, " is too large; the service takes seeds in [0, 2^53) = [0, ",
+          kMaxExactSeed, ") so that every reader of the results sees the same integer"));
+    }
+  }
   return absl::OkStatus();
 }
 

@@ -75,6 +75,9 @@ struct SweepSpec {
 // episode and counts them in 32 bits; a trial of even 1000 episodes fits a
 // GP on far more data than is practical).
 inline constexpr int kMaxTrialEpisodes = 10000;
+// Seeds are below 2^53: results reach readers as JSON and pandas numbers
+// (doubles), which hold every smaller integer exactly.
+inline constexpr uint64_t kMaxExactSeed = uint64_t{1} << 53;
 inline constexpr int kDefaultMaxAttempts = 3;
 inline constexpr int kDefaultMaxLostLeases = 20;
 inline constexpr int kMaxJobsPerSweep = 100000;
@@ -176,7 +179,7 @@ absl::StatusOr<OptionList> ResolveOptions(const OptionList& pairs);
 
 // The service's own limits on trial options, beyond what the runner checks:
 // InvalidArgument naming the option, its value and the limit
-// (episodes <= kMaxTrialEpisodes).
+// (episodes <= kMaxTrialEpisodes, seed < kMaxExactSeed).
 absl::Status CheckServiceLimits(const std::string& key, const std::string& value);
 
 }  // namespace totalgrad::sweep

@@ -140,6 +140,30 @@ TEST(SweepSpecTest, CountsBeyondTheLimitsNameTheLimit) {
                 "grid.seed: first + count - 1 exceeds 9223372036854775807"),
             std::string::npos)
       << seeds.status();
+  // Seeds are JSON numbers for every reader: 2^53 - 1 is the largest taken.
+  auto largest_seed = ParseSweepToml(
+      "name = \"s\"\n[grid]\nmethod = [\"RP\"]\nseed = [9007199254740991]\n", "s.toml");
+  EXPECT_TRUE(largest_seed.ok()) << largest_seed.status();
+  auto seed_2_53 = ParseSweepToml(
+      "name = \"s\"\n[grid]\nmethod = [\"RP\"]\nseed = [1, 9007199254740992]\n", "s.toml");
+  EXPECT_EQ(seed_2_53.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(seed_2_53.status().message().find(
+                "grid.seed[1]: seed 9007199254740992 is too large; the service takes seeds in "
+                "[0, 2^53)"),
+            std::string::npos)
+      << seed_2_53.status();
+  auto range_past_2_53 = ParseSweepToml(
+      "name = \"s\"\n[grid]\nmethod = [\"RP\"]\n"
+      "seed = { first = 9007199254740990, count = 3 }\n",
+      "s.toml");
+  EXPECT_NE(range_past_2_53.status().message().find("seed 9007199254740992 is too large"),
+            std::string::npos)
+      << range_past_2_53.status();
+  auto protocol_seed = ParseSweepToml(
+      "name = \"s\"\n[grid]\nmethod = [\"RP\"]\n[protocol]\nseed = 18446744073709551615\n",
+      "s.toml");
+  EXPECT_EQ(protocol_seed.status().code(), absl::StatusCode::kInvalidArgument)
+      << protocol_seed.status();
   // The same limits for a spec that arrives over the wire (no file).
   SweepSpec spec;
   spec.name = "wire";
