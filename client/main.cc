@@ -41,6 +41,7 @@ int main(int argc, char** argv) {
   totalgrad::cli::AddPilcoCommand(&app, &exit_code);
   totalgrad::cli::AddStudyCommand(&app, &exit_code);
   totalgrad::cli::AddEvaluateCommand(&app, &exit_code);
+  totalgrad::cli::AddScenesCommand(&app, &exit_code);
 #ifdef TOTALGRAD_WITH_SERVICE
   totalgrad::cli::AddServiceCommands(&app, &exit_code);
 #endif

@@ -8,9 +8,9 @@
 //    "snapshots": [
 //      {"episode": 3,
 //       "options": {"scene": "cartpole-swingup", ...},   // TrialOptionPairs, in order
-//       "states": [[s, beta, s_dot, beta_dot], ...],     // N x 4, observed x_t
+//       "states": [[s, beta, s_dot, beta_dot], ...],     // N x D (here the cart-pole), observed x_t
 //       "forces": [...],                                 // N
-//       "next_states": [[...], ...],                     // N x 4, observed x_{t+1}
+//       "next_states": [[...], ...],                     // N x D, observed x_{t+1}
 //       "hyperparameters": {"log_lengthscales": [[...], ...],  // D x E
 //                           "log_signal_std": [...], "log_noise_std": [...]},
 //       "policy_parameters_before": [...],

@@ -15,6 +15,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "absl/strings/str_cat.h"
+
 #include "client/core_commands/bench_dump_command.h"
 #include "client/core_commands/commands.h"
 #include "core/common/blas.h"
@@ -23,6 +25,12 @@
 #include "core/estimators/particle_system.h"
 #include "core/estimators/synthetic_problem.h"
 #include "core/gp/fitc.h"
+#include "core/gp/training.h"
+#include "core/learner/problem_builder.h"
+#include "core/learner/trial_options.h"
+#include "core/pilco/angle_features.h"
+#include "core/policy/rbf_policy.h"
+#include "core/tasks/scene.h"
 
 namespace totalgrad::cli {
 namespace {
@@ -36,7 +44,78 @@ struct BenchState {
   int repeats = 7;
   int inducing = 0;  // 0 = full GP
   std::string method = "RP";
+  std::string scene;  // empty: the synthetic cart-pole problem
 };
+
+// A frozen problem on a scene of the catalog, for timing an iteration there:
+// N transitions of the scene's plant from states spread around its start and
+// target (each dimension uniform over [min(mu0, target) - 1, max(mu0,
+// target) + 1]), controls uniform within the bounds, observation noise of
+// the scene; the GP on the scene's features (angle_features = auto: its
+// index sets) with PILCO's initial hyperparameters; a random RBF policy.
+struct SceneBenchProblem {
+  tasks::Scene scene;
+  std::unique_ptr<policy::RbfPolicy> policy;
+  std::unique_ptr<learner::ModelProblem> model;
+};
+
+absl::StatusOr<std::unique_ptr<SceneBenchProblem>> MakeSceneBenchProblem(const std::string& name,
+                                                                         int data, int horizon,
+                                                                         ThreadPool* pool) {
+  tasks::SceneOptions options;
+  options.scene = name;
+  options.horizon = horizon;
+  absl::StatusOr<tasks::Scene> scene = tasks::MakeScene(options);
+  if (!scene.ok()) return scene.status();
+  if (scene->control_dim() != 1)
+    return absl::InvalidArgumentError(absl::StrCat("scene '", name, "' has ", scene->control_dim(),
+                                                   " controls; the estimators take one so far"));
+  auto out = std::make_unique<SceneBenchProblem>();
+  out->scene = *std::move(scene);
+  const tasks::Scene& sc = out->scene;
+  const int d = sc.state_dim();
+  Rng rng(1, Stream::kStudy, 1);
+  learner::Transitions transitions;
+  transitions.states.resize(data, d);
+  transitions.next_states.resize(data, d);
+  transitions.forces.resize(data);
+  const Vector lo = sc.mu0.cwiseMin(sc.target).array() - 1.0;
+  const Vector hi = sc.mu0.cwiseMax(sc.target).array() + 1.0;
+  for (int n = 0; n < data; ++n) {
+    Vector x(d);
+    for (int m = 0; m < d; ++m) x(m) = rng.Uniform(lo(m), hi(m));
+    const double u = rng.Uniform(-sc.max_control(0), sc.max_control(0));
+    Vector next;
+    if (absl::Status st = sc.plant->Step(x, Vector::Constant(1, u), &next); !st.ok()) return st;
+    for (int m = 0; m < d; ++m) next(m) += sc.observation_noise_std(m) * rng.Normal();
+    transitions.states.row(n) = x.transpose();
+    transitions.next_states.row(n) = next.transpose();
+    transitions.forces(n) = u;
+  }
+  learner::TrialOptions trial;
+  trial.scene = options;
+  const std::vector<int> angles = learner::FeatureAngles(trial, sc);
+  const learner::GpTrainingSet set = learner::MakeGpTrainingSet(transitions, angles);
+  const gp::GpHyperparameters hyp = gp::InitialHyperparameters(set.inputs, set.targets);
+  out->policy = std::make_unique<policy::RbfPolicy>(
+      trial.basis_functions, pilco::FeatureDim(d, angles), sc.max_control(0));
+  Rng policy_rng(1, Stream::kPolicyInit);
+  RowMatrix centres;
+  policy::RbfPolicy raw(trial.basis_functions, d, sc.max_control(0));
+  raw.Initialize(sc.mu0, Vector::Constant(d, 1.0), 1.0, &policy_rng);
+  pilco::StatesToFeatures(raw.centres(), angles, &centres);
+  Vector params(out->policy->num_parameters());
+  const int c = trial.basis_functions, f = out->policy->state_dim();
+  Eigen::Map<RowMatrix>(params.data(), c, f) = centres;
+  params.segment(c * f, f).setZero();
+  params.tail(c) = raw.weights();
+  out->policy->set_parameters(params);
+  absl::StatusOr<learner::ModelProblem> model = learner::ModelProblem::Build(
+      set, hyp, learner::SparseModelFit{}, angles, out->policy.get(), sc, 1.0, pool);
+  if (!model.ok()) return model.status();
+  out->model = std::make_unique<learner::ModelProblem>(*std::move(model));
+  return out;
+}
 
 double Median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
@@ -84,6 +163,9 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
       ->check(CLI::PositiveNumber);
   it->add_option("--repeats", state->repeats, "timed repetitions (median reported)")->check(CLI::PositiveNumber);
   it->add_option("--method", state->method, "estimator");
+  it->add_option("--scene", state->scene,
+                 "time the iteration on this scene (`totalgrad scenes`; a GP on N random "
+                 "transitions of its plant, its features) instead of the synthetic cart-pole problem");
   it->add_option("--gp-inducing", state->inducing,
                  "sparse GP (FITC) with M < N inducing inputs (0 = full GP)")
       ->check(CLI::NonNegativeNumber);
@@ -91,14 +173,43 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
     SetBlasThreads(state->blas_threads);
     std::unique_ptr<ThreadPool> pool;
     if (state->threads > 1) pool = std::make_unique<ThreadPool>(state->threads);
-    estimators::SyntheticProblemOptions options;
-    options.data = state->data;
-    options.horizon = state->horizon;
-    auto problem = estimators::MakeSyntheticProblem(options);
-    if (!problem.ok()) {
-      std::cerr << "totalgrad bench: " << problem.status().message() << "\n";
-      *exit_code = 1;
-      return;
+    // The problem: the synthetic cart-pole problem, or one on --scene.
+    estimators::Problem p;
+    const gp::GpModel* full_model = nullptr;
+    std::unique_ptr<estimators::SyntheticProblem> synthetic;
+    std::unique_ptr<SceneBenchProblem> on_scene;
+    std::unique_ptr<estimators::GpDynamics> full_dynamics;
+    std::unique_ptr<estimators::RbfParticlePolicy> particle_policy;
+    if (state->scene.empty()) {
+      estimators::SyntheticProblemOptions options;
+      options.data = state->data;
+      options.horizon = state->horizon;
+      auto problem = estimators::MakeSyntheticProblem(options);
+      if (!problem.ok()) {
+        std::cerr << "totalgrad bench: " << problem.status().message() << "\n";
+        *exit_code = 1;
+        return;
+      }
+      synthetic = *std::move(problem);
+      full_model = synthetic->model.get();
+      // The synthetic problem's model and policy behind adapters that use the
+      // iteration's thread pool, as a trial's ModelProblem gives them its pool.
+      full_dynamics = std::make_unique<estimators::GpDynamics>(full_model, pool.get());
+      particle_policy = std::make_unique<estimators::RbfParticlePolicy>(synthetic->policy.get(), pool.get());
+      p = synthetic->problem;
+      p.dynamics = full_dynamics.get();
+      p.policy = particle_policy.get();
+      p.pool = pool.get();
+    } else {
+      auto problem = MakeSceneBenchProblem(state->scene, state->data, state->horizon, pool.get());
+      if (!problem.ok()) {
+        std::cerr << "totalgrad bench: " << problem.status().message() << "\n";
+        *exit_code = 2;
+        return;
+      }
+      on_scene = *std::move(problem);
+      full_model = on_scene->model->full_model();
+      p = on_scene->model->problem();
     }
     absl::StatusOr<estimators::Method> method = estimators::ParseMethod(state->method);
     absl::StatusOr<std::unique_ptr<estimators::Estimator>> estimator =
@@ -113,18 +224,15 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
       *exit_code = 2;
       return;
     }
-    // The synthetic problem's model and policy behind adapters that use the
-    // iteration's thread pool, as a trial's ModelProblem gives them its pool.
-    estimators::GpDynamics full_dynamics((*problem)->model.get(), pool.get());
-    estimators::RbfParticlePolicy particle_policy((*problem)->policy.get(), pool.get());
-    estimators::Problem p = (*problem)->problem;
-    p.dynamics = &full_dynamics;
-    p.policy = &particle_policy;
-    p.pool = pool.get();
     std::unique_ptr<gp::FitcModel> sparse;
     std::unique_ptr<estimators::FitcDynamics> sparse_dynamics;
     if (state->inducing > 0) {
-      const gp::GpModel& full = *(*problem)->model;
+      if (on_scene != nullptr) {
+        std::cerr << "totalgrad bench: --gp-inducing with --scene is not supported yet\n";
+        *exit_code = 2;
+        return;
+      }
+      const gp::GpModel& full = *full_model;
       Rng inducing_rng(1, Stream::kGpInit);
       absl::StatusOr<gp::FitcModel> fitc = gp::FitcModel::Create(
           full.inputs(), full.targets(), full.hyperparameters(),
@@ -143,7 +251,7 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
     estimators::GradientEstimate estimate;
     // The bound: horizon x outputs products of (P x N) by (N x N), as Predict
     // does (with FITC: (P x M) by (M x M)).
-    const gp::GpModel& full = *(*problem)->model;
+    const gp::GpModel& full = *full_model;
     const int n = full.num_data(), outputs = full.num_outputs();
     const int support = sparse ? sparse->num_inducing() : n;
     // One P x N operand and the N x N weights per output, as Predict reads
@@ -182,6 +290,8 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
     const double min_iteration_cpu = *std::min_element(iteration_cpu.begin(), iteration_cpu.end());
     const double min_bound_cpu = *std::min_element(gemm_cpu.begin(), gemm_cpu.end());
     nlohmann::json j = {{"method", state->method},
+                        {"scene", state->scene.empty() ? std::string("synthetic cart-pole") : state->scene},
+                        {"gp_inputs", full.num_inputs()},
                         {"particles", state->particles},
                         {"data", n},
                         {"gp_inducing", state->inducing},

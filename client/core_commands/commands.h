@@ -23,6 +23,7 @@ void AddBenchGradientsCommand(CLI::App* bench, int* exit_code);  // bench_gradie
 void AddPilcoCommand(CLI::App* app, int* exit_code);     // pilco_command.cc
 void AddStudyCommand(CLI::App* app, int* exit_code);     // study_command.cc
 void AddEvaluateCommand(CLI::App* app, int* exit_code);  // evaluate_command.cc
+void AddScenesCommand(CLI::App* app, int* exit_code);    // scenes_command.cc
 
 }  // namespace totalgrad::cli
 

@@ -12,6 +12,9 @@
 #include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "absl/strings/str_join.h"
+#include "core/common/check.h"
+#include "core/tasks/scene_catalog.h"
 #include "absl/strings/str_split.h"
 #include "client/core_commands/commands.h"
 
@@ -48,9 +51,15 @@ struct SimulateFlags {
   std::string scene = "cartpole";
   std::string start;
   std::string forces;
-  std::string dt = "0.1";
+  std::string dt;  // empty: the scene's
   bool json = false;
 };
+
+// The catalog entry of a --scene value ("cartpole": the cart-pole's).
+const tasks::SceneDefinition* SimulatedScene(absl::string_view scene) {
+  return tasks::FindSceneDefinition(scene == "cartpole" ? std::string("cartpole-swingup")
+                                                        : std::string(scene));
+}
 
 int RunSimulateCommand(const SimulateFlags& flags) {
   absl::StatusOr<SimulateRequest> request =
@@ -87,27 +96,40 @@ absl::StatusOr<SimulateRequest> ParseSimulateRequest(absl::string_view scene,
                                                      absl::string_view start,
                                                      absl::string_view forces,
                                                      absl::string_view dt) {
-  if (scene != "cartpole") {
-    return absl::InvalidArgumentError(
-        absl::StrCat("--scene: unknown scene '", scene, "' (only 'cartpole')"));
+  const tasks::SceneDefinition* definition = SimulatedScene(scene);
+  if (definition == nullptr) {
+    return absl::InvalidArgumentError(absl::StrCat("--scene: unknown scene '", scene, "' (known: cartpole, ",
+                                                   absl::StrJoin(tasks::SceneNames(), ", "), ")"));
   }
   SimulateRequest request;
+  request.scene = definition->name;
+  const int d = definition->state_dim(), f = definition->control_dim();
   absl::StatusOr<std::vector<double>> start_values = ParseNumberList(start, "--start");
   if (!start_values.ok()) return start_values.status();
-  if (start_values->size() != tasks::kCartPoleStateDim) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("--start: expected 4 values s,beta,s_dot,beta_dot, got ",
-                     start_values->size()));
+  if (static_cast<int>(start_values->size()) != d) {
+    return absl::InvalidArgumentError(absl::StrCat("--start: expected ", d, " values ",
+                                                   absl::StrJoin(definition->state_names, ","),
+                                                   ", got ", start_values->size()));
   }
-  for (int m = 0; m < tasks::kCartPoleStateDim; ++m) request.start(m) = (*start_values)[m];
+  request.start = Eigen::Map<const Vector>(start_values->data(), d);
 
   absl::StatusOr<std::vector<double>> force_values = ParseNumberList(forces, "--forces");
   if (!force_values.ok()) return force_values.status();
   if (force_values->empty()) {
     return absl::InvalidArgumentError("--forces: expected at least one force");
   }
+  if (force_values->size() % f != 0) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "--forces: ", definition->name, " has ", f, " controls (",
+        absl::StrJoin(definition->control_names, ","), "); give ", f,
+        " values per step, step by step; got ", force_values->size()));
+  }
   request.forces = *std::move(force_values);
 
+  if (absl::StripAsciiWhitespace(dt).empty()) {
+    request.dt = definition->dt;
+    return request;
+  }
   absl::StatusOr<double> dt_value = ParseNumber(dt, "--dt", 0);
   if (!dt_value.ok()) return dt_value.status();
   if (!(*dt_value > 0)) {
@@ -118,40 +140,61 @@ absl::StatusOr<SimulateRequest> ParseSimulateRequest(absl::string_view scene,
 }
 
 absl::Status RunSimulation(const SimulateRequest& request, SimulateResult* result) {
-  tasks::CartPoleParams params;
-  params.dt = request.dt;
-  const tasks::CartPole plant(params);
+  const tasks::SceneDefinition* found = SimulatedScene(request.scene);
+  if (found == nullptr) return absl::InvalidArgumentError(absl::StrCat("unknown scene '", request.scene, "'"));
+  tasks::SceneDefinition definition = *found;
+  definition.dt = request.dt;
+  const std::unique_ptr<tasks::Plant> plant = tasks::MakePlant(definition);
+  const int f = plant->control_dim();
+  if (request.start.size() != plant->state_dim() || request.forces.size() % f != 0) {
+    return absl::InvalidArgumentError(absl::StrCat("simulate: ", definition.name, " has ",
+                                                   plant->state_dim(), " states and ", f, " controls"));
+  }
+  result->scene = definition.name;
+  result->controls = f;
   result->dt = request.dt;
   result->forces = request.forces;
   result->states.assign(1, request.start);
-  result->energy.assign(1, plant.Energy(request.start));
-  tasks::State x = request.start;
-  for (size_t k = 0; k < request.forces.size(); ++k) {
-    tasks::State next;
-    if (absl::Status st = plant.Step(x, request.forces[k], &next); !st.ok()) {
+  result->energy.assign(1, plant->Energy(request.start));
+  Vector x = request.start;
+  const size_t steps = request.forces.size() / f;
+  for (size_t k = 0; k < steps; ++k) {
+    const Vector u = Eigen::Map<const Vector>(request.forces.data() + k * f, f);
+    Vector next;
+    if (absl::Status st = plant->Step(x, u, &next); !st.ok()) {
       return absl::Status(st.code(), absl::StrCat("step ", k, " (t = ", k * request.dt,
                                                   " s): ", st.message()));
     }
     x = next;
     result->states.push_back(x);
-    result->energy.push_back(plant.Energy(x));
+    result->energy.push_back(plant->Energy(x));
   }
   return absl::OkStatus();
 }
 
 std::string FormatSimulationTable(const SimulateResult& result) {
-  std::string out = absl::StrFormat(
-      "# cart-pole, dt = %g s, %d control steps; beta = 0 hanging, pi upright\n",
-      result.dt, static_cast<int>(result.forces.size()));
-  absl::StrAppendFormat(&out, "%5s %9s %13s %13s %13s %16s %11s %13s\n", "step", "t[s]", "s[m]",
-                        "beta[rad]", "s_dot[m/s]", "beta_dot[rad/s]", "force[N]", "energy[J]");
+  const tasks::SceneDefinition* definition = SimulatedScene(result.scene);
+  TG_CHECK(definition != nullptr);
+  const int steps = static_cast<int>(result.forces.size()) / result.controls;
+  std::string out = absl::StrFormat("# %s, dt = %g s, %d control steps\n", definition->name,
+                                    result.dt, steps);
+  absl::StrAppendFormat(&out, "%5s %9s", "step", "t[s]");
+  for (size_t m = 0; m < definition->state_names.size(); ++m) {
+    absl::StrAppendFormat(&out, " %16s",
+                          absl::StrCat(definition->state_names[m], "[", definition->state_units[m], "]"));
+  }
+  for (const std::string& name : definition->control_names) absl::StrAppendFormat(&out, " %11s", name);
+  absl::StrAppendFormat(&out, " %13s\n", "energy[J]");
   for (size_t k = 0; k < result.states.size(); ++k) {
-    const tasks::State& x = result.states[k];
-    const std::string force =
-        k < result.forces.size() ? absl::StrFormat("%.4f", result.forces[k]) : "-";
-    absl::StrAppendFormat(&out, "%5d %9.4f %13.8f %13.8f %13.8f %16.8f %11s %13.8f\n",
-                          static_cast<int>(k), k * result.dt, x(0), x(1), x(2), x(3), force,
-                          result.energy[k]);
+    const Vector& x = result.states[k];
+    absl::StrAppendFormat(&out, "%5d %9.4f", static_cast<int>(k), k * result.dt);
+    for (Eigen::Index m = 0; m < x.size(); ++m) absl::StrAppendFormat(&out, " %16.8f", x(m));
+    for (int i = 0; i < result.controls; ++i) {
+      const size_t at = k * result.controls + i;
+      absl::StrAppendFormat(&out, " %11s",
+                            at < result.forces.size() ? absl::StrFormat("%.4f", result.forces[at]) : "-");
+    }
+    absl::StrAppendFormat(&out, " %13.8f\n", result.energy[k]);
   }
   return out;
 }
@@ -159,11 +202,19 @@ std::string FormatSimulationTable(const SimulateResult& result) {
 std::string FormatSimulationJson(const SimulateResult& result) {
   // ordered_json keeps the documented key order (plain json sorts keys).
   nlohmann::ordered_json states = nlohmann::ordered_json::array();
-  for (const tasks::State& x : result.states) states.push_back({x(0), x(1), x(2), x(3)});
+  for (const Vector& x : result.states) states.push_back(std::vector<double>(x.data(), x.data() + x.size()));
+  nlohmann::ordered_json forces = nlohmann::ordered_json::array();
+  if (result.controls == 1) {
+    forces = result.forces;
+  } else {
+    for (size_t k = 0; k + result.controls <= result.forces.size(); k += result.controls)
+      forces.push_back(std::vector<double>(result.forces.begin() + k,
+                                           result.forces.begin() + k + result.controls));
+  }
   nlohmann::ordered_json doc;
   doc["dt"] = result.dt;
   doc["states"] = std::move(states);
-  doc["forces"] = result.forces;
+  doc["forces"] = std::move(forces);
   doc["energy"] = result.energy;
   return doc.dump() + "\n";
 }
@@ -173,17 +224,19 @@ void AddSimulateCommand(CLI::App* app, int* exit_code) {
   // and the callback reads them afterwards.
   auto flags = std::make_shared<SimulateFlags>();
   CLI::App* cmd = app->add_subcommand(
-      "simulate", "Integrate the noise-free cart-pole plant under a given force sequence");
-  cmd->add_option("--scene", flags->scene, "Plant to simulate (only 'cartpole')")
+      "simulate", "Integrate a scene's noise-free plant under a given control sequence");
+  cmd->add_option("--scene", flags->scene,
+                  "Scene whose plant to simulate (`totalgrad scenes`; 'cartpole' is the cart-pole)")
       ->capture_default_str();
   cmd->add_option("--start", flags->start,
-                  "Start state s,beta,s_dot,beta_dot (m, rad, m/s, rad/s; beta = 0 hangs down, "
-                  "pi is upright)")
+                  "Start state, D values in the scene's state order (cart-pole: s,beta,s_dot,"
+                  "beta_dot in m, rad, m/s, rad/s; beta = 0 hangs down, pi is upright)")
       ->required();
   cmd->add_option("--forces", flags->forces,
-                  "Forces f1,f2,... in N, each held for one control period (not saturated)")
+                  "Controls step by step, F per step (f_1^1..f_1^F,f_2^1,...), each held for one "
+                  "control period (not saturated)")
       ->required();
-  cmd->add_option("--dt", flags->dt, "Control period in s")->capture_default_str();
+  cmd->add_option("--dt", flags->dt, "Control period in s (default: the scene's)");
   cmd->add_flag("--json", flags->json, "Print JSON instead of a table");
   cmd->callback([flags, exit_code] { *exit_code = RunSimulateCommand(*flags); });
 }

@@ -1,16 +1,16 @@
 // The logic behind `totalgrad simulate`, split from the CLI11 wiring so that
 // tests can call it directly.
 //
-//   totalgrad simulate --scene cartpole --start s,beta,s_dot,beta_dot
-//                      --forces f1,f2,... [--dt 0.1] [--json]
+//   totalgrad simulate --scene NAME --start v1,...,vD
+//                      --forces f_1^1..f_1^F,f_2^1,... [--dt DT] [--json]
 //
-// integrates the noise-free cart-pole plant (PILCO constants, adaptive
-// Dormand-Prince) from the start state, holding force f_k for one control
-// period dt at step k, and prints the states x_0 .. x_K (K = number of
-// forces), one per control step including the start, with the mechanical
-// energy of each. State order and angle convention as in core/tasks/cartpole.h
-// (beta = 0 hanging, beta = pi upright). Forces are applied as given: no
-// saturation.
+// integrates the noise-free plant of a scene (core/tasks/scene_catalog.h;
+// "cartpole" is the cart-pole's plant, as before) with the adaptive
+// Dormand-Prince integrator from the start state, holding the controls of
+// step k (F values) for one control period dt, and prints the states
+// x_0 .. x_K (K = number of steps), one per control step including the
+// start, in the scene's state order, with the mechanical energy of each.
+// dt defaults to the scene's. Controls are applied as given: no saturation.
 //
 // Thread safety: free functions, no shared state.
 #ifndef TOTALGRAD_CLIENT_CORE_COMMANDS_SIMULATE_COMMAND_H_
@@ -22,7 +22,7 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
-#include "core/tasks/cartpole.h"
+#include "core/common/types.h"
 
 namespace totalgrad::cli {
 
@@ -33,27 +33,31 @@ namespace totalgrad::cli {
 absl::StatusOr<std::vector<double>> ParseNumberList(absl::string_view text, absl::string_view what);
 
 struct SimulateRequest {
-  tasks::State start = tasks::State::Zero();
-  std::vector<double> forces;  // N, one per control step
+  std::string scene = "cartpole-swingup";  // a catalog name
+  Vector start = Vector::Zero(4);          // D
+  std::vector<double> forces;  // K x F, step by step (f_1^1..f_1^F, f_2^1, ...)
   double dt = 0.1;             // s, control period
 };
 
 // Builds a request from the raw option strings. InvalidArgument, naming the
-// option, for: a scene other than "cartpole"; a start that is not exactly 4
-// finite numbers; no forces or a non-finite force; dt not a finite number
-// > 0.
+// option, for: an unknown scene ("cartpole" means cartpole-swingup); a start
+// that is not exactly D finite numbers; no controls, a non-finite one, or a
+// count that is not a multiple of F; dt not a finite number > 0 (empty: the
+// scene's dt).
 absl::StatusOr<SimulateRequest> ParseSimulateRequest(absl::string_view scene,
                                                      absl::string_view start,
                                                      absl::string_view forces, absl::string_view dt);
 
 struct SimulateResult {
+  std::string scene;
+  int controls = 1;                  // F
   double dt = 0;
-  std::vector<tasks::State> states;  // K + 1, states[0] is the start
-  std::vector<double> forces;        // K, forces[k] acts from states[k] to states[k+1]
-  std::vector<double> energy;        // K + 1, CartPole::Energy of each state (J)
+  std::vector<Vector> states;        // K + 1, states[0] is the start
+  std::vector<double> forces;        // K x F, step k's acts from states[k] to states[k+1]
+  std::vector<double> energy;        // K + 1, the plant's Energy of each state (J)
 };
 
-// Integrates the request on the default plant with dt replaced. On failure
+// Integrates the request on the scene's plant with dt replaced. On failure
 // (the integrator cannot vouch for a step) returns the plant's status with
 // the step number prefixed; *result is then unspecified.
 absl::Status RunSimulation(const SimulateRequest& request, SimulateResult* result);
@@ -61,8 +65,9 @@ absl::Status RunSimulation(const SimulateRequest& request, SimulateResult* resul
 // A fixed-width, human-readable table, one row per state.
 std::string FormatSimulationTable(const SimulateResult& result);
 
-// {"dt":..,"states":[[s,beta,s_dot,beta_dot],...],"forces":[...],"energy":[...]}
-// with doubles printed to round-trip precision, followed by a newline.
+// {"dt":..,"states":[[x_1..x_D],...],"forces":[...],"energy":[...]} with the
+// forces one number per step for one control, else one list of F per step;
+// doubles printed to round-trip precision, followed by a newline.
 std::string FormatSimulationJson(const SimulateResult& result);
 
 }  // namespace totalgrad::cli

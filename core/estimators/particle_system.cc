@@ -1,5 +1,7 @@
 #include "core/estimators/particle_system.h"
 
+#include <utility>
+
 #include "core/common/check.h"
 #include "core/pilco/angle_features.h"
 
@@ -24,36 +26,74 @@ void FitcDynamics::Predict(const ConstRowMatrixRef& z, double noise_variance_mul
 namespace {
 
 // Chain rule from feature coordinates to raw ones, for `blocks` blocks of
-// columns (one per output): a block of `feature` (P x blocks*(E+1)) holds
-// derivatives with respect to [phi(x), rest] (phi: S + 1 columns, then E - S
-// further columns, e.g. u); the matching block of *raw (P x blocks*E,
-// resized) gets them with respect to [x, rest]. sin_a, cos_a: P.
+// columns (one per output): a block of `feature` (P x blocks*(E+A)) holds
+// derivatives with respect to [phi(x), rest] (phi: S + A columns, the
+// non-angle dims then (sin, cos) per angle; then E - S further columns, e.g.
+// u); the matching block of *raw (P x blocks*E, resized) gets them with
+// respect to [x, rest]. sin_a, cos_a: P x A, the angles' sin and cos.
 void FeatureColumnsToRaw(const RowMatrix& feature, int blocks, int s_dim, int e_dim,
-                         int angle_index, const Vector& sin_a, const Vector& cos_a,
-                         RowMatrix* raw) {
-  const int ef = e_dim + 1;
+                         const std::vector<int>& angles, const RowMatrix& sin_a,
+                         const RowMatrix& cos_a, RowMatrix* raw) {
+  const int a_count = static_cast<int>(angles.size());
+  const int ef = e_dim + a_count;
   TG_CHECK_EQ(feature.cols(), static_cast<Eigen::Index>(blocks) * ef);
+  // Where each raw state column lives among the features: an index into the
+  // non-angle columns, or -(k + 1) for the k-th angle.
+  std::vector<int> source(s_dim);
+  int plain = 0;
+  size_t next_angle = 0;
+  for (int m = 0; m < s_dim; ++m) {
+    if (next_angle < angles.size() && angles[next_angle] == m) {
+      source[m] = -static_cast<int>(next_angle) - 1;
+      ++next_angle;
+    } else {
+      source[m] = plain++;
+    }
+  }
+  const int trig = s_dim - a_count;  // the first sin column
   raw->resize(feature.rows(), static_cast<Eigen::Index>(blocks) * e_dim);
   for (int b = 0; b < blocks; ++b) {
     const int fb = b * ef, rb = b * e_dim;
     for (int m = 0; m < e_dim; ++m) {
-      if (m == angle_index) {
-        raw->col(rb + m) = feature.col(fb + s_dim - 1).cwiseProduct(cos_a) -
-                           feature.col(fb + s_dim).cwiseProduct(sin_a);
+      if (m >= s_dim) {
+        raw->col(rb + m) = feature.col(fb + m + a_count);
+      } else if (source[m] >= 0) {
+        raw->col(rb + m) = feature.col(fb + source[m]);
       } else {
-        const int fm = m < angle_index ? m : (m < s_dim ? m - 1 : m + 1);
-        raw->col(rb + m) = feature.col(fb + fm);
+        const int k = -source[m] - 1;
+        raw->col(rb + m) = feature.col(fb + trig + 2 * k).cwiseProduct(cos_a.col(k)) -
+                           feature.col(fb + trig + 2 * k + 1).cwiseProduct(sin_a.col(k));
       }
     }
   }
 }
 
+// The angles' sin and cos (P x A each) from features laid out as above.
+void AngleSinCos(const RowMatrix& features, int s_dim, int a_count, RowMatrix* sin_a,
+                 RowMatrix* cos_a) {
+  const int trig = s_dim - a_count;
+  sin_a->resize(features.rows(), a_count);
+  cos_a->resize(features.rows(), a_count);
+  for (int k = 0; k < a_count; ++k) {
+    sin_a->col(k) = features.col(trig + 2 * k);
+    cos_a->col(k) = features.col(trig + 2 * k + 1);
+  }
+}
+
+bool StrictlyIncreasingWithin(const std::vector<int>& v, int bound) {
+  if (v.empty()) return false;
+  for (size_t i = 0; i < v.size(); ++i) {
+    if (v[i] < 0 || v[i] >= bound || (i > 0 && v[i] <= v[i - 1])) return false;
+  }
+  return true;
+}
+
 }  // namespace
 
-AngleFeatureDynamics::AngleFeatureDynamics(const ParticleDynamics* inner, int angle_index)
-    : inner_(inner), angle_index_(angle_index) {
+AngleFeatureDynamics::AngleFeatureDynamics(const ParticleDynamics* inner, std::vector<int> angle_indices)
+    : inner_(inner), angles_(std::move(angle_indices)) {
   TG_CHECK(inner != nullptr);
-  TG_CHECK(angle_index >= 0 && angle_index < inner->state_dim());
+  TG_CHECK(StrictlyIncreasingWithin(angles_, inner->state_dim()));
 }
 
 void AngleFeatureDynamics::Predict(const ConstRowMatrixRef& z, double noise_variance_multiplier,
@@ -61,34 +101,36 @@ void AngleFeatureDynamics::Predict(const ConstRowMatrixRef& z, double noise_vari
                                    RowMatrix* dvar_dz) const {
   const int s_dim = inner_->state_dim();
   const int e_dim = s_dim + 1;
+  const int a_count = static_cast<int>(angles_.size());
   TG_CHECK_EQ(z.cols(), e_dim);
   RowMatrix features;
-  pilco::StatesToFeatures(z.leftCols(s_dim), angle_index_, &features);
-  RowMatrix zf(z.rows(), e_dim + 1);
-  zf.leftCols(e_dim) = features;
-  zf.col(e_dim) = z.col(s_dim);
+  pilco::StatesToFeatures(z.leftCols(s_dim), angles_, &features);
+  RowMatrix zf(z.rows(), e_dim + a_count);
+  zf.leftCols(s_dim + a_count) = features;
+  zf.col(s_dim + a_count) = z.col(s_dim);
   RowMatrix dmean_f, dvar_f;
   inner_->Predict(zf, noise_variance_multiplier, mean, variance,
                   dmean_dz != nullptr ? &dmean_f : nullptr, dvar_dz != nullptr ? &dvar_f : nullptr);
   if (dmean_dz == nullptr && dvar_dz == nullptr) return;
-  const Vector sin_a = features.col(s_dim - 1), cos_a = features.col(s_dim);
+  RowMatrix sin_a, cos_a;
+  AngleSinCos(features, s_dim, a_count, &sin_a, &cos_a);
   if (dmean_dz != nullptr)
-    FeatureColumnsToRaw(dmean_f, s_dim, s_dim, e_dim, angle_index_, sin_a, cos_a, dmean_dz);
+    FeatureColumnsToRaw(dmean_f, s_dim, s_dim, e_dim, angles_, sin_a, cos_a, dmean_dz);
   if (dvar_dz != nullptr)
-    FeatureColumnsToRaw(dvar_f, s_dim, s_dim, e_dim, angle_index_, sin_a, cos_a, dvar_dz);
+    FeatureColumnsToRaw(dvar_f, s_dim, s_dim, e_dim, angles_, sin_a, cos_a, dvar_dz);
 }
 
-AngleFeaturePolicy::AngleFeaturePolicy(const ParticlePolicy* inner, int angle_index)
-    : inner_(inner), angle_index_(angle_index) {
+AngleFeaturePolicy::AngleFeaturePolicy(const ParticlePolicy* inner, std::vector<int> angle_indices)
+    : inner_(inner), angles_(std::move(angle_indices)) {
   TG_CHECK(inner != nullptr);
-  TG_CHECK(angle_index >= 0 && angle_index < inner->state_dim() - 1);
+  TG_CHECK(StrictlyIncreasingWithin(angles_, inner->state_dim() - static_cast<int>(angles_.size())));
 }
 
 void AngleFeaturePolicy::Evaluate(const ConstRowMatrixRef& states, Vector* forces,
                                   PolicyCache* cache) const {
   TG_CHECK_EQ(states.cols(), state_dim());
   RowMatrix features;
-  pilco::StatesToFeatures(states, angle_index_, &features);
+  pilco::StatesToFeatures(states, angles_, &features);
   inner_->Evaluate(features, forces, cache);
 }
 
@@ -100,13 +142,15 @@ void AngleFeaturePolicy::Backward(const PolicyCache& cache, const Vector& force_
     return;
   }
   const int s_dim = state_dim();
-  // The features the inner policy saw: [x without x_a, sin x_a, cos x_a].
-  TG_CHECK_EQ(cache.states.cols(), s_dim + 1);
+  const int a_count = static_cast<int>(angles_.size());
+  // The features the inner policy saw: [x without the angles, (sin, cos) per angle].
+  TG_CHECK_EQ(cache.states.cols(), s_dim + a_count);
   TG_CHECK_EQ(cache.states.rows(), force_bar.size());
   RowMatrix feature_bar;
   inner_->Backward(cache, force_bar, &feature_bar, per_particle_param_bar, param_bar);
-  const Vector sin_a = cache.states.col(s_dim - 1), cos_a = cache.states.col(s_dim);
-  FeatureColumnsToRaw(feature_bar, 1, s_dim, s_dim, angle_index_, sin_a, cos_a, state_bar);
+  RowMatrix sin_a, cos_a;
+  AngleSinCos(cache.states, s_dim, a_count, &sin_a, &cos_a);
+  FeatureColumnsToRaw(feature_bar, 1, s_dim, s_dim, angles_, sin_a, cos_a, state_bar);
 }
 
 }  // namespace totalgrad::estimators

@@ -22,6 +22,8 @@
 #ifndef TOTALGRAD_CORE_ESTIMATORS_PARTICLE_SYSTEM_H_
 #define TOTALGRAD_CORE_ESTIMATORS_PARTICLE_SYSTEM_H_
 
+#include <vector>
+
 #include "core/common/types.h"
 #include "core/gp/fitc.h"
 #include "core/gp/gp.h"
@@ -102,35 +104,42 @@ class FitcDynamics final : public ParticleDynamics {
 };
 
 // A model on (sin, cos) angle features as a model on the raw state
-// (non-owning): the inner model's inputs are zf = [phi(x), u] (S + 2 columns),
-// its outputs raw-state differences (S, as the trial's GP targets). Predict
-// takes z = [x, u], calls the inner Predict on zf and maps its Jacobians back
-// to z: the columns of the other state dims and of u are moved to their raw
-// positions, and d/dx_a = d/dsin cos x_a - d/dcos sin x_a.
+// (non-owning): the inner model's inputs are zf = [phi(x), u] (S + A + 1
+// columns; phi: pilco/angle_features.h, the non-angle dims then (sin, cos)
+// per angle), its outputs raw-state differences (S, as the trial's GP
+// targets). Predict takes z = [x, u], calls the inner Predict on zf and maps
+// its Jacobians back to z: the columns of the other state dims and of u are
+// moved to their raw positions, and d/dx_a = d/dsin cos x_a - d/dcos sin x_a
+// for each angle a.
 class AngleFeatureDynamics final : public ParticleDynamics {
  public:
-  // angle_index in [0, S), S = inner->state_dim().
-  AngleFeatureDynamics(const ParticleDynamics* inner, int angle_index);
+  // angle_indices: strictly increasing, in [0, S), S = inner->state_dim();
+  // at least one.
+  AngleFeatureDynamics(const ParticleDynamics* inner, std::vector<int> angle_indices);
+  AngleFeatureDynamics(const ParticleDynamics* inner, int angle_index)
+      : AngleFeatureDynamics(inner, std::vector<int>{angle_index}) {}
   int state_dim() const override { return inner_->state_dim(); }
   void Predict(const ConstRowMatrixRef& z, double noise_variance_multiplier, RowMatrix* mean,
                RowMatrix* variance, RowMatrix* dmean_dz, RowMatrix* dvar_dz) const override;
 
  private:
   const ParticleDynamics* inner_;
-  int angle_index_;
+  std::vector<int> angles_;
 };
 
 // A policy on (sin, cos) angle features as a policy on the raw state
-// (non-owning): state_dim() = inner->state_dim() - 1. Evaluate passes phi(x)
+// (non-owning): state_dim() = inner->state_dim() - A. Evaluate passes phi(x)
 // to the inner policy, whose cache must keep its input (the features) in
 // cache.states, as RbfPolicy does (Backward reads sin x_a and cos x_a from
 // there). Backward maps the inner policy's feature adjoint to the raw state by
 // the same chain rule; the parameter adjoints are the inner policy's.
 class AngleFeaturePolicy final : public ParticlePolicy {
  public:
-  // angle_index in [0, state_dim()).
-  AngleFeaturePolicy(const ParticlePolicy* inner, int angle_index);
-  int state_dim() const override { return inner_->state_dim() - 1; }
+  // angle_indices: strictly increasing, in [0, state_dim()); at least one.
+  AngleFeaturePolicy(const ParticlePolicy* inner, std::vector<int> angle_indices);
+  AngleFeaturePolicy(const ParticlePolicy* inner, int angle_index)
+      : AngleFeaturePolicy(inner, std::vector<int>{angle_index}) {}
+  int state_dim() const override { return inner_->state_dim() - static_cast<int>(angles_.size()); }
   int num_parameters() const override { return inner_->num_parameters(); }
   void Evaluate(const ConstRowMatrixRef& states, Vector* forces, PolicyCache* cache) const override;
   void Backward(const PolicyCache& cache, const Vector& force_bar, RowMatrix* state_bar,
@@ -138,7 +147,7 @@ class AngleFeaturePolicy final : public ParticlePolicy {
 
  private:
   const ParticlePolicy* inner_;
-  int angle_index_;
+  std::vector<int> angles_;
 };
 
 // Adapter over an RBF policy (non-owning).

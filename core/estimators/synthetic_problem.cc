@@ -18,18 +18,21 @@ absl::StatusOr<std::unique_ptr<SyntheticProblem>> MakeSyntheticProblem(
   if (!scene.ok()) return scene.status();
   out->scene = std::make_unique<tasks::Scene>(*std::move(scene));
   const tasks::Scene& sc = *out->scene;
+  const auto* cartpole = dynamic_cast<const tasks::CartPole*>(sc.plant.get());
+  if (cartpole == nullptr)
+    return absl::InvalidArgumentError("synthetic problem: the scene must be a cart-pole scene");
 
   // Transitions from states spread over the swing-up region.
   Rng rng(options.seed, Stream::kStudy, 1);
   RowMatrix x(options.data, 5), y(options.data, 4);
-  const double max_force = sc.plant.params().max_force;
+  const double max_force = cartpole->params().max_force;
   for (int n = 0; n < options.data; ++n) {
     tasks::State s;
     s << rng.Uniform(-1.0, 1.0), rng.Uniform(-0.5, 2.0 * M_PI), rng.Uniform(-3.0, 3.0),
         rng.Uniform(-8.0, 8.0);
     const double f = rng.Uniform(-max_force, max_force);
     tasks::State next;
-    absl::Status st = sc.plant.Step(s, f, &next);
+    absl::Status st = cartpole->Step(s, f, &next);
     if (!st.ok()) return st;
     x.row(n).head<4>() = s.transpose();
     x(n, 4) = f;

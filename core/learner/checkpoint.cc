@@ -296,8 +296,8 @@ absl::StatusOr<TrialCheckpoint> DecodeCheckpoint(std::string_view bytes) {
     }
   }
   const Eigen::Index n = c.forces.size();
-  if (c.states.rows() != n || c.next_states.rows() != n || c.states.cols() != 4 ||
-      c.next_states.cols() != 4) {
+  if (c.states.rows() != n || c.next_states.rows() != n || c.states.cols() < 1 ||
+      c.next_states.cols() != c.states.cols()) {
     return Invalid(absl::StrCat("data of inconsistent sizes: states ", c.states.rows(), "x",
                                 c.states.cols(), ", forces ", n, ", next_states ",
                                 c.next_states.rows(), "x", c.next_states.cols()));

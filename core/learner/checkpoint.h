@@ -55,9 +55,9 @@ struct TrialCheckpoint {
   std::vector<std::pair<std::string, std::string>> options;
   // Results of episodes 0..episode, in order, as the observer saw them.
   std::vector<EpisodeResult> episodes;
-  RowMatrix states;       // N x 4, observed x_t of every transition so far
+  RowMatrix states;       // N x D, observed x_t of every transition so far
   Vector forces;          // N
-  RowMatrix next_states;  // N x 4, observed x_{t+1}
+  RowMatrix next_states;  // N x D, observed x_{t+1}
   Vector policy_parameters;
   std::optional<gp::GpHyperparameters> hyperparameters;  // none before the first model
   RowMatrix inducing_inputs;  // FITC warm start; 0 x 0 if no sparse fit yet

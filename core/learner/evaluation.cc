@@ -42,10 +42,9 @@ absl::StatusOr<PolicyEvaluation> EvaluatePolicy(const TrialOptions& options,
   if (episode < 0) return absl::InvalidArgumentError("episode must be >= 0");
   absl::StatusOr<tasks::Scene> scene = tasks::MakeScene(options.scene);
   if (!scene.ok()) return scene.status();
-  const int angle_index = UsesSinCosFeatures(options) ? scene->angle_index : -1;
-  policy::RbfPolicy policy(options.basis_functions,
-                           pilco::FeatureDim(tasks::kCartPoleStateDim, angle_index),
-                           scene->plant.params().max_force);
+  std::vector<int> angles = FeatureAngles(options, *scene);
+  policy::RbfPolicy policy(options.basis_functions, pilco::FeatureDim(scene->state_dim(), angles),
+                           scene->max_control(0));
   if (policy_parameters.size() != policy.num_parameters()) {
     return absl::InvalidArgumentError(absl::StrCat(
         "the policy has ", policy_parameters.size(), " parameters; ",
@@ -54,7 +53,7 @@ absl::StatusOr<PolicyEvaluation> EvaluatePolicy(const TrialOptions& options,
         EnumName(AngleFeaturesNames(), options.angle_features), " has ", policy.num_parameters()));
   }
   policy.set_parameters(policy_parameters);
-  return EvaluateController(*scene, FeaturePolicyController(&policy, angle_index), options.seed,
+  return EvaluateController(*scene, FeaturePolicyController(&policy, std::move(angles)), options.seed,
                             episode, rollouts);
 }
 

@@ -28,25 +28,26 @@ constexpr int kPredictedCostStep = 999999;
 class ParticleLearner final : public PolicyLearner {
  public:
   ParticleLearner(const TrialOptions& options, const tasks::Scene& scene,
-                  std::unique_ptr<estimators::Estimator> estimator, int angle_index, ThreadPool* pool)
-      : PolicyLearner(options, scene, angle_index),
+                  std::unique_ptr<estimators::Estimator> estimator, std::vector<int> angles,
+                  ThreadPool* pool)
+      : PolicyLearner(options, scene, std::move(angles)),
         estimator_(std::move(estimator)),
         pool_(pool),
         optimiser_(options.optimizer, policy_.num_parameters()) {
     Rng init_rng(options.seed, Stream::kPolicyInit);
-    const Vector centre_std = Vector::Constant(tasks::kCartPoleStateDim, options.policy_centre_std);
-    if (angle_index_ < 0) {
+    const int s_dim = scene.state_dim();
+    const Vector centre_std = Vector::Constant(s_dim, options.policy_centre_std);
+    if (angles_.empty()) {
       policy_.Initialize(scene.mu0, centre_std, options.policy_init_lengthscale, &init_rng);
       return;
     }
     // The same draws as the raw policy (centres ~ N(mu0, centre_std^2 I) in
     // the raw state), the centres then mapped to features; every feature
     // length-scale = policy_init_lengthscale.
-    policy::RbfPolicy raw(options.basis_functions, tasks::kCartPoleStateDim,
-                          scene.plant.params().max_force);
+    policy::RbfPolicy raw(options.basis_functions, s_dim, scene.max_control(0));
     raw.Initialize(scene.mu0, centre_std, options.policy_init_lengthscale, &init_rng);
     RowMatrix centres;
-    pilco::StatesToFeatures(raw.centres(), angle_index_, &centres);
+    pilco::StatesToFeatures(raw.centres(), angles_, &centres);
     const int c = options.basis_functions;
     const int feature_dim = policy_.state_dim();
     Vector params(policy_.num_parameters());
@@ -59,7 +60,7 @@ class ParticleLearner final : public PolicyLearner {
   absl::Status Improve(const Transitions& data, int e, TrialObserver* observer, PhaseClock* clock,
                        EpisodeResult* result) override {
     EpisodeTiming& timing = result->timing;
-    const GpTrainingSet training_set = MakeGpTrainingSet(data, angle_index_);
+    const GpTrainingSet training_set = MakeGpTrainingSet(data, angles_);
     absl::Status status = TrainModel(training_set, e, result);
     if (!status.ok()) return status;
     // The full GP, or FITC once the data exceed gp_inducing points. Inducing
@@ -68,7 +69,7 @@ class ParticleLearner final : public PolicyLearner {
     Rng inducing_rng(options_.seed, Stream::kGpInit, static_cast<uint64_t>(e));
     const SparseModelFit sparse{InducingInputs(options_), &inducing_, &inducing_rng};
     absl::StatusOr<ModelProblem> model =
-        ModelProblem::Build(training_set, *hyperparameters_, sparse, angle_index_, &policy_, scene_,
+        ModelProblem::Build(training_set, *hyperparameters_, sparse, angles_, &policy_, scene_,
                             options_.model_noise_multiplier, pool_);
     if (!model.ok())
       return absl::Status(model.status().code(), absl::StrCat("episode ", e, ": ", model.status().message()));
@@ -138,9 +139,8 @@ absl::StatusOr<std::unique_ptr<PolicyLearner>> MakeParticleLearner(const TrialOp
   absl::StatusOr<std::unique_ptr<estimators::Estimator>> estimator =
       estimators::MakeEstimator(options.method, options.estimator);
   if (!estimator.ok()) return estimator.status();
-  const int angle_index = UsesSinCosFeatures(options) ? scene.angle_index : -1;
   return std::unique_ptr<PolicyLearner>(
-      new ParticleLearner(options, scene, *std::move(estimator), angle_index, pool));
+      new ParticleLearner(options, scene, *std::move(estimator), FeatureAngles(options, scene), pool));
 }
 
 }  // namespace totalgrad::learner

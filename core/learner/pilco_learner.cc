@@ -14,9 +14,9 @@ namespace {
 
 class PilcoLearner final : public PolicyLearner {
  public:
-  PilcoLearner(const TrialOptions& options, const tasks::Scene& scene, int angle_index,
+  PilcoLearner(const TrialOptions& options, const tasks::Scene& scene, std::vector<int> angles,
                pilco::PilcoProblem problem)
-      : PolicyLearner(options, scene, angle_index), problem_(std::move(problem)) {}
+      : PolicyLearner(options, scene, std::move(angles)), problem_(std::move(problem)) {}
 
   absl::Status Init() {
     Rng init_rng(options_.seed, Stream::kPolicyInit);
@@ -29,7 +29,7 @@ class PilcoLearner final : public PolicyLearner {
   absl::Status Improve(const Transitions& data, int e, TrialObserver* observer, PhaseClock* clock,
                        EpisodeResult* result) override {
     EpisodeTiming& timing = result->timing;
-    const GpTrainingSet training_set = MakeGpTrainingSet(data, angle_index_);
+    const GpTrainingSet training_set = MakeGpTrainingSet(data, angles_);
     absl::Status status = TrainModel(training_set, e, result);
     if (!status.ok()) return status;
     pilco::DynamicsModelOptions model_options;
@@ -72,12 +72,20 @@ class PilcoLearner final : public PolicyLearner {
 
 absl::StatusOr<std::unique_ptr<PolicyLearner>> MakePilcoLearner(const TrialOptions& options,
                                                                 const tasks::Scene& scene) {
-  const int angle_index = UsesSinCosFeatures(options) ? scene.angle_index : -1;
+  std::vector<int> angles = FeatureAngles(options, scene);
+  // PILCO's moment matching (core/pilco) augments one angle so far.
+  if (angles.size() > 1) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "PILCO on scene '", scene.name, "': ", angles.size(),
+        " angles; the moment matching handles one angle so far (run a particle method, or PILCO "
+        "on the pendulum or the cart-pole)"));
+  }
+  const int angle_index = angles.empty() ? -1 : angles[0];
   absl::StatusOr<pilco::PilcoProblem> problem =
       MakePilcoProblem(*scene.cost, scene.mu0, scene.initial_std, scene.horizon, angle_index,
-                       options.basis_functions, scene.plant.params().max_force);
+                       options.basis_functions, scene.max_control(0));
   if (!problem.ok()) return problem.status();
-  auto learner = std::make_unique<PilcoLearner>(options, scene, angle_index, *std::move(problem));
+  auto learner = std::make_unique<PilcoLearner>(options, scene, std::move(angles), *std::move(problem));
   if (absl::Status status = learner->Init(); !status.ok()) return status;
   return std::unique_ptr<PolicyLearner>(std::move(learner));
 }

@@ -8,12 +8,13 @@
 
 namespace totalgrad::learner {
 
-PolicyLearner::PolicyLearner(const TrialOptions& options, const tasks::Scene& scene, int angle_index)
+PolicyLearner::PolicyLearner(const TrialOptions& options, const tasks::Scene& scene,
+                             std::vector<int> angles)
     : options_(options),
       scene_(scene),
-      angle_index_(angle_index),
-      policy_(options.basis_functions, pilco::FeatureDim(tasks::kCartPoleStateDim, angle_index),
-              scene.plant.params().max_force) {}
+      angles_(std::move(angles)),
+      policy_(options.basis_functions, pilco::FeatureDim(scene.state_dim(), angles_),
+              scene.max_control(0)) {}
 
 absl::Status PolicyLearner::TrainModel(const GpTrainingSet& data, int episode, EpisodeResult* result) {
   if (!hyperparameters_) hyperparameters_ = gp::InitialHyperparameters(data.inputs, data.targets);

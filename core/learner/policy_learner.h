@@ -38,19 +38,19 @@ class PolicyLearner {
 
   // The current policy as a controller of the real plant (force in N); it
   // follows the policy's later changes (it holds a pointer to it).
-  tasks::Controller Controller() const { return FeaturePolicyController(&policy_, angle_index_); }
+  tasks::Controller Controller() const { return FeaturePolicyController(&policy_, angles_); }
   const Vector& Parameters() const { return policy_.parameters(); }
 
  protected:
-  // angle_index: -1 (raw) or the scene's angle (sin, cos features).
-  PolicyLearner(const TrialOptions& options, const tasks::Scene& scene, int angle_index);
+  // angles: none (raw) or the scene's angles (sin, cos features).
+  PolicyLearner(const TrialOptions& options, const tasks::Scene& scene, std::vector<int> angles);
   // Trains the GP hyperparameters on `data` (warm-started from the last
   // episode's) and records the training's flags in *result.
   absl::Status TrainModel(const GpTrainingSet& data, int episode, EpisodeResult* result);
 
   const TrialOptions& options_;
   const tasks::Scene& scene_;
-  const int angle_index_;
+  const std::vector<int> angles_;
   policy::RbfPolicy policy_;
   std::optional<gp::GpHyperparameters> hyperparameters_;
   RowMatrix inducing_;  // FITC inducing inputs of the last sparse fit (warm start)

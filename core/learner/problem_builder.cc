@@ -25,10 +25,10 @@ void Transitions::Append(const tasks::Episode& episode) {
   forces.tail(h) = episode.forces;
 }
 
-GpTrainingSet MakeGpTrainingSet(const Transitions& data, int angle_index) {
+GpTrainingSet MakeGpTrainingSet(const Transitions& data, const std::vector<int>& angle_indices) {
   TG_CHECK(data.states.rows() == data.size() && data.next_states.rows() == data.size());
   RowMatrix features;
-  pilco::StatesToFeatures(data.states, angle_index, &features);
+  pilco::StatesToFeatures(data.states, angle_indices, &features);
   GpTrainingSet set;
   set.inputs.resize(data.size(), features.cols() + 1);
   set.inputs.leftCols(features.cols()) = features;
@@ -39,7 +39,8 @@ GpTrainingSet MakeGpTrainingSet(const Transitions& data, int angle_index) {
 
 absl::StatusOr<ModelProblem> ModelProblem::Build(const GpTrainingSet& data,
                                                  const gp::GpHyperparameters& hyperparameters,
-                                                 const SparseModelFit& sparse, int angle_index,
+                                                 const SparseModelFit& sparse,
+                                                 const std::vector<int>& angle_indices,
                                                  const policy::RbfPolicy* policy,
                                                  const tasks::Scene& scene,
                                                  double noise_variance_multiplier,
@@ -67,11 +68,11 @@ absl::StatusOr<ModelProblem> ModelProblem::Build(const GpTrainingSet& data,
   estimators::Problem& p = out.problem_;
   p.dynamics = out.model_dynamics_.get();
   p.policy = out.rbf_policy_.get();
-  if (angle_index >= 0) {
+  if (!angle_indices.empty()) {
     out.feature_dynamics_ =
-        std::make_unique<estimators::AngleFeatureDynamics>(out.model_dynamics_.get(), angle_index);
+        std::make_unique<estimators::AngleFeatureDynamics>(out.model_dynamics_.get(), angle_indices);
     out.feature_policy_ =
-        std::make_unique<estimators::AngleFeaturePolicy>(out.rbf_policy_.get(), angle_index);
+        std::make_unique<estimators::AngleFeaturePolicy>(out.rbf_policy_.get(), angle_indices);
     p.dynamics = out.feature_dynamics_.get();
     p.policy = out.feature_policy_.get();
   }
@@ -108,14 +109,15 @@ absl::StatusOr<pilco::PilcoProblem> MakePilcoProblem(const tasks::StateCost& cos
   return problem;
 }
 
-tasks::Controller FeaturePolicyController(const policy::RbfPolicy* policy, int angle_index) {
+tasks::Controller FeaturePolicyController(const policy::RbfPolicy* policy,
+                                          std::vector<int> angle_indices) {
   TG_CHECK(policy != nullptr);
-  return [policy, angle_index](const tasks::State& observation) {
+  return [policy, angle_indices = std::move(angle_indices)](const Vector& observation) {
     Vector force;
-    if (angle_index < 0) {
+    if (angle_indices.empty()) {
       policy->Evaluate(observation.transpose(), &force, nullptr);
     } else {
-      const Vector features = pilco::StateFeatures(observation, angle_index);
+      const Vector features = pilco::StateFeatures(observation, angle_indices);
       policy->Evaluate(features.transpose(), &force, nullptr);
     }
     return force(0);

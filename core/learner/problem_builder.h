@@ -6,10 +6,10 @@
 // (core/study/study.cc) all build here, so a rebuilt snapshot is the trial's
 // model of that episode by construction, bit for bit.
 //
-// Features: the GP and the policy see phi(x), the raw state (angle_index
-// -1) or PILCO's [x without x_a, sin x_a, cos x_a] (angle_index a,
-// pilco/angle_features.h); the particles, the start distribution and the
-// cost stay in the raw state, and the adapters of
+// Features: the GP and the policy see phi(x), the raw state (no angle
+// indices) or PILCO's [x without the angles, sin x_a1, cos x_a1, ...] (the
+// scene's angle indices, pilco/angle_features.h); the particles, the start
+// distribution and the cost stay in the raw state, and the adapters of
 // estimators/particle_system.h chain-rule between the two.
 //
 // Thread safety: the functions are re-entrant; a ModelProblem is immutable
@@ -19,6 +19,7 @@
 #define TOTALGRAD_CORE_LEARNER_PROBLEM_BUILDER_H_
 
 #include <memory>
+#include <vector>
 
 #include "absl/status/statusor.h"
 #include "core/common/rng.h"
@@ -53,8 +54,8 @@ struct GpTrainingSet {
   RowMatrix inputs;
   RowMatrix targets;
 };
-// angle_index: -1 (raw) or a state index of `data`.
-GpTrainingSet MakeGpTrainingSet(const Transitions& data, int angle_index);
+// angle_indices: empty (raw) or strictly increasing state indices of `data`.
+GpTrainingSet MakeGpTrainingSet(const Transitions& data, const std::vector<int>& angle_indices);
 
 // The sparse alternative to the full GP: FITC with num_inducing inducing
 // inputs once N > num_inducing (gp::FitFitcModel: a random subset of the
@@ -74,7 +75,7 @@ class ModelProblem {
   // Builds the model on `data` with hyperparameters `hyperparameters` (the
   // full GP unless sparse.num_inducing > 0 and N > sparse.num_inducing; then
   // sparse.inducing and sparse.rng must be non-null), wraps model and policy
-  // for angle_index (-1: used directly), and fills the problem's start
+  // for angle_indices (empty: used directly), and fills the problem's start
   // distribution, cost and horizon from `scene` and its noise multiplier.
   // `policy` (non-null) and `scene` must outlive the result; `pool` (may be
   // null) is given to the adapters and the problem.
@@ -83,7 +84,8 @@ class ModelProblem {
   // cannot be factorised) and gp::FitFitcModel.
   static absl::StatusOr<ModelProblem> Build(const GpTrainingSet& data,
                                             const gp::GpHyperparameters& hyperparameters,
-                                            const SparseModelFit& sparse, int angle_index,
+                                            const SparseModelFit& sparse,
+                                            const std::vector<int>& angle_indices,
                                             const policy::RbfPolicy* policy,
                                             const tasks::Scene& scene,
                                             double noise_variance_multiplier, ThreadPool* pool);
@@ -124,7 +126,8 @@ absl::StatusOr<pilco::PilcoProblem> MakePilcoProblem(const tasks::StateCost& cos
 
 // The policy as a controller of the real plant: the force of the policy at
 // phi(observation) (policy non-null, must outlive the controller).
-tasks::Controller FeaturePolicyController(const policy::RbfPolicy* policy, int angle_index);
+tasks::Controller FeaturePolicyController(const policy::RbfPolicy* policy,
+                                          std::vector<int> angle_indices);
 
 }  // namespace totalgrad::learner
 

@@ -87,8 +87,8 @@ absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver
   if (resume_from == nullptr) {
     PhaseClock clock(pool.get());
     Rng action_rng(seed, Stream::kExplorationAction);
-    const double max_force = scene.plant.params().max_force;
-    const tasks::Controller random_controller = [&](const tasks::State&) {
+    const double max_force = scene.max_control(0);
+    const tasks::Controller random_controller = [&](const Vector&) {
       return action_rng.Uniform(-max_force, max_force);
     };
     Rng start_rng(seed, Stream::kInitialState, 0), noise_rng(seed, Stream::kObservationNoise, 0);

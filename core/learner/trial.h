@@ -102,9 +102,9 @@ struct TrialSnapshot {
   // The trial's options as TrialOptionPairs (so that scene, cost, horizon,
   // basis functions and angle features can be rebuilt with SetTrialOption).
   std::vector<std::pair<std::string, std::string>> options;
-  RowMatrix states;       // N x 4, observed states x_t of every transition so far
+  RowMatrix states;       // N x D, observed states x_t of every transition so far
   Vector forces;          // N, the force applied at x_t (N)
-  RowMatrix next_states;  // N x 4, observed x_{t+1}
+  RowMatrix next_states;  // N x D, observed x_{t+1}
   gp::GpHyperparameters hyperparameters;  // of episode e's model (inputs: angle_features)
   Vector policy_parameters_before;  // the policy entering episode e's optimisation
   Vector policy_parameters;         // the optimised policy of episode e

@@ -68,20 +68,38 @@ absl::Status TrialOptions::Validate() const {
     return InvalidOption("angle_features", "is not one of auto, raw, sincos");
   if (!IsNamedEnum(estimators::MethodNames(), method)) return InvalidOption("method", "is not a known method");
   if (absl::Status st = estimator.Validate(); !st.ok()) return st;
-  return tasks::MakeScene(scene).status();
+  absl::StatusOr<tasks::Scene> made = tasks::MakeScene(scene);
+  if (!made.ok()) return made.status();
+  // The learners, their policy and the episodes carry one control so far.
+  if (made->control_dim() != 1)
+    return InvalidOption("scene", absl::StrCat("'", scene.scene, "' has ", made->control_dim(),
+                                               " controls; trials support scenes with one control so far"));
+  return absl::OkStatus();
 }
 
-bool UsesSinCosFeatures(estimators::Method method, AngleFeatures choice) {
+bool UsesSinCosFeatures(estimators::Method method, AngleFeatures choice, bool cartpole_scene) {
   switch (choice) {
     case AngleFeatures::kSinCos: return true;
     case AngleFeatures::kRaw: return false;
-    case AngleFeatures::kAuto: return method == estimators::Method::kPilco;
+    case AngleFeatures::kAuto: return method == estimators::Method::kPilco || !cartpole_scene;
   }
   return false;
 }
 
+bool UsesSinCosFeatures(const TrialOptions& options) {
+  const tasks::SceneDefinition* scene = tasks::FindSceneDefinition(options.scene.scene);
+  const bool cartpole = scene == nullptr || scene->plant == tasks::PlantKind::kCartPole;
+  return UsesSinCosFeatures(options.method, options.angle_features, cartpole);
+}
+
+std::vector<int> FeatureAngles(const TrialOptions& options, const tasks::Scene& scene) {
+  return UsesSinCosFeatures(options) ? scene.angle_indices : std::vector<int>();
+}
+
 int InducingInputs(const TrialOptions& options) {
   if (options.gp_inducing >= 0) return options.gp_inducing;
+  const tasks::SceneDefinition* scene = tasks::FindSceneDefinition(options.scene.scene);
+  if (scene != nullptr && scene->plant != tasks::PlantKind::kCartPole) return scene->inducing_inputs;
   return options.method == estimators::Method::kPilco ? 300 : 0;
 }
 

@@ -38,11 +38,11 @@
 
 namespace totalgrad::learner {
 
-// How the GP and the policy see the pole angle: "raw" state, "sincos"
-// (PILCO's (sin, cos) augmentation; particle methods keep raw particles and
-// map through estimators::AngleFeature{Dynamics,Policy}) or "auto" (the
-// method's own default: sincos for PILCO, raw for the particle methods; see
-// UsesSinCosFeatures).
+// How the GP and the policy see the angles: "raw" state, "sincos" (PILCO's
+// (sin, cos) augmentation of the scene's angles; particle methods keep raw
+// particles and map through estimators::AngleFeature{Dynamics,Policy}) or
+// "auto" (sincos for PILCO and on every scene but the cart-pole, where the
+// particle methods keep the paper's raw state; see UsesSinCosFeatures).
 enum class AngleFeatures { kAuto, kRaw, kSinCos };
 const EnumNames<AngleFeatures>& AngleFeaturesNames();  // "auto", "raw", "sincos"
 
@@ -80,14 +80,20 @@ struct TrialOptions {
   bool operator==(const TrialOptions&) const = default;
 };
 
-// Whether the GP and the policy see (sin, cos) of the angle: "sincos", or
-// "auto" for PILCO. The one place that says what "auto" means.
-bool UsesSinCosFeatures(estimators::Method method, AngleFeatures choice);
-inline bool UsesSinCosFeatures(const TrialOptions& options) {
-  return UsesSinCosFeatures(options.method, options.angle_features);
-}
-// The inducing-input count gp_inducing resolves to: -1 (auto) is 300 for
-// PILCO (PILCO's own setting) and 0 (full GP) for the particle methods.
+// Whether the GP and the policy see (sin, cos) of the angles: "sincos", or
+// "auto" for PILCO or on a scene other than the cart-pole's. The one place
+// that says what "auto" means.
+bool UsesSinCosFeatures(estimators::Method method, AngleFeatures choice, bool cartpole_scene = true);
+// The same for the options' method, choice and scene (an unknown scene
+// counts as the cart-pole's; Validate() refuses it anyway).
+bool UsesSinCosFeatures(const TrialOptions& options);
+// The angles the GP and the policy see as (sin, cos): the scene's angle
+// indices with sin/cos features, else none (the raw state).
+std::vector<int> FeatureAngles(const TrialOptions& options, const tasks::Scene& scene);
+// The inducing-input count gp_inducing resolves to: -1 (auto) is, on the
+// cart-pole, 300 for PILCO (PILCO's own setting) and 0 (full GP) for the
+// particle methods; on the other scenes the scene's M for every method
+// (PILCO's model of that scene; tasks/scene_catalog.h).
 int InducingInputs(const TrialOptions& options);
 
 // TrialOptions::Table() as free functions (the names every caller uses).

@@ -6,6 +6,9 @@
 // With angle index a, a state x (D) maps to the features
 //   [x_0 .. x_{a-1}, x_{a+1} .. x_{D-1}, sin x_a, cos x_a]   (D + 1)
 // (the other dims in order, then sin, cos); without (a = -1) to x itself.
+// With several angles a_1 < a_2 < ... (the vector overloads): the other dims
+// in order, then sin x_a1, cos x_a1, sin x_a2, cos x_a2, ... (D + A), which
+// is PILCO's z(dyni) for every scene of tasks/scene_catalog.h.
 // A GP input is the features followed by the force u.
 //
 // Thread safety: pure functions.
@@ -13,6 +16,7 @@
 #define TOTALGRAD_CORE_PILCO_ANGLE_FEATURES_H_
 
 #include <cmath>
+#include <vector>
 
 #include "core/common/check.h"
 #include "core/common/types.h"
@@ -65,6 +69,44 @@ inline void StatesToFeaturesBackward(const ConstRowMatrixRef& states, int angle_
 inline Vector StateFeatures(const Vector& x, int angle_index) {
   RowMatrix f;
   StatesToFeatures(x.transpose(), angle_index, &f);
+  return f.row(0).transpose();
+}
+
+inline int FeatureDim(int state_dim, const std::vector<int>& angle_indices) {
+  return state_dim + static_cast<int>(angle_indices.size());
+}
+
+// states: P x D; *features: P x FeatureDim (resized). angle_indices strictly
+// increasing (empty: the states themselves).
+inline void StatesToFeatures(const ConstRowMatrixRef& states, const std::vector<int>& angle_indices,
+                             RowMatrix* features) {
+  const int d = static_cast<int>(states.cols());
+  if (angle_indices.empty()) {
+    *features = states;
+    return;
+  }
+  const int a_count = static_cast<int>(angle_indices.size());
+  features->resize(states.rows(), d + a_count);
+  int col = 0;
+  size_t next_angle = 0;
+  for (int i = 0; i < d; ++i) {
+    if (next_angle < angle_indices.size() && angle_indices[next_angle] == i) {
+      ++next_angle;
+      continue;
+    }
+    features->col(col++) = states.col(i);
+  }
+  TG_CHECK(next_angle == angle_indices.size());
+  for (int a = 0; a < a_count; ++a) {
+    features->col(d - a_count + 2 * a) = states.col(angle_indices[a]).array().sin();
+    features->col(d - a_count + 2 * a + 1) = states.col(angle_indices[a]).array().cos();
+  }
+}
+
+// One state (D) to its features.
+inline Vector StateFeatures(const Vector& x, const std::vector<int>& angle_indices) {
+  RowMatrix f;
+  StatesToFeatures(x.transpose(), angle_indices, &f);
   return f.row(0).transpose();
 }
 

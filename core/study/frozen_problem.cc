@@ -16,10 +16,14 @@ absl::StatusOr<std::unique_ptr<FrozenProblem>> FrozenProblemFromSnapshot(
         "snapshot: the trial's model uses (sin, cos) angle features; gradient studies need the "
         "raw-state model (run the trial with --angle-features raw)");
   }
+  absl::StatusOr<tasks::Scene> scene = tasks::MakeScene(options.scene);
+  if (!scene.ok()) {
+    return absl::InvalidArgumentError(absl::StrCat("snapshot scene: ", scene.status().message()));
+  }
   const Eigen::Index n = snapshot.states.rows();
-  if (n < 1 || snapshot.states.cols() != tasks::kCartPoleStateDim ||
-      snapshot.next_states.rows() != n || snapshot.next_states.cols() != tasks::kCartPoleStateDim ||
-      snapshot.forces.size() != n) {
+  const int d = scene->state_dim();
+  if (n < 1 || snapshot.states.cols() != d || snapshot.next_states.rows() != n ||
+      snapshot.next_states.cols() != d || snapshot.forces.size() != n) {
     return absl::InvalidArgumentError(absl::StrCat(
         "snapshot: data shapes disagree (states ", snapshot.states.rows(), " x ",
         snapshot.states.cols(), ", forces ", snapshot.forces.size(), ", next_states ",
@@ -33,15 +37,10 @@ absl::StatusOr<std::unique_ptr<FrozenProblem>> FrozenProblemFromSnapshot(
         " transitions), which snapshots do not keep; gradient studies rebuild the full GP only "
         "(run the trial with --gp-inducing 0)"));
   }
-  absl::StatusOr<tasks::Scene> scene = tasks::MakeScene(options.scene);
-  if (!scene.ok()) {
-    return absl::InvalidArgumentError(absl::StrCat("snapshot scene: ", scene.status().message()));
-  }
-
   auto out = std::make_unique<FrozenProblem>();
   out->scene = std::make_unique<tasks::Scene>(*std::move(scene));
   out->owned_policy = std::make_unique<policy::RbfPolicy>(
-      options.basis_functions, tasks::kCartPoleStateDim, out->scene->plant.params().max_force);
+      options.basis_functions, d, out->scene->max_control(0));
   const Vector& theta = which == SnapshotPolicy::kBefore ? snapshot.policy_parameters_before
                                                          : snapshot.policy_parameters;
   if (theta.size() != out->owned_policy->num_parameters()) {
@@ -57,8 +56,8 @@ absl::StatusOr<std::unique_ptr<FrozenProblem>> FrozenProblemFromSnapshot(
   // the trial builds them (raw features, full GP, no thread pool).
   const learner::Transitions data{snapshot.states, snapshot.forces, snapshot.next_states};
   absl::StatusOr<learner::ModelProblem> model = learner::ModelProblem::Build(
-      learner::MakeGpTrainingSet(data, /*angle_index=*/-1), snapshot.hyperparameters,
-      learner::SparseModelFit{}, /*angle_index=*/-1, out->policy, *out->scene,
+      learner::MakeGpTrainingSet(data, /*angle_indices=*/{}), snapshot.hyperparameters,
+      learner::SparseModelFit{}, /*angle_indices=*/{}, out->policy, *out->scene,
       options.model_noise_multiplier, /*pool=*/nullptr);
   if (!model.ok()) {
     return absl::Status(model.status().code(), absl::StrCat("snapshot ", model.status().message()));

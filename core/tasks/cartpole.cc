@@ -53,6 +53,11 @@ State CartPole::Derivative(const State& x, double force) const {
   return dxdt;
 }
 
+void CartPole::Derivative(const Vector& x, const Vector& u, Vector* dxdt) const {
+  TG_CHECK(x.size() == kCartPoleStateDim && u.size() == 1);
+  *dxdt = Derivative(State(x), u(0));
+}
+
 double CartPole::Energy(const State& x) const {
   const double mp = params_.pole_mass;
   const double l = params_.pole_length;

@@ -17,6 +17,7 @@
 #include "core/common/option_table.h"
 #include "core/common/types.h"
 #include "core/ode/integrator.h"
+#include "core/tasks/plant.h"
 
 namespace totalgrad::tasks {
 
@@ -39,9 +40,10 @@ struct CartPoleParams {
   bool operator==(const CartPoleParams&) const = default;
 };
 
-class CartPole {
+class CartPole final : public Plant {
  public:
-  explicit CartPole(const CartPoleParams& params = {}) : params_(params) {}
+  explicit CartPole(const CartPoleParams& params = {})
+      : Plant(params.dt, params.integrator), params_(params) {}
 
   const CartPoleParams& params() const { return params_; }
 
@@ -50,6 +52,13 @@ class CartPole {
 
   // Total mechanical energy (J), conserved when friction = 0 and force = 0.
   double Energy(const State& x) const;
+
+  // The Plant interface (D = 4, F = 1): the same equations, the same bits.
+  int state_dim() const override { return kCartPoleStateDim; }
+  int control_dim() const override { return 1; }
+  void Derivative(const Vector& x, const Vector& u, Vector* dxdt) const override;
+  double Energy(const Vector& x) const override { return Energy(State(x)); }
+  using Plant::Step;
 
   // Integrates one control period dt with the force held constant. On success
   // writes the next state into *next. Fails (leaving *next unchanged) on a

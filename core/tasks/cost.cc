@@ -24,25 +24,27 @@ absl::StatusOr<pilco::GaussianCost> TipCost::GaussianExpectation() const {
                                   width_, target_position_);
 }
 
-double StateCost::Value(const State& x) const {
-  RowMatrix batch(1, kCartPoleStateDim);
+double StateCost::Value(const Vector& x) const {
+  RowMatrix batch(1, x.size());
   batch.row(0) = x.transpose();
   Vector cost;
   Evaluate(batch, &cost, nullptr);
   return cost(0);
 }
 
-AngleCost::AngleCost(const State& target, const State& q_diagonal)
-    : target_(target), q_(q_diagonal) {}
+AngleCost::AngleCost(const Vector& target, const Vector& q_diagonal)
+    : target_(target), q_(q_diagonal) {
+  TG_CHECK_EQ(target.size(), q_diagonal.size());
+}
 
 void AngleCost::Evaluate(const ConstRowMatrixRef& x, Vector* cost, RowMatrix* grad) const {
   TG_CHECK(cost != nullptr);
-  TG_CHECK_EQ(x.cols(), kCartPoleStateDim);
+  TG_CHECK_EQ(x.cols(), target_.size());
   const Eigen::Index p = x.rows();
   cost->resize(p);
-  if (grad != nullptr) grad->resize(p, kCartPoleStateDim);
+  if (grad != nullptr) grad->resize(p, target_.size());
   for (Eigen::Index i = 0; i < p; ++i) {
-    const State diff = x.row(i).transpose() - target_;
+    const Vector diff = x.row(i).transpose() - target_;
     const double quad = (q_.array() * diff.array().square()).sum();
     const double e = std::exp(-quad);
     (*cost)(i) = 1.0 - e;
@@ -77,6 +79,58 @@ void TipCost::Evaluate(const ConstRowMatrixRef& x, Vector* cost, RowMatrix* grad
       const double scale = e * inv_two_w2;
       (*grad)(i, 0) = scale * 2.0 * dx;
       (*grad)(i, 1) = scale * (2.0 * dx * l * cs - 2.0 * dy * l * sn);
+    }
+  }
+}
+
+SaturatingCost::SaturatingCost(const Vector& target, std::vector<int> angle_indices, const Matrix& q,
+                               std::vector<double> widths)
+    : angle_indices_(std::move(angle_indices)), q_(q), widths_(std::move(widths)) {
+  const Eigen::Index d = target.size();
+  const Eigen::Index z = d + 2 * static_cast<Eigen::Index>(angle_indices_.size());
+  TG_CHECK(q.rows() == z && q.cols() == z && !widths_.empty());
+  target_z_.resize(z);
+  target_z_.head(d) = target;
+  for (size_t a = 0; a < angle_indices_.size(); ++a) {
+    TG_CHECK(angle_indices_[a] >= 0 && angle_indices_[a] < d);
+    target_z_(d + 2 * a) = std::sin(target(angle_indices_[a]));
+    target_z_(d + 2 * a + 1) = std::cos(target(angle_indices_[a]));
+  }
+}
+
+void SaturatingCost::Evaluate(const ConstRowMatrixRef& x, Vector* cost, RowMatrix* grad) const {
+  TG_CHECK(cost != nullptr);
+  const Eigen::Index d = target_z_.size() - 2 * static_cast<Eigen::Index>(angle_indices_.size());
+  TG_CHECK_EQ(x.cols(), d);
+  const Eigen::Index p = x.rows();
+  cost->resize(p);
+  if (grad != nullptr) grad->resize(p, d);
+  const double n_widths = static_cast<double>(widths_.size());
+  Vector z(target_z_.size()), dz(target_z_.size()), qdz(target_z_.size()), dc_dz(target_z_.size());
+  for (Eigen::Index i = 0; i < p; ++i) {
+    z.head(d) = x.row(i).transpose();
+    for (size_t a = 0; a < angle_indices_.size(); ++a) {
+      z(d + 2 * a) = std::sin(x(i, angle_indices_[a]));
+      z(d + 2 * a + 1) = std::cos(x(i, angle_indices_[a]));
+    }
+    dz = z - target_z_;
+    qdz.noalias() = q_ * dz;
+    const double quad = dz.dot(qdz);
+    double c = 0, slope = 0;  // slope: sum_w exp(-quad / (2 w^2)) / w^2
+    for (double w : widths_) {
+      const double e = std::exp(-quad / (2.0 * w * w));
+      c += 1.0 - e;
+      slope += e / (w * w);
+    }
+    (*cost)(i) = c / n_widths;
+    if (grad == nullptr) continue;
+    // dc/dz = mean_w exp(-quad / (2 w^2)) Q dz / w^2, then the chain rule
+    // through sin and cos of each angle.
+    dc_dz = (slope / n_widths) * qdz;
+    grad->row(i) = dc_dz.head(d).transpose();
+    for (size_t a = 0; a < angle_indices_.size(); ++a) {
+      const int m = angle_indices_[a];
+      (*grad)(i, m) += dc_dz(d + 2 * a) * z(d + 2 * a + 1) - dc_dz(d + 2 * a + 1) * z(d + 2 * a);
     }
   }
 }

@@ -1,15 +1,19 @@
-// Per-step state costs of the cart-pole tasks (values in [0, 1]).
+// Per-step state costs of the scenes (values in [0, 1]).
 //
 //  * AngleCost: c(x) = 1 - exp(-(x - t)^T Q (x - t)), Q diagonal (the paper's
-//    "Angle Cost", Q = diag(1, 1, 0, 0) by default, t the target state).
+//    "Angle Cost", Q = diag(1, 1, 0, 0) on the cart-pole, t the target state;
+//    any D).
+//  * SaturatingCost: PILCO's lossSat on z = [x, sin x_a1, cos x_a1, ...], the
+//    mean over widths w of 1 - exp(-(z - z_t)^T (Q / w^2) (z - z_t) / 2), z_t
+//    the augmented target (any scene; tasks/scene_catalog.h).
 //  * TipCost: PILCO's saturating tip-distance cost,
 //    c(x) = 1 - exp(-d^2 / (2 width^2)), with d the distance between the pole
 //    tip and the tip of the upright pole above the target cart position:
 //    d^2 = (s - s_target + l sin beta)^2 + l^2 (cos beta + 1)^2, l = 0.5 m,
 //    width = 0.25 m (pilco-spec.md 3.4, in our angle convention).
 //
-// Batched evaluation: x is P x 4 (one state per row), cost is P, the optional
-// gradient is P x 4 with grad(i, m) = dc(x_i)/dx_im.
+// Batched evaluation: x is P x D (one state per row), cost is P, the optional
+// gradient is P x D with grad(i, m) = dc(x_i)/dx_im.
 //
 // Each cost also states its expectation under a Gaussian state in closed form
 // (GaussianExpectation(): PILCO's lossSat form, core/pilco/expected_cost.h),
@@ -22,6 +26,7 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "absl/status/statusor.h"
 #include "core/common/types.h"
@@ -41,22 +46,23 @@ class StateCost {
   // InvalidArgument naming the cost when it has none (the default).
   virtual absl::StatusOr<pilco::GaussianCost> GaussianExpectation() const;
   // Convenience for one state.
-  double Value(const State& x) const;
+  double Value(const Vector& x) const;
 };
 
 class AngleCost final : public StateCost {
  public:
-  AngleCost(const State& target, const State& q_diagonal);
+  // target and q_diagonal: D each.
+  AngleCost(const Vector& target, const Vector& q_diagonal);
   void Evaluate(const ConstRowMatrixRef& x, Vector* cost, RowMatrix* grad) const override;
   std::string Name() const override { return "angle"; }
   // W = 2 Q on the raw state (pilco::GaussianCost::Angle).
   absl::StatusOr<pilco::GaussianCost> GaussianExpectation() const override;
-  const State& target() const { return target_; }
-  const State& q_diagonal() const { return q_; }
+  const Vector& target() const { return target_; }
+  const Vector& q_diagonal() const { return q_; }
 
  private:
-  State target_;
-  State q_;
+  Vector target_;
+  Vector q_;
 };
 
 class TipCost final : public StateCost {
@@ -75,6 +81,24 @@ class TipCost final : public StateCost {
   double target_position_;
   double length_;
   double width_;
+};
+
+class SaturatingCost final : public StateCost {
+ public:
+  // target: D; angle_indices: strictly increasing state indices; q: Z x Z
+  // symmetric PSD (Z = D + 2 A); widths: > 0 (at least one).
+  SaturatingCost(const Vector& target, std::vector<int> angle_indices, const Matrix& q,
+                 std::vector<double> widths);
+  void Evaluate(const ConstRowMatrixRef& x, Vector* cost, RowMatrix* grad) const override;
+  std::string Name() const override { return "saturating"; }
+  // No closed form here yet for several angles or widths (the default's
+  // InvalidArgument).
+
+ private:
+  Vector target_z_;
+  std::vector<int> angle_indices_;
+  Matrix q_;
+  std::vector<double> widths_;
 };
 
 // "angle" or "tip", with target state `target` (the upright state for both

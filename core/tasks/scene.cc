@@ -5,12 +5,12 @@
 #include <numbers>
 
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
 #include "core/common/check.h"
 
 namespace totalgrad::tasks {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 
 absl::Status RequirePositive(const char* field, double value) {
   if (!std::isfinite(value) || !(value > 0)) {
@@ -62,17 +62,10 @@ const OptionTable<SceneOptions>& SceneOptions::Table() {
 }
 
 absl::StatusOr<Scene> MakeScene(const SceneOptions& options) {
-  Scene scene;
-  scene.name = options.scene;
-  scene.target << 0.0, kPi, 0.0, 0.0;
-  if (options.scene == "cartpole-swingup") {
-    scene.mu0 = State::Zero();
-  } else if (options.scene == "cartpole-balance") {
-    scene.mu0 = scene.target;
-  } else {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "scene: unknown scene '", options.scene,
-        "' (expected 'cartpole-swingup' or 'cartpole-balance')"));
+  const SceneDefinition* definition = FindSceneDefinition(options.scene);
+  if (definition == nullptr) {
+    return absl::InvalidArgumentError(absl::StrCat("scene: unknown scene '", options.scene,
+                                                   "' (known: ", absl::StrJoin(SceneNames(), ", "), ")"));
   }
   if (!std::isfinite(options.noise_k) || !(options.noise_k >= 0)) {
     return absl::InvalidArgumentError(
@@ -85,21 +78,62 @@ absl::StatusOr<Scene> MakeScene(const SceneOptions& options) {
   if (absl::Status st = RequireNonNegative("initial_std", options.initial_std); !st.ok()) return st;
   if (absl::Status st = ValidatePlant(options.plant); !st.ok()) return st;
 
-  if (options.cost == "tip") {
-    // The tip is the tip of this plant's pole, so the cost uses its length.
-    scene.cost = std::make_shared<TipCost>(scene.target(0), options.plant.pole_length);
-  } else {
-    absl::StatusOr<std::unique_ptr<StateCost>> cost = MakeCost(options.cost, scene.target);
-    if (!cost.ok()) return cost.status();
-    scene.cost = std::shared_ptr<const StateCost>(std::move(*cost));
-  }
-
-  scene.plant = CartPole(options.plant);
-  scene.initial_std = State::Constant(options.initial_std);
-  State base_std;
-  base_std << 0.01, kPi / 180.0, 0.1, 10.0 * kPi / 180.0;
-  scene.observation_noise_std = std::sqrt(options.noise_k) * base_std;
+  Scene scene;
+  scene.name = options.scene;
+  scene.definition = definition;
+  scene.target = definition->target;
+  scene.mu0 = definition->mu0;
   scene.horizon = options.horizon;
+  scene.angle_indices = definition->angle_indices;
+  const int d = definition->state_dim();
+  if (definition->plant == PlantKind::kCartPole) {
+    // The paper's cart-pole: the plant and the start spread from the options.
+    scene.plant = std::make_shared<CartPole>(options.plant);
+    scene.max_control = Vector::Constant(1, options.plant.max_force);
+    scene.initial_std = Vector::Constant(d, options.initial_std);
+    if (options.cost == "tip") {
+      // The tip is the tip of this plant's pole, so the cost uses its length.
+      scene.cost = std::make_shared<TipCost>(scene.target(0), options.plant.pole_length);
+    } else if (options.cost == "saturating") {
+      scene.cost = std::make_shared<SaturatingCost>(scene.target, definition->angle_indices,
+                                                    definition->saturating_cost.q,
+                                                    definition->saturating_cost.widths);
+    } else {
+      absl::StatusOr<std::unique_ptr<StateCost>> cost = MakeCost(options.cost, State(scene.target));
+      if (!cost.ok()) return cost.status();
+      scene.cost = std::shared_ptr<const StateCost>(std::move(*cost));
+    }
+  } else {
+    // PILCO's scene: its own plant and start distribution; the cart-pole's
+    // options must not pretend to change it.
+    CartPoleParams defaults;
+    defaults.integrator = options.plant.integrator;
+    if (!(options.plant == defaults)) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "scene '", options.scene, "': the plant options (cart_mass, pole_mass, pole_length, "
+          "friction, dt, max_force, gravity) are the cart-pole's; this scene's plant is fixed "
+          "(totalgrad scenes)"));
+    }
+    if (options.initial_std != SceneOptions().initial_std) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "scene '", options.scene, "': initial_std is the cart-pole's; this scene's start "
+          "distribution is PILCO's (totalgrad scenes)"));
+    }
+    scene.plant = MakePlant(*definition, options.plant.integrator);
+    scene.max_control = definition->max_control;
+    scene.initial_std = definition->start_std;
+    if (options.cost == "angle") {
+      scene.cost = std::make_shared<AngleCost>(scene.target, definition->angle_cost_q);
+    } else if (options.cost == "saturating") {
+      scene.cost = std::make_shared<SaturatingCost>(scene.target, definition->angle_indices,
+                                                    definition->saturating_cost.q,
+                                                    definition->saturating_cost.widths);
+    } else {
+      return absl::InvalidArgumentError(absl::StrCat("cost: unknown cost '", options.cost, "' for scene '",
+                                                     options.scene, "' (expected 'angle' or 'saturating')"));
+    }
+  }
+  scene.observation_noise_std = std::sqrt(options.noise_k) * definition->measurement_noise_std;
   return scene;
 }
 
@@ -108,22 +142,28 @@ absl::Status RunEpisode(const Scene& scene, const Controller& controller, Rng* s
   TG_CHECK(start_rng != nullptr);
   TG_CHECK(noise_rng != nullptr);
   TG_CHECK(episode != nullptr);
-  TG_CHECK(scene.cost != nullptr);
+  TG_CHECK(scene.cost != nullptr && scene.plant != nullptr);
   const int horizon = scene.horizon;
   TG_CHECK(horizon >= 1);
+  if (scene.control_dim() != 1) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "scene '", scene.name, "' has ", scene.control_dim(),
+        " controls; episodes carry one control so far"));
+  }
+  const int d = scene.state_dim();
 
   Episode& ep = *episode;
-  ep.states.resize(horizon + 1, kCartPoleStateDim);
-  ep.observations.resize(horizon + 1, kCartPoleStateDim);
+  ep.states.resize(horizon + 1, d);
+  ep.observations.resize(horizon + 1, d);
   ep.forces.resize(horizon);
   ep.costs.resize(horizon);
   ep.total_cost = 0;
 
   // Draw order is part of the reproducibility contract: x0 takes the first
-  // four normals of the start stream (s, beta, s_dot, beta_dot); observation
-  // t takes normals 4t .. 4t+3 of the noise stream.
-  State x;
-  for (int m = 0; m < kCartPoleStateDim; ++m) {
+  // D normals of the start stream (in state order); observation t takes
+  // normals D t .. D t + D - 1 of the noise stream.
+  Vector x(d);
+  for (int m = 0; m < d; ++m) {
     x(m) = scene.mu0(m) + scene.initial_std(m) * start_rng->Normal();
   }
   if (!x.allFinite()) {
@@ -131,24 +171,26 @@ absl::Status RunEpisode(const Scene& scene, const Controller& controller, Rng* s
   }
   auto observe = [&](int t) {
     ep.states.row(t) = x.transpose();
-    State o;
-    for (int m = 0; m < kCartPoleStateDim; ++m) {
+    Vector o(d);
+    for (int m = 0; m < d; ++m) {
       o(m) = x(m) + scene.observation_noise_std(m) * noise_rng->Normal();
     }
     ep.observations.row(t) = o.transpose();
     return o;
   };
 
+  Vector u(1);
   for (int t = 0; t < horizon; ++t) {
-    const State observation = observe(t);
+    const Vector observation = observe(t);
     const double force = controller(observation);
     if (!std::isfinite(force)) {
       return absl::InternalError(
           absl::StrCat("episode step ", t, ": controller returned a non-finite force ", force));
     }
     ep.forces(t) = force;
-    State next;
-    if (absl::Status st = scene.plant.Step(x, force, &next); !st.ok()) {
+    u(0) = force;
+    Vector next;
+    if (absl::Status st = scene.plant->Step(x, u, &next); !st.ok()) {
       return absl::InternalError(StepError(t, st));
     }
     x = next;

@@ -1,12 +1,21 @@
 // A scene: the plant, its start distribution, its cost, its observation noise
-// and episode length; and real episodes on it.
+// and episode length; and real episodes on it. The scenes are data
+// (tasks/scene_catalog.h); the options choose one and tune it.
 //
-// Scenes: "cartpole-swingup" (start hanging, mu0 = 0, target upright) and
-// "cartpole-balance" (start upright, mu0 = target = [0, pi, 0, 0]).
-// Start x0 ~ N(mu0, S0), S0 = initial_std^2 I (0.1^2 as in PILCO).
-// Observation noise: o = x + n, n ~ N(0, k * diag(base^2)), base std =
-// (0.01 m, 1 deg, 0.1 m/s, 10 deg/s). The policy acts on observations; the
-// cost is taken of the true post-step state.
+// The cart-pole scenes, as the paper has them: "cartpole-swingup" (start
+// hanging, mu0 = 0, target upright) and "cartpole-balance" (start upright,
+// mu0 = target = [0, pi, 0, 0]); start x0 ~ N(mu0, S0), S0 = initial_std^2 I
+// (0.1^2 as in PILCO); observation noise o = x + n, n ~ N(0, k *
+// diag(base^2)), base std = (0.01 m, 1 deg, 0.1 m/s, 10 deg/s); the plant's
+// constants from the options (cart_mass, ...); costs "angle", "tip" or
+// "saturating" (PILCO's, equal to the tip cost).
+// Every other scene of the catalog: PILCO's start distribution, plant and
+// measurement noise std (x sqrt(k)); costs "angle" (the scene's angle cost)
+// or "saturating" (PILCO's loss); the cart-pole's plant options and
+// initial_std must keep their defaults there. horizon and the integrator
+// options apply to every scene.
+// The policy acts on observations; the cost is taken of the true post-step
+// state.
 #ifndef TOTALGRAD_CORE_TASKS_SCENE_H_
 #define TOTALGRAD_CORE_TASKS_SCENE_H_
 
@@ -19,6 +28,8 @@
 #include "core/common/types.h"
 #include "core/tasks/cartpole.h"
 #include "core/tasks/cost.h"
+#include "core/tasks/plant.h"
+#include "core/tasks/scene_catalog.h"
 
 namespace totalgrad::tasks {
 
@@ -38,20 +49,28 @@ struct SceneOptions {
 
 struct Scene {
   std::string name;
-  CartPole plant;
-  State mu0;
-  State initial_std;            // per-dimension std of x0
-  State target;
-  State observation_noise_std;  // sqrt(k) * base std
+  const SceneDefinition* definition = nullptr;  // the catalog entry (static)
+  std::shared_ptr<const Plant> plant;
+  Vector max_control;           // F, the policy's saturation bounds
+  Vector mu0;                   // D
+  Vector initial_std;           // D, per-dimension std of x0
+  Vector target;                // D
+  Vector observation_noise_std; // D, sqrt(k) * base std
   int horizon = 30;
   std::shared_ptr<const StateCost> cost;
-  // The state index of the pole angle: where PILCO's (sin, cos) features of
-  // the GP's and the policy's inputs act (pilco/angle_features.h).
-  int angle_index = 1;
+  // The state indices of the angles: where PILCO's (sin, cos) features of
+  // the GP's and the policy's inputs act (the definition's angle_indices).
+  std::vector<int> angle_indices;
+
+  int state_dim() const { return static_cast<int>(mu0.size()); }
+  int control_dim() const { return static_cast<int>(max_control.size()); }
+  // The cart-pole scenes (the paper's; their options and costs).
+  bool is_cartpole() const { return definition != nullptr && definition->plant == PlantKind::kCartPole; }
 };
 
 // InvalidArgument names the bad field (unknown scene or cost, k < 0,
-// horizon < 1, non-finite numbers).
+// horizon < 1, non-finite numbers, a cart-pole option changed on another
+// scene).
 // Also rejected: initial_std < 0; plant masses, pole_length, dt or max_force
 // <= 0; friction or gravity < 0 (the field is named as "plant.<field>");
 // invalid integrator options (ode::IntegratorOptions::Validate()).
@@ -61,25 +80,26 @@ absl::StatusOr<Scene> MakeScene(const SceneOptions& options);
 
 // One real episode.
 struct Episode {
-  RowMatrix states;        // (H+1) x 4 true states, row 0 is x0
-  RowMatrix observations;  // (H+1) x 4 noisy observations of `states`
-  Vector forces;           // H, the force applied at steps 0..H-1 (N)
+  RowMatrix states;        // (H+1) x D true states, row 0 is x0
+  RowMatrix observations;  // (H+1) x D noisy observations of `states`
+  Vector forces;           // H, the control applied at steps 0..H-1 (one control)
   Vector costs;            // H, cost of the true post-step states x1..xH
   double total_cost = 0;   // sum of costs
 };
 
-// Maps the current observation to a force in N (the caller saturates).
-using Controller = std::function<double(const State& observation)>;
+// Maps the current observation (D) to the control (the caller saturates).
+using Controller = std::function<double(const Vector& observation)>;
 
 // Runs one episode of scene.horizon steps from x0 ~ N(mu0, S0) drawn from
 // *start_rng, observation noise from *noise_rng. Fails (Internal, with the
 // step number) if the plant integration fails or a state is non-finite;
 // *episode is then unspecified.
 // Also Internal (with the step number) when the controller returns a
-// non-finite force. Draw order, part of the reproducibility contract: x0 takes
-// the first 4 normals of *start_rng (in state order); observation t
-// (t = 0..H) takes the next 4 normals of *noise_rng, drawn before the
-// controller is called at step t.
+// non-finite force. InvalidArgument for a scene of more than one control
+// (the episodes carry one control so far). Draw order, part of the
+// reproducibility contract: x0 takes the first D normals of *start_rng (in
+// state order); observation t (t = 0..H) takes the next D normals of
+// *noise_rng, drawn before the controller is called at step t.
 absl::Status RunEpisode(const Scene& scene, const Controller& controller, Rng* start_rng,
                         Rng* noise_rng, Episode* episode);
 

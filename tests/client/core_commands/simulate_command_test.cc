@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "client/core_commands/commands.h"
+#include "core/tasks/cartpole.h"
 #include "tests/testutil/testutil.h"
 
 namespace totalgrad::cli {

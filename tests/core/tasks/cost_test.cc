@@ -8,6 +8,7 @@
 
 #include "core/common/rng.h"
 #include "core/diff/gradient_checker.h"
+#include "core/tasks/scene_catalog.h"
 #include "tests/testutil/testutil.h"
 
 namespace totalgrad::tasks {
@@ -185,6 +186,62 @@ TEST(MakeCostTest, DefaultParameters) {
   EXPECT_EQ(t->target_position(), 0.0);
   EXPECT_EQ(t->pendulum_length(), 0.5);
   EXPECT_EQ(t->width(), 0.25);
+}
+
+}  // namespace
+}  // namespace totalgrad::tasks
+
+namespace totalgrad::tasks {
+namespace {
+
+// PILCO's saturating cost on z, on every scene of the catalog: gradients
+// against finite differences (two angles, two widths included); the cart-pole's
+// equals the tip cost; a wrong chain rule through sin/cos fails.
+TEST(SaturatingCostTest, GradientsMatchFiniteDifferencesOnEveryScene) {
+  for (const SceneDefinition& s : SceneCatalog()) {
+    for (const std::vector<double>& widths : {s.saturating_cost.widths, std::vector<double>{0.5, 1.5}}) {
+      const SaturatingCost cost(s.target, s.angle_indices, s.saturating_cost.q, widths);
+      Rng rng(23, Stream::kEvaluation);
+      RowMatrix x(6, s.state_dim());
+      rng.FillNormal(&x);
+      for (int a : s.angle_indices) x.col(a) *= 2.0;
+      x.row(0) = s.target.transpose();
+      Vector values;
+      RowMatrix grad;
+      cost.Evaluate(x, &values, &grad);
+      EXPECT_NEAR(values(0), 0.0, 1e-15) << s.name;
+      const diff::VectorFunction f = [&](const Vector& z, Vector* v) {
+        *v = Vector::Constant(1, cost.Value(z));
+        return true;
+      };
+      for (Eigen::Index i = 0; i < x.rows(); ++i) {
+        EXPECT_GE(values(i), 0.0);
+        EXPECT_LE(values(i), 1.0);
+        const diff::CheckResult check = diff::CheckJacobian(f, x.row(i).transpose(), grad.row(i));
+        EXPECT_TRUE(check.ok) << s.name << " row " << i << ": " << check.log;
+      }
+      // The chain rule's sin/cos terms matter: dropping one fails.
+      if (!s.angle_indices.empty()) {
+        RowMatrix wrong = grad;
+        const Eigen::Index row = 3;
+        wrong(row, s.angle_indices[0]) *= -1.0;
+        if (std::abs(grad(row, s.angle_indices[0])) > 1e-6) {
+          EXPECT_FALSE(diff::CheckJacobian(f, x.row(row).transpose(), wrong.row(row)).ok) << s.name;
+        }
+      }
+    }
+  }
+}
+
+TEST(SaturatingCostTest, CartPolesEqualsTheTipCost) {
+  const SceneDefinition& s = *FindSceneDefinition("cartpole-swingup");
+  const SaturatingCost saturating(s.target, s.angle_indices, s.saturating_cost.q, s.saturating_cost.widths);
+  const TipCost tip(0.0, 0.5, 0.25);
+  const RowMatrix x = TestStates();
+  Vector a, b;
+  saturating.Evaluate(x, &a, nullptr);
+  tip.Evaluate(x, &b, nullptr);
+  EXPECT_TRUE(testing::MatricesNear(a, b, 1e-14, 1e-12));
 }
 
 }  // namespace

@@ -36,6 +36,9 @@ Scene MustMakeScene(const SceneOptions& options) {
 // changes the trajectory.
 double Feedback(const State& o) { return 10.0 * std::tanh(o(0) + 0.5 * o(2) - 0.3 * o(3)); }
 
+// The cart-pole scenes' plant is the cart-pole (the scene holds it as a Plant).
+const CartPole& CartPoleOf(const Scene& scene) { return dynamic_cast<const CartPole&>(*scene.plant); }
+
 TEST(MakeSceneTest, SwingUpDefaults) {
   const Scene scene = MustMakeScene({});
   EXPECT_EQ(scene.name, "cartpole-swingup");
@@ -47,7 +50,7 @@ TEST(MakeSceneTest, SwingUpDefaults) {
   ASSERT_NE(scene.cost, nullptr);
   EXPECT_EQ(scene.cost->Name(), "angle");
   EXPECT_EQ(scene.cost->Value(scene.target), 0.0);
-  EXPECT_EQ(scene.plant.params().dt, 0.1);
+  EXPECT_EQ(CartPoleOf(scene).params().dt, 0.1);
 }
 
 TEST(MakeSceneTest, BalanceTipAndNoiseScaling) {
@@ -71,7 +74,7 @@ TEST(MakeSceneTest, BalanceTipAndNoiseScaling) {
   ASSERT_NE(tip, nullptr);
   EXPECT_EQ(tip->pendulum_length(), 0.6);  // the plant's pole
   EXPECT_EQ(tip->width(), 0.25);
-  EXPECT_EQ(scene.plant.params().pole_length, 0.6);
+  EXPECT_EQ(CartPoleOf(scene).params().pole_length, 0.6);
 }
 
 TEST(MakeSceneTest, ErrorsNameTheBadField) {
@@ -171,7 +174,7 @@ TEST(RunEpisodeTest, EpisodeIsConsistent) {
       EXPECT_LE(ep.costs(t), 1.0);
       // The true state follows the plant exactly.
       State stepped;
-      TG_ASSERT_OK(scene.plant.Step(ep.states.row(t).transpose(), ep.forces(t), &stepped));
+      TG_ASSERT_OK(CartPoleOf(scene).Step(ep.states.row(t).transpose(), ep.forces(t), &stepped));
       EXPECT_EQ(stepped, next) << "step " << t;
       sum += ep.costs(t);
     }

@@ -1,0 +1,124 @@
+#include <iostream>
+#include <memory>
+
+#include <CLI/CLI.hpp>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "absl/strings/str_join.h"
+#include "client/core_commands/commands.h"
+#include "client/core_commands/scenes_format.h"
+
+namespace totalgrad::cli {
+namespace {
+
+// The particles of a default trial, for the memory estimate.
+constexpr int kDefaultParticles = 300;
+
+std::vector<double> ToStd(const Vector& v) { return std::vector<double>(v.data(), v.data() + v.size()); }
+
+std::string Join(const Vector& v) {
+  return absl::StrJoin(ToStd(v), ", ", [](std::string* out, double x) { absl::StrAppend(out, absl::StrFormat("%g", x)); });
+}
+
+nlohmann::ordered_json MatrixJson(const Matrix& m) {
+  nlohmann::ordered_json rows = nlohmann::ordered_json::array();
+  for (Eigen::Index r = 0; r < m.rows(); ++r) rows.push_back(ToStd(m.row(r).transpose()));
+  return rows;
+}
+
+const char* PlantName(tasks::PlantKind kind) {
+  switch (kind) {
+    case tasks::PlantKind::kPendulum: return "pendulum";
+    case tasks::PlantKind::kCartPole: return "cart-pole";
+    case tasks::PlantKind::kCartDoublePendulum: return "cart-double-pendulum";
+    case tasks::PlantKind::kDoublePendulum: return "double-pendulum";
+  }
+  return "";
+}
+
+}  // namespace
+
+nlohmann::ordered_json ScenesToJson(const std::vector<tasks::SceneDefinition>& scenes) {
+  nlohmann::ordered_json out = nlohmann::ordered_json::array();
+  for (const tasks::SceneDefinition& s : scenes) {
+    nlohmann::ordered_json j;
+    j["name"] = s.name;
+    j["summary"] = s.summary;
+    j["plant"] = PlantName(s.plant);
+    j["state_dim"] = s.state_dim();
+    j["control_dim"] = s.control_dim();
+    j["state_names"] = s.state_names;
+    j["state_units"] = s.state_units;
+    j["control_names"] = s.control_names;
+    j["max_control"] = ToStd(s.max_control);
+    j["dt"] = s.dt;
+    j["horizon"] = s.horizon;
+    j["mu0"] = ToStd(s.mu0);
+    j["start_std"] = ToStd(s.start_std);
+    j["measurement_noise_std"] = ToStd(s.measurement_noise_std);
+    j["target"] = ToStd(s.target);
+    j["angle_indices"] = s.angle_indices;
+    j["dynamics_inputs"] = s.dynamics_inputs;
+    j["policy_inputs"] = s.policy_inputs;
+    j["gp"] = {{"inputs", static_cast<int>(s.dynamics_inputs.size()) + s.control_dim()},
+               {"outputs", s.state_dim()},
+               {"model", absl::StrCat("full GP; FITC with ", s.inducing_inputs,
+                                      " inducing inputs once N > ", s.inducing_inputs)},
+               {"inducing_inputs", s.inducing_inputs}};
+    j["saturating_cost"] = {{"Q", MatrixJson(s.saturating_cost.q)},
+                            {"widths", s.saturating_cost.widths},
+                            {"target_z", ToStd(tasks::AugmentState(s.target, s.angle_indices))}};
+    j["angle_cost"] = {{"Q_diagonal", ToStd(s.angle_cost_q)}, {"target", ToStd(s.target)}};
+    j["protocol"] = {{"basis_functions", s.basis_functions},
+                     {"learned_episodes", s.learned_episodes},
+                     {"line_searches", s.line_searches},
+                     {"evaluations_per_line_search", s.evaluations_per_line_search}};
+    j["peak_trial_bytes"] = tasks::PeakTrialBytes(s, kDefaultParticles);
+    j["source"] = s.source;
+    out.push_back(std::move(j));
+  }
+  return out;
+}
+
+std::string ScenesText(const std::vector<tasks::SceneDefinition>& scenes) {
+  std::string out;
+  for (const tasks::SceneDefinition& s : scenes) {
+    absl::StrAppend(&out, s.name, ": ", s.summary, "\n");
+    absl::StrAppend(&out, "  D = ", s.state_dim(), " [", absl::StrJoin(s.state_names, ", "), "], F = ",
+                    s.control_dim(), " [", absl::StrJoin(s.control_names, ", "), "] |u| <= [",
+                    Join(s.max_control), "], dt = ", s.dt, " s, H = ", s.horizon, "\n");
+    absl::StrAppend(&out, "  angles ", absl::StrJoin(s.angle_indices, ","), "; GP inputs z[",
+                    absl::StrJoin(s.dynamics_inputs, ","), "] + u, policy inputs z[",
+                    absl::StrJoin(s.policy_inputs, ","), "]; FITC M = ", s.inducing_inputs,
+                    " once N > M\n");
+    absl::StrAppend(&out, "  start N([", Join(s.mu0), "], diag([", Join(s.start_std),
+                    "])^2), noise std [", Join(s.measurement_noise_std), "], target [",
+                    Join(s.target), "]\n");
+    absl::StrAppend(&out, "  saturating cost widths [",
+                    absl::StrJoin(s.saturating_cost.widths, ", "), "]; angle cost Q = diag([",
+                    Join(s.angle_cost_q), "])\n");
+    absl::StrAppend(&out, "  PILCO protocol: ", s.basis_functions, " RBF centres, ",
+                    s.learned_episodes, " episodes, ", s.line_searches, " line searches x ",
+                    s.evaluations_per_line_search, " evaluations; peak memory per trial ~",
+                    absl::StrFormat("%.0f", tasks::PeakTrialBytes(s, kDefaultParticles) / 1e6), " MB\n");
+    absl::StrAppend(&out, "  source: ", s.source, "\n");
+  }
+  return out;
+}
+
+void AddScenesCommand(CLI::App* app, int* exit_code) {
+  auto json = std::make_shared<bool>(false);
+  CLI::App* cmd = app->add_subcommand("scenes", "List the scenes (plants, index sets, costs, defaults)");
+  cmd->add_flag("--json", *json, "print JSON instead of text");
+  cmd->callback([json, exit_code] {
+    if (*json) {
+      std::cout << ScenesToJson(tasks::SceneCatalog()).dump(2) << "\n";
+    } else {
+      std::cout << ScenesText(tasks::SceneCatalog());
+    }
+    *exit_code = 0;
+  });
+}
+
+}  // namespace totalgrad::cli

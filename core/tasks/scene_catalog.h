@@ -1,0 +1,105 @@
+// The scenes as data: one SceneDefinition per scene, with PILCO's published
+// settings for the scenes taken from PILCO (UCL-SML/pilco-matlab at a0b48b7,
+// scenarios/*/settings_*.m, dynamics_*.m, loss_*.m; docs/scenes.md says
+// where every number comes from) and the paper's cart-pole as it is:
+//
+//   pendulum              D 2, F 1, A 1   swing-up, torque |u| <= 2.5 N m
+//   cartpole-swingup      D 4, F 1, A 1   the paper's cart-pole (options
+//   cartpole-balance                      scene/cost/noise_k/... as before)
+//   cart-double-pendulum  D 6, F 1, A 2   swing-up, force |u| <= 20 N
+//   double-pendulum       D 4, F 2, A 2   swing-up, torques |u_i| <= 2 N m
+//   pendubot              D 4, F 1, A 2   swing-up, torque at joint 1 |u| <= 3.5 N m
+//
+// Index sets are 0-based; the augmented state is z = [x, sin x_a1,
+// cos x_a1, sin x_a2, cos x_a2, ...] over angle_indices in order;
+// dynamics_inputs and policy_inputs index z.
+//
+// Thread safety: the catalog is immutable (built on first use).
+#ifndef TOTALGRAD_CORE_TASKS_SCENE_CATALOG_H_
+#define TOTALGRAD_CORE_TASKS_SCENE_CATALOG_H_
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/common/types.h"
+#include "core/tasks/cart_double_pendulum.h"
+#include "core/tasks/cartpole.h"
+#include "core/tasks/double_pendulum.h"
+#include "core/tasks/pendulum.h"
+#include "core/tasks/plant.h"
+
+namespace totalgrad::tasks {
+
+enum class PlantKind { kPendulum, kCartPole, kCartDoublePendulum, kDoublePendulum };
+
+// PILCO's saturating cost (lossSat) on z: for each width w,
+// c_w(x) = 1 - exp(-(z - z_t)^T (Q / w^2) (z - z_t) / 2), z_t the augmented
+// target; the cost is the mean over the widths.
+struct SaturatingCostSpec {
+  Matrix q;                    // (D + 2A) x (D + 2A), symmetric PSD, on z
+  std::vector<double> widths;  // > 0
+};
+
+struct SceneDefinition {
+  std::string name;
+  std::string summary;
+  PlantKind plant = PlantKind::kCartPole;
+  // The parameters of `plant` (the other kinds' are unused).
+  PendulumParams pendulum;
+  CartPoleParams cartpole;
+  CartDoublePendulumParams cart_double_pendulum;
+  DoublePendulumParams double_pendulum;
+  double dt = 0.1;                       // s, control period
+  std::vector<std::string> state_names;  // D, in the plant's state order
+  std::vector<std::string> state_units;  // D
+  std::vector<std::string> control_names;  // F
+  Vector max_control;                    // F, |u_i| <= max_control_i
+  int horizon = 30;                      // H = T / dt (PILCO's; the cart-pole the paper's)
+  Vector mu0;                            // D, start mean
+  Vector start_std;                      // D, sqrt(diag S0)
+  Vector measurement_noise_std;          // D, observation noise std
+  Vector target;                         // D, the goal state
+  std::vector<int> angle_indices;        // A, strictly increasing state indices
+  std::vector<int> dynamics_inputs;      // into z, strictly increasing
+  std::vector<int> policy_inputs;        // into z, strictly increasing
+  SaturatingCostSpec saturating_cost;    // PILCO's loss
+  Vector angle_cost_q;                   // D, diag Q of the angle cost 1 - exp(-(x-t)^T Q (x-t))
+  // PILCO's protocol.
+  int basis_functions = 50;              // RBF centres
+  int inducing_inputs = 300;             // FITC with M inducing inputs once N > M
+  int learned_episodes = 15;             // policy optimisations
+  int line_searches = 150;               // BFGS line searches per optimisation
+  int evaluations_per_line_search = 30;
+  std::string source;                    // where the numbers come from
+
+  int state_dim() const { return static_cast<int>(mu0.size()); }
+  int control_dim() const { return static_cast<int>(max_control.size()); }
+  int num_angles() const { return static_cast<int>(angle_indices.size()); }
+  int augmented_dim() const { return state_dim() + 2 * num_angles(); }
+};
+
+// Every scene, in the order above.
+const std::vector<SceneDefinition>& SceneCatalog();
+// The scene named `name`, or null.
+const SceneDefinition* FindSceneDefinition(const std::string& name);
+// The names, in catalog order.
+std::vector<std::string> SceneNames();
+
+// The plant of a definition with its dt and `integrator`.
+std::unique_ptr<Plant> MakePlant(const SceneDefinition& definition,
+                                 const ode::IntegratorOptions& integrator = {});
+
+// z = [x, sin x_a1, cos x_a1, ...] of one state.
+Vector AugmentState(const Vector& x, const std::vector<int>& angle_indices);
+
+// A rough peak of a trial's memory (bytes): the GP of the last episode (per
+// output K^-1 and one factor of min(N, M)^2 doubles, N = H (episodes + 1))
+// and the particle methods' rollout record (P = particles, H steps, per
+// particle D x (D + F + 1) Jacobian entries for mean and variance), the
+// larger of the two model paths counted. For `totalgrad scenes`.
+double PeakTrialBytes(const SceneDefinition& definition, int particles);
+
+}  // namespace totalgrad::tasks
+
+#endif  // TOTALGRAD_CORE_TASKS_SCENE_CATALOG_H_

@@ -1,0 +1,105 @@
+// The scene catalog: consistent shapes and index sets for every scene, PILCO's
+// numbers where the notes give them, and the augmented state.
+#include "core/tasks/scene_catalog.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+
+#include <cmath>
+#include <numbers>
+#include <set>
+
+namespace totalgrad::tasks {
+namespace {
+
+bool StrictlyIncreasingBelow(const std::vector<int>& v, int bound) {
+  for (size_t i = 0; i < v.size(); ++i) {
+    if (v[i] < 0 || v[i] >= bound) return false;
+    if (i > 0 && v[i] <= v[i - 1]) return false;
+  }
+  return true;
+}
+
+TEST(SceneCatalogTest, EveryDefinitionIsConsistent) {
+  std::set<std::string> names;
+  for (const SceneDefinition& s : SceneCatalog()) {
+    SCOPED_TRACE(s.name);
+    EXPECT_TRUE(names.insert(s.name).second);
+    const int d = s.state_dim(), f = s.control_dim(), z = s.augmented_dim();
+    const auto plant = MakePlant(s);
+    EXPECT_EQ(plant->state_dim(), d);
+    EXPECT_EQ(plant->control_dim(), f);
+    EXPECT_EQ(static_cast<int>(s.state_names.size()), d);
+    EXPECT_EQ(static_cast<int>(s.state_units.size()), d);
+    EXPECT_EQ(static_cast<int>(s.control_names.size()), f);
+    for (const Vector* v : {&s.start_std, &s.measurement_noise_std, &s.target, &s.angle_cost_q})
+      EXPECT_EQ(v->size(), d);
+    EXPECT_TRUE((s.max_control.array() > 0).all());
+    EXPECT_TRUE(StrictlyIncreasingBelow(s.angle_indices, d));
+    EXPECT_TRUE(StrictlyIncreasingBelow(s.dynamics_inputs, z));
+    EXPECT_TRUE(StrictlyIncreasingBelow(s.policy_inputs, z));
+    // The GP and the policy never see a raw angle, only its sin and cos.
+    for (int a : s.angle_indices) {
+      EXPECT_EQ(std::count(s.dynamics_inputs.begin(), s.dynamics_inputs.end(), a), 0);
+      EXPECT_EQ(std::count(s.policy_inputs.begin(), s.policy_inputs.end(), a), 0);
+    }
+    EXPECT_EQ(s.saturating_cost.q.rows(), z);
+    EXPECT_EQ(s.saturating_cost.q.cols(), z);
+    EXPECT_TRUE(s.saturating_cost.q.isApprox(s.saturating_cost.q.transpose()));
+    EXPECT_GE(Eigen::SelfAdjointEigenSolver<Matrix>(s.saturating_cost.q).eigenvalues().minCoeff(), -1e-12);
+    EXPECT_FALSE(s.saturating_cost.widths.empty());
+    EXPECT_GT(s.horizon, 0);
+    EXPECT_GT(s.dt, 0);
+    EXPECT_FALSE(s.source.empty());
+    EXPECT_GT(PeakTrialBytes(s, 300), 0);
+  }
+  EXPECT_EQ(SceneNames().size(), 6u);
+}
+
+// PILCO's settings as the notes give them (a few of each scene's numbers).
+TEST(SceneCatalogTest, PilcoSettings) {
+  const SceneDefinition& pendulum = *FindSceneDefinition("pendulum");
+  EXPECT_EQ(pendulum.horizon, 40);
+  EXPECT_EQ(pendulum.max_control(0), 2.5);
+  EXPECT_EQ(pendulum.dynamics_inputs, (std::vector<int>{0, 2, 3}));
+  const SceneDefinition& cdp = *FindSceneDefinition("cart-double-pendulum");
+  EXPECT_EQ(cdp.horizon, 100);
+  EXPECT_EQ(cdp.dt, 0.05);
+  EXPECT_EQ(cdp.inducing_inputs, 400);
+  EXPECT_EQ(cdp.dynamics_inputs, (std::vector<int>{0, 1, 2, 3, 6, 7, 8, 9}));
+  const SceneDefinition& dp = *FindSceneDefinition("double-pendulum");
+  EXPECT_EQ(dp.control_dim(), 2);
+  EXPECT_EQ(dp.dynamics_inputs, (std::vector<int>{0, 1, 4, 5, 6, 7}));
+  const SceneDefinition& pendubot = *FindSceneDefinition("pendubot");
+  EXPECT_EQ(pendubot.control_dim(), 1);
+  EXPECT_EQ(pendubot.saturating_cost.widths, std::vector<double>{0.25});
+  EXPECT_EQ(pendubot.evaluations_per_line_search, 20);
+}
+
+// The cart-pole's saturating cost is the tip cost: C z - C z_t is the tip's
+// offset from the upright tip.
+TEST(SceneCatalogTest, CartPoleSaturatingCostIsTheTipDistance) {
+  const SceneDefinition& s = *FindSceneDefinition("cartpole-swingup");
+  Vector x(4);
+  x << 0.3, 2.0, 1.0, -1.0;
+  const Vector dz = AugmentState(x, s.angle_indices) - AugmentState(s.target, s.angle_indices);
+  const double d2 = std::pow(0.3 + 0.5 * std::sin(2.0), 2) + std::pow(0.5 * std::cos(2.0) + 0.5, 2);
+  EXPECT_NEAR(dz.dot(s.saturating_cost.q * dz), d2, 1e-14);
+}
+
+TEST(SceneCatalogTest, AugmentStateAppendsSinAndCosInAngleOrder) {
+  Vector x(4);
+  x << 1.0, 2.0, 0.5, -0.25;
+  const Vector z = AugmentState(x, {2, 3});
+  ASSERT_EQ(z.size(), 8);
+  EXPECT_EQ(z.head(4), x);
+  EXPECT_EQ(z(4), std::sin(0.5));
+  EXPECT_EQ(z(5), std::cos(0.5));
+  EXPECT_EQ(z(6), std::sin(-0.25));
+  EXPECT_EQ(z(7), std::cos(-0.25));
+}
+
+}  // namespace
+}  // namespace totalgrad::tasks
