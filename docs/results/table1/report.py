@@ -1,0 +1,144 @@
+#!/usr/bin/python3
+"""Issue 16's tables from sweep archives (`totalgrad results export SWEEP -f json`).
+
+For every method of each archive: successes / n of the completed trials, the
+95% Wilson interval, the paper's rate (Table 1 of the paper, where it has one)
+and whether it lies inside our interval, the median final evaluation cost with
+its quartiles, the CPU hours the trials took (the per-episode CPU seconds the
+workers reported) against the cost model's estimate for the same options
+(`totalgrad bench estimate`), and the builds that ran the trials.
+
+Usage: report.py [--totalgrad BIN] ARCHIVE.json...
+Prints Markdown on stdout. Reads nothing but the archives (and asks BIN for
+the cost model, when given).
+"""
+import argparse
+import json
+import math
+import statistics
+import subprocess
+import sys
+
+# The paper's Table 1, swing-up: (cost, k) -> method -> success rate.
+PAPER_RATES = {
+    ("tip", "1"): {"PILCO": 0.73, "RP": 0.15, "GR": 0.68, "LR": 0.28, "TP": 0.48,
+                   "GTP": 0.69, "GLR": 0.35},
+    ("tip", "0.01"): {"PILCO": 0.92, "RP": 0.44, "GR": 0.47, "LR": 0.36, "TP": 0.54,
+                      "GTP": 0.6, "GLR": 0.45, "GTP+sn": 0.8},
+    ("angle", "1"): {"PILCO": 0.79, "RP": 0.74, "GR": 0.89, "LR": 0.96, "TP": 0.99,
+                     "GTP": 0.9, "GLR": 0.93},
+    ("angle", "0.01"): {"PILCO": 0.88, "RP": 0.69, "GR": 0.63, "LR": 0.57, "TP": 0.82,
+                        "GTP": 0.65, "GLR": 0.42, "GTP+sn": 0.88},
+}
+
+
+def wilson_interval(successes, n, z=1.959963984540054):
+    if n == 0:
+        return (0.0, 1.0)
+    p = successes / n
+    denominator = 1 + z * z / n
+    centre = (p + z * z / (2 * n)) / denominator
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / denominator
+    return (max(0.0, centre - half), min(1.0, centre + half))
+
+
+def quartiles(values):
+    if len(values) < 2:
+        return (values[0], values[0], values[0]) if values else (math.nan,) * 3
+    q1, q2, q3 = statistics.quantiles(values, n=4, method="inclusive")
+    return (q1, q2, q3)
+
+
+def paper_rate(options, method):
+    if options.get("scene") != "cartpole-swingup":
+        return None
+    k = options.get("noise_k", "1")
+    k = "0.01" if k in ("0.01", "0.01000000000000000021") else k
+    return PAPER_RATES.get((options.get("cost"), k), {}).get(method)
+
+
+def completed_attempt(job):
+    for attempt in job.get("attempt_log", []):
+        if attempt.get("attempt") == job.get("completed_attempt"):
+            return attempt
+    return None
+
+
+def estimated_cpu_seconds(binary, options, cache):
+    """The cost model's CPU seconds for one trial with these options."""
+    if not binary:
+        return None
+    keys = tuple(sorted((k, v) for k, v in options.items() if k != "seed"))
+    if keys not in cache:
+        command = [binary, "bench", "estimate"]
+        for key, value in keys:
+            command += ["--set", f"{key}={value}"]
+        result = subprocess.run(command, capture_output=True, text=True)
+        if result.returncode != 0:
+            print(f"bench estimate failed: {result.stderr.strip()}", file=sys.stderr)
+            cache[keys] = None
+        else:
+            cache[keys] = json.loads(result.stdout)["total_cpu_seconds"]
+    return cache[keys]
+
+
+def report(archive_path, binary, cache):
+    archive = json.load(open(archive_path))
+    sweep = archive["sweep"]
+    jobs = [job for job in archive["jobs"] if job.get("kind") == "trial"]
+    methods = []
+    for job in jobs:
+        if job["method"] not in methods:
+            methods.append(job["method"])
+    print(f"### {sweep['name']}: {sweep.get('description', '')}\n")
+    completed = [job for job in jobs if job.get("state") == "completed"]
+    print(f"{len(completed)} of {len(jobs)} trials completed "
+          f"(archive exported by {archive['exported_by']}).\n")
+    print("| method | successes / n | 95% Wilson | paper | paper inside? "
+          "| final cost median [q1, q3] | CPU h (measured) | CPU min / trial: measured, model |")
+    print("|---|---|---|---|---|---|---|---|")
+    builds = {}
+    total_cpu = 0.0
+    for method in methods:
+        done = [job for job in completed if job["method"] == method]
+        n = len(done)
+        successes = sum(1 for job in done if job.get("success"))
+        low, high = wilson_interval(successes, n)
+        options = next(job["options"] for job in jobs if job["method"] == method)
+        rate = paper_rate(options, method)
+        inside = "" if rate is None or n == 0 else ("yes" if low <= rate <= high else "**no**")
+        costs = [job["final_eval_cost"] for job in done]
+        q1, median, q3 = quartiles(costs) if costs else (math.nan,) * 3
+        cpu = 0.0
+        for job in done:
+            attempt = completed_attempt(job)
+            if attempt is None:
+                continue
+            builds.setdefault(attempt["worker_build"], []).append(f"{method} s{job['seed']}")
+            cpu += sum(episode.get("cpu_seconds") or 0.0 for episode in attempt["episodes"])
+        total_cpu += cpu
+        model = estimated_cpu_seconds(binary, options, cache)
+        per_trial = f"{cpu / n / 60:.1f}" if n else "-"
+        model_text = f"{model / 60:.1f}" if model else "-"
+        cost_text = f"{median:.2f} [{q1:.2f}, {q3:.2f}]" if costs else "-"
+        rate_text = "-" if rate is None else f"{rate:.2f}"
+        print(f"| {method} | {successes} / {n} | [{low:.2f}, {high:.2f}] | {rate_text} | "
+              f"{inside} | {cost_text} | {cpu / 3600:.2f} | {per_trial}, {model_text} |")
+    print(f"\nTotal CPU: {total_cpu / 3600:.2f} h over {len(completed)} trials.\n")
+    for build, trials in builds.items():
+        print(f"- `{build}`: {len(trials)} trials ({', '.join(trials)})")
+    print()
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--totalgrad", help="totalgrad binary for the cost model")
+    parser.add_argument("archives", nargs="+")
+    arguments = parser.parse_args()
+    cache = {}
+    for path in arguments.archives:
+        report(path, arguments.totalgrad, cache)
+
+
+if __name__ == "__main__":
+    main()
