@@ -96,6 +96,8 @@ struct Worker::ActiveLease {
   int64_t backoff_ms = 200;
   std::string cancel_reason;
   std::string failure;
+  // Granted while the poll was being cancelled; the trial never ran.
+  bool never_started = false;
   // Read by the trial's thread without the lock.
   std::atomic<bool> cancel{false};
   std::atomic<bool> lost{false};
@@ -346,6 +348,8 @@ void Worker::SlotLoop(int slot) {
       if (status.ok() && response.granted()) {
         auto active = std::make_shared<ActiveLease>();
         active->lease = response.lease();
+        active->never_started = true;
+        active->cancel_reason = "drain";
         Finish(active, absl::CancelledError("drain"));
       }
       break;
@@ -757,6 +761,7 @@ void Worker::Finish(const std::shared_ptr<ActiveLease>& active,
                     const absl::StatusOr<TrialOutcome>& result, const StudyOutcome* study) {
   const v1::LeaseKey& key = active->lease.key();
   std::string failure, cancel_reason;
+  bool never_started = false;
   std::vector<v1::EpisodeReport> unacked;
   std::optional<v1::TrialCheckpoint> checkpoint;
   {
@@ -771,6 +776,7 @@ void Worker::Finish(const std::shared_ptr<ActiveLease>& active,
     }
     failure = active->failure;
     cancel_reason = active->cancel_reason;
+    never_started = active->never_started;
     unacked = active->unacked;
     checkpoint = active->checkpoint;
   }
@@ -793,6 +799,7 @@ void Worker::Finish(const std::shared_ptr<ActiveLease>& active,
     release->set_worker_id(options_.worker_id);
     *release->mutable_lease() = key;
     release->set_reason(cancel_reason.empty() ? "cancelled" : cancel_reason);
+    release->set_never_started(never_started);
   } else {
     v1::CompleteRequest* complete = entry.mutable_complete();
     complete->set_worker_id(options_.worker_id);

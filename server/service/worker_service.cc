@@ -5,6 +5,8 @@
 
 #include <spdlog/spdlog.h>
 
+#include "absl/strings/str_cat.h"
+
 #include "server/service/convert.h"
 
 namespace totalgrad::service {
@@ -99,6 +101,11 @@ grpc::Status WorkerServiceImpl::Release(grpc::ServerContext* context,
                                         const v1::ReleaseRequest* request,
                                         v1::ReleaseResponse* response) {
   TG_AUTHORIZE(context);
+  if (request->never_started()) {
+    return ToGrpcStatus(scheduler_->ReturnUndelivered(
+        request->worker_id(), FromProto(request->lease()),
+        absl::StrCat("given back unstarted: ", request->reason())));
+  }
   return ToGrpcStatus(
       scheduler_->Release(request->worker_id(), FromProto(request->lease()), request->reason()));
 }

@@ -142,7 +142,10 @@ print($1)"
 # After a drain nothing may stay running and no lease may be charged, with
 # one exception. The drain cancels the worker's waiting AcquireLease; if the
 # coordinator granted a lease in that instant, it notices the cancellation and
-# returns the job uncharged (no lost lease). Only if the cancellation lands
+# returns the job uncharged (no lost lease); if the grant reached the worker,
+# the worker gives it back marked never_started, also uncharged (CI once saw
+# this release charged: "job N attempt 1: released (drain)" with no trial
+# started, failing B). Only if the cancellation lands
 # after that check, while the answer is on its way, does the job stay running
 # until its lease expires (5 s here) and come back with one lost lease. Such a
 # job must never have reached the worker; anything else still running, or any

@@ -530,6 +530,40 @@ TEST_F(EndToEndTest, StaleLeaseIsRefusedAndDuplicatesAreNoOps) {
   EXPECT_EQ(job.lost_leases(), 1);
 }
 
+// A lease granted while a draining worker cancelled its poll, and given back
+// unstarted, re-queues its job without charging max_lost_leases; an ordinary
+// release (a trial that started) is charged.
+TEST_F(EndToEndTest, UnstartedReleaseIsNotChargedAsALostLease) {
+  StartCoordinator(0, {}, /*lease_timeout_seconds=*/30);
+  ASSERT_TRUE(Submit(MakeSpec("unstarted", {1}, TinyProtocol())).ok());
+  v1::AcquireLeaseRequest acquire;
+  acquire.mutable_worker()->set_worker_id("drainer");
+  acquire.mutable_worker()->set_slots(1);
+  acquire.set_wait_ms(1000);
+  const auto acquire_and_release = [&](bool never_started) {
+    v1::AcquireLeaseResponse granted;
+    ASSERT_TRUE(worker_stub_->AcquireLease(Context(kWorkerToken).get(), acquire, &granted).ok());
+    ASSERT_TRUE(granted.granted());
+    v1::ReleaseRequest release;
+    release.set_worker_id("drainer");
+    *release.mutable_lease() = granted.lease().key();
+    release.set_reason("drain");
+    release.set_never_started(never_started);
+    v1::ReleaseResponse released;
+    const grpc::Status status =
+        worker_stub_->Release(Context(kWorkerToken).get(), release, &released);
+    ASSERT_TRUE(status.ok()) << status.error_message();
+  };
+  acquire_and_release(/*never_started=*/true);
+  v1::JobInfo job = Jobs("unstarted")[0];
+  EXPECT_EQ(job.state(), v1::JOB_STATE_QUEUED);
+  EXPECT_EQ(job.lost_leases(), 0);
+  acquire_and_release(/*never_started=*/false);
+  job = Jobs("unstarted")[0];
+  EXPECT_EQ(job.state(), v1::JOB_STATE_QUEUED);
+  EXPECT_EQ(job.lost_leases(), 1);
+}
+
 // Issue 12.1: a hand-made Complete that reports fewer episodes than the job
 // expects (or claims the right total with episodes missing) is refused; the
 // job stays running and nothing reaches the results table.
