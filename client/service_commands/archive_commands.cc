@@ -1,7 +1,15 @@
 // `totalgrad results export` (episode rows as CSV or JSON lines, or the whole
-// sweep as an archive) and `totalgrad results import` (an archive into this
-// coordinator). The archive format is server/service/sweep_archive.h.
+// sweep as an archive), `totalgrad results import` (an archive into this
+// coordinator) and `totalgrad sweep delete` (archive, then delete). The
+// archive format is server/service/sweep_archive.h.
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <chrono>
+#include <cstring>
+#include <ctime>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <map>
@@ -12,7 +20,9 @@
 
 #include <nlohmann/json.hpp>
 
+#include "absl/status/status.h"
 #include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
 #include "client/service_commands/connection.h"
 #include "client/service_commands/format.h"
 #include "server/common/build_info.h"
@@ -146,7 +156,125 @@ int ExportArchive(Connection* c, const std::string& sweep_name, std::ostream& ou
   return 0;
 }
 
+// What an archive holds, counted as the coordinator counts a sweep
+// (storage::SweepContents): the guard of DeleteSweep.
+v1::SweepContents CountArchive(const nlohmann::json& archive) {
+  v1::SweepContents counts;
+  for (const auto& job : archive.at("jobs")) {
+    counts.set_jobs(counts.jobs() + 1);
+    for (const auto& attempt : job.at("attempt_log")) {
+      counts.set_attempts(counts.attempts() + 1);
+      if (attempt.contains("episodes")) {
+        counts.set_episodes(counts.episodes() + static_cast<int64_t>(attempt["episodes"].size()));
+      }
+      for (const char* rows : {"study_cells", "study_references"}) {
+        if (attempt.contains(rows)) {
+          counts.set_study_rows(counts.study_rows() + static_cast<int64_t>(attempt[rows].size()));
+        }
+      }
+    }
+  }
+  return counts;
+}
+
+// Writes `text` to `path` durably: a new file (never over an existing one),
+// written, fsync'ed, then renamed into place. The error names the path and
+// the system's reason (e.g. "No space left on device").
+absl::Status WriteNewFileDurably(const std::string& path, const std::string& text) {
+  if (std::filesystem::exists(path)) {
+    return absl::AlreadyExistsError(absl::StrCat(path, " already exists; not overwriting it"));
+  }
+  const std::string temporary = path + ".partial";
+  const int fd = ::open(temporary.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
+  if (fd < 0) {
+    return absl::UnavailableError(absl::StrCat("cannot create ", temporary, ": ",
+                                               std::strerror(errno)));
+  }
+  size_t written = 0;
+  while (written < text.size()) {
+    const ssize_t n = ::write(fd, text.data() + written, text.size() - written);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      const std::string reason = std::strerror(errno);
+      ::close(fd);
+      std::filesystem::remove(temporary);
+      return absl::UnavailableError(absl::StrCat("writing ", temporary, ": ", reason));
+    }
+    written += static_cast<size_t>(n);
+  }
+  if (::fsync(fd) != 0 || ::close(fd) != 0) {
+    const std::string reason = std::strerror(errno);
+    std::filesystem::remove(temporary);
+    return absl::UnavailableError(absl::StrCat("syncing ", temporary, ": ", reason));
+  }
+  std::error_code error;
+  std::filesystem::rename(temporary, path, error);
+  if (error) {
+    std::filesystem::remove(temporary);
+    return absl::UnavailableError(
+        absl::StrCat("renaming ", temporary, " to ", path, ": ", error.message()));
+  }
+  return absl::OkStatus();
+}
+
+// "NAME.deleted-YYYYMMDDTHHMMSSZ.archive.json" in the current directory.
+std::string DefaultDeleteArchivePath(const std::string& sweep) {
+  const std::time_t now = std::time(nullptr);
+  std::tm utc{};
+  gmtime_r(&now, &utc);
+  char stamp[32];
+  std::strftime(stamp, sizeof stamp, "%Y%m%dT%H%M%SZ", &utc);
+  return absl::StrCat(sweep, ".deleted-", stamp, ".archive.json");
+}
+
 }  // namespace
+
+void AddSweepDeleteCommand(CLI::App* sweep_cmd, int* exit_code) {
+  auto name = std::make_shared<std::string>();
+  auto archive_path = std::make_shared<std::string>();
+  CLI::App* command = AddCommand(
+      sweep_cmd, "delete",
+      "archive a sweep to a file (as results export -f json writes it), then delete the sweep "
+      "and everything stored for it; `results import FILE` brings it back. Refused while a trial "
+      "of the sweep runs (cancel it first)",
+      exit_code,
+      [name, archive_path](Connection* c) {
+        const std::string path =
+            archive_path->empty() ? DefaultDeleteArchivePath(*name) : *archive_path;
+        std::ostringstream archive_text;
+        if (const int code = ExportArchive(c, *name, archive_text); code != 0) return code;
+        const nlohmann::json archive = nlohmann::json::parse(archive_text.str());
+        const v1::SweepContents counted = CountArchive(archive);
+        if (const absl::Status written = WriteNewFileDurably(path, archive_text.str());
+            !written.ok()) {
+          std::cerr << "error: sweep delete " << *name << ": the archive could not be written ("
+                    << written.message() << "); nothing was deleted\n";
+          return 1;
+        }
+        v1::DeleteSweepRequest request;
+        request.set_name(*name);
+        *request.mutable_expected() = counted;
+        v1::DeleteSweepResponse response;
+        const grpc::Status status =
+            c->Call(&v1::ControlService::Stub::DeleteSweep, request, &response);
+        if (!status.ok()) {
+          const int code = ReportError(status, "sweep delete " + *name);
+          std::cerr << "the sweep was not deleted; its archive stays in " << path << "\n";
+          return code;
+        }
+        const v1::SweepContents& deleted = response.deleted();
+        std::cout << "deleted sweep " << *name << " (" << deleted.jobs() << " jobs, "
+                  << deleted.attempts() << " attempts, " << deleted.episodes() << " episodes, "
+                  << deleted.study_rows() << " study rows)\narchived to " << path
+                  << "\nrestore with: totalgrad results import " << path << "\n";
+        return 0;
+      },
+      /*with_format=*/false);
+  command->add_option("SWEEP", *name, "sweep name")->required();
+  command->add_option("--archive", *archive_path,
+                      "write the archive to FILE (default: SWEEP.deleted-<UTC time>.archive.json "
+                      "in the current directory; an existing file is never overwritten)");
+}
 
 void AddArchiveCommands(CLI::App* results, int* exit_code) {
   auto sweep = std::make_shared<std::string>();

@@ -17,6 +17,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "client/service_commands/connection.h"
 #include "core/learner/checkpoint.h"
@@ -79,7 +80,12 @@ int WriteJobArtifacts(Connection* connection, int64_t job_id, const std::string&
   manifest["job"] = job.job_id();
   manifest["sweep"] = job.sweep_name();
   manifest["method"] = job.method();
-  manifest["seed"] = job.seed();
+  int64_t seed = 0;
+  if (absl::SimpleAtoi(job.seed(), &seed)) {
+    manifest["seed"] = seed;  // an integer below 2^53, as stored
+  } else {
+    manifest["seed"] = job.seed();
+  }
   manifest["variant"] = job.variant();
   manifest["state"] = StateName(job.state());
   manifest["attempt"] = response.attempt();

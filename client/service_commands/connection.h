@@ -85,6 +85,9 @@ CLI::App* AddCommand(CLI::App* parent, const std::string& name, const std::strin
 
 // `results export` and `results import` (archive_commands.cc).
 void AddArchiveCommands(CLI::App* results, int* exit_code);
+// `sweep delete`: archives the sweep to a file, then deletes it
+// (archive_commands.cc).
+void AddSweepDeleteCommand(CLI::App* sweep, int* exit_code);
 
 // Prints "error: <what>: <message>" and returns the exit code for `status`:
 // 3 for UNAVAILABLE/DEADLINE_EXCEEDED, 2 for INVALID_ARGUMENT/NOT_FOUND/

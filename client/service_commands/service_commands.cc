@@ -160,6 +160,7 @@ void AddSweepCommands(CLI::App* app, int* exit_code) {
         });
     command->add_option("SWEEP", *name, "sweep name")->required();
   }
+  AddSweepDeleteCommand(sweep_cmd, exit_code);
 }
 
 void AddJobCommands(CLI::App* app, int* exit_code) {
@@ -191,7 +192,7 @@ void AddJobCommands(CLI::App* app, int* exit_code) {
     listing.columns = {"job",     "sweep",    "method", "seed",     "variant", "state",
                        "attempts", "failures", "lost",  "episodes", "worker",  "final_cost",
                        "success", "last_error"};
-    listing.numeric_columns = {"job", "attempts", "failures", "lost", "final_cost"};
+    listing.numeric_columns = {"job", "seed", "attempts", "failures", "lost", "final_cost"};
     while (true) {
       v1::ListJobsResponse response;
       const grpc::Status status = c->Call(&v1::ControlService::Stub::ListJobs, request, &response);

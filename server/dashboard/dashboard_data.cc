@@ -4,6 +4,7 @@
 #include <cmath>
 #include <set>
 
+#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "client/service_commands/comparison.h"
@@ -46,12 +47,19 @@ json EstimateJson(const FinishEstimate& e) {
           {"basis", e.basis}};
 }
 
+// Seeds are stored as integers below 2^53 (exact in JSON); a seed that is
+// not one would be shown as the text it is.
+json SeedNumber(const std::string& seed) {
+  int64_t value = 0;
+  return absl::SimpleAtoi(seed, &value) ? json(value) : json(seed);
+}
+
 json JobJson(const storage::JobRecord& j) {
   const bool completed = j.state == storage::JobState::kCompleted;
   return {{"id", j.id},
           {"kind", std::string(storage::ToString(j.kind))},
           {"method", j.method},
-          {"seed", j.seed},
+          {"seed", SeedNumber(j.seed)},
           {"variant", j.variant},
           {"state", std::string(storage::ToString(j.state))},
           {"attempts", j.attempts},

@@ -554,6 +554,12 @@ absl::StatusOr<storage::SweepRecord> Scheduler::SetSweepState(const std::string&
   return store_->GetSweep(name);
 }
 
+absl::StatusOr<storage::SweepContents> Scheduler::DeleteSweep(
+    const std::string& name, const storage::SweepContents& expected) {
+  std::lock_guard<std::mutex> lock(decision_mutex_);
+  return store_->DeleteSweep(name, expected, clock_->NowMs());
+}
+
 absl::StatusOr<JobRecord> Scheduler::RetryJob(int64_t job_id) {
   std::lock_guard<std::mutex> lock(decision_mutex_);
   RETURN_IF_ERROR(store_->RetryJob(job_id, clock_->NowMs()));

@@ -204,6 +204,10 @@ class Scheduler {
   // sweep is FailedPrecondition.
   absl::StatusOr<storage::SweepRecord> SetSweepState(const std::string& name,
                                                      storage::SweepState state);
+  // Deletes a sweep (Store::DeleteSweep) under the decision lock, so no lease
+  // of it can be granted meanwhile.
+  absl::StatusOr<storage::SweepContents> DeleteSweep(const std::string& name,
+                                                     const storage::SweepContents& expected);
   absl::StatusOr<storage::JobRecord> RetryJob(int64_t job_id);
   absl::StatusOr<storage::WorkerRecord> DrainWorker(const std::string& worker_id);
 

@@ -171,6 +171,31 @@ grpc::Status ControlServiceImpl::ResumeSweep(grpc::ServerContext* context,
   return SetState(context, request, storage::SweepState::kRunning, response);
 }
 
+grpc::Status ControlServiceImpl::DeleteSweep(grpc::ServerContext* context,
+                                             const v1::DeleteSweepRequest* request,
+                                             v1::DeleteSweepResponse* response) {
+  TG_AUTHORIZE(context);
+  if (!request->has_expected()) {
+    return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                        "expected: the counts of the sweep's archive are required (write the "
+                        "archive first: totalgrad sweep delete does)");
+  }
+  storage::SweepContents expected;
+  expected.jobs = request->expected().jobs();
+  expected.attempts = request->expected().attempts();
+  expected.episodes = request->expected().episodes();
+  expected.study_rows = request->expected().study_rows();
+  absl::StatusOr<storage::SweepContents> deleted =
+      scheduler_->DeleteSweep(request->name(), expected);
+  if (!deleted.ok()) return ToGrpcStatus(deleted.status());
+  v1::SweepContents* out = response->mutable_deleted();
+  out->set_jobs(deleted->jobs);
+  out->set_attempts(deleted->attempts);
+  out->set_episodes(deleted->episodes);
+  out->set_study_rows(deleted->study_rows);
+  return grpc::Status::OK;
+}
+
 grpc::Status ControlServiceImpl::ListJobs(grpc::ServerContext* context,
                                           const v1::ListJobsRequest* request,
                                           v1::ListJobsResponse* response) {

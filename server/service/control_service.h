@@ -52,6 +52,8 @@ class ControlServiceImpl final : public v1::ControlService::Service {
                           v1::SweepInfo* response) override;
   grpc::Status ResumeSweep(grpc::ServerContext* context, const v1::SweepRequest* request,
                            v1::SweepInfo* response) override;
+  grpc::Status DeleteSweep(grpc::ServerContext* context, const v1::DeleteSweepRequest* request,
+                           v1::DeleteSweepResponse* response) override;
   grpc::Status ListJobs(grpc::ServerContext* context, const v1::ListJobsRequest* request,
                         v1::ListJobsResponse* response) override;
   grpc::Status RetryJob(grpc::ServerContext* context, const v1::JobRequest* request,

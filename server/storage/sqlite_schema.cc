@@ -225,6 +225,64 @@ CREATE VIEW episode_rows AS
        JOIN attempts a ON a.job_id = e.job_id AND a.attempt = e.attempt;
 )sql";
 
+// Version 4 -> 5 (issue 15): jobs.seed becomes an INTEGER column (it was
+// TEXT: a reader of the raw table compared seeds as strings). SQLite cannot
+// change a column's type, so the table is rebuilt: copied into a new one with
+// the same columns, the old one dropped, the new one renamed. The views read
+// jobs, so they are dropped first and recreated after (Migrate). The caller
+// runs this with foreign_keys OFF (dropping a referenced table would
+// otherwise delete-check every row) and Migrate checks the keys at the end.
+constexpr char kMigration5[] = R"sql(
+DROP VIEW IF EXISTS episode_rows;
+CREATE TABLE jobs_v5(
+  id INTEGER PRIMARY KEY,
+  sweep_id INTEGER NOT NULL REFERENCES sweeps(id),
+  ordinal INTEGER NOT NULL,
+  method TEXT NOT NULL,
+  seed INTEGER NOT NULL CHECK(typeof(seed) = 'integer' AND seed >= 0),
+  variant TEXT NOT NULL,
+  options_json TEXT NOT NULL,
+  episodes_expected INTEGER NOT NULL CHECK(episodes_expected >= 1),
+  state TEXT NOT NULL
+      CHECK(state IN ('queued', 'running', 'completed', 'failed', 'cancelled')),
+  attempts INTEGER NOT NULL DEFAULT 0,
+  failures INTEGER NOT NULL DEFAULT 0,
+  lost_leases INTEGER NOT NULL DEFAULT 0,
+  completed_attempt INTEGER,
+  success INTEGER,
+  final_eval_cost REAL,
+  last_error TEXT NOT NULL DEFAULT '',
+  kind TEXT NOT NULL DEFAULT 'trial' CHECK(kind IN ('trial', 'study')),
+  payload TEXT NOT NULL DEFAULT '',
+  UNIQUE(sweep_id, ordinal)
+);
+INSERT INTO jobs_v5(id, sweep_id, ordinal, method, seed, variant, options_json,
+                    episodes_expected, state, attempts, failures, lost_leases,
+                    completed_attempt, success, final_eval_cost, last_error, kind, payload)
+  SELECT id, sweep_id, ordinal, method, CAST(seed AS INTEGER), variant, options_json,
+         episodes_expected, state, attempts, failures, lost_leases,
+         completed_attempt, success, final_eval_cost, last_error, kind, payload FROM jobs;
+DROP TABLE jobs;
+ALTER TABLE jobs_v5 RENAME TO jobs;
+CREATE INDEX jobs_by_state ON jobs(state, sweep_id, ordinal);
+)sql";
+
+// One row per stored episode of every sweep (version 5: the seed is already
+// an integer; version 4 cast it).
+constexpr char kEpisodeRowsView[] = R"sql(
+CREATE VIEW episode_rows AS
+  SELECT s.name AS sweep, j.id AS job_id, j.method AS method, j.seed AS seed,
+         j.variant AS variant, e.attempt AS attempt,
+         (e.attempt = COALESCE(j.completed_attempt, j.attempts)) AS final_attempt,
+         e.episode AS episode, e.real_cost AS real_cost, e.eval_cost_mean AS eval_cost_mean,
+         e.eval_cost_std AS eval_cost_std, e.predicted_cost AS predicted_cost,
+         e.optimisation_seconds AS wall_seconds, e.cpu_seconds AS cpu_seconds,
+         j.state AS job_state, j.success AS success, j.final_eval_cost AS final_eval_cost,
+         a.worker_build AS worker_build
+  FROM episodes e JOIN jobs j ON j.id = e.job_id JOIN sweeps s ON s.id = j.sweep_id
+       JOIN attempts a ON a.job_id = e.job_id AND a.attempt = e.attempt;
+)sql";
+
 // A value's number, when its canonical text is one: integers (seeds,
 // counts) as INTEGER, others as REAL.
 void BindNumber(Statement& statement, int index, const std::string& text) {
@@ -331,11 +389,50 @@ absl::Status Migrate(Db& db, int64_t from) {
       RETURN_IF_ERROR(WriteJobOptions(db, jobs.ColumnInt(0), jobs.ColumnText(1),
                                       jobs.ColumnText(2), jobs.ColumnText(3)));
     }
+  }
+  if (from < 5) {
+    // Every view reads jobs: drop them all (the per-sweep ones are rebuilt
+    // below from job_options), rebuild jobs, recreate the views.
+    std::vector<std::string> views;
+    {
+      ASSIGN_OR_RETURN(Statement list, Statement::Prepare(
+          db, "SELECT name FROM sqlite_schema WHERE type = 'view' AND name LIKE 'episodes/%'"));
+      for (;;) {
+        ASSIGN_OR_RETURN(bool row, list.Step());
+        if (!row) break;
+        views.push_back(list.ColumnText(0));
+      }
+    }
+    for (const std::string& view : views) {
+      RETURN_IF_ERROR(db.Exec(absl::StrCat("DROP VIEW ", QuoteIdentifier(view))));
+    }
+    {
+      // A seed that is not an integer would be stored as 0 by the CAST and
+      // then refused by the CHECK: name it instead.
+      ASSIGN_OR_RETURN(Statement bad, Statement::Prepare(
+          db, "SELECT id, seed FROM jobs WHERE CAST(CAST(seed AS INTEGER) AS TEXT) != seed "
+              "OR CAST(seed AS INTEGER) < 0 LIMIT 1"));
+      ASSIGN_OR_RETURN(bool row, bad.Step());
+      if (row) {
+        return absl::FailedPreconditionError(
+            absl::StrCat("job ", bad.ColumnInt(0), " has seed '", bad.ColumnText(1),
+                         "', which is not an integer in [0, 2^63): it cannot be migrated"));
+      }
+    }
+    RETURN_IF_ERROR(db.Exec(kMigration5));
+    RETURN_IF_ERROR(db.Exec(kEpisodeRowsView));
     ASSIGN_OR_RETURN(Statement sweeps, Statement::Prepare(db, "SELECT id, name FROM sweeps"));
     for (;;) {
       ASSIGN_OR_RETURN(bool row, sweeps.Step());
       if (!row) break;
       RETURN_IF_ERROR(CreateSweepView(db, sweeps.ColumnInt(0), sweeps.ColumnText(1)));
+    }
+    ASSIGN_OR_RETURN(Statement keys, Statement::Prepare(db, "PRAGMA foreign_key_check"));
+    ASSIGN_OR_RETURN(bool violation, keys.Step());
+    if (violation) {
+      return absl::DataLossError(absl::StrCat(
+          "after rebuilding jobs, table ", keys.ColumnText(0), " row ", keys.ColumnInt(1),
+          " refers to a missing row of ", keys.ColumnText(2)));
     }
   }
   RETURN_IF_ERROR(db.Exec(absl::StrCat(

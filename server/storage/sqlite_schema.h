@@ -17,14 +17,18 @@
 namespace totalgrad::storage::internal {
 
 // Version 4: job_options, episodes.cpu_seconds, the views, meta filled.
-inline constexpr int kSchemaVersion = 4;
+// Version 5: jobs.seed is an INTEGER column (was TEXT).
+inline constexpr int kSchemaVersion = 5;
 
 // The schema of version 1 (a new database is created as version 1 and
 // migrated, in one transaction, so new and migrated files are alike).
 const char* SchemaText();
 
 // Applies the migrations from `from` up to kSchemaVersion inside the
-// caller's transaction and sets user_version and the meta table.
+// caller's transaction and sets user_version and the meta table. The caller
+// turns foreign_keys OFF before its transaction (version 5 rebuilds the jobs
+// table, which other tables reference) and back ON after; Migrate checks
+// every key itself before returning (DataLoss naming a dangling row).
 absl::Status Migrate(Db& db, int64_t from);
 
 // Stores a job's swept keys (method, seed and the variant's "key=value"

@@ -728,7 +728,9 @@ absl::StatusOr<std::unique_ptr<SqliteStore>> SqliteStore::Open(const std::string
     // than write speed here (a trial costs CPU-hours, a commit a millisecond).
     RETURN_IF_ERROR(writer.Exec("PRAGMA journal_mode=WAL"));
     RETURN_IF_ERROR(writer.Exec("PRAGMA synchronous=FULL"));
-    RETURN_IF_ERROR(writer.Exec("PRAGMA foreign_keys=ON"));
+    // OFF while the schema is created or migrated (a migration may rebuild a
+    // referenced table; internal::Migrate checks every key itself), ON after.
+    RETURN_IF_ERROR(writer.Exec("PRAGMA foreign_keys=OFF"));
     {
       ASSIGN_OR_RETURN(Statement mode, Statement::Prepare(writer, "PRAGMA journal_mode"));
       ASSIGN_OR_RETURN(bool row, mode.Step());
@@ -781,6 +783,7 @@ absl::StatusOr<std::unique_ptr<SqliteStore>> SqliteStore::Open(const std::string
                                          " failed: ", migrated.message()));
       }
     }
+    RETURN_IF_ERROR(writer.Exec("PRAGMA foreign_keys=ON"));
     if (options.max_page_count > 0) {
       RETURN_IF_ERROR(
           writer.Exec(absl::StrCat("PRAGMA max_page_count=", options.max_page_count)));
@@ -1014,6 +1017,74 @@ WHERE sweep_id = ? AND state = 'cancelled')sql"));
   });
 }
 
+absl::StatusOr<SweepContents> SqliteStore::DeleteSweep(const std::string& name,
+                                                      const SweepContents& expected,
+                                                      int64_t now_ms) {
+  SweepContents deleted;
+  RETURN_IF_ERROR(InWriteTransaction([&](Db& db) -> absl::Status {
+    ASSIGN_OR_RETURN(Statement query, Statement::Prepare(db, "SELECT id FROM sweeps WHERE name = ?"));
+    query.Bind(1, name);
+    ASSIGN_OR_RETURN(bool found, query.Step());
+    if (!found) return absl::NotFoundError(absl::StrCat("no sweep named '", name, "'"));
+    const int64_t sweep_id = query.ColumnInt(0);
+    ASSIGN_OR_RETURN(const int64_t open_attempts, QueryInt(db, R"sql(
+SELECT COUNT(*) FROM attempts a JOIN jobs j ON j.id = a.job_id
+WHERE j.sweep_id = ? AND a.state = 'running')sql", sweep_id));
+    if (open_attempts > 0) {
+      return absl::FailedPreconditionError(absl::StrCat(
+          "sweep '", name, "' has ", open_attempts, " trial(s) running on workers; cancel it "
+          "first (totalgrad sweep cancel ", name, ") and delete it once they have stopped"));
+    }
+    constexpr char kOfSweep[] = "job_id IN (SELECT id FROM jobs WHERE sweep_id = ?)";
+    ASSIGN_OR_RETURN(deleted.jobs,
+                     QueryInt(db, "SELECT COUNT(*) FROM jobs WHERE sweep_id = ?", sweep_id));
+    ASSIGN_OR_RETURN(deleted.attempts,
+                     QueryInt(db, absl::StrCat("SELECT COUNT(*) FROM attempts WHERE ", kOfSweep),
+                              sweep_id));
+    ASSIGN_OR_RETURN(deleted.episodes,
+                     QueryInt(db, absl::StrCat("SELECT COUNT(*) FROM episodes WHERE ", kOfSweep),
+                              sweep_id));
+    ASSIGN_OR_RETURN(const int64_t cells,
+                     QueryInt(db, absl::StrCat("SELECT COUNT(*) FROM study_cells WHERE ", kOfSweep),
+                              sweep_id));
+    ASSIGN_OR_RETURN(const int64_t references,
+                     QueryInt(db, absl::StrCat("SELECT COUNT(*) FROM study_references WHERE ",
+                                               kOfSweep),
+                              sweep_id));
+    deleted.study_rows = cells + references;
+    if (!(deleted == expected)) {
+      return absl::FailedPreconditionError(absl::StrCat(
+          "sweep '", name, "' changed after it was archived (now ", deleted.jobs, " jobs, ",
+          deleted.attempts, " attempts, ", deleted.episodes, " episodes, ", deleted.study_rows,
+          " study rows; the archive has ", expected.jobs, ", ", expected.attempts, ", ",
+          expected.episodes, ", ", expected.study_rows, "); nothing was deleted: run the "
+          "delete again"));
+    }
+    // Children first: the foreign keys point from episodes, study rows and
+    // checkpoints to attempts, from attempts, options and events to jobs.
+    for (const char* table : {"episodes", "study_cells", "study_references", "checkpoints",
+                              "attempts", "job_options", "events"}) {
+      ASSIGN_OR_RETURN(Statement remove, Statement::Prepare(
+          db, absl::StrCat("DELETE FROM ", table, " WHERE ", kOfSweep)));
+      remove.Bind(1, sweep_id);
+      RETURN_IF_ERROR(remove.Run());
+    }
+    for (const char* sql : {"DELETE FROM events WHERE sweep_id = ?",
+                            "DELETE FROM jobs WHERE sweep_id = ?",
+                            "DELETE FROM sweeps WHERE id = ?"}) {
+      ASSIGN_OR_RETURN(Statement remove, Statement::Prepare(db, sql));
+      remove.Bind(1, sweep_id);
+      RETURN_IF_ERROR(remove.Run());
+    }
+    RETURN_IF_ERROR(internal::DropSweepView(db, name));
+    return AddEvent(db, now_ms, 0, 0, 0, "sweep_deleted",
+                    absl::StrCat("sweep '", name, "': ", deleted.jobs, " jobs, ",
+                                 deleted.attempts, " attempts, ", deleted.episodes,
+                                 " episodes, ", deleted.study_rows, " study rows"));
+  }));
+  return deleted;
+}
+
 absl::Status SqliteStore::StartAttempt(const LeaseKey& key, const WorkerIdentity& worker,
                                        int64_t now_ms, int64_t lease_expires_ms) {
   return InWriteTransaction([&](Db& db) -> absl::Status {
@@ -1207,8 +1278,25 @@ absl::Status SqliteStore::RetryJob(int64_t job_id, int64_t now_ms) {
           "retried"));
     }
     if (job.sweep_state == SweepState::kCancelled) {
-      return absl::FailedPreconditionError(absl::StrCat(
-          "job ", job_id, " belongs to sweep '", job.sweep_name, "', which is cancelled"));
+      // Retrying one job of a cancelled sweep runs that job alone: the sweep
+      // runs again, its other cancelled jobs stay cancelled (`sweep resume`
+      // re-queues them all). Not while the job's cancelled attempt is still
+      // open: its worker has yet to answer the cancel.
+      ASSIGN_OR_RETURN(const int64_t open, QueryInt(db, R"sql(
+SELECT COUNT(*) FROM attempts WHERE job_id = ? AND state = 'running')sql", job_id));
+      if (open > 0) {
+        return absl::FailedPreconditionError(absl::StrCat(
+            "job ", job_id, " of cancelled sweep '", job.sweep_name, "' is still stopping on its "
+            "worker; retry it once it has stopped, or resume the whole sweep (totalgrad sweep "
+            "resume ", job.sweep_name, ")"));
+      }
+      ASSIGN_OR_RETURN(Statement resume, Statement::Prepare(
+          db, "UPDATE sweeps SET state = 'running' WHERE id = ?"));
+      resume.Bind(1, job.sweep_id);
+      RETURN_IF_ERROR(resume.Run());
+      RETURN_IF_ERROR(AddEvent(db, now_ms, job.sweep_id, job_id, job.attempts, "sweep_running",
+                               absl::StrCat("was cancelled; job ", job_id,
+                                            " retried (its other cancelled jobs stay cancelled)")));
     }
     ASSIGN_OR_RETURN(Statement update,
                      Statement::Prepare(db, "UPDATE jobs SET state = 'queued', failures = 0, "

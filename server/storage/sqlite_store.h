@@ -99,6 +99,9 @@ class SqliteStore final : public Store {
   absl::StatusOr<SweepRecord> CreateSweep(const NewSweep& sweep, int64_t now_ms,
                                           bool* created) override;
   absl::Status SetSweepState(const std::string& name, SweepState state, int64_t now_ms) override;
+  absl::StatusOr<SweepContents> DeleteSweep(const std::string& name,
+                                            const SweepContents& expected,
+                                            int64_t now_ms) override;
   absl::Status StartAttempt(const LeaseKey& key, const WorkerIdentity& worker, int64_t now_ms,
                             int64_t lease_expires_ms) override;
   absl::StatusOr<int> StoreEpisodes(const LeaseKey& key, const std::string& worker_id,

@@ -37,6 +37,16 @@
 namespace totalgrad::storage {
 
 enum class SweepState { kRunning, kPaused, kCancelled };
+
+// What one sweep holds, counted as a sweep archive counts it
+// (Store::DeleteSweep's guard: delete only what was archived).
+struct SweepContents {
+  int64_t jobs = 0;
+  int64_t attempts = 0;
+  int64_t episodes = 0;    // every attempt's
+  int64_t study_rows = 0;  // cells and references, every attempt's
+  bool operator==(const SweepContents&) const = default;
+};
 enum class JobState { kQueued, kRunning, kCompleted, kFailed, kCancelled };
 enum class AttemptState { kRunning, kCompleted, kFailed, kLeaseLost, kReleased, kCancelled };
 // A trial reports episodes; a study (core/study) reports study rows.
@@ -429,6 +439,18 @@ class Store {
   virtual absl::Status SetSweepState(const std::string& name, SweepState state,
                                      int64_t now_ms) = 0;
 
+  // Deletes sweep `name` and every row stored for it, in one transaction:
+  // its jobs, their options, attempts, episodes, study rows, checkpoints and
+  // events, and its view; one event "sweep_deleted" (no sweep id) records
+  // the name and the counts. NotFound if no such sweep. FailedPrecondition,
+  // deleting nothing, while an attempt of the sweep is open (a worker holds
+  // its lease: cancel the sweep and let the trials stop first), or when the
+  // sweep's contents differ from `expected` (it changed after the caller
+  // archived it). Returns what was deleted.
+  virtual absl::StatusOr<SweepContents> DeleteSweep(const std::string& name,
+                                                    const SweepContents& expected,
+                                                    int64_t now_ms) = 0;
+
   // Opens attempt `key.attempt` of a queued job for `worker`: the job becomes
   // running with attempts = key.attempt. FailedPrecondition (nothing changed)
   // unless the job is queued with attempts == key.attempt - 1.
@@ -493,8 +515,10 @@ class Store {
                                                   const std::string& source, int64_t now_ms) = 0;
 
   // Puts a failed or cancelled job back in the queue with zeroed failure and
-  // lost-lease counts. FailedPrecondition otherwise, or if its sweep is
-  // cancelled; NotFound if no such job.
+  // lost-lease counts. A job of a cancelled sweep runs alone: the sweep
+  // becomes running, its other cancelled jobs stay cancelled.
+  // FailedPrecondition for a job in another state, or one of a cancelled
+  // sweep whose attempt is still open; NotFound if no such job.
   virtual absl::Status RetryJob(int64_t job_id, int64_t now_ms) = 0;
 
   // Sets the lease expiry of every open attempt to at least `lease_expires_ms`

@@ -215,6 +215,66 @@ TEST_F(CliTest, ExportImportMovesASweepAndDatabasesReadWithoutACoordinator) {
   EXPECT_NE(err.find("version 7"), std::string::npos) << err;
 }
 
+// Issue 15: `sweep delete` writes the sweep's archive first (never over an
+// existing file), deletes only then, and `results import` of that archive
+// brings the results back row for row.
+TEST_F(CliTest, SweepDeleteArchivesFirstAndImportRestoresIt) {
+  StartCoordinator();
+  auto worker = StartWorker("deleter");
+  const std::string path = WriteSweep("cli.toml", kTinySweep);
+  std::string out, err;
+  ASSERT_EQ(Cli({"sweep", "submit", path, "--wait"}, &out, &err), 0) << out << err;
+  std::string other = kTinySweep;
+  other.replace(other.find("name = \"cli\""), 12, "name = \"other\"");
+  ASSERT_EQ(Cli({"sweep", "submit", WriteSweep("other.toml", other), "--wait"}, &out, &err), 0)
+      << out << err;
+  std::string rows_cli, rows_other;
+  ASSERT_EQ(Cli({"results", "export", "cli", "-f", "csv"}, &rows_cli, &err), 0) << err;
+  ASSERT_EQ(Cli({"results", "export", "other", "-f", "csv"}, &rows_other, &err), 0) << err;
+  // An archive path that exists is never overwritten; nothing is deleted.
+  const std::string taken = dir_ + "/taken.json";
+  WriteFile(taken, "mine");
+  EXPECT_EQ(Cli({"sweep", "delete", "cli", "--archive", taken}, &out, &err), 1);
+  EXPECT_NE(err.find("already exists; not overwriting it"), std::string::npos) << err;
+  EXPECT_NE(err.find("nothing was deleted"), std::string::npos) << err;
+  EXPECT_EQ(ReadFile(taken), "mine");
+  EXPECT_EQ(Jobs("cli").size(), 3u);
+
+  const std::string archive = dir_ + "/cli.deleted.json";
+  ASSERT_EQ(Cli({"sweep", "delete", "cli", "--archive", archive}, &out, &err), 0) << err;
+  EXPECT_NE(out.find("deleted sweep cli (3 jobs, 3 attempts, 9 episodes, 0 study rows)"),
+            std::string::npos) << out;
+  EXPECT_NE(out.find("restore with: totalgrad results import " + archive), std::string::npos)
+      << out;
+  EXPECT_TRUE(std::filesystem::exists(archive));
+  EXPECT_FALSE(std::filesystem::exists(archive + ".partial"));
+  EXPECT_EQ(Cli({"results", "table", "cli"}, &out, &err), 2);
+  EXPECT_NE(err.find("no sweep named 'cli'"), std::string::npos) << err;
+  std::string rows;
+  ASSERT_EQ(Cli({"results", "export", "other", "-f", "csv"}, &rows, &err), 0) << err;
+  EXPECT_EQ(rows, rows_other);  // the other sweep untouched
+  // Deleting what is gone: NOT_FOUND, and no archive written.
+  const std::string again = dir_ + "/again.json";
+  EXPECT_EQ(Cli({"sweep", "delete", "cli", "--archive", again}, &out, &err), 2);
+  EXPECT_FALSE(std::filesystem::exists(again));
+
+  ASSERT_EQ(Cli({"results", "import", archive}, &out, &err), 0) << err;
+  EXPECT_NE(out.find("created sweep cli: 3 jobs taken over (9 episodes"), std::string::npos) << out;
+  ASSERT_EQ(Cli({"results", "export", "cli", "-f", "csv"}, &rows, &err), 0) << err;
+  // Row for row, but under the new job ids the import gave the jobs.
+  const auto without_job_ids = [](const std::string& csv) {
+    std::string kept;
+    for (absl::string_view line : absl::StrSplit(csv, '\n', absl::SkipEmpty())) {
+      absl::StrAppend(&kept, line.substr(line.find(',') + 1), "\n");
+    }
+    return kept;
+  };
+  EXPECT_NE(rows, rows_cli);
+  EXPECT_EQ(without_job_ids(rows), without_job_ids(rows_cli));
+  worker->Signal(SIGTERM);
+  EXPECT_EQ(worker->Wait(seconds(20)), 0);
+}
+
 // Issue 15: sweeps that grow. A job's identity is (method, seed, variant), so
 // resubmitting the file with more seeds or methods adds only the new jobs;
 // the old file is then part of the sweep (no change); another protocol is

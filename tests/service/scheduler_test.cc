@@ -286,6 +286,23 @@ TEST_F(SchedulerTest, UndeliveredLeasesDoNotChargeTheLostLeaseBudget) {
   EXPECT_EQ(Job(again.key.job_id).state, JobState::kRunning);
 }
 
+// Issue 15: one job of a cancelled sweep can be retried: it runs alone (the
+// sweep runs again; its other cancelled jobs stay cancelled).
+TEST_F(SchedulerTest, RetryingACancelledSweepsJobRunsItAlone) {
+  Submit("s", 2, 2);
+  TG_ASSERT_OK(scheduler_->SetSweepState("s", SweepState::kCancelled));
+  TG_ASSERT_OK_AND_ASSIGN(auto jobs, store_->ListJobs({"s", {}, 0, 10}));
+  ASSERT_EQ(jobs.size(), 2u);
+  TG_ASSERT_OK_AND_ASSIGN(JobRecord retried, scheduler_->RetryJob(jobs[1].id));
+  EXPECT_EQ(retried.state, JobState::kQueued);
+  TG_ASSERT_OK_AND_ASSIGN(auto sweep, store_->GetSweep("s"));
+  EXPECT_EQ(sweep.state, SweepState::kRunning);
+  EXPECT_EQ(Job(jobs[0].id).state, JobState::kCancelled);
+  const Lease lease = MustAcquire("w1");
+  EXPECT_EQ(lease.key.job_id, jobs[1].id);
+  EXPECT_TRUE(NothingToAcquire("w2"));
+}
+
 TEST_F(SchedulerTest, RetryGivesAFailedJobAFreshBudget) {
   Submit("s", 1, 2, /*max_attempts=*/1);
   Lease lease = MustAcquire("w1");
@@ -628,7 +645,7 @@ TEST_F(SchedulerTest, JobStateMachineTable) {
       {Start::kCancelledIdle, false, Event::kCancelSweep, S::kCancelled, C::kOk},
       {Start::kCancelledIdle, false, Event::kPauseSweep, S::kCancelled, C::kFailedPrecondition},
       {Start::kCancelledIdle, false, Event::kResumeSweep, S::kQueued, C::kOk},
-      {Start::kCancelledIdle, false, Event::kRetry, S::kCancelled, C::kFailedPrecondition},
+      {Start::kCancelledIdle, false, Event::kRetry, S::kQueued, C::kOk},  // runs alone
       // cancelled while its attempt runs: reports are data, the cancel stands
       {Start::kCancelledOpen, false, Event::kAcquire, S::kCancelled, C::kOk},
       {Start::kCancelledOpen, false, Event::kHeartbeat, S::kCancelled, C::kOk},

@@ -82,6 +82,10 @@ absl::Status FaultyStore::SetSweepState(const std::string& name, storage::SweepS
                                         int64_t now_ms) {
   TG_FORWARD("SetSweepState", target_->SetSweepState(name, state, now_ms));
 }
+absl::StatusOr<storage::SweepContents> FaultyStore::DeleteSweep(
+    const std::string& name, const storage::SweepContents& expected, int64_t now_ms) {
+  TG_FORWARD("DeleteSweep", target_->DeleteSweep(name, expected, now_ms));
+}
 absl::Status FaultyStore::StartAttempt(const storage::LeaseKey& key,
                                        const storage::WorkerIdentity& worker, int64_t now_ms,
                                        int64_t lease_expires_ms) {

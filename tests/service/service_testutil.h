@@ -41,6 +41,9 @@ class FaultyStore final : public storage::Store {
                                                    bool* created) override;
   absl::Status SetSweepState(const std::string& name, storage::SweepState state,
                              int64_t now_ms) override;
+  absl::StatusOr<storage::SweepContents> DeleteSweep(const std::string& name,
+                                                     const storage::SweepContents& expected,
+                                                     int64_t now_ms) override;
   absl::Status StartAttempt(const storage::LeaseKey& key, const storage::WorkerIdentity& worker,
                             int64_t now_ms, int64_t lease_expires_ms) override;
   absl::StatusOr<int> StoreEpisodes(const storage::LeaseKey& key, const std::string& worker_id,

@@ -2,6 +2,7 @@
 // fencing of stale attempts, duplicate episodes, completion checks, restart
 // persistence, backup, export.
 #include "server/storage/sqlite_store.h"
+#include "server/storage/sqlite_schema.h"
 
 #include <gtest/gtest.h>
 
@@ -801,7 +802,7 @@ SELECT method, seed, typeof(seed), cost, typeof(cost), noise_k, typeof(noise_k),
       *db, "SELECT value FROM meta WHERE key = 'schema_version'"));
   TG_ASSERT_OK_AND_ASSIGN(bool meta_row, meta.Step());
   ASSERT_TRUE(meta_row);
-  EXPECT_EQ(meta.ColumnText(0), "4");
+  EXPECT_EQ(meta.ColumnText(0), std::to_string(internal::kSchemaVersion));
 }
 
 TEST_F(StorageTest, VersionOneDatabaseIsMigrated) {
@@ -828,7 +829,7 @@ TEST_F(StorageTest, VersionOneDatabaseIsMigrated) {
                             internal::Statement::Prepare(*db, "PRAGMA user_version"));
     TG_ASSERT_OK_AND_ASSIGN(bool row, version.Step());
     ASSERT_TRUE(row);
-    EXPECT_EQ(version.ColumnInt(0), 4);
+    EXPECT_EQ(version.ColumnInt(0), internal::kSchemaVersion);
   }
   // The old file was copied before it was changed.
   EXPECT_TRUE(std::filesystem::exists(path_ + ".schema-v1-backup"));
@@ -851,9 +852,120 @@ TEST_F(StorageTest, VersionOneDatabaseIsMigrated) {
   {
     auto db = internal::Db::Open(path_, false, 1000);
     ASSERT_TRUE(db.ok());
-    TG_ASSERT_OK(db->Exec("PRAGMA user_version=4"));  // back to this build's version
+    TG_ASSERT_OK(db->Exec(absl::StrCat("PRAGMA user_version=", internal::kSchemaVersion)));
   }
   Reopen();
+}
+
+// Version 4 stored seeds as TEXT; version 5 rebuilds jobs with an INTEGER
+// seed, keeping every row, the other tables' references and the views.
+TEST_F(StorageTest, VersionFourDatabaseGetsIntegerSeeds) {
+  const int64_t job = CreateAndLease("texts");
+  TG_ASSERT_OK(store_->StoreEpisodes({job, 1}, "w1", {MakeEpisode(0)}, kNow, std::nullopt)
+                   .status());
+  store_.reset();
+  {
+    // Back to version 4: jobs rebuilt with seed TEXT, as version 4 had it.
+    auto db = internal::Db::Open(path_, false, 1000);
+    ASSERT_TRUE(db.ok()) << db.status();
+    TG_ASSERT_OK(db->Exec(
+        "PRAGMA foreign_keys=OFF; DROP VIEW \"episodes/texts\"; DROP VIEW episode_rows; "
+        "CREATE TABLE jobs_text AS SELECT id, sweep_id, ordinal, method, CAST(seed AS TEXT) AS "
+        "seed, variant, options_json, episodes_expected, state, attempts, failures, lost_leases, "
+        "completed_attempt, success, final_eval_cost, last_error, kind, payload FROM jobs; "
+        "DROP TABLE jobs; ALTER TABLE jobs_text RENAME TO jobs; PRAGMA user_version=4"));
+    TG_ASSERT_OK_AND_ASSIGN(internal::Statement type, internal::Statement::Prepare(
+        *db, "SELECT typeof(seed) FROM jobs"));
+    TG_ASSERT_OK_AND_ASSIGN(bool row, type.Step());
+    ASSERT_TRUE(row);
+    ASSERT_EQ(type.ColumnText(0), "text");  // the test's premise
+  }
+  Reopen();
+  EXPECT_TRUE(std::filesystem::exists(path_ + ".schema-v4-backup"));
+  auto db = internal::Db::OpenReadOnly(path_, 1000);
+  ASSERT_TRUE(db.ok()) << db.status();
+  TG_ASSERT_OK_AND_ASSIGN(internal::Statement query, internal::Statement::Prepare(*db, R"sql(
+SELECT typeof(j.seed), j.seed, (SELECT COUNT(*) FROM "episodes/texts"),
+       (SELECT typeof(seed) FROM episode_rows LIMIT 1) FROM jobs j)sql"));
+  TG_ASSERT_OK_AND_ASSIGN(bool row, query.Step());
+  ASSERT_TRUE(row);
+  EXPECT_EQ(query.ColumnText(0), "integer");
+  TG_ASSERT_OK_AND_ASSIGN(JobRecord migrated, store_->GetJob(job));
+  EXPECT_EQ(query.ColumnText(1), migrated.seed);
+  EXPECT_EQ(query.ColumnInt(2), 1);
+  EXPECT_EQ(query.ColumnText(3), "integer");
+  EXPECT_EQ(migrated.episodes_stored, 1);
+  // Later writes still find the job by its seed (bound as text).
+  TG_ASSERT_OK(store_->StoreEpisodes({job, 1}, "w1", {MakeEpisode(1)}, kNow, std::nullopt)
+                   .status());
+  TG_ASSERT_OK_AND_ASSIGN(migrated, store_->GetJob(job));
+  EXPECT_EQ(migrated.episodes_stored, 2);
+}
+
+// Issue 15: a sweep is deleted with every row stored for it, in one
+// transaction, only when it holds what the caller archived and no worker
+// runs one of its trials; other sweeps are untouched.
+TEST_F(StorageTest, DeleteSweepRemovesEveryRowOnlyWhenIdleAndAsArchived) {
+  const int64_t kept_job = CreateAndLease("kept");
+  TG_ASSERT_OK(store_->StoreEpisodes({kept_job, 1}, "w1", {MakeEpisode(0)}, kNow, std::nullopt)
+                   .status());
+  const int64_t job = CreateAndLease("gone", /*jobs=*/2);
+  TG_ASSERT_OK(store_->StoreEpisodes({job, 1}, "w1", {MakeEpisode(0), MakeEpisode(1)}, kNow,
+                                     std::nullopt).status());
+  const SweepContents archived{.jobs = 2, .attempts = 1, .episodes = 2, .study_rows = 0};
+  // A worker holds a lease: refused, nothing deleted.
+  auto running = store_->DeleteSweep("gone", archived, kNow);
+  EXPECT_EQ(running.status().code(), absl::StatusCode::kFailedPrecondition) << running.status();
+  EXPECT_NE(running.status().message().find("totalgrad sweep cancel gone"), std::string::npos)
+      << running.status();
+  AttemptEnd lost;
+  lost.key = {job, 1};
+  lost.worker_id = "w1";
+  lost.attempt_state = AttemptState::kLeaseLost;
+  lost.job_state = JobState::kQueued;
+  lost.lost_leases_delta = 1;
+  lost.now_ms = kNow;
+  TG_ASSERT_OK(store_->EndAttempt(lost));
+  // Counts other than the sweep's (an archive written before a change): refused.
+  SweepContents stale = archived;
+  stale.episodes = 1;
+  auto changed = store_->DeleteSweep("gone", stale, kNow);
+  EXPECT_EQ(changed.status().code(), absl::StatusCode::kFailedPrecondition) << changed.status();
+  EXPECT_NE(changed.status().message().find("changed after it was archived"), std::string::npos)
+      << changed.status();
+  TG_ASSERT_OK(store_->GetSweep("gone").status());
+  TG_ASSERT_OK_AND_ASSIGN(SweepContents deleted, store_->DeleteSweep("gone", archived, kNow));
+  EXPECT_EQ(deleted, archived);
+  EXPECT_EQ(store_->GetSweep("gone").status().code(), absl::StatusCode::kNotFound);
+  EXPECT_EQ(store_->DeleteSweep("gone", archived, kNow).status().code(),
+            absl::StatusCode::kNotFound);
+  // No row of it is left anywhere, the other sweep keeps all of its rows.
+  auto db = internal::Db::OpenReadOnly(path_, 1000);
+  ASSERT_TRUE(db.ok()) << db.status();
+  for (const std::string table : {"jobs", "attempts", "episodes", "job_options", "events"}) {
+    TG_ASSERT_OK_AND_ASSIGN(internal::Statement count, internal::Statement::Prepare(
+        *db, absl::StrCat("SELECT COUNT(*) FROM ", table, " WHERE ",
+                          table == "jobs" ? "id" : "job_id", " = ", job)));
+    TG_ASSERT_OK_AND_ASSIGN(bool row, count.Step());
+    ASSERT_TRUE(row);
+    EXPECT_EQ(count.ColumnInt(0), 0) << table;
+  }
+  TG_ASSERT_OK_AND_ASSIGN(internal::Statement views, internal::Statement::Prepare(
+      *db, "SELECT group_concat(name) FROM sqlite_schema WHERE type = 'view' AND name LIKE 'episodes/%'"));
+  TG_ASSERT_OK_AND_ASSIGN(bool row, views.Step());
+  ASSERT_TRUE(row);
+  EXPECT_EQ(views.ColumnText(0), "episodes/kept");
+  TG_ASSERT_OK_AND_ASSIGN(internal::Statement event, internal::Statement::Prepare(
+      *db, "SELECT message FROM events WHERE kind = 'sweep_deleted'"));
+  TG_ASSERT_OK_AND_ASSIGN(row, event.Step());
+  ASSERT_TRUE(row);
+  EXPECT_EQ(event.ColumnText(0), "sweep 'gone': 2 jobs, 1 attempts, 2 episodes, 0 study rows");
+  TG_ASSERT_OK_AND_ASSIGN(JobRecord kept, store_->GetJob(kept_job));
+  EXPECT_EQ(kept.episodes_stored, 1);
+  TG_ASSERT_OK_AND_ASSIGN(internal::Statement keys,
+                          internal::Statement::Prepare(*db, "PRAGMA foreign_key_check"));
+  TG_ASSERT_OK_AND_ASSIGN(row, keys.Step());
+  EXPECT_FALSE(row);
 }
 
 }  // namespace
