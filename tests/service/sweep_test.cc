@@ -4,9 +4,13 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <filesystem>
 #include <fstream>
+#include <regex>
 #include <nlohmann/json.hpp>
 
+#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 
 #include "tests/service/service_testutil.h"
@@ -214,6 +218,36 @@ TEST(SweepSpecTest, TooManyJobsAreRefusedBeforeExpansion) {
   spec.grid = {{"method", {"RP"}}, {"seed", many}, {"horizon", many}};
   const absl::Status status = CanonicalizeSpec(&spec);
   EXPECT_NE(status.message().find("more than 100000 jobs"), std::string::npos) << status;
+}
+
+// Every sweep file shipped in deploy/sweeps parses, canonicalises and
+// expands to jobs, with the number of jobs its header announces where it
+// announces one as "= N trials".
+TEST(ShippedSweepsTest, EveryShippedSweepFileIsValid) {
+  int files = 0;
+  int announcing = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(
+           std::string(TOTALGRAD_SOURCE_DIR) + "/deploy/sweeps")) {
+    if (entry.path().extension() != ".toml") continue;
+    SCOPED_TRACE(entry.path().string());
+    ++files;
+    std::string text;
+    TG_ASSERT_OK_AND_ASSIGN(SweepSpec spec, LoadSweepFile(entry.path().string(), &text));
+    TG_ASSERT_OK(CanonicalizeSpec(&spec));
+    TG_ASSERT_OK_AND_ASSIGN(std::vector<ExpandedJob> jobs, ExpandJobs(spec));
+    EXPECT_FALSE(jobs.empty());
+    std::smatch announced;
+    if (std::regex_search(text, announced, std::regex("= ([0-9,]+) trials"))) {
+      std::string number = announced[1].str();
+      number.erase(std::remove(number.begin(), number.end(), ','), number.end());
+      int count = 0;
+      ASSERT_TRUE(absl::SimpleAtoi(number, &count)) << announced[0].str();
+      EXPECT_EQ(static_cast<int>(jobs.size()), count) << "the header announces " << count;
+      ++announcing;
+    }
+  }
+  EXPECT_GE(files, 6);
+  EXPECT_GE(announcing, 4);  // table1, table1-tip-k1, balance-del, the follow-up
 }
 
 TEST(ShippedSweepsTest, DemoParsesAndIsSmall) {
