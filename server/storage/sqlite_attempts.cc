@@ -1,0 +1,308 @@
+// SqliteStore: attempts, leases, their results and checkpoints (sqlite_store.h).
+#include <algorithm>
+#include <set>
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+#include "server/common/status_macros.h"
+#include "server/storage/sqlite_internal.h"
+#include "server/storage/sqlite_schema.h"
+#include "server/storage/sqlite_store.h"
+
+namespace totalgrad::storage {
+
+using internal::Db;
+using internal::Statement;
+using namespace internal;  // the row helpers of sqlite_internal.h
+
+absl::Status SqliteStore::StartAttempt(const LeaseKey& key, const WorkerIdentity& worker,
+                                       int64_t now_ms, int64_t lease_expires_ms) {
+  return InWriteTransaction([&](Db& db) -> absl::Status {
+    ASSIGN_OR_RETURN(Statement update, Statement::Prepare(db, R"sql(
+UPDATE jobs SET state = 'running', attempts = ?
+WHERE id = ? AND state = 'queued' AND attempts = ?)sql"));
+    update.Bind(1, key.attempt).Bind(2, key.job_id).Bind(3, key.attempt - 1);
+    RETURN_IF_ERROR(update.Run());
+    if (db.Changes() != 1) {
+      return absl::FailedPreconditionError(absl::StrCat(
+          "job ", key.job_id, " is not queued at attempt ", key.attempt - 1));
+    }
+    ASSIGN_OR_RETURN(Statement insert, Statement::Prepare(db, R"sql(
+INSERT INTO attempts(job_id, attempt, state, worker_id, worker_host, worker_build, started_ms,
+                     lease_expires_ms)
+VALUES(?, ?, 'running', ?, ?, ?, ?, ?))sql"));
+    insert.Bind(1, key.job_id).Bind(2, key.attempt).Bind(3, worker.worker_id);
+    insert.Bind(4, worker.host).Bind(5, worker.build).Bind(6, now_ms).Bind(7, lease_expires_ms);
+    RETURN_IF_ERROR(insert.Run());
+    ASSIGN_OR_RETURN(int64_t sweep_id,
+                     QueryInt(db, "SELECT sweep_id FROM jobs WHERE id = ?", key.job_id));
+    return AddEvent(db, now_ms, sweep_id, key.job_id, key.attempt, "lease_granted",
+                    absl::StrCat("worker ", worker.worker_id));
+  });
+}
+
+absl::StatusOr<int> SqliteStore::StoreEpisodes(const LeaseKey& key, const std::string& worker_id,
+                                               const std::vector<Episode>& episodes,
+                                               int64_t now_ms,
+                                               std::optional<int64_t> lease_expires_ms) {
+  int stored = 0;
+  const absl::Status status = InWriteTransaction([&](Db& db) -> absl::Status {
+    ASSIGN_OR_RETURN(OpenAttempt attempt, LoadAttempt(db, key));
+    RETURN_IF_ERROR(CheckOpen(key, attempt, worker_id));
+    RETURN_IF_ERROR(InsertEpisodes(db, key, attempt.episodes_expected, episodes, now_ms));
+    if (lease_expires_ms.has_value()) {
+      ASSIGN_OR_RETURN(Statement extend,
+                       Statement::Prepare(db, "UPDATE attempts SET lease_expires_ms = ? "
+                                              "WHERE job_id = ? AND attempt = ?"));
+      extend.Bind(1, *lease_expires_ms).Bind(2, key.job_id).Bind(3, key.attempt);
+      RETURN_IF_ERROR(extend.Run());
+    }
+    ASSIGN_OR_RETURN(Statement count,
+                     Statement::Prepare(db, "SELECT COUNT(*) FROM episodes "
+                                            "WHERE job_id = ? AND attempt = ?"));
+    count.Bind(1, key.job_id).Bind(2, key.attempt);
+    ASSIGN_OR_RETURN(bool row, count.Step());
+    stored = row ? static_cast<int>(count.ColumnInt(0)) : 0;
+    return absl::OkStatus();
+  });
+  if (!status.ok()) return status;
+  return stored;
+}
+
+absl::StatusOr<int> SqliteStore::StoreStudyRows(const LeaseKey& key, const std::string& worker_id,
+                                                const StudyRows& rows, int64_t now_ms,
+                                                std::optional<int64_t> lease_expires_ms) {
+  int stored = 0;
+  const absl::Status status = InWriteTransaction([&](Db& db) -> absl::Status {
+    ASSIGN_OR_RETURN(OpenAttempt attempt, LoadAttempt(db, key));
+    RETURN_IF_ERROR(CheckOpen(key, attempt, worker_id));
+    RETURN_IF_ERROR(InsertStudyRows(db, key, attempt.kind, rows, now_ms));
+    if (lease_expires_ms.has_value()) {
+      ASSIGN_OR_RETURN(Statement extend,
+                       Statement::Prepare(db, "UPDATE attempts SET lease_expires_ms = ? "
+                                              "WHERE job_id = ? AND attempt = ?"));
+      extend.Bind(1, *lease_expires_ms).Bind(2, key.job_id).Bind(3, key.attempt);
+      RETURN_IF_ERROR(extend.Run());
+    }
+    ASSIGN_OR_RETURN(stored, CountStudyRows(db, key));
+    return absl::OkStatus();
+  });
+  if (!status.ok()) return status;
+  return stored;
+}
+
+absl::Status SqliteStore::StoreCheckpoint(const LeaseKey& key, const std::string& worker_id,
+                                          const Checkpoint& checkpoint, int64_t now_ms) {
+  return InWriteTransaction([&](Db& db) -> absl::Status {
+    ASSIGN_OR_RETURN(OpenAttempt attempt, LoadAttempt(db, key));
+    RETURN_IF_ERROR(CheckOpen(key, attempt, worker_id));
+    return UpsertCheckpoint(db, key, attempt, checkpoint, now_ms);
+  });
+}
+
+absl::StatusOr<EndOutcome> SqliteStore::EndAttempt(const AttemptEnd& end) {
+  if (end.attempt_state == AttemptState::kRunning) {
+    return absl::InvalidArgumentError("EndAttempt needs a final attempt state, not running");
+  }
+  EndOutcome outcome = EndOutcome::kApplied;
+  const absl::Status status = InWriteTransaction([&](Db& db) -> absl::Status {
+    const LeaseKey& key = end.key;
+    ASSIGN_OR_RETURN(OpenAttempt attempt, LoadAttempt(db, key));
+    if (attempt.state == end.attempt_state && attempt.worker_id == end.worker_id) {
+      outcome = EndOutcome::kAlreadyEnded;  // a repeated call: nothing to do
+      return absl::OkStatus();
+    }
+    RETURN_IF_ERROR(CheckOpen(key, attempt, end.worker_id));
+    RETURN_IF_ERROR(InsertEpisodes(db, key, attempt.episodes_expected, end.episodes, end.now_ms));
+    RETURN_IF_ERROR(InsertStudyRows(db, key, attempt.kind, end.study, end.now_ms));
+    if (end.checkpoint) RETURN_IF_ERROR(UpsertCheckpoint(db, key, attempt, *end.checkpoint, end.now_ms));
+    const bool study_totals = end.study_cells_total != 0 || end.study_references_total != 0;
+    if (end.attempt_state == AttemptState::kCompleted && attempt.kind == JobKind::kStudy) {
+      if (end.study_cells_total < 1 || end.study_references_total < 1) {
+        return absl::InvalidArgumentError(absl::StrCat(
+            "completion of study job ", key.job_id, " reports ", end.study_cells_total,
+            " cells and ", end.study_references_total,
+            " references; a study has at least one of each"));
+      }
+      for (const auto& [table, total] :
+           {std::pair<absl::string_view, int>{"study_cells", end.study_cells_total},
+            std::pair<absl::string_view, int>{"study_references", end.study_references_total}}) {
+        ASSIGN_OR_RETURN(std::vector<int> missing, MissingStudyRows(db, key, table, total));
+        if (!missing.empty()) {
+          return absl::FailedPreconditionError(absl::StrCat(
+              "cannot complete job ", key.job_id, " attempt ", key.attempt, ": ", table, " rows ",
+              absl::StrJoin(missing, ","), " of 0..", total - 1, " are not stored"));
+        }
+      }
+    } else if (end.attempt_state == AttemptState::kCompleted && study_totals) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "job ", key.job_id, " is a trial job; it completes with episodes, not study rows"));
+    } else if (end.attempt_state == AttemptState::kCompleted) {
+      // The job's own expected count decides, never the worker's: a
+      // completion reporting fewer episodes would count a trial with episodes
+      // missing (docs/results_schema.md promises every episode 0..expected-1).
+      if (end.episodes_total != attempt.episodes_expected) {
+        return absl::InvalidArgumentError(absl::StrCat(
+            "completion of job ", key.job_id, " attempt ", key.attempt, " reports ",
+            end.episodes_total, " episodes; the job expects ", attempt.episodes_expected,
+            " (episodes 0..", attempt.episodes_expected - 1, ")"));
+      }
+      ASSIGN_OR_RETURN(Statement present,
+                       Statement::Prepare(db, "SELECT episode FROM episodes WHERE job_id = ? "
+                                              "AND attempt = ? AND episode < ?"));
+      present.Bind(1, key.job_id).Bind(2, key.attempt).Bind(3, attempt.episodes_expected);
+      std::set<int> have;
+      while (true) {
+        ASSIGN_OR_RETURN(bool row, present.Step());
+        if (!row) break;
+        have.insert(static_cast<int>(present.ColumnInt(0)));
+      }
+      std::vector<int> missing;
+      for (int e = 0; e < attempt.episodes_expected; ++e) {
+        if (!have.count(e)) missing.push_back(e);
+      }
+      if (!missing.empty()) {
+        return absl::FailedPreconditionError(absl::StrCat(
+            "cannot complete job ", key.job_id, " attempt ", key.attempt, ": episodes ",
+            absl::StrJoin(missing, ","), " of 0..", attempt.episodes_expected - 1,
+            " are not stored"));
+      }
+    }
+    ASSIGN_OR_RETURN(Statement close, Statement::Prepare(db, R"sql(
+UPDATE attempts SET state = ?, ended_ms = ?, error = ? WHERE job_id = ? AND attempt = ?)sql"));
+    close.Bind(1, ToString(end.attempt_state)).Bind(2, end.now_ms).Bind(3, end.error);
+    close.Bind(4, key.job_id).Bind(5, key.attempt);
+    RETURN_IF_ERROR(close.Run());
+    // The job's result fields only when the job completes (an attempt that
+    // completes after a cancel leaves the job cancelled, without a result).
+    const bool completed = end.job_state == JobState::kCompleted;
+    ASSIGN_OR_RETURN(Statement job, Statement::Prepare(db, R"sql(
+UPDATE jobs SET state = ?, failures = failures + ?, lost_leases = lost_leases + ?,
+       last_error = CASE WHEN ? = '' THEN last_error ELSE ? END,
+       completed_attempt = CASE WHEN ? THEN ? ELSE completed_attempt END,
+       success = CASE WHEN ? THEN ? ELSE success END,
+       final_eval_cost = CASE WHEN ? THEN ? ELSE final_eval_cost END
+WHERE id = ?)sql"));
+    job.Bind(1, ToString(end.job_state)).Bind(2, end.failures_delta);
+    job.Bind(3, end.lost_leases_delta).Bind(4, end.error).Bind(5, end.error);
+    job.Bind(6, completed ? 1 : 0).Bind(7, key.attempt);
+    job.Bind(8, completed ? 1 : 0).Bind(9, end.success ? 1 : 0);
+    job.Bind(10, completed ? 1 : 0).Bind(11, end.final_eval_cost);
+    job.Bind(12, key.job_id);
+    RETURN_IF_ERROR(job.Run());
+    std::string message = absl::StrCat("worker ", end.worker_id, "; job ", ToString(end.job_state));
+    if (!end.error.empty()) absl::StrAppend(&message, ": ", end.error.substr(0, 2000));
+    return AddEvent(db, end.now_ms, attempt.sweep_id, key.job_id, key.attempt,
+                    ToString(end.attempt_state), message);
+  });
+  if (!status.ok()) return status;
+  return outcome;
+}
+
+
+absl::StatusOr<int> SqliteStore::ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms,
+                                                   const std::string& reason) {
+  int changed = 0;
+  const absl::Status status = InWriteTransaction([&](Db& db) -> absl::Status {
+    ASSIGN_OR_RETURN(Statement update,
+                     Statement::Prepare(db, "UPDATE attempts SET lease_expires_ms = ? "
+                                            "WHERE state = 'running' AND lease_expires_ms < ?"));
+    update.Bind(1, lease_expires_ms).Bind(2, lease_expires_ms);
+    RETURN_IF_ERROR(update.Run());
+    changed = db.Changes();
+    if (changed == 0) return absl::OkStatus();
+    return AddEvent(db, now_ms, 0, 0, 0, "leases_extended",
+                    absl::StrCat(changed, " open leases extended ", reason));
+  });
+  if (!status.ok()) return status;
+  return changed;
+}
+
+
+absl::StatusOr<std::vector<AttemptRecord>> SqliteStore::ListAttempts(int64_t job_id) {
+  std::lock_guard<std::mutex> lock(read_mutex_);
+  ASSIGN_OR_RETURN(Statement query, Statement::Prepare(reader_, R"sql(
+SELECT a.attempt, a.state, a.worker_id, a.worker_host, a.worker_build, a.started_ms,
+       COALESCE(a.ended_ms, 0), a.lease_expires_ms, a.error,
+       (SELECT COUNT(*) FROM episodes e WHERE e.job_id = a.job_id AND e.attempt = a.attempt),
+       COALESCE((SELECT c.episode FROM checkpoints c
+                 WHERE c.job_id = a.job_id AND c.attempt = a.attempt), -1)
+FROM attempts a WHERE a.job_id = ? ORDER BY a.attempt)sql"));
+  query.Bind(1, job_id);
+  std::vector<AttemptRecord> attempts;
+  while (true) {
+    ASSIGN_OR_RETURN(bool row, query.Step());
+    if (!row) break;
+    AttemptRecord a;
+    a.key = {job_id, static_cast<int>(query.ColumnInt(0))};
+    a.state = ParseAttemptState(query.ColumnText(1)).value_or(AttemptState::kRunning);
+    a.worker_id = query.ColumnText(2);
+    a.worker_host = query.ColumnText(3);
+    a.worker_build = query.ColumnText(4);
+    a.started_ms = query.ColumnInt(5);
+    a.ended_ms = query.ColumnInt(6);
+    a.lease_expires_ms = query.ColumnInt(7);
+    a.error = query.ColumnText(8);
+    a.episodes_stored = static_cast<int>(query.ColumnInt(9));
+    a.checkpoint_episode = static_cast<int>(query.ColumnInt(10));
+    attempts.push_back(std::move(a));
+  }
+  return attempts;
+}
+
+absl::StatusOr<std::vector<EventRecord>> SqliteStore::ListEvents(int64_t job_id) {
+  std::lock_guard<std::mutex> lock(read_mutex_);
+  ASSIGN_OR_RETURN(Statement query,
+                   Statement::Prepare(reader_, "SELECT ms, attempt, kind, message FROM events "
+                                               "WHERE job_id = ? ORDER BY id"));
+  query.Bind(1, job_id);
+  std::vector<EventRecord> events;
+  while (true) {
+    ASSIGN_OR_RETURN(bool row, query.Step());
+    if (!row) break;
+    events.push_back({query.ColumnInt(0), job_id, static_cast<int>(query.ColumnInt(1)),
+                      query.ColumnText(2), query.ColumnText(3)});
+  }
+  return events;
+}
+
+absl::StatusOr<std::optional<CheckpointRecord>> SqliteStore::GetCheckpoint(int64_t job_id,
+                                                                           int attempt) {
+  std::lock_guard<std::mutex> lock(read_mutex_);
+  ASSIGN_OR_RETURN(Statement query, Statement::Prepare(reader_, R"sql(
+SELECT c.attempt, a.worker_build, c.episode, c.format_version, c.data
+FROM checkpoints c JOIN attempts a ON a.job_id = c.job_id AND a.attempt = c.attempt
+WHERE c.job_id = ? AND (? = 0 OR c.attempt = ?)
+ORDER BY c.episode DESC, c.attempt DESC LIMIT 1)sql"));
+  query.Bind(1, job_id).Bind(2, attempt).Bind(3, attempt);
+  ASSIGN_OR_RETURN(bool row, query.Step());
+  if (!row) return std::optional<CheckpointRecord>();
+  CheckpointRecord record;
+  record.key = {job_id, static_cast<int>(query.ColumnInt(0))};
+  record.worker_build = query.ColumnText(1);
+  record.checkpoint.episode = static_cast<int>(query.ColumnInt(2));
+  record.checkpoint.format_version = static_cast<int>(query.ColumnInt(3));
+  record.checkpoint.data = query.ColumnBlob(4);
+  return std::optional<CheckpointRecord>(std::move(record));
+}
+
+
+absl::StatusOr<std::vector<LeaseKey>> SqliteStore::ListExpiredLeases(int64_t now_ms) {
+  std::lock_guard<std::mutex> lock(read_mutex_);
+  ASSIGN_OR_RETURN(Statement query,
+                   Statement::Prepare(reader_, "SELECT job_id, attempt FROM attempts WHERE "
+                                               "state = 'running' AND lease_expires_ms < ? "
+                                               "ORDER BY lease_expires_ms"));
+  query.Bind(1, now_ms);
+  std::vector<LeaseKey> keys;
+  while (true) {
+    ASSIGN_OR_RETURN(bool row, query.Step());
+    if (!row) break;
+    keys.push_back({query.ColumnInt(0), static_cast<int>(query.ColumnInt(1))});
+  }
+  return keys;
+}
+
+
+}  // namespace totalgrad::storage

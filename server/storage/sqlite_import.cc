@@ -1,0 +1,194 @@
+// SqliteStore: sweep archives taken over (ImportJobs) and sweeps grown (GrowSweep)
+// (sqlite_store.h).
+#include <algorithm>
+#include <set>
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+#include "server/common/status_macros.h"
+#include "server/storage/sqlite_internal.h"
+#include "server/storage/sqlite_schema.h"
+#include "server/storage/sqlite_store.h"
+
+namespace totalgrad::storage {
+
+using internal::Db;
+using internal::Statement;
+using namespace internal;  // the row helpers of sqlite_internal.h
+
+absl::StatusOr<ImportResult> SqliteStore::ImportJobs(const std::optional<NewSweep>& create,
+                                                    const std::string& sweep_name,
+                                                    const std::vector<ImportedJob>& jobs,
+                                                    const std::string& source, int64_t now_ms) {
+  ImportResult result;
+  const absl::Status status = InWriteTransaction([&](Db& db) -> absl::Status {
+    result = ImportResult();
+    if (create.has_value()) {
+      RETURN_IF_ERROR(InsertSweep(db, *create, now_ms, &result.sweep_created));
+    }
+    ASSIGN_OR_RETURN(Statement sweep_query,
+                     Statement::Prepare(db, "SELECT id FROM sweeps WHERE name = ?"));
+    sweep_query.Bind(1, sweep_name);
+    ASSIGN_OR_RETURN(bool found, sweep_query.Step());
+    if (!found) return absl::NotFoundError(absl::StrCat("no sweep named '", sweep_name, "'"));
+    const int64_t sweep_id = sweep_query.ColumnInt(0);
+    ASSIGN_OR_RETURN(Statement job_query, Statement::Prepare(db, R"sql(
+SELECT id, state, attempts, episodes_expected FROM jobs
+WHERE sweep_id = ? AND kind = ? AND method = ? AND seed = ? AND variant = ?)sql"));
+    ASSIGN_OR_RETURN(Statement attempt_insert, Statement::Prepare(db, R"sql(
+INSERT INTO attempts(job_id, attempt, state, worker_id, worker_host, worker_build, started_ms,
+                     lease_expires_ms, ended_ms, error)
+VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?))sql"));
+    ASSIGN_OR_RETURN(Statement episode_insert, Statement::Prepare(db, R"sql(
+INSERT INTO episodes(job_id, attempt, episode, real_cost, eval_cost_mean, eval_cost_std,
+                     predicted_cost, optimisation_seconds, details_json, reported_ms, cpu_seconds)
+VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?))sql"));
+    ASSIGN_OR_RETURN(Statement job_update, Statement::Prepare(db, R"sql(
+UPDATE jobs SET state = 'completed', attempts = ?, completed_attempt = ?, success = ?,
+                final_eval_cost = ?, failures = failures + ?, lost_leases = lost_leases + ?,
+                last_error = ?
+WHERE id = ?)sql"));
+    for (const ImportedJob& job : jobs) {
+      job_query.Bind(1, sweep_id).Bind(2, ToString(job.kind)).Bind(3, job.method);
+      job_query.Bind(4, job.seed).Bind(5, job.variant);
+      ASSIGN_OR_RETURN(bool match, job_query.Step());
+      const int64_t job_id = match ? job_query.ColumnInt(0) : 0;
+      const std::string state = match ? job_query.ColumnText(1) : "";
+      const int attempts_here = match ? static_cast<int>(job_query.ColumnInt(2)) : 0;
+      const int episodes_expected = match ? static_cast<int>(job_query.ColumnInt(3)) : 0;
+      job_query.Reset();
+      if (!match) {
+        ++result.jobs_unknown;
+        continue;
+      }
+      if (state == ToString(JobState::kCompleted)) {
+        ++result.jobs_already_complete;
+        continue;
+      }
+      if (job.state != JobState::kCompleted || job.completed_attempt <= 0) {
+        ++result.jobs_not_completed;
+        continue;
+      }
+      if (state == ToString(JobState::kRunning)) {
+        ++result.jobs_running_here;
+        continue;
+      }
+      int completed_here = 0;
+      for (size_t i = 0; i < job.attempts.size(); ++i) {
+        const ImportedAttempt& a = job.attempts[i];
+        const int number = attempts_here + static_cast<int>(i) + 1;
+        if (a.attempt == job.completed_attempt) completed_here = number;
+        // An attempt that was still open where the archive was written ran
+        // nowhere here: it arrives released.
+        const AttemptState arrived =
+            a.state == AttemptState::kRunning ? AttemptState::kReleased : a.state;
+        attempt_insert.Bind(1, job_id).Bind(2, number).Bind(3, ToString(arrived));
+        attempt_insert.Bind(4, a.worker_id).Bind(5, a.worker_host).Bind(6, a.worker_build);
+        attempt_insert.Bind(7, a.started_ms).Bind(8, a.ended_ms > 0 ? a.ended_ms : a.started_ms);
+        attempt_insert.Bind(9, a.ended_ms > 0 ? a.ended_ms : now_ms).Bind(10, a.error);
+        RETURN_IF_ERROR(attempt_insert.Run());
+        attempt_insert.Reset();
+        for (const auto& [episode, reported_ms] : a.episodes) {
+          if (episode.episode < 0 || episode.episode >= episodes_expected ||
+              job.kind != JobKind::kTrial) {
+            return absl::InvalidArgumentError(absl::StrCat(
+                "archive: job ", job.method, " seed ", job.seed, " ", job.variant, " attempt ",
+                a.attempt, ": episode ", episode.episode, " is out of range 0..",
+                episodes_expected - 1));
+          }
+          episode_insert.Bind(1, job_id).Bind(2, number).Bind(3, episode.episode);
+          episode_insert.Bind(4, episode.real_cost).Bind(5, episode.eval_cost_mean);
+          episode_insert.Bind(6, episode.eval_cost_std).Bind(7, episode.predicted_cost);
+          episode_insert.Bind(8, episode.optimisation_seconds).Bind(9, episode.details_json);
+          episode_insert.Bind(10, reported_ms).Bind(11, episode.cpu_seconds);
+          RETURN_IF_ERROR(episode_insert.Run());
+          episode_insert.Reset();
+          ++result.episodes_imported;
+        }
+        if (!a.study.empty()) {
+          RETURN_IF_ERROR(InsertStudyRows(db, {job_id, number}, job.kind, a.study, now_ms));
+          result.study_rows_imported += static_cast<int64_t>(a.study.size());
+        }
+      }
+      if (completed_here == 0) {
+        return absl::InvalidArgumentError(absl::StrCat(
+            "archive: job ", job.method, " seed ", job.seed, " ", job.variant,
+            " is completed by attempt ", job.completed_attempt, ", which the archive lacks"));
+      }
+      job_update.Bind(1, attempts_here + static_cast<int>(job.attempts.size()));
+      job_update.Bind(2, completed_here).Bind(3, job.success ? 1 : 0);
+      job_update.Bind(4, job.final_eval_cost).Bind(5, job.failures).Bind(6, job.lost_leases);
+      job_update.Bind(7, job.last_error).Bind(8, job_id);
+      RETURN_IF_ERROR(job_update.Run());
+      job_update.Reset();
+      RETURN_IF_ERROR(AddEvent(db, now_ms, sweep_id, job_id, completed_here, "imported",
+                               absl::StrCat("completed attempt ", job.completed_attempt, " of ",
+                                            source, " (now attempt ", completed_here, ")")));
+      ++result.jobs_imported;
+    }
+    return AddEvent(db, now_ms, sweep_id, 0, 0, "sweep_imported",
+                    absl::StrCat(source, ": ", result.jobs_imported, " jobs taken over, ",
+                                 result.jobs_already_complete, " already complete here, ",
+                                 result.jobs_not_completed, " not completed there"));
+  });
+  if (!status.ok()) return status;
+  return result;
+}
+
+absl::StatusOr<int> SqliteStore::GrowSweep(const NewSweep& grown, int64_t now_ms) {
+  int added = 0;
+  const absl::Status status = InWriteTransaction([&](Db& db) -> absl::Status {
+    added = 0;
+    ASSIGN_OR_RETURN(Statement sweep_query,
+                     Statement::Prepare(db, "SELECT id, spec_hash FROM sweeps WHERE name = ?"));
+    sweep_query.Bind(1, grown.name);
+    ASSIGN_OR_RETURN(bool found, sweep_query.Step());
+    if (!found) return absl::NotFoundError(absl::StrCat("no sweep named '", grown.name, "'"));
+    const int64_t sweep_id = sweep_query.ColumnInt(0);
+    const std::string previous_hash = sweep_query.ColumnText(1);
+    ASSIGN_OR_RETURN(Statement exists, Statement::Prepare(db, R"sql(
+SELECT 1 FROM jobs WHERE sweep_id = ? AND kind = ? AND method = ? AND seed = ? AND variant = ?)sql"));
+    ASSIGN_OR_RETURN(Statement last, Statement::Prepare(
+        db, "SELECT COALESCE(MAX(ordinal), -1) FROM jobs WHERE sweep_id = ?"));
+    last.Bind(1, sweep_id);
+    ASSIGN_OR_RETURN(bool any, last.Step());
+    int64_t ordinal = any ? last.ColumnInt(0) : -1;
+    ASSIGN_OR_RETURN(Statement job_insert, Statement::Prepare(db, R"sql(
+INSERT INTO jobs(sweep_id, ordinal, method, seed, variant, options_json, episodes_expected, state,
+                 kind, payload)
+VALUES(?, ?, ?, ?, ?, ?, ?, 'queued', ?, ?))sql"));
+    for (const NewJob& job : grown.jobs) {
+      exists.Bind(1, sweep_id).Bind(2, ToString(job.kind)).Bind(3, job.method);
+      exists.Bind(4, job.seed).Bind(5, job.variant);
+      ASSIGN_OR_RETURN(bool present, exists.Step());
+      exists.Reset();
+      if (present) continue;
+      job_insert.Bind(1, sweep_id).Bind(2, ++ordinal).Bind(3, job.method).Bind(4, job.seed);
+      job_insert.Bind(5, job.variant).Bind(6, OptionsToJson(job.options));
+      job_insert.Bind(7, job.kind == JobKind::kStudy ? 1 : job.episodes_expected);
+      job_insert.Bind(8, ToString(job.kind)).Bind(9, job.payload);
+      RETURN_IF_ERROR(job_insert.Run());
+      job_insert.Reset();
+      RETURN_IF_ERROR(internal::WriteJobOptions(db, db.LastInsertRowId(), job.method, job.seed,
+                                                job.variant));
+      ++added;
+    }
+    ASSIGN_OR_RETURN(Statement update, Statement::Prepare(db, R"sql(
+UPDATE sweeps SET canonical_spec = ?, spec_hash = ?, description = ?, source_name = ?,
+                  source_text = ?
+WHERE id = ?)sql"));
+    update.Bind(1, grown.canonical_spec).Bind(2, grown.spec_hash).Bind(3, grown.description);
+    update.Bind(4, grown.source_name).Bind(5, grown.source_text).Bind(6, sweep_id);
+    RETURN_IF_ERROR(update.Run());
+    RETURN_IF_ERROR(internal::CreateSweepView(db, sweep_id, grown.name));
+    return AddEvent(db, now_ms, sweep_id, 0, 0, "sweep_grown",
+                    absl::StrCat(added, " jobs added; spec ", previous_hash.substr(0, 12), " -> ",
+                                 grown.spec_hash.substr(0, 12)));
+  });
+  if (!status.ok()) return status;
+  return added;
+}
+
+
+}  // namespace totalgrad::storage

@@ -1,0 +1,416 @@
+// Row helpers shared by the SqliteStore's files (sqlite_internal.h).
+#include "server/storage/sqlite_internal.h"
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+#include <utility>
+
+#include <nlohmann/json.hpp>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+#include "server/common/status_macros.h"
+#include "server/storage/sqlite_schema.h"
+
+namespace totalgrad::storage::internal {
+
+// Doubles as JSON arrays: round-trip precision; NaN and +-Inf as null.
+std::string DoublesToJson(const std::vector<double>& values) {
+  nlohmann::json array = nlohmann::json::array();
+  for (double v : values) array.push_back(std::isfinite(v) ? nlohmann::json(v) : nlohmann::json());
+  return array.dump();
+}
+std::vector<double> DoublesFromJson(const std::string& text) {
+  std::vector<double> values;
+  const nlohmann::json array = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (!array.is_array()) return values;
+  for (const auto& v : array) values.push_back(v.is_number() ? v.get<double>() : kNaN);
+  return values;
+}
+
+std::optional<JobKind> ParseJobKind(absl::string_view text) {
+  if (text == "trial") return JobKind::kTrial;
+  if (text == "study") return JobKind::kStudy;
+  return std::nullopt;
+}
+
+std::string OptionsToJson(const OptionList& options) {
+  nlohmann::json array = nlohmann::json::array();
+  for (const auto& [key, value] : options) array.push_back({key, value});
+  return array.dump();
+}
+
+OptionList OptionsFromJson(const std::string& text) {
+  OptionList options;
+  const nlohmann::json array = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (!array.is_array()) return options;
+  for (const auto& pair : array) {
+    if (pair.is_array() && pair.size() == 2 && pair[0].is_string() && pair[1].is_string()) {
+      options.emplace_back(pair[0].get<std::string>(), pair[1].get<std::string>());
+    }
+  }
+  return options;
+}
+
+absl::Status AddEvent(Db& db, int64_t ms, int64_t sweep_id, int64_t job_id, int attempt,
+                      absl::string_view kind, absl::string_view message) {
+  ASSIGN_OR_RETURN(Statement insert,
+                   Statement::Prepare(db, "INSERT INTO events(ms, sweep_id, job_id, attempt, kind, "
+                                          "message) VALUES(?, ?, ?, ?, ?, ?)"));
+  insert.Bind(1, ms);
+  if (sweep_id > 0) insert.Bind(2, sweep_id); else insert.BindNull(2);
+  if (job_id > 0) insert.Bind(3, job_id); else insert.BindNull(3);
+  insert.Bind(4, attempt).Bind(5, kind).Bind(6, message);
+  return insert.Run();
+}
+
+// Reads an int from a one-row query.
+absl::StatusOr<int64_t> QueryInt(Db& db, absl::string_view sql, int64_t param) {
+  ASSIGN_OR_RETURN(Statement query, Statement::Prepare(db, sql));
+  query.Bind(1, param);
+  ASSIGN_OR_RETURN(bool row, query.Step());
+  if (!row) return int64_t{0};
+  return query.ColumnInt(0);
+}
+
+
+absl::StatusOr<SweepRecord> ReadSweepRow(Db& db, const Statement& row) {
+  SweepRecord sweep;
+  sweep.id = row.ColumnInt(0);
+  sweep.name = row.ColumnText(1);
+  sweep.description = row.ColumnText(2);
+  sweep.state = ParseSweepState(row.ColumnText(3)).value_or(SweepState::kRunning);
+  sweep.canonical_spec = row.ColumnText(4);
+  sweep.spec_hash = row.ColumnText(5);
+  sweep.source_name = row.ColumnText(6);
+  sweep.coordinator_build = row.ColumnText(7);
+  sweep.created_ms = row.ColumnInt(8);
+  sweep.max_attempts = static_cast<int>(row.ColumnInt(9));
+  sweep.max_lost_leases = static_cast<int>(row.ColumnInt(10));
+  sweep.max_concurrent = static_cast<int>(row.ColumnInt(11));
+  ASSIGN_OR_RETURN(Statement counts,
+                   Statement::Prepare(db, "SELECT state, COUNT(*), SUM(CASE WHEN kind = 'study' THEN 0 "
+                                          "ELSE episodes_expected END) "
+                                          "FROM jobs WHERE sweep_id = ? GROUP BY state"));
+  counts.Bind(1, sweep.id);
+  while (true) {
+    ASSIGN_OR_RETURN(bool more, counts.Step());
+    if (!more) break;
+    const int n = static_cast<int>(counts.ColumnInt(1));
+    sweep.jobs_total += n;
+    sweep.episodes_expected += counts.ColumnInt(2);
+    switch (ParseJobState(counts.ColumnText(0)).value_or(JobState::kQueued)) {
+      case JobState::kQueued: sweep.jobs_queued += n; break;
+      case JobState::kRunning: sweep.jobs_running += n; break;
+      case JobState::kCompleted: sweep.jobs_completed += n; break;
+      case JobState::kFailed: sweep.jobs_failed += n; break;
+      case JobState::kCancelled: sweep.jobs_cancelled += n; break;
+    }
+  }
+  ASSIGN_OR_RETURN(
+      sweep.episodes_stored,
+      QueryInt(db,
+               "SELECT COUNT(*) FROM episodes e JOIN jobs j ON e.job_id = j.id AND "
+               "e.attempt = COALESCE(j.completed_attempt, j.attempts) WHERE j.sweep_id = ?",
+               sweep.id));
+  return sweep;
+}
+
+absl::StatusOr<SweepRecord> LoadSweep(Db& db, const std::string& name) {
+  ASSIGN_OR_RETURN(Statement query,
+                   Statement::Prepare(db, absl::StrCat("SELECT ", kSweepColumns,
+                                                       " FROM sweeps s WHERE s.name = ?")));
+  query.Bind(1, name);
+  ASSIGN_OR_RETURN(bool row, query.Step());
+  if (!row) return absl::NotFoundError(absl::StrCat("no sweep named '", name, "'"));
+  return ReadSweepRow(db, query);
+}
+
+
+JobRecord ReadJobRow(const Statement& row) {
+  JobRecord job;
+  job.id = row.ColumnInt(0);
+  job.sweep_id = row.ColumnInt(1);
+  job.sweep_name = row.ColumnText(2);
+  job.sweep_state = ParseSweepState(row.ColumnText(3)).value_or(SweepState::kRunning);
+  job.ordinal = static_cast<int>(row.ColumnInt(4));
+  job.method = row.ColumnText(5);
+  job.seed = row.ColumnText(6);
+  job.variant = row.ColumnText(7);
+  job.options = OptionsFromJson(row.ColumnText(8));
+  job.state = ParseJobState(row.ColumnText(9)).value_or(JobState::kQueued);
+  job.attempts = static_cast<int>(row.ColumnInt(10));
+  job.failures = static_cast<int>(row.ColumnInt(11));
+  job.lost_leases = static_cast<int>(row.ColumnInt(12));
+  job.max_attempts = static_cast<int>(row.ColumnInt(13));
+  job.max_lost_leases = static_cast<int>(row.ColumnInt(14));
+  job.episodes_expected = static_cast<int>(row.ColumnInt(15));
+  job.episodes_stored = static_cast<int>(row.ColumnInt(16));
+  job.worker_id = row.ColumnText(17);
+  job.last_error = row.ColumnText(18);
+  job.completed_attempt = static_cast<int>(row.ColumnInt(19));
+  job.success = row.ColumnInt(20) != 0;
+  job.final_eval_cost = row.ColumnDouble(21);
+  job.kind = ParseJobKind(row.ColumnText(22)).value_or(JobKind::kTrial);
+  job.payload = row.ColumnText(23);
+  return job;
+}
+
+absl::StatusOr<JobRecord> LoadJob(Db& db, int64_t job_id) {
+  ASSIGN_OR_RETURN(Statement query,
+                   Statement::Prepare(db, absl::StrCat(kJobSelect, " WHERE j.id = ?")));
+  query.Bind(1, job_id);
+  ASSIGN_OR_RETURN(bool row, query.Step());
+  if (!row) return absl::NotFoundError(absl::StrCat("no job with id ", job_id));
+  return ReadJobRow(query);
+}
+
+
+// Loads the attempt and the job's latest attempt number. NotFound if the job
+// does not exist; Aborted if the attempt does not exist.
+absl::StatusOr<OpenAttempt> LoadAttempt(Db& db, const LeaseKey& key) {
+  ASSIGN_OR_RETURN(Statement query,
+                   Statement::Prepare(db, "SELECT j.attempts, CASE WHEN j.kind = 'study' THEN 0 "
+                                          "ELSE j.episodes_expected END, j.sweep_id, "
+                                          "a.state, a.worker_id, j.kind FROM jobs j LEFT JOIN "
+                                          "attempts a ON a.job_id = j.id AND a.attempt = ? "
+                                          "WHERE j.id = ?"));
+  query.Bind(1, key.attempt).Bind(2, key.job_id);
+  ASSIGN_OR_RETURN(bool row, query.Step());
+  if (!row) return absl::NotFoundError(absl::StrCat("no job with id ", key.job_id));
+  OpenAttempt attempt;
+  attempt.job_attempts = static_cast<int>(query.ColumnInt(0));
+  attempt.episodes_expected = static_cast<int>(query.ColumnInt(1));
+  attempt.sweep_id = query.ColumnInt(2);
+  attempt.kind = ParseJobKind(query.ColumnText(5)).value_or(JobKind::kTrial);
+  if (query.ColumnIsNull(3)) {
+    return absl::AbortedError(absl::StrCat("job ", key.job_id, " has no attempt ", key.attempt,
+                                           " (latest is ", attempt.job_attempts, ")"));
+  }
+  attempt.state = ParseAttemptState(query.ColumnText(3)).value_or(AttemptState::kRunning);
+  attempt.worker_id = query.ColumnText(4);
+  return attempt;
+}
+
+// The fence: the attempt must be open, the job's latest, and owned by `worker_id`.
+absl::Status CheckOpen(const LeaseKey& key, const OpenAttempt& attempt,
+                       const std::string& worker_id) {
+  if (attempt.state != AttemptState::kRunning) {
+    return absl::AbortedError(absl::StrCat("lease of job ", key.job_id, " attempt ", key.attempt,
+                                           " is no longer held: the attempt ended as ",
+                                           ToString(attempt.state)));
+  }
+  if (attempt.job_attempts != key.attempt) {
+    return absl::AbortedError(absl::StrCat("lease of job ", key.job_id, " attempt ", key.attempt,
+                                           " is stale: the job is at attempt ",
+                                           attempt.job_attempts));
+  }
+  if (attempt.worker_id != worker_id) {
+    return absl::AbortedError(absl::StrCat("lease of job ", key.job_id, " attempt ", key.attempt,
+                                           " belongs to worker '", attempt.worker_id,
+                                           "', not '", worker_id, "'"));
+  }
+  return absl::OkStatus();
+}
+
+absl::Status InsertEpisodes(Db& db, const LeaseKey& key, int episodes_expected,
+                            const std::vector<Episode>& episodes, int64_t now_ms) {
+  if (episodes.empty()) return absl::OkStatus();
+  ASSIGN_OR_RETURN(Statement insert,
+                   Statement::Prepare(db, R"sql(
+INSERT INTO episodes(job_id, attempt, episode, real_cost, eval_cost_mean, eval_cost_std,
+                     predicted_cost, optimisation_seconds, details_json, reported_ms, cpu_seconds)
+VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)
+ON CONFLICT(job_id, attempt, episode) DO NOTHING)sql"));
+  for (const Episode& episode : episodes) {
+    if (episodes_expected == 0) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "job ", key.job_id, " is a study job; it reports study rows, not episodes"));
+    }
+    if (episode.episode < 0 || episode.episode >= episodes_expected) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("episode ", episode.episode, " of job ", key.job_id,
+                       " is out of range: the trial has episodes 0..", episodes_expected - 1));
+    }
+    insert.Bind(1, key.job_id).Bind(2, key.attempt).Bind(3, episode.episode);
+    insert.Bind(4, episode.real_cost).Bind(5, episode.eval_cost_mean);
+    insert.Bind(6, episode.eval_cost_std).Bind(7, episode.predicted_cost);
+    insert.Bind(8, episode.optimisation_seconds).Bind(9, episode.details_json).Bind(10, now_ms);
+    insert.Bind(11, episode.cpu_seconds);
+    RETURN_IF_ERROR(insert.Run());
+    insert.Reset();
+  }
+  return absl::OkStatus();
+}
+
+absl::Status InsertStudyRows(Db& db, const LeaseKey& key, JobKind kind, const StudyRows& rows,
+                             int64_t now_ms) {
+  if (rows.empty()) return absl::OkStatus();
+  if (kind != JobKind::kStudy) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "job ", key.job_id, " is a trial job; study rows belong to study jobs"));
+  }
+  if (!rows.cells.empty()) {
+    ASSIGN_OR_RETURN(Statement insert, Statement::Prepare(db, R"sql(
+INSERT INTO study_cells(job_id, attempt, idx, estimator, method, particles, horizon, replicates,
+    nonfinite, errors, time_min_s, time_median_s, rel_rmse, rel_bias, rel_bias_noise,
+    total_variance, cos_mean, objective_mean, ess_mean, ess_min, k_lr_mean, reference_agrees,
+    reference_floor, budget_hit, omitted, note, error, omission_reason, k_lr_per_step_json,
+    reported_ms)
+VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)
+ON CONFLICT(job_id, attempt, idx) DO NOTHING)sql"));
+    for (const StudyCell& c : rows.cells) {
+      if (c.index < 0) {
+        return absl::InvalidArgumentError(
+            absl::StrCat("study cell index ", c.index, " of job ", key.job_id, " is negative"));
+      }
+      insert.Bind(1, key.job_id).Bind(2, key.attempt).Bind(3, c.index).Bind(4, c.estimator);
+      insert.Bind(5, c.method).Bind(6, c.particles).Bind(7, c.horizon).Bind(8, c.replicates);
+      insert.Bind(9, c.nonfinite).Bind(10, c.errors).Bind(11, c.time_min_s);
+      insert.Bind(12, c.time_median_s).Bind(13, c.rel_rmse).Bind(14, c.rel_bias);
+      insert.Bind(15, c.rel_bias_noise).Bind(16, c.total_variance).Bind(17, c.cos_mean);
+      insert.Bind(18, c.objective_mean).Bind(19, c.ess_mean).Bind(20, c.ess_min);
+      insert.Bind(21, c.k_lr_mean).Bind(22, c.reference_agrees ? 1 : 0);
+      insert.Bind(23, c.reference_floor).Bind(24, c.budget_hit ? 1 : 0);
+      insert.Bind(25, c.omitted ? 1 : 0).Bind(26, c.note).Bind(27, c.error);
+      insert.Bind(28, c.omission_reason).Bind(29, DoublesToJson(c.k_lr_per_step));
+      insert.Bind(30, now_ms);
+      RETURN_IF_ERROR(insert.Run());
+      insert.Reset();
+    }
+  }
+  if (!rows.references.empty()) {
+    ASSIGN_OR_RETURN(Statement insert, Statement::Prepare(db, R"sql(
+INSERT INTO study_references(job_id, attempt, idx, horizon, norm, relative_error, floor,
+    objective, used_json, replicates_json, agreement_max_z, agreement_mean_z2, agree, seconds,
+    note, gradient_json, standard_error_json, reported_ms)
+VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)
+ON CONFLICT(job_id, attempt, idx) DO NOTHING)sql"));
+    for (const StudyReference& r : rows.references) {
+      if (r.index < 0) {
+        return absl::InvalidArgumentError(absl::StrCat(
+            "study reference index ", r.index, " of job ", key.job_id, " is negative"));
+      }
+      insert.Bind(1, key.job_id).Bind(2, key.attempt).Bind(3, r.index).Bind(4, r.horizon);
+      insert.Bind(5, r.norm).Bind(6, r.relative_error).Bind(7, r.floor).Bind(8, r.objective);
+      insert.Bind(9, nlohmann::json(r.used).dump()).Bind(10, nlohmann::json(r.replicates).dump());
+      insert.Bind(11, r.agreement_max_z).Bind(12, r.agreement_mean_z2).Bind(13, r.agree ? 1 : 0);
+      insert.Bind(14, r.seconds).Bind(15, r.note).Bind(16, DoublesToJson(r.gradient));
+      insert.Bind(17, DoublesToJson(r.standard_error)).Bind(18, now_ms);
+      RETURN_IF_ERROR(insert.Run());
+      insert.Reset();
+    }
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<int> CountStudyRows(Db& db, const LeaseKey& key) {
+  ASSIGN_OR_RETURN(Statement count, Statement::Prepare(db, R"sql(
+SELECT (SELECT COUNT(*) FROM study_cells WHERE job_id = ?1 AND attempt = ?2) +
+       (SELECT COUNT(*) FROM study_references WHERE job_id = ?1 AND attempt = ?2))sql"));
+  count.Bind(1, key.job_id).Bind(2, key.attempt);
+  ASSIGN_OR_RETURN(bool row, count.Step());
+  return row ? static_cast<int>(count.ColumnInt(0)) : 0;
+}
+
+// The indexes in 0..total-1 missing from `table` for the attempt.
+absl::StatusOr<std::vector<int>> MissingStudyRows(Db& db, const LeaseKey& key,
+                                                  absl::string_view table, int total) {
+  ASSIGN_OR_RETURN(Statement present,
+                   Statement::Prepare(db, absl::StrCat("SELECT idx FROM ", table,
+                                                       " WHERE job_id = ? AND attempt = ? "
+                                                       "AND idx < ?")));
+  present.Bind(1, key.job_id).Bind(2, key.attempt).Bind(3, total);
+  std::set<int> have;
+  while (true) {
+    ASSIGN_OR_RETURN(bool row, present.Step());
+    if (!row) break;
+    have.insert(static_cast<int>(present.ColumnInt(0)));
+  }
+  std::vector<int> missing;
+  for (int i = 0; i < total; ++i) {
+    if (!have.count(i)) missing.push_back(i);
+  }
+  return missing;
+}
+
+// Keeps `checkpoint` for the attempt unless it holds one of a later episode.
+absl::Status UpsertCheckpoint(Db& db, const LeaseKey& key, const OpenAttempt& attempt,
+                              const Checkpoint& checkpoint, int64_t now_ms) {
+  if (attempt.kind != JobKind::kTrial) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("job ", key.job_id, " is a study job; only trials have checkpoints"));
+  }
+  if (checkpoint.episode < 0 || checkpoint.episode >= attempt.episodes_expected) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "checkpoint after episode ", checkpoint.episode, " of job ", key.job_id,
+        " is out of range: the trial has episodes 0..", attempt.episodes_expected - 1));
+  }
+  ASSIGN_OR_RETURN(Statement upsert, Statement::Prepare(db, R"sql(
+INSERT INTO checkpoints(job_id, attempt, episode, format_version, data, reported_ms)
+VALUES(?, ?, ?, ?, ?, ?)
+ON CONFLICT(job_id, attempt) DO UPDATE SET episode = excluded.episode,
+    format_version = excluded.format_version, data = excluded.data,
+    reported_ms = excluded.reported_ms
+WHERE excluded.episode >= checkpoints.episode)sql"));
+  upsert.Bind(1, key.job_id).Bind(2, key.attempt).Bind(3, checkpoint.episode);
+  upsert.Bind(4, checkpoint.format_version).BindBlob(5, checkpoint.data).Bind(6, now_ms);
+  return upsert.Run();
+}
+
+
+// CreateSweep inside the caller's transaction: *created tells whether it
+// was inserted (false: a sweep of that name and hash existed).
+absl::Status InsertSweep(Db& db, const NewSweep& sweep, int64_t now_ms, bool* created) {
+  *created = false;
+    ASSIGN_OR_RETURN(Statement existing,
+                   Statement::Prepare(db, "SELECT spec_hash FROM sweeps WHERE name = ?"));
+  existing.Bind(1, sweep.name);
+  ASSIGN_OR_RETURN(bool found, existing.Step());
+  if (found) {
+    const std::string stored = existing.ColumnText(0);
+    if (stored != sweep.spec_hash &&
+        std::find(sweep.equivalent_spec_hashes.begin(), sweep.equivalent_spec_hashes.end(),
+                  stored) == sweep.equivalent_spec_hashes.end()) {
+      return absl::AlreadyExistsError(absl::StrCat(
+          "a different sweep named '", sweep.name, "' exists (spec hash ",
+          existing.ColumnText(0).substr(0, 12), ", submitted ", sweep.spec_hash.substr(0, 12),
+          "); rename the sweep or cancel and use a new name"));
+    }
+    return absl::OkStatus();
+  }
+  ASSIGN_OR_RETURN(Statement insert, Statement::Prepare(db, R"sql(
+INSERT INTO sweeps(name, description, state, canonical_spec, spec_hash, source_name, source_text,
+                 coordinator_build, max_attempts, max_lost_leases, max_concurrent, created_ms)
+VALUES(?, ?, 'running', ?, ?, ?, ?, ?, ?, ?, ?, ?))sql"));
+  insert.Bind(1, sweep.name).Bind(2, sweep.description).Bind(3, sweep.canonical_spec);
+  insert.Bind(4, sweep.spec_hash).Bind(5, sweep.source_name).Bind(6, sweep.source_text);
+  insert.Bind(7, sweep.coordinator_build).Bind(8, sweep.max_attempts);
+  insert.Bind(9, sweep.max_lost_leases).Bind(10, sweep.max_concurrent).Bind(11, now_ms);
+  RETURN_IF_ERROR(insert.Run());
+  const int64_t sweep_id = db.LastInsertRowId();
+  ASSIGN_OR_RETURN(Statement job_insert, Statement::Prepare(db, R"sql(
+INSERT INTO jobs(sweep_id, ordinal, method, seed, variant, options_json, episodes_expected, state,
+               kind, payload)
+VALUES(?, ?, ?, ?, ?, ?, ?, 'queued', ?, ?))sql"));
+  for (size_t i = 0; i < sweep.jobs.size(); ++i) {
+    const NewJob& job = sweep.jobs[i];
+    job_insert.Bind(1, sweep_id).Bind(2, static_cast<int64_t>(i)).Bind(3, job.method);
+    job_insert.Bind(4, job.seed).Bind(5, job.variant).Bind(6, OptionsToJson(job.options));
+    // Study jobs report no episodes; the column's CHECK wants >= 1 (read back as 0).
+    job_insert.Bind(7, job.kind == JobKind::kStudy ? 1 : job.episodes_expected);
+    job_insert.Bind(8, ToString(job.kind)).Bind(9, job.payload);
+    RETURN_IF_ERROR(job_insert.Run());
+    job_insert.Reset();
+    RETURN_IF_ERROR(internal::WriteJobOptions(db, db.LastInsertRowId(), job.method, job.seed,
+                                              job.variant));
+  }
+  RETURN_IF_ERROR(internal::CreateSweepView(db, sweep_id, sweep.name));
+  *created = true;
+  return AddEvent(db, now_ms, sweep_id, 0, 0, "sweep_submitted",
+                  absl::StrCat(sweep.jobs.size(), " jobs, spec ", sweep.spec_hash));
+}
+
+
+}  // namespace totalgrad::storage::internal

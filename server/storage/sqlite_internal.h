@@ -1,0 +1,92 @@
+// Row helpers shared by the files of SqliteStore (sqlite_store.h; one file
+// per job: sqlite_store.cc opens and guards the file, sqlite_sweeps.cc
+// sweeps, jobs and workers, sqlite_attempts.cc attempts and their results,
+// sqlite_results.cc the results reads, sqlite_import.cc archives and grown
+// sweeps). Internal to server/storage.
+//
+// Threading: as internal::Db; every function runs inside the caller's
+// transaction on the connection it is given.
+#ifndef TOTALGRAD_SERVER_STORAGE_SQLITE_INTERNAL_H_
+#define TOTALGRAD_SERVER_STORAGE_SQLITE_INTERNAL_H_
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
+#include "server/storage/sqlite_db.h"
+#include "server/storage/store.h"
+
+namespace totalgrad::storage::internal {
+
+// Doubles as JSON arrays: round-trip precision; NaN and +-Inf as null.
+std::string DoublesToJson(const std::vector<double>& values);
+std::vector<double> DoublesFromJson(const std::string& text);
+std::optional<JobKind> ParseJobKind(absl::string_view text);
+// Options as the jobs.options_json column holds them: [[key, value], ...].
+std::string OptionsToJson(const OptionList& options);
+OptionList OptionsFromJson(const std::string& text);
+
+// Appends to the event log (sweep_id, job_id 0: none).
+absl::Status AddEvent(Db& db, int64_t ms, int64_t sweep_id, int64_t job_id, int attempt,
+                      absl::string_view kind, absl::string_view message);
+// Reads an int from a one-row query with one parameter (0 without a row).
+absl::StatusOr<int64_t> QueryInt(Db& db, absl::string_view sql, int64_t param);
+
+inline constexpr char kSweepColumns[] =
+    "s.id, s.name, s.description, s.state, s.canonical_spec, s.spec_hash, s.source_name, "
+    "s.coordinator_build, s.created_ms, s.max_attempts, s.max_lost_leases, s.max_concurrent";
+absl::StatusOr<SweepRecord> ReadSweepRow(Db& db, const Statement& row);
+absl::StatusOr<SweepRecord> LoadSweep(Db& db, const std::string& name);
+
+inline constexpr char kJobSelect[] = R"sql(
+SELECT j.id, j.sweep_id, s.name, s.state, j.ordinal, j.method, j.seed, j.variant, j.options_json,
+       j.state, j.attempts, j.failures, j.lost_leases, s.max_attempts, s.max_lost_leases,
+       CASE WHEN j.kind = 'study' THEN 0 ELSE j.episodes_expected END,
+       (SELECT COUNT(*) FROM episodes e WHERE e.job_id = j.id AND e.attempt = j.attempts),
+       COALESCE((SELECT a.worker_id FROM attempts a
+                 WHERE a.job_id = j.id AND a.attempt = j.attempts AND a.state = 'running'), ''),
+       j.last_error, COALESCE(j.completed_attempt, 0), COALESCE(j.success, 0), j.final_eval_cost,
+       j.kind, j.payload
+FROM jobs j JOIN sweeps s ON s.id = j.sweep_id
+)sql";
+JobRecord ReadJobRow(const Statement& row);
+absl::StatusOr<JobRecord> LoadJob(Db& db, int64_t job_id);
+
+struct OpenAttempt {
+  JobKind kind = JobKind::kTrial;
+  AttemptState state = AttemptState::kRunning;
+  std::string worker_id;
+  int job_attempts = 0;
+  int episodes_expected = 0;
+  int64_t sweep_id = 0;
+};
+
+// Loads the attempt and the job's latest attempt number. NotFound if the job
+// does not exist; Aborted if the attempt does not exist.
+absl::StatusOr<OpenAttempt> LoadAttempt(Db& db, const LeaseKey& key);
+// The fence: the attempt must be open, the job's latest, and owned by `worker_id`.
+absl::Status CheckOpen(const LeaseKey& key, const OpenAttempt& attempt,
+                       const std::string& worker_id);
+
+absl::Status InsertEpisodes(Db& db, const LeaseKey& key, int episodes_expected,
+                            const std::vector<Episode>& episodes, int64_t now_ms);
+absl::Status InsertStudyRows(Db& db, const LeaseKey& key, JobKind kind, const StudyRows& rows,
+                             int64_t now_ms);
+absl::StatusOr<int> CountStudyRows(Db& db, const LeaseKey& key);
+// The indexes in 0..total-1 missing from `table` for the attempt.
+absl::StatusOr<std::vector<int>> MissingStudyRows(Db& db, const LeaseKey& key,
+                                                  absl::string_view table, int total);
+// Keeps `checkpoint` for the attempt unless it holds one of a later episode.
+absl::Status UpsertCheckpoint(Db& db, const LeaseKey& key, const OpenAttempt& attempt,
+                              const Checkpoint& checkpoint, int64_t now_ms);
+// CreateSweep inside the caller's transaction: *created tells whether it
+// was inserted (false: a sweep of that name and hash existed).
+absl::Status InsertSweep(Db& db, const NewSweep& sweep, int64_t now_ms, bool* created);
+
+}  // namespace totalgrad::storage::internal
+
+#endif  // TOTALGRAD_SERVER_STORAGE_SQLITE_INTERNAL_H_

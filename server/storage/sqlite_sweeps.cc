@@ -1,0 +1,332 @@
+// SqliteStore: sweeps, jobs and workers (sqlite_store.h).
+#include <algorithm>
+#include <set>
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+#include "server/common/status_macros.h"
+#include "server/storage/sqlite_internal.h"
+#include "server/storage/sqlite_schema.h"
+#include "server/storage/sqlite_store.h"
+
+namespace totalgrad::storage {
+
+using internal::Db;
+using internal::Statement;
+using namespace internal;  // the row helpers of sqlite_internal.h
+
+absl::StatusOr<SweepRecord> SqliteStore::CreateSweep(const NewSweep& sweep, int64_t now_ms,
+                                                     bool* created) {
+  *created = false;
+  const absl::Status status = InWriteTransaction(
+      [&](Db& db) -> absl::Status { return InsertSweep(db, sweep, now_ms, created); });
+  if (!status.ok()) return status;
+  return GetSweep(sweep.name);
+}
+
+absl::Status SqliteStore::SetSweepState(const std::string& name, SweepState state,
+                                        int64_t now_ms) {
+  return InWriteTransaction([&](Db& db) -> absl::Status {
+    ASSIGN_OR_RETURN(Statement query,
+                     Statement::Prepare(db, "SELECT id, state FROM sweeps WHERE name = ?"));
+    query.Bind(1, name);
+    ASSIGN_OR_RETURN(bool found, query.Step());
+    if (!found) return absl::NotFoundError(absl::StrCat("no sweep named '", name, "'"));
+    const int64_t sweep_id = query.ColumnInt(0);
+    const std::string previous = query.ColumnText(1);
+    if (previous == ToString(state)) return absl::OkStatus();
+    ASSIGN_OR_RETURN(Statement update,
+                     Statement::Prepare(db, "UPDATE sweeps SET state = ? WHERE id = ?"));
+    update.Bind(1, ToString(state)).Bind(2, sweep_id);
+    RETURN_IF_ERROR(update.Run());
+    if (state == SweepState::kCancelled) {
+      ASSIGN_OR_RETURN(Statement cancel,
+                       Statement::Prepare(db, "UPDATE jobs SET state = 'cancelled' WHERE "
+                                              "sweep_id = ? AND state IN ('queued', 'running')"));
+      cancel.Bind(1, sweep_id);
+      RETURN_IF_ERROR(cancel.Run());
+    } else if (previous == ToString(SweepState::kCancelled)) {
+      // Resumed by the user: cancelled jobs run again; one whose attempt is
+      // still open (its worker has not answered the cancel yet) carries on.
+      ASSIGN_OR_RETURN(Statement resume, Statement::Prepare(db, R"sql(
+UPDATE jobs SET state = CASE WHEN EXISTS(SELECT 1 FROM attempts a WHERE a.job_id = jobs.id
+                                          AND a.attempt = jobs.attempts AND a.state = 'running')
+                             THEN 'running' ELSE 'queued' END
+WHERE sweep_id = ? AND state = 'cancelled')sql"));
+      resume.Bind(1, sweep_id);
+      RETURN_IF_ERROR(resume.Run());
+    }
+    return AddEvent(db, now_ms, sweep_id, 0, 0, absl::StrCat("sweep_", ToString(state)),
+                    absl::StrCat("was ", previous));
+  });
+}
+
+
+absl::StatusOr<SweepContents> SqliteStore::DeleteSweep(const std::string& name,
+                                                      const SweepContents& expected,
+                                                      int64_t now_ms) {
+  SweepContents deleted;
+  RETURN_IF_ERROR(InWriteTransaction([&](Db& db) -> absl::Status {
+    ASSIGN_OR_RETURN(Statement query, Statement::Prepare(db, "SELECT id FROM sweeps WHERE name = ?"));
+    query.Bind(1, name);
+    ASSIGN_OR_RETURN(bool found, query.Step());
+    if (!found) return absl::NotFoundError(absl::StrCat("no sweep named '", name, "'"));
+    const int64_t sweep_id = query.ColumnInt(0);
+    ASSIGN_OR_RETURN(const int64_t open_attempts, QueryInt(db, R"sql(
+SELECT COUNT(*) FROM attempts a JOIN jobs j ON j.id = a.job_id
+WHERE j.sweep_id = ? AND a.state = 'running')sql", sweep_id));
+    if (open_attempts > 0) {
+      return absl::FailedPreconditionError(absl::StrCat(
+          "sweep '", name, "' has ", open_attempts, " trial(s) running on workers; cancel it "
+          "first (totalgrad sweep cancel ", name, ") and delete it once they have stopped"));
+    }
+    constexpr char kOfSweep[] = "job_id IN (SELECT id FROM jobs WHERE sweep_id = ?)";
+    ASSIGN_OR_RETURN(deleted.jobs,
+                     QueryInt(db, "SELECT COUNT(*) FROM jobs WHERE sweep_id = ?", sweep_id));
+    ASSIGN_OR_RETURN(deleted.attempts,
+                     QueryInt(db, absl::StrCat("SELECT COUNT(*) FROM attempts WHERE ", kOfSweep),
+                              sweep_id));
+    ASSIGN_OR_RETURN(deleted.episodes,
+                     QueryInt(db, absl::StrCat("SELECT COUNT(*) FROM episodes WHERE ", kOfSweep),
+                              sweep_id));
+    ASSIGN_OR_RETURN(const int64_t cells,
+                     QueryInt(db, absl::StrCat("SELECT COUNT(*) FROM study_cells WHERE ", kOfSweep),
+                              sweep_id));
+    ASSIGN_OR_RETURN(const int64_t references,
+                     QueryInt(db, absl::StrCat("SELECT COUNT(*) FROM study_references WHERE ",
+                                               kOfSweep),
+                              sweep_id));
+    deleted.study_rows = cells + references;
+    if (!(deleted == expected)) {
+      return absl::FailedPreconditionError(absl::StrCat(
+          "sweep '", name, "' changed after it was archived (now ", deleted.jobs, " jobs, ",
+          deleted.attempts, " attempts, ", deleted.episodes, " episodes, ", deleted.study_rows,
+          " study rows; the archive has ", expected.jobs, ", ", expected.attempts, ", ",
+          expected.episodes, ", ", expected.study_rows, "); nothing was deleted: run the "
+          "delete again"));
+    }
+    // Children first: the foreign keys point from episodes, study rows and
+    // checkpoints to attempts, from attempts, options and events to jobs.
+    for (const char* table : {"episodes", "study_cells", "study_references", "checkpoints",
+                              "attempts", "job_options", "events"}) {
+      ASSIGN_OR_RETURN(Statement remove, Statement::Prepare(
+          db, absl::StrCat("DELETE FROM ", table, " WHERE ", kOfSweep)));
+      remove.Bind(1, sweep_id);
+      RETURN_IF_ERROR(remove.Run());
+    }
+    for (const char* sql : {"DELETE FROM events WHERE sweep_id = ?",
+                            "DELETE FROM jobs WHERE sweep_id = ?",
+                            "DELETE FROM sweeps WHERE id = ?"}) {
+      ASSIGN_OR_RETURN(Statement remove, Statement::Prepare(db, sql));
+      remove.Bind(1, sweep_id);
+      RETURN_IF_ERROR(remove.Run());
+    }
+    RETURN_IF_ERROR(internal::DropSweepView(db, name));
+    return AddEvent(db, now_ms, 0, 0, 0, "sweep_deleted",
+                    absl::StrCat("sweep '", name, "': ", deleted.jobs, " jobs, ",
+                                 deleted.attempts, " attempts, ", deleted.episodes,
+                                 " episodes, ", deleted.study_rows, " study rows"));
+  }));
+  return deleted;
+}
+
+absl::Status SqliteStore::RetryJob(int64_t job_id, int64_t now_ms) {
+  return InWriteTransaction([&](Db& db) -> absl::Status {
+    ASSIGN_OR_RETURN(JobRecord job, LoadJob(db, job_id));
+    if (job.state != JobState::kFailed && job.state != JobState::kCancelled) {
+      return absl::FailedPreconditionError(absl::StrCat(
+          "job ", job_id, " is ", ToString(job.state), "; only failed or cancelled jobs can be "
+          "retried"));
+    }
+    if (job.sweep_state == SweepState::kCancelled) {
+      // Retrying one job of a cancelled sweep runs that job alone: the sweep
+      // runs again, its other cancelled jobs stay cancelled (`sweep resume`
+      // re-queues them all). Not while the job's cancelled attempt is still
+      // open: its worker has yet to answer the cancel.
+      ASSIGN_OR_RETURN(const int64_t open, QueryInt(db, R"sql(
+SELECT COUNT(*) FROM attempts WHERE job_id = ? AND state = 'running')sql", job_id));
+      if (open > 0) {
+        return absl::FailedPreconditionError(absl::StrCat(
+            "job ", job_id, " of cancelled sweep '", job.sweep_name, "' is still stopping on its "
+            "worker; retry it once it has stopped, or resume the whole sweep (totalgrad sweep "
+            "resume ", job.sweep_name, ")"));
+      }
+      ASSIGN_OR_RETURN(Statement resume, Statement::Prepare(
+          db, "UPDATE sweeps SET state = 'running' WHERE id = ?"));
+      resume.Bind(1, job.sweep_id);
+      RETURN_IF_ERROR(resume.Run());
+      RETURN_IF_ERROR(AddEvent(db, now_ms, job.sweep_id, job_id, job.attempts, "sweep_running",
+                               absl::StrCat("was cancelled; job ", job_id,
+                                            " retried (its other cancelled jobs stay cancelled)")));
+    }
+    ASSIGN_OR_RETURN(Statement update,
+                     Statement::Prepare(db, "UPDATE jobs SET state = 'queued', failures = 0, "
+                                            "lost_leases = 0 WHERE id = ?"));
+    update.Bind(1, job_id);
+    RETURN_IF_ERROR(update.Run());
+    return AddEvent(db, now_ms, job.sweep_id, job_id, job.attempts, "retried",
+                    absl::StrCat("was ", ToString(job.state)));
+  });
+}
+
+
+absl::Status SqliteStore::TouchWorker(const WorkerIdentity& worker, int64_t now_ms) {
+  return InWriteTransaction([&](Db& db) -> absl::Status {
+    ASSIGN_OR_RETURN(Statement upsert, Statement::Prepare(db, R"sql(
+INSERT INTO workers(worker_id, host, build, slots, first_seen_ms, last_seen_ms)
+VALUES(?, ?, ?, ?, ?, ?)
+ON CONFLICT(worker_id) DO UPDATE SET host = excluded.host, build = excluded.build,
+    slots = excluded.slots, last_seen_ms = excluded.last_seen_ms)sql"));
+    upsert.Bind(1, worker.worker_id).Bind(2, worker.host).Bind(3, worker.build);
+    upsert.Bind(4, worker.slots).Bind(5, now_ms).Bind(6, now_ms);
+    return upsert.Run();
+  });
+}
+
+absl::Status SqliteStore::SetWorkerDraining(const std::string& worker_id, bool draining,
+                                            int64_t now_ms) {
+  return InWriteTransaction([&](Db& db) -> absl::Status {
+    ASSIGN_OR_RETURN(Statement update,
+                     Statement::Prepare(db, "UPDATE workers SET draining = ? WHERE worker_id = ?"));
+    update.Bind(1, draining ? 1 : 0).Bind(2, worker_id);
+    RETURN_IF_ERROR(update.Run());
+    if (db.Changes() != 1) {
+      return absl::NotFoundError(absl::StrCat("no worker with id '", worker_id, "'"));
+    }
+    return AddEvent(db, now_ms, 0, 0, 0, draining ? "worker_drain" : "worker_undrain", worker_id);
+  });
+}
+
+
+absl::StatusOr<SweepRecord> SqliteStore::GetSweep(const std::string& name) {
+  std::lock_guard<std::mutex> lock(read_mutex_);
+  return LoadSweep(reader_, name);
+}
+
+absl::StatusOr<std::vector<SweepRecord>> SqliteStore::ListSweeps() {
+  std::lock_guard<std::mutex> lock(read_mutex_);
+  RETURN_IF_ERROR(reader_.Exec("BEGIN"));  // one snapshot for the whole list
+  std::vector<SweepRecord> sweeps;
+  absl::Status status = [&]() -> absl::Status {
+    ASSIGN_OR_RETURN(Statement query,
+                     Statement::Prepare(reader_, absl::StrCat("SELECT ", kSweepColumns,
+                                                              " FROM sweeps s ORDER BY s.id DESC")));
+    while (true) {
+      ASSIGN_OR_RETURN(bool row, query.Step());
+      if (!row) return absl::OkStatus();
+      ASSIGN_OR_RETURN(SweepRecord sweep, ReadSweepRow(reader_, query));
+      sweeps.push_back(std::move(sweep));
+    }
+  }();
+  (void)reader_.Exec("COMMIT");
+  if (!status.ok()) return status;
+  return sweeps;
+}
+
+absl::StatusOr<JobRecord> SqliteStore::GetJob(int64_t job_id) {
+  std::lock_guard<std::mutex> lock(read_mutex_);
+  return LoadJob(reader_, job_id);
+}
+
+absl::StatusOr<std::vector<JobRecord>> SqliteStore::ListJobs(const JobFilter& filter) {
+  std::lock_guard<std::mutex> lock(read_mutex_);
+  // The state filter is one bound parameter: a list ",queued,,running," that
+  // each job's state is looked up in with instr().
+  std::string states;
+  for (JobState s : filter.states) absl::StrAppend(&states, ",", ToString(s), ",");
+  ASSIGN_OR_RETURN(Statement query, Statement::Prepare(reader_, absl::StrCat(kJobSelect, R"sql(
+WHERE (? = '' OR s.name = ?) AND (? = '' OR instr(?, ',' || j.state || ',') > 0) AND j.id > ?
+ORDER BY j.id LIMIT ?)sql")));
+  query.Bind(1, filter.sweep_name).Bind(2, filter.sweep_name).Bind(3, states).Bind(4, states);
+  query.Bind(5, filter.after_job_id).Bind(6, filter.limit);
+  std::vector<JobRecord> jobs;
+  while (true) {
+    ASSIGN_OR_RETURN(bool row, query.Step());
+    if (!row) break;
+    jobs.push_back(ReadJobRow(query));
+  }
+  if (jobs.empty() && !filter.sweep_name.empty()) {
+    ASSIGN_OR_RETURN(Statement check,
+                     Statement::Prepare(reader_, "SELECT 1 FROM sweeps WHERE name = ?"));
+    check.Bind(1, filter.sweep_name);
+    ASSIGN_OR_RETURN(bool found, check.Step());
+    if (!found) return absl::NotFoundError(absl::StrCat("no sweep named '", filter.sweep_name, "'"));
+  }
+  return jobs;
+}
+
+
+absl::StatusOr<std::vector<ClaimCandidate>> SqliteStore::ListClaimCandidates(int limit) {
+  std::lock_guard<std::mutex> lock(read_mutex_);
+  ASSIGN_OR_RETURN(Statement query, Statement::Prepare(reader_, R"sql(
+SELECT j.id, j.attempts, s.id, s.max_concurrent,
+       (SELECT COUNT(*) FROM jobs r WHERE r.sweep_id = s.id AND r.state = 'running'), j.kind
+FROM jobs j JOIN sweeps s ON s.id = j.sweep_id
+WHERE j.state = 'queued' AND s.state = 'running'
+ORDER BY s.id, j.ordinal LIMIT ?)sql"));
+  query.Bind(1, limit);
+  std::vector<ClaimCandidate> candidates;
+  while (true) {
+    ASSIGN_OR_RETURN(bool row, query.Step());
+    if (!row) break;
+    ClaimCandidate c;
+    c.job_id = query.ColumnInt(0);
+    c.kind = ParseJobKind(query.ColumnText(5)).value_or(JobKind::kTrial);
+    c.attempts = static_cast<int>(query.ColumnInt(1));
+    c.sweep_id = query.ColumnInt(2);
+    c.max_concurrent = static_cast<int>(query.ColumnInt(3));
+    c.sweep_running = static_cast<int>(query.ColumnInt(4));
+    candidates.push_back(c);
+  }
+  return candidates;
+}
+
+
+namespace {
+constexpr char kWorkerSelect[] = R"sql(
+SELECT w.worker_id, w.host, w.build, w.slots, w.first_seen_ms, w.last_seen_ms, w.draining,
+       (SELECT COUNT(*) FROM attempts a WHERE a.worker_id = w.worker_id AND a.state = 'running')
+FROM workers w)sql";
+
+WorkerRecord ReadWorkerRow(const Statement& query) {
+  WorkerRecord w;
+  w.identity.worker_id = query.ColumnText(0);
+  w.identity.host = query.ColumnText(1);
+  w.identity.build = query.ColumnText(2);
+  w.identity.slots = static_cast<int>(query.ColumnInt(3));
+  w.first_seen_ms = query.ColumnInt(4);
+  w.last_seen_ms = query.ColumnInt(5);
+  w.draining = query.ColumnInt(6) != 0;
+  w.running = static_cast<int>(query.ColumnInt(7));
+  return w;
+}
+}  // namespace
+
+absl::StatusOr<std::vector<WorkerRecord>> SqliteStore::ListWorkers() {
+  std::lock_guard<std::mutex> lock(read_mutex_);
+  ASSIGN_OR_RETURN(Statement query,
+                   Statement::Prepare(reader_, absl::StrCat(kWorkerSelect,
+                                                            " ORDER BY w.last_seen_ms DESC")));
+  std::vector<WorkerRecord> workers;
+  while (true) {
+    ASSIGN_OR_RETURN(bool row, query.Step());
+    if (!row) break;
+    workers.push_back(ReadWorkerRow(query));
+  }
+  return workers;
+}
+
+absl::StatusOr<WorkerRecord> SqliteStore::GetWorker(const std::string& worker_id) {
+  std::lock_guard<std::mutex> lock(read_mutex_);
+  ASSIGN_OR_RETURN(Statement query,
+                   Statement::Prepare(reader_, absl::StrCat(kWorkerSelect,
+                                                            " WHERE w.worker_id = ?")));
+  query.Bind(1, worker_id);
+  ASSIGN_OR_RETURN(bool row, query.Step());
+  if (!row) return absl::NotFoundError(absl::StrCat("no worker with id '", worker_id, "'"));
+  return ReadWorkerRow(query);
+}
+
+
+}  // namespace totalgrad::storage

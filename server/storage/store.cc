@@ -1,0 +1,60 @@
+// The names of the store's enums (store.h), as stored in the database.
+#include "server/storage/store.h"
+
+namespace totalgrad::storage {
+
+absl::string_view ToString(SweepState state) {
+  switch (state) {
+    case SweepState::kRunning: return "running";
+    case SweepState::kPaused: return "paused";
+    case SweepState::kCancelled: return "cancelled";
+  }
+  return "unknown";
+}
+absl::string_view ToString(JobState state) {
+  switch (state) {
+    case JobState::kQueued: return "queued";
+    case JobState::kRunning: return "running";
+    case JobState::kCompleted: return "completed";
+    case JobState::kFailed: return "failed";
+    case JobState::kCancelled: return "cancelled";
+  }
+  return "unknown";
+}
+absl::string_view ToString(AttemptState state) {
+  switch (state) {
+    case AttemptState::kRunning: return "running";
+    case AttemptState::kCompleted: return "completed";
+    case AttemptState::kFailed: return "failed";
+    case AttemptState::kLeaseLost: return "lease_lost";
+    case AttemptState::kReleased: return "released";
+    case AttemptState::kCancelled: return "cancelled";
+  }
+  return "unknown";
+}
+absl::string_view ToString(JobKind kind) {
+  return kind == JobKind::kStudy ? "study" : "trial";
+}
+std::optional<SweepState> ParseSweepState(absl::string_view text) {
+  for (SweepState s : {SweepState::kRunning, SweepState::kPaused, SweepState::kCancelled}) {
+    if (ToString(s) == text) return s;
+  }
+  return std::nullopt;
+}
+std::optional<JobState> ParseJobState(absl::string_view text) {
+  for (JobState s : {JobState::kQueued, JobState::kRunning, JobState::kCompleted,
+                     JobState::kFailed, JobState::kCancelled}) {
+    if (ToString(s) == text) return s;
+  }
+  return std::nullopt;
+}
+std::optional<AttemptState> ParseAttemptState(absl::string_view text) {
+  for (AttemptState s : {AttemptState::kRunning, AttemptState::kCompleted, AttemptState::kFailed,
+                         AttemptState::kLeaseLost, AttemptState::kReleased,
+                         AttemptState::kCancelled}) {
+    if (ToString(s) == text) return s;
+  }
+  return std::nullopt;
+}
+
+}  // namespace totalgrad::storage
