@@ -57,6 +57,17 @@ class StorageTest : public ::testing::Test {
     return job_id;
   }
 
+  // Stores episode 0 of `job`'s attempt 1, closes the store and opens the
+  // file with a raw connection (to turn it into an older schema).
+  void StoreAnEpisodeAndOpenTheFileRaw(int64_t job, std::optional<internal::Db>* db) {
+    TG_ASSERT_OK(store_->StoreEpisodes({job, 1}, "w1", {MakeEpisode(0)}, kNow, std::nullopt)
+                     .status());
+    store_.reset();
+    auto opened = internal::Db::Open(path_, false, 1000);
+    ASSERT_TRUE(opened.ok()) << opened.status();
+    db->emplace(std::move(*opened));
+  }
+
   std::string dir_;
   std::string path_;
   std::unique_ptr<SqliteStore> store_;
@@ -807,13 +818,11 @@ SELECT method, seed, typeof(seed), cost, typeof(cost), noise_k, typeof(noise_k),
 
 TEST_F(StorageTest, VersionOneDatabaseIsMigrated) {
   const int64_t trial_job = CreateAndLease("old");
-  TG_ASSERT_OK(store_->StoreEpisodes({trial_job, 1}, "w1", {MakeEpisode(0)}, kNow, std::nullopt)
-                   .status());
-  store_.reset();
+  std::optional<internal::Db> db_slot;
+  ASSERT_NO_FATAL_FAILURE(StoreAnEpisodeAndOpenTheFileRaw(trial_job, &db_slot));
   {
     // Turn the file back into a version-1 database.
-    auto db = internal::Db::Open(path_, false, 1000);
-    ASSERT_TRUE(db.ok()) << db.status();
+    internal::Db* db = &*db_slot;
     TG_ASSERT_OK(db->Exec("DROP VIEW \"episodes/old\"; DROP VIEW episode_rows; "
                           "DROP TABLE job_options; ALTER TABLE episodes DROP COLUMN cpu_seconds; "
                           "DELETE FROM meta; "
@@ -821,6 +830,7 @@ TEST_F(StorageTest, VersionOneDatabaseIsMigrated) {
                           "ALTER TABLE jobs DROP COLUMN payload; ALTER TABLE jobs DROP COLUMN kind; "
                           "PRAGMA user_version=1"));
   }
+  db_slot.reset();  // closed before the store opens the file again
   Reopen();
   {
     auto db = internal::Db::Open(path_, false, 1000);
@@ -861,13 +871,11 @@ TEST_F(StorageTest, VersionOneDatabaseIsMigrated) {
 // seed, keeping every row, the other tables' references and the views.
 TEST_F(StorageTest, VersionFourDatabaseGetsIntegerSeeds) {
   const int64_t job = CreateAndLease("texts");
-  TG_ASSERT_OK(store_->StoreEpisodes({job, 1}, "w1", {MakeEpisode(0)}, kNow, std::nullopt)
-                   .status());
-  store_.reset();
+  std::optional<internal::Db> db_slot;
+  ASSERT_NO_FATAL_FAILURE(StoreAnEpisodeAndOpenTheFileRaw(job, &db_slot));
   {
     // Back to version 4: jobs rebuilt with seed TEXT, as version 4 had it.
-    auto db = internal::Db::Open(path_, false, 1000);
-    ASSERT_TRUE(db.ok()) << db.status();
+    internal::Db* db = &*db_slot;
     TG_ASSERT_OK(db->Exec(
         "PRAGMA foreign_keys=OFF; DROP VIEW \"episodes/texts\"; DROP VIEW episode_rows; "
         "CREATE TABLE jobs_text AS SELECT id, sweep_id, ordinal, method, CAST(seed AS TEXT) AS "
@@ -880,6 +888,7 @@ TEST_F(StorageTest, VersionFourDatabaseGetsIntegerSeeds) {
     ASSERT_TRUE(row);
     ASSERT_EQ(type.ColumnText(0), "text");  // the test's premise
   }
+  db_slot.reset();  // closed before the store opens the file again
   Reopen();
   EXPECT_TRUE(std::filesystem::exists(path_ + ".schema-v4-backup"));
   auto db = internal::Db::OpenReadOnly(path_, 1000);
