@@ -57,6 +57,18 @@ class StorageTest : public ::testing::Test {
     return job_id;
   }
 
+  // Ends attempt `key` of worker "w1" as a lost lease; the job is queued again.
+  absl::Status LoseLease(const LeaseKey& key) {
+    AttemptEnd lost;
+    lost.key = key;
+    lost.worker_id = "w1";
+    lost.attempt_state = AttemptState::kLeaseLost;
+    lost.job_state = JobState::kQueued;
+    lost.lost_leases_delta = 1;
+    lost.now_ms = kNow;
+    return store_->EndAttempt(lost).status();
+  }
+
   // Stores episode 0 of `job`'s attempt 1, closes the store and opens the
   // file with a raw connection (to turn it into an older schema).
   void StoreAnEpisodeAndOpenTheFileRaw(int64_t job, std::optional<internal::Db>* db) {
@@ -189,14 +201,7 @@ TEST_F(StorageTest, OutOfRangeEpisodeStoresNothingFromTheCall) {
 
 TEST_F(StorageTest, StaleAttemptAndForeignWorkerAreAborted) {
   const int64_t job = CreateAndLease("s");
-  AttemptEnd lost;
-  lost.key = {job, 1};
-  lost.worker_id = "w1";
-  lost.attempt_state = AttemptState::kLeaseLost;
-  lost.job_state = JobState::kQueued;
-  lost.lost_leases_delta = 1;
-  lost.now_ms = kNow;
-  TG_ASSERT_OK(store_->EndAttempt(lost));
+  TG_ASSERT_OK(LoseLease({job, 1}));
   TG_ASSERT_OK(store_->StartAttempt({job, 2}, MakeWorker("w2"), kNow, kNow + 90'000));
 
   auto late = store_->StoreEpisodes({job, 1}, "w1", {MakeEpisode(0)}, kNow, kNow + 1);
@@ -927,14 +932,7 @@ TEST_F(StorageTest, DeleteSweepRemovesEveryRowOnlyWhenIdleAndAsArchived) {
   EXPECT_EQ(running.status().code(), absl::StatusCode::kFailedPrecondition) << running.status();
   EXPECT_NE(running.status().message().find("totalgrad sweep cancel gone"), std::string::npos)
       << running.status();
-  AttemptEnd lost;
-  lost.key = {job, 1};
-  lost.worker_id = "w1";
-  lost.attempt_state = AttemptState::kLeaseLost;
-  lost.job_state = JobState::kQueued;
-  lost.lost_leases_delta = 1;
-  lost.now_ms = kNow;
-  TG_ASSERT_OK(store_->EndAttempt(lost));
+  TG_ASSERT_OK(LoseLease({job, 1}));
   // Counts other than the sweep's (an archive written before a change): refused.
   SweepContents stale = archived;
   stale.episodes = 1;
