@@ -393,6 +393,12 @@ void AddAdminCommands(CLI::App* app, int* exit_code) {
                             std::to_string(response.jobs_running()),
                             std::to_string(response.workers_active())});
     Print(listing, c->format(), std::cout);
+    if (!response.serving()) {
+      std::cerr << "not serving: "
+                << (response.not_serving_reason().empty() ? "(no reason given)"
+                                                          : response.not_serving_reason())
+                << "\n";
+    }
     return response.serving() ? 0 : 1;
   });
   auto backup_name = std::make_shared<std::string>();

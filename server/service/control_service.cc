@@ -351,8 +351,23 @@ grpc::Status ControlServiceImpl::Health(grpc::ServerContext* context,
                                         const v1::HealthRequest* request,
                                         v1::HealthResponse* response) {
   TG_AUTHORIZE(context);
+  const absl::Status health =
+      health_check_ ? health_check_()
+                    : (serving_ && !scheduler_->shut_down()
+                           ? absl::OkStatus()
+                           : absl::UnavailableError("not serving (starting or shutting down)"));
+  response->set_serving(health.ok());
+  if (!health.ok()) response->set_not_serving_reason(std::string(health.message()));
+  response->set_build(options_.build);
+  response->set_database(options_.database);
+  response->set_now_unix_ms(clock_->NowMs());
   absl::StatusOr<storage::StoreCounts> counts = store_->Counts();
-  if (!counts.ok()) return ToGrpcStatus(counts.status());
+  if (!counts.ok()) {
+    // The counts need the database; the answer still says why it is not
+    // serving when that is the reason.
+    if (!health.ok()) return grpc::Status::OK;
+    return ToGrpcStatus(counts.status());
+  }
   absl::StatusOr<std::vector<storage::WorkerRecord>> workers = store_->ListWorkers();
   if (!workers.ok()) return ToGrpcStatus(workers.status());
   const int64_t now = clock_->NowMs();
@@ -361,14 +376,10 @@ grpc::Status ControlServiceImpl::Health(grpc::ServerContext* context,
   for (const auto& worker : *workers) {
     if (!worker.draining && now - worker.last_seen_ms <= timeout) ++active;
   }
-  response->set_serving(serving_ && !scheduler_->shut_down());
-  response->set_build(options_.build);
-  response->set_database(options_.database);
   response->set_sweeps(counts->sweeps);
   response->set_jobs_queued(counts->jobs_queued);
   response->set_jobs_running(counts->jobs_running);
   response->set_workers_active(active);
-  response->set_now_unix_ms(now);
   return grpc::Status::OK;
 }
 

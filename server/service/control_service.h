@@ -6,6 +6,7 @@
 #ifndef TOTALGRAD_SERVER_SERVICE_CONTROL_SERVICE_H_
 #define TOTALGRAD_SERVER_SERVICE_CONTROL_SERVICE_H_
 
+#include <functional>
 #include <atomic>
 #include <string>
 
@@ -39,6 +40,10 @@ class ControlServiceImpl final : public v1::ControlService::Service {
 
   // Health reports serving = false until this is called (after recovery).
   void SetServing(bool serving) { serving_ = serving; }
+  // What Health reports as serving: `check` (the coordinator's /healthz
+  // check: serving, scheduler up, database writable) instead of the serving
+  // flag alone. Set before the server starts.
+  void SetHealthCheck(std::function<absl::Status()> check) { health_check_ = std::move(check); }
 
   grpc::Status SubmitSweep(grpc::ServerContext* context, const v1::SubmitSweepRequest* request,
                            v1::SubmitSweepResponse* response) override;
@@ -91,6 +96,7 @@ class ControlServiceImpl final : public v1::ControlService::Service {
   const TokenAuthenticator* const auth_;
   const ControlServiceOptions options_;
   std::atomic<bool> serving_{false};
+  std::function<absl::Status()> health_check_;
 };
 
 }  // namespace totalgrad::service

@@ -89,6 +89,9 @@ absl::StatusOr<std::unique_ptr<Coordinator>> Coordinator::Start(const Coordinato
   c->control_service_ = std::make_unique<ControlServiceImpl>(
       c->scheduler_.get(), c->store_.get(), clock, c->auth_.get(),
       ControlServiceOptions{BuildId(), options.database, options.backup_dir});
+  // Before the server starts (the check reads only members set by then and
+  // the atomic serving_ flag).
+  c->control_service_->SetHealthCheck([raw = c.get()] { return raw->CheckHealth(); });
 
   std::shared_ptr<grpc::ServerCredentials> credentials;
   if (options.insecure) {

@@ -150,6 +150,12 @@ TEST_F(EndToEndTest, DeletedDatabaseIsNoLongerAcknowledgedNorSilentlyRecreated) 
   const std::string health = HttpGet(health_port, "/healthz");
   EXPECT_EQ(health.rfind("HTTP/1.1 503 ", 0), 0u) << health;
   EXPECT_NE(health.find("was deleted"), std::string::npos) << health;
+  // The gRPC Health call says the same.
+  v1::HealthResponse rpc_health;
+  ASSERT_TRUE(control_->Health(Context(kUserToken).get(), {}, &rpc_health).ok());
+  EXPECT_FALSE(rpc_health.serving());
+  EXPECT_NE(rpc_health.not_serving_reason().find("was deleted"), std::string::npos)
+      << rpc_health.not_serving_reason();
   coordinator_->Signal(SIGTERM);
   EXPECT_EQ(coordinator_->Wait(seconds(20)), 0) << coordinator_->Log();
   EXPECT_FALSE(std::filesystem::exists(db_));  // not recreated on the way out
