@@ -53,27 +53,69 @@ absl::Status ExpectedSaturatingCost(const Matrix& F, const Vector& z, const Vect
   return absl::OkStatus();
 }
 
+namespace {
+
+// F with F^T F = w, for w symmetric PSD: w = V diag(lambda) V^T, F =
+// diag(sqrt(lambda)) V^T (tiny negative eigenvalues of rounding clipped).
+// InvalidArgument naming `what` when w is not finite, symmetric or PSD.
+absl::StatusOr<Matrix> PsdFactor(const Matrix& w, const char* what) {
+  if (!w.allFinite()) return absl::InvalidArgumentError(absl::StrCat(what, " not finite"));
+  if ((w - w.transpose()).cwiseAbs().maxCoeff() > 1e-12 * (1.0 + w.cwiseAbs().maxCoeff())) {
+    return absl::InvalidArgumentError(absl::StrCat(what, " is not symmetric"));
+  }
+  Eigen::SelfAdjointEigenSolver<Matrix> eig(w);
+  if (eig.eigenvalues().minCoeff() < -1e-12 * (1.0 + eig.eigenvalues().cwiseAbs().maxCoeff())) {
+    return absl::InvalidArgumentError(absl::StrCat(what, " is not positive semi-definite"));
+  }
+  return Matrix(eig.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal() *
+                eig.eigenvectors().transpose());
+}
+
+}  // namespace
+
 absl::StatusOr<GaussianCost> GaussianCost::Angle(const Vector& target, const Matrix& q) {
   const int d = static_cast<int>(target.size());
   if (q.rows() != d || q.cols() != d) {
     return absl::InvalidArgumentError(absl::StrCat("cost Q must be ", d, " x ", d));
   }
-  if (!target.allFinite() || !q.allFinite()) {
-    return absl::InvalidArgumentError("cost target or Q not finite");
-  }
-  if ((q - q.transpose()).cwiseAbs().maxCoeff() > 1e-12 * (1.0 + q.cwiseAbs().maxCoeff())) {
-    return absl::InvalidArgumentError("cost Q is not symmetric");
-  }
-  Eigen::SelfAdjointEigenSolver<Matrix> eig(2.0 * q);
-  if (eig.eigenvalues().minCoeff() < -1e-12 * (1.0 + eig.eigenvalues().cwiseAbs().maxCoeff())) {
-    return absl::InvalidArgumentError("cost Q is not positive semi-definite");
-  }
+  if (!target.allFinite()) return absl::InvalidArgumentError("cost target or Q not finite");
+  absl::StatusOr<Matrix> f = PsdFactor(2.0 * q, "cost Q");
+  if (!f.ok()) return f.status();
   GaussianCost c;
   c.state_dim_ = d;
-  // 2 Q = V diag(lambda) V^T = F^T F with F = diag(sqrt(lambda)) V^T.
-  c.f_ = eig.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal() *
-         eig.eigenvectors().transpose();
+  c.fs_ = {*std::move(f)};  // 2 Q = F^T F
   c.z_ = target;
+  return c;
+}
+
+absl::StatusOr<GaussianCost> GaussianCost::Saturating(int state_dim, int angle_index,
+                                                      const Matrix& q_z, const Vector& target_z,
+                                                      const std::vector<double>& widths) {
+  const int n = state_dim + (angle_index >= 0 ? 2 : 0);
+  if (state_dim <= 0 || angle_index >= state_dim) {
+    return absl::InvalidArgumentError(absl::StrCat("saturating cost: angle index ", angle_index,
+                                                   " outside the state of dimension ", state_dim));
+  }
+  if (q_z.rows() != n || q_z.cols() != n || target_z.size() != n) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "saturating cost: Q must be ", n, " x ", n, " and the target ", n, " long (z = [x",
+        angle_index >= 0 ? ", sin, cos" : "", "])"));
+  }
+  if (!target_z.allFinite()) return absl::InvalidArgumentError("saturating cost: target not finite");
+  if (widths.empty()) return absl::InvalidArgumentError("saturating cost: no width");
+  GaussianCost c;
+  c.state_dim_ = state_dim;
+  c.angle_index_ = angle_index;
+  c.z_ = target_z;
+  for (double width : widths) {
+    if (!(width > 0) || !std::isfinite(width)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("saturating cost: width ", width, " is not a positive number"));
+    }
+    absl::StatusOr<Matrix> f = PsdFactor(q_z / (width * width), "saturating cost Q");
+    if (!f.ok()) return f.status();
+    c.fs_.push_back(*std::move(f));  // Q / w^2 = F^T F
+  }
   return c;
 }
 
@@ -94,10 +136,11 @@ absl::StatusOr<GaussianCost> GaussianCost::Tip(int state_dim, int position_index
   c.state_dim_ = state_dim;
   c.angle_index_ = angle_index;
   const int n = state_dim + 2;  // [x; sin x_a; cos x_a]
-  c.f_ = Matrix::Zero(2, n);
-  c.f_(0, position_index) = 1.0 / width;
-  c.f_(0, state_dim) = pendulum_length / width;
-  c.f_(1, state_dim + 1) = pendulum_length / width;
+  Matrix f = Matrix::Zero(2, n);
+  f(0, position_index) = 1.0 / width;
+  f(0, state_dim) = pendulum_length / width;
+  f(1, state_dim + 1) = pendulum_length / width;
+  c.fs_ = {std::move(f)};
   c.z_ = Vector::Zero(n);
   c.z_(position_index) = target_position;
   // The upright target angle pi through sin/cos, as loss_cp: sin(pi) is
@@ -110,26 +153,45 @@ absl::StatusOr<GaussianCost> GaussianCost::Tip(int state_dim, int position_index
 absl::Status GaussianCost::Evaluate(const Vector& m, const Matrix& S, bool with_gradient,
                                     CostMoments* out) const {
   TG_CHECK(m.size() == state_dim_ && S.rows() == state_dim_ && S.cols() == state_dim_);
-  if (angle_index_ < 0) return ExpectedSaturatingCost(f_, z_, m, S, with_gradient, out);
   if (!m.allFinite() || !S.allFinite()) {
     return absl::InvalidArgumentError("cost: state mean or covariance not finite");
   }
-  Vector ym;
-  Matrix ys;
-  AugmentWithTrig(m, S, angle_index_, &ym, &ys);
-  CostMoments aug;
-  if (absl::Status st = ExpectedSaturatingCost(f_, z_, ym, ys, with_gradient, &aug); !st.ok()) {
-    return st;
+  Vector ym = m;
+  Matrix ys = S;
+  if (angle_index_ >= 0) AugmentWithTrig(m, S, angle_index_, &ym, &ys);
+  // Several widths: the mean of their costs, and (as PILCO's lossSat, S2 / n)
+  // the mean of their variances.
+  const double share = 1.0 / static_cast<double>(fs_.size());
+  CostMoments sum;
+  for (const Matrix& f : fs_) {
+    CostMoments one;
+    if (absl::Status st = ExpectedSaturatingCost(f, z_, ym, ys, with_gradient, &one); !st.ok()) {
+      return st;
+    }
+    sum.mean += share * one.mean;
+    sum.var += share * one.var;
+    if (!with_gradient) continue;
+    if (sum.dmean_dm.size() == 0) {
+      sum.dmean_dm = share * one.dmean_dm;
+      sum.dmean_dS = share * one.dmean_dS;
+    } else {
+      sum.dmean_dm += share * one.dmean_dm;
+      sum.dmean_dS += share * one.dmean_dS;
+    }
   }
-  out->mean = aug.mean;
-  out->var = aug.var;
-  if (with_gradient) {
-    out->dmean_dm = Vector::Zero(state_dim_);
-    out->dmean_dS = Matrix::Zero(state_dim_, state_dim_);
-    AugmentWithTrigBackward(m, S, angle_index_, aug.dmean_dm, aug.dmean_dS, &out->dmean_dm,
-                            &out->dmean_dS);
-    out->dmean_dS = 0.5 * (out->dmean_dS + out->dmean_dS.transpose()).eval();
+  out->mean = sum.mean;
+  out->var = sum.var;
+  if (!with_gradient) return absl::OkStatus();
+  if (angle_index_ < 0) {
+    out->dmean_dm = std::move(sum.dmean_dm);
+    out->dmean_dS = std::move(sum.dmean_dS);
+    return absl::OkStatus();
   }
+  out->dmean_dm = Vector::Zero(state_dim_);
+  out->dmean_dS = Matrix::Zero(state_dim_, state_dim_);
+  AugmentWithTrigBackward(m, S, angle_index_, sum.dmean_dm, sum.dmean_dS, &out->dmean_dm,
+                          &out->dmean_dS);
+  out->dmean_dS = 0.5 * (out->dmean_dS + out->dmean_dS.transpose()).eval();
   return absl::OkStatus();
 }
 

@@ -9,7 +9,7 @@
 // Writing W = F^T F, this is lossSat with weight W; the factor form keeps
 // I + F S F^T symmetric positive definite for any PSD S and singular W.
 //
-// GaussianCost builds the two cart-pole costs:
+// GaussianCost builds the cart-pole costs and the scenes' saturating cost:
 //  * Angle: c(x) = 1 - exp(-(x - t)^T Q (x - t)) (tasks::AngleCost), i.e.
 //    W = 2 Q on the raw state.
 //  * Tip: c(x) = 1 - exp(-d^2 / (2 width^2)), d^2 = (x_p - target + l sin x_a)^2
@@ -20,6 +20,8 @@
 // Thread safety: const methods are thread-safe.
 #ifndef TOTALGRAD_CORE_PILCO_EXPECTED_COST_H_
 #define TOTALGRAD_CORE_PILCO_EXPECTED_COST_H_
+
+#include <vector>
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
@@ -43,6 +45,15 @@ class GaussianCost {
  public:
   // Q: D x D symmetric positive semi-definite; target: D.
   static absl::StatusOr<GaussianCost> Angle(const Vector& target, const Matrix& q);
+  // PILCO's lossSat on z = [x] (angle_index -1) or z = [x, sin x_a, cos x_a]
+  // (the Gaussian approximation of z, as for Tip): for each width w,
+  // E[1 - exp(-1/2 (z - z_t)^T (Q / w^2) (z - z_t))]; the cost is the mean
+  // over the widths and its variance the mean of their variances (PILCO's
+  // S2 / n). q_z: Z x Z symmetric PSD and target_z: Z (Z = D or D + 2);
+  // widths: > 0, at least one. InvalidArgument naming what is wrong.
+  static absl::StatusOr<GaussianCost> Saturating(int state_dim, int angle_index,
+                                                 const Matrix& q_z, const Vector& target_z,
+                                                 const std::vector<double>& widths);
   // Indices into the D-dim state; length > 0, width > 0.
   static absl::StatusOr<GaussianCost> Tip(int state_dim, int position_index, int angle_index,
                                           double pendulum_length, double width,
@@ -59,7 +70,7 @@ class GaussianCost {
   GaussianCost() = default;
   int state_dim_ = 0;
   int angle_index_ = -1;  // >= 0: the cost sees [x; sin x_a; cos x_a]
-  Matrix f_;
+  std::vector<Matrix> fs_;  // one factor per width (Angle, Tip: one)
   Vector z_;
 };
 

@@ -24,6 +24,18 @@ absl::StatusOr<pilco::GaussianCost> TipCost::GaussianExpectation() const {
                                   width_, target_position_);
 }
 
+absl::StatusOr<pilco::GaussianCost> SaturatingCost::GaussianExpectation() const {
+  const int d = static_cast<int>(target_z_.size() - 2 * angle_indices_.size());
+  if (angle_indices_.size() > 1) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "the saturating cost of a scene with ", angle_indices_.size(),
+        " angles has no closed form here yet (PILCO's moment matching of several angles is "
+        "not built)"));
+  }
+  return pilco::GaussianCost::Saturating(d, angle_indices_.empty() ? -1 : angle_indices_[0], q_,
+                                         target_z_, widths_);
+}
+
 double StateCost::Value(const Vector& x) const {
   RowMatrix batch(1, x.size());
   batch.row(0) = x.transpose();

@@ -91,8 +91,11 @@ class SaturatingCost final : public StateCost {
                  std::vector<double> widths);
   void Evaluate(const ConstRowMatrixRef& x, Vector* cost, RowMatrix* grad) const override;
   std::string Name() const override { return "saturating"; }
-  // No closed form here yet for several angles or widths (the default's
-  // InvalidArgument).
+  // PILCO's lossSat on the Gaussian approximation of z
+  // (pilco::GaussianCost::Saturating), any number of widths; with more than
+  // one angle InvalidArgument (PILCO's moment matching of several angles is
+  // not built yet).
+  absl::StatusOr<pilco::GaussianCost> GaussianExpectation() const override;
 
  private:
   Vector target_z_;

@@ -332,6 +332,95 @@ TEST(ExpectedCostTest, TipCostGradientMatchesFiniteDifferences) {
   CheckCost(*cost, Eigen::Vector4d(-0.1, 0.1, 0.0, 0.0), 1e-4 * Matrix::Identity(4, 4));
 }
 
+// PILCO's lossSat on the pendulum's z = [dtheta, theta, sin, cos] with two
+// widths (the mean of their costs), and on a raw state (no angle).
+TEST(ExpectedCostTest, SaturatingCostGradientMatchesFiniteDifferences) {
+  std::mt19937_64 rng(8);
+  Matrix q_z = Matrix::Zero(4, 4);
+  q_z(2, 2) = q_z(3, 3) = 1.0;  // l^2 on (sin, cos), l = 1
+  const Vector target_z = Eigen::Vector4d(0, M_PI, std::sin(M_PI), std::cos(M_PI));
+  auto pendulum = GaussianCost::Saturating(2, 1, q_z, target_z, {0.5, 1.5});
+  ASSERT_TRUE(pendulum.ok()) << pendulum.status();
+  CheckCost(*pendulum, Eigen::Vector2d(0.3, 2.5), testing::RandomCovariance(2, 0.1, &rng));
+  CheckCost(*pendulum, Eigen::Vector2d(-0.1, 0.2), 1e-4 * Matrix::Identity(2, 2));
+  const Matrix a = testing::RandomCovariance(3, 1.0, &rng);  // a PSD Q on a raw 3-state
+  auto raw = GaussianCost::Saturating(3, -1, a, Eigen::Vector3d(0.1, -0.2, 0.3), {0.7});
+  ASSERT_TRUE(raw.ok()) << raw.status();
+  CheckCost(*raw, Eigen::Vector3d(0.5, 0.0, -0.4), testing::RandomCovariance(3, 0.3, &rng));
+}
+
+// The cart-pole's saturating cost on z equals the tip cost (loss_cp): the
+// same closed form, moments and gradients.
+TEST(ExpectedCostTest, SaturatingCostOnTheCartPoleIsTheTipCost) {
+  const double l = 0.5, w = 0.25;
+  Matrix c = Matrix::Zero(2, 6);  // d = C (z - z_t) with z = [s, beta, s', beta', sin, cos]
+  c(0, 0) = 1.0;
+  c(0, 4) = l;
+  c(1, 5) = l;
+  Vector target_z = Vector::Zero(6);
+  target_z(1) = M_PI;
+  target_z(4) = std::sin(M_PI);
+  target_z(5) = std::cos(M_PI);
+  auto saturating = GaussianCost::Saturating(4, 1, c.transpose() * c, target_z, {w});
+  auto tip = GaussianCost::Tip(4, 0, 1, l, w);
+  ASSERT_TRUE(saturating.ok() && tip.ok());
+  std::mt19937_64 rng(9);
+  for (int trial = 0; trial < 5; ++trial) {
+    const Vector m = testing::RandomVector(4, 1.0, &rng);
+    const Matrix s = testing::RandomCovariance(4, 0.05, &rng);
+    CostMoments a, b;
+    ASSERT_TRUE(saturating->Evaluate(m, s, true, &a).ok());
+    ASSERT_TRUE(tip->Evaluate(m, s, true, &b).ok());
+    EXPECT_NEAR(a.mean, b.mean, 1e-12);
+    EXPECT_NEAR(a.var, b.var, 1e-12);
+    EXPECT_TRUE(a.dmean_dm.isApprox(b.dmean_dm, 1e-9)) << a.dmean_dm.transpose() << "\n"
+                                                       << b.dmean_dm.transpose();
+    EXPECT_TRUE(a.dmean_dS.isApprox(b.dmean_dS, 1e-9));
+  }
+}
+
+// Without angles the closed form is exact: it matches the Monte Carlo mean
+// of the cost itself (two widths: the mean of their costs), within 4
+// standard errors; and bad inputs are refused by name.
+TEST(ExpectedCostTest, SaturatingCostWithoutAnglesIsTheExpectationOfTheCost) {
+  std::mt19937_64 rng(10);
+  const Matrix q = testing::RandomCovariance(3, 1.0, &rng);
+  const Vector target = Eigen::Vector3d(0.2, -0.1, 0.4);
+  const std::vector<double> widths = {0.6, 1.3};
+  auto cost = GaussianCost::Saturating(3, -1, q, target, widths);
+  ASSERT_TRUE(cost.ok());
+  const Vector m = Eigen::Vector3d(0.5, 0.3, -0.2);
+  const Matrix s = testing::RandomCovariance(3, 0.5, &rng);
+  CostMoments closed;
+  ASSERT_TRUE(cost->Evaluate(m, s, false, &closed).ok());
+  const Eigen::LLT<Matrix> chol(s);
+  std::normal_distribution<double> normal;
+  const int samples = 200000;
+  double sum = 0, sum2 = 0;
+  for (int i = 0; i < samples; ++i) {
+    Vector e(3);
+    for (int k = 0; k < 3; ++k) e(k) = normal(rng);
+    const Vector x = m + chol.matrixL() * e;
+    const Vector d = x - target;
+    double c = 0;
+    for (double w : widths) c += (1.0 - std::exp(-0.5 * d.dot(q * d) / (w * w))) / widths.size();
+    sum += c;
+    sum2 += c * c;
+  }
+  const double mean = sum / samples;
+  const double se = std::sqrt((sum2 / samples - mean * mean) / samples);
+  EXPECT_NEAR(closed.mean, mean, 4 * se) << "standard error " << se;
+  EXPECT_GT(closed.mean, 0.05);  // not a trivial case
+  Matrix not_psd = q;
+  not_psd(0, 0) = -1.0;
+  EXPECT_NE(GaussianCost::Saturating(3, -1, not_psd, target, widths).status().message().find(
+                "positive semi-definite"),
+            std::string::npos);
+  EXPECT_NE(GaussianCost::Saturating(3, -1, q, target, {0.0}).status().message().find("width"),
+            std::string::npos);
+  EXPECT_FALSE(GaussianCost::Saturating(3, 1, q, target, widths).ok());  // z would be 5-dim
+}
+
 // ---------------------------------------------------------------- one step
 
 class StepTest : public ::testing::TestWithParam<int> {};

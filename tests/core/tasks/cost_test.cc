@@ -233,6 +233,29 @@ TEST(SaturatingCostTest, GradientsMatchFiniteDifferencesOnEveryScene) {
   }
 }
 
+// Each one-angle scene's saturating cost has PILCO's closed form (its
+// GaussianExpectation at a near-deterministic state is the cost there);
+// several angles are refused by name.
+TEST(SaturatingCostTest, OneAngleScenesHaveTheClosedFormSeveralAnglesAreRefused) {
+  for (const SceneDefinition& s : SceneCatalog()) {
+    const SaturatingCost cost(s.target, s.angle_indices, s.saturating_cost.q, s.saturating_cost.widths);
+    absl::StatusOr<pilco::GaussianCost> closed = cost.GaussianExpectation();
+    if (s.angle_indices.size() > 1) {
+      EXPECT_FALSE(closed.ok()) << s.name;
+      EXPECT_NE(closed.status().message().find("several angles"), std::string::npos)
+          << closed.status();
+      continue;
+    }
+    ASSERT_TRUE(closed.ok()) << s.name << ": " << closed.status();
+    Vector x = s.target;
+    for (Eigen::Index i = 0; i < x.size(); ++i) x(i) += 0.3 * static_cast<double>(i + 1);
+    pilco::CostMoments moments;
+    ASSERT_TRUE(closed->Evaluate(x, 1e-14 * Matrix::Identity(x.size(), x.size()), false,
+                                 &moments).ok());
+    EXPECT_NEAR(moments.mean, cost.Value(x), 1e-9) << s.name;
+  }
+}
+
 TEST(SaturatingCostTest, CartPolesEqualsTheTipCost) {
   const SceneDefinition& s = *FindSceneDefinition("cartpole-swingup");
   const SaturatingCost saturating(s.target, s.angle_indices, s.saturating_cost.q, s.saturating_cost.widths);
