@@ -74,22 +74,41 @@ absl::StatusOr<PilcoResult> OptimizePolicy(const GaussianInputGp& model,
       return absl::Status(st.code(), absl::StrCat("at the initial policy: ", st.message()));
     }
   }
-  const Objective objective = [&](const Vector& x, double* f, Vector* g) {
+  // As PILCO's learnPolicy (minimize over policy.p), the optimiser moves the
+  // pseudo-inputs (centres), the log length-scales and the pseudo-targets y;
+  // the weights w = (K_cc + 1e-4 I)^-1 y follow. Optimising the weights
+  // directly is badly scaled: centres drawn from a narrow start
+  // distribution make K_cc nearly singular, the weights run to thousands,
+  // and one step of the centres then sends the policy's output variance so
+  // high that the saturation's moments underflow to an exactly zero
+  // gradient (the pendulum stopped after one line search).
+  const RbfPolicyShape& shape = prop.policy_shape();
+  Vector y;
+  if (absl::Status st = WeightsToPseudoTargets(shape, *params, &y); !st.ok()) return st;
+  const Objective objective = [&](const Vector& pilco_params, double* f, Vector* g) {
+    Vector weights;
+    if (!PseudoTargetsToWeights(shape, pilco_params, &weights).ok()) return false;
     Trajectory tr;
-    if (!PredictTrajectory(prop, *problem.cost, x, problem.mu0, problem.S0, problem.horizon,
-                           &tr, g)
+    Vector weights_gradient;
+    if (!PredictTrajectory(prop, *problem.cost, weights, problem.mu0, problem.S0,
+                           problem.horizon, &tr, g != nullptr ? &weights_gradient : nullptr)
              .ok()) {
+      return false;
+    }
+    if (g != nullptr &&
+        !PseudoTargetsBackward(shape, pilco_params, weights_gradient, g).ok()) {
       return false;
     }
     *f = tr.total_cost;
     return true;
   };
   PilcoResult result;
-  Vector x = *params;
-  result.optimizer = MinimizeBfgs(objective, options.bfgs, &x);
+  result.optimizer = MinimizeBfgs(objective, options.bfgs, &y);
   if (result.optimizer.termination == BfgsSummary::Termination::kInitialEvaluationFailed) {
     return absl::InternalError("PILCO: the initial policy could not be evaluated");
   }
+  Vector x;
+  if (absl::Status st = PseudoTargetsToWeights(shape, y, &x); !st.ok()) return st;
   if (absl::Status st = PredictTrajectory(prop, *problem.cost, x, problem.mu0, problem.S0,
                                           problem.horizon, &result.prediction, nullptr);
       !st.ok()) {

@@ -155,6 +155,22 @@ absl::Status PseudoTargetsToWeights(const RbfPolicyShape& shape, const Vector& p
   return absl::OkStatus();
 }
 
+absl::Status WeightsToPseudoTargets(const RbfPolicyShape& shape, const Vector& params,
+                                    Vector* pilco_params) {
+  const int c = shape.num_basis, e = shape.input_dim;
+  TG_CHECK(params.size() == shape.num_parameters());
+  const Vector il = (-params.segment(c * e, e).array()).exp().matrix();
+  const Eigen::Map<const RowMatrix> centres(params.data(), c, e);
+  Matrix a = CentreKernel(centres * il.asDiagonal());
+  a.diagonal().array() += kCongpNoiseVar;
+  if (!a.allFinite() || !params.tail(c).allFinite()) {
+    return absl::FailedPreconditionError("policy: centres, length-scales or weights not finite");
+  }
+  *pilco_params = params;
+  pilco_params->tail(c) = a * params.tail(c);
+  return absl::OkStatus();
+}
+
 absl::Status PseudoTargetsBackward(const RbfPolicyShape& shape, const Vector& pilco_params,
                                    const Vector& params_bar, Vector* pilco_params_bar) {
   const int c = shape.num_basis, e = shape.input_dim;

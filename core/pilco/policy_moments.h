@@ -74,6 +74,12 @@ inline constexpr double kCongpNoiseVar = 1e-4;
 absl::Status PseudoTargetsToWeights(const RbfPolicyShape& shape, const Vector& pilco_params,
                                     Vector* params);
 
+// The inverse of PseudoTargetsToWeights: from params = [centres, log l,
+// weights] writes *pilco_params = [centres, log l, y] with y = (K_cc +
+// sn^2 I) w. Errors as PseudoTargetsToWeights.
+absl::Status WeightsToPseudoTargets(const RbfPolicyShape& shape, const Vector& params,
+                                    Vector* pilco_params);
+
 // Chain rule through PseudoTargetsToWeights: from params_bar (the gradient
 // with respect to [centres, log l, weights]) OVERWRITES *pilco_params_bar
 // with the gradient with respect to [centres, log l, pseudo-targets], i.e.
