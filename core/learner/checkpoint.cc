@@ -295,11 +295,12 @@ absl::StatusOr<TrialCheckpoint> DecodeCheckpoint(std::string_view bytes) {
       return Invalid(absl::StrCat("episode result ", i, " is numbered ", c.episodes[i].episode));
     }
   }
-  const Eigen::Index n = c.forces.size();
-  if (c.states.rows() != n || c.next_states.rows() != n || c.states.cols() < 1 ||
-      c.next_states.cols() != c.states.cols()) {
+  // forces: N F entries (F controls per transition).
+  const Eigen::Index n = c.states.rows();
+  if (c.next_states.rows() != n || c.states.cols() < 1 || c.next_states.cols() != c.states.cols() ||
+      (n == 0 ? c.forces.size() != 0 : c.forces.size() < n || c.forces.size() % n != 0)) {
     return Invalid(absl::StrCat("data of inconsistent sizes: states ", c.states.rows(), "x",
-                                c.states.cols(), ", forces ", n, ", next_states ",
+                                c.states.cols(), ", forces ", c.forces.size(), ", next_states ",
                                 c.next_states.rows(), "x", c.next_states.cols()));
   }
   return c;

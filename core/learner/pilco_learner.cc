@@ -80,6 +80,11 @@ absl::StatusOr<std::unique_ptr<PolicyLearner>> MakePilcoLearner(const TrialOptio
         " angles; the moment matching handles one angle so far (run a particle method, or PILCO "
         "on the pendulum or the cart-pole)"));
   }
+  if (scene.control_dim() != 1) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "PILCO on scene '", scene.name, "': ", scene.control_dim(),
+        " controls; the moment matching handles one control so far"));
+  }
   const int angle_index = angles.empty() ? -1 : angles[0];
   absl::StatusOr<pilco::PilcoProblem> problem =
       MakePilcoProblem(*scene.cost, scene.mu0, scene.initial_std, scene.horizon, angle_index,

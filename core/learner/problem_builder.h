@@ -40,16 +40,22 @@ namespace totalgrad::learner {
 // were observed. Observations, not true states: what the model learns from.
 struct Transitions {
   RowMatrix states;       // N x S, observed x_t
-  Vector forces;          // N, the force applied at x_t (N)
+  Vector forces;          // N F, the F controls applied at x_t, transition-major
+                          // (u_1^1..u_1^F, u_2^1, ...; one control: N)
   RowMatrix next_states;  // N x S, observed x_{t+1}
 
-  int size() const { return static_cast<int>(forces.size()); }
+  int size() const { return static_cast<int>(states.rows()); }
+  // F (1 while there are no transitions).
+  int control_dim() const {
+    return states.rows() == 0 ? 1 : static_cast<int>(forces.size() / states.rows());
+  }
   // Appends the episode's H transitions (its observations and forces).
   void Append(const tasks::Episode& episode);
 };
 
-// The GP's training set: inputs [phi(x_t), u_t] (N x (F + 1), F the feature
-// dimension) and targets x_{t+1} - x_t (N x S, raw-state differences).
+// The GP's training set: inputs [phi(x_t), u_t] (N x (Ef + F), Ef the
+// feature dimension, F the controls) and targets x_{t+1} - x_t (N x S,
+// raw-state differences).
 struct GpTrainingSet {
   RowMatrix inputs;
   RowMatrix targets;
@@ -124,10 +130,10 @@ absl::StatusOr<pilco::PilcoProblem> MakePilcoProblem(const tasks::StateCost& cos
                                                      int horizon, int angle_index, int num_basis,
                                                      double max_force);
 
-// The policy as a controller of the real plant: the force of the policy at
-// phi(observation) (policy non-null, must outlive the controller).
-tasks::Controller FeaturePolicyController(const policy::RbfPolicy* policy,
-                                          std::vector<int> angle_indices);
+// The policy as a controller of the real plant: the controls of the policy
+// at phi(observation) (policy non-null, must outlive the controller).
+tasks::MultiController FeaturePolicyController(const policy::RbfPolicy* policy,
+                                               std::vector<int> angle_indices);
 
 }  // namespace totalgrad::learner
 
