@@ -6,6 +6,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "core/common/rng.h"
+#include "core/tasks/scene.h"
 
 namespace totalgrad::learner {
 namespace {
@@ -319,6 +320,18 @@ absl::Status CheckResumable(const TrialCheckpoint& checkpoint, const TrialOption
                                   pairs[i].second, "' here, the checkpoint has ", there[i].first,
                                   "=", there[i].second));
     }
+  }
+  // The data must be the scene's: D columns, F controls per transition
+  // (forces N F). DecodeCheckpoint only knows they are mutually consistent.
+  absl::StatusOr<tasks::Scene> scene = tasks::MakeScene(options.scene);
+  if (!scene.ok()) return scene.status();
+  const Eigen::Index n = checkpoint.states.rows();
+  // (No data at all, a checkpoint before any episode, fits every scene.)
+  if ((n > 0 && checkpoint.states.cols() != scene->state_dim()) ||
+      checkpoint.forces.size() != n * scene->control_dim()) {
+    return Invalid(absl::StrCat("its data do not fit scene '", scene->name, "' (", scene->state_dim(),
+                                " states, ", scene->control_dim(), " controls): states ", n, "x",
+                                checkpoint.states.cols(), ", forces ", checkpoint.forces.size()));
   }
   if (checkpoint.episode > options.episodes) {
     return Invalid(absl::StrCat("episode ", checkpoint.episode, " is beyond the trial's ",

@@ -195,10 +195,13 @@ absl::Status RunEpisode(const Scene& scene, const MultiController& controller, R
       return absl::InvalidArgumentError(absl::StrCat("episode step ", t, ": controller returned ",
                                                      u.size(), " controls; the scene has ", f));
     }
-    if (!u.allFinite()) {
-      return absl::InternalError(absl::StrCat("episode step ", t,
-                                              ": controller returned a non-finite force ",
-                                              f == 1 ? absl::StrCat(u(0)) : std::string("entry")));
+    for (int j = 0; j < f; ++j) {
+      if (!std::isfinite(u(j))) {
+        // One control keeps the message it always had; several name the control.
+        return absl::InternalError(absl::StrCat(
+            "episode step ", t, ": controller returned a non-finite force ", u(j),
+            f == 1 ? std::string() : absl::StrCat(" for control ", j)));
+      }
     }
     ep.forces.segment(t * f, f) = u;
     Vector next;

@@ -98,9 +98,10 @@ using MultiController = std::function<Vector(const Vector& observation)>;
 // *start_rng, observation noise from *noise_rng. Fails (Internal, with the
 // step number) if the plant integration fails or a state is non-finite;
 // *episode is then unspecified.
-// Also Internal (with the step number) when the controller returns a
-// non-finite control, and InvalidArgument (with the step number) when it
-// returns other than F controls. Draw order, part of the
+// Also Internal (with the step number, and the control's 0-based index when
+// F > 1) when the controller returns a non-finite control, and
+// InvalidArgument (with the step number) when it returns other than F
+// controls. Draw order, part of the
 // reproducibility contract: x0 takes the first D normals of *start_rng (in
 // state order); observation t (t = 0..H) takes the next D normals of
 // *noise_rng, drawn before the controller is called at step t.
