@@ -5,6 +5,8 @@
 
 #include <cmath>
 #include <random>
+#include <string>
+#include <vector>
 
 #include "core/diff/gradient_checker.h"
 #include "core/pilco/expected_cost.h"
@@ -103,6 +105,92 @@ TEST(AugmentWithTrigTest, ReverseModeMatchesFiniteDifferences) {
   };
   const diff::CheckResult r = CheckBlock(fwd, bwd, m, s, Vector(), Tight());
   EXPECT_TRUE(r.ok) << r.log;
+}
+
+// Several angles (the cart-double-pendulum's two, and three for the
+// generic pair loop): y = [x; sin, cos per angle].
+struct AnglesCase {
+  int d;
+  std::vector<int> angles;
+};
+class AugmentWithTrigAngles : public ::testing::TestWithParam<AnglesCase> {};
+
+TEST_P(AugmentWithTrigAngles, ReverseModeMatchesFiniteDifferences) {
+  const int d = GetParam().d;
+  const std::vector<int> angles = GetParam().angles;
+  const int ny = d + 2 * static_cast<int>(angles.size());
+  std::mt19937_64 rng(2);
+  const Vector m = testing::RandomVector(d, 1.5, &rng);
+  // Correlated angles, so that the pair blocks carry weight.
+  const Matrix s = testing::RandomCovariance(d, 0.3, &rng);
+  const BlockForward fwd = [&](const Vector& mm, const Matrix& ss, const Vector&, Vector* y) {
+    Vector ym;
+    Matrix ys;
+    AugmentWithTrig(mm, ss, angles, &ym, &ys);
+    y->resize(ym.size() + ys.size());
+    *y << ym, Flatten(ys);
+    return true;
+  };
+  const BlockBackward bwd = [&](const Vector& mm, const Matrix& ss, const Vector&,
+                                const Vector& yb, Vector* mb, Matrix* sb, Vector*) {
+    const Vector ymb = yb.head(ny);
+    const Matrix ysb = Eigen::Map<const Matrix>(yb.data() + ny, ny, ny);
+    *mb = Vector::Zero(d);
+    *sb = Matrix::Zero(d, d);
+    AugmentWithTrigBackward(mm, ss, angles, ymb, ysb, mb, sb);
+    return true;
+  };
+  const diff::CheckResult r = CheckBlock(fwd, bwd, m, s, Vector(), Tight());
+  EXPECT_TRUE(r.ok) << r.log;
+
+  // A reverse mode that treats the angles as independent (each angle's
+  // one-angle backward on its own block, the pair blocks' dependence on
+  // (m, S) dropped) must be rejected.
+  const BlockBackward independent = [&](const Vector& mm, const Matrix& ss, const Vector&,
+                                        const Vector& yb, Vector* mb, Matrix* sb, Vector*) {
+    *mb = Vector::Zero(d);
+    *sb = Matrix::Zero(d, d);
+    const Matrix ysb = Eigen::Map<const Matrix>(yb.data() + ny, ny, ny);
+    for (size_t k = 0; k < angles.size(); ++k) {
+      std::vector<int> idx(d);
+      for (int i = 0; i < d; ++i) idx[i] = i;
+      idx.push_back(d + 2 * static_cast<int>(k));
+      idx.push_back(d + 2 * static_cast<int>(k) + 1);
+      Vector ymb(d + 2);
+      Matrix ysb1(d + 2, d + 2);
+      for (int i = 0; i < d + 2; ++i) {
+        ymb(i) = i < d ? (k == 0 ? yb(i) : 0.0) : yb(idx[i]);
+        for (int j = 0; j < d + 2; ++j)
+          ysb1(i, j) = (i < d && j < d && k > 0) ? 0.0 : ysb(idx[i], idx[j]);
+      }
+      AugmentWithTrigBackward(mm, ss, angles[k], ymb, ysb1, mb, sb);
+    }
+    return true;
+  };
+  EXPECT_FALSE(CheckBlock(fwd, independent, m, s, Vector(), Tight()).ok);
+}
+
+INSTANTIATE_TEST_SUITE_P(Angles, AugmentWithTrigAngles,
+                         ::testing::Values(AnglesCase{6, {4, 5}}, AnglesCase{4, {0, 2}},
+                                           AnglesCase{5, {0, 2, 4}}),
+                         [](const auto& info) {
+                           std::string name = "D" + std::to_string(info.param.d) + "Angles";
+                           for (int a : info.param.angles) name += std::to_string(a);
+                           return name;
+                         });
+
+// One angle given as a list is the one-angle function, bit for bit (the
+// scenes with one angle keep their numbers).
+TEST(AugmentWithTrigTest, OneAngleListIsTheOneAngleFunction) {
+  std::mt19937_64 rng(3);
+  const Vector m = testing::RandomVector(4, 1.0, &rng);
+  const Matrix s = testing::RandomCovariance(4, 0.3, &rng);
+  Vector y1, y2;
+  Matrix c1, c2;
+  AugmentWithTrig(m, s, 1, &y1, &c1);
+  AugmentWithTrig(m, s, std::vector<int>{1}, &y2, &c2);
+  EXPECT_EQ(y1, y2);
+  EXPECT_EQ(c1, c2);
 }
 
 // ---------------------------------------------------------------- GP blocks

@@ -10,6 +10,7 @@
 
 #include <cmath>
 #include <random>
+#include <vector>
 
 #include "core/common/blas.h"
 #include "core/pilco/expected_cost.h"
@@ -74,6 +75,38 @@ TEST(MonteCarloTest, AugmentWithTrig) {
   }
   EXPECT_TRUE(WithinMcError(ym, acc.Mean(), acc.MeanStdError(), kSigmas));
   EXPECT_TRUE(WithinMcError(ys, acc.Cov(), acc.CovStdError(), kSigmas));
+}
+
+// Two and three angles: the pair blocks (product formulas) and Stein's
+// cross-covariances against samples; angles with large, correlated spread.
+TEST(MonteCarloTest, AugmentWithSeveralAngles) {
+  std::mt19937_64 rng(21);
+  for (const std::vector<int>& angles : {std::vector<int>{4, 5}, std::vector<int>{0, 2, 5}}) {
+    const int d = 6, ny = d + 2 * static_cast<int>(angles.size());
+    Vector m(d);
+    m << 0.3, -0.2, 0.5, 0.1, 2.9, 3.4;
+    const Matrix s = testing::RandomCovariance(d, 0.5, &rng);
+    Vector ym;
+    Matrix ys;
+    AugmentWithTrig(m, s, angles, &ym, &ys);
+    const GaussianSampler sampler(m, s);
+    MomentAccumulator acc(ny);
+    acc.SetShift(ym);
+    for (int done = 0; done < kSamples; done += kBatch) {
+      const RowMatrix x = sampler.Sample(kBatch, &rng);
+      RowMatrix y(kBatch, ny);
+      y.leftCols(d) = x;
+      for (size_t k = 0; k < angles.size(); ++k) {
+        y.col(d + 2 * k) = x.col(angles[k]).array().sin();
+        y.col(d + 2 * k + 1) = x.col(angles[k]).array().cos();
+      }
+      acc.AddBatch(y);
+    }
+    EXPECT_TRUE(WithinMcError(ym, acc.Mean(), acc.MeanStdError(), kSigmas)) << angles.size();
+    EXPECT_TRUE(WithinMcError(ys, acc.Cov(), acc.CovStdError(), kSigmas)) << angles.size();
+    // The pair blocks are not negligible here (a zero block would fail).
+    EXPECT_GT(std::abs(ys(d, d + 2)) + std::abs(ys(d + 1, d + 3)), 0.01);
+  }
 }
 
 TEST(MonteCarloTest, GSat) {
