@@ -101,8 +101,9 @@ bool ModelProblem::jitter() const {
 
 absl::StatusOr<pilco::PilcoProblem> MakePilcoProblem(const tasks::StateCost& cost,
                                                      const Vector& mu0, const Vector& initial_std,
-                                                     int horizon, int angle_index, int num_basis,
-                                                     double max_force) {
+                                                     int horizon,
+                                                     const std::vector<int>& angle_indices,
+                                                     int num_basis, double max_force) {
   absl::StatusOr<pilco::GaussianCost> gaussian_cost = cost.GaussianExpectation();
   if (!gaussian_cost.ok()) return gaussian_cost.status();
   pilco::PilcoProblem problem;
@@ -110,7 +111,12 @@ absl::StatusOr<pilco::PilcoProblem> MakePilcoProblem(const tasks::StateCost& cos
   problem.S0 = initial_std.array().square().matrix().asDiagonal();
   problem.horizon = horizon;
   problem.cost = std::make_shared<pilco::GaussianCost>(*std::move(gaussian_cost));
-  problem.propagation.angle_index = angle_index;
+  // One angle keeps the one-angle option (the form PILCO problems always had).
+  if (angle_indices.size() == 1) {
+    problem.propagation.angle_index = angle_indices[0];
+  } else {
+    problem.propagation.angle_indices = angle_indices;
+  }
   problem.propagation.max_force = max_force;
   problem.propagation.num_basis = num_basis;
   return problem;

@@ -122,13 +122,15 @@ class ModelProblem {
 // PILCO's problem for the same task: start N(mu0, diag(initial_std^2)),
 // horizon, the cost's closed form (tasks::StateCost::GaussianExpectation),
 // a policy of num_basis basis functions saturated at max_force on the
-// features of angle_index. prediction_includes_noise stays PILCO's false;
+// features of angle_indices (strictly increasing; empty: the raw state).
+// prediction_includes_noise stays PILCO's false;
 // the caller sets it where the particles' model includes the noise.
 // Errors: the cost's InvalidArgument when it has no closed form.
 absl::StatusOr<pilco::PilcoProblem> MakePilcoProblem(const tasks::StateCost& cost,
                                                      const Vector& mu0, const Vector& initial_std,
-                                                     int horizon, int angle_index, int num_basis,
-                                                     double max_force);
+                                                     int horizon,
+                                                     const std::vector<int>& angle_indices,
+                                                     int num_basis, double max_force);
 
 // The policy as a controller of the real plant: the controls of the policy
 // at phi(observation) (policy non-null, must outlive the controller).

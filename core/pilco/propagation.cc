@@ -24,12 +24,25 @@ absl::Status Propagator::Validate(const GaussianInputGp& dynamics,
     return absl::InvalidArgumentError(
         absl::StrCat("angle_index ", options.angle_index, " out of range for state dim ", d));
   }
-  const int ep = options.angle_index >= 0 ? d + 1 : d;
+  if (!options.angle_indices.empty()) {
+    if (options.angle_index >= 0) {
+      return absl::InvalidArgumentError("give angle_index or angle_indices, not both");
+    }
+    for (size_t k = 0; k < options.angle_indices.size(); ++k) {
+      const int a = options.angle_indices[k];
+      if (a < 0 || a >= d || (k > 0 && a <= options.angle_indices[k - 1])) {
+        return absl::InvalidArgumentError(absl::StrCat(
+            "angle_indices must be strictly increasing state indices in [0, ", d, "); entry ", k,
+            " is ", a));
+      }
+    }
+  }
+  const int a_count = static_cast<int>(options.Angles().size());
+  const int ep = d + a_count;
   if (dynamics.num_inputs() != ep + 1) {
     return absl::InvalidArgumentError(absl::StrCat(
         "dynamics GP has ", dynamics.num_inputs(), " inputs; expected ", ep + 1,
-        options.angle_index >= 0 ? " ([state without the angle, sin, cos, u])"
-                                 : " ([state, u])"));
+        a_count > 0 ? " ([state without the angles, (sin, cos) per angle, u])" : " ([state, u])"));
   }
   if (dynamics.variance_weights.size() != static_cast<size_t>(d)) {
     return absl::InvalidArgumentError("dynamics GP lacks its variance weights (K^-1)");
@@ -49,13 +62,20 @@ Propagator::Propagator(const GaussianInputGp* dynamics, const PropagationOptions
   TG_CHECK(dynamics != nullptr);
   TG_CHECK(Validate(*dynamics, options).ok());
   state_dim_ = dynamics->num_outputs();
+  angles_ = options.Angles();
   const int d = state_dim_;
+  // p = [x without the angles, then y's (sin, cos) entries in angle order].
+  size_t next = 0;
   for (int i = 0; i < d; ++i) {
-    if (i != options.angle_index) policy_index_.push_back(i);
+    if (next < angles_.size() && angles_[next] == i) {
+      ++next;
+    } else {
+      policy_index_.push_back(i);
+    }
   }
-  if (options.angle_index >= 0) {
-    policy_index_.push_back(d);
-    policy_index_.push_back(d + 1);
+  for (size_t k = 0; k < angles_.size(); ++k) {
+    policy_index_.push_back(d + 2 * static_cast<int>(k));
+    policy_index_.push_back(d + 2 * static_cast<int>(k) + 1);
   }
   policy_input_dim_ = static_cast<int>(policy_index_.size());
   shape_.num_basis = options.num_basis;
@@ -69,11 +89,11 @@ Propagator::Propagator(const GaussianInputGp* dynamics, const PropagationOptions
 
 Vector Propagator::PolicyInput(const Vector& x) const {
   TG_CHECK(x.size() == state_dim_);
-  Vector y(state_dim_ + 2);
+  Vector y(state_dim_ + 2 * angles_.size());
   y.head(state_dim_) = x;
-  if (options_.angle_index >= 0) {
-    y(state_dim_) = std::sin(x(options_.angle_index));
-    y(state_dim_ + 1) = std::cos(x(options_.angle_index));
+  for (size_t k = 0; k < angles_.size(); ++k) {
+    y(state_dim_ + 2 * k) = std::sin(x(angles_[k]));
+    y(state_dim_ + 2 * k + 1) = std::cos(x(angles_[k]));
   }
   Vector p(policy_input_dim_);
   for (int i = 0; i < policy_input_dim_; ++i) p(i) = y(policy_index_[i]);
@@ -92,8 +112,8 @@ absl::Status Propagator::Step(const Vector& params, const Vector& m, const Matri
   StepCache& c = cache != nullptr ? *cache : local;
   c.m = m;
   c.S = S;
-  if (options_.angle_index >= 0) {
-    AugmentWithTrig(m, S, options_.angle_index, &c.y_mean, &c.y_cov);
+  if (!angles_.empty()) {
+    AugmentWithTrig(m, S, angles_, &c.y_mean, &c.y_cov);
   } else {
     c.y_mean = m;
     c.y_cov = S;
@@ -191,8 +211,8 @@ absl::Status Propagator::StepBackward(const Vector& params, const StepCache& c,
     for (int j = 0; j < ep; ++j) y_cov_bar(policy_index_[i], policy_index_[j]) += p_cov_bar(i, j);
     for (int r = 0; r < d; ++r) y_cov_bar(r, policy_index_[i]) += s_xp_bar(r, i);
   }
-  if (options_.angle_index >= 0) {
-    AugmentWithTrigBackward(c.m, c.S, options_.angle_index, y_mean_bar, y_cov_bar, &mb, &sb);
+  if (!angles_.empty()) {
+    AugmentWithTrigBackward(c.m, c.S, angles_, y_mean_bar, y_cov_bar, &mb, &sb);
   } else {
     mb += y_mean_bar;
     sb += y_cov_bar;

@@ -257,7 +257,7 @@ CellResult RunPilcoCell(const FrozenProblem& frozen, const pilco::GaussianInputG
   cell.reference_agrees = reference.agree;
   // PILCO's problem on the particles' raw state, built as the trial builds it.
   absl::StatusOr<pilco::PilcoProblem> built = learner::MakePilcoProblem(
-      *problem.cost, problem.mu0, problem.initial_std, problem.horizon, /*angle_index=*/-1,
+      *problem.cost, problem.mu0, problem.initial_std, problem.horizon, /*angle_indices=*/{},
       frozen.policy->num_basis(), frozen.policy->max_force());
   if (!built.ok()) {
     cell.omitted = true;

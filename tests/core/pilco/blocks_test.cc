@@ -3,6 +3,7 @@
 // deliberately wrong derivatives that the check must reject.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <string>
@@ -463,6 +464,87 @@ TEST_P(StepTest, ReverseModeMatchesFiniteDifferences) {
 }
 
 INSTANTIATE_TEST_SUITE_P(WithAndWithoutSinCos, StepTest, ::testing::Values(1, -1));
+
+// One step with several angles: y's pair blocks and the policy and GP inputs
+// [x without the angles, (sin, cos) per angle, u] through the whole step.
+struct StepAnglesCase {
+  int d;
+  std::vector<int> angles;
+};
+class StepAnglesTest : public ::testing::TestWithParam<StepAnglesCase> {};
+
+TEST_P(StepAnglesTest, ReverseModeMatchesFiniteDifferences) {
+  const int d = GetParam().d;
+  const std::vector<int> angles = GetParam().angles;
+  const int ep = d + static_cast<int>(angles.size());
+  std::mt19937_64 rng(9);
+  const GaussianInputGp gp = testing::MakeTestGp(25, ep + 1, d, &rng, 1.5);
+  PropagationOptions options;
+  options.angle_indices = angles;
+  options.num_basis = 5;
+  options.max_force = 10.0;
+  ASSERT_TRUE(Propagator::Validate(gp, options).ok()) << Propagator::Validate(gp, options);
+  const Propagator prop(&gp, options);
+  ASSERT_EQ(prop.policy_input_dim(), ep);
+  Vector params(prop.num_parameters());
+  params.head(5 * ep) = testing::RandomVector(5 * ep, 0.7, &rng);
+  params.segment(5 * ep, ep).setConstant(std::log(0.9));
+  params.tail(5) = testing::RandomVector(5, 0.5, &rng);
+  const Vector m = testing::RandomVector(d, 0.4, &rng);
+  const Matrix s = testing::RandomCovariance(d, 0.05, &rng);
+  const BlockForward fwd = [&](const Vector& mm, const Matrix& ss, const Vector& th, Vector* y) {
+    Vector mn;
+    Matrix sn;
+    if (!prop.Step(th, mm, ss, &mn, &sn, nullptr).ok()) return false;
+    y->resize(d + d * d);
+    *y << mn, Flatten(sn);
+    return true;
+  };
+  const BlockBackward bwd = [&](const Vector& mm, const Matrix& ss, const Vector& th,
+                                const Vector& yb, Vector* mb, Matrix* sb, Vector* thb) {
+    StepCache cache;
+    Vector mn;
+    Matrix sn;
+    if (!prop.Step(th, mm, ss, &mn, &sn, &cache).ok()) return false;
+    thb->setZero(th.size());
+    const Matrix snb = Eigen::Map<const Matrix>(yb.data() + d, d, d);
+    return prop.StepBackward(th, cache, yb.head(d), snb, mb, sb, thb).ok();
+  };
+  const diff::CheckResult r = CheckBlock(fwd, bwd, m, s, params, Tight());
+  EXPECT_TRUE(r.ok) << r.log;
+  // The policy input of a point: the non-angle dims, then (sin, cos) per angle.
+  const Vector p = prop.PolicyInput(m);
+  int col = 0;
+  for (int i = 0; i < d; ++i)
+    if (std::find(angles.begin(), angles.end(), i) == angles.end()) EXPECT_EQ(p(col++), m(i));
+  for (int a : angles) {
+    EXPECT_EQ(p(col++), std::sin(m(a)));
+    EXPECT_EQ(p(col++), std::cos(m(a)));
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Angles, StepAnglesTest,
+                         ::testing::Values(StepAnglesCase{4, {1, 3}}, StepAnglesCase{6, {4, 5}}),
+                         [](const auto& info) {
+                           std::string name = "D" + std::to_string(info.param.d) + "Angles";
+                           for (int a : info.param.angles) name += std::to_string(a);
+                           return name;
+                         });
+
+TEST(StepAnglesTest, BadAngleListsAreRefusedByName) {
+  std::mt19937_64 rng(10);
+  const GaussianInputGp gp = testing::MakeTestGp(10, 7, 4, &rng, 1.5);
+  PropagationOptions options;
+  options.angle_indices = {3, 1};
+  EXPECT_NE(Propagator::Validate(gp, options).message().find("strictly increasing"), std::string::npos);
+  options.angle_indices = {1, 3};
+  options.angle_index = 1;
+  EXPECT_NE(Propagator::Validate(gp, options).message().find("not both"), std::string::npos);
+  options.angle_index = -1;
+  options.angle_indices = {1};
+  // One angle needs 4 + 1 + 1 inputs, not 7: named with the layout.
+  EXPECT_NE(Propagator::Validate(gp, options).message().find("(sin, cos) per angle"), std::string::npos);
+}
 
 }  // namespace
 }  // namespace totalgrad::pilco

@@ -10,6 +10,7 @@
 
 #include <cmath>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "core/common/blas.h"
@@ -271,12 +272,16 @@ TEST(MonteCarloTest, TipCostOnTheAugmentedGaussian) {
 
 // The step's assembly: for (x, g) jointly Gaussian with the covariance the step
 // forms, x' = x + f(g) has exactly the mean and covariance the step returns.
-TEST(MonteCarloTest, StepAssemblyGivenTheJointGaussian) {
+// One angle, and two (the step's (sin, cos) pair blocks in g's covariance).
+class StepAssembly : public ::testing::TestWithParam<std::vector<int>> {};
+
+TEST_P(StepAssembly, GivenTheJointGaussian) {
   std::mt19937_64 rng(17);
-  const int d = 4, ep = 5;
+  const std::vector<int> angles = GetParam();
+  const int d = 4, ep = d + static_cast<int>(angles.size());
   const GaussianInputGp gp = testing::MakeTestGp(30, ep + 1, d, &rng, 1.5);
   PropagationOptions options;
-  options.angle_index = 1;
+  options.angle_indices = angles;
   options.num_basis = 6;
   const Propagator prop(&gp, options);
   Vector params(prop.num_parameters());
@@ -322,6 +327,10 @@ TEST(MonteCarloTest, StepAssemblyGivenTheJointGaussian) {
   const Matrix cross_terms = s_next - s - cache.delta.cov;
   EXPECT_GT(cross_terms.cwiseAbs().maxCoeff(), 50.0 * se.maxCoeff());
 }
+
+INSTANTIATE_TEST_SUITE_P(Angles, StepAssembly,
+                         ::testing::Values(std::vector<int>{1}, std::vector<int>{1, 3}),
+                         [](const auto& info) { return "Angles" + std::to_string(info.param.size()); });
 
 }  // namespace
 }  // namespace totalgrad::pilco
