@@ -79,6 +79,46 @@ TEST(GSatTest, DeterministicInputIsTheSquash) {
   }
 }
 
+// F controls saturated at once: [E u; Cov u; c] against finite differences
+// of (mean, cov) for F = 2 and 3, correlated; F = 1 equals GSat.
+TEST(GSatJointTest, ReverseModeMatchesFiniteDifferences) {
+  std::mt19937_64 rng(4);
+  for (int f : {2, 3}) {
+    const Vector m = testing::RandomVector(f, 1.0, &rng);
+    const Matrix s = testing::RandomCovariance(f, 0.5, &rng);
+    const Vector max_u = Vector::LinSpaced(f, 2.0, 3.5);
+    const BlockForward fwd = [&](const Vector& mm, const Matrix& ss, const Vector&, Vector* y) {
+      JointSatMoments j;
+      GSatJoint(mm, ss, max_u, &j);
+      y->resize(f + f * f + f);
+      *y << j.mean, Flatten(j.cov), j.c;
+      return true;
+    };
+    const BlockBackward bwd = [&](const Vector& mm, const Matrix& ss, const Vector&,
+                                  const Vector& yb, Vector* mb, Matrix* sb, Vector*) {
+      *mb = Vector::Zero(f);
+      *sb = Matrix::Zero(f, f);
+      const Matrix cov_bar = Eigen::Map<const Matrix>(yb.data() + f, f, f);
+      GSatJointBackward(mm, ss, max_u, yb.head(f), cov_bar, yb.tail(f), mb, sb);
+      return true;
+    };
+    const diff::CheckResult r = CheckBlock(fwd, bwd, m, s, Vector(), Tight());
+    EXPECT_TRUE(r.ok) << "F " << f << ": " << r.log;
+    JointSatMoments j;
+    GSatJoint(m, s, max_u, &j);
+    EXPECT_GT(std::abs(j.cov(0, 1)), 1e-3) << "the outputs' covariance should matter";
+  }
+  // One control: GSat's numbers (another formula; equal to round-off).
+  for (const auto& [mean, var] : {std::pair{0.3, 0.2}, {-2.2, 2.0}, {1.0, 0.0}}) {
+    JointSatMoments j;
+    GSatJoint(Vector::Constant(1, mean), Matrix::Constant(1, 1, var), Vector::Constant(1, 10.0), &j);
+    const SatMoments g = GSat(mean, var, 10.0);
+    EXPECT_NEAR(j.mean(0), g.mean, 1e-12);
+    EXPECT_NEAR(j.cov(0, 0), g.var, 1e-12);
+    EXPECT_NEAR(j.c(0), g.c, 1e-12);
+  }
+}
+
 // ---------------------------------------------------------------- augmentation
 
 TEST(AugmentWithTrigTest, ReverseModeMatchesFiniteDifferences) {

@@ -134,6 +134,38 @@ TEST(MonteCarloTest, GSat) {
   }
 }
 
+// Two controls at once: E[u], Cov[u] (the outputs' covariance included) and
+// Cov(a, u) = cov diag(c) against samples of correlated a.
+TEST(MonteCarloTest, GSatJointTwoControls) {
+  std::mt19937_64 rng(22);
+  Vector mean(2);
+  mean << 0.4, -1.1;
+  Matrix cov(2, 2);
+  cov << 0.6, 0.35, 0.35, 0.9;
+  const Vector max_u = Eigen::Vector2d(2.0, 3.5);
+  JointSatMoments j;
+  GSatJoint(mean, cov, max_u, &j);
+  const GaussianSampler sampler(mean, cov);
+  MomentAccumulator acc(4);
+  Vector shift(4);
+  shift << mean, j.mean;
+  acc.SetShift(shift);
+  for (int done = 0; done < kSamples; done += kBatch) {
+    const RowMatrix a = sampler.Sample(kBatch, &rng);
+    RowMatrix au(kBatch, 4);
+    au.leftCols(2) = a;
+    for (int k = 0; k < 2; ++k)
+      au.col(2 + k) = max_u(k) * (9.0 * a.col(k).array().sin() + (3.0 * a.col(k).array()).sin()) / 8.0;
+    acc.AddBatch(au);
+  }
+  EXPECT_TRUE(WithinMcError(j.mean, acc.Mean().tail(2), acc.MeanStdError().tail(2), kSigmas));
+  EXPECT_TRUE(WithinMcError(j.cov, acc.Cov().bottomRightCorner(2, 2),
+                            acc.CovStdError().bottomRightCorner(2, 2), kSigmas));
+  EXPECT_TRUE(WithinMcError(cov * j.c.asDiagonal(), acc.Cov().topRightCorner(2, 2),
+                            acc.CovStdError().topRightCorner(2, 2), kSigmas));
+  EXPECT_GT(std::abs(j.cov(0, 1)), 20 * acc.CovStdError()(2, 3)) << "a zero covariance would fail";
+}
+
 TEST(MonteCarloTest, RbfPolicyMeanFunction) {
   std::mt19937_64 rng(13);
   RbfPolicyShape shape;
