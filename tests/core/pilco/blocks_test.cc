@@ -423,6 +423,112 @@ TEST(PolicyMomentsTest, PseudoTargetParameterisationMatchesFiniteDifferences) {
   EXPECT_TRUE(params.head(18).isApprox(pilco.head(18)));
 }
 
+// Two controls (the double pendulum's torques): the policy's squashed
+// moments [E u; Cov u; u_cross] against finite differences of (m, s, theta),
+// theta = [centres, log l, weights C x 2]; and the pseudo-targets with two
+// columns.
+RbfPolicyShape TwoControlShape() {
+  RbfPolicyShape shape;
+  shape.num_basis = 6;
+  shape.input_dim = 5;
+  shape.jitter = 1e-6;
+  shape.max_controls = Eigen::Vector2d(2.0, 3.5);
+  return shape;
+}
+
+TEST(PolicyMomentsTest, TwoControlsReverseModeMatchesFiniteDifferences) {
+  std::mt19937_64 rng(15);
+  const RbfPolicyShape shape = TwoControlShape();
+  const int c = 6, e = 5, f = 2;
+  ASSERT_EQ(shape.num_parameters(), c * e + e + c * f);
+  Vector params(shape.num_parameters());
+  params.head(c * e) = testing::RandomVector(c * e, 0.6, &rng);
+  params.segment(c * e, e) = testing::RandomVector(e, 0.2, &rng);
+  params.tail(c * f) = testing::RandomVector(c * f, 0.8, &rng);
+  const Vector m = testing::RandomVector(e, 0.4, &rng);
+  const Matrix s = testing::RandomCovariance(e, 0.1, &rng);
+  const BlockForward fwd = [&](const Vector& mm, const Matrix& ss, const Vector& th, Vector* y) {
+    MultiPolicyMoments pm;
+    if (!MultiPolicyAtGaussian(shape, th, mm, ss, &pm).ok()) return false;
+    y->resize(f + f * f + e * f);
+    *y << pm.sat.mean, Flatten(pm.sat.cov), Flatten(pm.u_cross);
+    return true;
+  };
+  const BlockBackward bwd = [&](const Vector& mm, const Matrix& ss, const Vector& th,
+                                const Vector& yb, Vector* mb, Matrix* sb, Vector* thb) {
+    thb->setZero(th.size());
+    const Matrix cov_bar = Eigen::Map<const Matrix>(yb.data() + f, f, f);
+    const Matrix cross_bar = Eigen::Map<const Matrix>(yb.data() + f + f * f, e, f);
+    return MultiPolicyAtGaussianBackward(shape, th, mm, ss, yb.head(f), cov_bar, cross_bar, mb, sb,
+                                         thb)
+        .ok();
+  };
+  const diff::CheckResult r = CheckBlock(fwd, bwd, m, s, params, Tight());
+  EXPECT_TRUE(r.ok) << r.log;
+  MultiPolicyMoments pm;
+  ASSERT_TRUE(MultiPolicyAtGaussian(shape, params, m, s, &pm).ok());
+  EXPECT_GT(std::abs(pm.sat.cov(0, 1)), 1e-4) << "the two torques should be correlated";
+
+  // Each control's unsquashed output is the one-control policy with that
+  // control's weight column (the same gp2 on the same scaled centres).
+  for (int j = 0; j < f; ++j) {
+    RbfPolicyShape one = shape;
+    one.max_controls.resize(0);
+    one.max_force = shape.max_controls(j);
+    Vector p1(one.num_parameters());
+    p1.head(c * e + e) = params.head(c * e + e);
+    for (int k = 0; k < c; ++k) p1(c * e + e + k) = params(c * e + e + k * f + j);
+    PolicyMoments single;
+    ASSERT_TRUE(PolicyAtGaussian(one, p1, m, s, &single).ok());
+    EXPECT_NEAR(pm.a_mean(j), single.a_mean, 1e-13);
+    EXPECT_NEAR(pm.a_cov(j, j), single.a_var, 1e-13);
+    EXPECT_NEAR(pm.sat.mean(j), single.sat.mean, 1e-12);
+    EXPECT_NEAR(pm.sat.cov(j, j), single.sat.var, 1e-12);
+    EXPECT_LT((pm.u_cross.col(j) - single.u_cross).cwiseAbs().maxCoeff(), 1e-12);
+  }
+}
+
+TEST(PolicyMomentsTest, TwoControlPseudoTargetsMatchFiniteDifferences) {
+  std::mt19937_64 rng(16);
+  RbfPolicyShape shape;
+  shape.num_basis = 5;
+  shape.input_dim = 3;
+  shape.max_controls = Eigen::Vector2d(2.0, 2.0);
+  const int n = shape.num_parameters();
+  ASSERT_EQ(n, 15 + 3 + 10);
+  Vector pilco(n);
+  pilco.head(15) = testing::RandomVector(15, 0.8, &rng);
+  pilco.segment(15, 3) = testing::RandomVector(3, 0.2, &rng);
+  pilco.tail(10) = testing::RandomVector(10, 0.3, &rng);
+  const diff::VectorFunction f = [&](const Vector& x, Vector* y) {
+    return PseudoTargetsToWeights(shape, x, y).ok();
+  };
+  Matrix analytic(n, n);
+  for (int r = 0; r < n; ++r) {
+    Vector bar = Vector::Zero(n), out;
+    bar(r) = 1.0;
+    ASSERT_TRUE(PseudoTargetsBackward(shape, pilco, bar, &out).ok());
+    analytic.row(r) = out.transpose();
+  }
+  diff::CheckOptions o = Tight();
+  o.relative_tolerance = 1e-5;  // as the one-control test
+  const diff::CheckResult r = diff::CheckJacobian(f, pilco, analytic, o);
+  EXPECT_TRUE(r.ok) << r.log;
+  // Each weight column solves (K + 1e-4 I) w_j = y_j: the one-control
+  // solve of that column.
+  Vector params;
+  ASSERT_TRUE(PseudoTargetsToWeights(shape, pilco, &params).ok());
+  for (int j = 0; j < 2; ++j) {
+    RbfPolicyShape one = shape;
+    one.max_controls.resize(0);
+    Vector p1(one.num_parameters()), w1;
+    p1.head(18) = pilco.head(18);
+    for (int k = 0; k < 5; ++k) p1(18 + k) = pilco(18 + 2 * k + j);
+    ASSERT_TRUE(PseudoTargetsToWeights(one, p1, &w1).ok());
+    for (int k = 0; k < 5; ++k) EXPECT_NEAR(params(18 + 2 * k + j), w1(18 + k), 1e-12);
+  }
+}
+
 // ---------------------------------------------------------------- costs
 
 void CheckCost(const GaussianCost& cost, const Vector& m, const Matrix& s) {

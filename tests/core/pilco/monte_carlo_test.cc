@@ -211,6 +211,59 @@ TEST(MonteCarloTest, RbfPolicyMeanFunction) {
                             acc.CovStdError().col(e).head(e), kSigmas));
 }
 
+// Two controls: the unsquashed outputs' mean, covariance (the two outputs'
+// covariance included) and Cov(x, a) = s a_cross against samples of x. (This
+// block is exact given a Gaussian x; the saturation after it treats a as
+// Gaussian, PILCO's approximation, and is checked given a Gaussian a in
+// GSatJointTwoControls.)
+TEST(MonteCarloTest, RbfPolicyTwoControls) {
+  std::mt19937_64 rng(23);
+  RbfPolicyShape shape;
+  shape.num_basis = 8;
+  shape.input_dim = 4;
+  shape.jitter = 1e-6;
+  shape.max_controls = Eigen::Vector2d(2.0, 3.5);
+  const int c = 8, e = 4, f = 2;
+  Vector params(shape.num_parameters());
+  params.head(c * e) = testing::RandomVector(c * e, 0.5, &rng);
+  params.segment(c * e, e) = Eigen::VectorXd::LinSpaced(e, std::log(0.7), std::log(1.2));
+  params.tail(c * f) = testing::RandomVector(c * f, 1.0, &rng);
+  const Vector m = testing::RandomVector(e, 0.3, &rng);
+  const Matrix s = testing::RandomCovariance(e, 0.15, &rng);
+  MultiPolicyMoments pm;
+  ASSERT_TRUE(MultiPolicyAtGaussian(shape, params, m, s, &pm).ok());
+  const Eigen::Map<const RowMatrix> centres(params.data(), c, e);
+  const Vector il2 = (-2.0 * params.segment(c * e, e).array()).exp().matrix();
+  const Eigen::Map<const RowMatrix> w(params.data() + c * e + e, c, f);
+  const GaussianSampler sampler(m, s);
+  MomentAccumulator acc(e + f);
+  Vector shift(e + f);
+  shift << m, pm.a_mean;
+  acc.SetShift(shift);
+  for (int done = 0; done < kSamples; done += kBatch) {
+    const RowMatrix x = sampler.Sample(kBatch, &rng);
+    RowMatrix a = RowMatrix::Zero(kBatch, f);
+    for (int k = 0; k < c; ++k) {
+      const RowMatrix diff = x.rowwise() - centres.row(k);
+      const Vector phi = (-0.5 * (diff.array().square().matrix() * il2).array()).exp().matrix();
+      for (int j = 0; j < f; ++j) a.col(j) += w(k, j) * phi;
+    }
+    RowMatrix xa(kBatch, e + f);
+    xa.leftCols(e) = x;
+    xa.rightCols(f) = a;
+    acc.AddBatch(xa);
+  }
+  EXPECT_TRUE(WithinMcError(pm.a_mean, acc.Mean().tail(f), acc.MeanStdError().tail(f), kSigmas));
+  // a_cov carries gp2's jitter on its diagonal (PILCO's), the samples none.
+  const Matrix a_cov = pm.a_cov - shape.jitter * Matrix::Identity(f, f);
+  EXPECT_TRUE(WithinMcError(a_cov, acc.Cov().bottomRightCorner(f, f),
+                            acc.CovStdError().bottomRightCorner(f, f), kSigmas));
+  // Beyond 2 x the 5-SE band: a zero covariance would fail the check above.
+  EXPECT_GT(std::abs(a_cov(0, 1)), 10 * acc.CovStdError()(e, e + 1));
+  EXPECT_TRUE(WithinMcError(s * pm.a_cross, acc.Cov().topRightCorner(e, f),
+                            acc.CovStdError().topRightCorner(e, f), kSigmas));
+}
+
 // gp0: mean, covariance (with model uncertainty) and input-output covariance.
 TEST(MonteCarloTest, DynamicsGpWithModelUncertainty) {
   std::mt19937_64 rng(14);
