@@ -73,16 +73,11 @@ class PilcoLearner final : public PolicyLearner {
 absl::StatusOr<std::unique_ptr<PolicyLearner>> MakePilcoLearner(const TrialOptions& options,
                                                                 const tasks::Scene& scene) {
   std::vector<int> angles = FeatureAngles(options, scene);
-  // PILCO's moment matching (core/pilco) takes any number of angles but one
-  // control so far.
-  if (scene.control_dim() != 1) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "PILCO on scene '", scene.name, "': ", scene.control_dim(),
-        " controls; the moment matching handles one control so far (run a particle method)"));
-  }
+  // PILCO's moment matching (core/pilco) takes any number of angles and of
+  // controls.
   absl::StatusOr<pilco::PilcoProblem> problem =
       MakePilcoProblem(*scene.cost, scene.mu0, scene.initial_std, scene.horizon, angles,
-                       options.basis_functions, scene.max_control(0));
+                       options.basis_functions, scene.max_control);
   if (!problem.ok()) return problem.status();
   auto learner = std::make_unique<PilcoLearner>(options, scene, std::move(angles), *std::move(problem));
   if (absl::Status status = learner->Init(); !status.ok()) return status;

@@ -103,7 +103,7 @@ absl::StatusOr<pilco::PilcoProblem> MakePilcoProblem(const tasks::StateCost& cos
                                                      const Vector& mu0, const Vector& initial_std,
                                                      int horizon,
                                                      const std::vector<int>& angle_indices,
-                                                     int num_basis, double max_force) {
+                                                     int num_basis, const Vector& max_control) {
   absl::StatusOr<pilco::GaussianCost> gaussian_cost = cost.GaussianExpectation();
   if (!gaussian_cost.ok()) return gaussian_cost.status();
   pilco::PilcoProblem problem;
@@ -117,7 +117,12 @@ absl::StatusOr<pilco::PilcoProblem> MakePilcoProblem(const tasks::StateCost& cos
   } else {
     problem.propagation.angle_indices = angle_indices;
   }
-  problem.propagation.max_force = max_force;
+  // One control: max_force; several: max_controls (the GP takes u_1 .. u_F).
+  if (max_control.size() == 1) {
+    problem.propagation.max_force = max_control(0);
+  } else {
+    problem.propagation.max_controls = max_control;
+  }
   problem.propagation.num_basis = num_basis;
   return problem;
 }

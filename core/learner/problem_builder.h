@@ -121,8 +121,9 @@ class ModelProblem {
 
 // PILCO's problem for the same task: start N(mu0, diag(initial_std^2)),
 // horizon, the cost's closed form (tasks::StateCost::GaussianExpectation),
-// a policy of num_basis basis functions saturated at max_force on the
-// features of angle_indices (strictly increasing; empty: the raw state).
+// a policy of num_basis basis functions, control j saturated at
+// max_control(j) (F = max_control.size() controls), on the features of
+// angle_indices (strictly increasing; empty: the raw state).
 // prediction_includes_noise stays PILCO's false;
 // the caller sets it where the particles' model includes the noise.
 // Errors: the cost's InvalidArgument when it has no closed form.
@@ -130,7 +131,7 @@ absl::StatusOr<pilco::PilcoProblem> MakePilcoProblem(const tasks::StateCost& cos
                                                      const Vector& mu0, const Vector& initial_std,
                                                      int horizon,
                                                      const std::vector<int>& angle_indices,
-                                                     int num_basis, double max_force);
+                                                     int num_basis, const Vector& max_control);
 
 // The policy as a controller of the real plant: the controls of the policy
 // at phi(observation) (policy non-null, must outlive the controller).

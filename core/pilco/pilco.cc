@@ -171,6 +171,7 @@ absl::StatusOr<Vector> InitialPolicyParameters(const PilcoProblem& problem, Rng*
   RbfPolicyShape shape;
   shape.num_basis = c;
   shape.input_dim = ep;
+  shape.max_controls = problem.propagation.max_controls;  // F >= 2: C x F pseudo-targets
   Vector pilco(shape.num_parameters());
   for (int k = 0; k < c; ++k) {
     Vector z(ep);
@@ -183,7 +184,8 @@ absl::StatusOr<Vector> InitialPolicyParameters(const PilcoProblem& problem, Rng*
     const int trig = 2 * static_cast<int>(angles.size());
     pilco.segment(c * ep + ep - trig, trig).setConstant(std::log(0.7));
   }
-  for (int k = 0; k < c; ++k) pilco(c * ep + ep + k) = 0.1 * rng->Normal();
+  // Pseudo-targets ~ N(0, 0.1^2), row by row (C x F; one control: C).
+  for (int k = 0; k < c * shape.num_controls(); ++k) pilco(c * ep + ep + k) = 0.1 * rng->Normal();
   Vector params;
   if (absl::Status st = PseudoTargetsToWeights(shape, pilco, &params); !st.ok()) return st;
   return params;

@@ -258,7 +258,7 @@ CellResult RunPilcoCell(const FrozenProblem& frozen, const pilco::GaussianInputG
   // PILCO's problem on the particles' raw state, built as the trial builds it.
   absl::StatusOr<pilco::PilcoProblem> built = learner::MakePilcoProblem(
       *problem.cost, problem.mu0, problem.initial_std, problem.horizon, /*angle_indices=*/{},
-      frozen.policy->num_basis(), frozen.policy->max_force());
+      frozen.policy->num_basis(), frozen.policy->max_control());
   if (!built.ok()) {
     cell.omitted = true;
     cell.omission_reason = absl::StrCat("no closed-form cost: ", built.status().message());

@@ -1,8 +1,7 @@
 // Every method runs a short trial on every scene of the catalog that the
-// learners support (the particle methods: every scene, F controls included;
-// PILCO's moment matching: any number of angles, one control) with finite
-// numbers and no non-finite gradient, deterministically; what they do not
-// support yet is refused by name before any work.
+// learners support (every method on every scene: several angles and the
+// double pendulum's two torques included) with finite numbers and no
+// non-finite gradient, deterministically.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -27,9 +26,8 @@ TrialOptions Short(const std::string& scene, const std::string& method) {
   return o;
 }
 
-bool Supported(const tasks::SceneDefinition& scene, estimators::Method method) {
-  if (method != estimators::Method::kPilco) return true;
-  return scene.control_dim() == 1;  // PILCO: any number of angles, one control
+bool Supported(const tasks::SceneDefinition&, estimators::Method) {
+  return true;  // every method on every scene of the catalog
 }
 
 TEST(SceneTrials, EveryMethodOnEverySupportedSceneIsFiniteAndDeterministic) {
@@ -69,11 +67,9 @@ TEST(SceneTrials, EveryMethodOnEverySupportedSceneIsFiniteAndDeterministic) {
       ++ran;
     }
   }
-  // Five scenes (the double pendulum's two torques included) x 8 particle
-  // methods, PILCO on the other four (the cart-double-pendulum and the
-  // pendubot with two angles).
-  EXPECT_GE(ran, 5 * 8 + 4);
-  EXPECT_EQ(multi_control, 8);  // every particle method on the double pendulum
+  // Five scenes (the double pendulum's two torques included) x 9 methods.
+  EXPECT_GE(ran, 5 * 9);
+  EXPECT_EQ(multi_control, 9);  // every method on the double pendulum
 }
 
 // The two-control scene on the other model and feature paths: FITC once the
@@ -106,12 +102,7 @@ TEST(SceneTrials, DoublePendulumOnFitcAndRawFeatures) {
   }
 }
 
-TEST(SceneTrials, WhatTheLearnersDoNotSupportYetIsRefusedByName) {
-  // PILCO's moment matching: one control (the double pendulum has two).
-  const absl::StatusOr<TrialSummary> two_controls = RunTrial(Short("double-pendulum", "PILCO"), nullptr);
-  EXPECT_EQ(two_controls.status().code(), absl::StatusCode::kInvalidArgument);
-  EXPECT_NE(two_controls.status().message().find("2 controls"), std::string::npos)
-      << two_controls.status();
+TEST(SceneTrials, CartPoleOptionsAreRefusedOnOtherScenes) {
   // The cart-pole's plant options do not apply to PILCO's scenes.
   TrialOptions o = Short("pendulum", "RP");
   TG_ASSERT_OK(SetTrialOption("cart_mass", "2", &o));

@@ -661,8 +661,11 @@ TEST_P(StepAnglesTest, ReverseModeMatchesFiniteDifferences) {
   // The policy input of a point: the non-angle dims, then (sin, cos) per angle.
   const Vector p = prop.PolicyInput(m);
   int col = 0;
-  for (int i = 0; i < d; ++i)
-    if (std::find(angles.begin(), angles.end(), i) == angles.end()) EXPECT_EQ(p(col++), m(i));
+  for (int i = 0; i < d; ++i) {
+    if (std::find(angles.begin(), angles.end(), i) == angles.end()) {
+      EXPECT_EQ(p(col++), m(i));
+    }
+  }
   for (int a : angles) {
     EXPECT_EQ(p(col++), std::sin(m(a)));
     EXPECT_EQ(p(col++), std::cos(m(a)));
@@ -676,6 +679,56 @@ INSTANTIATE_TEST_SUITE_P(Angles, StepAnglesTest,
                            for (int a : info.param.angles) name += std::to_string(a);
                            return name;
                          });
+
+// One step with two controls (the double pendulum: 4 states, angles 2 and
+// 3, two torques): g = [p; u1; u2] with Cov(p, u) (Ep x 2) and Cov(u) from
+// GSatJoint, through the whole step against finite differences of (m, S,
+// theta), theta with C x 2 weights.
+TEST(StepControlsTest, ReverseModeMatchesFiniteDifferences) {
+  const int d = 4, ep = 6, f = 2, c = 5;
+  std::mt19937_64 rng(11);
+  const GaussianInputGp gp = testing::MakeTestGp(25, ep + f, d, &rng, 1.5);
+  PropagationOptions options;
+  options.angle_indices = {2, 3};
+  options.num_basis = c;
+  options.max_controls = Eigen::Vector2d(2.0, 3.5);
+  ASSERT_TRUE(Propagator::Validate(gp, options).ok()) << Propagator::Validate(gp, options);
+  const Propagator prop(&gp, options);
+  ASSERT_EQ(prop.control_dim(), f);
+  ASSERT_EQ(prop.num_parameters(), c * ep + ep + c * f);
+  Vector params(prop.num_parameters());
+  params.head(c * ep) = testing::RandomVector(c * ep, 0.7, &rng);
+  params.segment(c * ep, ep).setConstant(std::log(0.9));
+  params.tail(c * f) = testing::RandomVector(c * f, 0.8, &rng);
+  Vector m(d);
+  m << 0.2, -0.3, 2.9, 3.3;
+  const Matrix s = testing::RandomCovariance(d, 0.05, &rng);
+  const BlockForward fwd = [&](const Vector& mm, const Matrix& ss, const Vector& th, Vector* y) {
+    Vector mn;
+    Matrix sn;
+    if (!prop.Step(th, mm, ss, &mn, &sn, nullptr).ok()) return false;
+    y->resize(d + d * d);
+    *y << mn, Flatten(sn);
+    return true;
+  };
+  const BlockBackward bwd = [&](const Vector& mm, const Matrix& ss, const Vector& th,
+                                const Vector& yb, Vector* mb, Matrix* sb, Vector* thb) {
+    StepCache cache;
+    Vector mn;
+    Matrix sn;
+    if (!prop.Step(th, mm, ss, &mn, &sn, &cache).ok()) return false;
+    thb->setZero(th.size());
+    const Matrix snb = Eigen::Map<const Matrix>(yb.data() + d, d, d);
+    return prop.StepBackward(th, cache, yb.head(d), snb, mb, sb, thb).ok();
+  };
+  const diff::CheckResult r = CheckBlock(fwd, bwd, m, s, params, Tight());
+  EXPECT_TRUE(r.ok) << r.log;
+  // Bad bounds are refused by name.
+  options.max_controls = Vector::Constant(1, 2.0);
+  EXPECT_NE(Propagator::Validate(gp, options).message().find("max_controls"), std::string::npos);
+  options.max_controls = Eigen::Vector3d(2.0, 2.0, 2.0);
+  EXPECT_NE(Propagator::Validate(gp, options).message().find("3 controls"), std::string::npos);
+}
 
 TEST(StepAnglesTest, BadAngleListsAreRefusedByName) {
   std::mt19937_64 rng(10);

@@ -358,32 +358,43 @@ TEST(MonteCarloTest, TipCostOnTheAugmentedGaussian) {
 // The step's assembly: for (x, g) jointly Gaussian with the covariance the step
 // forms, x' = x + f(g) has exactly the mean and covariance the step returns.
 // One angle, and two (the step's (sin, cos) pair blocks in g's covariance).
-class StepAssembly : public ::testing::TestWithParam<std::vector<int>> {};
+// (angles, controls): one angle, two angles, two angles and two controls.
+struct AssemblyCase {
+  std::vector<int> angles;
+  int controls;
+};
+class StepAssembly : public ::testing::TestWithParam<AssemblyCase> {};
 
 TEST_P(StepAssembly, GivenTheJointGaussian) {
   std::mt19937_64 rng(17);
-  const std::vector<int> angles = GetParam();
+  const std::vector<int> angles = GetParam().angles;
+  const int f = GetParam().controls;
   const int d = 4, ep = d + static_cast<int>(angles.size());
-  const GaussianInputGp gp = testing::MakeTestGp(30, ep + 1, d, &rng, 1.5);
+  const GaussianInputGp gp = testing::MakeTestGp(30, ep + f, d, &rng, 1.5);
   PropagationOptions options;
   options.angle_indices = angles;
+  if (f > 1) options.max_controls = Vector::LinSpaced(f, 2.0, 3.5);
   options.num_basis = 6;
   const Propagator prop(&gp, options);
   Vector params(prop.num_parameters());
   params.head(6 * ep) = testing::RandomVector(6 * ep, 0.7, &rng);
   params.segment(6 * ep, ep).setConstant(std::log(0.9));
-  params.tail(6) = testing::RandomVector(6, 0.5, &rng);
+  params.tail(6 * f) = testing::RandomVector(6 * f, 0.5, &rng);
   const Vector m = Eigen::Vector4d(0.1, 0.4, -0.2, 0.3);
   const Matrix s = testing::RandomCovariance(d, 0.05, &rng);
   StepCache cache;
   Vector m_next;
   Matrix s_next;
   ASSERT_TRUE(prop.Step(params, m, s, &m_next, &s_next, &cache).ok());
-  // Joint Gaussian of z = [x (D), g (Ep + 1)].
-  const int eg = ep + 1;
+  // Joint Gaussian of z = [x (D), g (Ep + F)].
+  const int eg = ep + f;
   Matrix cxg(d, eg);
   cxg.leftCols(ep) = cache.s_xp;
-  cxg.col(ep) = cache.s_xp * cache.policy.u_cross;
+  if (f == 1) {
+    cxg.col(ep) = cache.s_xp * cache.policy.u_cross;
+  } else {
+    cxg.rightCols(f) = cache.s_xp * cache.multi.u_cross;
+  }
   Vector zm(d + eg);
   zm << m, cache.g_mean;
   Matrix zs(d + eg, d + eg);
@@ -414,8 +425,12 @@ TEST_P(StepAssembly, GivenTheJointGaussian) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Angles, StepAssembly,
-                         ::testing::Values(std::vector<int>{1}, std::vector<int>{1, 3}),
-                         [](const auto& info) { return "Angles" + std::to_string(info.param.size()); });
+                         ::testing::Values(AssemblyCase{{1}, 1}, AssemblyCase{{1, 3}, 1},
+                                           AssemblyCase{{2, 3}, 2}),
+                         [](const auto& info) {
+                           return "Angles" + std::to_string(info.param.angles.size()) + "Controls" +
+                                  std::to_string(info.param.controls);
+                         });
 
 }  // namespace
 }  // namespace totalgrad::pilco

@@ -4,6 +4,7 @@
 // state far from the data, a non-PSD covariance).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <vector>
@@ -233,6 +234,95 @@ TEST(ChainedObjectiveTwoAngles, CartDoublePendulumGradientMatchesFiniteDifferenc
   const diff::CheckResult r = diff::CheckJacobian(j, params, grad.transpose(), check);
   EXPECT_TRUE(r.ok) << r.log;
   EXPECT_GT(grad.norm(), 1e-3);
+}
+
+// Two controls on the real double pendulum (state [dtheta1, dtheta2,
+// theta1, theta2], angles 2 and 3, two torques; GP inputs [dth1, dth2, sin
+// th1, cos th1, sin th2, cos th2, u1, u2], PILCO's initial hyperparameters):
+// J and dJ/dtheta over 30 steps against finite differences.
+TEST(ChainedObjectiveTwoControls, DoublePendulumGradientMatchesFiniteDifferences) {
+  tasks::SceneOptions so;
+  so.scene = "double-pendulum";
+  absl::StatusOr<tasks::Scene> scene = tasks::MakeScene(so);
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  ASSERT_EQ(scene->angle_indices, (std::vector<int>{2, 3}));
+  ASSERT_EQ(scene->control_dim(), 2);
+  const int d = 4, f = 2, e = d + 2 + f, n = 80;
+  std::mt19937_64 rng(41);
+  std::normal_distribution<double> normal;
+  std::uniform_real_distribution<double> uniform(-2, 2);
+  RowMatrix x(n, e), y(n, d);
+  for (int i = 0; i < n; ++i) {
+    Vector st(d);
+    st << 2.0 * normal(rng), 2.0 * normal(rng), M_PI + 0.8 * normal(rng), M_PI + 0.8 * normal(rng);
+    const Vector u = Eigen::Vector2d(uniform(rng), uniform(rng));
+    Vector next;
+    ASSERT_TRUE(scene->plant->Step(st, u, &next).ok());
+    x.row(i) << st(0), st(1), std::sin(st(2)), std::cos(st(2)), std::sin(st(3)), std::cos(st(3)),
+        u(0), u(1);
+    y.row(i) = (next - st).transpose();
+  }
+  RowMatrix log_hyp(d, e + 2);
+  for (int a = 0; a < d; ++a) {
+    for (int j = 0; j < e; ++j) {
+      const double mean = x.col(j).mean();
+      log_hyp(a, j) = std::log(std::sqrt((x.col(j).array() - mean).square().sum() / (n - 1)));
+    }
+    const double mean = y.col(a).mean();
+    const double sd = std::sqrt((y.col(a).array() - mean).square().sum() / (n - 1));
+    log_hyp(a, e) = std::log(sd);
+    log_hyp(a, e + 1) = std::log(sd / 10);
+  }
+  auto gp = GaussianInputGpFromData(x, y, log_hyp);
+  ASSERT_TRUE(gp.ok()) << gp.status();
+  PropagationOptions options;
+  options.angle_indices = scene->angle_indices;
+  options.num_basis = 6;
+  options.max_controls = scene->max_control;
+  const Propagator prop(&*gp, options);
+  // An angle cost towards a state near the start (see the two-angle test).
+  Vector target(d);
+  target << 0.0, 0.0, M_PI - 0.5, M_PI + 0.5;
+  Vector q(d);
+  q << 0.0, 0.0, 1.0, 1.0;
+  absl::StatusOr<GaussianCost> cost = GaussianCost::Angle(target, q.asDiagonal().toDenseMatrix());
+  ASSERT_TRUE(cost.ok()) << cost.status();
+  const int ep = prop.policy_input_dim();
+  ASSERT_EQ(ep, 6);
+  Vector params(prop.num_parameters());
+  ASSERT_EQ(params.size(), 6 * ep + ep + 6 * f);
+  for (int k = 0; k < 6; ++k) {
+    Vector c = scene->mu0;
+    for (int m = 0; m < d; ++m) c(m) += 0.3 * normal(rng);
+    params.segment(k * ep, ep) = prop.PolicyInput(c);
+  }
+  params.segment(6 * ep, ep).setZero();
+  params.segment(6 * ep + 2, 4).setConstant(std::log(0.7));
+  for (int k = 0; k < 6 * f; ++k) params(6 * ep + ep + k) = normal(rng);
+  const Matrix s0 = scene->initial_std.array().square().matrix().asDiagonal();
+  Trajectory tr;
+  Vector grad;
+  ASSERT_TRUE(PredictTrajectory(prop, *cost, params, scene->mu0, s0, 30, &tr, &grad).ok());
+  EXPECT_TRUE(AllSymmetricPsd(tr));
+  EXPECT_GT(tr.covs[30].trace(), 10 * s0.trace()) << "the state distribution should move";
+  const diff::VectorFunction j = [&](const Vector& th, Vector* out) {
+    Trajectory t;
+    if (!PredictTrajectory(prop, *cost, th, scene->mu0, s0, 30, &t, nullptr).ok()) return false;
+    *out = Vector::Constant(1, t.total_cost);
+    return true;
+  };
+  diff::CheckOptions check;
+  check.relative_step = 1e-6;
+  check.relative_tolerance = 1e-5;
+  check.absolute_tolerance = 1e-7;
+  const diff::CheckResult r = diff::CheckJacobian(j, params, grad.transpose(), check);
+  EXPECT_TRUE(r.ok) << r.log;
+  // Both torques' pseudo-weights carry gradient.
+  for (int jj = 0; jj < f; ++jj) {
+    double largest = 0;
+    for (int k = 0; k < 6; ++k) largest = std::max(largest, std::abs(grad(6 * ep + ep + k * f + jj)));
+    EXPECT_GT(largest, 1e-4) << "torque " << jj;
+  }
 }
 
 TEST(PropagationTest, PredictionIncludesNoiseAddsTheNoiseVariance) {
