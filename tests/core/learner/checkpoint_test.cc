@@ -1,7 +1,8 @@
 // Trial checkpoints: the binary format round-trips exactly and refuses what
 // it cannot read; a trial resumed from the checkpoint of any episode gives
 // the same bits as the uninterrupted trial (full GP, FITC with its warm
-// started inducing inputs, PILCO); EvaluatePolicy reproduces the trial's own
+// started inducing inputs, PILCO; the double pendulum's two torques with a
+// particle method and with PILCO); EvaluatePolicy reproduces the trial's own
 // evaluation of its final policy.
 #include "core/learner/checkpoint.h"
 #include "core/learner/evaluation.h"
@@ -196,12 +197,22 @@ TEST(TrialCheckpoint, ResumedTwoControlTrialGivesTheSameBits) {
       << decoded.status();
 }
 
+// PILCO with two angles and two torques (its C x F pseudo-targets, BFGS per
+// episode) resumes with the same bits too.
+TEST(TrialCheckpoint, ResumedTwoControlPilcoTrialGivesTheSameBits) {
+  ExpectResumedRunsEqualTheUninterruptedOne(Tiny({{"scene", "double-pendulum"},
+                                                  {"method", "PILCO"},
+                                                  {"episodes", "2"},
+                                                  {"basis_functions", "6"}}));
+}
+
 // `totalgrad evaluate` of a trial's final policy with the trial's seed and
 // episode reproduces the trial's own evaluation, bit for bit.
 TEST(TrialCheckpoint, EvaluatePolicyReproducesTheTrialsEvaluation) {
   for (const TrialOptions& options :
        {Tiny({{"episodes", "2"}}), Tiny({{"method", "PILCO"}, {"episodes", "1"}}),
-        Tiny({{"scene", "double-pendulum"}, {"episodes", "1"}})}) {
+        Tiny({{"scene", "double-pendulum"}, {"episodes", "1"}}),
+        Tiny({{"scene", "double-pendulum"}, {"method", "PILCO"}, {"episodes", "1"}})}) {
     auto summary = RunTrial(options, nullptr);
     ASSERT_TRUE(summary.ok()) << summary.status();
     const EpisodeResult& last = summary->episodes.back();
