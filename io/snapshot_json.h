@@ -9,7 +9,7 @@
 //      {"episode": 3,
 //       "options": {"scene": "cartpole-swingup", ...},   // TrialOptionPairs, in order
 //       "states": [[s, beta, s_dot, beta_dot], ...],     // N x D (here the cart-pole), observed x_t
-//       "forces": [...],                                 // N
+//       "forces": [...],                                 // N F: the F controls of each transition in turn
 //       "next_states": [[...], ...],                     // N x D, observed x_{t+1}
 //       "hyperparameters": {"log_lengthscales": [[...], ...],  // D x E
 //                           "log_signal_std": [...], "log_noise_std": [...]},

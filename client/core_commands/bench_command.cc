@@ -67,30 +67,30 @@ absl::StatusOr<std::unique_ptr<SceneBenchProblem>> MakeSceneBenchProblem(const s
   options.horizon = horizon;
   absl::StatusOr<tasks::Scene> scene = tasks::MakeScene(options);
   if (!scene.ok()) return scene.status();
-  if (scene->control_dim() != 1)
-    return absl::InvalidArgumentError(absl::StrCat("scene '", name, "' has ", scene->control_dim(),
-                                                   " controls; the estimators take one so far"));
   auto out = std::make_unique<SceneBenchProblem>();
   out->scene = *std::move(scene);
   const tasks::Scene& sc = out->scene;
-  const int d = sc.state_dim();
+  const int d = sc.state_dim(), f_count = sc.control_dim();
   Rng rng(1, Stream::kStudy, 1);
   learner::Transitions transitions;
   transitions.states.resize(data, d);
   transitions.next_states.resize(data, d);
-  transitions.forces.resize(data);
+  transitions.forces.resize(data * f_count);  // N F, transition-major
   const Vector lo = sc.mu0.cwiseMin(sc.target).array() - 1.0;
   const Vector hi = sc.mu0.cwiseMax(sc.target).array() + 1.0;
   for (int n = 0; n < data; ++n) {
     Vector x(d);
     for (int m = 0; m < d; ++m) x(m) = rng.Uniform(lo(m), hi(m));
-    const double u = rng.Uniform(-sc.max_control(0), sc.max_control(0));
+    // Each control uniform in its bounds, drawn in control order (one
+    // control: the one draw it always was).
+    Vector u(f_count);
+    for (int j = 0; j < f_count; ++j) u(j) = rng.Uniform(-sc.max_control(j), sc.max_control(j));
     Vector next;
-    if (absl::Status st = sc.plant->Step(x, Vector::Constant(1, u), &next); !st.ok()) return st;
+    if (absl::Status st = sc.plant->Step(x, u, &next); !st.ok()) return st;
     for (int m = 0; m < d; ++m) next(m) += sc.observation_noise_std(m) * rng.Normal();
     transitions.states.row(n) = x.transpose();
     transitions.next_states.row(n) = next.transpose();
-    transitions.forces(n) = u;
+    transitions.forces.segment(n * f_count, f_count) = u;
   }
   learner::TrialOptions trial;
   trial.scene = options;
@@ -98,17 +98,17 @@ absl::StatusOr<std::unique_ptr<SceneBenchProblem>> MakeSceneBenchProblem(const s
   const learner::GpTrainingSet set = learner::MakeGpTrainingSet(transitions, angles);
   const gp::GpHyperparameters hyp = gp::InitialHyperparameters(set.inputs, set.targets);
   out->policy = std::make_unique<policy::RbfPolicy>(
-      trial.basis_functions, pilco::FeatureDim(d, angles), sc.max_control(0));
+      trial.basis_functions, pilco::FeatureDim(d, angles), sc.max_control);
   Rng policy_rng(1, Stream::kPolicyInit);
   RowMatrix centres;
-  policy::RbfPolicy raw(trial.basis_functions, d, sc.max_control(0));
+  policy::RbfPolicy raw(trial.basis_functions, d, sc.max_control);
   raw.Initialize(sc.mu0, Vector::Constant(d, 1.0), 1.0, &policy_rng);
   pilco::StatesToFeatures(raw.centres(), angles, &centres);
   Vector params(out->policy->num_parameters());
   const int c = trial.basis_functions, f = out->policy->state_dim();
   Eigen::Map<RowMatrix>(params.data(), c, f) = centres;
   params.segment(c * f, f).setZero();
-  params.tail(c) = raw.weights();
+  params.tail(raw.weights().size()) = raw.weights();  // C x F
   out->policy->set_parameters(params);
   absl::StatusOr<learner::ModelProblem> model = learner::ModelProblem::Build(
       set, hyp, learner::SparseModelFit{}, angles, out->policy.get(), sc, 1.0, pool);

@@ -48,13 +48,17 @@ int WriteJobArtifacts(Connection* connection, int64_t job_id, const std::string&
   }
   // Episode k's model was fitted on the data of episodes 0..k-1: the
   // checkpoint's data without episode k's own transitions.
-  const Eigen::Index per_episode = checkpoint->forces.size() / (k + 1);
+  // Every episode has the same number of transitions; forces hold F per
+  // transition (N F, transition-major).
+  const Eigen::Index per_episode = checkpoint->states.rows() / (k + 1);
   const Eigen::Index model_rows = per_episode * k;
+  const Eigen::Index controls =
+      checkpoint->states.rows() == 0 ? 1 : checkpoint->forces.size() / checkpoint->states.rows();
   learner::TrialSnapshot snapshot;
   snapshot.episode = k;
   snapshot.options = checkpoint->options;
   snapshot.states = checkpoint->states.topRows(model_rows);
-  snapshot.forces = checkpoint->forces.head(model_rows);
+  snapshot.forces = checkpoint->forces.head(model_rows * controls);
   snapshot.next_states = checkpoint->next_states.topRows(model_rows);
   snapshot.hyperparameters = *checkpoint->hyperparameters;
   // Before episode 1 the policy was the initial one, which a checkpoint does not keep.

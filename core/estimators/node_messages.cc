@@ -25,11 +25,12 @@ void TransitionVjp(const StepRecord& step, const ZetaCotangent& cotangent, Vecto
                    RowMatrix* state_bar, ThreadPool* pool) {
   const Eigen::Index p = step.state.rows();
   const int s_dim = static_cast<int>(step.state.cols());
-  const int e_dim = s_dim + 1;
+  const int f_dim = static_cast<int>(step.force.size() / std::max<Eigen::Index>(p, 1));
+  const int e_dim = s_dim + f_dim;
   TG_CHECK(step.dmean_dz.rows() == p && step.dmean_dz.cols() == s_dim * e_dim);
   TG_CHECK(cotangent.mean.rows() == p && cotangent.variance.rows() == p);
   TG_CHECK(e_dim <= 64);
-  force_bar->resize(p);
+  force_bar->resize(p * f_dim);
   if (state_bar != nullptr) *state_bar = cotangent.mean;  // mu = x_t + mean(z): identity path
   ParallelForBlocks(pool, p, kParticleBlock, [&](int64_t begin, int64_t end) {
     double z_bar[64];
@@ -46,7 +47,7 @@ void TransitionVjp(const StepRecord& step, const ZetaCotangent& cotangent, Vecto
       }
       if (state_bar != nullptr)
         for (int m = 0; m < s_dim; ++m) (*state_bar)(i, m) += z_bar[m];
-      (*force_bar)(i) = z_bar[s_dim];
+      for (int j = 0; j < f_dim; ++j) (*force_bar)(i * f_dim + j) = z_bar[s_dim + j];
     }
   });
 }

@@ -35,12 +35,12 @@ struct ZetaCotangent {
 void RpZetaCotangent(const StepRecord& step, const RowMatrix& gamma, ZetaCotangent* out);
 
 // Crosses node t without its policy: with
-//   z_bar_i = dmean/dz_i^T mean_bar_i + dvar/dz_i^T var_bar_i   (E = S + 1)
-// force_bar (P) = the force entry of z_bar; state_bar (P x S, overwritten, may
-// be null) = mean_bar + the state entries of z_bar (mu = x_t + mean(z)). The
-// caller adds the policy's part, force_bar_i * dforce_i/dx_t^i, and the
-// parameter contribution force_bar_i * dforce_i/dtheta. Needs a rollout
-// recorded with Jacobians.
+//   z_bar_i = dmean/dz_i^T mean_bar_i + dvar/dz_i^T var_bar_i   (E = S + F)
+// force_bar (P F, particle-major) = the control entries of z_bar; state_bar
+// (P x S, overwritten, may be null) = mean_bar + the state entries of z_bar
+// (mu = x_t + mean(z)). The caller adds the policy's part, sum_j
+// force_bar_ij du_ij/dx_t^i, and the parameter contribution sum_j
+// force_bar_ij du_ij/dtheta. Needs a rollout recorded with Jacobians.
 // `pool` (may be null) runs fixed particle blocks; same bits for any size.
 void TransitionVjp(const StepRecord& step, const ZetaCotangent& cotangent, Vector* force_bar,
                    RowMatrix* state_bar, ThreadPool* pool = nullptr);

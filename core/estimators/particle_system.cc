@@ -100,14 +100,14 @@ void AngleFeatureDynamics::Predict(const ConstRowMatrixRef& z, double noise_vari
                                    RowMatrix* mean, RowMatrix* variance, RowMatrix* dmean_dz,
                                    RowMatrix* dvar_dz) const {
   const int s_dim = inner_->state_dim();
-  const int e_dim = s_dim + 1;
+  const int e_dim = input_dim();  // S + F
   const int a_count = static_cast<int>(angles_.size());
   TG_CHECK_EQ(z.cols(), e_dim);
   RowMatrix features;
   pilco::StatesToFeatures(z.leftCols(s_dim), angles_, &features);
   RowMatrix zf(z.rows(), e_dim + a_count);
   zf.leftCols(s_dim + a_count) = features;
-  zf.col(s_dim + a_count) = z.col(s_dim);
+  zf.rightCols(e_dim - s_dim) = z.rightCols(e_dim - s_dim);
   RowMatrix dmean_f, dvar_f;
   inner_->Predict(zf, noise_variance_multiplier, mean, variance,
                   dmean_dz != nullptr ? &dmean_f : nullptr, dvar_dz != nullptr ? &dvar_f : nullptr);
@@ -145,7 +145,7 @@ void AngleFeaturePolicy::Backward(const PolicyCache& cache, const Vector& force_
   const int a_count = static_cast<int>(angles_.size());
   // The features the inner policy saw: [x without the angles, (sin, cos) per angle].
   TG_CHECK_EQ(cache.states.cols(), s_dim + a_count);
-  TG_CHECK_EQ(cache.states.rows(), force_bar.size());
+  TG_CHECK_EQ(cache.states.rows() * control_dim(), force_bar.size());
   RowMatrix feature_bar;
   inner_->Backward(cache, force_bar, &feature_bar, per_particle_param_bar, param_bar);
   RowMatrix sin_a, cos_a;

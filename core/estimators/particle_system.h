@@ -8,8 +8,10 @@
 // tests, on small systems whose exact gradient is known (a linear-Gaussian
 // system with a linear policy).
 //
-// Conventions (as gp::GpModel and policy::RbfPolicy): S state dimensions, one
-// scalar action, model inputs z = [x, u] (E = S + 1), particles in rows.
+// Conventions (as gp::GpModel and policy::RbfPolicy): S state dimensions, F
+// controls, model inputs z = [x, u] (E = S + F), particles in rows; a batch of
+// controls is a flat vector, particle-major (particle i's F controls at
+// i F .. i F + F - 1: a row-major P x F matrix).
 //
 // (sin, cos) angle features (trial option angle_features = sincos): the
 // particles stay in the raw state x; AngleFeatureDynamics and
@@ -39,8 +41,8 @@ using PolicyCache = policy::RbfPolicy::Cache;
 class ParticleDynamics {
  public:
   virtual ~ParticleDynamics() = default;
-  virtual int state_dim() const = 0;  // S; the inputs are z = [x, u], E = S + 1
-  // E as the model was built (a GP's input columns); must be S + 1.
+  virtual int state_dim() const = 0;  // S; the inputs are z = [x, u], E = S + F
+  // E as the model was built (a GP's input columns); must be S + F.
   virtual int input_dim() const { return state_dim() + 1; }
   // For P inputs z (P x E): mean (P x S) of x_{t+1} - x_t and diagonal
   // predictive variance (P x S, > 0) with the observation-noise part scaled by
@@ -56,15 +58,17 @@ class ParticlePolicy {
  public:
   virtual ~ParticlePolicy() = default;
   virtual int state_dim() const = 0;
+  virtual int control_dim() const { return 1; }  // F
   virtual int num_parameters() const = 0;
-  // Forces (P) for states (P x S); `cache` (may be null) keeps what Backward needs.
+  // Controls (P F, particle-major) for states (P x S); `cache` (may be null)
+  // keeps what Backward needs.
   virtual void Evaluate(const ConstRowMatrixRef& states, Vector* forces,
                         PolicyCache* cache) const = 0;
   // Adjoint with the contract of policy::RbfPolicy::Backward: given
-  // force_bar (P), state_bar (P x S) is overwritten with force_bar_i *
-  // dforce_i/dx_i; row i of per_particle_param_bar (P x n) is ADDED
-  // force_bar_i * dforce_i/dtheta; param_bar (n) is ADDED the column sums.
-  // Any output may be null.
+  // force_bar (P F, particle-major), state_bar (P x S) is overwritten with
+  // sum_j force_bar_ij du_ij/dx_i; row i of per_particle_param_bar (P x n)
+  // is ADDED sum_j force_bar_ij du_ij/dtheta; param_bar (n) is ADDED the
+  // column sums. Any output may be null.
   virtual void Backward(const PolicyCache& cache, const Vector& force_bar, RowMatrix* state_bar,
                         RowMatrix* per_particle_param_bar, Vector* param_bar) const = 0;
 };
@@ -104,7 +108,7 @@ class FitcDynamics final : public ParticleDynamics {
 };
 
 // A model on (sin, cos) angle features as a model on the raw state
-// (non-owning): the inner model's inputs are zf = [phi(x), u] (S + A + 1
+// (non-owning): the inner model's inputs are zf = [phi(x), u] (S + A + F
 // columns; phi: pilco/angle_features.h, the non-angle dims then (sin, cos)
 // per angle), its outputs raw-state differences (S, as the trial's GP
 // targets). Predict takes z = [x, u], calls the inner Predict on zf and maps
@@ -119,6 +123,9 @@ class AngleFeatureDynamics final : public ParticleDynamics {
   AngleFeatureDynamics(const ParticleDynamics* inner, int angle_index)
       : AngleFeatureDynamics(inner, std::vector<int>{angle_index}) {}
   int state_dim() const override { return inner_->state_dim(); }
+  int input_dim() const override {
+    return inner_->input_dim() - static_cast<int>(angles_.size());
+  }
   void Predict(const ConstRowMatrixRef& z, double noise_variance_multiplier, RowMatrix* mean,
                RowMatrix* variance, RowMatrix* dmean_dz, RowMatrix* dvar_dz) const override;
 
@@ -140,6 +147,7 @@ class AngleFeaturePolicy final : public ParticlePolicy {
   AngleFeaturePolicy(const ParticlePolicy* inner, int angle_index)
       : AngleFeaturePolicy(inner, std::vector<int>{angle_index}) {}
   int state_dim() const override { return inner_->state_dim() - static_cast<int>(angles_.size()); }
+  int control_dim() const override { return inner_->control_dim(); }
   int num_parameters() const override { return inner_->num_parameters(); }
   void Evaluate(const ConstRowMatrixRef& states, Vector* forces, PolicyCache* cache) const override;
   void Backward(const PolicyCache& cache, const Vector& force_bar, RowMatrix* state_bar,
@@ -157,6 +165,7 @@ class RbfParticlePolicy final : public ParticlePolicy {
   explicit RbfParticlePolicy(const policy::RbfPolicy* policy, ThreadPool* pool = nullptr)
       : policy_(policy), pool_(pool) {}
   int state_dim() const override { return policy_->state_dim(); }
+  int control_dim() const override { return policy_->control_dim(); }
   int num_parameters() const override { return policy_->num_parameters(); }
   void Evaluate(const ConstRowMatrixRef& states, Vector* forces, PolicyCache* cache) const override {
     policy_->Evaluate(states, forces, cache, pool_);

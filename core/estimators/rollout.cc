@@ -13,11 +13,12 @@ absl::Status SimulateParticles(const Problem& problem, int particles,
   const ParticleDynamics& dynamics = *problem.dynamics;
   const ParticlePolicy& policy = *problem.policy;
   const int s_dim = policy.state_dim();
+  const int f_dim = policy.control_dim();
   if (problem.mu0.size() != s_dim || problem.initial_std.size() != s_dim ||
-      dynamics.state_dim() != s_dim || dynamics.input_dim() != s_dim + 1)
+      dynamics.state_dim() != s_dim || dynamics.input_dim() != s_dim + f_dim)
     return absl::InvalidArgumentError("rollout problem: model, policy and start state dimensions disagree");
 
-  const int e_dim = s_dim + 1;
+  const int e_dim = s_dim + f_dim;
   rollout->steps.resize(problem.horizon);
   rollout->finite = true;
   RowMatrix x(particles, s_dim);
@@ -31,7 +32,11 @@ absl::Status SimulateParticles(const Problem& problem, int particles,
     step.state = x;
     policy.Evaluate(step.state, &step.force, recording.jacobians ? &step.policy_cache : nullptr);
     z.leftCols(s_dim) = step.state;
-    z.col(s_dim) = step.force;
+    if (f_dim == 1) {
+      z.col(s_dim) = step.force;
+    } else {
+      z.rightCols(f_dim) = Eigen::Map<const RowMatrix>(step.force.data(), particles, f_dim);
+    }
     dynamics.Predict(z, problem.noise_variance_multiplier, &step.mean, &step.variance,
                      recording.jacobians ? &step.dmean_dz : nullptr,
                      recording.jacobians ? &step.dvar_dz : nullptr);

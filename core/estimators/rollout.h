@@ -2,7 +2,7 @@
 // every particle gradient estimator (pipps-spec.md 4).
 //
 //   x_0^i ~ N(mu0, diag(initial_std^2)),               i = 1..P
-//   u_t^i = policy(x_t^i);  z_t^i = [x_t^i, u_t^i]
+//   u_t^i = policy(x_t^i) (F controls);  z_t^i = [x_t^i, u_t^i]
 //   x_{t+1}^i = x_t^i + mean(z_t^i) + sqrt(var(z_t^i)) .* eps_t^i
 //   [GR only: a StepResampler replaces {x_{t+1}^i} by new particles]
 //   J = (1/P) sum_i sum_{t=1..H} c(x_t^i)
@@ -39,7 +39,7 @@ namespace totalgrad::estimators {
 // learner::ModelProblem (core/learner/problem_builder.h); tests plug in
 // other systems (a linear-Gaussian one with an exact gradient).
 struct Problem {
-  const ParticleDynamics* dynamics = nullptr;  // S state dims, inputs [x, u]
+  const ParticleDynamics* dynamics = nullptr;  // S state dims, inputs [x, u] (S + F)
   const ParticlePolicy* policy = nullptr;      // S state dims
   const tasks::StateCost* cost = nullptr;
   Vector mu0;          // S
@@ -84,7 +84,7 @@ struct RolloutRecording {
 // Everything recorded for one step t = 0..H-1 (the transition x_t -> x_{t+1}).
 struct StepRecord {
   RowMatrix state;        // P x S, x_t
-  Vector force;           // P, u_t
+  Vector force;           // P F, u_t, particle-major (ParticlePolicy)
   RowMatrix mean;         // P x S, model mean difference
   RowMatrix variance;     // P x S, predictive variance (incl. noise x multiplier)
   RowMatrix noise;        // P x S, eps_t
@@ -92,7 +92,7 @@ struct StepRecord {
   Vector cost;            // P, c(x_{t+1})
   // Recorded only with RolloutRecording::jacobians:
   PolicyCache policy_cache;
-  RowMatrix dmean_dz;     // P x S*E
+  RowMatrix dmean_dz;     // P x S*E, E = S + F
   RowMatrix dvar_dz;      // P x S*E
   RowMatrix cost_gradient;  // P x S, dc/dx at x_{t+1}
   // Recorded only with a resampler (empty otherwise):

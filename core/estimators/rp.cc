@@ -7,7 +7,7 @@
 
 namespace totalgrad::estimators {
 namespace {
-constexpr int kMaxInputs = 16;  // E = S + 1; the cart-pole has 5
+constexpr int kMaxInputs = 16;  // E = S + F; the cart-pole has 5
 }  // namespace
 
 void RpBackward(const Problem& problem, const Rollout& rollout, Vector* gradient,
@@ -15,7 +15,8 @@ void RpBackward(const Problem& problem, const Rollout& rollout, Vector* gradient
   TG_CHECK(problem.policy != nullptr);
   const ParticlePolicy& policy = *problem.policy;
   const int s_dim = policy.state_dim();
-  const int e_dim = s_dim + 1;
+  const int f_dim = policy.control_dim();
+  const int e_dim = s_dim + f_dim;
   const int n = policy.num_parameters();
   TG_CHECK(e_dim <= kMaxInputs);
   const Eigen::Index p = rollout.steps.front().state.rows();
@@ -24,7 +25,7 @@ void RpBackward(const Problem& problem, const Rollout& rollout, Vector* gradient
   RowMatrix contributions = RowMatrix::Zero(p, n);
   RowMatrix gamma = RowMatrix::Zero(p, s_dim);  // dJ/dx_{t+1}
   RowMatrix state_bar;
-  Vector force_bar(p);
+  Vector force_bar(p * f_dim);
   for (int t = static_cast<int>(rollout.steps.size()) - 1; t >= 0; --t) {
     const StepRecord& step = rollout.steps[t];
     gamma.noalias() += inv_p * step.cost_gradient;
@@ -45,7 +46,7 @@ void RpBackward(const Problem& problem, const Rollout& rollout, Vector* gradient
         }
         // Direct path x_t -> x_{t+1} is the identity.
         for (int m = 0; m < s_dim; ++m) gamma(i, m) += z_bar[m];
-        force_bar(i) = z_bar[s_dim];
+        for (int j = 0; j < f_dim; ++j) force_bar(i * f_dim + j) = z_bar[s_dim + j];
       }
     });
     policy.Backward(step.policy_cache, force_bar, &state_bar, &contributions, nullptr);

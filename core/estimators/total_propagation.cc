@@ -82,7 +82,7 @@ absl::Status BackwardPass(const Problem& problem, const Rollout& rollout,
   Vector cost_to_go = Vector::Zero(p);
   Vector local(p);
   RowMatrix pair_baseline, rp_cost, gamma_rp, resampled, x_rp, x_jump, x_bar, state_bar, log_weights, weights;
-  RowMatrix dforce_dtheta, dforce_dx;
+  RowMatrix dforce_dtheta, dforce_dx, rows_rp, rows_jump;
   Vector f_rp, f_jump, baseline, row_mean;
   const Vector ones = Vector::Ones(p);
   ZetaCotangent zeta_rp, zeta_jump;
@@ -171,6 +171,27 @@ absl::Status BackwardPass(const Problem& problem, const Rollout& rollout,
                     problem.pool);
 
     // 4-5. Combine, then cross the policy.
+    if (combining && !forced && policy.control_dim() > 1) {
+      // Several controls: a particle's two branch gradients, sum_j f_ij
+      // du_ij/dtheta, no longer share one Jacobian row, so both are formed.
+      rows_rp.setZero(p, n);
+      policy.Backward(step.policy_cache, f_rp, nullptr, &rows_rp, nullptr);
+      rows_jump.setZero(p, n);
+      policy.Backward(step.policy_cache, f_jump, nullptr, &rows_jump, nullptr);
+      const TraceVariance v_rp = RowTraceVariance(rows_rp);
+      const TraceVariance v_jump = RowTraceVariance(rows_jump);
+      const double k = CombinationWeight(v_rp, v_jump);
+      result->k_lr[t] = k;
+      result->var_pathwise[t] = v_rp;
+      result->var_jump[t] = v_jump;
+      result->per_particle.noalias() += Mix(k, rows_jump, rows_rp);
+      if (t > 0) {
+        policy.Backward(step.policy_cache, Mix(k, f_jump, f_rp), &state_bar, nullptr, nullptr);
+        gamma = Mix(k, x_jump, x_rp);
+        gamma += state_bar;
+      }
+      continue;
+    }
     if (combining && !forced) {
       // The policy's Jacobian rows (its adjoint is linear in force_bar), so
       // that both branches' per-particle gradients, f_i * dforce_i/dtheta,

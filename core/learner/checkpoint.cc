@@ -6,6 +6,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "core/common/rng.h"
+#include "core/tasks/scene.h"
 
 namespace totalgrad::learner {
 namespace {
@@ -295,11 +296,12 @@ absl::StatusOr<TrialCheckpoint> DecodeCheckpoint(std::string_view bytes) {
       return Invalid(absl::StrCat("episode result ", i, " is numbered ", c.episodes[i].episode));
     }
   }
-  const Eigen::Index n = c.forces.size();
-  if (c.states.rows() != n || c.next_states.rows() != n || c.states.cols() < 1 ||
-      c.next_states.cols() != c.states.cols()) {
+  // forces: N F entries (F controls per transition).
+  const Eigen::Index n = c.states.rows();
+  if (c.next_states.rows() != n || c.states.cols() < 1 || c.next_states.cols() != c.states.cols() ||
+      (n == 0 ? c.forces.size() != 0 : c.forces.size() < n || c.forces.size() % n != 0)) {
     return Invalid(absl::StrCat("data of inconsistent sizes: states ", c.states.rows(), "x",
-                                c.states.cols(), ", forces ", n, ", next_states ",
+                                c.states.cols(), ", forces ", c.forces.size(), ", next_states ",
                                 c.next_states.rows(), "x", c.next_states.cols()));
   }
   return c;
@@ -318,6 +320,18 @@ absl::Status CheckResumable(const TrialCheckpoint& checkpoint, const TrialOption
                                   pairs[i].second, "' here, the checkpoint has ", there[i].first,
                                   "=", there[i].second));
     }
+  }
+  // The data must be the scene's: D columns, F controls per transition
+  // (forces N F). DecodeCheckpoint only knows they are mutually consistent.
+  absl::StatusOr<tasks::Scene> scene = tasks::MakeScene(options.scene);
+  if (!scene.ok()) return scene.status();
+  const Eigen::Index n = checkpoint.states.rows();
+  // (No data at all, a checkpoint before any episode, fits every scene.)
+  if ((n > 0 && checkpoint.states.cols() != scene->state_dim()) ||
+      checkpoint.forces.size() != n * scene->control_dim()) {
+    return Invalid(absl::StrCat("its data do not fit scene '", scene->name, "' (", scene->state_dim(),
+                                " states, ", scene->control_dim(), " controls): states ", n, "x",
+                                checkpoint.states.cols(), ", forces ", checkpoint.forces.size()));
   }
   if (checkpoint.episode > options.episodes) {
     return Invalid(absl::StrCat("episode ", checkpoint.episode, " is beyond the trial's ",

@@ -56,7 +56,7 @@ struct TrialCheckpoint {
   // Results of episodes 0..episode, in order, as the observer saw them.
   std::vector<EpisodeResult> episodes;
   RowMatrix states;       // N x D, observed x_t of every transition so far
-  Vector forces;          // N
+  Vector forces;          // N F, transition-major (Transitions::forces)
   RowMatrix next_states;  // N x D, observed x_{t+1}
   Vector policy_parameters;
   std::optional<gp::GpHyperparameters> hyperparameters;  // none before the first model

@@ -12,7 +12,7 @@
 namespace totalgrad::learner {
 
 absl::StatusOr<PolicyEvaluation> EvaluateController(const tasks::Scene& scene,
-                                                    const tasks::Controller& controller,
+                                                    const tasks::MultiController& controller,
                                                     uint64_t seed, int episode, int rollouts) {
   PolicyEvaluation evaluation;
   double sum = 0, sum_sq = 0;
@@ -44,7 +44,7 @@ absl::StatusOr<PolicyEvaluation> EvaluatePolicy(const TrialOptions& options,
   if (!scene.ok()) return scene.status();
   std::vector<int> angles = FeatureAngles(options, *scene);
   policy::RbfPolicy policy(options.basis_functions, pilco::FeatureDim(scene->state_dim(), angles),
-                           scene->max_control(0));
+                           scene->max_control);
   if (policy_parameters.size() != policy.num_parameters()) {
     return absl::InvalidArgumentError(absl::StrCat(
         "the policy has ", policy_parameters.size(), " parameters; ",

@@ -30,7 +30,7 @@ struct PolicyEvaluation {
 // Errors: Internal naming the rollout when the plant fails (rollouts >= 1 is
 // the caller's to check).
 absl::StatusOr<PolicyEvaluation> EvaluateController(const tasks::Scene& scene,
-                                                    const tasks::Controller& controller,
+                                                    const tasks::MultiController& controller,
                                                     uint64_t seed, int episode, int rollouts);
 
 // A trial's policy evaluated on the real plant, as RunTrial evaluates the

@@ -44,7 +44,7 @@ class ParticleLearner final : public PolicyLearner {
     // The same draws as the raw policy (centres ~ N(mu0, centre_std^2 I) in
     // the raw state), the centres then mapped to features; every feature
     // length-scale = policy_init_lengthscale.
-    policy::RbfPolicy raw(options.basis_functions, s_dim, scene.max_control(0));
+    policy::RbfPolicy raw(options.basis_functions, s_dim, scene.max_control);
     raw.Initialize(scene.mu0, centre_std, options.policy_init_lengthscale, &init_rng);
     RowMatrix centres;
     pilco::StatesToFeatures(raw.centres(), angles_, &centres);
@@ -53,7 +53,7 @@ class ParticleLearner final : public PolicyLearner {
     Vector params(policy_.num_parameters());
     Eigen::Map<RowMatrix>(params.data(), c, feature_dim) = centres;
     params.segment(c * feature_dim, feature_dim).setConstant(std::log(options.policy_init_lengthscale));
-    params.tail(c) = raw.weights();
+    params.tail(raw.weights().size()) = raw.weights();
     policy_.set_parameters(params);
   }
 

@@ -73,17 +73,11 @@ class PilcoLearner final : public PolicyLearner {
 absl::StatusOr<std::unique_ptr<PolicyLearner>> MakePilcoLearner(const TrialOptions& options,
                                                                 const tasks::Scene& scene) {
   std::vector<int> angles = FeatureAngles(options, scene);
-  // PILCO's moment matching (core/pilco) augments one angle so far.
-  if (angles.size() > 1) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "PILCO on scene '", scene.name, "': ", angles.size(),
-        " angles; the moment matching handles one angle so far (run a particle method, or PILCO "
-        "on the pendulum or the cart-pole)"));
-  }
-  const int angle_index = angles.empty() ? -1 : angles[0];
+  // PILCO's moment matching (core/pilco) takes any number of angles and of
+  // controls.
   absl::StatusOr<pilco::PilcoProblem> problem =
-      MakePilcoProblem(*scene.cost, scene.mu0, scene.initial_std, scene.horizon, angle_index,
-                       options.basis_functions, scene.max_control(0));
+      MakePilcoProblem(*scene.cost, scene.mu0, scene.initial_std, scene.horizon, angles,
+                       options.basis_functions, scene.max_control);
   if (!problem.ok()) return problem.status();
   auto learner = std::make_unique<PilcoLearner>(options, scene, std::move(angles), *std::move(problem));
   if (absl::Status status = learner->Init(); !status.ok()) return status;

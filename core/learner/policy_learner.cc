@@ -14,7 +14,7 @@ PolicyLearner::PolicyLearner(const TrialOptions& options, const tasks::Scene& sc
       scene_(scene),
       angles_(std::move(angles)),
       policy_(options.basis_functions, pilco::FeatureDim(scene.state_dim(), angles_),
-              scene.max_control(0)) {}
+              scene.max_control) {}
 
 absl::Status PolicyLearner::TrainModel(const GpTrainingSet& data, int episode, EpisodeResult* result) {
   if (!hyperparameters_) hyperparameters_ = gp::InitialHyperparameters(data.inputs, data.targets);

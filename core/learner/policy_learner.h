@@ -36,9 +36,10 @@ class PolicyLearner {
   virtual void SaveState(TrialCheckpoint* checkpoint) const;
   virtual absl::Status RestoreState(const TrialCheckpoint& checkpoint);
 
-  // The current policy as a controller of the real plant (force in N); it
-  // follows the policy's later changes (it holds a pointer to it).
-  tasks::Controller Controller() const { return FeaturePolicyController(&policy_, angles_); }
+  // The current policy as a controller of the real plant (the scene's F
+  // controls); it follows the policy's later changes (it holds a pointer to
+  // it).
+  tasks::MultiController Controller() const { return FeaturePolicyController(&policy_, angles_); }
   const Vector& Parameters() const { return policy_.parameters(); }
 
  protected:

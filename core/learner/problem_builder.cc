@@ -9,30 +9,37 @@
 namespace totalgrad::learner {
 
 void Transitions::Append(const tasks::Episode& episode) {
-  const Eigen::Index h = episode.forces.size();
-  const Eigen::Index n = forces.size();
+  const Eigen::Index h = episode.observations.rows() - 1;
+  const Eigen::Index n = states.rows();
   const Eigen::Index s = episode.observations.cols();
   if (n == 0) {
     states.resize(0, s);
     next_states.resize(0, s);
+    forces.resize(0);
   }
   TG_CHECK_EQ(states.cols(), s);
+  const Eigen::Index old_forces = forces.size();
   states.conservativeResize(n + h, s);
   next_states.conservativeResize(n + h, s);
-  forces.conservativeResize(n + h);
+  forces.conservativeResize(old_forces + episode.forces.size());
   states.bottomRows(h) = episode.observations.topRows(h);
   next_states.bottomRows(h) = episode.observations.bottomRows(h);
-  forces.tail(h) = episode.forces;
+  forces.tail(episode.forces.size()) = episode.forces;
 }
 
 GpTrainingSet MakeGpTrainingSet(const Transitions& data, const std::vector<int>& angle_indices) {
-  TG_CHECK(data.states.rows() == data.size() && data.next_states.rows() == data.size());
+  const int f = data.control_dim();
+  TG_CHECK(data.next_states.rows() == data.size() && data.forces.size() == data.size() * f);
   RowMatrix features;
   pilco::StatesToFeatures(data.states, angle_indices, &features);
   GpTrainingSet set;
-  set.inputs.resize(data.size(), features.cols() + 1);
+  set.inputs.resize(data.size(), features.cols() + f);
   set.inputs.leftCols(features.cols()) = features;
-  set.inputs.col(features.cols()) = data.forces;
+  if (f == 1) {
+    set.inputs.col(features.cols()) = data.forces;
+  } else {
+    set.inputs.rightCols(f) = Eigen::Map<const RowMatrix>(data.forces.data(), data.size(), f);
+  }
   set.targets = data.next_states - data.states;
   return set;
 }
@@ -94,8 +101,9 @@ bool ModelProblem::jitter() const {
 
 absl::StatusOr<pilco::PilcoProblem> MakePilcoProblem(const tasks::StateCost& cost,
                                                      const Vector& mu0, const Vector& initial_std,
-                                                     int horizon, int angle_index, int num_basis,
-                                                     double max_force) {
+                                                     int horizon,
+                                                     const std::vector<int>& angle_indices,
+                                                     int num_basis, const Vector& max_control) {
   absl::StatusOr<pilco::GaussianCost> gaussian_cost = cost.GaussianExpectation();
   if (!gaussian_cost.ok()) return gaussian_cost.status();
   pilco::PilcoProblem problem;
@@ -103,24 +111,34 @@ absl::StatusOr<pilco::PilcoProblem> MakePilcoProblem(const tasks::StateCost& cos
   problem.S0 = initial_std.array().square().matrix().asDiagonal();
   problem.horizon = horizon;
   problem.cost = std::make_shared<pilco::GaussianCost>(*std::move(gaussian_cost));
-  problem.propagation.angle_index = angle_index;
-  problem.propagation.max_force = max_force;
+  // One angle keeps the one-angle option (the form PILCO problems always had).
+  if (angle_indices.size() == 1) {
+    problem.propagation.angle_index = angle_indices[0];
+  } else {
+    problem.propagation.angle_indices = angle_indices;
+  }
+  // One control: max_force; several: max_controls (the GP takes u_1 .. u_F).
+  if (max_control.size() == 1) {
+    problem.propagation.max_force = max_control(0);
+  } else {
+    problem.propagation.max_controls = max_control;
+  }
   problem.propagation.num_basis = num_basis;
   return problem;
 }
 
-tasks::Controller FeaturePolicyController(const policy::RbfPolicy* policy,
-                                          std::vector<int> angle_indices) {
+tasks::MultiController FeaturePolicyController(const policy::RbfPolicy* policy,
+                                               std::vector<int> angle_indices) {
   TG_CHECK(policy != nullptr);
   return [policy, angle_indices = std::move(angle_indices)](const Vector& observation) {
-    Vector force;
+    Vector controls;
     if (angle_indices.empty()) {
-      policy->Evaluate(observation.transpose(), &force, nullptr);
+      policy->Evaluate(observation.transpose(), &controls, nullptr);
     } else {
       const Vector features = pilco::StateFeatures(observation, angle_indices);
-      policy->Evaluate(features.transpose(), &force, nullptr);
+      policy->Evaluate(features.transpose(), &controls, nullptr);
     }
-    return force(0);
+    return controls;
   };
 }
 

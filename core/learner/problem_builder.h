@@ -40,16 +40,22 @@ namespace totalgrad::learner {
 // were observed. Observations, not true states: what the model learns from.
 struct Transitions {
   RowMatrix states;       // N x S, observed x_t
-  Vector forces;          // N, the force applied at x_t (N)
+  Vector forces;          // N F, the F controls applied at x_t, transition-major
+                          // (u_1^1..u_1^F, u_2^1, ...; one control: N)
   RowMatrix next_states;  // N x S, observed x_{t+1}
 
-  int size() const { return static_cast<int>(forces.size()); }
+  int size() const { return static_cast<int>(states.rows()); }
+  // F (1 while there are no transitions).
+  int control_dim() const {
+    return states.rows() == 0 ? 1 : static_cast<int>(forces.size() / states.rows());
+  }
   // Appends the episode's H transitions (its observations and forces).
   void Append(const tasks::Episode& episode);
 };
 
-// The GP's training set: inputs [phi(x_t), u_t] (N x (F + 1), F the feature
-// dimension) and targets x_{t+1} - x_t (N x S, raw-state differences).
+// The GP's training set: inputs [phi(x_t), u_t] (N x (Ef + F), Ef the
+// feature dimension, F the controls) and targets x_{t+1} - x_t (N x S,
+// raw-state differences).
 struct GpTrainingSet {
   RowMatrix inputs;
   RowMatrix targets;
@@ -115,19 +121,22 @@ class ModelProblem {
 
 // PILCO's problem for the same task: start N(mu0, diag(initial_std^2)),
 // horizon, the cost's closed form (tasks::StateCost::GaussianExpectation),
-// a policy of num_basis basis functions saturated at max_force on the
-// features of angle_index. prediction_includes_noise stays PILCO's false;
+// a policy of num_basis basis functions, control j saturated at
+// max_control(j) (F = max_control.size() controls), on the features of
+// angle_indices (strictly increasing; empty: the raw state).
+// prediction_includes_noise stays PILCO's false;
 // the caller sets it where the particles' model includes the noise.
 // Errors: the cost's InvalidArgument when it has no closed form.
 absl::StatusOr<pilco::PilcoProblem> MakePilcoProblem(const tasks::StateCost& cost,
                                                      const Vector& mu0, const Vector& initial_std,
-                                                     int horizon, int angle_index, int num_basis,
-                                                     double max_force);
+                                                     int horizon,
+                                                     const std::vector<int>& angle_indices,
+                                                     int num_basis, const Vector& max_control);
 
-// The policy as a controller of the real plant: the force of the policy at
-// phi(observation) (policy non-null, must outlive the controller).
-tasks::Controller FeaturePolicyController(const policy::RbfPolicy* policy,
-                                          std::vector<int> angle_indices);
+// The policy as a controller of the real plant: the controls of the policy
+// at phi(observation) (policy non-null, must outlive the controller).
+tasks::MultiController FeaturePolicyController(const policy::RbfPolicy* policy,
+                                               std::vector<int> angle_indices);
 
 }  // namespace totalgrad::learner
 

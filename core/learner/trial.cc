@@ -52,7 +52,7 @@ absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver
   absl::StatusOr<std::unique_ptr<PolicyLearner>> made = MakePolicyLearner(options, scene, pool.get());
   if (!made.ok()) return made.status();
   const std::unique_ptr<PolicyLearner> learner = *std::move(made);
-  const tasks::Controller policy_controller = learner->Controller();
+  const tasks::MultiController policy_controller = learner->Controller();
 
   Transitions data;
   TrialSummary summary;
@@ -87,9 +87,12 @@ absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver
   if (resume_from == nullptr) {
     PhaseClock clock(pool.get());
     Rng action_rng(seed, Stream::kExplorationAction);
-    const double max_force = scene.max_control(0);
-    const tasks::Controller random_controller = [&](const Vector&) {
-      return action_rng.Uniform(-max_force, max_force);
+    // Each control uniform in its bounds, drawn in control order.
+    const tasks::MultiController random_controller = [&](const Vector&) {
+      Vector u(scene.control_dim());
+      for (int j = 0; j < scene.control_dim(); ++j)
+        u(j) = action_rng.Uniform(-scene.max_control(j), scene.max_control(j));
+      return u;
     };
     Rng start_rng(seed, Stream::kInitialState, 0), noise_rng(seed, Stream::kObservationNoise, 0);
     tasks::Episode episode;

@@ -103,7 +103,7 @@ struct TrialSnapshot {
   // basis functions and angle features can be rebuilt with SetTrialOption).
   std::vector<std::pair<std::string, std::string>> options;
   RowMatrix states;       // N x D, observed states x_t of every transition so far
-  Vector forces;          // N, the force applied at x_t (N)
+  Vector forces;          // N F, the controls applied at x_t, transition-major
   RowMatrix next_states;  // N x D, observed x_{t+1}
   gp::GpHyperparameters hyperparameters;  // of episode e's model (inputs: angle_features)
   Vector policy_parameters_before;  // the policy entering episode e's optimisation

@@ -70,10 +70,6 @@ absl::Status TrialOptions::Validate() const {
   if (absl::Status st = estimator.Validate(); !st.ok()) return st;
   absl::StatusOr<tasks::Scene> made = tasks::MakeScene(scene);
   if (!made.ok()) return made.status();
-  // The learners, their policy and the episodes carry one control so far.
-  if (made->control_dim() != 1)
-    return InvalidOption("scene", absl::StrCat("'", scene.scene, "' has ", made->control_dim(),
-                                               " controls; trials support scenes with one control so far"));
   return absl::OkStatus();
 }
 

@@ -153,20 +153,26 @@ absl::StatusOr<GaussianInputGp> BuildDynamicsModel(const RowMatrix& inputs,
 absl::StatusOr<Vector> InitialPolicyParameters(const PilcoProblem& problem, Rng* rng) {
   if (absl::Status st = problem.Validate(); !st.ok()) return st;
   const int d = static_cast<int>(problem.mu0.size());
-  const int a = problem.propagation.angle_index;
-  if (a < -1 || a >= d) return absl::InvalidArgumentError("angle_index out of range");
+  const std::vector<int> angles = problem.propagation.Angles();
+  for (size_t k = 0; k < angles.size(); ++k) {
+    if (angles[k] < 0 || angles[k] >= d || (k > 0 && angles[k] <= angles[k - 1]))
+      return absl::InvalidArgumentError("angle indices out of range or not increasing");
+  }
   const int c = problem.propagation.num_basis;
   if (c < 1) return absl::InvalidArgumentError("num_basis must be >= 1");
   Vector y_mean;
   Matrix y_cov;
+  // The policy's inputs in y: the non-angle dims, then (sin, cos) per angle
+  // (as Propagator's).
   std::vector<int> index;
-  if (a >= 0) {
-    AugmentWithTrig(problem.mu0, problem.S0, a, &y_mean, &y_cov);
+  if (!angles.empty()) {
+    AugmentWithTrig(problem.mu0, problem.S0, angles, &y_mean, &y_cov);
+    size_t next = 0;
     for (int i = 0; i < d; ++i) {
-      if (i != a) index.push_back(i);
+      if (next < angles.size() && angles[next] == i) ++next;
+      else index.push_back(i);
     }
-    index.push_back(d);
-    index.push_back(d + 1);
+    for (int k = 0; k < 2 * static_cast<int>(angles.size()); ++k) index.push_back(d + k);
   } else {
     y_mean = problem.mu0;
     y_cov = problem.S0;
@@ -184,6 +190,7 @@ absl::StatusOr<Vector> InitialPolicyParameters(const PilcoProblem& problem, Rng*
   RbfPolicyShape shape;
   shape.num_basis = c;
   shape.input_dim = ep;
+  shape.max_controls = problem.propagation.max_controls;  // F >= 2: C x F pseudo-targets
   Vector pilco(shape.num_parameters());
   for (int k = 0; k < c; ++k) {
     Vector z(ep);
@@ -191,8 +198,13 @@ absl::StatusOr<Vector> InitialPolicyParameters(const PilcoProblem& problem, Rng*
     pilco.segment(k * ep, ep) = pm + l * z;
   }
   pilco.segment(c * ep, ep).setZero();
-  if (a >= 0) pilco.segment(c * ep + ep - 2, 2).setConstant(std::log(0.7));
-  for (int k = 0; k < c; ++k) pilco(c * ep + ep + k) = 0.1 * rng->Normal();
+  // The (sin, cos) inputs' length-scales start at 0.7 (log), the others at 1.
+  if (!angles.empty()) {
+    const int trig = 2 * static_cast<int>(angles.size());
+    pilco.segment(c * ep + ep - trig, trig).setConstant(std::log(0.7));
+  }
+  // Pseudo-targets ~ N(0, 0.1^2), row by row (C x F; one control: C).
+  for (int k = 0; k < c * shape.num_controls(); ++k) pilco(c * ep + ep + k) = 0.1 * rng->Normal();
   Vector params;
   if (absl::Status st = PseudoTargetsToWeights(shape, pilco, &params); !st.ok()) return st;
   return params;

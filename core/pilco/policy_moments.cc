@@ -21,17 +21,22 @@ struct Scaled {
 
 Scaled MakeScaled(const RbfPolicyShape& shape, const Vector& params, const Vector& m,
                   const Matrix& s) {
-  const int c = shape.num_basis, e = shape.input_dim;
+  const int c = shape.num_basis, e = shape.input_dim, f = shape.num_controls();
   TG_CHECK(params.size() == shape.num_parameters());
   TG_CHECK(m.size() == e && s.rows() == e && s.cols() == e);
   Scaled sc;
   sc.il = (-params.segment(c * e, e).array()).exp().matrix();
   const Eigen::Map<const RowMatrix> centres(params.data(), c, e);
   sc.gp.inputs = centres * sc.il.asDiagonal();
-  sc.gp.inv_lengthscale_sq = RowMatrix::Ones(1, e);
-  sc.gp.signal_var = Vector::Ones(1);
-  sc.gp.noise_var = Vector::Zero(1);
-  sc.gp.beta = params.tail(c);
+  // One output per control, all on the same scaled centres (shared l, sf = 1).
+  sc.gp.inv_lengthscale_sq = RowMatrix::Ones(f, e);
+  sc.gp.signal_var = Vector::Ones(f);
+  sc.gp.noise_var = Vector::Zero(f);
+  if (f == 1) {
+    sc.gp.beta = params.tail(c);
+  } else {
+    sc.gp.beta = Eigen::Map<const RowMatrix>(params.data() + c * e + e, c, f);
+  }
   sc.m = sc.il.cwiseProduct(m);
   sc.s = sc.il.asDiagonal() * s * sc.il.asDiagonal();
   return sc;
@@ -49,6 +54,7 @@ GaussianPredictionOptions Gp2Options(const RbfPolicyShape& shape) {
 
 absl::Status PolicyAtGaussian(const RbfPolicyShape& shape, const Vector& params, const Vector& m,
                               const Matrix& s, PolicyMoments* out) {
+  TG_CHECK(shape.num_controls() == 1);
   const Scaled sc = MakeScaled(shape, params, m, s);
   GaussianPrediction pred;
   if (absl::Status st = PredictGaussian(sc.gp, sc.m, sc.s, Gp2Options(shape), &pred); !st.ok()) {
@@ -67,6 +73,7 @@ absl::Status UnsquashedPolicyBackward(const RbfPolicyShape& shape, const Vector&
                                       double a_var_bar, const Vector& a_cross_bar, Vector* m_bar,
                                       Matrix* s_bar, Vector* params_bar) {
   const int c = shape.num_basis, e = shape.input_dim;
+  TG_CHECK(shape.num_controls() == 1);
   const Scaled sc = MakeScaled(shape, params, m, s);
   TG_CHECK(a_cross_bar.size() == e);
   const Vector mean_bar = Vector::Constant(1, a_mean_bar);
@@ -105,6 +112,71 @@ absl::Status UnsquashedPolicyBackward(const RbfPolicyShape& shape, const Vector&
   return absl::OkStatus();
 }
 
+absl::Status MultiPolicyAtGaussian(const RbfPolicyShape& shape, const Vector& params,
+                                   const Vector& m, const Matrix& s, MultiPolicyMoments* out) {
+  TG_CHECK(shape.num_controls() >= 2);
+  const Scaled sc = MakeScaled(shape, params, m, s);
+  GaussianPrediction pred;
+  if (absl::Status st = PredictGaussian(sc.gp, sc.m, sc.s, Gp2Options(shape), &pred); !st.ok()) {
+    return st;
+  }
+  out->a_mean = pred.mean;
+  out->a_cov = pred.cov;
+  out->a_cross = sc.il.asDiagonal() * pred.cross;
+  GSatJoint(out->a_mean, out->a_cov, shape.max_controls, &out->sat);
+  out->u_cross = out->a_cross * out->sat.c.asDiagonal();
+  return absl::OkStatus();
+}
+
+absl::Status MultiPolicyAtGaussianBackward(const RbfPolicyShape& shape, const Vector& params,
+                                           const Vector& m, const Matrix& s,
+                                           const Vector& u_mean_bar, const Matrix& u_cov_bar,
+                                           const Matrix& u_cross_bar, Vector* m_bar, Matrix* s_bar,
+                                           Vector* params_bar) {
+  const int c = shape.num_basis, e = shape.input_dim, f = shape.num_controls();
+  TG_CHECK(f >= 2 && u_cross_bar.rows() == e && u_cross_bar.cols() == f);
+  MultiPolicyMoments pm;
+  if (absl::Status st = MultiPolicyAtGaussian(shape, params, m, s, &pm); !st.ok()) return st;
+  // u_cross = a_cross diag(c).
+  const Matrix a_cross_bar = u_cross_bar * pm.sat.c.asDiagonal();
+  const Vector c_bar = pm.a_cross.cwiseProduct(u_cross_bar).colwise().sum().transpose();
+  Vector a_mean_bar = Vector::Zero(f);
+  Matrix a_cov_bar = Matrix::Zero(f, f);
+  GSatJointBackward(pm.a_mean, pm.a_cov, shape.max_controls, u_mean_bar, u_cov_bar, c_bar,
+                    &a_mean_bar, &a_cov_bar);
+  // The unsquashed outputs: gp2 in scaled coordinates, as the one-control
+  // UnsquashedPolicyBackward, with F columns.
+  const Scaled sc = MakeScaled(shape, params, m, s);
+  const Matrix cross_bar_scaled = sc.il.asDiagonal() * a_cross_bar;
+  Vector m_bar_scaled;
+  Matrix s_bar_scaled;
+  RowMatrix inputs_bar;
+  Matrix beta_bar;
+  if (absl::Status st = PredictGaussianBackward(sc.gp, sc.m, sc.s, Gp2Options(shape), a_mean_bar,
+                                                a_cov_bar, cross_bar_scaled, &m_bar_scaled,
+                                                &s_bar_scaled, params_bar ? &inputs_bar : nullptr,
+                                                params_bar ? &beta_bar : nullptr);
+      !st.ok()) {
+    return st;
+  }
+  *m_bar = sc.il.cwiseProduct(m_bar_scaled);
+  *s_bar = sc.il.asDiagonal() * s_bar_scaled * sc.il.asDiagonal();
+  if (params_bar != nullptr) {
+    TG_CHECK(params_bar->size() == shape.num_parameters());
+    Eigen::Map<RowMatrix> centres_bar(params_bar->data(), c, e);
+    centres_bar += inputs_bar * sc.il.asDiagonal();
+    // a_cross = diag(il) cross_scaled: explicit dependence on log l, summed
+    // over the controls.
+    const Vector log_l_bar =
+        -(inputs_bar.cwiseProduct(sc.gp.inputs).colwise().sum().transpose() +
+          m_bar_scaled.cwiseProduct(sc.m) + 2.0 * s_bar_scaled.cwiseProduct(sc.s).rowwise().sum() +
+          a_cross_bar.cwiseProduct(pm.a_cross).rowwise().sum());
+    params_bar->segment(c * e, e) += log_l_bar;
+    Eigen::Map<RowMatrix>(params_bar->data() + c * e + e, c, f) += beta_bar;
+  }
+  return absl::OkStatus();
+}
+
 absl::Status PolicyAtGaussianBackward(const RbfPolicyShape& shape, const Vector& params,
                                       const Vector& m, const Matrix& s, double u_mean_bar,
                                       double u_var_bar, const Vector& u_cross_bar, Vector* m_bar,
@@ -139,7 +211,7 @@ Matrix CentreKernel(const RowMatrix& scaled) {
 
 absl::Status PseudoTargetsToWeights(const RbfPolicyShape& shape, const Vector& pilco_params,
                                     Vector* params) {
-  const int c = shape.num_basis, e = shape.input_dim;
+  const int c = shape.num_basis, e = shape.input_dim, f = shape.num_controls();
   TG_CHECK(pilco_params.size() == shape.num_parameters());
   const Vector il = (-pilco_params.segment(c * e, e).array()).exp().matrix();
   const Eigen::Map<const RowMatrix> centres(pilco_params.data(), c, e);
@@ -151,29 +223,37 @@ absl::Status PseudoTargetsToWeights(const RbfPolicyShape& shape, const Vector& p
         "policy: K_cc + 1e-4 I of the centres is not positive definite");
   }
   *params = pilco_params;
-  params->tail(c) = llt.solve(pilco_params.tail(c));
+  if (f == 1) {
+    params->tail(c) = llt.solve(pilco_params.tail(c));
+  } else {
+    // The targets' columns, one per control, through the same solve.
+    const Matrix y = Eigen::Map<const RowMatrix>(pilco_params.data() + c * e + e, c, f);
+    Eigen::Map<RowMatrix>(params->data() + c * e + e, c, f) = llt.solve(y);
+  }
   return absl::OkStatus();
 }
 
 absl::Status WeightsToPseudoTargets(const RbfPolicyShape& shape, const Vector& params,
                                     Vector* pilco_params) {
-  const int c = shape.num_basis, e = shape.input_dim;
+  const int c = shape.num_basis, e = shape.input_dim, f = shape.num_controls();
   TG_CHECK(params.size() == shape.num_parameters());
   const Vector il = (-params.segment(c * e, e).array()).exp().matrix();
   const Eigen::Map<const RowMatrix> centres(params.data(), c, e);
   Matrix a = CentreKernel(centres * il.asDiagonal());
   a.diagonal().array() += kCongpNoiseVar;
-  if (!a.allFinite() || !params.tail(c).allFinite()) {
+  if (!a.allFinite() || !params.tail(c * f).allFinite()) {
     return absl::FailedPreconditionError("policy: centres, length-scales or weights not finite");
   }
   *pilco_params = params;
-  pilco_params->tail(c) = a * params.tail(c);
+  // Y = A W, one column per control (the weights C x F, row-major).
+  const Matrix w = Eigen::Map<const RowMatrix>(params.data() + c * e + e, c, f);
+  Eigen::Map<RowMatrix>(pilco_params->data() + c * e + e, c, f) = a * w;
   return absl::OkStatus();
 }
 
 absl::Status PseudoTargetsBackward(const RbfPolicyShape& shape, const Vector& pilco_params,
                                    const Vector& params_bar, Vector* pilco_params_bar) {
-  const int c = shape.num_basis, e = shape.input_dim;
+  const int c = shape.num_basis, e = shape.input_dim, f = shape.num_controls();
   TG_CHECK(pilco_params.size() == shape.num_parameters());
   TG_CHECK(params_bar.size() == shape.num_parameters());
   const Vector il = (-pilco_params.segment(c * e, e).array()).exp().matrix();
@@ -186,10 +266,21 @@ absl::Status PseudoTargetsBackward(const RbfPolicyShape& shape, const Vector& pi
     return absl::FailedPreconditionError(
         "policy: K_cc + 1e-4 I of the centres is not positive definite");
   }
-  const Vector w = llt.solve(pilco_params.tail(c));
-  // w = A^-1 y: y_bar = A^-1 w_bar, A_bar = -y_bar w^T.
-  const Vector y_bar = llt.solve(params_bar.tail(c));
-  const Matrix a_bar = -y_bar * w.transpose();
+  // W = A^-1 Y (one column per control): Y_bar = A^-1 W_bar,
+  // A_bar = -Y_bar W^T (summed over the columns).
+  Matrix y_bar, a_bar;
+  if (f == 1) {
+    const Vector w = llt.solve(pilco_params.tail(c));
+    const Vector yb = llt.solve(params_bar.tail(c));
+    a_bar = -yb * w.transpose();
+    y_bar = yb;
+  } else {
+    const Matrix y = Eigen::Map<const RowMatrix>(pilco_params.data() + c * e + e, c, f);
+    const Matrix w_bar = Eigen::Map<const RowMatrix>(params_bar.data() + c * e + e, c, f);
+    const Matrix w = llt.solve(y);
+    y_bar = llt.solve(w_bar);
+    a_bar = -y_bar * w.transpose();
+  }
   const Matrix b = (a_bar + a_bar.transpose()).cwiseProduct(k);  // symmetric
   const Vector il2 = il.cwiseProduct(il);
   *pilco_params_bar = params_bar;
@@ -209,7 +300,11 @@ absl::Status PseudoTargetsBackward(const RbfPolicyShape& shape, const Vector& pi
     }
     (*pilco_params_bar)(c * e + m) += 0.5 * acc * il2(m);
   }
-  pilco_params_bar->tail(c) = y_bar;
+  if (f == 1) {
+    pilco_params_bar->tail(c) = y_bar.col(0);
+  } else {
+    Eigen::Map<RowMatrix>(pilco_params_bar->data() + c * e + e, c, f) = y_bar;
+  }
   return absl::OkStatus();
 }
 

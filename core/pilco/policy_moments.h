@@ -31,9 +31,15 @@ namespace totalgrad::pilco {
 struct RbfPolicyShape {
   int num_basis = 0;      // C
   int input_dim = 0;      // E
-  double max_force = 10;  // u_max > 0
+  double max_force = 10;  // u_max > 0 (one control)
   double jitter = 1e-6;   // added to a_var (PILCO's gp2)
-  int num_parameters() const { return num_basis * input_dim + input_dim + num_basis; }
+  // F >= 2 controls (the double pendulum): their bounds, and the weights are
+  // C x F row-major (RbfPolicy's layout). Empty: one control at max_force.
+  Vector max_controls;
+  int num_controls() const { return max_controls.size() >= 2 ? static_cast<int>(max_controls.size()) : 1; }
+  int num_parameters() const {
+    return num_basis * input_dim + input_dim + num_basis * num_controls();
+  }
 };
 
 struct PolicyMoments {
@@ -43,7 +49,33 @@ struct PolicyMoments {
   Vector u_cross;  // E, a_cross * sat.c
 };
 
+// F >= 2 controls (shape.max_controls): the unsquashed outputs a (F) share
+// the basis functions and length-scales, one weight column each, so that
+// gp2 has F outputs; a_cov (F x F, + jitter on the diagonal) couples them,
+// and the saturation is GSatJoint's.
+struct MultiPolicyMoments {
+  Vector a_mean;         // F
+  Matrix a_cov;          // F x F
+  Matrix a_cross;        // E x F, s^-1 Cov(x, a)
+  JointSatMoments sat;   // E[u] (F), Cov[u] (F x F), c = E[du_j/da_j] (F)
+  Matrix u_cross;        // E x F, s^-1 Cov(x, u) = a_cross diag(c)
+};
+
+// Errors: as PredictGaussian. CHECK-fails unless shape.num_controls() >= 2.
+absl::Status MultiPolicyAtGaussian(const RbfPolicyShape& shape, const Vector& params,
+                                   const Vector& m, const Matrix& s, MultiPolicyMoments* out);
+
+// Reverse mode from the adjoints of u's mean (F), covariance (F x F, every
+// entry its own output) and u_cross (E x F): OVERWRITES *m_bar (E) and
+// *s_bar (E x E, symmetric) and ADDS to *params_bar (may be null).
+absl::Status MultiPolicyAtGaussianBackward(const RbfPolicyShape& shape, const Vector& params,
+                                           const Vector& m, const Matrix& s,
+                                           const Vector& u_mean_bar, const Matrix& u_cov_bar,
+                                           const Matrix& u_cross_bar, Vector* m_bar, Matrix* s_bar,
+                                           Vector* params_bar);
+
 // Errors: as PredictGaussian (non-finite or non-PSD input covariance).
+// One control (CHECK-fails on shape.num_controls() >= 2).
 absl::Status PolicyAtGaussian(const RbfPolicyShape& shape, const Vector& params, const Vector& m,
                               const Matrix& s, PolicyMoments* out);
 
@@ -67,8 +99,9 @@ absl::Status PolicyAtGaussianBackward(const RbfPolicyShape& shape, const Vector&
 // c_lm)^2 / l_m^2) (sf = 1) and sn = 0.01, both fixed by congp.
 inline constexpr double kCongpNoiseVar = 1e-4;
 
-// pilco_params = [centres row-major, log l, pseudo-targets (C)]; writes
-// *params = [centres, log l, weights] (same layout as RbfPolicy). Errors:
+// pilco_params = [centres row-major, log l, pseudo-targets (C x F row-major)];
+// writes *params = [centres, log l, weights (C x F)] (RbfPolicy's layout),
+// W = (K_cc + sn^2 I)^-1 Y column by column. Errors:
 // FailedPrecondition if K_cc + sn^2 I cannot be factorised (e.g. non-finite
 // numbers).
 absl::Status PseudoTargetsToWeights(const RbfPolicyShape& shape, const Vector& pilco_params,

@@ -24,12 +24,34 @@ absl::Status Propagator::Validate(const GaussianInputGp& dynamics,
     return absl::InvalidArgumentError(
         absl::StrCat("angle_index ", options.angle_index, " out of range for state dim ", d));
   }
-  const int ep = options.angle_index >= 0 ? d + 1 : d;
-  if (dynamics.num_inputs() != ep + 1) {
+  if (!options.angle_indices.empty()) {
+    if (options.angle_index >= 0) {
+      return absl::InvalidArgumentError("give angle_index or angle_indices, not both");
+    }
+    for (size_t k = 0; k < options.angle_indices.size(); ++k) {
+      const int a = options.angle_indices[k];
+      if (a < 0 || a >= d || (k > 0 && a <= options.angle_indices[k - 1])) {
+        return absl::InvalidArgumentError(absl::StrCat(
+            "angle_indices must be strictly increasing state indices in [0, ", d, "); entry ", k,
+            " is ", a));
+      }
+    }
+  }
+  const int a_count = static_cast<int>(options.Angles().size());
+  const int ep = d + a_count;
+  if (options.max_controls.size() == 1) {
+    return absl::InvalidArgumentError("max_controls: give 2 or more bounds (one control: max_force)");
+  }
+  for (Eigen::Index j = 0; j < options.max_controls.size(); ++j) {
+    if (!(options.max_controls(j) > 0) || !std::isfinite(options.max_controls(j)))
+      return absl::InvalidArgumentError(absl::StrCat("max_controls(", j, ") must be > 0"));
+  }
+  const int f = options.max_controls.size() >= 2 ? static_cast<int>(options.max_controls.size()) : 1;
+  if (dynamics.num_inputs() != ep + f) {
     return absl::InvalidArgumentError(absl::StrCat(
-        "dynamics GP has ", dynamics.num_inputs(), " inputs; expected ", ep + 1,
-        options.angle_index >= 0 ? " ([state without the angle, sin, cos, u])"
-                                 : " ([state, u])"));
+        "dynamics GP has ", dynamics.num_inputs(), " inputs; expected ", ep + f,
+        a_count > 0 ? " ([state without the angles, (sin, cos) per angle, " : " ([state, ",
+        f == 1 ? "u])" : absl::StrCat(f, " controls])")));
   }
   if (dynamics.variance_weights.size() != static_cast<size_t>(d)) {
     return absl::InvalidArgumentError("dynamics GP lacks its variance weights (K^-1)");
@@ -49,18 +71,26 @@ Propagator::Propagator(const GaussianInputGp* dynamics, const PropagationOptions
   TG_CHECK(dynamics != nullptr);
   TG_CHECK(Validate(*dynamics, options).ok());
   state_dim_ = dynamics->num_outputs();
+  angles_ = options.Angles();
   const int d = state_dim_;
+  // p = [x without the angles, then y's (sin, cos) entries in angle order].
+  size_t next = 0;
   for (int i = 0; i < d; ++i) {
-    if (i != options.angle_index) policy_index_.push_back(i);
+    if (next < angles_.size() && angles_[next] == i) {
+      ++next;
+    } else {
+      policy_index_.push_back(i);
+    }
   }
-  if (options.angle_index >= 0) {
-    policy_index_.push_back(d);
-    policy_index_.push_back(d + 1);
+  for (size_t k = 0; k < angles_.size(); ++k) {
+    policy_index_.push_back(d + 2 * static_cast<int>(k));
+    policy_index_.push_back(d + 2 * static_cast<int>(k) + 1);
   }
   policy_input_dim_ = static_cast<int>(policy_index_.size());
   shape_.num_basis = options.num_basis;
   shape_.input_dim = policy_input_dim_;
   shape_.max_force = options.max_force;
+  shape_.max_controls = options.max_controls;
   shape_.jitter = options.policy_jitter;
   dyn_options_.model_variance = true;
   dyn_options_.include_noise = options.prediction_includes_noise;
@@ -69,11 +99,11 @@ Propagator::Propagator(const GaussianInputGp* dynamics, const PropagationOptions
 
 Vector Propagator::PolicyInput(const Vector& x) const {
   TG_CHECK(x.size() == state_dim_);
-  Vector y(state_dim_ + 2);
+  Vector y(state_dim_ + 2 * angles_.size());
   y.head(state_dim_) = x;
-  if (options_.angle_index >= 0) {
-    y(state_dim_) = std::sin(x(options_.angle_index));
-    y(state_dim_ + 1) = std::cos(x(options_.angle_index));
+  for (size_t k = 0; k < angles_.size(); ++k) {
+    y(state_dim_ + 2 * k) = std::sin(x(angles_[k]));
+    y(state_dim_ + 2 * k + 1) = std::cos(x(angles_[k]));
   }
   Vector p(policy_input_dim_);
   for (int i = 0; i < policy_input_dim_; ++i) p(i) = y(policy_index_[i]);
@@ -92,8 +122,8 @@ absl::Status Propagator::Step(const Vector& params, const Vector& m, const Matri
   StepCache& c = cache != nullptr ? *cache : local;
   c.m = m;
   c.S = S;
-  if (options_.angle_index >= 0) {
-    AugmentWithTrig(m, S, options_.angle_index, &c.y_mean, &c.y_cov);
+  if (!angles_.empty()) {
+    AugmentWithTrig(m, S, angles_, &c.y_mean, &c.y_cov);
   } else {
     c.y_mean = m;
     c.y_cov = S;
@@ -106,6 +136,7 @@ absl::Status Propagator::Step(const Vector& params, const Vector& m, const Matri
     for (int j = 0; j < ep; ++j) c.p_cov(i, j) = c.y_cov(policy_index_[i], policy_index_[j]);
     for (int r = 0; r < d; ++r) c.s_xp(r, i) = c.y_cov(r, policy_index_[i]);
   }
+  if (control_dim() > 1) return StepControls(params, m, S, m_next, S_next, &c);
   if (absl::Status st = PolicyAtGaussian(shape_, params, c.p_mean, c.p_cov, &c.policy);
       !st.ok()) {
     return Annotate(st, "policy");
@@ -136,6 +167,84 @@ absl::Status Propagator::Step(const Vector& params, const Vector& m, const Matri
   return absl::OkStatus();
 }
 
+absl::Status Propagator::StepControls(const Vector& params, const Vector& m, const Matrix& S,
+                                      Vector* m_next, Matrix* S_next, StepCache* cache) const {
+  // As Step from the policy on, with F controls: g = [p; u] (Ep + F),
+  // Cov(p, u) = p_cov u_cross (Ep x F), Cov(u) from GSatJoint.
+  const int d = state_dim_, ep = policy_input_dim_, f = control_dim();
+  StepCache& c = *cache;
+  if (absl::Status st = MultiPolicyAtGaussian(shape_, params, c.p_mean, c.p_cov, &c.multi);
+      !st.ok()) {
+    return Annotate(st, "policy");
+  }
+  c.g_mean.resize(ep + f);
+  c.g_mean.head(ep) = c.p_mean;
+  c.g_mean.tail(f) = c.multi.sat.mean;
+  c.g_cov.resize(ep + f, ep + f);
+  c.g_cov.topLeftCorner(ep, ep) = c.p_cov;
+  const Matrix cov_pu = c.p_cov * c.multi.u_cross;
+  c.g_cov.topRightCorner(ep, f) = cov_pu;
+  c.g_cov.bottomLeftCorner(f, ep) = cov_pu.transpose();
+  c.g_cov.bottomRightCorner(f, f) = c.multi.sat.cov;
+  if (absl::Status st = PredictGaussian(*dynamics_, c.g_mean, c.g_cov, dyn_options_, &c.delta);
+      !st.ok()) {
+    return Annotate(st, "dynamics GP");
+  }
+  Matrix cxg(d, ep + f);
+  cxg.leftCols(ep) = c.s_xp;
+  cxg.rightCols(f) = c.s_xp * c.multi.u_cross;
+  const Matrix cxd = cxg * c.delta.cross;
+  *m_next = m + c.delta.mean;
+  Matrix sn = S + c.delta.cov + cxd + cxd.transpose();
+  *S_next = 0.5 * (sn + sn.transpose());
+  if (!m_next->allFinite() || !S_next->allFinite()) {
+    return absl::InternalError("next state distribution not finite");
+  }
+  return absl::OkStatus();
+}
+
+absl::Status Propagator::StepControlsBackward(const Vector& params, const StepCache& c,
+                                              const Vector& m_next_bar, const Matrix& sb_next,
+                                              Vector* p_mean_bar, Matrix* p_cov_bar,
+                                              Matrix* s_xp_bar, Vector* params_bar) const {
+  const int d = state_dim_, ep = policy_input_dim_, f = control_dim();
+  const Matrix c_bar = 2.0 * sb_next;
+  Matrix cxg(d, ep + f);
+  cxg.leftCols(ep) = c.s_xp;
+  cxg.rightCols(f) = c.s_xp * c.multi.u_cross;
+  const Matrix cxg_bar = c_bar * c.delta.cross.transpose();  // D x (Ep + F)
+  const Matrix delta_cross_bar = cxg.transpose() * c_bar;     // (Ep + F) x D
+  *s_xp_bar = cxg_bar.leftCols(ep) + cxg_bar.rightCols(f) * c.multi.u_cross.transpose();
+  Matrix u_cross_bar = c.s_xp.transpose() * cxg_bar.rightCols(f);  // Ep x F
+  Vector g_mean_bar;
+  Matrix g_cov_bar;
+  if (absl::Status st = PredictGaussianBackward(*dynamics_, c.g_mean, c.g_cov, dyn_options_,
+                                                m_next_bar, sb_next, delta_cross_bar,
+                                                &g_mean_bar, &g_cov_bar, nullptr, nullptr);
+      !st.ok()) {
+    return Annotate(st, "dynamics GP (backward)");
+  }
+  *p_mean_bar = g_mean_bar.head(ep);
+  const Vector u_mean_bar = g_mean_bar.tail(f);
+  *p_cov_bar = g_cov_bar.topLeftCorner(ep, ep);
+  // Both off-diagonal blocks hold cov_pu = p_cov u_cross (and its transpose).
+  const Matrix r_bar = g_cov_bar.topRightCorner(ep, f) + g_cov_bar.bottomLeftCorner(f, ep).transpose();
+  p_cov_bar->noalias() += r_bar * c.multi.u_cross.transpose();
+  u_cross_bar.noalias() += c.p_cov.transpose() * r_bar;
+  const Matrix u_cov_bar = g_cov_bar.bottomRightCorner(f, f);
+  Vector pm_bar;
+  Matrix ps_bar;
+  if (absl::Status st = MultiPolicyAtGaussianBackward(shape_, params, c.p_mean, c.p_cov, u_mean_bar,
+                                                      u_cov_bar, u_cross_bar, &pm_bar, &ps_bar,
+                                                      params_bar);
+      !st.ok()) {
+    return Annotate(st, "policy (backward)");
+  }
+  *p_mean_bar += pm_bar;
+  *p_cov_bar += ps_bar;
+  return absl::OkStatus();
+}
+
 absl::Status Propagator::StepBackward(const Vector& params, const StepCache& c,
                                       const Vector& m_next_bar, const Matrix& S_next_bar,
                                       Vector* m_bar, Matrix* S_bar, Vector* params_bar) const {
@@ -144,6 +253,17 @@ absl::Status Propagator::StepBackward(const Vector& params, const StepCache& c,
   const Matrix sb_next = 0.5 * (S_next_bar + S_next_bar.transpose());
   Vector mb = m_next_bar;
   Matrix sb = sb_next;
+  Vector p_mean_bar;
+  Matrix p_cov_bar, s_xp_bar;
+  if (control_dim() > 1) {
+    if (absl::Status st = StepControlsBackward(params, c, m_next_bar, sb_next, &p_mean_bar,
+                                               &p_cov_bar, &s_xp_bar, params_bar);
+        !st.ok()) {
+      return st;
+    }
+    return FinishStepBackward(c, p_mean_bar, p_cov_bar, s_xp_bar, std::move(mb), std::move(sb),
+                              m_bar, S_bar);
+  }
   // m' = m + E[D]; S' = S + Cov[D] + C + C^T with C = cxg * cross.
   const Vector delta_mean_bar = m_next_bar;
   const Matrix delta_cov_bar = sb_next;
@@ -153,7 +273,7 @@ absl::Status Propagator::StepBackward(const Vector& params, const StepCache& c,
   cxg.col(ep) = c.s_xp * c.policy.u_cross;
   const Matrix cxg_bar = c_bar * c.delta.cross.transpose();  // D x Eg
   const Matrix delta_cross_bar = cxg.transpose() * c_bar;     // Eg x D
-  Matrix s_xp_bar = cxg_bar.leftCols(ep) + cxg_bar.col(ep) * c.policy.u_cross.transpose();
+  s_xp_bar = cxg_bar.leftCols(ep) + cxg_bar.col(ep) * c.policy.u_cross.transpose();
   Vector u_cross_bar = c.s_xp.transpose() * cxg_bar.col(ep);
 
   Vector g_mean_bar;
@@ -164,9 +284,9 @@ absl::Status Propagator::StepBackward(const Vector& params, const StepCache& c,
       !st.ok()) {
     return Annotate(st, "dynamics GP (backward)");
   }
-  Vector p_mean_bar = g_mean_bar.head(ep);
+  p_mean_bar = g_mean_bar.head(ep);
   const double u_mean_bar = g_mean_bar(ep);
-  Matrix p_cov_bar = g_cov_bar.topLeftCorner(ep, ep);
+  p_cov_bar = g_cov_bar.topLeftCorner(ep, ep);
   const Vector r_bar = g_cov_bar.col(ep).head(ep) + g_cov_bar.row(ep).head(ep).transpose();
   p_cov_bar.noalias() += r_bar * c.policy.u_cross.transpose();
   u_cross_bar.noalias() += c.p_cov.transpose() * r_bar;
@@ -182,7 +302,15 @@ absl::Status Propagator::StepBackward(const Vector& params, const StepCache& c,
   }
   p_mean_bar += pm_bar;
   p_cov_bar += ps_bar;
+  return FinishStepBackward(c, p_mean_bar, p_cov_bar, s_xp_bar, std::move(mb), std::move(sb), m_bar,
+                            S_bar);
+}
 
+absl::Status Propagator::FinishStepBackward(const StepCache& c, const Vector& p_mean_bar,
+                                            const Matrix& p_cov_bar, const Matrix& s_xp_bar,
+                                            Vector mb, Matrix sb, Vector* m_bar,
+                                            Matrix* S_bar) const {
+  const int d = state_dim_, ep = policy_input_dim_;
   const int ny = static_cast<int>(c.y_mean.size());
   Vector y_mean_bar = Vector::Zero(ny);
   Matrix y_cov_bar = Matrix::Zero(ny, ny);
@@ -191,8 +319,8 @@ absl::Status Propagator::StepBackward(const Vector& params, const StepCache& c,
     for (int j = 0; j < ep; ++j) y_cov_bar(policy_index_[i], policy_index_[j]) += p_cov_bar(i, j);
     for (int r = 0; r < d; ++r) y_cov_bar(r, policy_index_[i]) += s_xp_bar(r, i);
   }
-  if (options_.angle_index >= 0) {
-    AugmentWithTrigBackward(c.m, c.S, options_.angle_index, y_mean_bar, y_cov_bar, &mb, &sb);
+  if (!angles_.empty()) {
+    AugmentWithTrigBackward(c.m, c.S, angles_, y_mean_bar, y_cov_bar, &mb, &sb);
   } else {
     mb += y_mean_bar;
     sb += y_cov_bar;

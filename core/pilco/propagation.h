@@ -3,11 +3,13 @@
 // (6.2), by reverse-mode accumulation.
 //
 // Step, for x ~ N(m, S) over the D-dim state:
-//  1. y = [x; sin x_a; cos x_a] (AugmentWithTrig) when an angle index a is
-//     set, else y = x;
-//  2. policy input p = [y without x_a] = [x_{-a}, sin x_a, cos x_a] (or x):
-//     Ep = D + 1 (or D) dims; u from PolicyAtGaussian (gp2 + gSat);
-//  3. GP input g = [p; u] (Ep + 1 dims), with Cov(p, u) = S_pp u_cross;
+//  1. y = [x; sin x_a1; cos x_a1; sin x_a2; ...] (AugmentWithTrig) for the A
+//     angles a1 < a2 < ... (none: y = x);
+//  2. policy input p = [y without the angles] = [x without the angles,
+//     (sin, cos) per angle] (the particles' features, pilco/angle_features.h):
+//     Ep = D + A dims; u from PolicyAtGaussian (gp2 + gSat);
+//  3. GP input g = [p; u] (Ep + F dims), with Cov(p, u) = S_pp u_cross
+//     (Ep x F; F >= 2 controls: MultiPolicyAtGaussian, GSatJoint);
 //     state difference Delta from PredictGaussian (gp0/gp1);
 //  4. m' = m + E[Delta], S' = S + Cov[Delta] + C + C^T, C = Cov(x, Delta) =
 //     Cov(x, g) cross, symmetrised.
@@ -36,10 +38,23 @@ namespace totalgrad::pilco {
 
 struct PropagationOptions {
   int angle_index = -1;                   // -1: GP and policy see the raw state
+  // Several angles (strictly increasing state indices); when non-empty,
+  // angle_index must stay -1. Angles() is the list either way.
+  std::vector<int> angle_indices;
   bool prediction_includes_noise = false;  // add sn^2 to Cov[Delta] (PILCO: false)
   double policy_jitter = 1e-6;            // gp2's output-variance jitter
-  double max_force = 10.0;                // u_max of the saturation
+  double max_force = 10.0;                // u_max of the saturation (one control)
+  // F >= 2 controls (the double pendulum): their bounds; the GP's inputs are
+  // then [p; u_1 .. u_F] and the policy has C x F weights. Empty: one control.
+  Vector max_controls;
   int num_basis = 10;                     // C, RBF centres
+
+  // The angles: angle_indices, or {angle_index}, or none.
+  std::vector<int> Angles() const {
+    if (!angle_indices.empty()) return angle_indices;
+    if (angle_index >= 0) return {angle_index};
+    return {};
+  }
 };
 
 // Intermediate quantities of one step (kept by the forward pass for the
@@ -51,7 +66,8 @@ struct StepCache {
   Matrix y_cov;
   Vector p_mean;
   Matrix p_cov;
-  PolicyMoments policy;
+  PolicyMoments policy;         // one control
+  MultiPolicyMoments multi;     // F >= 2 controls
   Vector g_mean;
   Matrix g_cov;
   GaussianPrediction delta;
@@ -61,7 +77,7 @@ struct StepCache {
 class Propagator {
  public:
   // `dynamics` must outlive the Propagator. It has D outputs (the state
-  // differences) and Ep + 1 inputs. CHECK-fails on inconsistent dimensions;
+  // differences) and Ep + F = D + A + F inputs. CHECK-fails on inconsistent dimensions;
   // use Validate first for user input.
   Propagator(const GaussianInputGp* dynamics, const PropagationOptions& options);
 
@@ -70,6 +86,7 @@ class Propagator {
 
   int state_dim() const { return state_dim_; }
   int policy_input_dim() const { return policy_input_dim_; }
+  int control_dim() const { return shape_.num_controls(); }
   const RbfPolicyShape& policy_shape() const { return shape_; }
   int num_parameters() const { return shape_.num_parameters(); }
 
@@ -84,12 +101,28 @@ class Propagator {
                             const Matrix& S_next_bar, Vector* m_bar, Matrix* S_bar,
                             Vector* params_bar) const;
 
-  // Policy input of a deterministic state (D) : [x_{-a}, sin x_a, cos x_a] or x.
+  // Policy input of a deterministic state (D): [x without the angles, (sin,
+  // cos) per angle] (Ep = D + A), or x.
   Vector PolicyInput(const Vector& x) const;
 
  private:
+  // Step and StepBackward from the policy on, with F >= 2 controls.
+  absl::Status StepControls(const Vector& params, const Vector& m, const Matrix& S,
+                            Vector* m_next, Matrix* S_next, StepCache* cache) const;
+  // Gives the adjoints of p's mean and covariance and of s_xp = Cov(x, p).
+  absl::Status StepControlsBackward(const Vector& params, const StepCache& c,
+                                    const Vector& m_next_bar, const Matrix& sb_next,
+                                    Vector* p_mean_bar, Matrix* p_cov_bar, Matrix* s_xp_bar,
+                                    Vector* params_bar) const;
+  // From the adjoints of p and s_xp (and of m, S through the identity paths,
+  // mb and sb) back through the trig augmentation to *m_bar, *S_bar.
+  absl::Status FinishStepBackward(const StepCache& c, const Vector& p_mean_bar,
+                                  const Matrix& p_cov_bar, const Matrix& s_xp_bar, Vector mb,
+                                  Matrix sb, Vector* m_bar, Matrix* S_bar) const;
+
   const GaussianInputGp* dynamics_;
   PropagationOptions options_;
+  std::vector<int> angles_;  // options_.Angles()
   int state_dim_ = 0;
   int policy_input_dim_ = 0;
   std::vector<int> policy_index_;  // Ep indices into y

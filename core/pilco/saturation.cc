@@ -1,6 +1,10 @@
 #include "core/pilco/saturation.h"
 
 #include <cmath>
+#include <vector>
+
+#include "core/common/check.h"
+#include "core/pilco/trig.h"
 
 namespace totalgrad::pilco {
 
@@ -50,6 +54,96 @@ Eigen::Matrix<double, 3, 2> Dx_GSat(double mean, double var, double max_u) {
   j(1, 0) = u * u * (81.0 / 64.0 * dvar1_dm + 1.0 / 64.0 * dvar3_dm + 18.0 / 64.0 * dcov_dm);
   j(1, 1) = u * u * (81.0 / 64.0 * dvar1_dv + 1.0 / 64.0 * dvar3_dv + 18.0 / 64.0 * dcov_dv);
   return j;
+}
+
+namespace {
+
+// q = M a, M = [I; 3 I] (2F x F), and the indices of q's entries as angles.
+struct QMap {
+  Matrix m;
+  std::vector<int> all;
+};
+
+QMap MakeQMap(int f) {
+  QMap q;
+  q.m = Matrix::Zero(2 * f, f);
+  for (int j = 0; j < f; ++j) {
+    q.m(j, j) = 1.0;
+    q.m(f + j, j) = 3.0;
+  }
+  for (int k = 0; k < 2 * f; ++k) q.all.push_back(k);
+  return q;
+}
+
+// L (F x 2F): u = L sin q.
+Matrix SinMap(const Vector& max_u) {
+  const int f = static_cast<int>(max_u.size());
+  Matrix l = Matrix::Zero(f, 2 * f);
+  for (int j = 0; j < f; ++j) {
+    l(j, j) = 9.0 / 8.0 * max_u(j);
+    l(j, f + j) = 1.0 / 8.0 * max_u(j);
+  }
+  return l;
+}
+
+}  // namespace
+
+void GSatJoint(const Vector& mean, const Matrix& cov, const Vector& max_u, JointSatMoments* out) {
+  const int f = static_cast<int>(mean.size());
+  TG_CHECK(f >= 1 && cov.rows() == f && cov.cols() == f && max_u.size() == f);
+  const QMap q = MakeQMap(f);
+  const Vector qm = q.m * mean;
+  const Matrix qs = q.m * cov * q.m.transpose();
+  Vector ym;
+  Matrix ys;
+  AugmentWithTrig(qm, qs, q.all, &ym, &ys);
+  // sin q_k at 2F + 2k, cos q_k at 2F + 2k + 1.
+  const int n = 2 * f;
+  Vector e_sin(n), e_cos(n);
+  Matrix cov_sin(n, n);
+  for (int k = 0; k < n; ++k) {
+    e_sin(k) = ym(n + 2 * k);
+    e_cos(k) = ym(n + 2 * k + 1);
+    for (int l = 0; l < n; ++l) cov_sin(k, l) = ys(n + 2 * k, n + 2 * l);
+  }
+  const Matrix l = SinMap(max_u);
+  out->mean = l * e_sin;
+  out->cov = l * cov_sin * l.transpose();
+  out->c.resize(f);
+  for (int j = 0; j < f; ++j) out->c(j) = max_u(j) / 8.0 * (9.0 * e_cos(j) + 3.0 * e_cos(f + j));
+}
+
+void GSatJointBackward(const Vector& mean, const Matrix& cov, const Vector& max_u,
+                       const Vector& u_mean_bar, const Matrix& u_cov_bar, const Vector& c_bar,
+                       Vector* mean_bar, Matrix* cov_bar) {
+  const int f = static_cast<int>(mean.size());
+  TG_CHECK(f >= 1 && cov.rows() == f && cov.cols() == f && max_u.size() == f);
+  TG_CHECK(u_mean_bar.size() == f && u_cov_bar.rows() == f && u_cov_bar.cols() == f &&
+           c_bar.size() == f);
+  TG_CHECK(mean_bar->size() == f && cov_bar->rows() == f && cov_bar->cols() == f);
+  const QMap q = MakeQMap(f);
+  const Vector qm = q.m * mean;
+  const Matrix qs = q.m * cov * q.m.transpose();
+  const int n = 2 * f;
+  const Matrix l = SinMap(max_u);
+  // Adjoints of y's entries that the forward read.
+  Vector ym_bar = Vector::Zero(3 * n);
+  Matrix ys_bar = Matrix::Zero(3 * n, 3 * n);
+  const Vector e_sin_bar = l.transpose() * u_mean_bar;
+  const Matrix cov_sin_bar = l.transpose() * u_cov_bar * l;
+  for (int k = 0; k < n; ++k) {
+    ym_bar(n + 2 * k) = e_sin_bar(k);
+    for (int m = 0; m < n; ++m) ys_bar(n + 2 * k, n + 2 * m) = cov_sin_bar(k, m);
+  }
+  for (int j = 0; j < f; ++j) {
+    ym_bar(n + 2 * j + 1) += max_u(j) / 8.0 * 9.0 * c_bar(j);
+    ym_bar(n + 2 * (f + j) + 1) += max_u(j) / 8.0 * 3.0 * c_bar(j);
+  }
+  Vector qm_bar = Vector::Zero(n);
+  Matrix qs_bar = Matrix::Zero(n, n);
+  AugmentWithTrigBackward(qm, qs, q.all, ym_bar, ys_bar, &qm_bar, &qs_bar);
+  mean_bar->noalias() += q.m.transpose() * qm_bar;
+  cov_bar->noalias() += q.m.transpose() * qs_bar * q.m;
 }
 
 }  // namespace totalgrad::pilco

@@ -11,6 +11,8 @@
 #ifndef TOTALGRAD_CORE_PILCO_TRIG_H_
 #define TOTALGRAD_CORE_PILCO_TRIG_H_
 
+#include <vector>
+
 #include <Eigen/Core>
 
 #include "core/common/types.h"
@@ -49,6 +51,21 @@ void AugmentWithTrig(const Vector& m, const Matrix& S, int angle_index, Vector* 
 // output), ADDS the adjoints of m and S to *m_bar (D) and *S_bar (D x D),
 // which must be sized.
 void AugmentWithTrigBackward(const Vector& m, const Matrix& S, int angle_index,
+                             const Vector& y_mean_bar, const Matrix& y_cov_bar, Vector* m_bar,
+                             Matrix* S_bar);
+
+// Several angles (the cart-double-pendulum's, the pendubot's): the joint
+// Gaussian of y = [x; sin x_a1; cos x_a1; sin x_a2; cos x_a2; ...] (D + 2A,
+// angle_indices strictly increasing in [0, D), A >= 1). Each angle's own block
+// is GTrig's; the blocks of two angles k != l follow from the product
+// formulas, e.g. E[sin x_k sin x_l] = (E cos(x_k - x_l) - E cos(x_k + x_l)) / 2
+// with x_k +- x_l ~ N(m_k +- m_l, S_kk + S_ll +- (S_kl + S_lk)); x's blocks by
+// Stein's lemma as above. One angle is the function above, bit for bit.
+void AugmentWithTrig(const Vector& m, const Matrix& S, const std::vector<int>& angle_indices,
+                     Vector* y_mean, Matrix* y_cov);
+
+// Its reverse mode, with the contract of the one-angle AugmentWithTrigBackward.
+void AugmentWithTrigBackward(const Vector& m, const Matrix& S, const std::vector<int>& angle_indices,
                              const Vector& y_mean_bar, const Matrix& y_cov_bar, Vector* m_bar,
                              Matrix* S_bar);
 

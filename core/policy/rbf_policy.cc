@@ -34,20 +34,27 @@ BlockWorkspace& ThreadBlockWorkspace() {
   return workspace;
 }
 
-// Row i's parameter adjoint (n = C S + S + C entries, ADDED to row):
+// Row i's parameter adjoint (n = C S + S + C F entries, ADDED to row):
 //   centres:  row[k S + m]     += g_k (x_m - c_km) / l_m^2
 //   log l_m:  row[C S + m]     += sum_k g_k (x_m - c_km)^2 / l_m^2   (k in order)
-//   weights:  row[C S + S + k] += a_bar phi_k
+//   weights:  row[C S + S + k F + j] += a_bar_j phi_k
 // x: the particle's state (S), g: its C basis weights, centres: C x S
 // row-major, inv_l2: S. S = 4 (the cart-pole's) runs on 4-lane vectors, one
 // basis function per vector operation; other S on the generic loop. Both do
 // the same IEEE operations per entry, so every ISA clone gives the same bits.
 typedef double Doubles4 __attribute__((vector_size(4 * sizeof(double))));
 
+// weights(k, j) (row-major C x F) += a_bar_j phi_k.
+inline void WeightAdjoint(const double* phi, const double* a_bar, int c_count, int f_count,
+                          double* weights) {
+  for (int k = 0; k < c_count; ++k)
+    for (int j = 0; j < f_count; ++j) weights[k * f_count + j] += a_bar[j] * phi[k];
+}
+
 TG_VECTOR_CLONES void ParticleParameterAdjoint4(const double* x, const double* g,
                                                 const double* centres, const double* inv_l2,
-                                                const double* phi, double a_bar, int c_count,
-                                                double* row) {
+                                                const double* phi, const double* a_bar,
+                                                int c_count, int f_count, double* row) {
   Doubles4 xv, il2, loglen = {0.0, 0.0, 0.0, 0.0};
   std::memcpy(&xv, x, sizeof(xv));
   std::memcpy(&il2, inv_l2, sizeof(il2));
@@ -63,13 +70,12 @@ TG_VECTOR_CLONES void ParticleParameterAdjoint4(const double* x, const double* g
   }
   double* ll = row + 4 * c_count;
   for (int m = 0; m < 4; ++m) ll[m] += loglen[m];
-  double* weights = ll + 4;
-  for (int k = 0; k < c_count; ++k) weights[k] += a_bar * phi[k];
+  WeightAdjoint(phi, a_bar, c_count, f_count, ll + 4);
 }
 
 void ParticleParameterAdjointAny(const double* x, const double* g, const double* centres,
-                                 const double* inv_l2, const double* phi, double a_bar,
-                                 int c_count, int s_dim, double* row) {
+                                 const double* inv_l2, const double* phi, const double* a_bar,
+                                 int c_count, int f_count, int s_dim, double* row) {
   double* ll = row + c_count * s_dim;
   for (int m = 0; m < s_dim; ++m) {
     double sum = 0;
@@ -81,8 +87,7 @@ void ParticleParameterAdjointAny(const double* x, const double* g, const double*
     }
     ll[m] += sum;
   }
-  double* weights = ll + s_dim;
-  for (int k = 0; k < c_count; ++k) weights[k] += a_bar * phi[k];
+  WeightAdjoint(phi, a_bar, c_count, f_count, ll + s_dim);
 }
 
 }  // namespace
@@ -94,8 +99,11 @@ double DaSaturate(double a, double u_max) {
 }
 
 RbfPolicy::RbfPolicy(int num_basis, int state_dim, double max_force)
-    : num_basis_(num_basis), state_dim_(state_dim), max_force_(max_force) {
-  TG_CHECK(num_basis > 0 && state_dim > 0);
+    : RbfPolicy(num_basis, state_dim, Vector::Constant(1, max_force)) {}
+
+RbfPolicy::RbfPolicy(int num_basis, int state_dim, const Vector& max_control)
+    : num_basis_(num_basis), state_dim_(state_dim), max_control_(max_control) {
+  TG_CHECK(num_basis > 0 && state_dim > 0 && max_control.size() > 0);
   params_ = Vector::Zero(num_parameters());
 }
 
@@ -111,7 +119,8 @@ Eigen::Map<const Vector> RbfPolicy::log_lengthscales() const {
   return Eigen::Map<const Vector>(params_.data() + num_basis_ * state_dim_, state_dim_);
 }
 Eigen::Map<const Vector> RbfPolicy::weights() const {
-  return Eigen::Map<const Vector>(params_.data() + num_basis_ * state_dim_ + state_dim_, num_basis_);
+  return Eigen::Map<const Vector>(params_.data() + num_basis_ * state_dim_ + state_dim_,
+                                  num_basis_ * control_dim());
 }
 
 void RbfPolicy::Initialize(const Vector& mean, const Vector& centre_std, double lengthscale,
@@ -124,7 +133,7 @@ void RbfPolicy::Initialize(const Vector& mean, const Vector& centre_std, double 
     for (int m = 0; m < state_dim_; ++m) c(k, m) = mean(m) + centre_std(m) * rng->Normal();
   params_.segment(num_basis_ * state_dim_, state_dim_).setConstant(std::log(lengthscale));
   const double bound = 1.0 / std::sqrt(static_cast<double>(num_basis_));
-  for (int k = 0; k < num_basis_; ++k)
+  for (int k = 0; k < num_basis_ * control_dim(); ++k)
     params_(num_basis_ * state_dim_ + state_dim_ + k) = rng->Uniform(-bound, bound);
 }
 
@@ -138,10 +147,12 @@ void RbfPolicy::Evaluate(const ConstRowMatrixRef& states, Vector* forces, Cache*
   const Vector cs_sq = ws.cs.rowwise().squaredNorm();
   Cache local;
   Cache& out = cache != nullptr ? *cache : local;
+  const int f_count = control_dim();
   out.phi.resize(p, num_basis_);
-  out.pre.resize(p);
-  forces->resize(p);
+  out.pre.resize(p * f_count);
+  forces->resize(p * f_count);
   const auto w = weights();
+  const Eigen::Map<const RowMatrix> w_matrix(w.data(), num_basis_, f_count);
   const RowMatrix& cs = ws.cs;
   ParallelForBlocks(pool, p, kParticleBlock, [&](int64_t begin, int64_t end) {
     const Eigen::Index rows = end - begin;
@@ -155,8 +166,15 @@ void RbfPolicy::Evaluate(const ConstRowMatrixRef& states, Vector* forces, Cache*
     // exp(-1/2 max(d2, 0)): the argument is <= 0 (and NaN stays NaN).
     phi = -0.5 * phi.array().max(0.0);
     ExpNonPositive(phi.data(), phi.data(), phi.size());
-    out.pre.segment(begin, rows).noalias() = phi * w;
-    for (Eigen::Index i = begin; i < end; ++i) (*forces)(i) = Saturate(out.pre(i), max_force_);
+    if (f_count == 1) {
+      out.pre.segment(begin, rows).noalias() = phi * w;
+      for (Eigen::Index i = begin; i < end; ++i) (*forces)(i) = Saturate(out.pre(i), max_control_(0));
+      return;
+    }
+    Eigen::Map<RowMatrix> pre(out.pre.data() + begin * f_count, rows, f_count);
+    pre.noalias() = phi * w_matrix;
+    for (Eigen::Index i = begin * f_count; i < end * f_count; ++i)
+      (*forces)(i) = Saturate(out.pre(i), max_control_(i % f_count));
   });
   if (cache != nullptr) cache->states = states;
 }
@@ -165,8 +183,8 @@ void RbfPolicy::Backward(const Cache& cache, const Vector& force_bar, RowMatrix*
                          RowMatrix* per_particle_param_bar, Vector* param_bar,
                          ThreadPool* pool) const {
   const Eigen::Index p = cache.states.rows();
-  const int c_count = num_basis_, s_dim = state_dim_;
-  TG_CHECK_EQ(force_bar.size(), p);
+  const int c_count = num_basis_, s_dim = state_dim_, f_count = control_dim();
+  TG_CHECK_EQ(force_bar.size(), p * f_count);
   const Vector inv_l2 = (-2.0 * log_lengthscales().array()).exp();
   const auto c = centres();
   const auto w = weights();
@@ -176,8 +194,9 @@ void RbfPolicy::Backward(const Cache& cache, const Vector& force_bar, RowMatrix*
   PolicyWorkspace& ws = ThreadWorkspace();
   Vector& a_bar = ws.a_bar;
   RowMatrix& g = ws.g;
-  a_bar.resize(p);
+  a_bar.resize(p * f_count);
   g.resize(p, c_count);
+  const Eigen::Map<const RowMatrix> w_matrix(w.data(), c_count, f_count);
   if (state_bar != nullptr) state_bar->resize(p, s_dim);
   if (per_particle_param_bar != nullptr) {
     TG_CHECK(per_particle_param_bar->rows() == p &&
@@ -187,12 +206,19 @@ void RbfPolicy::Backward(const Cache& cache, const Vector& force_bar, RowMatrix*
     const Eigen::Index rows = end - begin;
     BlockWorkspace& bw = ThreadBlockWorkspace();
     // a_bar = force_bar * dforce/da.
-    for (Eigen::Index i = begin; i < end; ++i)
-      a_bar(i) = force_bar(i) * DaSaturate(cache.pre(i), max_force_);
-    // G(i,k) = a_bar_i w_k phi_ik: the weight of basis k in particle i's adjoint.
+    for (Eigen::Index i = begin * f_count; i < end * f_count; ++i)
+      a_bar(i) = force_bar(i) * DaSaturate(cache.pre(i), max_control_(i % f_count));
+    // G(i,k) = sum_j a_bar_ij w_kj phi_ik: the weight of basis k in particle
+    // i's adjoint.
     auto g_rows = g.middleRows(begin, rows);
-    g_rows = cache.phi.middleRows(begin, rows).array().rowwise() * w.transpose().array();
-    g_rows.array().colwise() *= a_bar.segment(begin, rows).array();
+    if (f_count == 1) {
+      g_rows = cache.phi.middleRows(begin, rows).array().rowwise() * w.transpose().array();
+      g_rows.array().colwise() *= a_bar.segment(begin, rows).array();
+    } else {
+      const Eigen::Map<const RowMatrix> a_bar_rows(a_bar.data() + begin * f_count, rows, f_count);
+      g_rows.noalias() = a_bar_rows * w_matrix.transpose();
+      g_rows.array() *= cache.phi.middleRows(begin, rows).array();
+    }
     if (state_bar != nullptr) {
       // d a / d x_m = -sum_k w_k phi_k (x_m - c_km) / l_m^2, with
       // sum_k G_ik (x_im - c_km) = x_im rowsum_i - (G C)_im.
@@ -209,12 +235,14 @@ void RbfPolicy::Backward(const Cache& cache, const Vector& force_bar, RowMatrix*
       for (Eigen::Index i = begin; i < end; ++i) {
         if (s_dim == 4) {
           ParticleParameterAdjoint4(cache.states.row(i).data(), g.row(i).data(), c.data(),
-                                    inv_l2.data(), cache.phi.row(i).data(), a_bar(i), c_count,
+                                    inv_l2.data(), cache.phi.row(i).data(),
+                                    a_bar.data() + i * f_count, c_count, f_count,
                                     pp.row(i).data());
         } else {
           ParticleParameterAdjointAny(cache.states.row(i).data(), g.row(i).data(), c.data(),
-                                      inv_l2.data(), cache.phi.row(i).data(), a_bar(i), c_count,
-                                      s_dim, pp.row(i).data());
+                                      inv_l2.data(), cache.phi.row(i).data(),
+                                      a_bar.data() + i * f_count, c_count, f_count, s_dim,
+                                      pp.row(i).data());
         }
       }
     }
@@ -235,7 +263,12 @@ void RbfPolicy::Backward(const Cache& cache, const Vector& force_bar, RowMatrix*
             (gtx2(k, m) - 2.0 * ckm * gtx(k, m) + ckm * ckm * gsum(k)) * inv_l2(m);
       }
     }
-    pb.segment(weight_offset, c_count).noalias() += cache.phi.transpose() * a_bar;
+    if (f_count == 1) {
+      pb.segment(weight_offset, c_count).noalias() += cache.phi.transpose() * a_bar;
+    } else {
+      Eigen::Map<RowMatrix>(pb.data() + weight_offset, c_count, f_count).noalias() +=
+          cache.phi.transpose() * Eigen::Map<const RowMatrix>(a_bar.data(), p, f_count);
+    }
   }
 }
 

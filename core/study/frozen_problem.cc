@@ -22,8 +22,9 @@ absl::StatusOr<std::unique_ptr<FrozenProblem>> FrozenProblemFromSnapshot(
   }
   const Eigen::Index n = snapshot.states.rows();
   const int d = scene->state_dim();
+  // forces: N F, transition-major (F controls per transition).
   if (n < 1 || snapshot.states.cols() != d || snapshot.next_states.rows() != n ||
-      snapshot.next_states.cols() != d || snapshot.forces.size() != n) {
+      snapshot.next_states.cols() != d || snapshot.forces.size() != n * scene->control_dim()) {
     return absl::InvalidArgumentError(absl::StrCat(
         "snapshot: data shapes disagree (states ", snapshot.states.rows(), " x ",
         snapshot.states.cols(), ", forces ", snapshot.forces.size(), ", next_states ",
@@ -40,7 +41,7 @@ absl::StatusOr<std::unique_ptr<FrozenProblem>> FrozenProblemFromSnapshot(
   auto out = std::make_unique<FrozenProblem>();
   out->scene = std::make_unique<tasks::Scene>(*std::move(scene));
   out->owned_policy = std::make_unique<policy::RbfPolicy>(
-      options.basis_functions, d, out->scene->max_control(0));
+      options.basis_functions, d, out->scene->max_control);
   const Vector& theta = which == SnapshotPolicy::kBefore ? snapshot.policy_parameters_before
                                                          : snapshot.policy_parameters;
   if (theta.size() != out->owned_policy->num_parameters()) {

@@ -257,8 +257,8 @@ CellResult RunPilcoCell(const FrozenProblem& frozen, const pilco::GaussianInputG
   cell.reference_agrees = reference.agree;
   // PILCO's problem on the particles' raw state, built as the trial builds it.
   absl::StatusOr<pilco::PilcoProblem> built = learner::MakePilcoProblem(
-      *problem.cost, problem.mu0, problem.initial_std, problem.horizon, /*angle_index=*/-1,
-      frozen.policy->num_basis(), frozen.policy->max_force());
+      *problem.cost, problem.mu0, problem.initial_std, problem.horizon, /*angle_indices=*/{},
+      frozen.policy->num_basis(), frozen.policy->max_control());
   if (!built.ok()) {
     cell.omitted = true;
     cell.omission_reason = absl::StrCat("no closed-form cost: ", built.status().message());

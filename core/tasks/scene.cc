@@ -139,23 +139,32 @@ absl::StatusOr<Scene> MakeScene(const SceneOptions& options) {
 
 absl::Status RunEpisode(const Scene& scene, const Controller& controller, Rng* start_rng,
                         Rng* noise_rng, Episode* episode) {
+  if (scene.control_dim() != 1) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "scene '", scene.name, "' has ", scene.control_dim(),
+        " controls; a one-control controller cannot run it"));
+  }
+  const MultiController multi = [&controller](const Vector& observation) {
+    return Vector::Constant(1, controller(observation)).eval();
+  };
+  return RunEpisode(scene, multi, start_rng, noise_rng, episode);
+}
+
+absl::Status RunEpisode(const Scene& scene, const MultiController& controller, Rng* start_rng,
+                        Rng* noise_rng, Episode* episode) {
   TG_CHECK(start_rng != nullptr);
   TG_CHECK(noise_rng != nullptr);
   TG_CHECK(episode != nullptr);
   TG_CHECK(scene.cost != nullptr && scene.plant != nullptr);
   const int horizon = scene.horizon;
   TG_CHECK(horizon >= 1);
-  if (scene.control_dim() != 1) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "scene '", scene.name, "' has ", scene.control_dim(),
-        " controls; episodes carry one control so far"));
-  }
   const int d = scene.state_dim();
+  const int f = scene.control_dim();
 
   Episode& ep = *episode;
   ep.states.resize(horizon + 1, d);
   ep.observations.resize(horizon + 1, d);
-  ep.forces.resize(horizon);
+  ep.forces.resize(horizon * f);
   ep.costs.resize(horizon);
   ep.total_cost = 0;
 
@@ -179,16 +188,22 @@ absl::Status RunEpisode(const Scene& scene, const Controller& controller, Rng* s
     return o;
   };
 
-  Vector u(1);
   for (int t = 0; t < horizon; ++t) {
     const Vector observation = observe(t);
-    const double force = controller(observation);
-    if (!std::isfinite(force)) {
-      return absl::InternalError(
-          absl::StrCat("episode step ", t, ": controller returned a non-finite force ", force));
+    const Vector u = controller(observation);
+    if (u.size() != f) {
+      return absl::InvalidArgumentError(absl::StrCat("episode step ", t, ": controller returned ",
+                                                     u.size(), " controls; the scene has ", f));
     }
-    ep.forces(t) = force;
-    u(0) = force;
+    for (int j = 0; j < f; ++j) {
+      if (!std::isfinite(u(j))) {
+        // One control keeps the message it always had; several name the control.
+        return absl::InternalError(absl::StrCat(
+            "episode step ", t, ": controller returned a non-finite force ", u(j),
+            f == 1 ? std::string() : absl::StrCat(" for control ", j)));
+      }
+    }
+    ep.forces.segment(t * f, f) = u;
     Vector next;
     if (absl::Status st = scene.plant->Step(x, u, &next); !st.ok()) {
       return absl::InternalError(StepError(t, st));

@@ -82,24 +82,32 @@ absl::StatusOr<Scene> MakeScene(const SceneOptions& options);
 struct Episode {
   RowMatrix states;        // (H+1) x D true states, row 0 is x0
   RowMatrix observations;  // (H+1) x D noisy observations of `states`
-  Vector forces;           // H, the control applied at steps 0..H-1 (one control)
+  Vector forces;           // H F, the controls applied at steps 0..H-1, step-major
+                           // (u_0^1..u_0^F, u_1^1, ...; one control: H)
   Vector costs;            // H, cost of the true post-step states x1..xH
   double total_cost = 0;   // sum of costs
 };
 
-// Maps the current observation (D) to the control (the caller saturates).
+// Maps the current observation (D) to the control of a one-control scene
+// (the caller saturates).
 using Controller = std::function<double(const Vector& observation)>;
+// Maps the current observation (D) to the F controls of any scene.
+using MultiController = std::function<Vector(const Vector& observation)>;
 
 // Runs one episode of scene.horizon steps from x0 ~ N(mu0, S0) drawn from
 // *start_rng, observation noise from *noise_rng. Fails (Internal, with the
 // step number) if the plant integration fails or a state is non-finite;
 // *episode is then unspecified.
-// Also Internal (with the step number) when the controller returns a
-// non-finite force. InvalidArgument for a scene of more than one control
-// (the episodes carry one control so far). Draw order, part of the
+// Also Internal (with the step number, and the control's 0-based index when
+// F > 1) when the controller returns a non-finite control, and
+// InvalidArgument (with the step number) when it returns other than F
+// controls. Draw order, part of the
 // reproducibility contract: x0 takes the first D normals of *start_rng (in
 // state order); observation t (t = 0..H) takes the next D normals of
 // *noise_rng, drawn before the controller is called at step t.
+absl::Status RunEpisode(const Scene& scene, const MultiController& controller, Rng* start_rng,
+                        Rng* noise_rng, Episode* episode);
+// The same for a one-control scene (InvalidArgument on a scene of F > 1).
 absl::Status RunEpisode(const Scene& scene, const Controller& controller, Rng* start_rng,
                         Rng* noise_rng, Episode* episode);
 

@@ -11,6 +11,7 @@
 
 #include "client/core_commands/commands.h"
 #include "core/tasks/cartpole.h"
+#include "core/tasks/scene.h"
 #include "tests/testutil/testutil.h"
 
 namespace totalgrad::cli {
@@ -88,6 +89,49 @@ TEST(RunSimulationTest, StatesFollowThePlant) {
     EXPECT_EQ(result.energy[k + 1], plant.Energy(next));
     x = next;
   }
+}
+
+// The double pendulum's two torques: --forces holds F = 2 values per step,
+// step by step, each step's pair applied together; the JSON lists them per
+// step; a count that is not a multiple of F is refused, naming the controls.
+TEST(RunSimulationTest, TwoControlsAreAppliedStepByStep) {
+  absl::StatusOr<SimulateRequest> r =
+      ParseSimulateRequest("double-pendulum", "0,0,3.14,3.14", "1,-1,0.5,0.5", "");
+  TG_ASSERT_OK(r.status());
+  SimulateResult result;
+  TG_ASSERT_OK(RunSimulation(*r, &result));
+  EXPECT_EQ(result.controls, 2);
+  ASSERT_EQ(result.states.size(), 3u);
+  tasks::SceneOptions options;
+  options.scene = "double-pendulum";
+  absl::StatusOr<tasks::Scene> scene = tasks::MakeScene(options);
+  TG_ASSERT_OK(scene.status());
+  EXPECT_EQ(result.dt, 0.1);  // the scene's
+  Vector x = r->start;
+  const std::vector<Vector> torques = {(Vector(2) << 1.0, -1.0).finished(),
+                                       (Vector(2) << 0.5, 0.5).finished()};
+  for (size_t k = 0; k < torques.size(); ++k) {
+    Vector next;
+    TG_ASSERT_OK(scene->plant->Step(x, torques[k], &next));
+    EXPECT_EQ(result.states[k + 1], next) << "step " << k;
+    x = next;
+  }
+  // Swapping a step's torques changes the result: the pair is not summed.
+  absl::StatusOr<SimulateRequest> swapped =
+      ParseSimulateRequest("double-pendulum", "0,0,3.14,3.14", "-1,1,0.5,0.5", "");
+  TG_ASSERT_OK(swapped.status());
+  SimulateResult other;
+  TG_ASSERT_OK(RunSimulation(*swapped, &other));
+  EXPECT_NE(other.states[1], result.states[1]);
+
+  const nlohmann::json doc = nlohmann::json::parse(FormatSimulationJson(result));
+  EXPECT_EQ(doc.at("forces"), nlohmann::json::parse("[[1.0,-1.0],[0.5,0.5]]"));
+  EXPECT_EQ(doc.at("states")[2][3].get<double>(), result.states[2](3));
+
+  const absl::StatusOr<SimulateRequest> odd =
+      ParseSimulateRequest("double-pendulum", "0,0,3.14,3.14", "1,-1,0.5", "");
+  EXPECT_EQ(odd.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(odd.status().message().find("2 controls"), std::string::npos) << odd.status();
 }
 
 TEST(RunSimulationTest, IntegratorFailureNamesTheStep) {

@@ -1,7 +1,8 @@
 // Trial checkpoints: the binary format round-trips exactly and refuses what
 // it cannot read; a trial resumed from the checkpoint of any episode gives
 // the same bits as the uninterrupted trial (full GP, FITC with its warm
-// started inducing inputs, PILCO); EvaluatePolicy reproduces the trial's own
+// started inducing inputs, PILCO; the double pendulum's two torques with a
+// particle method and with PILCO); EvaluatePolicy reproduces the trial's own
 // evaluation of its final policy.
 #include "core/learner/checkpoint.h"
 #include "core/learner/evaluation.h"
@@ -168,11 +169,50 @@ TEST(TrialCheckpoint, ResumedPilcoTrialGivesTheSameBits) {
       Tiny({{"method", "PILCO"}, {"episodes", "3"}, {"gp_inducing", "15"}}));
 }
 
+// The double pendulum's two torques: forces N F in the checkpoint, resumed
+// from every episode with the same bits; a checkpoint whose data do not fit
+// the scene is refused by name.
+TEST(TrialCheckpoint, ResumedTwoControlTrialGivesTheSameBits) {
+  const TrialOptions options =
+      Tiny({{"scene", "double-pendulum"}, {"method", "TP"}, {"episodes", "3"}, {"basis_functions", "6"}});
+  Collector probe;
+  ASSERT_TRUE(RunTrial(options, &probe).ok());
+  const TrialCheckpoint& last = probe.checkpoints.back();
+  EXPECT_EQ(last.states.rows(), 40);       // 4 episodes x horizon 10
+  EXPECT_EQ(last.forces.size(), 2 * 40);   // two torques per transition
+  ExpectResumedRunsEqualTheUninterruptedOne(options);
+
+  TrialCheckpoint one_control = last;
+  one_control.forces.conservativeResize(40);
+  const absl::Status refused = CheckResumable(one_control, options);
+  EXPECT_EQ(refused.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(refused.message().find("do not fit scene 'double-pendulum'"), std::string::npos)
+      << refused;
+  // Forces that are no whole number per transition cannot even be decoded.
+  TrialCheckpoint ragged = last;
+  ragged.forces.conservativeResize(41);
+  const auto decoded = DecodeCheckpoint(EncodeCheckpoint(ragged));
+  EXPECT_EQ(decoded.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(decoded.status().message().find("inconsistent sizes"), std::string::npos)
+      << decoded.status();
+}
+
+// PILCO with two angles and two torques (its C x F pseudo-targets, BFGS per
+// episode) resumes with the same bits too.
+TEST(TrialCheckpoint, ResumedTwoControlPilcoTrialGivesTheSameBits) {
+  ExpectResumedRunsEqualTheUninterruptedOne(Tiny({{"scene", "double-pendulum"},
+                                                  {"method", "PILCO"},
+                                                  {"episodes", "2"},
+                                                  {"basis_functions", "6"}}));
+}
+
 // `totalgrad evaluate` of a trial's final policy with the trial's seed and
 // episode reproduces the trial's own evaluation, bit for bit.
 TEST(TrialCheckpoint, EvaluatePolicyReproducesTheTrialsEvaluation) {
   for (const TrialOptions& options :
-       {Tiny({{"episodes", "2"}}), Tiny({{"method", "PILCO"}, {"episodes", "1"}})}) {
+       {Tiny({{"episodes", "2"}}), Tiny({{"method", "PILCO"}, {"episodes", "1"}}),
+        Tiny({{"scene", "double-pendulum"}, {"episodes", "1"}}),
+        Tiny({{"scene", "double-pendulum"}, {"method", "PILCO"}, {"episodes", "1"}})}) {
     auto summary = RunTrial(options, nullptr);
     ASSERT_TRUE(summary.ok()) << summary.status();
     const EpisodeResult& last = summary->episodes.back();

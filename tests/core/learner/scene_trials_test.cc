@@ -1,7 +1,7 @@
 // Every method runs a short trial on every scene of the catalog that the
-// learners support (one control; PILCO's moment matching: at most one angle)
-// with finite numbers and no non-finite gradient, deterministically; the
-// scenes they do not support yet are refused by name before any work.
+// learners support (every method on every scene: several angles and the
+// double pendulum's two torques included) with finite numbers and no
+// non-finite gradient, deterministically.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -26,13 +26,12 @@ TrialOptions Short(const std::string& scene, const std::string& method) {
   return o;
 }
 
-bool Supported(const tasks::SceneDefinition& scene, estimators::Method method) {
-  if (scene.control_dim() != 1) return false;
-  return method != estimators::Method::kPilco || scene.num_angles() <= 1;
+bool Supported(const tasks::SceneDefinition&, estimators::Method) {
+  return true;  // every method on every scene of the catalog
 }
 
 TEST(SceneTrials, EveryMethodOnEverySupportedSceneIsFiniteAndDeterministic) {
-  int ran = 0;
+  int ran = 0, multi_control = 0;
   for (const tasks::SceneDefinition& scene : tasks::SceneCatalog()) {
     for (const auto& [method, name] : estimators::MethodNames()) {
       if (!Supported(scene, method)) continue;
@@ -58,19 +57,52 @@ TEST(SceneTrials, EveryMethodOnEverySupportedSceneIsFiniteAndDeterministic) {
         EXPECT_EQ(r.hyperparameters.num_inputs(),
                   static_cast<int>(scene.dynamics_inputs.size()) + scene.control_dim());
       }
+      // The policy has one weight column per control: C x |policy inputs|
+      // centres, the length-scales, C x F weights (C = 6 here).
+      if (method != estimators::Method::kPilco && scene.plant != tasks::PlantKind::kCartPole) {
+        const int inputs = static_cast<int>(scene.policy_inputs.size());
+        EXPECT_EQ(r.policy_parameters.size(), 6 * inputs + inputs + 6 * scene.control_dim());
+      }
+      if (scene.control_dim() > 1) ++multi_control;
       ++ran;
     }
   }
-  EXPECT_GE(ran, 4 * 8 + 3);  // four one-control scenes x 8 particle methods, PILCO on three
+  // Five scenes (the double pendulum's two torques included) x 9 methods.
+  EXPECT_GE(ran, 5 * 9);
+  EXPECT_EQ(multi_control, 9);  // every method on the double pendulum
 }
 
-TEST(SceneTrials, WhatTheLearnersDoNotSupportYetIsRefusedByName) {
-  const absl::Status two_controls = Short("double-pendulum", "RP").Validate();
-  EXPECT_EQ(two_controls.code(), absl::StatusCode::kInvalidArgument);
-  EXPECT_NE(two_controls.message().find("2 controls"), std::string::npos) << two_controls;
-  const absl::StatusOr<TrialSummary> two_angles = RunTrial(Short("pendubot", "PILCO"), nullptr);
-  EXPECT_EQ(two_angles.status().code(), absl::StatusCode::kInvalidArgument);
-  EXPECT_NE(two_angles.status().message().find("2 angles"), std::string::npos) << two_angles.status();
+// The two-control scene on the other model and feature paths: FITC once the
+// data exceed M (here M = 10 < 16 transitions after episode 1) and the raw
+// state (no angle adapters), for a pathwise, a jump and a combined method.
+TEST(SceneTrials, DoublePendulumOnFitcAndRawFeatures) {
+  for (const std::string method : {"RP", "LR", "TP"}) {
+    for (const auto& [key, value] : std::vector<std::pair<std::string, std::string>>{
+             {"gp_inducing", "10"}, {"angle_features", "raw"}}) {
+      SCOPED_TRACE(method + " " + key + "=" + value);
+      TrialOptions o = Short("double-pendulum", method);
+      TG_ASSERT_OK(SetTrialOption("episodes", "2", &o));
+      TG_ASSERT_OK(SetTrialOption(key, value, &o));
+      absl::StatusOr<TrialSummary> a = RunTrial(o, nullptr);
+      TG_ASSERT_OK(a.status());
+      ASSERT_EQ(a->episodes.size(), 3u);
+      for (size_t e = 1; e < a->episodes.size(); ++e) {
+        const EpisodeResult& r = a->episodes[e];
+        EXPECT_TRUE(std::isfinite(r.eval_cost_mean));
+        EXPECT_TRUE(std::isfinite(r.predicted_cost));
+        EXPECT_TRUE(r.policy_parameters.allFinite());
+        EXPECT_EQ(r.flags.non_finite_gradients, 0);
+      }
+      if (key == "angle_features") {
+        // Raw: the GP sees the 4 states and the 2 torques, the policy the 4 states.
+        EXPECT_EQ(a->episodes[2].hyperparameters.num_inputs(), 6);
+        EXPECT_EQ(a->episodes[2].policy_parameters.size(), 6 * 4 + 4 + 6 * 2);
+      }
+    }
+  }
+}
+
+TEST(SceneTrials, CartPoleOptionsAreRefusedOnOtherScenes) {
   // The cart-pole's plant options do not apply to PILCO's scenes.
   TrialOptions o = Short("pendulum", "RP");
   TG_ASSERT_OK(SetTrialOption("cart_mass", "2", &o));

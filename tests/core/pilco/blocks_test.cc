@@ -3,8 +3,11 @@
 // deliberately wrong derivatives that the check must reject.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
+#include <string>
+#include <vector>
 
 #include "core/diff/gradient_checker.h"
 #include "core/pilco/expected_cost.h"
@@ -76,6 +79,46 @@ TEST(GSatTest, DeterministicInputIsTheSquash) {
   }
 }
 
+// F controls saturated at once: [E u; Cov u; c] against finite differences
+// of (mean, cov) for F = 2 and 3, correlated; F = 1 equals GSat.
+TEST(GSatJointTest, ReverseModeMatchesFiniteDifferences) {
+  std::mt19937_64 rng(4);
+  for (int f : {2, 3}) {
+    const Vector m = testing::RandomVector(f, 1.0, &rng);
+    const Matrix s = testing::RandomCovariance(f, 0.5, &rng);
+    const Vector max_u = Vector::LinSpaced(f, 2.0, 3.5);
+    const BlockForward fwd = [&](const Vector& mm, const Matrix& ss, const Vector&, Vector* y) {
+      JointSatMoments j;
+      GSatJoint(mm, ss, max_u, &j);
+      y->resize(f + f * f + f);
+      *y << j.mean, Flatten(j.cov), j.c;
+      return true;
+    };
+    const BlockBackward bwd = [&](const Vector& mm, const Matrix& ss, const Vector&,
+                                  const Vector& yb, Vector* mb, Matrix* sb, Vector*) {
+      *mb = Vector::Zero(f);
+      *sb = Matrix::Zero(f, f);
+      const Matrix cov_bar = Eigen::Map<const Matrix>(yb.data() + f, f, f);
+      GSatJointBackward(mm, ss, max_u, yb.head(f), cov_bar, yb.tail(f), mb, sb);
+      return true;
+    };
+    const diff::CheckResult r = CheckBlock(fwd, bwd, m, s, Vector(), Tight());
+    EXPECT_TRUE(r.ok) << "F " << f << ": " << r.log;
+    JointSatMoments j;
+    GSatJoint(m, s, max_u, &j);
+    EXPECT_GT(std::abs(j.cov(0, 1)), 1e-3) << "the outputs' covariance should matter";
+  }
+  // One control: GSat's numbers (another formula; equal to round-off).
+  for (const auto& [mean, var] : {std::pair{0.3, 0.2}, {-2.2, 2.0}, {1.0, 0.0}}) {
+    JointSatMoments j;
+    GSatJoint(Vector::Constant(1, mean), Matrix::Constant(1, 1, var), Vector::Constant(1, 10.0), &j);
+    const SatMoments g = GSat(mean, var, 10.0);
+    EXPECT_NEAR(j.mean(0), g.mean, 1e-12);
+    EXPECT_NEAR(j.cov(0, 0), g.var, 1e-12);
+    EXPECT_NEAR(j.c(0), g.c, 1e-12);
+  }
+}
+
 // ---------------------------------------------------------------- augmentation
 
 TEST(AugmentWithTrigTest, ReverseModeMatchesFiniteDifferences) {
@@ -103,6 +146,92 @@ TEST(AugmentWithTrigTest, ReverseModeMatchesFiniteDifferences) {
   };
   const diff::CheckResult r = CheckBlock(fwd, bwd, m, s, Vector(), Tight());
   EXPECT_TRUE(r.ok) << r.log;
+}
+
+// Several angles (the cart-double-pendulum's two, and three for the
+// generic pair loop): y = [x; sin, cos per angle].
+struct AnglesCase {
+  int d;
+  std::vector<int> angles;
+};
+class AugmentWithTrigAngles : public ::testing::TestWithParam<AnglesCase> {};
+
+TEST_P(AugmentWithTrigAngles, ReverseModeMatchesFiniteDifferences) {
+  const int d = GetParam().d;
+  const std::vector<int> angles = GetParam().angles;
+  const int ny = d + 2 * static_cast<int>(angles.size());
+  std::mt19937_64 rng(2);
+  const Vector m = testing::RandomVector(d, 1.5, &rng);
+  // Correlated angles, so that the pair blocks carry weight.
+  const Matrix s = testing::RandomCovariance(d, 0.3, &rng);
+  const BlockForward fwd = [&](const Vector& mm, const Matrix& ss, const Vector&, Vector* y) {
+    Vector ym;
+    Matrix ys;
+    AugmentWithTrig(mm, ss, angles, &ym, &ys);
+    y->resize(ym.size() + ys.size());
+    *y << ym, Flatten(ys);
+    return true;
+  };
+  const BlockBackward bwd = [&](const Vector& mm, const Matrix& ss, const Vector&,
+                                const Vector& yb, Vector* mb, Matrix* sb, Vector*) {
+    const Vector ymb = yb.head(ny);
+    const Matrix ysb = Eigen::Map<const Matrix>(yb.data() + ny, ny, ny);
+    *mb = Vector::Zero(d);
+    *sb = Matrix::Zero(d, d);
+    AugmentWithTrigBackward(mm, ss, angles, ymb, ysb, mb, sb);
+    return true;
+  };
+  const diff::CheckResult r = CheckBlock(fwd, bwd, m, s, Vector(), Tight());
+  EXPECT_TRUE(r.ok) << r.log;
+
+  // A reverse mode that treats the angles as independent (each angle's
+  // one-angle backward on its own block, the pair blocks' dependence on
+  // (m, S) dropped) must be rejected.
+  const BlockBackward independent = [&](const Vector& mm, const Matrix& ss, const Vector&,
+                                        const Vector& yb, Vector* mb, Matrix* sb, Vector*) {
+    *mb = Vector::Zero(d);
+    *sb = Matrix::Zero(d, d);
+    const Matrix ysb = Eigen::Map<const Matrix>(yb.data() + ny, ny, ny);
+    for (size_t k = 0; k < angles.size(); ++k) {
+      std::vector<int> idx(d);
+      for (int i = 0; i < d; ++i) idx[i] = i;
+      idx.push_back(d + 2 * static_cast<int>(k));
+      idx.push_back(d + 2 * static_cast<int>(k) + 1);
+      Vector ymb(d + 2);
+      Matrix ysb1(d + 2, d + 2);
+      for (int i = 0; i < d + 2; ++i) {
+        ymb(i) = i < d ? (k == 0 ? yb(i) : 0.0) : yb(idx[i]);
+        for (int j = 0; j < d + 2; ++j)
+          ysb1(i, j) = (i < d && j < d && k > 0) ? 0.0 : ysb(idx[i], idx[j]);
+      }
+      AugmentWithTrigBackward(mm, ss, angles[k], ymb, ysb1, mb, sb);
+    }
+    return true;
+  };
+  EXPECT_FALSE(CheckBlock(fwd, independent, m, s, Vector(), Tight()).ok);
+}
+
+INSTANTIATE_TEST_SUITE_P(Angles, AugmentWithTrigAngles,
+                         ::testing::Values(AnglesCase{6, {4, 5}}, AnglesCase{4, {0, 2}},
+                                           AnglesCase{5, {0, 2, 4}}),
+                         [](const auto& info) {
+                           std::string name = "D" + std::to_string(info.param.d) + "Angles";
+                           for (int a : info.param.angles) name += std::to_string(a);
+                           return name;
+                         });
+
+// One angle given as a list is the one-angle function, bit for bit (the
+// scenes with one angle keep their numbers).
+TEST(AugmentWithTrigTest, OneAngleListIsTheOneAngleFunction) {
+  std::mt19937_64 rng(3);
+  const Vector m = testing::RandomVector(4, 1.0, &rng);
+  const Matrix s = testing::RandomCovariance(4, 0.3, &rng);
+  Vector y1, y2;
+  Matrix c1, c2;
+  AugmentWithTrig(m, s, 1, &y1, &c1);
+  AugmentWithTrig(m, s, std::vector<int>{1}, &y2, &c2);
+  EXPECT_EQ(y1, y2);
+  EXPECT_EQ(c1, c2);
 }
 
 // ---------------------------------------------------------------- GP blocks
@@ -292,6 +421,119 @@ TEST(PolicyMomentsTest, PseudoTargetParameterisationMatchesFiniteDifferences) {
   Vector params;
   ASSERT_TRUE(PseudoTargetsToWeights(shape, pilco, &params).ok());
   EXPECT_TRUE(params.head(18).isApprox(pilco.head(18)));
+  Vector back;  // and back (the optimiser's way in)
+  ASSERT_TRUE(WeightsToPseudoTargets(shape, params, &back).ok());
+  EXPECT_TRUE(back.isApprox(pilco, 1e-9)) << (back - pilco).transpose();
+}
+
+// Two controls (the double pendulum's torques): the policy's squashed
+// moments [E u; Cov u; u_cross] against finite differences of (m, s, theta),
+// theta = [centres, log l, weights C x 2]; and the pseudo-targets with two
+// columns.
+RbfPolicyShape TwoControlShape() {
+  RbfPolicyShape shape;
+  shape.num_basis = 6;
+  shape.input_dim = 5;
+  shape.jitter = 1e-6;
+  shape.max_controls = Eigen::Vector2d(2.0, 3.5);
+  return shape;
+}
+
+TEST(PolicyMomentsTest, TwoControlsReverseModeMatchesFiniteDifferences) {
+  std::mt19937_64 rng(15);
+  const RbfPolicyShape shape = TwoControlShape();
+  const int c = 6, e = 5, f = 2;
+  ASSERT_EQ(shape.num_parameters(), c * e + e + c * f);
+  Vector params(shape.num_parameters());
+  params.head(c * e) = testing::RandomVector(c * e, 0.6, &rng);
+  params.segment(c * e, e) = testing::RandomVector(e, 0.2, &rng);
+  params.tail(c * f) = testing::RandomVector(c * f, 0.8, &rng);
+  const Vector m = testing::RandomVector(e, 0.4, &rng);
+  const Matrix s = testing::RandomCovariance(e, 0.1, &rng);
+  const BlockForward fwd = [&](const Vector& mm, const Matrix& ss, const Vector& th, Vector* y) {
+    MultiPolicyMoments pm;
+    if (!MultiPolicyAtGaussian(shape, th, mm, ss, &pm).ok()) return false;
+    y->resize(f + f * f + e * f);
+    *y << pm.sat.mean, Flatten(pm.sat.cov), Flatten(pm.u_cross);
+    return true;
+  };
+  const BlockBackward bwd = [&](const Vector& mm, const Matrix& ss, const Vector& th,
+                                const Vector& yb, Vector* mb, Matrix* sb, Vector* thb) {
+    thb->setZero(th.size());
+    const Matrix cov_bar = Eigen::Map<const Matrix>(yb.data() + f, f, f);
+    const Matrix cross_bar = Eigen::Map<const Matrix>(yb.data() + f + f * f, e, f);
+    return MultiPolicyAtGaussianBackward(shape, th, mm, ss, yb.head(f), cov_bar, cross_bar, mb, sb,
+                                         thb)
+        .ok();
+  };
+  const diff::CheckResult r = CheckBlock(fwd, bwd, m, s, params, Tight());
+  EXPECT_TRUE(r.ok) << r.log;
+  MultiPolicyMoments pm;
+  ASSERT_TRUE(MultiPolicyAtGaussian(shape, params, m, s, &pm).ok());
+  EXPECT_GT(std::abs(pm.sat.cov(0, 1)), 1e-4) << "the two torques should be correlated";
+
+  // Each control's unsquashed output is the one-control policy with that
+  // control's weight column (the same gp2 on the same scaled centres).
+  for (int j = 0; j < f; ++j) {
+    RbfPolicyShape one = shape;
+    one.max_controls.resize(0);
+    one.max_force = shape.max_controls(j);
+    Vector p1(one.num_parameters());
+    p1.head(c * e + e) = params.head(c * e + e);
+    for (int k = 0; k < c; ++k) p1(c * e + e + k) = params(c * e + e + k * f + j);
+    PolicyMoments single;
+    ASSERT_TRUE(PolicyAtGaussian(one, p1, m, s, &single).ok());
+    EXPECT_NEAR(pm.a_mean(j), single.a_mean, 1e-13);
+    EXPECT_NEAR(pm.a_cov(j, j), single.a_var, 1e-13);
+    EXPECT_NEAR(pm.sat.mean(j), single.sat.mean, 1e-12);
+    EXPECT_NEAR(pm.sat.cov(j, j), single.sat.var, 1e-12);
+    EXPECT_LT((pm.u_cross.col(j) - single.u_cross).cwiseAbs().maxCoeff(), 1e-12);
+  }
+}
+
+TEST(PolicyMomentsTest, TwoControlPseudoTargetsMatchFiniteDifferences) {
+  std::mt19937_64 rng(16);
+  RbfPolicyShape shape;
+  shape.num_basis = 5;
+  shape.input_dim = 3;
+  shape.max_controls = Eigen::Vector2d(2.0, 2.0);
+  const int n = shape.num_parameters();
+  ASSERT_EQ(n, 15 + 3 + 10);
+  Vector pilco(n);
+  pilco.head(15) = testing::RandomVector(15, 0.8, &rng);
+  pilco.segment(15, 3) = testing::RandomVector(3, 0.2, &rng);
+  pilco.tail(10) = testing::RandomVector(10, 0.3, &rng);
+  const diff::VectorFunction f = [&](const Vector& x, Vector* y) {
+    return PseudoTargetsToWeights(shape, x, y).ok();
+  };
+  Matrix analytic(n, n);
+  for (int r = 0; r < n; ++r) {
+    Vector bar = Vector::Zero(n), out;
+    bar(r) = 1.0;
+    ASSERT_TRUE(PseudoTargetsBackward(shape, pilco, bar, &out).ok());
+    analytic.row(r) = out.transpose();
+  }
+  diff::CheckOptions o = Tight();
+  o.relative_tolerance = 1e-5;  // as the one-control test
+  const diff::CheckResult r = diff::CheckJacobian(f, pilco, analytic, o);
+  EXPECT_TRUE(r.ok) << r.log;
+  // Each weight column solves (K + 1e-4 I) w_j = y_j: the one-control
+  // solve of that column.
+  Vector params;
+  ASSERT_TRUE(PseudoTargetsToWeights(shape, pilco, &params).ok());
+  for (int j = 0; j < 2; ++j) {
+    RbfPolicyShape one = shape;
+    one.max_controls.resize(0);
+    Vector p1(one.num_parameters()), w1;
+    p1.head(18) = pilco.head(18);
+    for (int k = 0; k < 5; ++k) p1(18 + k) = pilco(18 + 2 * k + j);
+    ASSERT_TRUE(PseudoTargetsToWeights(one, p1, &w1).ok());
+    for (int k = 0; k < 5; ++k) EXPECT_NEAR(params(18 + 2 * k + j), w1(18 + k), 1e-12);
+  }
+  // WeightsToPseudoTargets inverts it (the optimiser's way in), both controls.
+  Vector back;
+  ASSERT_TRUE(WeightsToPseudoTargets(shape, params, &back).ok());
+  EXPECT_TRUE(back.isApprox(pilco, 1e-9)) << (back - pilco).transpose();
 }
 
 // ---------------------------------------------------------------- costs
@@ -464,6 +706,140 @@ TEST_P(StepTest, ReverseModeMatchesFiniteDifferences) {
 }
 
 INSTANTIATE_TEST_SUITE_P(WithAndWithoutSinCos, StepTest, ::testing::Values(1, -1));
+
+// One step with several angles: y's pair blocks and the policy and GP inputs
+// [x without the angles, (sin, cos) per angle, u] through the whole step.
+struct StepAnglesCase {
+  int d;
+  std::vector<int> angles;
+};
+class StepAnglesTest : public ::testing::TestWithParam<StepAnglesCase> {};
+
+TEST_P(StepAnglesTest, ReverseModeMatchesFiniteDifferences) {
+  const int d = GetParam().d;
+  const std::vector<int> angles = GetParam().angles;
+  const int ep = d + static_cast<int>(angles.size());
+  std::mt19937_64 rng(9);
+  const GaussianInputGp gp = testing::MakeTestGp(25, ep + 1, d, &rng, 1.5);
+  PropagationOptions options;
+  options.angle_indices = angles;
+  options.num_basis = 5;
+  options.max_force = 10.0;
+  ASSERT_TRUE(Propagator::Validate(gp, options).ok()) << Propagator::Validate(gp, options);
+  const Propagator prop(&gp, options);
+  ASSERT_EQ(prop.policy_input_dim(), ep);
+  Vector params(prop.num_parameters());
+  params.head(5 * ep) = testing::RandomVector(5 * ep, 0.7, &rng);
+  params.segment(5 * ep, ep).setConstant(std::log(0.9));
+  params.tail(5) = testing::RandomVector(5, 0.5, &rng);
+  const Vector m = testing::RandomVector(d, 0.4, &rng);
+  const Matrix s = testing::RandomCovariance(d, 0.05, &rng);
+  const BlockForward fwd = [&](const Vector& mm, const Matrix& ss, const Vector& th, Vector* y) {
+    Vector mn;
+    Matrix sn;
+    if (!prop.Step(th, mm, ss, &mn, &sn, nullptr).ok()) return false;
+    y->resize(d + d * d);
+    *y << mn, Flatten(sn);
+    return true;
+  };
+  const BlockBackward bwd = [&](const Vector& mm, const Matrix& ss, const Vector& th,
+                                const Vector& yb, Vector* mb, Matrix* sb, Vector* thb) {
+    StepCache cache;
+    Vector mn;
+    Matrix sn;
+    if (!prop.Step(th, mm, ss, &mn, &sn, &cache).ok()) return false;
+    thb->setZero(th.size());
+    const Matrix snb = Eigen::Map<const Matrix>(yb.data() + d, d, d);
+    return prop.StepBackward(th, cache, yb.head(d), snb, mb, sb, thb).ok();
+  };
+  const diff::CheckResult r = CheckBlock(fwd, bwd, m, s, params, Tight());
+  EXPECT_TRUE(r.ok) << r.log;
+  // The policy input of a point: the non-angle dims, then (sin, cos) per angle.
+  const Vector p = prop.PolicyInput(m);
+  int col = 0;
+  for (int i = 0; i < d; ++i) {
+    if (std::find(angles.begin(), angles.end(), i) == angles.end()) {
+      EXPECT_EQ(p(col++), m(i));
+    }
+  }
+  for (int a : angles) {
+    EXPECT_EQ(p(col++), std::sin(m(a)));
+    EXPECT_EQ(p(col++), std::cos(m(a)));
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Angles, StepAnglesTest,
+                         ::testing::Values(StepAnglesCase{4, {1, 3}}, StepAnglesCase{6, {4, 5}}),
+                         [](const auto& info) {
+                           std::string name = "D" + std::to_string(info.param.d) + "Angles";
+                           for (int a : info.param.angles) name += std::to_string(a);
+                           return name;
+                         });
+
+// One step with two controls (the double pendulum: 4 states, angles 2 and
+// 3, two torques): g = [p; u1; u2] with Cov(p, u) (Ep x 2) and Cov(u) from
+// GSatJoint, through the whole step against finite differences of (m, S,
+// theta), theta with C x 2 weights.
+TEST(StepControlsTest, ReverseModeMatchesFiniteDifferences) {
+  const int d = 4, ep = 6, f = 2, c = 5;
+  std::mt19937_64 rng(11);
+  const GaussianInputGp gp = testing::MakeTestGp(25, ep + f, d, &rng, 1.5);
+  PropagationOptions options;
+  options.angle_indices = {2, 3};
+  options.num_basis = c;
+  options.max_controls = Eigen::Vector2d(2.0, 3.5);
+  ASSERT_TRUE(Propagator::Validate(gp, options).ok()) << Propagator::Validate(gp, options);
+  const Propagator prop(&gp, options);
+  ASSERT_EQ(prop.control_dim(), f);
+  ASSERT_EQ(prop.num_parameters(), c * ep + ep + c * f);
+  Vector params(prop.num_parameters());
+  params.head(c * ep) = testing::RandomVector(c * ep, 0.7, &rng);
+  params.segment(c * ep, ep).setConstant(std::log(0.9));
+  params.tail(c * f) = testing::RandomVector(c * f, 0.8, &rng);
+  Vector m(d);
+  m << 0.2, -0.3, 2.9, 3.3;
+  const Matrix s = testing::RandomCovariance(d, 0.05, &rng);
+  const BlockForward fwd = [&](const Vector& mm, const Matrix& ss, const Vector& th, Vector* y) {
+    Vector mn;
+    Matrix sn;
+    if (!prop.Step(th, mm, ss, &mn, &sn, nullptr).ok()) return false;
+    y->resize(d + d * d);
+    *y << mn, Flatten(sn);
+    return true;
+  };
+  const BlockBackward bwd = [&](const Vector& mm, const Matrix& ss, const Vector& th,
+                                const Vector& yb, Vector* mb, Matrix* sb, Vector* thb) {
+    StepCache cache;
+    Vector mn;
+    Matrix sn;
+    if (!prop.Step(th, mm, ss, &mn, &sn, &cache).ok()) return false;
+    thb->setZero(th.size());
+    const Matrix snb = Eigen::Map<const Matrix>(yb.data() + d, d, d);
+    return prop.StepBackward(th, cache, yb.head(d), snb, mb, sb, thb).ok();
+  };
+  const diff::CheckResult r = CheckBlock(fwd, bwd, m, s, params, Tight());
+  EXPECT_TRUE(r.ok) << r.log;
+  // Bad bounds are refused by name.
+  options.max_controls = Vector::Constant(1, 2.0);
+  EXPECT_NE(Propagator::Validate(gp, options).message().find("max_controls"), std::string::npos);
+  options.max_controls = Eigen::Vector3d(2.0, 2.0, 2.0);
+  EXPECT_NE(Propagator::Validate(gp, options).message().find("3 controls"), std::string::npos);
+}
+
+TEST(StepAnglesTest, BadAngleListsAreRefusedByName) {
+  std::mt19937_64 rng(10);
+  const GaussianInputGp gp = testing::MakeTestGp(10, 7, 4, &rng, 1.5);
+  PropagationOptions options;
+  options.angle_indices = {3, 1};
+  EXPECT_NE(Propagator::Validate(gp, options).message().find("strictly increasing"), std::string::npos);
+  options.angle_indices = {1, 3};
+  options.angle_index = 1;
+  EXPECT_NE(Propagator::Validate(gp, options).message().find("not both"), std::string::npos);
+  options.angle_index = -1;
+  options.angle_indices = {1};
+  // One angle needs 4 + 1 + 1 inputs, not 7: named with the layout.
+  EXPECT_NE(Propagator::Validate(gp, options).message().find("(sin, cos) per angle"), std::string::npos);
+}
 
 }  // namespace
 }  // namespace totalgrad::pilco

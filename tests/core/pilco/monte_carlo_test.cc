@@ -10,6 +10,8 @@
 
 #include <cmath>
 #include <random>
+#include <string>
+#include <vector>
 
 #include "core/common/blas.h"
 #include "core/pilco/expected_cost.h"
@@ -76,6 +78,38 @@ TEST(MonteCarloTest, AugmentWithTrig) {
   EXPECT_TRUE(WithinMcError(ys, acc.Cov(), acc.CovStdError(), kSigmas));
 }
 
+// Two and three angles: the pair blocks (product formulas) and Stein's
+// cross-covariances against samples; angles with large, correlated spread.
+TEST(MonteCarloTest, AugmentWithSeveralAngles) {
+  std::mt19937_64 rng(21);
+  for (const std::vector<int>& angles : {std::vector<int>{4, 5}, std::vector<int>{0, 2, 5}}) {
+    const int d = 6, ny = d + 2 * static_cast<int>(angles.size());
+    Vector m(d);
+    m << 0.3, -0.2, 0.5, 0.1, 2.9, 3.4;
+    const Matrix s = testing::RandomCovariance(d, 0.5, &rng);
+    Vector ym;
+    Matrix ys;
+    AugmentWithTrig(m, s, angles, &ym, &ys);
+    const GaussianSampler sampler(m, s);
+    MomentAccumulator acc(ny);
+    acc.SetShift(ym);
+    for (int done = 0; done < kSamples; done += kBatch) {
+      const RowMatrix x = sampler.Sample(kBatch, &rng);
+      RowMatrix y(kBatch, ny);
+      y.leftCols(d) = x;
+      for (size_t k = 0; k < angles.size(); ++k) {
+        y.col(d + 2 * k) = x.col(angles[k]).array().sin();
+        y.col(d + 2 * k + 1) = x.col(angles[k]).array().cos();
+      }
+      acc.AddBatch(y);
+    }
+    EXPECT_TRUE(WithinMcError(ym, acc.Mean(), acc.MeanStdError(), kSigmas)) << angles.size();
+    EXPECT_TRUE(WithinMcError(ys, acc.Cov(), acc.CovStdError(), kSigmas)) << angles.size();
+    // The pair blocks are not negligible here (a zero block would fail).
+    EXPECT_GT(std::abs(ys(d, d + 2)) + std::abs(ys(d + 1, d + 3)), 0.01);
+  }
+}
+
 TEST(MonteCarloTest, GSat) {
   std::mt19937_64 rng(12);
   for (const auto& [mean, var] : {std::pair{0.4, 0.3}, {-1.2, 1.5}, {2.0, 0.01}}) {
@@ -98,6 +132,38 @@ TEST(MonteCarloTest, GSat) {
     EXPECT_TRUE(WithinMcError(Matrix::Constant(1, 1, var * sm.c), acc.Cov().block(0, 1, 1, 1),
                               acc.CovStdError().block(0, 1, 1, 1), kSigmas));
   }
+}
+
+// Two controls at once: E[u], Cov[u] (the outputs' covariance included) and
+// Cov(a, u) = cov diag(c) against samples of correlated a.
+TEST(MonteCarloTest, GSatJointTwoControls) {
+  std::mt19937_64 rng(22);
+  Vector mean(2);
+  mean << 0.4, -1.1;
+  Matrix cov(2, 2);
+  cov << 0.6, 0.35, 0.35, 0.9;
+  const Vector max_u = Eigen::Vector2d(2.0, 3.5);
+  JointSatMoments j;
+  GSatJoint(mean, cov, max_u, &j);
+  const GaussianSampler sampler(mean, cov);
+  MomentAccumulator acc(4);
+  Vector shift(4);
+  shift << mean, j.mean;
+  acc.SetShift(shift);
+  for (int done = 0; done < kSamples; done += kBatch) {
+    const RowMatrix a = sampler.Sample(kBatch, &rng);
+    RowMatrix au(kBatch, 4);
+    au.leftCols(2) = a;
+    for (int k = 0; k < 2; ++k)
+      au.col(2 + k) = max_u(k) * (9.0 * a.col(k).array().sin() + (3.0 * a.col(k).array()).sin()) / 8.0;
+    acc.AddBatch(au);
+  }
+  EXPECT_TRUE(WithinMcError(j.mean, acc.Mean().tail(2), acc.MeanStdError().tail(2), kSigmas));
+  EXPECT_TRUE(WithinMcError(j.cov, acc.Cov().bottomRightCorner(2, 2),
+                            acc.CovStdError().bottomRightCorner(2, 2), kSigmas));
+  EXPECT_TRUE(WithinMcError(cov * j.c.asDiagonal(), acc.Cov().topRightCorner(2, 2),
+                            acc.CovStdError().topRightCorner(2, 2), kSigmas));
+  EXPECT_GT(std::abs(j.cov(0, 1)), 20 * acc.CovStdError()(2, 3)) << "a zero covariance would fail";
 }
 
 TEST(MonteCarloTest, RbfPolicyMeanFunction) {
@@ -143,6 +209,59 @@ TEST(MonteCarloTest, RbfPolicyMeanFunction) {
   // Cov(x, a) = s * a_cross.
   EXPECT_TRUE(WithinMcError(s * pm.a_cross, acc.Cov().col(e).head(e),
                             acc.CovStdError().col(e).head(e), kSigmas));
+}
+
+// Two controls: the unsquashed outputs' mean, covariance (the two outputs'
+// covariance included) and Cov(x, a) = s a_cross against samples of x. (This
+// block is exact given a Gaussian x; the saturation after it treats a as
+// Gaussian, PILCO's approximation, and is checked given a Gaussian a in
+// GSatJointTwoControls.)
+TEST(MonteCarloTest, RbfPolicyTwoControls) {
+  std::mt19937_64 rng(23);
+  RbfPolicyShape shape;
+  shape.num_basis = 8;
+  shape.input_dim = 4;
+  shape.jitter = 1e-6;
+  shape.max_controls = Eigen::Vector2d(2.0, 3.5);
+  const int c = 8, e = 4, f = 2;
+  Vector params(shape.num_parameters());
+  params.head(c * e) = testing::RandomVector(c * e, 0.5, &rng);
+  params.segment(c * e, e) = Eigen::VectorXd::LinSpaced(e, std::log(0.7), std::log(1.2));
+  params.tail(c * f) = testing::RandomVector(c * f, 1.0, &rng);
+  const Vector m = testing::RandomVector(e, 0.3, &rng);
+  const Matrix s = testing::RandomCovariance(e, 0.15, &rng);
+  MultiPolicyMoments pm;
+  ASSERT_TRUE(MultiPolicyAtGaussian(shape, params, m, s, &pm).ok());
+  const Eigen::Map<const RowMatrix> centres(params.data(), c, e);
+  const Vector il2 = (-2.0 * params.segment(c * e, e).array()).exp().matrix();
+  const Eigen::Map<const RowMatrix> w(params.data() + c * e + e, c, f);
+  const GaussianSampler sampler(m, s);
+  MomentAccumulator acc(e + f);
+  Vector shift(e + f);
+  shift << m, pm.a_mean;
+  acc.SetShift(shift);
+  for (int done = 0; done < kSamples; done += kBatch) {
+    const RowMatrix x = sampler.Sample(kBatch, &rng);
+    RowMatrix a = RowMatrix::Zero(kBatch, f);
+    for (int k = 0; k < c; ++k) {
+      const RowMatrix diff = x.rowwise() - centres.row(k);
+      const Vector phi = (-0.5 * (diff.array().square().matrix() * il2).array()).exp().matrix();
+      for (int j = 0; j < f; ++j) a.col(j) += w(k, j) * phi;
+    }
+    RowMatrix xa(kBatch, e + f);
+    xa.leftCols(e) = x;
+    xa.rightCols(f) = a;
+    acc.AddBatch(xa);
+  }
+  EXPECT_TRUE(WithinMcError(pm.a_mean, acc.Mean().tail(f), acc.MeanStdError().tail(f), kSigmas));
+  // a_cov carries gp2's jitter on its diagonal (PILCO's), the samples none.
+  const Matrix a_cov = pm.a_cov - shape.jitter * Matrix::Identity(f, f);
+  EXPECT_TRUE(WithinMcError(a_cov, acc.Cov().bottomRightCorner(f, f),
+                            acc.CovStdError().bottomRightCorner(f, f), kSigmas));
+  // Beyond 2 x the 5-SE band: a zero covariance would fail the check above.
+  EXPECT_GT(std::abs(a_cov(0, 1)), 10 * acc.CovStdError()(e, e + 1));
+  EXPECT_TRUE(WithinMcError(s * pm.a_cross, acc.Cov().topRightCorner(e, f),
+                            acc.CovStdError().topRightCorner(e, f), kSigmas));
 }
 
 // gp0: mean, covariance (with model uncertainty) and input-output covariance.
@@ -238,29 +357,44 @@ TEST(MonteCarloTest, TipCostOnTheAugmentedGaussian) {
 
 // The step's assembly: for (x, g) jointly Gaussian with the covariance the step
 // forms, x' = x + f(g) has exactly the mean and covariance the step returns.
-TEST(MonteCarloTest, StepAssemblyGivenTheJointGaussian) {
+// One angle, and two (the step's (sin, cos) pair blocks in g's covariance).
+// (angles, controls): one angle, two angles, two angles and two controls.
+struct AssemblyCase {
+  std::vector<int> angles;
+  int controls;
+};
+class StepAssembly : public ::testing::TestWithParam<AssemblyCase> {};
+
+TEST_P(StepAssembly, GivenTheJointGaussian) {
   std::mt19937_64 rng(17);
-  const int d = 4, ep = 5;
-  const GaussianInputGp gp = testing::MakeTestGp(30, ep + 1, d, &rng, 1.5);
+  const std::vector<int> angles = GetParam().angles;
+  const int f = GetParam().controls;
+  const int d = 4, ep = d + static_cast<int>(angles.size());
+  const GaussianInputGp gp = testing::MakeTestGp(30, ep + f, d, &rng, 1.5);
   PropagationOptions options;
-  options.angle_index = 1;
+  options.angle_indices = angles;
+  if (f > 1) options.max_controls = Vector::LinSpaced(f, 2.0, 3.5);
   options.num_basis = 6;
   const Propagator prop(&gp, options);
   Vector params(prop.num_parameters());
   params.head(6 * ep) = testing::RandomVector(6 * ep, 0.7, &rng);
   params.segment(6 * ep, ep).setConstant(std::log(0.9));
-  params.tail(6) = testing::RandomVector(6, 0.5, &rng);
+  params.tail(6 * f) = testing::RandomVector(6 * f, 0.5, &rng);
   const Vector m = Eigen::Vector4d(0.1, 0.4, -0.2, 0.3);
   const Matrix s = testing::RandomCovariance(d, 0.05, &rng);
   StepCache cache;
   Vector m_next;
   Matrix s_next;
   ASSERT_TRUE(prop.Step(params, m, s, &m_next, &s_next, &cache).ok());
-  // Joint Gaussian of z = [x (D), g (Ep + 1)].
-  const int eg = ep + 1;
+  // Joint Gaussian of z = [x (D), g (Ep + F)].
+  const int eg = ep + f;
   Matrix cxg(d, eg);
   cxg.leftCols(ep) = cache.s_xp;
-  cxg.col(ep) = cache.s_xp * cache.policy.u_cross;
+  if (f == 1) {
+    cxg.col(ep) = cache.s_xp * cache.policy.u_cross;
+  } else {
+    cxg.rightCols(f) = cache.s_xp * cache.multi.u_cross;
+  }
   Vector zm(d + eg);
   zm << m, cache.g_mean;
   Matrix zs(d + eg, d + eg);
@@ -289,6 +423,14 @@ TEST(MonteCarloTest, StepAssemblyGivenTheJointGaussian) {
   const Matrix cross_terms = s_next - s - cache.delta.cov;
   EXPECT_GT(cross_terms.cwiseAbs().maxCoeff(), 50.0 * se.maxCoeff());
 }
+
+INSTANTIATE_TEST_SUITE_P(Angles, StepAssembly,
+                         ::testing::Values(AssemblyCase{{1}, 1}, AssemblyCase{{1, 3}, 1},
+                                           AssemblyCase{{2, 3}, 2}),
+                         [](const auto& info) {
+                           return "Angles" + std::to_string(info.param.angles.size()) + "Controls" +
+                                  std::to_string(info.param.controls);
+                         });
 
 }  // namespace
 }  // namespace totalgrad::pilco

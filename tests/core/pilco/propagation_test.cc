@@ -4,8 +4,10 @@
 // state far from the data, a non-PSD covariance).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
+#include <vector>
 
 #include <Eigen/Eigenvalues>
 
@@ -14,6 +16,7 @@
 #include "core/pilco/gp_moments.h"
 #include "core/pilco/propagation.h"
 #include "core/tasks/cartpole.h"
+#include "core/tasks/scene.h"
 #include "tests/core/pilco/pilco_test_util.h"
 #include "tests/testutil/testutil.h"
 
@@ -144,6 +147,183 @@ TEST_P(ChainedObjectiveTest, GradientOver30StepsMatchesFiniteDifferences) {
 INSTANTIATE_TEST_SUITE_P(Scenarios, ChainedObjectiveTest,
                          ::testing::Values(Scenario{true, "tip"}, Scenario{false, "angle"},
                                            Scenario{true, "angle"}));
+
+// Two angles on the real cart-double-pendulum (state [x, dx, dtheta1,
+// dtheta2, theta1, theta2], angles 4 and 5, GP and policy inputs [x, dx,
+// dtheta1, dtheta2, sin th1, cos th1, sin th2, cos th2] (+ u), PILCO's initial
+// hyperparameters), its start distribution and an angle cost's closed form:
+// J and dJ/dtheta over 30 steps against finite differences.
+TEST(ChainedObjectiveTwoAngles, CartDoublePendulumGradientMatchesFiniteDifferences) {
+  tasks::SceneOptions so;
+  so.scene = "cart-double-pendulum";
+  absl::StatusOr<tasks::Scene> scene = tasks::MakeScene(so);
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  const std::vector<int> angles = scene->angle_indices;
+  ASSERT_EQ(angles, (std::vector<int>{4, 5}));
+  const int d = 6, e = d + 2 + 1, n = 80;
+  std::mt19937_64 rng(31);
+  std::normal_distribution<double> normal;
+  std::uniform_real_distribution<double> uniform(-20, 20);
+  RowMatrix x(n, e), y(n, d);
+  for (int i = 0; i < n; ++i) {
+    Vector st(d);
+    st << 0.3 * normal(rng), 0.5 * normal(rng), 2.0 * normal(rng), 2.0 * normal(rng),
+        M_PI + 0.8 * normal(rng), M_PI + 0.8 * normal(rng);
+    const double u = uniform(rng);
+    Vector next;
+    ASSERT_TRUE(scene->plant->Step(st, Vector::Constant(1, u), &next).ok());
+    x.row(i) << st(0), st(1), st(2), st(3), std::sin(st(4)), std::cos(st(4)), std::sin(st(5)),
+        std::cos(st(5)), u;
+    y.row(i) = (next - st).transpose();
+  }
+  RowMatrix log_hyp(d, e + 2);
+  for (int a = 0; a < d; ++a) {
+    for (int j = 0; j < e; ++j) {
+      const double mean = x.col(j).mean();
+      log_hyp(a, j) = std::log(std::sqrt((x.col(j).array() - mean).square().sum() / (n - 1)));
+    }
+    const double mean = y.col(a).mean();
+    const double sd = std::sqrt((y.col(a).array() - mean).square().sum() / (n - 1));
+    log_hyp(a, e) = std::log(sd);
+    log_hyp(a, e + 1) = std::log(sd / 10);
+  }
+  auto gp = GaussianInputGpFromData(x, y, log_hyp);
+  ASSERT_TRUE(gp.ok()) << gp.status();
+  PropagationOptions options;
+  options.angle_indices = angles;
+  options.num_basis = 6;
+  options.max_force = scene->max_control(0);
+  const Propagator prop(&*gp, options);
+  // An angle cost towards a state near the start (the scene's, upright, is
+  // ~1 everywhere near the hanging start: too flat a gradient to check).
+  Vector target(d);
+  target << 0.0, 0.0, 0.0, 0.0, M_PI - 0.5, M_PI + 0.5;
+  Vector q(d);
+  q << 1.0, 0.0, 0.0, 0.0, 1.0, 1.0;
+  absl::StatusOr<GaussianCost> cost = GaussianCost::Angle(target, q.asDiagonal().toDenseMatrix());
+  ASSERT_TRUE(cost.ok()) << cost.status();
+  // Centres at the policy inputs of states around the start, log l = 0, the
+  // (sin, cos) ones log 0.7, weights ~ N(0, 1).
+  const int ep = prop.policy_input_dim();
+  ASSERT_EQ(ep, 8);
+  Vector params(prop.num_parameters());
+  for (int k = 0; k < 6; ++k) {
+    Vector c = scene->mu0;
+    for (int m = 0; m < d; ++m) c(m) += 0.3 * normal(rng);
+    params.segment(k * ep, ep) = prop.PolicyInput(c);
+  }
+  params.segment(6 * ep, ep).setZero();
+  params.segment(6 * ep + 4, 4).setConstant(std::log(0.7));
+  for (int k = 0; k < 6; ++k) params(6 * ep + ep + k) = normal(rng);
+  const Matrix s0 = scene->initial_std.array().square().matrix().asDiagonal();
+  Trajectory tr;
+  Vector grad;
+  ASSERT_TRUE(PredictTrajectory(prop, *cost, params, scene->mu0, s0, 30, &tr, &grad).ok());
+  EXPECT_TRUE(AllSymmetricPsd(tr));
+  EXPECT_GT(tr.covs[30].trace(), 10 * s0.trace()) << "the state distribution should move";
+  const diff::VectorFunction j = [&](const Vector& th, Vector* out) {
+    Trajectory t;
+    if (!PredictTrajectory(prop, *cost, th, scene->mu0, s0, 30, &t, nullptr).ok()) return false;
+    *out = Vector::Constant(1, t.total_cost);
+    return true;
+  };
+  diff::CheckOptions check;
+  check.relative_step = 1e-6;
+  check.relative_tolerance = 1e-5;
+  check.absolute_tolerance = 1e-7;
+  const diff::CheckResult r = diff::CheckJacobian(j, params, grad.transpose(), check);
+  EXPECT_TRUE(r.ok) << r.log;
+  EXPECT_GT(grad.norm(), 1e-3);
+}
+
+// Two controls on the real double pendulum (state [dtheta1, dtheta2,
+// theta1, theta2], angles 2 and 3, two torques; GP inputs [dth1, dth2, sin
+// th1, cos th1, sin th2, cos th2, u1, u2], PILCO's initial hyperparameters):
+// J and dJ/dtheta over 30 steps against finite differences.
+TEST(ChainedObjectiveTwoControls, DoublePendulumGradientMatchesFiniteDifferences) {
+  tasks::SceneOptions so;
+  so.scene = "double-pendulum";
+  absl::StatusOr<tasks::Scene> scene = tasks::MakeScene(so);
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  ASSERT_EQ(scene->angle_indices, (std::vector<int>{2, 3}));
+  ASSERT_EQ(scene->control_dim(), 2);
+  const int d = 4, f = 2, e = d + 2 + f, n = 80;
+  std::mt19937_64 rng(41);
+  std::normal_distribution<double> normal;
+  std::uniform_real_distribution<double> uniform(-2, 2);
+  RowMatrix x(n, e), y(n, d);
+  for (int i = 0; i < n; ++i) {
+    Vector st(d);
+    st << 2.0 * normal(rng), 2.0 * normal(rng), M_PI + 0.8 * normal(rng), M_PI + 0.8 * normal(rng);
+    const Vector u = Eigen::Vector2d(uniform(rng), uniform(rng));
+    Vector next;
+    ASSERT_TRUE(scene->plant->Step(st, u, &next).ok());
+    x.row(i) << st(0), st(1), std::sin(st(2)), std::cos(st(2)), std::sin(st(3)), std::cos(st(3)),
+        u(0), u(1);
+    y.row(i) = (next - st).transpose();
+  }
+  RowMatrix log_hyp(d, e + 2);
+  for (int a = 0; a < d; ++a) {
+    for (int j = 0; j < e; ++j) {
+      const double mean = x.col(j).mean();
+      log_hyp(a, j) = std::log(std::sqrt((x.col(j).array() - mean).square().sum() / (n - 1)));
+    }
+    const double mean = y.col(a).mean();
+    const double sd = std::sqrt((y.col(a).array() - mean).square().sum() / (n - 1));
+    log_hyp(a, e) = std::log(sd);
+    log_hyp(a, e + 1) = std::log(sd / 10);
+  }
+  auto gp = GaussianInputGpFromData(x, y, log_hyp);
+  ASSERT_TRUE(gp.ok()) << gp.status();
+  PropagationOptions options;
+  options.angle_indices = scene->angle_indices;
+  options.num_basis = 6;
+  options.max_controls = scene->max_control;
+  const Propagator prop(&*gp, options);
+  // An angle cost towards a state near the start (see the two-angle test).
+  Vector target(d);
+  target << 0.0, 0.0, M_PI - 0.5, M_PI + 0.5;
+  Vector q(d);
+  q << 0.0, 0.0, 1.0, 1.0;
+  absl::StatusOr<GaussianCost> cost = GaussianCost::Angle(target, q.asDiagonal().toDenseMatrix());
+  ASSERT_TRUE(cost.ok()) << cost.status();
+  const int ep = prop.policy_input_dim();
+  ASSERT_EQ(ep, 6);
+  Vector params(prop.num_parameters());
+  ASSERT_EQ(params.size(), 6 * ep + ep + 6 * f);
+  for (int k = 0; k < 6; ++k) {
+    Vector c = scene->mu0;
+    for (int m = 0; m < d; ++m) c(m) += 0.3 * normal(rng);
+    params.segment(k * ep, ep) = prop.PolicyInput(c);
+  }
+  params.segment(6 * ep, ep).setZero();
+  params.segment(6 * ep + 2, 4).setConstant(std::log(0.7));
+  for (int k = 0; k < 6 * f; ++k) params(6 * ep + ep + k) = normal(rng);
+  const Matrix s0 = scene->initial_std.array().square().matrix().asDiagonal();
+  Trajectory tr;
+  Vector grad;
+  ASSERT_TRUE(PredictTrajectory(prop, *cost, params, scene->mu0, s0, 30, &tr, &grad).ok());
+  EXPECT_TRUE(AllSymmetricPsd(tr));
+  EXPECT_GT(tr.covs[30].trace(), 10 * s0.trace()) << "the state distribution should move";
+  const diff::VectorFunction j = [&](const Vector& th, Vector* out) {
+    Trajectory t;
+    if (!PredictTrajectory(prop, *cost, th, scene->mu0, s0, 30, &t, nullptr).ok()) return false;
+    *out = Vector::Constant(1, t.total_cost);
+    return true;
+  };
+  diff::CheckOptions check;
+  check.relative_step = 1e-6;
+  check.relative_tolerance = 1e-5;
+  check.absolute_tolerance = 1e-7;
+  const diff::CheckResult r = diff::CheckJacobian(j, params, grad.transpose(), check);
+  EXPECT_TRUE(r.ok) << r.log;
+  // Both torques' pseudo-weights carry gradient.
+  for (int jj = 0; jj < f; ++jj) {
+    double largest = 0;
+    for (int k = 0; k < 6; ++k) largest = std::max(largest, std::abs(grad(6 * ep + ep + k * f + jj)));
+    EXPECT_GT(largest, 1e-4) << "torque " << jj;
+  }
+}
 
 TEST(PropagationTest, PredictionIncludesNoiseAddsTheNoiseVariance) {
   const GaussianInputGp gp = CartPoleGp(60, true, 23);

@@ -253,6 +253,35 @@ TEST(Snapshot, RebuildsTheTrialsProblemExactly) {
   EXPECT_EQ(recorder.snapshots[1].policy_parameters_before, recorder.results[1].policy_parameters);
 }
 
+// The double pendulum's two torques (raw state, as studies need): the
+// snapshot holds N F forces and rebuilds the trial's problem exactly; one
+// force per transition does not fit the scene and is refused.
+TEST(Snapshot, TwoControlTrialRebuildsExactly) {
+  learner::TrialOptions options = TinyTrial("TP");
+  TG_ASSERT_OK(learner::SetTrialOption("scene", "double-pendulum", &options));
+  TG_ASSERT_OK(learner::SetTrialOption("angle_features", "raw", &options));
+  SnapshotRecorder recorder({2});
+  TG_ASSERT_OK(learner::RunTrial(options, &recorder).status());
+  ASSERT_EQ(recorder.snapshots.size(), 1u);
+  const learner::TrialSnapshot& s = recorder.snapshots[0];
+  EXPECT_EQ(s.states.rows(), 16);
+  EXPECT_EQ(s.forces.size(), 2 * 16);
+  absl::StatusOr<std::unique_ptr<FrozenProblem>> after =
+      FrozenProblemFromSnapshot(s, SnapshotPolicy::kAfter);
+  TG_ASSERT_OK(after.status());
+  EXPECT_EQ((*after)->problem.policy->control_dim(), 2);
+  estimators::Rollout rollout;
+  Rng rng(options.seed, Stream::kParticleNoise, 2ULL * 1000000ULL + 999999ULL);
+  TG_ASSERT_OK(estimators::SimulateParticles((*after)->problem, options.predicted_cost_particles, {},
+                                             &rng, &rollout));
+  EXPECT_EQ(rollout.objective, recorder.results[2].predicted_cost);
+  learner::TrialSnapshot bad = s;
+  bad.forces.conservativeResize(16);
+  absl::StatusOr<std::unique_ptr<FrozenProblem>> p = FrozenProblemFromSnapshot(bad, SnapshotPolicy::kAfter);
+  EXPECT_EQ(p.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(p.status().message()), HasSubstr("shapes"));
+}
+
 TEST(Snapshot, SinCosModelsAndBadShapesAreRefusedByName) {
   SnapshotRecorder recorder({1});
   learner::TrialOptions options = TinyTrial("PILCO");

@@ -234,5 +234,104 @@ TEST(RunEpisodeTest, PlantFailureFailsNamingTheStep) {
   EXPECT_NE(st.message().find("step 0"), std::string::npos) << st;
 }
 
+// ------------------------------------------------------ F controls
+// The double pendulum's two torques: H F forces, step-major, each step's
+// controls applied together; the contract's errors.
+
+absl::Status RunMultiSeeded(const Scene& scene, uint64_t start_seed, uint64_t noise_seed,
+                            Episode* episode, const MultiController& controller) {
+  Rng start(start_seed, Stream::kInitialState);
+  Rng noise(noise_seed, Stream::kObservationNoise);
+  return RunEpisode(scene, controller, &start, &noise, episode);
+}
+
+// Two bounded torques from the observation, different from each other.
+Vector TwoTorques(const Vector& o) {
+  Vector u(2);
+  u << 2.0 * std::tanh(o(0) - 0.5 * (o(2) - kPi)), -2.0 * std::tanh(0.3 * o(1) + (o(3) - kPi));
+  return u;
+}
+
+TEST(RunEpisodeTest, TwoControlsAreAppliedStepByStep) {
+  SceneOptions options;
+  options.scene = "double-pendulum";
+  options.horizon = 12;
+  const Scene scene = MustMakeScene(options);
+  ASSERT_EQ(scene.control_dim(), 2);
+  std::vector<Vector> seen;
+  const MultiController recording = [&](const Vector& o) {
+    seen.push_back(o);
+    return TwoTorques(o);
+  };
+  Episode ep;
+  TG_ASSERT_OK(RunMultiSeeded(scene, 3, 4, &ep, recording));
+  const int h = scene.horizon, d = scene.state_dim();
+  ASSERT_EQ(ep.forces.size(), 2 * h);  // u_0^1, u_0^2, u_1^1, ...
+  ASSERT_EQ(static_cast<int>(seen.size()), h);
+  for (int t = 0; t < h; ++t) {
+    EXPECT_EQ(seen[t], Vector(ep.observations.row(t).transpose())) << "step " << t;
+    const Vector u = TwoTorques(seen[t]);
+    EXPECT_EQ(ep.forces(2 * t), u(0)) << "step " << t;
+    EXPECT_EQ(ep.forces(2 * t + 1), u(1)) << "step " << t;
+    // The plant got both torques of step t at once.
+    Vector next;
+    TG_ASSERT_OK(scene.plant->Step(ep.states.row(t).transpose(), u, &next));
+    EXPECT_EQ(next, Vector(ep.states.row(t + 1).transpose())) << "step " << t;
+    EXPECT_EQ(ep.costs(t), scene.cost->Value(next));
+  }
+  EXPECT_EQ(ep.states.cols(), d);
+  // Each torque matters: the second one zeroed changes the trajectory.
+  const MultiController first_only = [](const Vector& o) {
+    Vector u = TwoTorques(o);
+    u(1) = 0;
+    return u;
+  };
+  Episode other;
+  TG_ASSERT_OK(RunMultiSeeded(scene, 3, 4, &other, first_only));
+  EXPECT_NE(other.states.row(h), ep.states.row(h));
+}
+
+// A one-control scene through the multi-control interface is the one-control
+// episode, bit for bit.
+TEST(RunEpisodeTest, OneControlThroughEitherInterfaceIsTheSame) {
+  const Scene scene = MustMakeScene({});
+  Episode a, b;
+  TG_ASSERT_OK(RunSeeded(scene, 1, 2, &a));
+  TG_ASSERT_OK(RunMultiSeeded(scene, 1, 2, &b, [](const Vector& o) {
+    return Vector::Constant(1, Feedback(State(o))).eval();
+  }));
+  EXPECT_EQ(a.states, b.states);
+  EXPECT_EQ(a.forces, b.forces);
+  EXPECT_EQ(a.total_cost, b.total_cost);
+}
+
+TEST(RunEpisodeTest, WrongControlsFailNamingTheStep) {
+  SceneOptions options;
+  options.scene = "double-pendulum";
+  const Scene scene = MustMakeScene(options);
+  Episode ep;
+  // A one-control controller on a two-control scene: refused before any step.
+  const absl::Status one = RunSeeded(scene, 1, 2, &ep, [](const State&) { return 0.0; });
+  EXPECT_EQ(one.code(), absl::StatusCode::kInvalidArgument) << one;
+  EXPECT_NE(one.message().find("2 controls"), std::string::npos) << one;
+  // Three controls at step 0.
+  const absl::Status three =
+      RunMultiSeeded(scene, 1, 2, &ep, [](const Vector&) { return Vector::Zero(3).eval(); });
+  EXPECT_EQ(three.code(), absl::StatusCode::kInvalidArgument) << three;
+  EXPECT_NE(three.message().find("step 0: controller returned 3 controls; the scene has 2"),
+            std::string::npos)
+      << three;
+  // The second torque non-finite at step 2: named with its control.
+  int calls = 0;
+  const absl::Status nan = RunMultiSeeded(scene, 1, 2, &ep, [&](const Vector&) {
+    Vector u = Vector::Zero(2);
+    if (calls++ == 2) u(1) = kNan;
+    return u;
+  });
+  EXPECT_EQ(nan.code(), absl::StatusCode::kInternal) << nan;
+  EXPECT_NE(nan.message().find("step 2"), std::string::npos) << nan;
+  EXPECT_NE(nan.message().find("for control 1"), std::string::npos) << nan;
+}
+
 }  // namespace
 }  // namespace totalgrad::tasks
