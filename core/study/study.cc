@@ -255,9 +255,18 @@ CellResult RunPilcoCell(const FrozenProblem& frozen, const pilco::GaussianInputG
   cell.particles = 0;
   cell.horizon = problem.horizon;
   cell.reference_agrees = reference.agree;
-  // PILCO's problem on the particles' raw state, built as the trial builds it.
+  // PILCO's problem on the model's and policy's features (the raw state, or
+  // one angle as sin/cos), built as the trial builds it.
+  if (frozen.angle_indices.size() > 1) {
+    cell.omitted = true;
+    cell.omission_reason = absl::StrCat(
+        "PILCO's moment matching augments one angle so far; this problem's features have ",
+        frozen.angle_indices.size(), " angles");
+    return cell;
+  }
+  const int angle_index = frozen.angle_indices.empty() ? -1 : frozen.angle_indices[0];
   absl::StatusOr<pilco::PilcoProblem> built = learner::MakePilcoProblem(
-      *problem.cost, problem.mu0, problem.initial_std, problem.horizon, /*angle_index=*/-1,
+      *problem.cost, problem.mu0, problem.initial_std, problem.horizon, angle_index,
       frozen.policy->num_basis(), frozen.policy->max_force());
   if (!built.ok()) {
     cell.omitted = true;
@@ -481,6 +490,7 @@ absl::StatusOr<StudyResult> RunStudy(const FrozenProblem& problem, const StudyOp
   const Clock::time_point start = Clock::now();
   StudyResult result;
   result.source = problem.source;
+  result.scene = problem.scene;
   result.num_parameters = problem.policy->num_parameters();
 
   for (int h : options.horizons) {

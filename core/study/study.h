@@ -35,7 +35,9 @@
 // horizons) is left out of the reference and the fact recorded.
 //
 // PILCO's deterministic moment-matching gradient (estimator "PILCO") runs on
-// the same GP and policy with the raw angle (angle_index -1), the model noise
+// the same GP and policy with the problem's features (the raw state, angle
+// index -1, or its one angle as (sin, cos); with several angles the cell is
+// omitted, naming why), the model noise
 // included in the predictions when the problem's noise multiplier is > 0
 // (the particles' transitions include it), and the same cost in closed form.
 // Like GR, GLR, GTP and DEL it estimates another objective; its error
@@ -156,6 +158,7 @@ struct CellResult {
 
 struct StudyResult {
   std::string source;                        // FrozenProblem::source
+  std::string scene;                         // FrozenProblem::scene
   int num_parameters = 0;
   std::vector<ReferenceGradient> references; // one per horizon, in options order
   std::vector<CellResult> cells;             // estimator-major, then P, then H

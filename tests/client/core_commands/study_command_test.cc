@@ -19,6 +19,7 @@
 
 #include "client/core_commands/commands.h"
 #include "io/snapshot_json.h"
+#include "io/study_results.h"
 #include "tests/testutil/testutil.h"
 
 namespace totalgrad::cli {
@@ -174,6 +175,12 @@ TEST(ParseStudySpec, DefaultsAndNamedErrors) {
   EXPECT_EQ(spec->options.estimators[1].options.lr_weights, estimators::LrWeights::kPlain);
   EXPECT_EQ(spec->options.estimators[1].options.forced_k_lr, 0.5);
   EXPECT_EQ(spec->options.reference.particles, 77);
+  EXPECT_EQ(spec->synthetic_angle_features, learner::AngleFeatures::kAuto);
+  doc = {{"problem", {{"synthetic", {{"scene", "pendubot"}, {"angle_features", "raw"}}}}}};
+  spec = ParseStudySpec(doc, "");
+  TG_ASSERT_OK(spec.status());
+  EXPECT_EQ(spec->synthetic.scene, "pendubot");
+  EXPECT_EQ(spec->synthetic_angle_features, learner::AngleFeatures::kRaw);
 
   struct Case {
     nlohmann::json doc;
@@ -194,7 +201,9 @@ TEST(ParseStudySpec, DefaultsAndNamedErrors) {
             "unknown estimator option 'colour'"},
            {{{"problem", synthetic}, {"horizons", {10, "x"}}}, "horizons[1]"},
            {{{"problem", synthetic}, {"replicates", 1}}, "replicates"},
-           {{{"problem", synthetic}, {"reference", {{"estimators", {"PILCO"}}}}}, "PILCO"}}) {
+           {{{"problem", synthetic}, {"reference", {{"estimators", {"PILCO"}}}}}, "PILCO"},
+           {{{"problem", {{"synthetic", {{"scene", "unicycle"}}}}}}, "unknown scene 'unicycle'"},
+           {{{"problem", {{"synthetic", {{"angle_features", "polar"}}}}}}, "'polar'"}}) {
     const absl::StatusOr<StudySpec> s = ParseStudySpec(c.doc, "");
     EXPECT_EQ(s.status().code(), absl::StatusCode::kInvalidArgument) << c.doc.dump();
     EXPECT_THAT(std::string(s.status().message()), HasSubstr(c.want)) << c.doc.dump();
@@ -264,6 +273,87 @@ TEST(StudyCommand, BadFilesExitTwoNamingTheProblem) {
   run = RunCommand({"study", dir + "/nosnap.json"});
   EXPECT_EQ(run.exit_code, 2);
   EXPECT_THAT(run.err, HasSubstr("nowhere.json"));
+}
+
+
+// A sweep's [[study]] may name the scene: it becomes a synthetic study's
+// scene; a snapshot study must already be on it; unknown scenes are named.
+TEST(SetStudyScene, SetsSyntheticScenesAndChecksSnapshots) {
+  const nlohmann::json synthetic = {{"problem", {{"synthetic", {{"data", 30}}}}}};
+  absl::StatusOr<nlohmann::json> set = io::SetStudyScene(synthetic, "pendubot");
+  TG_ASSERT_OK(set.status());
+  EXPECT_EQ((*set)["problem"]["synthetic"]["scene"], "pendubot");
+  EXPECT_EQ((*set)["problem"]["synthetic"]["data"], 30);
+  EXPECT_THAT(std::string(io::SetStudyScene(synthetic, "unicycle").status().message()),
+              HasSubstr("unknown scene 'unicycle'"));
+  EXPECT_THAT(std::string(io::SetStudyScene({{"problem", {{"snapshot", "s.json"}}}}, "pendulum")
+                              .status()
+                              .message()),
+              HasSubstr("inlined snapshot"));
+
+  const std::string dir = Dir("study_scene");
+  std::vector<std::string> args = kTinyTrial;
+  for (const char* a : {"--snapshot-episodes", "1", "--snapshot-file"}) args.push_back(a);
+  args.push_back(dir + "/snaps.json");
+  ASSERT_EQ(RunCommand(args).exit_code, 0);
+  absl::StatusOr<nlohmann::json> inlined =
+      InlineStudyDocument({{"problem", {{"snapshot", "snaps.json"}}}}, dir);
+  TG_ASSERT_OK(inlined.status());
+  TG_EXPECT_OK(io::SetStudyScene(*inlined, "cartpole-swingup").status());
+  EXPECT_THAT(std::string(io::SetStudyScene(*inlined, "pendulum").status().message()),
+              HasSubstr("snapshot is of scene 'cartpole-swingup', not 'pendulum'"));
+}
+
+// A study on another scene end to end (a synthetic pendulum problem), its
+// results.json read back unchanged, and `study summary` over it: the
+// Markdown table and the JSON name the winner per horizon and time.
+TEST(StudyCommand, SceneStudyAndItsSummary) {
+  const std::string dir = Dir("study_summary");
+  Write(dir + "/study.json", R"JSON({
+    "problem": {"synthetic": {"scene": "pendulum", "data": 40}},
+    "estimators": ["RP", "LR", "PILCO"],
+    "particles": [10, 40, 160], "horizons": [4], "replicates": 4,
+    "reference": {"particles": 200, "replicates": 10}})JSON");
+  const std::string out = dir + "/out";
+  CommandRun run = RunCommand({"study", dir + "/study.json", "--output-dir", out, "--quiet",
+                               "--no-plots"});
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_THAT(run.out, HasSubstr("scene pendulum"));
+  absl::StatusOr<study::StudyResult> read = io::ReadStudyResultFile(out);
+  TG_ASSERT_OK(read.status());
+  EXPECT_EQ(read->scene, "pendulum");
+  ASSERT_EQ(read->cells.size(), 2u * 3 + 1);
+  // Written and read back: the tables are the same text.
+  std::ifstream csv_file(out + "/table.csv");
+  const std::string csv((std::istreambuf_iterator<char>(csv_file)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(StudyTableCsv(*read), csv);
+
+  run = RunCommand({"study", "summary", "pendulum=" + out, "--seconds", "1e-4,0.001,100"});
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_THAT(run.out, HasSubstr("### pendulum"));
+  EXPECT_THAT(run.out, HasSubstr("| H | time per gradient | lowest error | RP | LR |"));
+  EXPECT_THAT(run.out, HasSubstr("| 4 | 100 s | n/a"));  // beyond every measured time
+  EXPECT_THAT(run.out, HasSubstr("Fixed-cost estimators"));
+  run = RunCommand({"study", "summary", "p=" + out + "/results.json", "--format", "json"});
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const nlohmann::json summary = nlohmann::json::parse(run.out);
+  ASSERT_EQ(summary.size(), 1u);
+  EXPECT_EQ(summary[0]["label"], "p");
+  EXPECT_EQ(summary[0]["scene"], "pendulum");
+  EXPECT_EQ(summary[0]["rows"].size(), 3u);  // one horizon x 3 default times
+
+  run = RunCommand({"study", "summary", out});
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_THAT(run.err, HasSubstr("LABEL=PATH"));
+  run = RunCommand({"study", "summary", "x=" + dir + "/nowhere"});
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_THAT(run.err, HasSubstr("nowhere"));
+  run = RunCommand({"study", "summary", "x=" + out, "--seconds", "0.1,-1"});
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_THAT(run.err, HasSubstr("'-1'"));
+  run = RunCommand({"study"});
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_THAT(run.err, HasSubstr("study file is required"));
 }
 
 }  // namespace

@@ -1,0 +1,128 @@
+#include "client/core_commands/study_summary.h"
+
+#include <cmath>
+#include <sstream>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "absl/strings/str_join.h"
+
+namespace totalgrad::cli {
+namespace {
+
+using OrderedJson = nlohmann::ordered_json;
+
+std::string SecondsText(double s) {
+  // 3 significant digits: the requested times print exactly (10 ms, 1 s).
+  if (s < 1.0) return absl::StrFormat("%.3g ms", s * 1e3);
+  return absl::StrFormat("%.3g s", s);
+}
+
+std::string Sig(double v, int digits) {
+  return std::isfinite(v) ? absl::StrFormat("%.*g", digits, v) : std::string("n/a");
+}
+
+OrderedJson JsonNumber(double v) { return std::isfinite(v) ? OrderedJson(v) : OrderedJson(nullptr); }
+
+}  // namespace
+
+std::string StudySummaryMarkdown(const std::vector<LabelledStudy>& studies,
+                                 const std::vector<double>& seconds) {
+  std::ostringstream os;
+  for (const LabelledStudy& s : studies) {
+    const study::EqualTimeComparison cmp = study::CompareAtEqualTime(s.result, seconds);
+    os << "### " << s.label << "\n\n";
+    os << "Problem: " << s.result.source;
+    if (!s.result.scene.empty()) os << "; scene " << s.result.scene;
+    os << ".\n\n";
+    if (cmp.rows.empty()) {
+      os << "(no horizons)\n\n";
+      continue;
+    }
+    const std::vector<std::string>& labels = cmp.rows.front().estimators;
+    os << "| H | time per gradient | lowest error | " << absl::StrJoin(labels, " | ") << " |\n";
+    os << "|---|---|---|";
+    for (size_t e = 0; e < labels.size(); ++e) os << "---|";
+    os << "\n";
+    bool any_below_floor = false;
+    for (const study::EqualTimeRow& row : cmp.rows) {
+      os << "| " << row.horizon << " | " << SecondsText(row.seconds) << " | ";
+      if (!row.reference_agrees) {
+        os << "no winner: the reference estimators disagree |";
+        for (size_t e = 0; e < labels.size(); ++e) os << " - |";
+        os << "\n";
+        continue;
+      }
+      if (row.winner.empty()) {
+        os << "n/a (no estimator measured at this time) |";
+        for (size_t e = 0; e < labels.size(); ++e) os << " n/a |";
+        os << "\n";
+        continue;
+      }
+      any_below_floor = any_below_floor || row.winner_below_floor;
+      os << row.winner << " " << Sig(row.winner_error, 3) << (row.winner_below_floor ? "*" : "")
+         << " |";
+      for (size_t e = 0; e < labels.size(); ++e) {
+        os << " " << (labels[e] == row.winner ? std::string("1") : Sig(row.ratios[e], 2)) << " |";
+      }
+      os << "\n";
+    }
+    os << "\n";
+    if (any_below_floor) {
+      os << "\\* below the reference gradient's noise floor (1.96 |SE| / |g\\*|): the error, and the "
+            "ratios to it, are not resolved there.\n\n";
+    }
+    if (!cmp.fixed_cost.empty()) {
+      std::vector<std::string> points;
+      for (const study::FixedCostPoint& p : cmp.fixed_cost) {
+        points.push_back(std::isfinite(p.error)
+                             ? absl::StrCat("H = ", p.horizon, ": ", Sig(p.error, 3), " in ",
+                                            SecondsText(p.seconds))
+                             : absl::StrCat("H = ", p.horizon, ": not measured"));
+      }
+      os << "Fixed-cost estimators (one deterministic gradient, not interpolated): "
+         << cmp.fixed_cost.front().estimator << " " << absl::StrJoin(points, "; ") << ".\n\n";
+    }
+  }
+  return os.str();
+}
+
+OrderedJson StudySummaryJson(const std::vector<LabelledStudy>& studies,
+                             const std::vector<double>& seconds) {
+  OrderedJson out = OrderedJson::array();
+  for (const LabelledStudy& s : studies) {
+    const study::EqualTimeComparison cmp = study::CompareAtEqualTime(s.result, seconds);
+    OrderedJson rows = OrderedJson::array();
+    for (const study::EqualTimeRow& row : cmp.rows) {
+      OrderedJson errors = OrderedJson::object(), ratios = OrderedJson::object();
+      for (size_t e = 0; e < row.estimators.size(); ++e) {
+        errors[row.estimators[e]] = JsonNumber(row.errors[e]);
+        ratios[row.estimators[e]] = JsonNumber(row.ratios[e]);
+      }
+      rows.push_back({{"horizon", row.horizon},
+                      {"seconds", row.seconds},
+                      {"reference_agrees", row.reference_agrees},
+                      {"floor", JsonNumber(row.floor)},
+                      {"winner", row.winner.empty() ? OrderedJson(nullptr) : OrderedJson(row.winner)},
+                      {"winner_error", JsonNumber(row.winner_error)},
+                      {"winner_below_floor", row.winner_below_floor},
+                      {"errors", errors},
+                      {"ratios", ratios}});
+    }
+    OrderedJson fixed = OrderedJson::array();
+    for (const study::FixedCostPoint& p : cmp.fixed_cost) {
+      fixed.push_back({{"estimator", p.estimator},
+                       {"horizon", p.horizon},
+                       {"seconds", JsonNumber(p.seconds)},
+                       {"error", JsonNumber(p.error)}});
+    }
+    out.push_back({{"label", s.label},
+                   {"scene", s.result.scene},
+                   {"source", s.result.source},
+                   {"rows", rows},
+                   {"fixed_cost", fixed}});
+  }
+  return out;
+}
+
+}  // namespace totalgrad::cli
