@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <set>
 
 #include "core/estimators/likelihood_ratio.h"
@@ -410,8 +411,11 @@ StudyOptions SmallSceneStudy() {
   o.particles = {10, 100};
   o.horizons = {3};
   o.replicates = 8;
+  // From the hanging start the angle cost is nearly saturated and the
+  // per-particle gradients are heavy-tailed (docs/error-vs-time.md): the
+  // reference needs enough replicates for its standard errors to be honest.
   o.reference.particles = 200;
-  o.reference.replicates = 24;
+  o.reference.replicates = 80;
   return o;
 }
 
@@ -442,6 +446,8 @@ TEST(SceneSynthetic, EveryOneControlSceneRunsTheStudy) {
     EXPECT_EQ(r->scene, c.scene);
     ASSERT_EQ(r->references.size(), 1u);
     EXPECT_TRUE(r->references[0].agree) << c.scene << ": " << r->references[0].note;
+    std::printf("  %s: reference max |z| %.3g, mean z^2 %.3g\n", c.scene,
+                r->references[0].agreement_max_z, r->references[0].agreement_mean_z2);
     EXPECT_GT(r->references[0].norm, 0) << c.scene;
     for (const CellResult& cell : r->cells) {
       if (cell.method == "PILCO") {
