@@ -45,6 +45,7 @@ std::string StudySummaryMarkdown(const std::vector<LabelledStudy>& studies,
     for (size_t e = 0; e < labels.size(); ++e) os << "---|";
     os << "\n";
     bool any_below_floor = false;
+    bool any_useless = false;  // a relative error >= 1: no better than a zero gradient
     for (const study::EqualTimeRow& row : cmp.rows) {
       os << "| " << row.horizon << " | " << SecondsText(row.seconds) << " | ";
       if (!row.reference_agrees) {
@@ -60,8 +61,10 @@ std::string StudySummaryMarkdown(const std::vector<LabelledStudy>& studies,
         continue;
       }
       any_below_floor = any_below_floor || row.winner_below_floor;
+      const bool useless = row.winner_error >= 1.0;
+      any_useless = any_useless || useless;
       os << row.winner << " " << Sig(row.winner_error, 3) << (row.winner_below_floor ? "*" : "")
-         << " |";
+         << (useless ? " (≥ 1)" : "") << " |";
       for (size_t e = 0; e < labels.size(); ++e) {
         os << " " << (labels[e] == row.winner ? std::string("1") : Sig(row.ratios[e], 2)) << " |";
       }
@@ -71,6 +74,10 @@ std::string StudySummaryMarkdown(const std::vector<LabelledStudy>& studies,
     if (any_below_floor) {
       os << "\\* below the reference gradient's noise floor (1.96 |SE| / |g\\*|): the error, and the "
             "ratios to it, are not resolved there.\n\n";
+    }
+    if (any_useless) {
+      os << "(≥ 1): the lowest relative error is 1 or more: no estimator does better than a zero "
+            "gradient there.\n\n";
     }
     if (!cmp.fixed_cost.empty()) {
       std::vector<std::string> points;

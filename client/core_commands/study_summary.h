@@ -24,7 +24,9 @@ struct LabelledStudy {
 // winner and its error, every particle estimator's error ratio to it ("n/a"
 // outside its measured range), "no winner" where the references disagree;
 // then PILCO's own (seconds, error) per horizon. Numbers: 2 significant
-// digits for ratios, 3 for errors.
+// digits for ratios, 3 for errors. A winner below the reference's noise
+// floor is marked "*", one whose relative error is 1 or more (no better than
+// a zero gradient) "(≥ 1)", each with a note under the table.
 std::string StudySummaryMarkdown(const std::vector<LabelledStudy>& studies,
                                  const std::vector<double>& seconds);
 nlohmann::ordered_json StudySummaryJson(const std::vector<LabelledStudy>& studies,
