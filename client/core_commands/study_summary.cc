@@ -24,6 +24,14 @@ std::string Sig(double v, int digits) {
 
 OrderedJson JsonNumber(double v) { return std::isfinite(v) ? OrderedJson(v) : OrderedJson(nullptr); }
 
+// "RP 0.045 (P = 1000, 44 ms)": the lowest error measured within the row's
+// time when it beats the winner (or there is none); "-" otherwise.
+std::string BestWithin(const study::EqualTimeRow& row) {
+  if (row.best_within.empty()) return "-";
+  return absl::StrCat(row.best_within, " ", Sig(row.best_within_error, 3), " (P = ",
+                      row.best_within_particles, ", ", SecondsText(row.best_within_seconds), ")");
+}
+
 }  // namespace
 
 std::string StudySummaryMarkdown(const std::vector<LabelledStudy>& studies,
@@ -40,10 +48,11 @@ std::string StudySummaryMarkdown(const std::vector<LabelledStudy>& studies,
       continue;
     }
     const std::vector<std::string>& labels = cmp.rows.front().estimators;
-    os << "| H | time per gradient | lowest error | " << absl::StrJoin(labels, " | ") << " |\n";
+    os << "| H | time per gradient | lowest error | " << absl::StrJoin(labels, " | ")
+       << " | lower error measured in less time |\n";
     os << "|---|---|---|";
     for (size_t e = 0; e < labels.size(); ++e) os << "---|";
-    os << "\n";
+    os << "---|\n";
     bool any_below_floor = false;
     bool any_useless = false;  // a relative error >= 1: no better than a zero gradient
     for (const study::EqualTimeRow& row : cmp.rows) {
@@ -51,13 +60,13 @@ std::string StudySummaryMarkdown(const std::vector<LabelledStudy>& studies,
       if (!row.reference_agrees) {
         os << "no winner: the reference estimators disagree |";
         for (size_t e = 0; e < labels.size(); ++e) os << " - |";
-        os << "\n";
+        os << " - |\n";
         continue;
       }
       if (row.winner.empty()) {
         os << "n/a (no estimator measured at this time) |";
         for (size_t e = 0; e < labels.size(); ++e) os << " n/a |";
-        os << "\n";
+        os << " " << BestWithin(row) << " |\n";
         continue;
       }
       any_below_floor = any_below_floor || row.winner_below_floor;
@@ -68,12 +77,19 @@ std::string StudySummaryMarkdown(const std::vector<LabelledStudy>& studies,
       for (size_t e = 0; e < labels.size(); ++e) {
         os << " " << (labels[e] == row.winner ? std::string("1") : Sig(row.ratios[e], 2)) << " |";
       }
-      os << "\n";
+      os << " " << BestWithin(row) << " |\n";
     }
     os << "\n";
     if (any_below_floor) {
       os << "\\* below the reference gradient's noise floor (1.96 |SE| / |g\\*|): the error, and the "
             "ratios to it, are not resolved there.\n\n";
+    }
+    bool any_best_within = false;
+    for (const study::EqualTimeRow& row : cmp.rows) any_best_within |= !row.best_within.empty();
+    if (any_best_within) {
+      os << "Last column: a cell measured in less than the row's time with a lower error than the "
+            "winner's (or than anything, where no curve reaches that time): its estimator's "
+            "largest P was faster than the time, so it is n/a there, but it did better.\n\n";
     }
     if (any_useless) {
       os << "(≥ 1): the lowest relative error is 1 or more: no estimator does better than a zero "
@@ -114,7 +130,13 @@ OrderedJson StudySummaryJson(const std::vector<LabelledStudy>& studies,
                       {"winner_error", JsonNumber(row.winner_error)},
                       {"winner_below_floor", row.winner_below_floor},
                       {"errors", errors},
-                      {"ratios", ratios}});
+                      {"ratios", ratios},
+                      {"best_within", row.best_within.empty()
+                                          ? OrderedJson(nullptr)
+                                          : OrderedJson({{"estimator", row.best_within},
+                                                         {"particles", row.best_within_particles},
+                                                         {"error", row.best_within_error},
+                                                         {"seconds", row.best_within_seconds}})}});
     }
     OrderedJson fixed = OrderedJson::array();
     for (const study::FixedCostPoint& p : cmp.fixed_cost) {

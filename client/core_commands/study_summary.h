@@ -26,7 +26,9 @@ struct LabelledStudy {
 // then PILCO's own (seconds, error) per horizon. Numbers: 2 significant
 // digits for ratios, 3 for errors. A winner below the reference's noise
 // floor is marked "*", one whose relative error is 1 or more (no better than
-// a zero gradient) "(≥ 1)", each with a note under the table.
+// a zero gradient) "(≥ 1)", each with a note under the table. A last column
+// names a cell measured in less than the row's time with a lower error than
+// the winner's (EqualTimeRow::best_within), "-" when there is none.
 std::string StudySummaryMarkdown(const std::vector<LabelledStudy>& studies,
                                  const std::vector<double>& seconds);
 nlohmann::ordered_json StudySummaryJson(const std::vector<LabelledStudy>& studies,

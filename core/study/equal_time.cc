@@ -95,6 +95,24 @@ EqualTimeComparison CompareAtEqualTime(const StudyResult& result, const std::vec
           }
           row.winner_below_floor = std::isfinite(row.floor) && row.winner_error < row.floor;
         }
+        // The lowest error another estimator measured within T (the first in
+        // study order on ties); the winner's own smaller-P cells are its curve.
+        for (const CellResult& c : result.cells) {
+          if (c.particles <= 0 || c.horizon != h || !Usable(c) || c.time_min_s > t) continue;
+          if (c.estimator == row.winner) continue;
+          if (!std::isfinite(row.best_within_error) || c.rel_rmse < row.best_within_error) {
+            row.best_within_error = c.rel_rmse;
+            row.best_within_seconds = c.time_min_s;
+            row.best_within_particles = c.particles;
+            row.best_within = c.estimator;
+          }
+        }
+        if (!row.best_within.empty() && !row.winner.empty() &&
+            !(row.best_within_error < row.winner_error)) {
+          row.best_within.clear();
+          row.best_within_particles = 0;
+          row.best_within_error = row.best_within_seconds = CellResult::kNaN;
+        }
       }
       out.rows.push_back(std::move(row));
     }

@@ -19,6 +19,14 @@
 // in doubt). Where the winner's error is below the reference's noise floor
 // the ratios to it cannot be resolved; the row says so.
 //
+// "n/a outside the measured range" can hide a better answer: an estimator
+// whose largest P finished in less than T seconds with a lower error than
+// the winner's (or than anything, where no curve reaches T) was measured to
+// do better within T. Each row therefore also names the lowest error
+// measured in at most T seconds by an estimator other than the winner (any
+// P), when it is below the winner's or there is no winner; a user with T
+// seconds can run that cell.
+//
 // Thread safety: pure functions.
 #ifndef TOTALGRAD_CORE_STUDY_EQUAL_TIME_H_
 #define TOTALGRAD_CORE_STUDY_EQUAL_TIME_H_
@@ -56,6 +64,13 @@ struct EqualTimeRow {
   std::vector<std::string> estimators;
   std::vector<double> errors;
   std::vector<double> ratios;
+  // The lowest error of a measured particle cell of another estimator than
+  // the winner with time <= T, when it is below winner_error or there is no
+  // winner (and the references agree); otherwise best_within is empty.
+  std::string best_within;
+  int best_within_particles = 0;
+  double best_within_error = CellResult::kNaN;
+  double best_within_seconds = CellResult::kNaN;
 };
 
 // PILCO's (or any particle-free estimator's) single point per horizon.

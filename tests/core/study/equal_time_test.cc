@@ -154,5 +154,32 @@ TEST(CompareAtEqualTime, SkipsOmittedCells) {
   EXPECT_EQ(cmp.rows[0].winner, "B");
 }
 
+// "n/a outside the measured range" must not hide a better answer: A's largest
+// P (0.1 s, error 0.01) beats B's interpolated error at 0.2 s (0.0141), and
+// at 1 s, which no curve reaches, A's 0.01 is still the best measured within
+// 1 s. Where the winner is at least as good, nothing is named.
+TEST(CompareAtEqualTime, NamesALowerErrorMeasuredInLessTime) {
+  const EqualTimeComparison cmp = CompareAtEqualTime(TwoEstimatorStudy(true), {0.2, 1.0, 1e-2});
+  ASSERT_EQ(cmp.rows.size(), 3u);
+  const EqualTimeRow& at_02 = cmp.rows[0];
+  EXPECT_EQ(at_02.winner, "B");
+  EXPECT_NEAR(at_02.winner_error, 0.1 * std::sqrt(1e-3 / 0.05), 1e-12);
+  EXPECT_TRUE(std::isnan(at_02.errors[0]));  // A: n/a at 0.2 s
+  EXPECT_EQ(at_02.best_within, "A");
+  EXPECT_EQ(at_02.best_within_particles, 1000);
+  EXPECT_DOUBLE_EQ(at_02.best_within_seconds, 0.1);
+  EXPECT_NEAR(at_02.best_within_error, 0.01, 1e-15);
+  const EqualTimeRow& at_1 = cmp.rows[1];
+  EXPECT_TRUE(at_1.winner.empty());
+  EXPECT_EQ(at_1.best_within, "A");  // B's P = 1000 ties at 0.01 in 0.4 s: the first wins
+  EXPECT_EQ(at_1.best_within_particles, 1000);
+  const EqualTimeRow& at_10ms = cmp.rows[2];
+  EXPECT_EQ(at_10ms.winner, "A");
+  EXPECT_TRUE(at_10ms.best_within.empty());
+  EXPECT_TRUE(std::isnan(at_10ms.best_within_error));
+  // Where the references disagree nothing is named.
+  EXPECT_TRUE(CompareAtEqualTime(TwoEstimatorStudy(false), {0.2}).rows[0].best_within.empty());
+}
+
 }  // namespace
 }  // namespace totalgrad::study
