@@ -11,6 +11,8 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <limits>
+#include <cstdio>
 #include <string>
 #include <vector>
 
@@ -18,7 +20,11 @@
 #include <nlohmann/json.hpp>
 
 #include "client/core_commands/commands.h"
+#include "core/common/rng.h"
+#include "core/diff/gradient_checker.h"
+#include "core/estimators/estimator.h"
 #include "io/snapshot_json.h"
+#include "io/study_file.h"
 #include "io/study_results.h"
 #include "tests/testutil/testutil.h"
 
@@ -368,6 +374,68 @@ TEST(StudyCommand, SceneStudyAndItsSummary) {
   run = RunCommand({"study"});
   EXPECT_EQ(run.exit_code, 2);
   EXPECT_THAT(run.err, HasSubstr("study file is required"));
+}
+
+// The committed pendulum study (docs/error-vs-time.md) measures RP's relative
+// error at 1e3 at H = 10 and far more beyond. That must be the model's
+// exploding pathwise derivatives, not a wrong derivative through the
+// pendulum's (sin, cos) features: on the study's own problem (the committed
+// snapshot), RP's gradient with its random numbers fixed equals central
+// differences of the same sample objective where those converge (H = 3).
+// Tolerances from the measured convergence of the differences: J carries
+// round-off noise of ~3e-11 (the GP's solves), so steps below 1e-5 lose
+// digits, and at 1e-4 the curvature costs ~1e-3; with h = 1e-5 the
+// differences are good to ~5e-4 relative plus ~1e-6 absolute. Beyond H = 5
+// they do not converge at any step (the sample objective's gradient grows
+// ~4x per step: 0.008 at H = 5, 12 at H = 10), which is the explosion the
+// study measures. A wrong chain term is off by O(1).
+TEST(SceneStudyProblems, RpOnThePendulumStudyIsTheExactDerivativeOfItsSampleObjective) {
+  const std::string file = (std::filesystem::path(__FILE__).parent_path() /
+                            "../../../docs/error-vs-time/pendulum/study.json")
+                               .string();
+  absl::StatusOr<nlohmann::json> doc = io::ReadStudyDocument(file);
+  TG_ASSERT_OK(doc.status());
+  absl::StatusOr<io::StudySpec> spec =
+      io::ParseStudySpec(*doc, std::filesystem::path(file).parent_path().string());
+  TG_ASSERT_OK(spec.status());
+  absl::StatusOr<std::unique_ptr<study::FrozenProblem>> frozen = io::LoadStudyProblem(*spec);
+  TG_ASSERT_OK(frozen.status());
+  EXPECT_EQ((*frozen)->scene, "pendulum");
+  EXPECT_EQ((*frozen)->angle_indices, std::vector<int>{1});
+  policy::RbfPolicy* policy = (*frozen)->owned_policy.get();
+  ASSERT_NE(policy, nullptr);
+  absl::StatusOr<std::unique_ptr<estimators::Estimator>> rp =
+      estimators::MakeEstimator(estimators::Method::kRp, {});
+  TG_ASSERT_OK(rp.status());
+  estimators::Problem problem = (*frozen)->problem;
+  problem.horizon = 3;
+  estimators::EstimateOptions eo;
+  eo.particles = 10;
+  const Vector theta0 = policy->parameters();
+  estimators::GradientEstimate at;
+  Rng rng0(7, Stream::kStudy, 5);
+  TG_ASSERT_OK((*rp)->Estimate(problem, eo, &rng0, &at));
+  ASSERT_TRUE(at.finite);
+  const diff::VectorFunction objective = [&](const Vector& theta, Vector* out) {
+    policy->set_parameters(theta);
+    Rng rng(7, Stream::kStudy, 5);
+    estimators::GradientEstimate g;
+    const bool ok = (*rp)->Estimate(problem, eo, &rng, &g).ok();
+    *out = Vector::Constant(1, g.objective);
+    return ok;
+  };
+  diff::CheckOptions check;
+  check.relative_step = 1e-5;
+  check.relative_tolerance = 5e-4;
+  check.absolute_tolerance = 2e-6;
+  const diff::CheckResult r = diff::CheckJacobian(objective, theta0, at.gradient.transpose(), check);
+  policy->set_parameters(theta0);
+  EXPECT_TRUE(r.ok) << r.log;
+  // The check is not empty: the gradient is far above the absolute floor.
+  EXPECT_GT(at.gradient.lpNorm<Eigen::Infinity>(), 500 * check.absolute_tolerance);
+  std::printf("  pendulum H = 3: J %.6g, |dJ|_inf %.3g; FD max rel error %.2g, max abs error %.2g\n",
+              at.objective, at.gradient.lpNorm<Eigen::Infinity>(), r.max_relative_error,
+              r.max_abs_error);
 }
 
 }  // namespace

@@ -269,8 +269,10 @@ TEST(SceneFeatureExtremes, TwoAnglesAtVariance1e3) {
   policy->set_parameters(theta0);
   EXPECT_TRUE(r.ok) << r.log;
   EXPECT_GT(at.gradient.norm(), 1e-6) << "the cost is saturated: the check would be empty";
-  std::printf("  pendubot, angle variance 1e3: J %.4g, |dJ| %.3g, FD max rel error %.2g\n",
-              at.objective, at.gradient.norm(), r.max_relative_error);
+  std::printf("  pendubot, angle variance 1e3: J %.4g, |dJ| %.3g, |dJ|_inf %.2g; FD max rel error "
+              "%.2g, max abs error %.2g (absolute floor %.2g); %s\n",
+              at.objective, at.gradient.norm(), at.gradient.lpNorm<Eigen::Infinity>(),
+              r.max_relative_error, r.max_abs_error, check.absolute_tolerance, r.log.c_str());
 }
 
 // The one-angle trig block of PILCO's moment matching (pilco::AugmentWithTrig)
@@ -376,8 +378,10 @@ TEST(SceneFeatureExtremes, SceneWithNoAngle) {
   policy->set_parameters(theta0);
   EXPECT_TRUE(r.ok) << r.log;
   EXPECT_GT(at.gradient.norm(), 1e-6) << "the cost is saturated: the check would be empty";
-  std::printf("  no angle: J %.4g, |dJ| %.3g, FD max rel error %.2g\n", at.objective,
-              at.gradient.norm(), r.max_relative_error);
+  std::printf("  no angle: J %.4g, |dJ| %.3g, FD max rel error %.2g, max abs error %.2g "
+              "(absolute floor %.2g)\n",
+              at.objective, at.gradient.norm(), r.max_relative_error, r.max_abs_error,
+              check.absolute_tolerance);
 }
 
 }  // namespace
