@@ -97,14 +97,19 @@ std::string StudySummaryMarkdown(const std::vector<LabelledStudy>& studies,
     }
     if (!cmp.fixed_cost.empty()) {
       std::vector<std::string> points;
+      std::string reason;  // the first omission's
       for (const study::FixedCostPoint& p : cmp.fixed_cost) {
+        if (!p.omission_reason.empty() && reason.empty()) reason = p.omission_reason;
         points.push_back(std::isfinite(p.error)
                              ? absl::StrCat("H = ", p.horizon, ": ", Sig(p.error, 3), " in ",
                                             SecondsText(p.seconds))
-                             : absl::StrCat("H = ", p.horizon, ": not measured"));
+                             : absl::StrCat("H = ", p.horizon, ": ",
+                                            p.omission_reason.empty() ? "not measured" : "omitted"));
       }
       os << "Fixed-cost estimators (one deterministic gradient, not interpolated): "
-         << cmp.fixed_cost.front().estimator << " " << absl::StrJoin(points, "; ") << ".\n\n";
+         << cmp.fixed_cost.front().estimator << " " << absl::StrJoin(points, "; ") << ".";
+      if (!reason.empty()) os << " Omitted: " << reason << ".";
+      os << "\n\n";
     }
   }
   return os.str();
@@ -143,7 +148,10 @@ OrderedJson StudySummaryJson(const std::vector<LabelledStudy>& studies,
       fixed.push_back({{"estimator", p.estimator},
                        {"horizon", p.horizon},
                        {"seconds", JsonNumber(p.seconds)},
-                       {"error", JsonNumber(p.error)}});
+                       {"error", JsonNumber(p.error)},
+                       {"omission_reason", p.omission_reason.empty()
+                                               ? OrderedJson(nullptr)
+                                               : OrderedJson(p.omission_reason)}});
     }
     out.push_back({{"label", s.label},
                    {"scene", s.result.scene},

@@ -121,6 +121,7 @@ EqualTimeComparison CompareAtEqualTime(const StudyResult& result, const std::vec
       FixedCostPoint p;
       p.estimator = c.estimator;
       p.horizon = h;
+      if (c.omitted) p.omission_reason = c.omission_reason;
       if (Usable(c)) {
         p.seconds = c.time_min_s;
         p.error = c.rel_rmse;

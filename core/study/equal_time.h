@@ -79,6 +79,7 @@ struct FixedCostPoint {
   int horizon = 0;
   double seconds = CellResult::kNaN;
   double error = CellResult::kNaN;
+  std::string omission_reason;  // the cell's, when it was omitted (e.g. PILCO with two angles)
 };
 
 struct EqualTimeComparison {

@@ -148,10 +148,20 @@ TEST(CompareAtEqualTime, SkipsOmittedCells) {
   for (CellResult& c : r.cells) {
     if (c.estimator == "A" && c.particles == 100) c.omitted = true;
   }
+  for (CellResult& c : r.cells) {
+    if (c.estimator == "PILCO") {
+      c.omitted = true;
+      c.omission_reason = "two angles";
+    }
+  }
   const EqualTimeComparison cmp = CompareAtEqualTime(r, {5e-3});
   // A is broken between 1 ms and 100 ms; B (4 .. 400 ms) covers 5 ms.
   EXPECT_TRUE(std::isnan(cmp.rows[0].errors[0]));
   EXPECT_EQ(cmp.rows[0].winner, "B");
+  // The omitted PILCO point keeps its reason and has no measurement.
+  ASSERT_EQ(cmp.fixed_cost.size(), 1u);
+  EXPECT_EQ(cmp.fixed_cost[0].omission_reason, "two angles");
+  EXPECT_TRUE(std::isnan(cmp.fixed_cost[0].error));
 }
 
 // "n/a outside the measured range" must not hide a better answer: A's largest
