@@ -143,6 +143,7 @@ OrderedJson StudyResultToJson(const study::StudyResult& r, const StudySpec& spec
                     {"replicates", ref.replicates},
                     {"agreement_max_z", JsonNumber(ref.agreement_max_z)},
                     {"agreement_mean_z2", JsonNumber(ref.agreement_mean_z2)},
+                    {"agreement_resolution", JsonNumber(ref.agreement_resolution)},
                     {"agree", ref.agree},
                     {"note", ref.note},
                     {"seconds", ref.seconds},
@@ -215,6 +216,7 @@ absl::StatusOr<study::StudyResult> StudyResultFromJson(const Json& doc) {
     f.Ints("replicates", &ref.replicates);
     f.Number("agreement_max_z", &ref.agreement_max_z);
     f.Number("agreement_mean_z2", &ref.agreement_mean_z2);
+    f.Number("agreement_resolution", &ref.agreement_resolution);  // absent before 2026-11-24
     f.Bool("agree", &ref.agree);
     f.Text("note", &ref.note);
     f.Number("seconds", &ref.seconds);

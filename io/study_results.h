@@ -8,7 +8,8 @@
 //          "options": {...the study's options...},
 //          "references": [{"horizon", "norm", "relative_error", "floor",
 //                          "objective", "used", "replicates",
-//                          "agreement_max_z", "agreement_mean_z2", "agree",
+//                          "agreement_max_z", "agreement_mean_z2",
+//                          "agreement_resolution", "agree",
 //                          "note", "seconds", "gradient", "standard_error"}],
 //          "cells": [{"estimator", "method", "particles", "horizon",
 //                     "replicates", "nonfinite", "errors", "error",
@@ -17,7 +18,8 @@
 //                     "rel_bias_noise", "total_variance", "cos_mean",
 //                     "objective_mean", "ess_mean", "ess_min", "k_lr_mean",
 //                     "k_lr_per_step", "reference_agrees"}]}
-// Files written before "scene" existed read with an empty scene.
+// Files written before "scene" existed read with an empty scene, before
+// "agreement_resolution" existed with NaN (not computed).
 #ifndef TOTALGRAD_IO_STUDY_RESULTS_H_
 #define TOTALGRAD_IO_STUDY_RESULTS_H_
 

@@ -55,6 +55,7 @@ std::string StudySummaryMarkdown(const std::vector<LabelledStudy>& studies,
     os << "---|\n";
     bool any_below_floor = false;
     bool any_useless = false;  // a relative error >= 1: no better than a zero gradient
+    bool any_unchecked = false;  // the references' agreement check had no power
     for (const study::EqualTimeRow& row : cmp.rows) {
       os << "| " << row.horizon << " | " << SecondsText(row.seconds) << " | ";
       if (!row.reference_agrees) {
@@ -64,15 +65,19 @@ std::string StudySummaryMarkdown(const std::vector<LabelledStudy>& studies,
         continue;
       }
       if (row.winner.empty()) {
-        os << "n/a (no estimator measured at this time) |";
+        any_unchecked = any_unchecked || !row.reference_checked;
+        os << "n/a (no estimator measured at this time)" << (row.reference_checked ? "" : "†")
+           << " |";
         for (size_t e = 0; e < labels.size(); ++e) os << " n/a |";
         os << " " << BestWithin(row) << " |\n";
         continue;
       }
       any_below_floor = any_below_floor || row.winner_below_floor;
+      any_unchecked = any_unchecked || !row.reference_checked;
       const bool useless = row.winner_error >= 1.0;
       any_useless = any_useless || useless;
       os << row.winner << " " << Sig(row.winner_error, 3) << (row.winner_below_floor ? "*" : "")
+         << (row.reference_checked ? "" : "†")
          << (useless ? " (≥ 1)" : "") << " |";
       for (size_t e = 0; e < labels.size(); ++e) {
         os << " " << (labels[e] == row.winner ? std::string("1") : Sig(row.ratios[e], 2)) << " |";
@@ -90,6 +95,11 @@ std::string StudySummaryMarkdown(const std::vector<LabelledStudy>& studies,
       os << "Last column: a cell measured in less than the row's time with a lower error than the "
             "winner's (or than anything, where no curve reaches that time): its estimator's "
             "largest P was faster than the time, so it is n/a there, but it did better.\n\n";
+    }
+    if (any_unchecked) {
+      os << "†: the reference estimators' agreement check had no power at this horizon (a "
+            "difference between them as large as |g\\*| would pass): g\\* rests on the more "
+            "precise one alone.\n\n";
     }
     if (any_useless) {
       os << "(≥ 1): the lowest relative error is 1 or more: no estimator does better than a zero "
@@ -130,6 +140,7 @@ OrderedJson StudySummaryJson(const std::vector<LabelledStudy>& studies,
       rows.push_back({{"horizon", row.horizon},
                       {"seconds", row.seconds},
                       {"reference_agrees", row.reference_agrees},
+                      {"reference_checked", row.reference_checked},
                       {"floor", JsonNumber(row.floor)},
                       {"winner", row.winner.empty() ? OrderedJson(nullptr) : OrderedJson(row.winner)},
                       {"winner_error", JsonNumber(row.winner_error)},

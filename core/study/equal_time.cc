@@ -77,6 +77,7 @@ EqualTimeComparison CompareAtEqualTime(const StudyResult& result, const std::vec
       row.horizon = h;
       row.seconds = t;
       row.reference_agrees = ref.agree;
+      row.reference_checked = !(ref.agreement_resolution > 1.0);
       row.floor = ref.floor > 0 ? ref.floor : CellResult::kNaN;
       row.estimators = particle_estimators;
       for (const auto& curve : curves) row.errors.push_back(InterpolateErrorAtTime(curve, t));

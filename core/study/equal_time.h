@@ -54,6 +54,10 @@ struct EqualTimeRow {
   int horizon = 0;
   double seconds = 0;                // T, seconds per gradient
   bool reference_agrees = true;
+  // False where the agreement check had no power (ReferenceGradient::
+  // agreement_resolution > 1): g* rests on one estimator; the winner is
+  // still named, marked. True where the resolution is unknown (NaN).
+  bool reference_checked = true;
   double floor = CellResult::kNaN;   // the reference's 1.96 |SE| / |g*|
   std::string winner;                // empty: no winner (disagreement, or none measured at T)
   double winner_error = CellResult::kNaN;

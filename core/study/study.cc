@@ -238,6 +238,21 @@ ReferenceGradient ComputeReference(const estimators::Problem& problem, const Stu
   }
   ref.agreement_max_z = max_z;
   ref.agreement_mean_z2 = used > 0 ? sum_z2 / used : 0.0;
+  if (ref.norm > 0) {
+    ref.agreement_resolution =
+        1.96 * (ses[0].cwiseAbs2() + ses[1].cwiseAbs2()).cwiseSqrt().norm() / ref.norm;
+    if (ref.agreement_resolution > 1.0) {
+      const double n0 = ses[0].norm(), n1 = ses[1].norm();
+      const size_t precise = n0 <= n1 ? 0 : 1;
+      absl::StrAppend(&ref.note, "the agreement check has no power: a difference of ",
+                      absl::StrFormat("%.3g", ref.agreement_resolution), " |g*| between ",
+                      ref.used[0], " and ", ref.used[1], " would pass (|SE| of ",
+                      ref.used[1 - precise], " ",
+                      absl::StrFormat("%.3g", precise == 0 ? n1 / std::max(n0, 1e-300)
+                                                           : n0 / std::max(n1, 1e-300)),
+                      " x ", ref.used[precise], "'s); g* rests on ", ref.used[precise], "; ");
+    }
+  }
   ref.agree = max_z <= ro.agreement_max_z && ref.agreement_mean_z2 <= ro.agreement_mean_z2;
   if (!ref.agree) {
     absl::StrAppend(&ref.note, ref.used[0], " and ", ref.used[1], " disagree (max |z| ",

@@ -123,6 +123,14 @@ struct ReferenceGradient {
   std::vector<int> replicates;     // per used estimator
   double agreement_max_z = 0;      // between the first two used estimators
   double agreement_mean_z2 = 0;
+  // The power of that check: 1.96 |sqrt(SE_a^2 + SE_b^2)| / |g*|, about the
+  // relative difference between the two estimators' means that would still
+  // pass. Above 1 a difference as large as g* itself passes: the check has
+  // no power (one estimator's SE dwarfs the other's, e.g. RP where its
+  // pathwise gradients explode), "agree" says nothing, and g* rests on the
+  // more precise estimator; the note says so. NaN: not computed (fewer than
+  // two estimators, |g*| = 0, or results written before it existed).
+  double agreement_resolution = std::numeric_limits<double>::quiet_NaN();
   bool agree = true;               // false also when fewer than two could be used
   std::string note;                // what was left out and why
   double seconds = 0;

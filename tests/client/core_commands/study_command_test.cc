@@ -438,5 +438,60 @@ TEST(SceneStudyProblems, RpOnThePendulumStudyIsTheExactDerivativeOfItsSampleObje
               r.max_abs_error);
 }
 
+// The same problem at H = 10, where RP's error is 1e3 |g*| (the committed
+// study): RP's standard error dwarfs LR(plain, loo)'s, so the references'
+// agreement check cannot fail; the reference says so (agreement_resolution
+// > 1, the note names the estimator g* rests on), and the summary marks the
+// winner. (A reference with power: SceneSynthetic.EveryOneControlSceneRunsTheStudy.)
+TEST(SceneStudyProblems, AReferenceCheckWithoutPowerIsNamed) {
+  const std::filesystem::path docs =
+      std::filesystem::path(__FILE__).parent_path() / "../../../docs/error-vs-time";
+  for (const auto& [scene, powerless] :
+       std::vector<std::pair<std::string, bool>>{{"pendulum", true}}) {
+    const std::string file = (docs / scene / "study.json").string();
+    absl::StatusOr<nlohmann::json> doc = io::ReadStudyDocument(file);
+    TG_ASSERT_OK(doc.status());
+    absl::StatusOr<io::StudySpec> spec =
+        io::ParseStudySpec(*doc, std::filesystem::path(file).parent_path().string());
+    TG_ASSERT_OK(spec.status());
+    absl::StatusOr<std::unique_ptr<study::FrozenProblem>> frozen = io::LoadStudyProblem(*spec);
+    TG_ASSERT_OK(frozen.status());
+    study::StudyOptions o;
+    o.estimators = {{"RP", estimators::Method::kRp, {}}};
+    o.particles = {10, 30};
+    o.horizons = {10};
+    o.replicates = 4;
+    o.reference.particles = 100;
+    o.reference.replicates = 20;
+    absl::StatusOr<study::StudyResult> r = study::RunStudy(**frozen, o);
+    TG_ASSERT_OK(r.status());
+    ASSERT_EQ(r->references.size(), 1u);
+    const study::ReferenceGradient& ref = r->references[0];
+    EXPECT_TRUE(ref.agree) << scene << ": " << ref.note;
+    ASSERT_TRUE(std::isfinite(ref.agreement_resolution)) << scene;
+    std::printf("  %s: agreement resolution %.3g; %s\n", scene.c_str(), ref.agreement_resolution,
+                ref.note.c_str());
+    if (powerless) {
+      EXPECT_GT(ref.agreement_resolution, 1.0);
+      EXPECT_THAT(ref.note, HasSubstr("the agreement check has no power"));
+      EXPECT_THAT(ref.note, HasSubstr("g* rests on LR(plain,loo)"));
+    } else {
+      EXPECT_LT(ref.agreement_resolution, 1.0) << ref.note;
+      EXPECT_THAT(ref.note, ::testing::Not(HasSubstr("no power")));
+    }
+    // Written and read back, and marked in the summary.
+    const std::string out = Dir("power_" + scene);
+    io::StudySpec written = *spec;
+    written.options = o;
+    std::ofstream(out + "/results.json") << io::StudyResultToJson(*r, written).dump();
+    absl::StatusOr<study::StudyResult> read = io::ReadStudyResultFile(out);
+    TG_ASSERT_OK(read.status());
+    EXPECT_EQ(read->references[0].agreement_resolution, ref.agreement_resolution);
+    CommandRun run = RunCommand({"study", "summary", scene + "=" + out, "--seconds", "1e-9"});
+    ASSERT_EQ(run.exit_code, 0) << run.err;
+    EXPECT_EQ(run.out.find("had no power") != std::string::npos, powerless) << run.out;
+  }
+}
+
 }  // namespace
 }  // namespace totalgrad::cli

@@ -191,5 +191,19 @@ TEST(CompareAtEqualTime, NamesALowerErrorMeasuredInLessTime) {
   EXPECT_TRUE(CompareAtEqualTime(TwoEstimatorStudy(false), {0.2}).rows[0].best_within.empty());
 }
 
+// A reference whose agreement check had no power (resolution > 1) still
+// gives a winner, marked unchecked; an unknown resolution (older results)
+// counts as checked.
+TEST(CompareAtEqualTime, MarksRowsWhoseReferenceCheckHadNoPower) {
+  StudyResult r = TwoEstimatorStudy(true);
+  EXPECT_TRUE(CompareAtEqualTime(r, {1e-2}).rows[0].reference_checked);  // NaN
+  r.references[0].agreement_resolution = 0.3;
+  EXPECT_TRUE(CompareAtEqualTime(r, {1e-2}).rows[0].reference_checked);
+  r.references[0].agreement_resolution = 160;
+  const EqualTimeRow row = CompareAtEqualTime(r, {1e-2}).rows[0];
+  EXPECT_FALSE(row.reference_checked);
+  EXPECT_EQ(row.winner, "A");
+}
+
 }  // namespace
 }  // namespace totalgrad::study

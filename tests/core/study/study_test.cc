@@ -446,12 +446,17 @@ TEST(SceneSynthetic, EveryOneControlSceneRunsTheStudy) {
     EXPECT_EQ(r->scene, c.scene);
     ASSERT_EQ(r->references.size(), 1u);
     EXPECT_TRUE(r->references[0].agree) << c.scene << ": " << r->references[0].note;
-    std::printf("  %s: reference max |z| %.3g, mean z^2 %.3g, floor %.3g\n", c.scene,
-                r->references[0].agreement_max_z, r->references[0].agreement_mean_z2,
-                r->references[0].floor);
+    std::printf("  %s: reference max |z| %.3g, mean z^2 %.3g, floor %.3g, resolution %.3g; %s\n",
+                c.scene, r->references[0].agreement_max_z, r->references[0].agreement_mean_z2,
+                r->references[0].floor, r->references[0].agreement_resolution,
+                r->references[0].note.c_str());
     // The agreement means something only if the reference is precise: its
     // noise floor is small (measured 0.013-0.047 here).
     EXPECT_LT(r->references[0].floor, 0.1) << c.scene;
+    // ... and the check has power: a difference between RP and LR(plain,
+    // loo) as large as |g*| would fail it (resolution measured 0.07-0.29).
+    EXPECT_LT(r->references[0].agreement_resolution, 1.0) << c.scene;
+    EXPECT_THAT(r->references[0].note, Not(HasSubstr("no power"))) << c.scene;
     // The unbiased estimators converge to g*: 10x the particles cut their
     // error by ~sqrt(10) = 3.2 (measured 2.3-4.6 with 8 replicates); a bias
     // or a wrong g* would stop it.
