@@ -12,6 +12,8 @@
 #include "core/common/option_table.h"
 #include "core/estimators/method.h"
 #include "core/learner/trial.h"
+#include "core/learner/trial_options.h"
+#include "core/tasks/scene_catalog.h"
 #include "io/snapshot_json.h"
 
 namespace totalgrad::io {
@@ -192,7 +194,7 @@ absl::StatusOr<StudySpec> ParseStudySpec(const Json& doc, const std::string& bas
     if (!synthetic->is_object()) return absl::InvalidArgumentError("problem.synthetic: not an object");
     if (absl::Status st = CheckKeys(*synthetic, "problem.synthetic",
                                     {"data", "horizon", "basis_functions", "cost", "scene", "seed",
-                                     "train_iterations"});
+                                     "train_iterations", "angle_features"});
         !st.ok()) {
       return st;
     }
@@ -215,6 +217,19 @@ absl::StatusOr<StudySpec> ParseStudySpec(const Json& doc, const std::string& bas
         return absl::InvalidArgumentError(w + "seed: not a non-negative integer");
       }
       o.seed = v->get<uint64_t>();
+    }
+    if (const Json* v = Find(*synthetic, "angle_features"); v != nullptr) {
+      const std::string text = v->is_string() ? v->get<std::string>() : "";
+      if (absl::Status st = ParseEnum("angle_features", text, learner::AngleFeaturesNames(),
+                                      &spec.synthetic_angle_features);
+          !st.ok()) {
+        return absl::InvalidArgumentError(absl::StrCat(w, st.message()));
+      }
+    }
+    if (tasks::FindSceneDefinition(o.scene) == nullptr) {
+      return absl::InvalidArgumentError(absl::StrCat(w, "scene: unknown scene '", o.scene,
+                                                     "' (known: ", absl::StrJoin(tasks::SceneNames(), ", "),
+                                                     ")"));
     }
   } else {
     return absl::InvalidArgumentError("problem: needs 'snapshot' or 'synthetic'");
@@ -270,7 +285,9 @@ absl::StatusOr<StudySpec> ParseStudySpec(const Json& doc, const std::string& bas
 }
 
 absl::StatusOr<std::unique_ptr<study::FrozenProblem>> LoadStudyProblem(const StudySpec& spec) {
-  if (!spec.from_snapshot) return study::FrozenProblemFromSynthetic(spec.synthetic);
+  if (!spec.from_snapshot) {
+    return study::FrozenProblemFromSynthetic(spec.synthetic, spec.synthetic_angle_features);
+  }
   absl::StatusOr<std::vector<learner::TrialSnapshot>> snapshots =
       spec.snapshot_file.empty() ? absl::StatusOr<std::vector<learner::TrialSnapshot>>(
                                        spec.inline_snapshots)
@@ -356,6 +373,43 @@ absl::StatusOr<Json> InlineStudyDocument(const Json& doc, const std::string& bas
   file["snapshots"] = std::move(kept);
   Json out = doc;
   out["problem"]["snapshot"] = std::move(file);
+  return out;
+}
+
+absl::StatusOr<Json> SetStudyScene(const Json& doc, const std::string& scene) {
+  if (tasks::FindSceneDefinition(scene) == nullptr) {
+    return absl::InvalidArgumentError(absl::StrCat("scene: unknown scene '", scene, "' (known: ",
+                                                   absl::StrJoin(tasks::SceneNames(), ", "), ")"));
+  }
+  if (!doc.is_object()) return absl::InvalidArgumentError("study file: not a JSON object");
+  const Json* problem = Find(doc, "problem");
+  if (problem == nullptr || !problem->is_object()) {
+    return absl::InvalidArgumentError("study file: missing object 'problem'");
+  }
+  Json out = doc;
+  if (const Json* synthetic = Find(*problem, "synthetic"); synthetic != nullptr) {
+    if (!synthetic->is_object()) return absl::InvalidArgumentError("problem.synthetic: not an object");
+    out["problem"]["synthetic"]["scene"] = scene;
+    return out;
+  }
+  const Json* snapshot = Find(*problem, "snapshot");
+  if (snapshot == nullptr || !snapshot->is_object()) {
+    return absl::InvalidArgumentError(
+        "scene: needs a synthetic problem or an inlined snapshot (a snapshot file is read first)");
+  }
+  absl::StatusOr<std::vector<learner::TrialSnapshot>> snapshots = SnapshotsFromJson(*snapshot);
+  if (!snapshots.ok() || snapshots->empty()) {
+    return absl::InvalidArgumentError("scene: the inlined snapshot cannot be read");
+  }
+  // InlineStudyDocument keeps only the snapshot the study uses.
+  std::string snapshot_scene = learner::TrialOptions{}.scene.scene;
+  for (const auto& [key, value] : snapshots->front().options) {
+    if (key == "scene") snapshot_scene = value;
+  }
+  if (snapshot_scene != scene) {
+    return absl::InvalidArgumentError(absl::StrCat("scene: the study's snapshot is of scene '",
+                                                   snapshot_scene, "', not '", scene, "'"));
+  }
   return out;
 }
 

@@ -13,7 +13,13 @@
 //                "policy": "before" | "after"}    // ["before"]
 //            or {"synthetic": {"data": 450, "horizon": 30, "basis_functions": 50,
 //                              "cost": "angle", "scene": "cartpole-swingup",
-//                              "seed": 1, "train_iterations": 0}},
+//                              "seed": 1, "train_iterations": 0,
+//                              "angle_features": "auto" | "raw" | "sincos"}},
+// A snapshot problem is on the trial's scene and features (raw or sin/cos;
+// study::FrozenProblemFromSnapshot). A synthetic problem is on `scene` (any
+// one-control scene of `totalgrad scenes`); on the cart-pole scenes with raw
+// features (`auto` there) it is the paper's synthetic cart-pole problem,
+// elsewhere study::FrozenProblemFromScene on the scene's index sets.
 //    "estimators": ["RP", "LR", ..., "PILCO",     // [every registered method + PILCO]
 //                   {"label": "LR(plain,loo)", "method": "LR",
 //                    "options": {"lr_weights": "plain", "lr_baseline": "loo"}}],
@@ -42,6 +48,7 @@
 #include "absl/status/statusor.h"
 #include "core/estimators/synthetic_problem.h"
 #include "core/learner/trial.h"
+#include "core/learner/trial_options.h"
 #include "core/study/frozen_problem.h"
 #include "core/study/study.h"
 
@@ -54,6 +61,7 @@ struct StudySpec {
   int snapshot_episode = -1;  // -1: the first snapshot in the file
   study::SnapshotPolicy snapshot_policy = study::SnapshotPolicy::kBefore;
   estimators::SyntheticProblemOptions synthetic;
+  learner::AngleFeatures synthetic_angle_features = learner::AngleFeatures::kAuto;
   study::StudyOptions options;
   int sweep_particles = 100;
 };
@@ -73,6 +81,13 @@ absl::StatusOr<nlohmann::json> ReadStudyDocument(const std::string& path);
 // Errors name the snapshot file and what is wrong with it.
 absl::StatusOr<nlohmann::json> InlineStudyDocument(const nlohmann::json& doc,
                                                    const std::string& base_dir);
+
+// A study document whose problem is on `scene`: a synthetic problem's
+// problem.synthetic.scene is set to it; a snapshot problem (inlined, see
+// InlineStudyDocument) must already be on it. InvalidArgument naming the
+// scene when it is unknown, or when the snapshot's scene differs, or when the
+// snapshot is still a file name. For `scene = "..."` in a sweep's [[study]].
+absl::StatusOr<nlohmann::json> SetStudyScene(const nlohmann::json& doc, const std::string& scene);
 
 // Builds the frozen problem the spec names (reads the snapshot file, or
 // uses the inlined snapshots).

@@ -30,6 +30,7 @@
 #include "core/learner/trial_options.h"
 #include "core/pilco/angle_features.h"
 #include "core/policy/rbf_policy.h"
+#include "core/study/frozen_problem.h"
 #include "core/tasks/scene.h"
 
 namespace totalgrad::cli {
@@ -48,15 +49,12 @@ struct BenchState {
 };
 
 // A frozen problem on a scene of the catalog, for timing an iteration there:
-// N transitions of the scene's plant from states spread around its start and
-// target (each dimension uniform over [min(mu0, target) - 1, max(mu0,
-// target) + 1]), controls uniform within the bounds, observation noise of
-// the scene; the GP on the scene's features (angle_features = auto: its
-// index sets) with PILCO's initial hyperparameters; a random RBF policy.
+// the study's synthetic scene problem (study::MakeSceneSyntheticProblem: N
+// random transitions of the scene's plant, the GP on the scene's features
+// with PILCO's initial hyperparameters, a random RBF policy), seed 1.
 struct SceneBenchProblem {
   tasks::Scene scene;
-  std::unique_ptr<policy::RbfPolicy> policy;
-  std::unique_ptr<learner::ModelProblem> model;
+  study::SceneSyntheticProblem built;
 };
 
 absl::StatusOr<std::unique_ptr<SceneBenchProblem>> MakeSceneBenchProblem(const std::string& name,
@@ -69,51 +67,14 @@ absl::StatusOr<std::unique_ptr<SceneBenchProblem>> MakeSceneBenchProblem(const s
   if (!scene.ok()) return scene.status();
   auto out = std::make_unique<SceneBenchProblem>();
   out->scene = *std::move(scene);
-  const tasks::Scene& sc = out->scene;
-  const int d = sc.state_dim(), f_count = sc.control_dim();
-  Rng rng(1, Stream::kStudy, 1);
-  learner::Transitions transitions;
-  transitions.states.resize(data, d);
-  transitions.next_states.resize(data, d);
-  transitions.forces.resize(data * f_count);  // N F, transition-major
-  const Vector lo = sc.mu0.cwiseMin(sc.target).array() - 1.0;
-  const Vector hi = sc.mu0.cwiseMax(sc.target).array() + 1.0;
-  for (int n = 0; n < data; ++n) {
-    Vector x(d);
-    for (int m = 0; m < d; ++m) x(m) = rng.Uniform(lo(m), hi(m));
-    // Each control uniform in its bounds, drawn in control order (one
-    // control: the one draw it always was).
-    Vector u(f_count);
-    for (int j = 0; j < f_count; ++j) u(j) = rng.Uniform(-sc.max_control(j), sc.max_control(j));
-    Vector next;
-    if (absl::Status st = sc.plant->Step(x, u, &next); !st.ok()) return st;
-    for (int m = 0; m < d; ++m) next(m) += sc.observation_noise_std(m) * rng.Normal();
-    transitions.states.row(n) = x.transpose();
-    transitions.next_states.row(n) = next.transpose();
-    transitions.forces.segment(n * f_count, f_count) = u;
-  }
-  learner::TrialOptions trial;
-  trial.scene = options;
-  const std::vector<int> angles = learner::FeatureAngles(trial, sc);
-  const learner::GpTrainingSet set = learner::MakeGpTrainingSet(transitions, angles);
-  const gp::GpHyperparameters hyp = gp::InitialHyperparameters(set.inputs, set.targets);
-  out->policy = std::make_unique<policy::RbfPolicy>(
-      trial.basis_functions, pilco::FeatureDim(d, angles), sc.max_control);
-  Rng policy_rng(1, Stream::kPolicyInit);
-  RowMatrix centres;
-  policy::RbfPolicy raw(trial.basis_functions, d, sc.max_control);
-  raw.Initialize(sc.mu0, Vector::Constant(d, 1.0), 1.0, &policy_rng);
-  pilco::StatesToFeatures(raw.centres(), angles, &centres);
-  Vector params(out->policy->num_parameters());
-  const int c = trial.basis_functions, f = out->policy->state_dim();
-  Eigen::Map<RowMatrix>(params.data(), c, f) = centres;
-  params.segment(c * f, f).setZero();
-  params.tail(raw.weights().size()) = raw.weights();  // C x F
-  out->policy->set_parameters(params);
-  absl::StatusOr<learner::ModelProblem> model = learner::ModelProblem::Build(
-      set, hyp, learner::SparseModelFit{}, angles, out->policy.get(), sc, 1.0, pool);
-  if (!model.ok()) return model.status();
-  out->model = std::make_unique<learner::ModelProblem>(*std::move(model));
+  study::SceneSyntheticOptions synthetic;
+  synthetic.data = data;
+  synthetic.horizon = horizon;
+  synthetic.basis_functions = learner::TrialOptions{}.basis_functions;
+  absl::StatusOr<study::SceneSyntheticProblem> built =
+      study::MakeSceneSyntheticProblem(out->scene, synthetic, pool);
+  if (!built.ok()) return built.status();
+  out->built = *std::move(built);
   return out;
 }
 
@@ -208,8 +169,8 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
         return;
       }
       on_scene = *std::move(problem);
-      full_model = on_scene->model->full_model();
-      p = on_scene->model->problem();
+      full_model = on_scene->built.model->full_model();
+      p = on_scene->built.model->problem();
     }
     absl::StatusOr<estimators::Method> method = estimators::ParseMethod(state->method);
     absl::StatusOr<std::unique_ptr<estimators::Estimator>> estimator =

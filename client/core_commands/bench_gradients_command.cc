@@ -73,6 +73,11 @@ void AddBenchGradientsCommand(CLI::App* bench, int* exit_code) {
         *snapshot, state->policy == "after" ? study::SnapshotPolicy::kAfter
                                             : study::SnapshotPolicy::kBefore);
     if (!frozen.ok()) return fail(2, std::string(frozen.status().message()));
+    if (!(*frozen)->angle_indices.empty()) {
+      // The adapters below wrap the raw-state GP and policy only.
+      return fail(2, "the snapshot's model and policy are on (sin, cos) angle features; bench "
+                     "gradients takes raw-state snapshots (`totalgrad study` takes both)");
+    }
     absl::StatusOr<estimators::Method> method = estimators::ParseMethod(state->method);
     if (!method.ok()) return fail(2, std::string(method.status().message()));
     absl::StatusOr<std::unique_ptr<estimators::Estimator>> estimator =

@@ -8,6 +8,7 @@
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
 #include "core/common/blas.h"
+#include "io/study_results.h"
 
 namespace totalgrad::cli {
 namespace {
@@ -15,19 +16,10 @@ namespace {
 using io::StudyCellNote;
 using io::StudySpec;
 
-using Json = nlohmann::json;
 using OrderedJson = nlohmann::ordered_json;
 
 std::string Num(double v, const char* format = "%.3g") {
   return std::isfinite(v) ? absl::StrFormat(format, v) : std::string("-");
-}
-
-OrderedJson JsonNumber(double v) { return std::isfinite(v) ? OrderedJson(v) : OrderedJson(nullptr); }
-
-OrderedJson VectorJson(const Vector& v) {
-  OrderedJson a = OrderedJson::array();
-  for (Eigen::Index i = 0; i < v.size(); ++i) a.push_back(JsonNumber(v(i)));
-  return a;
 }
 
 }  // namespace
@@ -41,7 +33,8 @@ const study::ReferenceGradient* ReferenceFor(const study::StudyResult& r, int ho
 
 std::string StudyTableText(const study::StudyResult& r) {
   std::ostringstream os;
-  os << "problem: " << r.source << "; " << r.num_parameters << " policy parameters; study "
+  os << "problem: " << r.source << (r.scene.empty() ? "" : "; scene " + r.scene) << "; "
+     << r.num_parameters << " policy parameters; study "
      << Num(r.seconds, "%.1f") << " s\n\n";
   os << "reference gradients (pooled; floor = 1.96 |SE| / |g*|):\n";
   os << absl::StrFormat("%5s %10s %9s %8s %9s %-28s %8s %8s %5s  %s\n", "H", "|g*|", "rel_SE",
@@ -128,77 +121,7 @@ std::string StudyReferenceCsv(const study::StudyResult& r) {
 }
 
 OrderedJson StudyToJson(const study::StudyResult& r, const StudySpec& spec) {
-  OrderedJson j;
-  j["source"] = r.source;
-  j["num_parameters"] = r.num_parameters;
-  j["seconds"] = r.seconds;
-  j["blas"] = BlasConfig();
-  const study::StudyOptions& o = spec.options;
-  OrderedJson estimators = OrderedJson::array();
-  for (const auto& e : o.estimators) estimators.push_back(e.label);
-  OrderedJson ref_estimators = OrderedJson::array();
-  for (const auto& e : o.reference.estimators) ref_estimators.push_back(e.label);
-  j["options"] = {{"estimators", estimators},
-                  {"particles", o.particles},
-                  {"horizons", o.horizons},
-                  {"replicates", o.replicates},
-                  {"seed", o.seed},
-                  {"cell_budget_seconds", o.cell_budget_seconds},
-                  {"ess_replicates", o.ess_replicates},
-                  {"reference", {{"estimators", ref_estimators},
-                                 {"particles", o.reference.particles},
-                                 {"replicates", o.reference.replicates},
-                                 {"agreement_max_z", o.reference.agreement_max_z},
-                                 {"agreement_mean_z2", o.reference.agreement_mean_z2}}}};
-  OrderedJson refs = OrderedJson::array();
-  for (const auto& ref : r.references) {
-    refs.push_back({{"horizon", ref.horizon},
-                    {"norm", JsonNumber(ref.norm)},
-                    {"relative_error", JsonNumber(ref.relative_error)},
-                    {"floor", JsonNumber(ref.floor)},
-                    {"objective", JsonNumber(ref.objective)},
-                    {"used", ref.used},
-                    {"replicates", ref.replicates},
-                    {"agreement_max_z", JsonNumber(ref.agreement_max_z)},
-                    {"agreement_mean_z2", JsonNumber(ref.agreement_mean_z2)},
-                    {"agree", ref.agree},
-                    {"note", ref.note},
-                    {"seconds", ref.seconds},
-                    {"gradient", VectorJson(ref.gradient)},
-                    {"standard_error", VectorJson(ref.standard_error)}});
-  }
-  j["references"] = refs;
-  OrderedJson cells = OrderedJson::array();
-  for (const auto& c : r.cells) {
-    OrderedJson k_lr = OrderedJson::array();
-    for (double v : c.k_lr_per_step) k_lr.push_back(JsonNumber(v));
-    cells.push_back({{"estimator", c.estimator},
-                     {"method", c.method},
-                     {"particles", c.particles},
-                     {"horizon", c.horizon},
-                     {"replicates", c.replicates},
-                     {"nonfinite", c.nonfinite},
-                     {"errors", c.errors},
-                     {"error", c.error},
-                     {"budget_hit", c.budget_hit},
-                     {"omitted", c.omitted},
-                     {"omission_reason", c.omission_reason},
-                     {"time_min_s", JsonNumber(c.time_min_s)},
-                     {"time_median_s", JsonNumber(c.time_median_s)},
-                     {"rel_rmse", JsonNumber(c.rel_rmse)},
-                     {"rel_bias", JsonNumber(c.rel_bias)},
-                     {"rel_bias_noise", JsonNumber(c.rel_bias_noise)},
-                     {"total_variance", JsonNumber(c.total_variance)},
-                     {"cos_mean", JsonNumber(c.cos_mean)},
-                     {"objective_mean", JsonNumber(c.objective_mean)},
-                     {"ess_mean", JsonNumber(c.ess_mean)},
-                     {"ess_min", JsonNumber(c.ess_min)},
-                     {"k_lr_mean", JsonNumber(c.k_lr_mean)},
-                     {"k_lr_per_step", k_lr},
-                     {"reference_agrees", c.reference_agrees}});
-  }
-  j["cells"] = cells;
-  return j;
+  return io::StudyResultToJson(r, spec);
 }
 
 }  // namespace totalgrad::cli

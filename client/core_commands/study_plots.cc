@@ -142,7 +142,8 @@ absl::StatusOr<std::vector<std::string>> WriteStudyPlots(const study::StudyResul
        << "set xlabel 'seconds per gradient (min of single-threaded runs)'\n"
        << "set ylabel 'relative RMSE vs reference'\nset grid\nset key outside right top\n"
        << "set multiplot layout " << rows << "," << cols
-       << " title 'error against run time, one curve per estimator (points: P); dashed: reference noise floor'\n";
+       << " title '" << (r.scene.empty() ? std::string() : r.scene + ": ")
+       << "error against run time, one curve per estimator (points: P); dashed: reference noise floor'\n";
     for (int hi = 0; hi < n; ++hi) {
       const study::ReferenceGradient* ref = ReferenceFor(r, horizons[hi]);
       gp << "set title 'H = " << horizons[hi] << (ref != nullptr && !ref->agree ? " (reference estimators disagree)" : "")
@@ -181,7 +182,8 @@ absl::StatusOr<std::vector<std::string>> WriteStudyPlots(const study::StudyResul
        << "set terminal pngcairo noenhanced size 1240,470 font ',9'\n"
        << "set output " << Quote((fs::path(dir) / "horizon_sweep.png").string()) << "\n"
        << styles << "set grid\nset key outside right top\nset xlabel 'horizon H (steps)'\n"
-       << "set multiplot layout 1,2 title 'horizon sweep at P = " << sweep_p << "'\n";
+       << "set multiplot layout 1,2 title '" << (r.scene.empty() ? std::string() : r.scene + ": ")
+       << "horizon sweep at P = " << sweep_p << "'\n";
     bool any = false;
     for (const auto& c : r.cells) {
       any = any || (Plottable(c) && (c.particles == sweep_p || c.particles == 0));

@@ -3,19 +3,36 @@
 #include <utility>
 
 #include "absl/strings/str_cat.h"
+#include "core/common/rng.h"
+#include "core/gp/training.h"
+#include "core/pilco/angle_features.h"
 
 namespace totalgrad::study {
+namespace {
+
+// Snapshots, the RBF policy and the estimators' episodes carry one control so
+// far; a scene of more than one is refused here rather than half-handled.
+absl::Status CheckOneControl(const tasks::Scene& scene, const std::string& what) {
+  if (scene.control_dim() == 1) return absl::OkStatus();
+  return absl::InvalidArgumentError(absl::StrCat(
+      what, ": scene '", scene.name, "' has ", scene.control_dim(),
+      " controls; gradient studies take one-control scenes so far (the policy has one output)"));
+}
+
+std::string AnglesText(const std::vector<int>& angles) {
+  if (angles.empty()) return "raw state";
+  std::string text = "sin/cos of state";
+  for (int a : angles) absl::StrAppend(&text, " ", a);
+  return text;
+}
+
+}  // namespace
 
 absl::StatusOr<std::unique_ptr<FrozenProblem>> FrozenProblemFromSnapshot(
     const learner::TrialSnapshot& snapshot, SnapshotPolicy which) {
   absl::StatusOr<learner::TrialOptions> parsed = learner::TrialOptionsFromPairs(snapshot.options);
   if (!parsed.ok()) return absl::InvalidArgumentError(absl::StrCat("snapshot options: ", parsed.status().message()));
   const learner::TrialOptions& options = *parsed;
-  if (learner::UsesSinCosFeatures(options)) {
-    return absl::InvalidArgumentError(
-        "snapshot: the trial's model uses (sin, cos) angle features; gradient studies need the "
-        "raw-state model (run the trial with --angle-features raw)");
-  }
   absl::StatusOr<tasks::Scene> scene = tasks::MakeScene(options.scene);
   if (!scene.ok()) {
     return absl::InvalidArgumentError(absl::StrCat("snapshot scene: ", scene.status().message()));
@@ -39,26 +56,32 @@ absl::StatusOr<std::unique_ptr<FrozenProblem>> FrozenProblemFromSnapshot(
         "(run the trial with --gp-inducing 0)"));
   }
   auto out = std::make_unique<FrozenProblem>();
-  out->scene = std::make_unique<tasks::Scene>(*std::move(scene));
+  out->owned_scene = std::make_unique<tasks::Scene>(*std::move(scene));
+  const tasks::Scene& sc = *out->owned_scene;
+  out->scene = sc.name;
+  // The trial's features: the raw state, or the scene's angles as (sin, cos)
+  // (what the trial's learner used; learner::FeatureAngles decides for both).
+  out->angle_indices = learner::FeatureAngles(options, sc);
   out->owned_policy = std::make_unique<policy::RbfPolicy>(
-      options.basis_functions, d, out->scene->max_control);
+      options.basis_functions, pilco::FeatureDim(d, out->angle_indices), sc.max_control);
   const Vector& theta = which == SnapshotPolicy::kBefore ? snapshot.policy_parameters_before
                                                          : snapshot.policy_parameters;
   if (theta.size() != out->owned_policy->num_parameters()) {
     return absl::InvalidArgumentError(absl::StrCat(
         "snapshot: policy_parameters", which == SnapshotPolicy::kBefore ? "_before" : "",
-        " has ", theta.size(), " entries; ", options.basis_functions,
-        " basis functions on the raw state need ", out->owned_policy->num_parameters()));
+        " has ", theta.size(), " entries; ", options.basis_functions, " basis functions on the ",
+        AnglesText(out->angle_indices), " (", out->owned_policy->state_dim(), " inputs) need ",
+        out->owned_policy->num_parameters()));
   }
   out->owned_policy->set_parameters(theta);
   out->policy = out->owned_policy.get();
 
   // The trial's model of the episode: its training set and problem, built as
-  // the trial builds them (raw features, full GP, no thread pool).
+  // the trial builds them (its features, full GP, no thread pool).
   const learner::Transitions data{snapshot.states, snapshot.forces, snapshot.next_states};
   absl::StatusOr<learner::ModelProblem> model = learner::ModelProblem::Build(
-      learner::MakeGpTrainingSet(data, /*angle_indices=*/{}), snapshot.hyperparameters,
-      learner::SparseModelFit{}, /*angle_indices=*/{}, out->policy, *out->scene,
+      learner::MakeGpTrainingSet(data, out->angle_indices), snapshot.hyperparameters,
+      learner::SparseModelFit{}, out->angle_indices, out->policy, sc,
       options.model_noise_multiplier, /*pool=*/nullptr);
   if (!model.ok()) {
     return absl::Status(model.status().code(), absl::StrCat("snapshot ", model.status().message()));
@@ -71,23 +94,146 @@ absl::StatusOr<std::unique_ptr<FrozenProblem>> FrozenProblemFromSnapshot(
                              which == SnapshotPolicy::kBefore ? "before" : "after",
                              " the episode's optimisation), N = ", n, " transitions, cost ",
                              options.scene.cost);
+  if (!out->angle_indices.empty()) {
+    absl::StrAppend(&out->source, ", features ", AnglesText(out->angle_indices));
+  }
+  return out;
+}
+
+absl::StatusOr<SceneSyntheticProblem> MakeSceneSyntheticProblem(const tasks::Scene& scene,
+                                                                const SceneSyntheticOptions& options,
+                                                                ThreadPool* pool) {
+  if (options.data < 2) return absl::InvalidArgumentError("synthetic problem: data must be >= 2");
+  if (options.basis_functions < 1) {
+    return absl::InvalidArgumentError("synthetic problem: basis_functions must be >= 1");
+  }
+  const int d = scene.state_dim(), f_count = scene.control_dim();
+  Rng rng(options.seed, Stream::kStudy, 1);
+  learner::Transitions transitions;
+  transitions.states.resize(options.data, d);
+  transitions.next_states.resize(options.data, d);
+  transitions.forces.resize(options.data * f_count);  // N F, transition-major
+  const Vector lo = scene.mu0.cwiseMin(scene.target).array() - 1.0;
+  const Vector hi = scene.mu0.cwiseMax(scene.target).array() + 1.0;
+  for (int n = 0; n < options.data; ++n) {
+    Vector x(d);
+    for (int m = 0; m < d; ++m) x(m) = rng.Uniform(lo(m), hi(m));
+    // Each control uniform in its bounds, drawn in control order (one
+    // control: the one draw it always was).
+    Vector u(f_count);
+    for (int j = 0; j < f_count; ++j) u(j) = rng.Uniform(-scene.max_control(j), scene.max_control(j));
+    Vector next;
+    if (absl::Status st = scene.plant->Step(x, u, &next); !st.ok()) return st;
+    for (int m = 0; m < d; ++m) next(m) += scene.observation_noise_std(m) * rng.Normal();
+    transitions.states.row(n) = x.transpose();
+    transitions.next_states.row(n) = next.transpose();
+    transitions.forces.segment(n * f_count, f_count) = u;
+  }
+  // The features a particle method's trial would use on this scene.
+  const bool cartpole = scene.is_cartpole();
+  SceneSyntheticProblem out;
+  out.angle_indices =
+      learner::UsesSinCosFeatures(estimators::Method::kRp, options.angle_features, cartpole)
+          ? scene.angle_indices
+          : std::vector<int>();
+  const std::vector<int>& angles = out.angle_indices;
+  const learner::GpTrainingSet set = learner::MakeGpTrainingSet(transitions, angles);
+  gp::GpHyperparameters hyp = gp::InitialHyperparameters(set.inputs, set.targets);
+  if (options.train_iterations > 0) {
+    gp::TrainingOptions training;
+    training.max_iterations = options.train_iterations;
+    absl::StatusOr<gp::TrainingSummary> summary =
+        gp::TrainHyperparameters(set.inputs, set.targets, training, &hyp);
+    if (!summary.ok()) return summary.status();
+  }
+  // Centres drawn in the raw state, then mapped to the features (as the
+  // particle learner initialises a sin/cos policy); unit length-scales.
+  const int c = options.basis_functions;
+  out.policy = std::make_unique<policy::RbfPolicy>(c, pilco::FeatureDim(d, angles),
+                                                   scene.max_control);
+  Rng policy_rng(options.seed, Stream::kPolicyInit);
+  policy::RbfPolicy raw(c, d, scene.max_control);
+  raw.Initialize(scene.mu0, Vector::Constant(d, 1.0), 1.0, &policy_rng);
+  RowMatrix centres;
+  pilco::StatesToFeatures(raw.centres(), angles, &centres);
+  const int f = out.policy->state_dim();
+  Vector params(out.policy->num_parameters());
+  Eigen::Map<RowMatrix>(params.data(), c, f) = centres;
+  params.segment(c * f, f).setZero();
+  params.tail(raw.weights().size()) = raw.weights();  // C x F
+  out.policy->set_parameters(params);
+  absl::StatusOr<learner::ModelProblem> model =
+      learner::ModelProblem::Build(set, hyp, learner::SparseModelFit{}, angles, out.policy.get(),
+                                   scene, options.noise_variance_multiplier, pool);
+  if (!model.ok()) return model.status();
+  out.model = std::make_unique<learner::ModelProblem>(*std::move(model));
+  return out;
+}
+
+absl::StatusOr<std::unique_ptr<FrozenProblem>> FrozenProblemFromScene(
+    const tasks::Scene& scene, const SceneSyntheticOptions& options) {
+  // The study's cells take one control so far (the synthetic problem itself
+  // takes any: `bench iteration --scene` uses it on the double pendulum).
+  if (absl::Status st = CheckOneControl(scene, "synthetic problem"); !st.ok()) return st;
+  auto out = std::make_unique<FrozenProblem>();
+  out->owned_scene = std::make_unique<tasks::Scene>(scene);
+  out->owned_scene->horizon = options.horizon;
+  absl::StatusOr<SceneSyntheticProblem> built =
+      MakeSceneSyntheticProblem(*out->owned_scene, options, /*pool=*/nullptr);
+  if (!built.ok()) return built.status();
+  out->owned_policy = std::move(built->policy);
+  out->model_problem = std::move(built->model);
+  out->angle_indices = std::move(built->angle_indices);
+  out->policy = out->owned_policy.get();
+  out->model = out->model_problem->full_model();
+  out->problem = out->model_problem->problem();
+  out->problem.horizon = options.horizon;
+  out->scene = scene.name;
+  out->source = absl::StrCat("synthetic problem on scene ", scene.name, ", seed ", options.seed,
+                             ", N = ", options.data, " random transitions, features ",
+                             AnglesText(out->angle_indices),
+                             options.train_iterations > 0 ? ", trained GP" : ", untrained GP");
   return out;
 }
 
 absl::StatusOr<std::unique_ptr<FrozenProblem>> FrozenProblemFromSynthetic(
-    const estimators::SyntheticProblemOptions& options) {
-  absl::StatusOr<std::unique_ptr<estimators::SyntheticProblem>> synthetic =
-      estimators::MakeSyntheticProblem(options);
-  if (!synthetic.ok()) return synthetic.status();
-  auto out = std::make_unique<FrozenProblem>();
-  // The synthetic problem owns its pieces (heap objects): the pointers stay valid.
-  out->synthetic = *std::move(synthetic);
-  out->problem = out->synthetic->problem;
-  out->model = out->synthetic->model.get();
-  out->policy = out->synthetic->policy.get();
-  out->source = absl::StrCat("synthetic problem, seed ", options.seed, ", N = ", options.data,
-                             " random transitions, cost ", options.cost,
-                             options.train_iterations > 0 ? ", trained GP" : ", untrained GP");
+    const estimators::SyntheticProblemOptions& options, learner::AngleFeatures angle_features) {
+  const tasks::SceneDefinition* definition = tasks::FindSceneDefinition(options.scene);
+  const bool cartpole = definition == nullptr || definition->plant == tasks::PlantKind::kCartPole;
+  if (cartpole && !learner::UsesSinCosFeatures(estimators::Method::kRp, angle_features, true)) {
+    // The paper's synthetic cart-pole problem on the raw state, as before
+    // (existing study files give the same bits).
+    absl::StatusOr<std::unique_ptr<estimators::SyntheticProblem>> synthetic =
+        estimators::MakeSyntheticProblem(options);
+    if (!synthetic.ok()) return synthetic.status();
+    auto out = std::make_unique<FrozenProblem>();
+    // The synthetic problem owns its pieces (heap objects): the pointers stay valid.
+    out->synthetic = *std::move(synthetic);
+    out->problem = out->synthetic->problem;
+    out->model = out->synthetic->model.get();
+    out->policy = out->synthetic->policy.get();
+    out->scene = options.scene;
+    out->source = absl::StrCat("synthetic problem, seed ", options.seed, ", N = ", options.data,
+                               " random transitions, cost ", options.cost,
+                               options.train_iterations > 0 ? ", trained GP" : ", untrained GP");
+    return out;
+  }
+  tasks::SceneOptions scene_options;
+  scene_options.scene = options.scene;
+  scene_options.cost = options.cost;
+  scene_options.horizon = options.horizon;
+  absl::StatusOr<tasks::Scene> scene = tasks::MakeScene(scene_options);
+  if (!scene.ok()) return scene.status();
+  SceneSyntheticOptions scene_synthetic;
+  scene_synthetic.data = options.data;
+  scene_synthetic.horizon = options.horizon;
+  scene_synthetic.basis_functions = options.basis_functions;
+  scene_synthetic.seed = options.seed;
+  scene_synthetic.train_iterations = options.train_iterations;
+  scene_synthetic.angle_features = angle_features;
+  scene_synthetic.noise_variance_multiplier = options.noise_variance_multiplier;
+  absl::StatusOr<std::unique_ptr<FrozenProblem>> out = FrozenProblemFromScene(*scene, scene_synthetic);
+  if (out.ok()) absl::StrAppend(&(*out)->source, ", cost ", options.cost);
   return out;
 }
 

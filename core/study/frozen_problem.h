@@ -1,20 +1,27 @@
 // A frozen gradient problem for studies (study.h): a GP dynamics model, an
-// RBF policy at fixed parameters, the start distribution and the cost, owned
-// together with the estimators::Problem that points into them.
+// RBF policy at fixed parameters, the start distribution and the cost of one
+// scene, owned together with the estimators::Problem that points into them.
 //
-// Two sources:
+// Three sources:
 //  * a trial snapshot (learner::TrialSnapshot, saved at a chosen episode by
-//    `totalgrad trial --snapshot-episodes`): the problem is built from the
-//    snapshot's data and hyperparameters by the trial's own builder
-//    (learner::ModelProblem), so the model is the trial's model of that
-//    episode;
-//  * a synthetic problem (estimators::MakeSyntheticProblem).
+//    `totalgrad trial --snapshot-episodes`) on any one-control scene: the
+//    problem is built from the snapshot's data and hyperparameters by the
+//    trial's own builder (learner::ModelProblem) on the trial's features
+//    (learner::FeatureAngles: the raw state, or the scene's angles as (sin,
+//    cos)), so the model is the trial's model of that episode, bit for bit;
+//  * a synthetic problem on a scene of the catalog (SceneSyntheticOptions):
+//    a GP on random transitions of the scene's plant, on the scene's index
+//    sets, and a random RBF policy;
+//  * the paper's synthetic cart-pole problem (estimators::MakeSyntheticProblem,
+//    raw state), kept as it was so that existing study files give the same
+//    bits.
 //
-// Studies rebuild the raw-state model (GP inputs [x, u]); a snapshot whose
-// model was built on (sin, cos) angle features (PILCO's default, or any
-// method's with angle_features = sincos) is refused, and so is one whose model was a sparse GP (gp_inducing > 0 and
-// N > gp_inducing: snapshots do not keep the inducing inputs). PILCO's moment
-// matching runs on the same model and policy with angle_index -1 (study.h).
+// Refused by name: a snapshot whose model was a sparse GP (gp_inducing > 0
+// and N > gp_inducing: snapshots do not keep the inducing inputs), and a
+// synthetic problem on a scene of more than one control (RunStudy also
+// refuses a snapshot of one: the study's cells are one-control so far).
+// PILCO's moment matching runs on the same model and policy
+// with the problem's angle_indices (study.h).
 //
 // Thread safety: a FrozenProblem is immutable once built; share it read-only.
 #ifndef TOTALGRAD_CORE_STUDY_FROZEN_PROBLEM_H_
@@ -22,13 +29,16 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "absl/status/statusor.h"
+#include "core/common/thread_pool.h"
 #include "core/estimators/rollout.h"
 #include "core/estimators/synthetic_problem.h"
 #include "core/gp/gp.h"
 #include "core/learner/problem_builder.h"
 #include "core/learner/trial.h"
+#include "core/learner/trial_options.h"
 #include "core/policy/rbf_policy.h"
 #include "core/tasks/scene.h"
 
@@ -38,14 +48,21 @@ struct FrozenProblem {
   // The problem the estimators differentiate; its horizon is the scene's, a
   // study overrides it per cell.
   estimators::Problem problem;
-  const gp::GpModel* model = nullptr;         // the full GP its dynamics predict with (raw state)
-  const policy::RbfPolicy* policy = nullptr;  // the policy at the studied parameters
+  // The full GP its dynamics predict with, on the features of angle_indices
+  // (inputs [phi(x), u]).
+  const gp::GpModel* model = nullptr;
+  // The policy at the studied parameters, on the same features.
+  const policy::RbfPolicy* policy = nullptr;
+  // The state angles the model and the policy see as (sin, cos), strictly
+  // increasing; empty: the raw state.
+  std::vector<int> angle_indices;
+  std::string scene;  // the scene's name
   // Human-readable provenance, e.g. "trial snapshot, episode 3 (policy
   // before optimisation), N = 90".
   std::string source;
 
   // Owners of what the members above point into (those of the source used).
-  std::unique_ptr<tasks::Scene> scene;
+  std::unique_ptr<tasks::Scene> owned_scene;
   std::unique_ptr<policy::RbfPolicy> owned_policy;
   std::unique_ptr<learner::ModelProblem> model_problem;
   std::unique_ptr<estimators::SyntheticProblem> synthetic;
@@ -61,15 +78,60 @@ struct FrozenProblem {
 enum class SnapshotPolicy { kBefore, kAfter };
 
 // Errors: InvalidArgument naming the problem (an unknown option key in the
-// snapshot, sin/cos angle features, a sparse-GP episode, data or parameter
-// shapes that do not match the options); the GP's FailedPrecondition if K
-// cannot be factorised.
+// snapshot, a sparse-GP episode, a scene of several controls, data or
+// parameter shapes that do not match the options); the GP's
+// FailedPrecondition if K cannot be factorised.
 absl::StatusOr<std::unique_ptr<FrozenProblem>> FrozenProblemFromSnapshot(
     const learner::TrialSnapshot& snapshot, SnapshotPolicy which);
 
-// Errors: those of estimators::MakeSyntheticProblem.
+// A synthetic problem on a scene: N transitions of the scene's plant from
+// states drawn uniformly per dimension over [min(mu0, target) - 1,
+// max(mu0, target) + 1], controls uniform within the bounds, the scene's
+// observation noise on the next state; the GP on the features the angle
+// choice gives for a particle method (learner::FeatureAngles; `auto` is the
+// scene's index sets except on the cart-pole) with PILCO's initial
+// hyperparameters (trained for train_iterations L-BFGS iterations if > 0);
+// an RBF policy of basis_functions centres ~ N(mu0, I) mapped to features,
+// unit length-scales, random weights. Draws: data from (seed,
+// Stream::kStudy, 1), the policy from (seed, Stream::kPolicyInit).
+struct SceneSyntheticOptions {
+  int data = 450;             // N transitions, >= 2
+  int horizon = 30;
+  int basis_functions = 50;
+  uint64_t seed = 1;
+  int train_iterations = 0;
+  learner::AngleFeatures angle_features = learner::AngleFeatures::kAuto;
+  double noise_variance_multiplier = 1.0;
+};
+
+// What MakeSceneSyntheticProblem builds: the policy and the model problem
+// over it (the problem points into both and into the scene).
+struct SceneSyntheticProblem {
+  std::unique_ptr<policy::RbfPolicy> policy;
+  std::unique_ptr<learner::ModelProblem> model;
+  std::vector<int> angle_indices;
+};
+
+// `scene` must outlive the result; `pool` (may be null) goes to the model's
+// adapters. Errors: InvalidArgument (data < 2, basis_functions < 1, a scene
+// of several controls), the plant's step errors, the GP's.
+absl::StatusOr<SceneSyntheticProblem> MakeSceneSyntheticProblem(const tasks::Scene& scene,
+                                                                const SceneSyntheticOptions& options,
+                                                                ThreadPool* pool);
+
+// The synthetic problem of a study file: the paper's raw-state synthetic
+// cart-pole problem (estimators::MakeSyntheticProblem, unchanged) when the
+// scene is a cart-pole scene and the features resolve to the raw state;
+// otherwise MakeSceneSyntheticProblem on options.scene with options.cost.
+// Errors: those of the builder used; InvalidArgument for an unknown scene.
 absl::StatusOr<std::unique_ptr<FrozenProblem>> FrozenProblemFromSynthetic(
-    const estimators::SyntheticProblemOptions& options);
+    const estimators::SyntheticProblemOptions& options,
+    learner::AngleFeatures angle_features = learner::AngleFeatures::kAuto);
+
+// The same on a scene the caller built (e.g. one the catalog does not have);
+// the scene is copied into the result.
+absl::StatusOr<std::unique_ptr<FrozenProblem>> FrozenProblemFromScene(
+    const tasks::Scene& scene, const SceneSyntheticOptions& options);
 
 }  // namespace totalgrad::study
 

@@ -35,7 +35,9 @@
 // horizons) is left out of the reference and the fact recorded.
 //
 // PILCO's deterministic moment-matching gradient (estimator "PILCO") runs on
-// the same GP and policy with the raw angle (angle_index -1), the model noise
+// the same GP and policy with the problem's features (the raw state, angle
+// index -1, or its one angle as (sin, cos); with several angles the cell is
+// omitted, naming why), the model noise
 // included in the predictions when the problem's noise multiplier is > 0
 // (the particles' transitions include it), and the same cost in closed form.
 // Like GR, GLR, GTP and DEL it estimates another objective; its error
@@ -121,6 +123,14 @@ struct ReferenceGradient {
   std::vector<int> replicates;     // per used estimator
   double agreement_max_z = 0;      // between the first two used estimators
   double agreement_mean_z2 = 0;
+  // The power of that check: 1.96 |sqrt(SE_a^2 + SE_b^2)| / |g*|, about the
+  // relative difference between the two estimators' means that would still
+  // pass. Above 1 a difference as large as g* itself passes: the check has
+  // no power (one estimator's SE dwarfs the other's, e.g. RP where its
+  // pathwise gradients explode), "agree" says nothing, and g* rests on the
+  // more precise estimator; the note says so. NaN: not computed (fewer than
+  // two estimators, |g*| = 0, or results written before it existed).
+  double agreement_resolution = std::numeric_limits<double>::quiet_NaN();
   bool agree = true;               // false also when fewer than two could be used
   std::string note;                // what was left out and why
   double seconds = 0;
@@ -156,6 +166,7 @@ struct CellResult {
 
 struct StudyResult {
   std::string source;                        // FrozenProblem::source
+  std::string scene;                         // FrozenProblem::scene
   int num_parameters = 0;
   std::vector<ReferenceGradient> references; // one per horizon, in options order
   std::vector<CellResult> cells;             // estimator-major, then P, then H

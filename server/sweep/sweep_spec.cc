@@ -111,9 +111,10 @@ absl::StatusOr<StudyEntry> ParseStudyEntry(const toml::table& table, size_t inde
   std::string field = absl::StrCat("study[", index, "]");
   for (auto&& [key, node] : table) {
     const std::string k(key.str());
-    if (k != "name" && k != "file" && k != "spec") {
+    if (k != "name" && k != "file" && k != "spec" && k != "scene") {
       return FieldError(Where(file_name, node.source()), absl::StrCat(field, ".", k),
-                        "unknown field; a [[study]] has name and one of file or spec");
+                        "unknown field; a [[study]] has name, one of file or spec, and "
+                        "optionally scene");
     }
     if (node.as_string() == nullptr) {
       return FieldError(Where(file_name, node.source()), absl::StrCat(field, ".", k),
@@ -160,6 +161,13 @@ absl::StatusOr<StudyEntry> ParseStudyEntry(const toml::table& table, size_t inde
   const std::string study_where = file ? absl::StrCat(field, " (", entry.source, ")") : field;
   absl::StatusOr<nlohmann::json> inlined = io::InlineStudyDocument(doc, base_dir);
   if (!inlined.ok()) return FieldError(entry_where, study_where, inlined.status().message());
+  if (const auto scene = table["scene"].value<std::string>(); scene) {
+    inlined = io::SetStudyScene(*inlined, *scene);
+    if (!inlined.ok()) {
+      return FieldError(Where(file_name, table["scene"].node()->source()), study_where,
+                        inlined.status().message());
+    }
+  }
   absl::StatusOr<std::string> canonical = CanonicalStudySpec(inlined->dump());
   if (!canonical.ok()) return FieldError(entry_where, study_where, canonical.status().message());
   entry.spec_json = *std::move(canonical);

@@ -24,6 +24,8 @@
 //   name = "swingup-h30"            # [A-Za-z0-9._-], 1..64, unique in the sweep
 //   file = "study.json"             # a study file, relative to the sweep file
 //   # or: spec = '''{"problem": ...}'''  (the study file's JSON inline)
+//   scene = "pendubot"              # optional: a synthetic study's scene; a
+//                                   # snapshot study must already be on it
 //
 // A sweep has a [grid], [[study]] entries or both; study jobs come after the
 // grid's trial jobs. A study's snapshot file is read when the sweep file is

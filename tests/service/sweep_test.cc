@@ -380,6 +380,48 @@ TEST_F(SweepStudyTest, TheSnapshotIsInlinedKeepingOnlyTheStudiedEpisode) {
   TG_EXPECT_OK(CanonicalStudySpec(spec.studies[0].spec_json).status());
 }
 
+// `scene = "..."` in a [[study]]: a synthetic study runs on that scene (one
+// file, several scenes, a job each); a snapshot study must already be on it.
+TEST_F(SweepStudyTest, StudyEntriesTakeTheScene) {
+  WriteFile(dir_ + "/syn.json",
+            R"({"problem": {"synthetic": {"data": 20}}, "estimators": ["RP"], "particles": [5],
+                "horizons": [3], "replicates": 2, "reference": {"replicates": 2, "particles": 10}})");
+  TG_ASSERT_OK_AND_ASSIGN(
+      SweepSpec spec,
+      ParseSweepToml("name = \"scenes\"\n"
+                     "[[study]]\nname = \"pendulum\"\nfile = \"syn.json\"\nscene = \"pendulum\"\n"
+                     "[[study]]\nname = \"pendubot\"\nfile = \"syn.json\"\nscene = \"pendubot\"\n",
+                     dir_ + "/scenes.toml"));
+  ASSERT_EQ(spec.studies.size(), 2u);
+  EXPECT_EQ(nlohmann::json::parse(spec.studies[0].spec_json)["problem"]["synthetic"]["scene"],
+            "pendulum");
+  EXPECT_EQ(nlohmann::json::parse(spec.studies[1].spec_json)["problem"]["synthetic"]["scene"],
+            "pendubot");
+  TG_ASSERT_OK_AND_ASSIGN(std::vector<ExpandedJob> jobs, ExpandJobs(spec));
+  ASSERT_EQ(jobs.size(), 2u);
+  EXPECT_NE(jobs[0].payload, jobs[1].payload);
+
+  const std::string snapshot = std::string(TOTALGRAD_SOURCE_DIR) +
+                               "/docs/error-vs-time/swingup_tp_seed1.json";
+  WriteFile(dir_ + "/snap.json",
+            absl::StrCat(R"({"problem": {"snapshot": ")", snapshot, R"(", "episode": 3}})"));
+  TG_EXPECT_OK(ParseSweepToml("name = \"s\"\n[[study]]\nname = \"a\"\nfile = \"snap.json\"\n"
+                              "scene = \"cartpole-swingup\"\n",
+                              dir_ + "/snap.toml")
+                   .status());
+  for (const auto& [scene, expected] : std::vector<std::pair<std::string, std::string>>{
+           {"pendulum", "snapshot is of scene 'cartpole-swingup', not 'pendulum'"},
+           {"unicycle", "unknown scene 'unicycle'"}}) {
+    const absl::StatusOr<SweepSpec> bad = ParseSweepToml(
+        absl::StrCat("name = \"s\"\n[[study]]\nname = \"a\"\nfile = \"snap.json\"\nscene = \"",
+                     scene, "\"\n"),
+        dir_ + "/bad.toml");
+    EXPECT_EQ(bad.status().code(), absl::StatusCode::kInvalidArgument) << scene;
+    EXPECT_NE(bad.status().message().find(expected), std::string::npos) << bad.status();
+    EXPECT_NE(bad.status().message().find("bad.toml:"), std::string::npos) << bad.status();
+  }
+}
+
 // Each malformed entry: the error names the sweep file, the entry and what is wrong.
 TEST_F(SweepStudyTest, MalformedStudyEntriesNameTheFileTheEntryAndTheProblem) {
   WriteFile(dir_ + "/bad_field.json",
