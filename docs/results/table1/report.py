@@ -109,22 +109,36 @@ def report(archive_path, binary, cache):
         inside = "" if rate is None or n == 0 else ("yes" if low <= rate <= high else "**no**")
         costs = [job["final_eval_cost"] for job in done]
         q1, median, q3 = quartiles(costs) if costs else (math.nan,) * 3
+        # CPU spent: every attempt of the completed trials (lost and released
+        # attempts cost CPU too), as far as the workers reported it (builds
+        # before per-episode CPU time report none). Per trial: only trials
+        # whose counting attempt ran every episode itself and reported CPU
+        # for each (a resumed attempt holds the CPU of its own episodes only).
         cpu = 0.0
+        per_trial_cpu = []
         for job in done:
+            for attempt in job["attempt_log"]:
+                cpu += sum(episode.get("cpu_seconds") or 0.0 for episode in attempt["episodes"])
             attempt = completed_attempt(job)
             if attempt is None:
                 continue
             builds.setdefault(attempt["worker_build"], []).append(f"{method} s{job['seed']}")
-            cpu += sum(episode.get("cpu_seconds") or 0.0 for episode in attempt["episodes"])
+            episodes = attempt["episodes"]
+            if episodes and all(e.get("cpu_seconds") is not None for e in episodes) and \
+                    len(episodes) == max(e["episode"] for e in episodes) + 1:
+                per_trial_cpu.append(sum(e["cpu_seconds"] for e in episodes))
         total_cpu += cpu
         model = estimated_cpu_seconds(binary, options, cache)
-        per_trial = f"{cpu / n / 60:.1f}" if n else "-"
+        per_trial = (f"{statistics.mean(per_trial_cpu) / 60:.1f} (n = {len(per_trial_cpu)})"
+                     if per_trial_cpu else "-")
         model_text = f"{model / 60:.1f}" if model else "-"
         cost_text = f"{median:.2f} [{q1:.2f}, {q3:.2f}]" if costs else "-"
         rate_text = "-" if rate is None else f"{rate:.2f}"
         print(f"| {method} | {successes} / {n} | [{low:.2f}, {high:.2f}] | {rate_text} | "
               f"{inside} | {cost_text} | {cpu / 3600:.2f} | {per_trial}, {model_text} |")
-    print(f"\nTotal CPU: {total_cpu / 3600:.2f} h over {len(completed)} trials.\n")
+    print(f"\nTotal CPU reported: {total_cpu / 3600:.2f} h over the attempts of "
+          f"{len(completed)} completed trials (trials of builds without per-episode CPU "
+          f"time count 0).\n")
     for build, trials in builds.items():
         print(f"- `{build}`: {len(trials)} trials ({', '.join(trials)})")
     print()
