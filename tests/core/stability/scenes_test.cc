@@ -28,6 +28,7 @@
 #include "core/estimators/particle_system.h"
 #include "core/learner/trial.h"
 #include "core/ode/integrator.h"
+#include "core/pilco/saturation.h"
 #include "core/pilco/trig.h"
 #include "core/study/frozen_problem.h"
 #include "core/tasks/scene.h"
@@ -322,6 +323,66 @@ TEST(SceneFeatureExtremes, OneAngleTrigBlockOnTwoAnglesAtVariance1e3) {
   std::printf("  correlated angles (rho 0.9999, variance 1e3): Cov(sin a1, sin a2) exact %.4f, "
               "one-angle block in turn %.2g\n",
               exact_ss, c2(4, 6));
+}
+
+// PILCO's joint block for several angles (the cart-double-pendulum's and the
+// pendubot's) at variance 1e3, correlation 0.9999: finite, symmetric, PSD,
+// and the cross moment the one-angle block in turn cannot give is exact:
+// Cov(sin a1, sin a2) = (E cos(a1 - a2) - E cos(a1 + a2)) / 2 (E sin a_k is
+// e^-500 sin m_k, nothing).
+TEST(SceneFeatureExtremes, SeveralAnglesJointBlockAtVariance1e3) {
+  Vector m(4);
+  m << 0.1, -0.2, 0.5, 3.0;
+  Matrix s = 0.01 * Matrix::Identity(4, 4);
+  s(2, 2) = s(3, 3) = 1e3;
+  s(2, 3) = s(3, 2) = 0.9999e3;
+  Vector y;
+  Matrix c;
+  pilco::AugmentWithTrig(m, s, std::vector<int>{2, 3}, &y, &c);
+  ASSERT_EQ(y.size(), 8);
+  EXPECT_TRUE(y.allFinite() && c.allFinite());
+  EXPECT_LE((c - c.transpose()).cwiseAbs().maxCoeff(), 1e-15);
+  const Eigen::SelfAdjointEigenSolver<Matrix> eig(0.5 * (c + c.transpose()));
+  EXPECT_GE(eig.eigenvalues().minCoeff(), -1e-12 * eig.eigenvalues().maxCoeff());
+  const double var_diff = s(2, 2) + s(3, 3) - 2 * s(2, 3);
+  const double var_sum = s(2, 2) + s(3, 3) + 2 * s(2, 3);
+  const double d = m(2) - m(3), t = m(2) + m(3);
+  const double e_cos_diff = std::exp(-var_diff / 2) * std::cos(d);
+  const double e_cos_sum = std::exp(-var_sum / 2) * std::cos(t);
+  EXPECT_NEAR(c(4, 6), 0.5 * (e_cos_diff - e_cos_sum), 1e-12);  // sin a1, sin a2
+  EXPECT_NEAR(c(5, 7), 0.5 * (e_cos_diff + e_cos_sum), 1e-12);  // cos a1, cos a2
+  for (int k = 4; k < 8; ++k) EXPECT_NEAR(c(k, k), 0.5, 1e-12) << k;
+  std::printf("  joint block, rho 0.9999, variance 1e3: Cov(sin a1, sin a2) %.4f (exact %.4f)\n",
+              c(4, 6), 0.5 * (e_cos_diff - e_cos_sum));
+}
+
+// Several controls saturated at once (the double pendulum's two torques) at
+// input variance 1e3, correlation 0.9999: finite, symmetric, PSD, and the
+// moments the huge variance makes exact: E[u] = 0, Var[u_j] = max_j^2 41/64
+// (sin^2 averages 1/2, sin a sin 3a averages 0), Cov(u1, u2) from the only
+// terms that survive, those of a1 - a2 (variance 0.2) and 3 (a1 - a2).
+TEST(SceneFeatureExtremes, SeveralControlsSaturatedAtOnceAtVariance1e3) {
+  const Vector mean = Eigen::Vector2d(0.3, -2.0);
+  Matrix cov(2, 2);
+  cov << 1e3, 0.9999e3, 0.9999e3, 1e3;
+  const Vector max_u = Eigen::Vector2d(2.0, 3.5);
+  pilco::JointSatMoments out;
+  pilco::GSatJoint(mean, cov, max_u, &out);
+  EXPECT_TRUE(out.mean.allFinite() && out.cov.allFinite() && out.c.allFinite());
+  EXPECT_LE((out.cov - out.cov.transpose()).cwiseAbs().maxCoeff(), 1e-15);
+  const Eigen::SelfAdjointEigenSolver<Matrix> eig(out.cov);
+  EXPECT_GE(eig.eigenvalues().minCoeff(), -1e-12 * eig.eigenvalues().maxCoeff());
+  EXPECT_LT(out.mean.cwiseAbs().maxCoeff(), 1e-100);
+  EXPECT_LT(out.c.cwiseAbs().maxCoeff(), 1e-100);
+  for (int j = 0; j < 2; ++j) {
+    EXPECT_NEAR(out.cov(j, j), max_u(j) * max_u(j) * 41.0 / 64.0, 1e-12) << j;
+  }
+  const double var_diff = cov(0, 0) + cov(1, 1) - 2 * cov(0, 1);  // 0.2
+  const double d = mean(0) - mean(1);
+  const double cross = max_u(0) * max_u(1) / 64.0 *
+                       (81.0 * std::exp(-var_diff / 2) * std::cos(d) +
+                        std::exp(-9.0 * var_diff / 2) * std::cos(3.0 * d)) / 2.0;
+  EXPECT_NEAR(out.cov(0, 1), cross, 1e-12);
 }
 
 // ------------------------------------------------------- no angle at all
