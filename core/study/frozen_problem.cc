@@ -10,15 +10,6 @@
 namespace totalgrad::study {
 namespace {
 
-// Snapshots, the RBF policy and the estimators' episodes carry one control so
-// far; a scene of more than one is refused here rather than half-handled.
-absl::Status CheckOneControl(const tasks::Scene& scene, const std::string& what) {
-  if (scene.control_dim() == 1) return absl::OkStatus();
-  return absl::InvalidArgumentError(absl::StrCat(
-      what, ": scene '", scene.name, "' has ", scene.control_dim(),
-      " controls; gradient studies take one-control scenes so far (the policy has one output)"));
-}
-
 std::string AnglesText(const std::vector<int>& angles) {
   if (angles.empty()) return "raw state";
   std::string text = "sin/cos of state";
@@ -174,7 +165,6 @@ absl::StatusOr<std::unique_ptr<FrozenProblem>> FrozenProblemFromScene(
     const tasks::Scene& scene, const SceneSyntheticOptions& options) {
   // The study's cells take one control so far (the synthetic problem itself
   // takes any: `bench iteration --scene` uses it on the double pendulum).
-  if (absl::Status st = CheckOneControl(scene, "synthetic problem"); !st.ok()) return st;
   auto out = std::make_unique<FrozenProblem>();
   out->owned_scene = std::make_unique<tasks::Scene>(scene);
   out->owned_scene->horizon = options.horizon;

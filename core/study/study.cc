@@ -494,13 +494,6 @@ absl::StatusOr<StudyResult> RunStudy(const FrozenProblem& problem, const StudyOp
   if (!problem.problem.complete() || problem.policy == nullptr) {
     return absl::InvalidArgumentError("study: the frozen problem needs a model, a policy and a cost");
   }
-  // The study's cells and summaries are measured on one-control scenes only
-  // so far (the double pendulum waits for them); refused by name.
-  if (problem.policy->control_dim() != 1) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "study: scene '", problem.scene, "' has ", problem.policy->control_dim(),
-        " controls; gradient studies take one-control scenes so far"));
-  }
   const Clock::time_point start = Clock::now();
   StudyResult result;
   result.source = problem.source;
