@@ -209,13 +209,22 @@ Matrix CentreKernel(const RowMatrix& scaled) {
 
 }  // namespace
 
+// congp's K_cc of the centres at the length-scales of `params` (either
+// layout: centres and log l come first in both), without the noise term.
+namespace {
+Matrix CongpCentreKernel(const RbfPolicyShape& shape, const Vector& params) {
+  const int c = shape.num_basis, e = shape.input_dim;
+  const Vector il = (-params.segment(c * e, e).array()).exp().matrix();
+  const Eigen::Map<const RowMatrix> centres(params.data(), c, e);
+  return CentreKernel(centres * il.asDiagonal());
+}
+}  // namespace
+
 absl::Status PseudoTargetsToWeights(const RbfPolicyShape& shape, const Vector& pilco_params,
                                     Vector* params) {
   const int c = shape.num_basis, e = shape.input_dim, f = shape.num_controls();
   TG_CHECK(pilco_params.size() == shape.num_parameters());
-  const Vector il = (-pilco_params.segment(c * e, e).array()).exp().matrix();
-  const Eigen::Map<const RowMatrix> centres(pilco_params.data(), c, e);
-  Matrix a = CentreKernel(centres * il.asDiagonal());
+  Matrix a = CongpCentreKernel(shape, pilco_params);
   a.diagonal().array() += kCongpNoiseVar;
   Eigen::LLT<Matrix> llt(a);
   if (llt.info() != Eigen::Success || !a.allFinite()) {
@@ -237,9 +246,7 @@ absl::Status WeightsToPseudoTargets(const RbfPolicyShape& shape, const Vector& p
                                     Vector* pilco_params) {
   const int c = shape.num_basis, e = shape.input_dim, f = shape.num_controls();
   TG_CHECK(params.size() == shape.num_parameters());
-  const Vector il = (-params.segment(c * e, e).array()).exp().matrix();
-  const Eigen::Map<const RowMatrix> centres(params.data(), c, e);
-  Matrix a = CentreKernel(centres * il.asDiagonal());
+  Matrix a = CongpCentreKernel(shape, params);
   a.diagonal().array() += kCongpNoiseVar;
   if (!a.allFinite() || !params.tail(c * f).allFinite()) {
     return absl::FailedPreconditionError("policy: centres, length-scales or weights not finite");
