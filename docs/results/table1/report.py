@@ -8,9 +8,14 @@ its quartiles, the CPU hours the trials took (the per-episode CPU seconds the
 workers reported) against the cost model's estimate for the same options
 (`totalgrad bench estimate`), and the builds that ran the trials.
 
-Usage: report.py [--totalgrad BIN] ARCHIVE.json...
+Usage: report.py [--totalgrad BIN] [--rerun SWEEP=RERUN.json]... ARCHIVE.json...
 Prints Markdown on stdout. Reads nothing but the archives (and asks BIN for
 the cost model, when given).
+
+--rerun SWEEP=RERUN.json: the completed trials of the archive RERUN.json take
+the place of SWEEP's trials with the same method and seed (a re-run with a
+later build of trials whose build is known to be wrong); the table says which
+trials were replaced. Only trials with the same options (seed aside) replace.
 """
 import argparse
 import json
@@ -82,10 +87,32 @@ def estimated_cpu_seconds(binary, options, cache):
     return cache[keys]
 
 
-def report(archive_path, binary, cache):
+def options_without_seed(job):
+    return {k: v for k, v in job["options"].items() if k != "seed"}
+
+
+def apply_reruns(sweep_name, jobs, reruns):
+    """Replaces jobs by completed re-runs of the same (method, seed, options)."""
+    replaced = []
+    for rerun_path in reruns.get(sweep_name, []):
+        rerun = json.load(open(rerun_path))
+        for new in rerun["jobs"]:
+            if new.get("kind") != "trial" or new.get("state") != "completed":
+                continue
+            for i, old in enumerate(jobs):
+                if (old["method"], str(old["seed"])) == (new["method"], str(new["seed"])) and \
+                        options_without_seed(old) == options_without_seed(new):
+                    jobs[i] = new
+                    replaced.append(f"{new['method']} s{new['seed']} "
+                                    f"(from {rerun['sweep']['name']})")
+    return replaced
+
+
+def report(archive_path, binary, cache, reruns):
     archive = json.load(open(archive_path))
     sweep = archive["sweep"]
     jobs = [job for job in archive["jobs"] if job.get("kind") == "trial"]
+    replaced = apply_reruns(sweep["name"], jobs, reruns)
     methods = []
     for job in jobs:
         if job["method"] not in methods:
@@ -94,6 +121,8 @@ def report(archive_path, binary, cache):
     completed = [job for job in jobs if job.get("state") == "completed"]
     print(f"{len(completed)} of {len(jobs)} trials completed "
           f"(archive exported by {archive['exported_by']}).\n")
+    if replaced:
+        print(f"Re-run trials in place of this sweep's own: {', '.join(replaced)}.\n")
     print("| method | successes / n | 95% Wilson | paper | paper inside? "
           "| final cost median [q1, q3] | CPU h (measured) | CPU min / trial: measured, model |")
     print("|---|---|---|---|---|---|---|---|")
@@ -147,11 +176,19 @@ def report(archive_path, binary, cache):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--totalgrad", help="totalgrad binary for the cost model")
+    parser.add_argument("--rerun", action="append", default=[], metavar="SWEEP=RERUN.json",
+                        help="completed trials of RERUN.json replace SWEEP's same method and seed")
     parser.add_argument("archives", nargs="+")
     arguments = parser.parse_args()
+    reruns = {}
+    for item in arguments.rerun:
+        sweep, sep, path = item.partition("=")
+        if not sep or not sweep or not path:
+            parser.error(f"--rerun wants SWEEP=RERUN.json, got '{item}'")
+        reruns.setdefault(sweep, []).append(path)
     cache = {}
     for path in arguments.archives:
-        report(path, arguments.totalgrad, cache)
+        report(path, arguments.totalgrad, cache, reruns)
 
 
 if __name__ == "__main__":
