@@ -44,6 +44,8 @@ class PilcoLearner final : public PolicyLearner {
                           absl::StrCat("episode ", e, ": PILCO model: ", model.status().message()));
     clock->Lap(&timing.model_cpu, &timing.model_wall);
     pilco::PilcoOptions pilco_options;
+    pilco_options.bfgs.max_line_searches = PilcoLineSearches(options_);
+    pilco_options.bfgs.max_evaluations_per_line_search = PilcoEvaluationsPerLineSearch(options_);
     bool cancelled = false;
     pilco_options.bfgs.should_stop = [observer, &cancelled]() {
       cancelled = observer != nullptr && observer->ShouldCancel();

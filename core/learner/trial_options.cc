@@ -43,6 +43,8 @@ const OptionTable<TrialOptions>& TrialOptions::Table() {
         .Nest(&O::gp_training, gp::TrainingOptions::Table())
         .Enum("angle_features", &O::angle_features, AngleFeaturesNames())
         .Int("gp_inducing", &O::gp_inducing)
+        .Int("pilco_line_searches", &O::pilco_line_searches)
+        .Int("pilco_evaluations_per_line_search", &O::pilco_evaluations_per_line_search)
         .Nest(&O::estimator, estimators::EstimatorOptions::Table());
     return t;
   }();
@@ -64,6 +66,11 @@ absl::Status TrialOptions::Validate() const {
   if (absl::Status st = gp_training.Validate(); !st.ok()) return st;
   if (!std::isfinite(success_threshold)) return InvalidOption("threshold", "must be finite");
   if (gp_inducing < -1) return InvalidOption("gp_inducing", "must be -1 (auto), 0 (full GP) or a count");
+  if (pilco_line_searches == 0 || pilco_line_searches < -1)
+    return InvalidOption("pilco_line_searches", "must be -1 (the scene's PILCO protocol) or >= 1");
+  if (pilco_evaluations_per_line_search == 0 || pilco_evaluations_per_line_search < -1)
+    return InvalidOption("pilco_evaluations_per_line_search",
+                         "must be -1 (the scene's PILCO protocol) or >= 1");
   if (!IsNamedEnum(AngleFeaturesNames(), angle_features))
     return InvalidOption("angle_features", "is not one of auto, raw, sincos");
   if (!IsNamedEnum(estimators::MethodNames(), method)) return InvalidOption("method", "is not a known method");
@@ -97,6 +104,18 @@ int InducingInputs(const TrialOptions& options) {
   const tasks::SceneDefinition* scene = tasks::FindSceneDefinition(options.scene.scene);
   if (scene != nullptr && scene->plant != tasks::PlantKind::kCartPole) return scene->inducing_inputs;
   return options.method == estimators::Method::kPilco ? 300 : 0;
+}
+
+int PilcoLineSearches(const TrialOptions& options) {
+  if (options.pilco_line_searches >= 1) return options.pilco_line_searches;
+  const tasks::SceneDefinition* scene = tasks::FindSceneDefinition(options.scene.scene);
+  return scene != nullptr ? scene->line_searches : 150;
+}
+
+int PilcoEvaluationsPerLineSearch(const TrialOptions& options) {
+  if (options.pilco_evaluations_per_line_search >= 1) return options.pilco_evaluations_per_line_search;
+  const tasks::SceneDefinition* scene = tasks::FindSceneDefinition(options.scene.scene);
+  return scene != nullptr ? scene->evaluations_per_line_search : 30;
 }
 
 absl::Status SetTrialOption(const std::string& key, const std::string& value, TrialOptions* options) {

@@ -9,7 +9,8 @@
 //   OptimizerOptions             learning_rate, momentum, decay, epsilon, normalisation
 //   gp::TrainingOptions          gp_iterations,
 //     gp::PenaltyOptions           gp_penalty, gp_penalty_*
-//   (the trial's own fields)     angle_features, gp_inducing
+//   (the trial's own fields)     angle_features, gp_inducing, pilco_line_searches,
+//                                pilco_evaluations_per_line_search
 //   estimators::EstimatorOptions lr_weights, lr_baseline, gs_derivative,
 //                                sn_noise_multiplier, forced_k_lr
 //
@@ -70,6 +71,12 @@ struct TrialOptions {
   // hyperparameters fixed, from a random subset of the inputs the first time
   // (1500 L-BFGS iterations), then warm-started from the previous episode (500).
   int gp_inducing = -1;
+  // PILCO's BFGS budget per policy optimisation: line searches, and function
+  // evaluations per line search. -1 = auto: the scene's PILCO protocol
+  // (tasks/scene_catalog.h; 150 x 30 on the cart-pole, 75 x 30 on the
+  // pendulum, 150 x 20 on the pendubot). Only PILCO reads them.
+  int pilco_line_searches = -1;
+  int pilco_evaluations_per_line_search = -1;
   estimators::EstimatorOptions estimator;  // method-specific knobs
 
   // The composed table described above.
@@ -95,6 +102,11 @@ std::vector<int> FeatureAngles(const TrialOptions& options, const tasks::Scene& 
 // particle methods; on the other scenes the scene's M for every method
 // (PILCO's model of that scene; tasks/scene_catalog.h).
 int InducingInputs(const TrialOptions& options);
+// The BFGS budget pilco_line_searches / pilco_evaluations_per_line_search
+// resolve to: the option when >= 1, else the scene's PILCO protocol (an
+// unknown scene: 150 x 30, PILCO's cart-pole).
+int PilcoLineSearches(const TrialOptions& options);
+int PilcoEvaluationsPerLineSearch(const TrialOptions& options);
 
 // TrialOptions::Table() as free functions (the names every caller uses).
 // Sets one option by its key from text; InvalidArgument names an unknown key

@@ -61,6 +61,8 @@ inline learner::TrialOptions EveryOptionChanged() {
   o.gp_training.penalty.power = 20;
   o.angle_features = learner::AngleFeatures::kSinCos;
   o.gp_inducing = 100;
+  o.pilco_line_searches = 40;
+  o.pilco_evaluations_per_line_search = 12;
   o.estimator.lr_weights = estimators::LrWeights::kPlain;
   o.estimator.lr_baseline = estimators::LrBaseline::kLeaveOneOut;
   o.estimator.gs_derivative = estimators::GsDerivative::kExact;

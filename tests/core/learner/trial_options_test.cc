@@ -143,7 +143,10 @@ TEST(TrialOptionTable, ModulesValidateTheirOwnFields) {
                         Case{"learning_rate", "0", "learning_rate"},
                         Case{"integrator_max_steps", "0", "max_steps"},
                         Case{"integrator_relative_tolerance", "-1", "relative_tolerance"},
-                        Case{"gravity", "-9.82", "plant.gravity"}}) {
+                        Case{"gravity", "-9.82", "plant.gravity"},
+                        Case{"pilco_line_searches", "0", "pilco_line_searches"},
+                        Case{"pilco_evaluations_per_line_search", "-2",
+                             "pilco_evaluations_per_line_search"}}) {
     TrialOptions o;
     TG_ASSERT_OK(SetTrialOption(c.key, c.value, &o));
     const absl::Status s = o.Validate();
@@ -164,6 +167,23 @@ TEST(TrialOptionTable, AutoFeaturesAndInducingInputsAreResolvedInOnePlace) {
   EXPECT_EQ(InducingInputs(o), 300);
   o.gp_inducing = 0;
   EXPECT_EQ(InducingInputs(o), 0);
+}
+
+// PILCO's BFGS budget: auto is the scene's protocol (PILCO a0b48b7's
+// settings_*.m: opt.length, opt.MFEPLS), an explicit value wins.
+TEST(TrialOptionTable, PilcoBudgetIsTheScenesProtocolUnlessSet) {
+  TrialOptions o;
+  EXPECT_EQ(PilcoLineSearches(o), 150);
+  EXPECT_EQ(PilcoEvaluationsPerLineSearch(o), 30);
+  TG_ASSERT_OK(SetTrialOption("scene", "pendulum", &o));
+  EXPECT_EQ(PilcoLineSearches(o), 75);
+  TG_ASSERT_OK(SetTrialOption("scene", "pendubot", &o));
+  EXPECT_EQ(PilcoLineSearches(o), 150);
+  EXPECT_EQ(PilcoEvaluationsPerLineSearch(o), 20);
+  TG_ASSERT_OK(SetTrialOption("pilco_line_searches", "7", &o));
+  TG_ASSERT_OK(SetTrialOption("pilco_evaluations_per_line_search", "9", &o));
+  EXPECT_EQ(PilcoLineSearches(o), 7);
+  EXPECT_EQ(PilcoEvaluationsPerLineSearch(o), 9);
 }
 
 }  // namespace

@@ -209,6 +209,34 @@ TEST(PilcoTrial, RunsDeterministicallyAndRecordsPerStepPredictions) {
   }
 }
 
+// pilco_line_searches reaches PILCO's BFGS: the default budget (the scene's
+// 150) and the explicit value 150 give the same bits; 1 and 2 line searches
+// stop earlier, at other policies, and 1 search ends at a higher predicted
+// cost than the full budget (BFGS never returns a worse point).
+TEST(PilcoTrial, LineSearchBudgetReachesTheOptimiser) {
+  auto run = [](const char* line_searches) {
+    TrialOptions o = Tiny();
+    EXPECT_TRUE(SetTrialOption("method", "PILCO", &o).ok());
+    EXPECT_TRUE(SetTrialOption("basis_functions", "5", &o).ok());
+    EXPECT_TRUE(SetTrialOption("episodes", "1", &o).ok());
+    if (line_searches != nullptr) {
+      EXPECT_TRUE(SetTrialOption("pilco_line_searches", line_searches, &o).ok());
+    }
+    auto trial = RunTrial(o, nullptr);
+    EXPECT_TRUE(trial.ok()) << trial.status();
+    return trial.ok() ? trial->episodes[1] : EpisodeResult();
+  };
+  const EpisodeResult by_default = run(nullptr);
+  const EpisodeResult explicit_150 = run("150");
+  const EpisodeResult one = run("1");
+  const EpisodeResult two = run("2");
+  ASSERT_EQ(by_default.policy_parameters.size(), one.policy_parameters.size());
+  EXPECT_TRUE(by_default.policy_parameters == explicit_150.policy_parameters);
+  EXPECT_FALSE(one.policy_parameters == two.policy_parameters);
+  EXPECT_FALSE(one.policy_parameters == by_default.policy_parameters);
+  EXPECT_GT(one.predicted_cost, by_default.predicted_cost);
+}
+
 TEST(PilcoTrial, RawAngleFeaturesWork) {
   TrialOptions o = Tiny();
   ASSERT_TRUE(SetTrialOption("method", "PILCO", &o).ok());
