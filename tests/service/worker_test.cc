@@ -1,6 +1,9 @@
 // The worker runtime against an in-process coordinator, with fake trial
 // runners: failures are reported with their reasons, episodes survive a
 // coordinator restart (replayed from the worker), CANCEL and drain behave.
+// Tests of the worker's own deadlines (drain_timeout, report_grace) give it a
+// FakeClock and move it, so they neither sleep for the timeouts nor depend on
+// how fast a loaded machine runs them; the coordinator keeps the real clock.
 #include "worker/worker.h"
 
 #include <nlohmann/json.hpp>
@@ -11,6 +14,7 @@
 #include <atomic>
 #include <limits>
 #include <filesystem>
+#include <functional>
 #include <thread>
 
 #include <unistd.h>
@@ -45,7 +49,10 @@ class FakeRunner final : public TrialRunner {
     const int step_ms = seed == 16 ? 300 : 10;
     for (int e = 0; e <= episodes; ++e) {
       for (int waited = 0; waited < step_ms; waited += 5) {
-        if (progress->ShouldCancel()) return absl::CancelledError("cancelled");
+        if (progress->ShouldCancel()) {
+          ++cancelled;
+          return absl::CancelledError("cancelled");
+        }
         std::this_thread::sleep_for(std::chrono::milliseconds(5));
       }
       EpisodeOutcome outcome;
@@ -64,6 +71,7 @@ class FakeRunner final : public TrialRunner {
     return TrialOutcome{true, static_cast<double>(seed * 10 + episodes), episodes + 1};
   }
   std::atomic<int> produced{0};
+  std::atomic<int> cancelled{0};  // trials that saw ShouldCancel()
 };
 
 // Study jobs by the study's seed: 21 returns 1200 cells and 3 references
@@ -150,11 +158,11 @@ class WorkerTest : public ::testing::Test {
     options.acquire_wait = absl::Seconds(1);
     options.call_timeout = absl::Seconds(5);
     options.drain_timeout = drain_timeout;
-    options.report_grace = absl::Milliseconds(500);
+    options.report_grace = report_grace_;
     options.state_dir = state_dir_;
     worker_ = std::make_unique<Worker>(
         options, grpc::CreateChannel(options_.listen, grpc::InsecureChannelCredentials()), &runner_,
-        studies ? &study_runner_ : nullptr);
+        studies ? &study_runner_ : nullptr, worker_clock_);
     worker_thread_ = std::thread([this] { summary_ = worker_->Run(); });
   }
   void Submit(const std::string& name, const std::vector<int>& seeds, int max_attempts = 3) {
@@ -222,6 +230,14 @@ class WorkerTest : public ::testing::Test {
 
   std::string dir_;
   std::string state_dir_;  // the worker's --state-dir; empty: none
+  absl::Duration report_grace_ = absl::Milliseconds(500);
+  // The clock of the workers StartWorker makes; null: the system clock. A
+  // test that sets it to &clock_ moves the workers' time itself. With the
+  // clock at rest a worker beats only when an episode is new, so such a test
+  // must end well within the coordinator's (real) 5 s lease timeout or send
+  // episodes.
+  Clock* worker_clock_ = nullptr;
+  FakeClock clock_;
   service::CoordinatorOptions options_;
   std::unique_ptr<service::Coordinator> coordinator_;
   std::unique_ptr<v1::ControlService::Stub> control_;
@@ -319,28 +335,50 @@ TEST_F(WorkerTest, DrainLetsRunningTrialsFinishWithinTheTimeout) {
 // state directory replays them while the lease is still valid (the
 // restarted coordinator extended it): the episodes are stored with the first
 // attempt, which ends released, not lost.
+//
+// The worker's deadlines are on a FakeClock, set far beyond the test's own
+// waits: the drain ends when, and because, the clock passes drain_timeout +
+// report_grace (a worker that timed them on the real clock would hold on for
+// minutes, and the bounded waits below would fail).
 TEST_F(WorkerTest, DrainWhileTheCoordinatorIsDownSpoolsAndTheNextWorkerReplays) {
   state_dir_ = dir_ + "/state";
+  worker_clock_ = &clock_;
+  const absl::Duration drain_timeout = absl::Minutes(10);
+  report_grace_ = absl::Minutes(5);
   Submit("spool", {16});
-  StartWorker(1, /*drain_timeout=*/absl::Milliseconds(500));
+  StartWorker(1, drain_timeout);
   ASSERT_TRUE(WaitFor([&] { return JobsBySeed("spool")["16"].episodes_stored() >= 2; }, seconds(30)));
   coordinator_->Shutdown();
   coordinator_.reset();
   const int produced_at_stop = runner_.produced;
   ASSERT_TRUE(WaitFor([&] { return runner_.produced >= produced_at_stop + 1; }, seconds(30)));
-  const auto drain_start = std::chrono::steady_clock::now();
   worker_->Drain();
   std::atomic<bool> joined{false};
   std::thread joiner([&] {
     worker_thread_.join();
     joined = true;
   });
-  // drain_timeout 0.5 s + report_grace 0.5 s, plus slack for a loaded machine.
-  const bool bounded = WaitFor([&] { return joined.load(); }, seconds(5));
-  if (!bounded) worker_->Stop();  // let the test end either way
+  // Bounded waits on the real clock; without them a broken drain would hang
+  // the test instead of failing it.
+  const auto within_5s = [&](const std::function<bool()>& done) {
+    const bool ok = WaitFor(done, seconds(5));
+    if (!ok) {
+      worker_->Stop();  // let the test end either way
+      joiner.join();
+    }
+    return ok;
+  };
+  // At the drain deadline the running trial is stopped ...
+  clock_.AdvanceMs(absl::ToInt64Milliseconds(drain_timeout));
+  ASSERT_TRUE(within_5s([&] { return runner_.cancelled.load() == 1; }))
+      << "the trial was not stopped at the drain deadline";
+  // ... and its release is retried (the coordinator is down) until the
+  // report grace has passed too: only then is it spooled and the drain ends.
+  EXPECT_FALSE(joined.load()) << "the worker gave up before report_grace had passed";
+  clock_.AdvanceMs(absl::ToInt64Milliseconds(report_grace_));
+  ASSERT_TRUE(within_5s([&] { return joined.load(); }))
+      << "the drain did not end once drain_timeout + report_grace had passed";
   joiner.join();
-  ASSERT_TRUE(bounded) << "the drain did not end within 5 s";
-  EXPECT_LT(std::chrono::steady_clock::now() - drain_start, seconds(3));
   EXPECT_EQ(summary_.spooled, 1);
   const int produced = runner_.produced;
   worker_.reset();
@@ -372,11 +410,16 @@ TEST_F(WorkerTest, SpooledResultsOfAnExpiredLeaseAreDropped) {
   coordinator_.reset();
   StartCoordinator();
   Submit("expired", {16});
-  StartWorker(1, /*drain_timeout=*/absl::Milliseconds(200));
+  worker_clock_ = &clock_;  // the drain's deadlines pass when the test moves the clock
+  const absl::Duration drain_timeout = absl::Milliseconds(200);
+  StartWorker(1, drain_timeout);
   ASSERT_TRUE(WaitFor([&] { return JobsBySeed("expired")["16"].episodes_stored() >= 1; }, seconds(30)));
   coordinator_->Shutdown();
   coordinator_.reset();
   worker_->Drain();
+  clock_.AdvanceMs(absl::ToInt64Milliseconds(drain_timeout));
+  ASSERT_TRUE(WaitFor([&] { return runner_.cancelled.load() == 1; }, seconds(30)));
+  clock_.AdvanceMs(absl::ToInt64Milliseconds(report_grace_));
   worker_thread_.join();
   ASSERT_EQ(summary_.spooled, 1);
   worker_.reset();
@@ -528,12 +571,22 @@ TEST_F(WorkerTest, CancelDirectiveStopsTheStudyAndReleasesIt) {
   EXPECT_EQ(summary_.released, 1);
 }
 
+// The drain deadline is on the worker's (fake) clock: the study runs on
+// through the drain until the clock reaches it.
 TEST_F(WorkerTest, DrainTimeoutStopsTheStudyAndRequeuesItWithoutBlame) {
   SubmitStudies("study-drain", {22});
-  StartWorker(1, /*drain_timeout=*/absl::Milliseconds(300));
+  worker_clock_ = &clock_;
+  const absl::Duration drain_timeout = absl::Minutes(10);
+  StartWorker(1, drain_timeout);
   ASSERT_TRUE(WaitFor([&] { return JobsBySeed("study-drain")["22"].state() == v1::JOB_STATE_RUNNING; },
                       seconds(30)));
   worker_->Drain();
+  EXPECT_FALSE(study_runner_.stopped.load()) << "stopped before the drain deadline";
+  clock_.AdvanceMs(absl::ToInt64Milliseconds(drain_timeout));
+  // Bounded: a worker that timed the drain on the real clock would run on
+  // for 10 minutes.
+  ASSERT_TRUE(WaitFor([&] { return study_runner_.stopped.load(); }, seconds(5)))
+      << "the study was not stopped at the drain deadline";
   worker_thread_.join();
   EXPECT_TRUE(study_runner_.stopped.load());
   EXPECT_EQ(summary_.released, 1);
