@@ -1,8 +1,9 @@
 // The worker runtime against an in-process coordinator, with fake trial
 // runners: failures are reported with their reasons, episodes survive a
 // coordinator restart (replayed from the worker), CANCEL and drain behave.
-// Tests of the worker's own deadlines (drain_timeout, report_grace) give it a
-// FakeClock and move it, so they neither sleep for the timeouts nor depend on
+// Tests of the worker's own deadlines (drain_timeout, report_grace,
+// heartbeats) give it a FakeClock and move it, and pace the slow trial on a
+// second one, so they neither sleep for timeouts and episodes nor depend on
 // how fast a loaded machine runs them; the coordinator keeps the real clock.
 #include "worker/worker.h"
 
@@ -36,8 +37,15 @@ using ::totalgrad::testing::WaitFor;
 // Behaviour by seed: 13 reports a NaN evaluation cost at episode 1, 14
 // throws, 15 returns an error, 16 is slow (300 ms per episode); others take
 // 10 ms per episode. Values are a function of (seed, episode).
+//
+// With `clock` set, the slow trial's episodes are paced on it instead of on
+// real time: episode e ends when the clock reaches the trial's start + 300 ms
+// * (e + 1), so a test that moves the clock by k * 300 ms gets exactly k
+// more episodes, however fast or loaded the machine is.
 class FakeRunner final : public TrialRunner {
  public:
+  static constexpr int64_t kSlowEpisodeMs = 300;
+
   absl::StatusOr<TrialOutcome> Run(const OptionList& options, TrialProgress* progress) override {
     int seed = 0, episodes = 0;
     for (const auto& [key, value] : options) {
@@ -46,9 +54,24 @@ class FakeRunner final : public TrialRunner {
     }
     if (seed == 14) throw std::runtime_error("boom");
     if (seed == 15) return absl::InternalError("integrator failed at step 7");
-    const int step_ms = seed == 16 ? 300 : 10;
+    const bool paced = seed == 16 && clock != nullptr;
+    const int64_t start_ms = paced ? clock->MonotonicMs() : 0;
+    ++started;  // after start_ms is read: the test may move the clock from here on
+    const int step_ms = seed == 16 ? kSlowEpisodeMs : 10;
     for (int e = 0; e <= episodes; ++e) {
-      for (int waited = 0; waited < step_ms; waited += 5) {
+      if (paced) {
+        // ShouldCancel is an atomic set by the worker's threads, so nothing
+        // releases this mutex when it changes; FakeClock::AwaitUntil polls
+        // the condition every millisecond.
+        absl::Mutex mu;
+        absl::MutexLock lock(&mu);
+        const auto cancel = [&] { return progress->ShouldCancel(); };
+        if (clock->AwaitUntil(&mu, absl::Condition(&cancel), start_ms + step_ms * (e + 1))) {
+          ++cancelled;
+          return absl::CancelledError("cancelled");
+        }
+      }
+      for (int waited = 0; !paced && waited < step_ms; waited += 5) {
         if (progress->ShouldCancel()) {
           ++cancelled;
           return absl::CancelledError("cancelled");
@@ -70,6 +93,8 @@ class FakeRunner final : public TrialRunner {
     }
     return TrialOutcome{true, static_cast<double>(seed * 10 + episodes), episodes + 1};
   }
+  Clock* clock = nullptr;  // paces seed 16 if set (before the worker starts)
+  std::atomic<int> started{0};    // trials that ran past the seed checks
   std::atomic<int> produced{0};
   std::atomic<int> cancelled{0};  // trials that saw ShouldCancel()
 };
@@ -219,6 +244,24 @@ class WorkerTest : public ::testing::Test {
     v1::SweepInfo info;
     return control_->GetSweep(&context, request, &info).ok() && info.finished();
   }
+  // Fake time for the workers (clock_) and for the slow trial's work
+  // (trial_clock_): the test moves each; nothing waits for real time to
+  // pass. Two clocks, so that moving the worker to a deadline does not also
+  // finish episodes, and finishing episodes does not move the worker's
+  // deadlines.
+  void UseFakeClocks() {
+    worker_clock_ = &clock_;
+    runner_.clock = &trial_clock_;
+  }
+  // Once the `trials`-th trial has started, lets the slow trial finish
+  // `episodes` more episodes and waits until the runner has produced them.
+  void ProduceSlowEpisodes(int trials, int episodes) {
+    ASSERT_TRUE(WaitFor([&] { return runner_.started.load() >= trials; }, seconds(30)));
+    const int target = runner_.produced + episodes;
+    trial_clock_.AdvanceMs(FakeRunner::kSlowEpisodeMs * episodes);
+    ASSERT_TRUE(WaitFor([&] { return runner_.produced.load() >= target; }, seconds(30)));
+    EXPECT_EQ(runner_.produced.load(), target);
+  }
   v1::GetJobLogResponse Log(int64_t job_id) {
     grpc::ClientContext context;
     v1::JobRequest request;
@@ -238,6 +281,7 @@ class WorkerTest : public ::testing::Test {
   // episodes.
   Clock* worker_clock_ = nullptr;
   FakeClock clock_;
+  FakeClock trial_clock_;  // paces FakeRunner's slow trial after UseFakeClocks()
   service::CoordinatorOptions options_;
   std::unique_ptr<service::Coordinator> coordinator_;
   std::unique_ptr<v1::ControlService::Stub> control_;
@@ -283,15 +327,16 @@ TEST_F(WorkerTest, FailedJobsAreRetriedUpToMaxAttempts) {
 // computing, keeps the unacknowledged episodes, and replays them when the
 // coordinator is back. The lease survives (recovery extends it).
 TEST_F(WorkerTest, EpisodesAreReplayedAfterACoordinatorRestart) {
+  UseFakeClocks();
   Submit("replay", {16});
   StartWorker(1);
-  ASSERT_TRUE(WaitFor([&] { return JobsBySeed("replay")["16"].episodes_stored() >= 2; }, seconds(30)));
+  ProduceSlowEpisodes(1, 2);
+  ASSERT_TRUE(WaitFor([&] { return JobsBySeed("replay")["16"].episodes_stored() == 2; }, seconds(30)));
   coordinator_->Shutdown();
   coordinator_.reset();
-  const int produced_at_stop = runner_.produced;
-  // Episodes finish while nobody listens.
-  ASSERT_TRUE(WaitFor([&] { return runner_.produced >= produced_at_stop + 2; }, seconds(30)));
+  ProduceSlowEpisodes(1, 2);  // episodes 2 and 3 finish while nobody listens
   StartCoordinator();
+  ProduceSlowEpisodes(1, 5);  // the rest: the trial ends
   ASSERT_TRUE(WaitFor([&] { return Finished("replay"); }, seconds(60)));
   const v1::JobInfo job = JobsBySeed("replay")["16"];
   EXPECT_EQ(job.state(), v1::JOB_STATE_COMPLETED);
@@ -300,29 +345,43 @@ TEST_F(WorkerTest, EpisodesAreReplayedAfterACoordinatorRestart) {
   EXPECT_EQ(job.episodes_stored(), 9);
 }
 
+// The CANCEL comes with a heartbeat. With no new episode (the trial is held
+// at its second), beats are due only as the worker's clock passes heartbeat
+// intervals, so the test moves it one interval at a time until the cancel
+// arrives: the trial stops after exactly its first episode.
 TEST_F(WorkerTest, CancelDirectiveStopsTheTrialAndReleasesIt) {
+  UseFakeClocks();
   Submit("cancel", {16});
   StartWorker(1);
-  ASSERT_TRUE(WaitFor([&] { return JobsBySeed("cancel")["16"].episodes_stored() >= 1; }, seconds(30)));
+  ProduceSlowEpisodes(1, 1);
+  ASSERT_TRUE(WaitFor([&] { return JobsBySeed("cancel")["16"].episodes_stored() == 1; }, seconds(30)));
   grpc::ClientContext context;
   v1::SweepRequest request;
   request.set_name("cancel");
   v1::SweepInfo info;
   ASSERT_TRUE(control_->CancelSweep(&context, request, &info).ok());
   const int64_t job_id = JobsBySeed("cancel")["16"].job_id();
-  ASSERT_TRUE(WaitFor([&] { return Log(job_id).attempts(0).state() == v1::ATTEMPT_STATE_CANCELLED; },
-                      seconds(30)));
-  EXPECT_LT(runner_.produced.load(), 9);  // stopped early
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        clock_.AdvanceMs(absl::ToInt64Milliseconds(options_.scheduler.heartbeat_interval));
+        return Log(job_id).attempts(0).state() == v1::ATTEMPT_STATE_CANCELLED;
+      },
+      seconds(30)));
+  EXPECT_EQ(runner_.cancelled.load(), 1);
+  EXPECT_EQ(runner_.produced.load(), 1);  // stopped early
   worker_->Drain();
   worker_thread_.join();
   EXPECT_EQ(summary_.released, 1);
 }
 
 TEST_F(WorkerTest, DrainLetsRunningTrialsFinishWithinTheTimeout) {
+  UseFakeClocks();
   Submit("drain", {16});
   StartWorker(1, /*drain_timeout=*/absl::Seconds(60));
-  ASSERT_TRUE(WaitFor([&] { return JobsBySeed("drain")["16"].episodes_stored() >= 1; }, seconds(30)));
+  ProduceSlowEpisodes(1, 1);
+  ASSERT_TRUE(WaitFor([&] { return JobsBySeed("drain")["16"].episodes_stored() == 1; }, seconds(30)));
   worker_->Drain();
+  ProduceSlowEpisodes(1, 8);  // the trial finishes while the worker drains
   worker_thread_.join();
   EXPECT_EQ(summary_.completed, 1);
   EXPECT_EQ(JobsBySeed("drain")["16"].state(), v1::JOB_STATE_COMPLETED);
@@ -342,16 +401,16 @@ TEST_F(WorkerTest, DrainLetsRunningTrialsFinishWithinTheTimeout) {
 // minutes, and the bounded waits below would fail).
 TEST_F(WorkerTest, DrainWhileTheCoordinatorIsDownSpoolsAndTheNextWorkerReplays) {
   state_dir_ = dir_ + "/state";
-  worker_clock_ = &clock_;
+  UseFakeClocks();
   const absl::Duration drain_timeout = absl::Minutes(10);
   report_grace_ = absl::Minutes(5);
   Submit("spool", {16});
   StartWorker(1, drain_timeout);
-  ASSERT_TRUE(WaitFor([&] { return JobsBySeed("spool")["16"].episodes_stored() >= 2; }, seconds(30)));
+  ProduceSlowEpisodes(1, 2);
+  ASSERT_TRUE(WaitFor([&] { return JobsBySeed("spool")["16"].episodes_stored() == 2; }, seconds(30)));
   coordinator_->Shutdown();
   coordinator_.reset();
-  const int produced_at_stop = runner_.produced;
-  ASSERT_TRUE(WaitFor([&] { return runner_.produced >= produced_at_stop + 1; }, seconds(30)));
+  ProduceSlowEpisodes(1, 1);  // never acknowledged
   worker_->Drain();
   std::atomic<bool> joined{false};
   std::thread joiner([&] {
@@ -381,10 +440,12 @@ TEST_F(WorkerTest, DrainWhileTheCoordinatorIsDownSpoolsAndTheNextWorkerReplays) 
   joiner.join();
   EXPECT_EQ(summary_.spooled, 1);
   const int produced = runner_.produced;
+  EXPECT_EQ(produced, 3);
   worker_.reset();
 
   StartCoordinator();  // the same database: recovery extends the open lease
   StartWorker(1);      // the same id and state directory
+  ProduceSlowEpisodes(2, 9);  // attempt 2, from the start
   ASSERT_TRUE(WaitFor([&] { return Finished("spool"); }, seconds(60)));
   worker_->Drain();
   worker_thread_.join();
@@ -410,10 +471,11 @@ TEST_F(WorkerTest, SpooledResultsOfAnExpiredLeaseAreDropped) {
   coordinator_.reset();
   StartCoordinator();
   Submit("expired", {16});
-  worker_clock_ = &clock_;  // the drain's deadlines pass when the test moves the clock
+  UseFakeClocks();  // the drain's deadlines pass when the test moves the clock
   const absl::Duration drain_timeout = absl::Milliseconds(200);
   StartWorker(1, drain_timeout);
-  ASSERT_TRUE(WaitFor([&] { return JobsBySeed("expired")["16"].episodes_stored() >= 1; }, seconds(30)));
+  ProduceSlowEpisodes(1, 1);
+  ASSERT_TRUE(WaitFor([&] { return JobsBySeed("expired")["16"].episodes_stored() == 1; }, seconds(30)));
   coordinator_->Shutdown();
   coordinator_.reset();
   worker_->Drain();
@@ -427,6 +489,7 @@ TEST_F(WorkerTest, SpooledResultsOfAnExpiredLeaseAreDropped) {
   // Nobody beats for the lease: after the recovery extension it is lost.
   ASSERT_TRUE(WaitFor([&] { return JobsBySeed("expired")["16"].lost_leases() == 1; }, seconds(30)));
   StartWorker(1);
+  ProduceSlowEpisodes(2, 9);  // attempt 2, from the start
   ASSERT_TRUE(WaitFor([&] { return Finished("expired"); }, seconds(60)));
   worker_->Drain();
   worker_thread_.join();
