@@ -542,8 +542,22 @@ TEST_F(WorkerTest, LeaseGrantedToACancelledPollIsReleasedAtOnce) {
     v1::AcquireLeaseResponse response;
     status = stub->AcquireLease(&context, request, &response);
   });
-  // Let the call reach the coordinator's long poll (nothing is queued yet).
-  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  // Let the call reach the coordinator's long poll (nothing is queued yet):
+  // every poll records its worker before it waits, so the worker is listed
+  // once the handler is in the scheduler.
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        grpc::ClientContext list_context;
+        v1::ListWorkersResponse workers;
+        if (!control_->ListWorkers(&list_context, v1::ListWorkersRequest(), &workers).ok()) {
+          return false;
+        }
+        for (const auto& worker : workers.workers()) {
+          if (worker.worker_id() == "gone") return true;
+        }
+        return false;
+      },
+      seconds(10)));
   context.TryCancel();
   poll.join();
   EXPECT_EQ(status.error_code(), grpc::StatusCode::CANCELLED);
@@ -659,13 +673,16 @@ TEST_F(WorkerTest, DrainTimeoutStopsTheStudyAndRequeuesItWithoutBlame) {
 }
 
 // A worker without a study runner (like an older build) is never given a
-// study job; it still takes trials.
+// study job; it still takes trials. Every claim below is decided with the
+// study queued ahead of the trial, the second one on a poll woken by the
+// new sweep (no waiting for polls to time out).
 TEST_F(WorkerTest, WorkersThatDoNotRunStudiesGetOnlyTrials) {
   SubmitStudies("study-only", {21});
   Submit("trials", {1});
   StartWorker(1, absl::Seconds(30), /*studies=*/false);
   ASSERT_TRUE(WaitFor([&] { return Finished("trials"); }, seconds(60)));
-  std::this_thread::sleep_for(std::chrono::milliseconds(1500));  // more polls
+  Submit("more-trials", {2});
+  ASSERT_TRUE(WaitFor([&] { return Finished("more-trials"); }, seconds(60)));
   EXPECT_EQ(JobsBySeed("study-only")["21"].state(), v1::JOB_STATE_QUEUED);
   EXPECT_EQ(JobsBySeed("study-only")["21"].attempts(), 0);
 }
