@@ -184,11 +184,16 @@ class WorkerTest : public ::testing::Test {
     options.call_timeout = absl::Seconds(5);
     options.drain_timeout = drain_timeout;
     options.report_grace = report_grace_;
+    options.max_idle = max_idle_;
     options.state_dir = state_dir_;
     worker_ = std::make_unique<Worker>(
         options, grpc::CreateChannel(options_.listen, grpc::InsecureChannelCredentials()), &runner_,
         studies ? &study_runner_ : nullptr, worker_clock_);
-    worker_thread_ = std::thread([this] { summary_ = worker_->Run(); });
+    worker_done_ = false;
+    worker_thread_ = std::thread([this] {
+      summary_ = worker_->Run();
+      worker_done_ = true;
+    });
   }
   void Submit(const std::string& name, const std::vector<int>& seeds, int max_attempts = 3) {
     v1::SubmitSweepRequest request;
@@ -262,6 +267,17 @@ class WorkerTest : public ::testing::Test {
     ASSERT_TRUE(WaitFor([&] { return runner_.produced.load() >= target; }, seconds(30)));
     EXPECT_EQ(runner_.produced.load(), target);
   }
+  // Whether the coordinator lists `worker_id`: it has polled (every poll is
+  // recorded before it waits).
+  bool WorkerKnown(const std::string& worker_id) {
+    grpc::ClientContext context;
+    v1::ListWorkersResponse workers;
+    if (!control_->ListWorkers(&context, v1::ListWorkersRequest(), &workers).ok()) return false;
+    for (const auto& worker : workers.workers()) {
+      if (worker.worker_id() == worker_id) return true;
+    }
+    return false;
+  }
   v1::GetJobLogResponse Log(int64_t job_id) {
     grpc::ClientContext context;
     v1::JobRequest request;
@@ -274,6 +290,7 @@ class WorkerTest : public ::testing::Test {
   std::string dir_;
   std::string state_dir_;  // the worker's --state-dir; empty: none
   absl::Duration report_grace_ = absl::Milliseconds(500);
+  absl::Duration max_idle_ = absl::InfiniteDuration();
   // The clock of the workers StartWorker makes; null: the system clock. A
   // test that sets it to &clock_ moves the workers' time itself. With the
   // clock at rest a worker beats only when an episode is new, so such a test
@@ -289,6 +306,7 @@ class WorkerTest : public ::testing::Test {
   FakeStudyRunner study_runner_;
   std::unique_ptr<Worker> worker_;
   std::thread worker_thread_;
+  std::atomic<bool> worker_done_{false};  // Run() has returned (summary_ is set)
   WorkerSummary summary_;
 };
 
@@ -545,19 +563,7 @@ TEST_F(WorkerTest, LeaseGrantedToACancelledPollIsReleasedAtOnce) {
   // Let the call reach the coordinator's long poll (nothing is queued yet):
   // every poll records its worker before it waits, so the worker is listed
   // once the handler is in the scheduler.
-  ASSERT_TRUE(WaitFor(
-      [&] {
-        grpc::ClientContext list_context;
-        v1::ListWorkersResponse workers;
-        if (!control_->ListWorkers(&list_context, v1::ListWorkersRequest(), &workers).ok()) {
-          return false;
-        }
-        for (const auto& worker : workers.workers()) {
-          if (worker.worker_id() == "gone") return true;
-        }
-        return false;
-      },
-      seconds(10)));
+  ASSERT_TRUE(WaitFor([&] { return WorkerKnown("gone"); }, seconds(10)));
   context.TryCancel();
   poll.join();
   EXPECT_EQ(status.error_code(), grpc::StatusCode::CANCELLED);
@@ -583,6 +589,25 @@ TEST_F(WorkerTest, LeaseGrantedToACancelledPollIsReleasedAtOnce) {
   // A real worker then runs it to completion.
   StartWorker(1);
   ASSERT_TRUE(WaitFor([&] { return Finished("orphan"); }, seconds(30)));
+}
+
+// max_idle is measured on the worker's clock: a worker with nothing to do
+// exits once the clock has passed it, at the end of the poll under way
+// (acquire_wait, 1 s of real time). A worker that timed it on the real clock
+// would run on for 10 minutes.
+TEST_F(WorkerTest, IdleWorkerExitsOnceItsClockPassesMaxIdle) {
+  UseFakeClocks();
+  max_idle_ = absl::Minutes(10);
+  StartWorker(1);
+  // Its idle time counts from the start of its poll loop, which precedes
+  // its first poll.
+  ASSERT_TRUE(WaitFor([&] { return WorkerKnown("fake"); }, seconds(10)));
+  clock_.AdvanceMs(absl::ToInt64Milliseconds(max_idle_) + 1);
+  ASSERT_TRUE(WaitFor([&] { return worker_done_.load(); }, seconds(10)))
+      << "still running after max_idle on its clock";
+  worker_thread_.join();
+  EXPECT_EQ(summary_.exit, WorkerExit::kDone);
+  EXPECT_EQ(summary_.completed + summary_.failed + summary_.released, 0);
 }
 
 // ---- study jobs ----
