@@ -3,7 +3,6 @@
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
-#include <chrono>
 #include <cmath>
 #include <random>
 #include <set>
@@ -32,18 +31,6 @@ std::string RandomInstance() {
   std::mt19937_64 random((static_cast<uint64_t>(device()) << 32) ^ device() ^
                          static_cast<uint64_t>(getpid()));
   return absl::StrFormat("%016x", random());
-}
-
-int64_t WallMs() {
-  return std::chrono::duration_cast<std::chrono::milliseconds>(
-             std::chrono::system_clock::now().time_since_epoch())
-      .count();
-}
-
-int64_t SteadyMs() {
-  return std::chrono::duration_cast<std::chrono::milliseconds>(
-             std::chrono::steady_clock::now().time_since_epoch())
-      .count();
 }
 
 // Why an episode cannot be accepted as a result, or "" if it can.
@@ -85,7 +72,9 @@ std::string Describe(const v1::LeaseKey& key) {
 
 struct Worker::ActiveLease {
   v1::Lease lease;
-  // The fields below are guarded by Worker::mutex_.
+  // The fields below are guarded by Worker::mutex_ (not written as
+  // ABSL_GUARDED_BY: the annotation can only name a mutex reachable from this
+  // struct, and the lock belongs to the Worker that holds the lease).
   std::vector<v1::EpisodeReport> unacked;
   // The trial's latest checkpoint until the coordinator acknowledges it.
   std::optional<v1::TrialCheckpoint> checkpoint;
@@ -110,7 +99,7 @@ class Worker::Progress final : public TrialProgress {
   void OnEpisode(const EpisodeOutcome& episode) override {
     const std::string reason = NonFiniteReason(episode);
     {
-      std::lock_guard<std::mutex> lock(worker_->mutex_);
+      absl::MutexLock lock(&worker_->mutex_);
       if (!reason.empty()) {
         if (active_->failure.empty()) active_->failure = reason;
         active_->cancel = true;
@@ -119,12 +108,11 @@ class Worker::Progress final : public TrialProgress {
         active_->has_new = true;
       }
     }
-    worker_->changed_.notify_all();
   }
   bool ShouldCancel() override { return active_->cancel.load(); }
   void OnCheckpoint(int episode, int format_version, std::string data) override {
     {
-      std::lock_guard<std::mutex> lock(worker_->mutex_);
+      absl::MutexLock lock(&worker_->mutex_);
       if (data.size() > kMaxCheckpointBytes) {
         // The coordinator would refuse it: the trial goes on without one.
         if (!active_->checkpoint_too_big) {
@@ -142,7 +130,6 @@ class Worker::Progress final : public TrialProgress {
       active_->checkpoint = std::move(checkpoint);
       active_->has_new = true;
     }
-    worker_->changed_.notify_all();
   }
 
  private:
@@ -158,11 +145,13 @@ WorkerOptions WithInstance(WorkerOptions options) {
 }  // namespace
 
 Worker::Worker(WorkerOptions options, std::shared_ptr<grpc::Channel> channel, TrialRunner* runner,
-               StudyRunner* study_runner)
+               StudyRunner* study_runner, Clock* clock)
     : options_(WithInstance(std::move(options))),
       stub_(v1::WorkerService::NewStub(std::move(channel))),
       runner_(runner),
-      study_runner_(study_runner) {}
+      study_runner_(study_runner),
+      own_clock_(clock == nullptr ? std::make_unique<SystemClock>() : nullptr),
+      clock_(clock == nullptr ? own_clock_.get() : clock) {}
 
 Worker::~Worker() = default;
 
@@ -170,12 +159,12 @@ WorkerSummary Worker::Run() {
   if (!options_.state_dir.empty()) {
     absl::StatusOr<std::unique_ptr<Spool>> spool = Spool::Open(options_.state_dir, options_.worker_id);
     if (spool.ok()) {
-      std::lock_guard<std::mutex> lock(mutex_);  // SpoolUnfinished may run on a signal thread
+      absl::MutexLock lock(&mutex_);  // SpoolUnfinished may run on a signal thread
       spool_ = *std::move(spool);
     } else if (spool.status().code() == absl::StatusCode::kFailedPrecondition) {
       // Another process here uses this id: running too would mix two
       // workers' leases under one name.
-      std::lock_guard<std::mutex> lock(mutex_);
+      absl::MutexLock lock(&mutex_);
       summary_.exit = WorkerExit::kWorkerIdInUse;
       summary_.exit_message = std::string(spool.status().message());
       spdlog::error("{}", summary_.exit_message);
@@ -195,29 +184,27 @@ WorkerSummary Worker::Run() {
   }
   for (auto& t : slots) t.join();
   {
-    std::lock_guard<std::mutex> lock(mutex_);
+    absl::MutexLock lock(&mutex_);
     finished_ = true;
   }
-  changed_.notify_all();
   heartbeat.join();
   deadlines.join();
-  std::lock_guard<std::mutex> lock(mutex_);
+  absl::MutexLock lock(&mutex_);
   return summary_;
 }
 
 void Worker::Drain() {
   {
-    std::lock_guard<std::mutex> lock(mutex_);
+    absl::MutexLock lock(&mutex_);
     ++heartbeat_generation_;  // the heartbeat thread now watches the drain deadline
     if (!draining_.exchange(true)) {
-      drain_started_ms_ = SteadyMs();
+      drain_started_ms_ = clock_->MonotonicMs();
       spdlog::info("draining: no new leases; running trials have {} to finish",
                    absl::FormatDuration(options_.drain_timeout));
     }
     for (grpc::ClientContext* context : acquiring_) context->TryCancel();
   }
   replay_calls_.CancelAll();
-  changed_.notify_all();
 }
 
 void Worker::Stop() {
@@ -230,7 +217,7 @@ void Worker::Stop() {
 
 void Worker::FailFatally(WorkerExit exit, const std::string& message) {
   {
-    std::lock_guard<std::mutex> lock(mutex_);
+    absl::MutexLock lock(&mutex_);
     if (summary_.exit != WorkerExit::kDone) return;  // the first reason is the one reported
     summary_.exit = exit;
     summary_.exit_message = message;
@@ -257,7 +244,7 @@ v1::SpooledAttempt Worker::SpoolEntry(const v1::LeaseKey& key,
   entry.set_format_version(kSpoolFormatVersion);
   *entry.mutable_lease() = key;
   entry.set_worker_id(options_.worker_id);
-  entry.set_written_unix_ms(WallMs());
+  entry.set_written_unix_ms(clock_->NowMs());
   if (!unacked.empty() || checkpoint) {
     entry.mutable_pending()->set_worker_id(options_.worker_id);
     *entry.mutable_pending()->mutable_lease() = key;
@@ -273,7 +260,7 @@ bool Worker::KeepInSpool(const v1::SpooledAttempt& entry, const std::string& why
     return false;
   }
   v1::SpooledAttempt stamped = entry;
-  stamped.set_written_unix_ms(WallMs());
+  stamped.set_written_unix_ms(clock_->NowMs());
   const absl::Status written = spool_->Put(stamped);
   if (!written.ok()) {
     spdlog::error("{}: {}; keeping it in the spool failed: {}", Describe(entry.lease()), why,
@@ -288,7 +275,7 @@ bool Worker::KeepInSpool(const v1::SpooledAttempt& entry, const std::string& why
 int Worker::SpoolUnfinished() {
   std::vector<v1::SpooledAttempt> entries;
   {
-    std::lock_guard<std::mutex> lock(mutex_);
+    absl::MutexLock lock(&mutex_);
     if (spool_ == nullptr) return 0;
     for (const auto& [job, active] : active_) {
       v1::SpooledAttempt entry =
@@ -304,27 +291,29 @@ int Worker::SpoolUnfinished() {
   for (const auto& entry : entries) {
     if (KeepInSpool(entry, "the worker is exiting")) ++kept;
   }
-  std::lock_guard<std::mutex> lock(mutex_);
+  absl::MutexLock lock(&mutex_);
   summary_.spooled += kept;
   return kept;
 }
 
 void Worker::CancelAll(const std::string& reason) {
   {
-    std::lock_guard<std::mutex> lock(mutex_);
+    absl::MutexLock lock(&mutex_);
     for (auto& [job, active] : active_) {
       if (active->cancel_reason.empty()) active->cancel_reason = reason;
       active->cancel = true;
     }
   }
-  changed_.notify_all();
 }
 
 void Worker::SlotLoop(int slot) {
   thread_local std::mt19937_64 random(std::random_device{}() + slot);
-  int64_t last_work_ms = SteadyMs();
-  int64_t last_answer_ms = SteadyMs();  // the coordinator's last answer (granted or not)
+  int64_t last_work_ms = clock_->MonotonicMs();
+  int64_t last_answer_ms = clock_->MonotonicMs();  // the coordinator's last answer (granted or not)
   int64_t backoff_ms = 200;
+  // Ends a wait between polls (draining_ is set under mutex_; stopping_ just
+  // before Drain() takes it).
+  const auto stopped_polling = [this] { return draining_ || stopping_; };
   while (!draining_ && !stopping_) {
     v1::AcquireLeaseRequest request;
     FillIdentity(request.mutable_worker());
@@ -334,13 +323,13 @@ void Worker::SlotLoop(int slot) {
     rpc::PrepareContext(&context, options_.token, options_.acquire_wait + options_.call_timeout,
                         /*wait_for_ready=*/true);
     {
-      std::lock_guard<std::mutex> lock(mutex_);
+      absl::MutexLock lock(&mutex_);
       if (draining_) break;
       acquiring_.push_back(&context);
     }
     const grpc::Status status = stub_->AcquireLease(&context, request, &response);
     {
-      std::lock_guard<std::mutex> lock(mutex_);
+      absl::MutexLock lock(&mutex_);
       acquiring_.erase(std::find(acquiring_.begin(), acquiring_.end(), &context));
     }
     if (draining_ || stopping_) {
@@ -363,9 +352,9 @@ void Worker::SlotLoop(int slot) {
     if (status.error_code() == grpc::StatusCode::ALREADY_EXISTS) {
       int64_t refused_for = 0;
       {
-        std::lock_guard<std::mutex> lock(mutex_);
-        if (id_refused_since_ms_ < 0) id_refused_since_ms_ = SteadyMs();
-        refused_for = SteadyMs() - id_refused_since_ms_;
+        absl::MutexLock lock(&mutex_);
+        if (id_refused_since_ms_ < 0) id_refused_since_ms_ = clock_->MonotonicMs();
+        refused_for = clock_->MonotonicMs() - id_refused_since_ms_;
       }
       // A newer process took this id over: this one is the duplicate. Else
       // the other process may be a crashed predecessor whose silence has
@@ -379,18 +368,19 @@ void Worker::SlotLoop(int slot) {
         spdlog::warn("{} (waiting up to {} for it to go away)", status.error_message(),
                      absl::FormatDuration(options_.worker_id_wait));
       }
-      std::unique_lock<std::mutex> lock(mutex_);
-      changed_.wait_for(lock, std::chrono::seconds(2), [&] { return draining_ || stopping_; });
+      absl::MutexLock lock(&mutex_);
+      clock_->AwaitUntil(&mutex_, absl::Condition(&stopped_polling),
+                         clock_->MonotonicMs() + 2000);
       continue;
     }
     {
-      std::lock_guard<std::mutex> lock(mutex_);
+      absl::MutexLock lock(&mutex_);
       if (status.ok()) id_refused_since_ms_ = -1;
     }
     if (!status.ok()) {
       // Without a coordinator the worker can do nothing: give up after
       // max_unreachable (or max_idle) instead of retrying for ever.
-      const int64_t silent_ms = SteadyMs() - last_answer_ms;
+      const int64_t silent_ms = clock_->MonotonicMs() - last_answer_ms;
       const absl::Duration limit = std::min(options_.max_unreachable, options_.max_idle);
       if (limit != absl::InfiniteDuration() && silent_ms > absl::ToInt64Milliseconds(limit)) {
         FailFatally(WorkerExit::kCoordinatorUnreachable,
@@ -405,33 +395,34 @@ void Worker::SlotLoop(int slot) {
       spdlog::warn("slot {}: AcquireLease failed: {} ({}); retrying", slot, status.error_message(),
                    static_cast<int>(status.error_code()));
       std::uniform_real_distribution<double> jitter(0.8, 1.2);
-      std::unique_lock<std::mutex> lock(mutex_);
-      changed_.wait_for(lock, std::chrono::milliseconds(static_cast<int64_t>(backoff_ms * jitter(random))),
-                        [&] { return draining_ || stopping_; });
+      const int64_t sleep_ms = static_cast<int64_t>(backoff_ms * jitter(random));
+      absl::MutexLock lock(&mutex_);
+      clock_->AwaitUntil(&mutex_, absl::Condition(&stopped_polling),
+                         clock_->MonotonicMs() + sleep_ms);
       backoff_ms = std::min<int64_t>(backoff_ms * 2, 10'000);
       continue;
     }
     backoff_ms = 200;
-    last_answer_ms = SteadyMs();
+    last_answer_ms = clock_->MonotonicMs();
     if (!response.granted()) {
       if (options_.max_idle != absl::InfiniteDuration() &&
-          SteadyMs() - last_work_ms > absl::ToInt64Milliseconds(options_.max_idle)) {
+          clock_->MonotonicMs() - last_work_ms > absl::ToInt64Milliseconds(options_.max_idle)) {
         spdlog::info("slot {}: idle for {}; exiting", slot, absl::FormatDuration(options_.max_idle));
         break;
       }
       continue;
     }
     RunLease(response.lease());
-    last_work_ms = SteadyMs();
+    last_work_ms = clock_->MonotonicMs();
   }
 }
 
 void Worker::RunLease(const v1::Lease& lease) {
   auto active = std::make_shared<ActiveLease>();
   active->lease = lease;
-  active->next_beat_ms = SteadyMs() + std::max(100, lease.heartbeat_interval_ms());
+  active->next_beat_ms = clock_->MonotonicMs() + std::max(100, lease.heartbeat_interval_ms());
   {
-    std::lock_guard<std::mutex> lock(mutex_);
+    absl::MutexLock lock(&mutex_);
     active_[lease.key().job_id()] = active;
     ++heartbeat_generation_;  // the heartbeat thread plans this lease's first beat
     if (stopping_) {
@@ -439,7 +430,6 @@ void Worker::RunLease(const v1::Lease& lease) {
       active->cancel_reason = "worker stopping";
     }
   }
-  changed_.notify_all();
   const bool is_study = lease.kind() == v1::JOB_KIND_STUDY;
   if (is_study) {
     spdlog::info("{}: study {} (seed {})", Describe(lease.key()), lease.variant(), lease.seed());
@@ -477,7 +467,7 @@ void Worker::RunLease(const v1::Lease& lease) {
                      std::string(result.status().message()));
         result = runner_->Run(options, &progress);
       } else {
-        std::lock_guard<std::mutex> lock(mutex_);
+        absl::MutexLock lock(&mutex_);
         ++summary_.resumed;
       }
     } else if (!is_study) {
@@ -500,33 +490,32 @@ void Worker::RunLease(const v1::Lease& lease) {
 void Worker::DeadlineLoop() {
   // Its own thread, so that a heartbeat stuck on an unreachable coordinator
   // cannot delay the drain deadlines.
-  std::unique_lock<std::mutex> lock(mutex_);
-  changed_.wait(lock, [&] { return finished_ || draining_; });
+  absl::ReleasableMutexLock lock(&mutex_);
+  const auto finished_or_draining = [this] { return finished_ || draining_; };
+  mutex_.Await(absl::Condition(&finished_or_draining));
   if (finished_) return;
   const int64_t drain_deadline =
       drain_started_ms_ + absl::ToInt64Milliseconds(options_.drain_timeout);
   const int64_t report_deadline = drain_deadline + absl::ToInt64Milliseconds(options_.report_grace);
-  const auto at = [](int64_t ms) {
-    return std::chrono::steady_clock::time_point(std::chrono::milliseconds(ms));
-  };
-  if (changed_.wait_until(lock, at(drain_deadline), [&] { return finished_.load(); })) return;
+  const auto finished = [this] { return finished_.load(); };
+  if (clock_->AwaitUntil(&mutex_, absl::Condition(&finished), drain_deadline)) return;
   for (auto& [job, active] : active_) {
     if (!active->cancel) {
       active->cancel_reason = "drain timeout";
       active->cancel = true;
     }
   }
-  if (changed_.wait_until(lock, at(report_deadline), [&] { return finished_.load(); })) return;
+  if (clock_->AwaitUntil(&mutex_, absl::Condition(&finished), report_deadline)) return;
   // Whatever is still undelivered is spooled rather than waited for.
   give_up_ = true;
-  lock.unlock();
+  lock.Release();
   calls_.CancelAll();
 }
 
 void Worker::HeartbeatLoop() {
-  std::unique_lock<std::mutex> lock(mutex_);
+  mutex_.Lock();  // held except while beating (Lock/Unlock: it is released mid-loop)
   while (!finished_) {
-    const int64_t now = SteadyMs();
+    const int64_t now = clock_->MonotonicMs();
     int64_t wake = now + 1000;
     std::vector<std::shared_ptr<ActiveLease>> due;
     for (auto& [job, active] : active_) {
@@ -539,25 +528,23 @@ void Worker::HeartbeatLoop() {
     }
     if (due.empty()) {
       const uint64_t generation = heartbeat_generation_;
-      changed_.wait_until(lock, std::chrono::steady_clock::time_point(std::chrono::milliseconds(wake)),
-                          [&] {
-                            if (finished_ || heartbeat_generation_ != generation) return true;
-                            for (auto& [job, active] : active_) {
-                              if (active->has_new && !active->beat_in_flight && !active->lost) {
-                                return true;
-                              }
-                            }
-                            return false;
-                          });
+      const auto replan = [&]() ABSL_EXCLUSIVE_LOCKS_REQUIRED(mutex_) {
+        if (finished_ || heartbeat_generation_ != generation) return true;
+        for (auto& [job, active] : active_) {
+          if (active->has_new && !active->beat_in_flight && !active->lost) return true;
+        }
+        return false;
+      };
+      clock_->AwaitUntil(&mutex_, absl::Condition(&replan), wake);
       continue;
     }
     for (auto& active : due) active->beat_in_flight = true;
-    lock.unlock();
+    mutex_.Unlock();
     for (auto& active : due) Beat(active);
-    lock.lock();
+    mutex_.Lock();
     for (auto& active : due) active->beat_in_flight = false;
-    changed_.notify_all();
   }
+  mutex_.Unlock();
 }
 
 void Worker::Beat(const std::shared_ptr<ActiveLease>& active) {
@@ -567,7 +554,7 @@ void Worker::Beat(const std::shared_ptr<ActiveLease>& active) {
   std::set<int> sent;
   int checkpoint_sent = -1;
   {
-    std::lock_guard<std::mutex> lock(mutex_);
+    absl::MutexLock lock(&mutex_);
     for (const auto& episode : active->unacked) {
       if (request.episodes_size() >= 1000) break;
       *request.add_episodes() = episode;
@@ -593,8 +580,8 @@ void Worker::Beat(const std::shared_ptr<ActiveLease>& active) {
   }
   bool drain = false;
   {
-    std::lock_guard<std::mutex> lock(mutex_);
-    const int64_t now = SteadyMs();
+    absl::MutexLock lock(&mutex_);
+    const int64_t now = clock_->MonotonicMs();
     const int64_t interval = std::max(100, active->lease.heartbeat_interval_ms());
     if (status.ok()) {
       std::erase_if(active->unacked,
@@ -683,13 +670,13 @@ rpc::RetryPolicy Worker::FinalReportPolicy() const {
   policy.give_up_after = options_.orphan_timeout;
   int64_t drain_started_ms = 0;
   {
-    std::lock_guard<std::mutex> lock(mutex_);
+    absl::MutexLock lock(&mutex_);
     drain_started_ms = drain_started_ms_;
   }
   if (draining_) {
     // Bounded by the drain: what is not delivered by then is spooled.
     const int64_t left = drain_started_ms + absl::ToInt64Milliseconds(options_.drain_timeout) +
-                         absl::ToInt64Milliseconds(options_.report_grace) - SteadyMs();
+                         absl::ToInt64Milliseconds(options_.report_grace) - clock_->MonotonicMs();
     policy.give_up_after = absl::Milliseconds(std::max<int64_t>(0, left));
     policy.call_timeout = std::min(policy.call_timeout,
                                    absl::Milliseconds(std::max<int64_t>(100, left)));
@@ -767,8 +754,9 @@ void Worker::Finish(const std::shared_ptr<ActiveLease>& active,
   {
     // Take the lease away from the heartbeat thread; from here on it is a
     // final report in finishing_ (which SpoolUnfinished sees too).
-    std::unique_lock<std::mutex> lock(mutex_);
-    changed_.wait(lock, [&] { return !active->beat_in_flight; });
+    absl::MutexLock lock(&mutex_);
+    const auto no_beat_in_flight = [&] { return !active->beat_in_flight; };
+    mutex_.Await(absl::Condition(&no_beat_in_flight));
     active_.erase(key.job_id());
     if (active->lost) {
       ++summary_.dropped;
@@ -780,7 +768,6 @@ void Worker::Finish(const std::shared_ptr<ActiveLease>& active,
     unacked = active->unacked;
     checkpoint = active->checkpoint;
   }
-  changed_.notify_all();
   if (failure.empty() && !result.ok() && result.status().code() != absl::StatusCode::kCancelled) {
     failure = result.status().ToString();
   }
@@ -817,7 +804,7 @@ void Worker::Finish(const std::shared_ptr<ActiveLease>& active,
     }
   }
   {
-    std::lock_guard<std::mutex> lock(mutex_);
+    absl::MutexLock lock(&mutex_);
     finishing_[key.job_id()] = entry;
   }
   const rpc::RetryPolicy policy = FinalReportPolicy();
@@ -834,7 +821,7 @@ void Worker::Finish(const std::shared_ptr<ActiveLease>& active,
       entry.mutable_release()->set_worker_id(options_.worker_id);
       *entry.mutable_release()->mutable_lease() = key;
       entry.mutable_release()->set_reason("the study's rows could not be delivered");
-      std::lock_guard<std::mutex> lock(mutex_);
+      absl::MutexLock lock(&mutex_);
       finishing_[key.job_id()] = entry;
     }
   }
@@ -845,12 +832,12 @@ void Worker::Finish(const std::shared_ptr<ActiveLease>& active,
     const bool kept = KeepInSpool(entry, "the coordinator refused the token");
     FailFatally(WorkerExit::kAuthRefused,
                 absl::StrCat("the coordinator refused this worker's token: ", status.error_message()));
-    std::lock_guard<std::mutex> lock(mutex_);
+    absl::MutexLock lock(&mutex_);
     finishing_.erase(key.job_id());
     ++(kept ? summary_.spooled : summary_.dropped);
     return;
   }
-  std::lock_guard<std::mutex> lock(mutex_);
+  absl::MutexLock lock(&mutex_);
   finishing_.erase(key.job_id());
   if (!status.ok()) {
     if (IsLeaseGone(status.error_code())) {
@@ -917,7 +904,7 @@ void Worker::ReplaySpool() {
     }
     const absl::Status removed = spool_->Remove(entry.lease());
     if (!removed.ok()) spdlog::warn("{}", removed.ToString());
-    std::lock_guard<std::mutex> lock(mutex_);
+    absl::MutexLock lock(&mutex_);
     if (status.ok()) {
       ++summary_.replayed;
       spdlog::info("{}: spooled results delivered ({})", Describe(entry.lease()),

@@ -38,6 +38,12 @@
 //     host-local lock) stops the worker at once, with results spooled, and
 //     Run() says why (WorkerSummary::exit): retrying cannot help.
 //
+// Time: every interval and deadline above (heartbeats, drain_timeout,
+// report_grace, max_idle, backoff between polls) is measured on the injected
+// Clock's monotonic clock, so tests can move time instead of sleeping; gRPC
+// call deadlines (acquire_wait, call_timeout) and the retries of final
+// reports (rpc::CallWithRetry) stay on real time.
+//
 // Threading: Run() blocks on the calling thread and owns one thread per slot,
 // the heartbeat thread and the drain-deadline thread. Drain(), Stop() and SpoolUnfinished() may be
 // called from any thread.
@@ -47,16 +53,17 @@
 #include <grpcpp/channel.h>
 
 #include <atomic>
-#include <condition_variable>
 #include <cstdint>
 #include <map>
 #include <memory>
-#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "absl/base/thread_annotations.h"
+#include "absl/synchronization/mutex.h"
 #include "absl/time/time.h"
+#include "server/common/clock.h"
 #include "server/common/rpc_client.h"
 #include "totalgrad/v1/worker_service.grpc.pb.h"
 #include "totalgrad/v1/worker_spool.pb.h"
@@ -137,26 +144,27 @@ struct WorkerSummary {
 
 class Worker {
  public:
-  // `runner` and `study_runner` are not owned and must outlive the worker.
-  // Without a study runner the worker takes trial jobs only.
+  // `runner`, `study_runner` and `clock` are not owned and must outlive the
+  // worker. Without a study runner the worker takes trial jobs only; without
+  // a clock it uses the system clock.
   Worker(WorkerOptions options, std::shared_ptr<grpc::Channel> channel, TrialRunner* runner,
-         StudyRunner* study_runner = nullptr);
+         StudyRunner* study_runner = nullptr, Clock* clock = nullptr);
   ~Worker();
   Worker(const Worker&) = delete;
   Worker& operator=(const Worker&) = delete;
 
   // Replays the spool of an earlier process with this id, then works until
   // drained, stopped, idle for max_idle, or a fatal error (summary.exit).
-  WorkerSummary Run();
-  void Drain();
+  WorkerSummary Run() ABSL_LOCKS_EXCLUDED(mutex_);
+  void Drain() ABSL_LOCKS_EXCLUDED(mutex_);
   // Stops at once: trials are cancelled and calls in flight cut short.
-  void Stop();
+  void Stop() ABSL_LOCKS_EXCLUDED(mutex_);
   // Writes every attempt this worker still holds (running trials, final
   // reports not yet acknowledged) to the spool, each with its unacknowledged
   // episodes and its final report (a release for running trials). Returns how
   // many; 0 without a state_dir. For a process that must exit now (a second
   // SIGTERM): call after Stop(), then exit.
-  int SpoolUnfinished();
+  int SpoolUnfinished() ABSL_LOCKS_EXCLUDED(mutex_);
 
  private:
   struct ActiveLease;
@@ -168,35 +176,35 @@ class Worker {
     std::string failure;  // set when a refused completion became a Fail
   };
 
-  void SlotLoop(int slot);
+  void SlotLoop(int slot) ABSL_LOCKS_EXCLUDED(mutex_);
   // Runs the trial of `lease` and reports how it ended.
-  void RunLease(const v1::Lease& lease);
-  void HeartbeatLoop();
+  void RunLease(const v1::Lease& lease) ABSL_LOCKS_EXCLUDED(mutex_);
+  void HeartbeatLoop() ABSL_LOCKS_EXCLUDED(mutex_);
   // After Drain(): cancels running trials at the drain deadline and gives
   // up on undelivered final reports at drain deadline + report_grace.
-  void DeadlineLoop();
+  void DeadlineLoop() ABSL_LOCKS_EXCLUDED(mutex_);
   // Sends one heartbeat for `active`; updates its unacknowledged episodes.
-  void Beat(const std::shared_ptr<ActiveLease>& active);
+  void Beat(const std::shared_ptr<ActiveLease>& active) ABSL_LOCKS_EXCLUDED(mutex_);
   // Sends the final report of an attempt, retrying while it makes sense,
   // and spools it if it cannot be delivered in time. `study` holds a
   // finished study job's rows (null for trials).
   void Finish(const std::shared_ptr<ActiveLease>& active, const absl::StatusOr<TrialOutcome>& result,
-              const StudyOutcome* study = nullptr);
+              const StudyOutcome* study = nullptr) ABSL_LOCKS_EXCLUDED(mutex_);
   // Sends `attempt`: its pending heartbeat, then its final report. A refused
   // completion (INVALID_ARGUMENT/FAILED_PRECONDITION) becomes a Fail with
   // the reason. Calls go through `registry` and stop when it is cancelled.
   Delivery Deliver(const v1::SpooledAttempt& attempt, const rpc::RetryPolicy& policy,
                    rpc::CallRegistry* registry);
   // Replays the spool of an earlier process at start.
-  void ReplaySpool();
+  void ReplaySpool() ABSL_LOCKS_EXCLUDED(mutex_);
   // How final reports are retried now (bounded by the drain deadline).
-  rpc::RetryPolicy FinalReportPolicy() const;
+  rpc::RetryPolicy FinalReportPolicy() const ABSL_LOCKS_EXCLUDED(mutex_);
   // Sends a finished study's rows in heartbeats of bounded size.
   grpc::Status SendStudyRows(const v1::LeaseKey& key, const StudyOutcome& study,
                              const rpc::RetryPolicy& policy);
-  void CancelAll(const std::string& reason);
+  void CancelAll(const std::string& reason) ABSL_LOCKS_EXCLUDED(mutex_);
   // Ends the worker at once for a reason retrying cannot fix.
-  void FailFatally(WorkerExit exit, const std::string& message);
+  void FailFatally(WorkerExit exit, const std::string& message) ABSL_LOCKS_EXCLUDED(mutex_);
   // Fills the identity fields of `identity`.
   void FillIdentity(v1::WorkerIdentity* identity) const;
   // An attempt as a spool entry: `unacked` (and `checkpoint`, if any) as
@@ -211,6 +219,8 @@ class Worker {
   std::unique_ptr<v1::WorkerService::Stub> stub_;
   TrialRunner* const runner_;
   StudyRunner* const study_runner_;
+  const std::unique_ptr<SystemClock> own_clock_;  // set when no clock was given
+  Clock* const clock_;
 
   // Null without a state_dir (or if it is unusable). Set once at the start
   // of Run() under mutex_; SpoolUnfinished reads it under mutex_.
@@ -225,17 +235,20 @@ class Worker {
   rpc::CallRegistry calls_;         // heartbeats and final reports in flight
   rpc::CallRegistry replay_calls_;  // spool replay at start (cancelled by Drain)
 
-  mutable std::mutex mutex_;
-  std::condition_variable changed_;  // new episodes, leases ending, drain, stop
-  std::map<int64_t, std::shared_ptr<ActiveLease>> active_;  // by job id; guarded by mutex_
-  std::vector<grpc::ClientContext*> acquiring_;             // in-flight polls; guarded by mutex_
-  int64_t drain_started_ms_ = 0;                            // guarded by mutex_
-  int64_t id_refused_since_ms_ = -1;  // first ALREADY_EXISTS in a row; guarded by mutex_
+  // Waits (new episodes, leases ending, drain, stop) are Mutex::Await or
+  // clock_->AwaitUntil on conditions over the state below: absl::Mutex
+  // re-evaluates them whenever the mutex is released, so a change made
+  // under mutex_ needs no separate notification.
+  mutable absl::Mutex mutex_;
+  std::map<int64_t, std::shared_ptr<ActiveLease>> active_ ABSL_GUARDED_BY(mutex_);  // by job id
+  std::vector<grpc::ClientContext*> acquiring_ ABSL_GUARDED_BY(mutex_);  // in-flight polls
+  int64_t drain_started_ms_ ABSL_GUARDED_BY(mutex_) = 0;  // on clock_->MonotonicMs()
+  int64_t id_refused_since_ms_ ABSL_GUARDED_BY(mutex_) = -1;  // first ALREADY_EXISTS in a row
   // Bumped when the heartbeat thread must re-plan (a new lease, a drain).
-  uint64_t heartbeat_generation_ = 0;                       // guarded by mutex_
+  uint64_t heartbeat_generation_ ABSL_GUARDED_BY(mutex_) = 0;
   // Final reports being delivered, by job id, as they would be spooled.
-  std::map<int64_t, v1::SpooledAttempt> finishing_;         // guarded by mutex_
-  WorkerSummary summary_;                                   // guarded by mutex_
+  std::map<int64_t, v1::SpooledAttempt> finishing_ ABSL_GUARDED_BY(mutex_);
+  WorkerSummary summary_ ABSL_GUARDED_BY(mutex_);
 };
 
 }  // namespace totalgrad::worker

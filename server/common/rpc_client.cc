@@ -81,24 +81,24 @@ void PrepareContext(grpc::ClientContext* context, const std::string& token,
 }
 
 void CallRegistry::Add(grpc::ClientContext* context) {
-  std::lock_guard<std::mutex> lock(mutex_);
+  absl::MutexLock lock(&mutex_);
   contexts_.insert(context);
   if (cancelled_) context->TryCancel();
 }
 
 void CallRegistry::Remove(grpc::ClientContext* context) {
-  std::lock_guard<std::mutex> lock(mutex_);
+  absl::MutexLock lock(&mutex_);
   contexts_.erase(context);
 }
 
 void CallRegistry::CancelAll() {
-  std::lock_guard<std::mutex> lock(mutex_);
+  absl::MutexLock lock(&mutex_);
   cancelled_ = true;
   for (grpc::ClientContext* context : contexts_) context->TryCancel();
 }
 
 bool CallRegistry::cancelled() const {
-  std::lock_guard<std::mutex> lock(mutex_);
+  absl::MutexLock lock(&mutex_);
   return cancelled_;
 }
 

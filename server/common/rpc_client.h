@@ -16,11 +16,12 @@
 #include <atomic>
 #include <functional>
 #include <memory>
-#include <mutex>
 #include <set>
 #include <string>
 
+#include "absl/base/thread_annotations.h"
 #include "absl/status/statusor.h"
+#include "absl/synchronization/mutex.h"
 #include "absl/time/time.h"
 
 namespace totalgrad::rpc {
@@ -81,9 +82,9 @@ class CallRegistry {
   bool cancelled() const;
 
  private:
-  mutable std::mutex mutex_;
-  std::set<grpc::ClientContext*> contexts_;  // guarded by mutex_
-  bool cancelled_ = false;                   // guarded by mutex_
+  mutable absl::Mutex mutex_;
+  std::set<grpc::ClientContext*> contexts_ ABSL_GUARDED_BY(mutex_);
+  bool cancelled_ ABSL_GUARDED_BY(mutex_) = false;
 };
 
 // Calls `call` with a fresh context (deadline, token, wait-for-ready) until it

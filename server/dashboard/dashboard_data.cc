@@ -211,7 +211,7 @@ absl::StatusOr<FinishEstimate> DashboardData::Estimate(const storage::SweepRecor
       absl::StrCat(sweep.episodes_stored, "/", sweep.jobs_queued, "/", sweep.jobs_running, "/",
                    sweep.jobs_completed, "/", sweep.jobs_failed, "/", sweep.jobs_cancelled);
   {
-    std::lock_guard<std::mutex> lock(cache_mutex_);
+    absl::MutexLock lock(&cache_mutex_);
     auto it = eta_cache_.find(sweep.id);
     if (it != eta_cache_.end() && it->second.key == key &&
         now_ms - it->second.computed_ms < 60 * 1000) {
@@ -248,7 +248,7 @@ absl::StatusOr<FinishEstimate> DashboardData::Estimate(const storage::SweepRecor
   if (!remaining.empty() && remaining.size() < static_cast<size_t>(sweep.jobs_queued + sweep.jobs_running)) {
     estimate.basis += "; study jobs not counted";
   }
-  std::lock_guard<std::mutex> lock(cache_mutex_);
+  absl::MutexLock lock(&cache_mutex_);
   eta_cache_[sweep.id] = {key, now_ms, estimate};
   return estimate;
 }

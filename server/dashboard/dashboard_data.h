@@ -12,12 +12,13 @@
 
 #include <cstdint>
 #include <map>
-#include <mutex>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
+#include "absl/base/thread_annotations.h"
 #include "absl/status/statusor.h"
+#include "absl/synchronization/mutex.h"
 #include "server/storage/store.h"
 
 namespace totalgrad::dashboard {
@@ -107,8 +108,8 @@ class DashboardData {
     int64_t computed_ms = 0;
     FinishEstimate estimate;
   };
-  std::mutex cache_mutex_;
-  std::map<int64_t, CachedEstimate> eta_cache_;  // by sweep id; guarded by cache_mutex_
+  absl::Mutex cache_mutex_;
+  std::map<int64_t, CachedEstimate> eta_cache_ ABSL_GUARDED_BY(cache_mutex_);  // by sweep id
 };
 
 }  // namespace totalgrad::dashboard

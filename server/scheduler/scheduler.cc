@@ -1,7 +1,6 @@
 #include "server/scheduler/scheduler.h"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <utility>
 
@@ -20,13 +19,6 @@ using storage::JobState;
 using storage::LeaseKey;
 using storage::SweepState;
 using storage::WorkerIdentity;
-
-int64_t SystemClock::NowMs() { return absl::ToUnixMillis(absl::Now()); }
-int64_t SystemClock::MonotonicMs() {
-  return std::chrono::duration_cast<std::chrono::milliseconds>(
-             std::chrono::steady_clock::now().time_since_epoch())
-      .count();
-}
 
 absl::Status SchedulerOptions::Validate() const {
   if (heartbeat_interval <= absl::ZeroDuration()) {
@@ -166,7 +158,7 @@ int64_t Scheduler::LeaseExpiryFrom(int64_t lease_now_ms) const {
 }
 
 absl::StatusOr<int> Scheduler::Recover() {
-  std::lock_guard<std::mutex> lock(decision_mutex_);
+  absl::MutexLock lock(&decision_mutex_);
   ASSIGN_OR_RETURN(int extended,
                    store_->ExtendOpenLeases(LeaseExpiryFrom(LeaseNowMs()), clock_->NowMs(),
                                             "on coordinator start"));
@@ -187,7 +179,7 @@ absl::Status Scheduler::MaybeTouchWorker(const WorkerIdentity& worker, int64_t n
 
 absl::StatusOr<std::optional<Lease>> Scheduler::TryAcquire(const WorkerIdentity& worker) {
   RETURN_IF_ERROR(ValidateWorkerIdentity(worker));
-  std::lock_guard<std::mutex> lock(decision_mutex_);
+  absl::MutexLock lock(&decision_mutex_);
   return TryAcquireLocked(worker);
 }
 
@@ -259,46 +251,47 @@ absl::StatusOr<std::optional<Lease>> Scheduler::TryAcquireLocked(const WorkerIde
 
 absl::StatusOr<std::optional<Lease>> Scheduler::Acquire(const WorkerIdentity& worker,
                                                         absl::Duration wait) {
-  const auto deadline =
-      std::chrono::steady_clock::now() +
-      std::chrono::milliseconds(absl::ToInt64Milliseconds(std::min(wait, options_.max_acquire_wait)));
+  // Real time, whatever clock_ is: this bounds a gRPC long poll. Measured on
+  // the monotonic clock (SystemClock::AwaitUntil), not on the wall clock.
+  SystemClock real_time;
+  const int64_t deadline_ms =
+      real_time.MonotonicMs() + absl::ToInt64Milliseconds(std::min(wait, options_.max_acquire_wait));
   while (true) {
     uint64_t generation;
     {
-      std::lock_guard<std::mutex> lock(work_mutex_);
+      absl::MutexLock lock(&work_mutex_);
       if (shutdown_) return std::optional<Lease>();
       generation = work_generation_;
     }
     ASSIGN_OR_RETURN(std::optional<Lease> lease, TryAcquire(worker));
     if (lease.has_value()) return lease;
-    std::unique_lock<std::mutex> lock(work_mutex_);
+    absl::MutexLock lock(&work_mutex_);
     // Wake when something changed since we looked (no lost wake-ups: the
     // generation was read before the store was).
-    const bool changed = work_available_.wait_until(lock, deadline, [&] {
+    const auto changed_since = [&]() ABSL_EXCLUSIVE_LOCKS_REQUIRED(work_mutex_) {
       return shutdown_ || work_generation_ != generation;
-    });
+    };
+    const bool changed = real_time.AwaitUntil(&work_mutex_, absl::Condition(&changed_since), deadline_ms);
     if (!changed || shutdown_) return std::optional<Lease>();
   }
 }
 
 void Scheduler::NotifyWork() {
   {
-    std::lock_guard<std::mutex> lock(work_mutex_);
+    absl::MutexLock lock(&work_mutex_);
     ++work_generation_;
   }
-  work_available_.notify_all();
 }
 
 void Scheduler::Shutdown() {
   {
-    std::lock_guard<std::mutex> lock(work_mutex_);
+    absl::MutexLock lock(&work_mutex_);
     shutdown_ = true;
   }
-  work_available_.notify_all();
 }
 
 bool Scheduler::shut_down() const {
-  std::lock_guard<std::mutex> lock(work_mutex_);
+  absl::MutexLock lock(&work_mutex_);
   return shutdown_;
 }
 
@@ -308,7 +301,7 @@ absl::StatusOr<HeartbeatResult> Scheduler::Heartbeat(
   RETURN_IF_ERROR(ValidateEpisodes(episodes));
   RETURN_IF_ERROR(ValidateStudyRows(study));
   RETURN_IF_ERROR(ValidateCheckpoint(checkpoint));
-  std::lock_guard<std::mutex> lock(decision_mutex_);
+  absl::MutexLock lock(&decision_mutex_);
   const int64_t now = clock_->NowMs();
   HeartbeatResult result;
   const int64_t lease_expires = LeaseExpiryFrom(LeaseNowMs());
@@ -400,7 +393,7 @@ absl::Status Scheduler::Complete(const std::string& worker_id, const LeaseKey& k
     return absl::InvalidArgumentError(
         "final_eval_cost is not finite; a trial with a non-finite cost must be reported with Fail");
   }
-  std::lock_guard<std::mutex> lock(decision_mutex_);
+  absl::MutexLock lock(&decision_mutex_);
   AttemptEnd end;
   end.key = key;
   end.worker_id = worker_id;
@@ -422,7 +415,7 @@ absl::Status Scheduler::CompleteStudy(const std::string& worker_id, const LeaseK
         "a study completes with ", cells_total, " cells and ", references_total,
         " references; at most ", kMaxStudyRowsPerJob, " of each"));
   }
-  std::lock_guard<std::mutex> lock(decision_mutex_);
+  absl::MutexLock lock(&decision_mutex_);
   AttemptEnd end;
   end.key = key;
   end.worker_id = worker_id;
@@ -438,7 +431,7 @@ absl::StatusOr<bool> Scheduler::Fail(const std::string& worker_id, const LeaseKe
                                      const std::vector<Episode>& episodes,
                                      const std::string& error) {
   RETURN_IF_ERROR(ValidateEpisodes(episodes));
-  std::lock_guard<std::mutex> lock(decision_mutex_);
+  absl::MutexLock lock(&decision_mutex_);
   AttemptEnd end;
   end.key = key;
   end.worker_id = worker_id;
@@ -464,7 +457,7 @@ absl::Status Scheduler::ReturnUndelivered(const std::string& worker_id, const Le
 
 absl::Status Scheduler::GiveBack(const std::string& worker_id, const LeaseKey& key,
                                  std::string error, LeaseBudget budget) {
-  std::lock_guard<std::mutex> lock(decision_mutex_);
+  absl::MutexLock lock(&decision_mutex_);
   ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(key.job_id));
   AttemptEnd end;
   end.key = key;
@@ -477,7 +470,7 @@ absl::Status Scheduler::GiveBack(const std::string& worker_id, const LeaseKey& k
 }
 
 absl::StatusOr<int> Scheduler::ExpireLeases(ExpiryReport* report) {
-  std::lock_guard<std::mutex> lock(decision_mutex_);
+  absl::MutexLock lock(&decision_mutex_);
   ExpiryReport local;
   if (report == nullptr) report = &local;
   *report = ExpiryReport{};
@@ -516,7 +509,7 @@ absl::StatusOr<int> Scheduler::ExpireLeases(ExpiryReport* report) {
 
 absl::StatusOr<storage::SweepRecord> Scheduler::SubmitSweep(const storage::NewSweep& sweep,
                                                             bool* created) {
-  std::lock_guard<std::mutex> lock(decision_mutex_);
+  absl::MutexLock lock(&decision_mutex_);
   ASSIGN_OR_RETURN(storage::SweepRecord record,
                    store_->CreateSweep(sweep, clock_->NowMs(), created));
   if (*created) NotifyWork();
@@ -524,7 +517,7 @@ absl::StatusOr<storage::SweepRecord> Scheduler::SubmitSweep(const storage::NewSw
 }
 
 absl::StatusOr<int> Scheduler::GrowSweep(const storage::NewSweep& grown) {
-  std::lock_guard<std::mutex> lock(decision_mutex_);
+  absl::MutexLock lock(&decision_mutex_);
   ASSIGN_OR_RETURN(int added, store_->GrowSweep(grown, clock_->NowMs()));
   if (added > 0) NotifyWork();
   return added;
@@ -533,7 +526,7 @@ absl::StatusOr<int> Scheduler::GrowSweep(const storage::NewSweep& grown) {
 absl::StatusOr<storage::ImportResult> Scheduler::ImportSweep(
     const std::optional<storage::NewSweep>& create, const std::string& sweep_name,
     const std::vector<storage::ImportedJob>& jobs, const std::string& source) {
-  std::lock_guard<std::mutex> lock(decision_mutex_);
+  absl::MutexLock lock(&decision_mutex_);
   ASSIGN_OR_RETURN(storage::ImportResult result,
                    store_->ImportJobs(create, sweep_name, jobs, source, clock_->NowMs()));
   NotifyWork();
@@ -542,7 +535,7 @@ absl::StatusOr<storage::ImportResult> Scheduler::ImportSweep(
 
 absl::StatusOr<storage::SweepRecord> Scheduler::SetSweepState(const std::string& name,
                                                               SweepState state) {
-  std::lock_guard<std::mutex> lock(decision_mutex_);
+  absl::MutexLock lock(&decision_mutex_);
   ASSIGN_OR_RETURN(storage::SweepRecord sweep, store_->GetSweep(name));
   if (sweep.state == state) return sweep;
   if (sweep.state == SweepState::kCancelled && state == SweepState::kPaused) {
@@ -556,19 +549,19 @@ absl::StatusOr<storage::SweepRecord> Scheduler::SetSweepState(const std::string&
 
 absl::StatusOr<storage::SweepContents> Scheduler::DeleteSweep(
     const std::string& name, const storage::SweepContents& expected) {
-  std::lock_guard<std::mutex> lock(decision_mutex_);
+  absl::MutexLock lock(&decision_mutex_);
   return store_->DeleteSweep(name, expected, clock_->NowMs());
 }
 
 absl::StatusOr<JobRecord> Scheduler::RetryJob(int64_t job_id) {
-  std::lock_guard<std::mutex> lock(decision_mutex_);
+  absl::MutexLock lock(&decision_mutex_);
   RETURN_IF_ERROR(store_->RetryJob(job_id, clock_->NowMs()));
   NotifyWork();
   return store_->GetJob(job_id);
 }
 
 absl::StatusOr<storage::WorkerRecord> Scheduler::DrainWorker(const std::string& worker_id) {
-  std::lock_guard<std::mutex> lock(decision_mutex_);
+  absl::MutexLock lock(&decision_mutex_);
   RETURN_IF_ERROR(store_->SetWorkerDraining(worker_id, true, clock_->NowMs()));
   return store_->GetWorker(worker_id);
 }

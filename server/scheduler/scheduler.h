@@ -32,16 +32,16 @@
 #ifndef TOTALGRAD_SERVER_SCHEDULER_SCHEDULER_H_
 #define TOTALGRAD_SERVER_SCHEDULER_SCHEDULER_H_
 
-#include <condition_variable>
 #include <cstdint>
 #include <map>
-#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "absl/base/thread_annotations.h"
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "absl/synchronization/mutex.h"
 #include "absl/time/time.h"
 #include "server/scheduler/clock.h"
 #include "server/storage/store.h"
@@ -222,21 +222,25 @@ class Scheduler {
   int64_t LeaseNowMs();
   int64_t LeaseExpiryFrom(int64_t lease_now_ms) const;
   // The duplicate-worker-id rule of TryAcquire; records the instance.
-  absl::Status CheckInstanceLocked(const storage::WorkerIdentity& worker);
+  absl::Status CheckInstanceLocked(const storage::WorkerIdentity& worker)
+      ABSL_EXCLUSIVE_LOCKS_REQUIRED(decision_mutex_);
   // Writes the worker's last-seen time unless it was written recently.
-  absl::Status MaybeTouchWorker(const storage::WorkerIdentity& worker, int64_t now_ms);
-  absl::StatusOr<std::optional<Lease>> TryAcquireLocked(const storage::WorkerIdentity& worker);
+  absl::Status MaybeTouchWorker(const storage::WorkerIdentity& worker, int64_t now_ms)
+      ABSL_EXCLUSIVE_LOCKS_REQUIRED(decision_mutex_);
+  absl::StatusOr<std::optional<Lease>> TryAcquireLocked(const storage::WorkerIdentity& worker)
+      ABSL_EXCLUSIVE_LOCKS_REQUIRED(decision_mutex_);
   // Whether a released or lost lease counts against the job's max_lost_leases.
   enum class LeaseBudget { kCharge, kFree };
   // Ends the attempt with the job's next state decided by the budgets.
   absl::StatusOr<storage::EndOutcome> EndLocked(storage::AttemptEnd end,
-                                                LeaseBudget budget = LeaseBudget::kCharge);
+                                                LeaseBudget budget = LeaseBudget::kCharge)
+      ABSL_EXCLUSIVE_LOCKS_REQUIRED(decision_mutex_);
   // Release and ReturnUndelivered: ends the attempt as released (cancelled
   // if the job was cancelled) with `error` recorded.
   absl::Status GiveBack(const std::string& worker_id, const storage::LeaseKey& key,
                         std::string error, LeaseBudget budget);
   // Counts a change that may make a job claimable and wakes waiters.
-  void NotifyWork();
+  void NotifyWork() ABSL_LOCKS_EXCLUDED(work_mutex_);
 
   storage::Store* const store_;
   Clock* const clock_;
@@ -246,26 +250,26 @@ class Scheduler {
   const int64_t lease_origin_monotonic_ms_;
 
   // Serialises read-decide-write sequences.
-  std::mutex decision_mutex_;
-  std::map<std::string, int64_t> last_touch_ms_;  // guarded by decision_mutex_
+  absl::Mutex decision_mutex_;
+  std::map<std::string, int64_t> last_touch_ms_ ABSL_GUARDED_BY(decision_mutex_);
   // The live process behind each worker id (in memory: after a restart the
-  // first caller is accepted). Guarded by decision_mutex_.
+  // first caller is accepted).
   struct WorkerInstance {
     std::string instance;
     std::string host;
     int64_t last_heard_monotonic_ms = 0;
     std::vector<std::string> replaced;  // earlier instances, newest last (at most 16)
   };
-  std::map<std::string, WorkerInstance> instances_;
+  std::map<std::string, WorkerInstance> instances_ ABSL_GUARDED_BY(decision_mutex_);
   // Monotonic time at which the last ExpireLeases() (or Recover()) ended; -1
-  // before the first. Guarded by decision_mutex_.
-  int64_t last_expiry_end_monotonic_ms_ = -1;
+  // before the first.
+  int64_t last_expiry_end_monotonic_ms_ ABSL_GUARDED_BY(decision_mutex_) = -1;
 
-  // Long-poll wake-ups.
-  mutable std::mutex work_mutex_;
-  std::condition_variable work_available_;
-  uint64_t work_generation_ = 0;  // guarded by work_mutex_
-  bool shutdown_ = false;         // guarded by work_mutex_
+  // Long-poll wake-ups: Acquire awaits a change of these (absl::Mutex
+  // re-evaluates the condition whenever work_mutex_ is released).
+  mutable absl::Mutex work_mutex_;
+  uint64_t work_generation_ ABSL_GUARDED_BY(work_mutex_) = 0;
+  bool shutdown_ ABSL_GUARDED_BY(work_mutex_) = false;
 };
 
 }  // namespace totalgrad::scheduler

@@ -187,12 +187,14 @@ void Coordinator::ExpiryLoop() {
       std::min(absl::ToInt64Milliseconds(options_.scheduler.lease_timeout) / 20,
                absl::ToInt64Milliseconds(options_.scheduler.heartbeat_interval) / 4),
       10, 1000);
-  const auto period = std::chrono::milliseconds(period_ms);
-  std::unique_lock<std::mutex> lock(mutex_);
+  // Real time, whatever clock_ is (tests move a FakeClock between rounds).
+  SystemClock real_time;
+  const absl::Condition stop_requested(&stopping_);
+  mutex_.Lock();  // held except while checking (Lock/Unlock: released mid-loop)
   while (!stopping_) {
-    stop_signal_.wait_for(lock, period, [&] { return stopping_; });
+    real_time.AwaitUntil(&mutex_, stop_requested, real_time.MonotonicMs() + period_ms);
     if (stopping_) break;
-    lock.unlock();
+    mutex_.Unlock();
     scheduler::ExpiryReport report;
     absl::StatusOr<int> expired = scheduler_->ExpireLeases(&report);
     if (!expired.ok()) {
@@ -205,17 +207,17 @@ void Coordinator::ExpiryLoop() {
     } else if (*expired > 0) {
       spdlog::info("{} leases lost; their jobs were re-queued", *expired);
     }
-    lock.lock();
+    mutex_.Lock();
   }
+  mutex_.Unlock();
 }
 
 void Coordinator::Shutdown() {
   {
-    std::lock_guard<std::mutex> lock(mutex_);
+    absl::MutexLock lock(&mutex_);
     if (stopping_) return;
     stopping_ = true;
   }
-  stop_signal_.notify_all();
   serving_ = false;
   if (control_service_) control_service_->SetServing(false);
   if (scheduler_) scheduler_->Shutdown();
@@ -229,9 +231,8 @@ void Coordinator::Shutdown() {
   store_.reset();  // checkpoints the WAL
   spdlog::info("coordinator stopped");
   // Last: once Wait() returns, the owner may destroy this object.
-  std::lock_guard<std::mutex> lock(mutex_);
+  absl::MutexLock lock(&mutex_);
   stopped_ = true;
-  stop_signal_.notify_all();
 }
 
 absl::Status Coordinator::CheckHealth() {
@@ -244,8 +245,8 @@ absl::Status Coordinator::CheckHealth() {
 }
 
 void Coordinator::Wait() {
-  std::unique_lock<std::mutex> lock(mutex_);
-  stop_signal_.wait(lock, [&] { return stopped_; });
+  absl::MutexLock lock(&mutex_);
+  mutex_.Await(absl::Condition(&stopped_));
 }
 
 Coordinator::~Coordinator() { Shutdown(); }

@@ -15,13 +15,13 @@
 #include <grpcpp/server.h>
 
 #include <atomic>
-#include <condition_variable>
 #include <memory>
-#include <mutex>
 #include <string>
 #include <thread>
 
+#include "absl/base/thread_annotations.h"
 #include "absl/status/statusor.h"
+#include "absl/synchronization/mutex.h"
 #include "server/dashboard/dashboard.h"
 #include "server/scheduler/clock.h"
 #include "server/scheduler/scheduler.h"
@@ -97,14 +97,14 @@ class Coordinator {
   absl::Status CheckHealth();
   // Stops taking leases, wakes long polls, stops the server (in-flight calls
   // get up to 2 s), stops the lease timer and closes the store. Idempotent.
-  void Shutdown();
+  void Shutdown() ABSL_LOCKS_EXCLUDED(mutex_);
   // Blocks until Shutdown() has been called and finished.
-  void Wait();
+  void Wait() ABSL_LOCKS_EXCLUDED(mutex_);
   storage::SqliteStore* store() { return store_.get(); }
 
  private:
   Coordinator() = default;
-  void ExpiryLoop();
+  void ExpiryLoop() ABSL_LOCKS_EXCLUDED(mutex_);
 
   CoordinatorOptions options_;
   std::unique_ptr<scheduler::SystemClock> own_clock_;
@@ -121,10 +121,11 @@ class Coordinator {
   std::unique_ptr<HealthServer> health_server_;
   std::atomic<bool> serving_{false};
 
-  std::mutex mutex_;
-  std::condition_variable stop_signal_;
-  bool stopping_ = false;  // guarded by mutex_
-  bool stopped_ = false;   // guarded by mutex_
+  // The expiry loop and Wait() await changes of these (absl::Mutex
+  // re-evaluates their conditions whenever mutex_ is released).
+  absl::Mutex mutex_;
+  bool stopping_ ABSL_GUARDED_BY(mutex_) = false;
+  bool stopped_ ABSL_GUARDED_BY(mutex_) = false;
   std::thread expiry_thread_;
 };
 

@@ -221,7 +221,7 @@ absl::StatusOr<int> SqliteStore::ExtendOpenLeases(int64_t lease_expires_ms, int6
 
 
 absl::StatusOr<std::vector<AttemptRecord>> SqliteStore::ListAttempts(int64_t job_id) {
-  std::lock_guard<std::mutex> lock(read_mutex_);
+  absl::MutexLock lock(&read_mutex_);
   ASSIGN_OR_RETURN(Statement query, Statement::Prepare(reader_, R"sql(
 SELECT a.attempt, a.state, a.worker_id, a.worker_host, a.worker_build, a.started_ms,
        COALESCE(a.ended_ms, 0), a.lease_expires_ms, a.error,
@@ -252,7 +252,7 @@ FROM attempts a WHERE a.job_id = ? ORDER BY a.attempt)sql"));
 }
 
 absl::StatusOr<std::vector<EventRecord>> SqliteStore::ListEvents(int64_t job_id) {
-  std::lock_guard<std::mutex> lock(read_mutex_);
+  absl::MutexLock lock(&read_mutex_);
   ASSIGN_OR_RETURN(Statement query,
                    Statement::Prepare(reader_, "SELECT ms, attempt, kind, message FROM events "
                                                "WHERE job_id = ? ORDER BY id"));
@@ -269,7 +269,7 @@ absl::StatusOr<std::vector<EventRecord>> SqliteStore::ListEvents(int64_t job_id)
 
 absl::StatusOr<std::optional<CheckpointRecord>> SqliteStore::GetCheckpoint(int64_t job_id,
                                                                            int attempt) {
-  std::lock_guard<std::mutex> lock(read_mutex_);
+  absl::MutexLock lock(&read_mutex_);
   ASSIGN_OR_RETURN(Statement query, Statement::Prepare(reader_, R"sql(
 SELECT c.attempt, a.worker_build, c.episode, c.format_version, c.data
 FROM checkpoints c JOIN attempts a ON a.job_id = c.job_id AND a.attempt = c.attempt
@@ -289,7 +289,7 @@ ORDER BY c.episode DESC, c.attempt DESC LIMIT 1)sql"));
 
 
 absl::StatusOr<std::vector<LeaseKey>> SqliteStore::ListExpiredLeases(int64_t now_ms) {
-  std::lock_guard<std::mutex> lock(read_mutex_);
+  absl::MutexLock lock(&read_mutex_);
   ASSIGN_OR_RETURN(Statement query,
                    Statement::Prepare(reader_, "SELECT job_id, attempt FROM attempts WHERE "
                                                "state = 'running' AND lease_expires_ms < ? "

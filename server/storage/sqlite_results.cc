@@ -36,7 +36,7 @@ void ReadStudyRowHeader(Statement& query, StudyRecord* record) {
 
 absl::StatusOr<std::vector<TrialResultRecord>> SqliteStore::ListTrialResults(
     const std::string& sweep_name) {
-  std::lock_guard<std::mutex> lock(read_mutex_);
+  absl::MutexLock lock(&read_mutex_);
   ASSIGN_OR_RETURN(Statement check, Statement::Prepare(reader_, "SELECT id FROM sweeps WHERE name = ?"));
   check.Bind(1, sweep_name);
   ASSIGN_OR_RETURN(bool found, check.Step());
@@ -119,9 +119,9 @@ ORDER BY e.job_id, e.attempt, e.episode)sql"));
 absl::Status SqliteStore::ListStudyRows(const std::string& sweep_name, bool all_attempts,
                                         std::vector<StudyCellRecord>* cells,
                                         std::vector<StudyReferenceRecord>* references) {
-  std::lock_guard<std::mutex> lock(read_mutex_);
+  absl::MutexLock lock(&read_mutex_);
   RETURN_IF_ERROR(reader_.Exec("BEGIN"));  // one snapshot for cells and references
-  const absl::Status status = [&]() -> absl::Status {
+  const absl::Status status = [&]() ABSL_EXCLUSIVE_LOCKS_REQUIRED(read_mutex_) -> absl::Status {
     ASSIGN_OR_RETURN(Statement check,
                      Statement::Prepare(reader_, "SELECT id FROM sweeps WHERE name = ?"));
     check.Bind(1, sweep_name);

@@ -368,7 +368,7 @@ SqliteStore::SqliteStore(std::string path, SqliteStoreOptions options, Db writer
 
 SqliteStore::~SqliteStore() {
   {
-    std::lock_guard<std::mutex> lock(write_mutex_);
+    absl::MutexLock lock(&write_mutex_);
     // Fold the WAL back into the main file so a copied file is complete
     // (not into a file that replaced ours; never from a read-only view).
     if (lock_fd_ >= 0 && file_error_.ok() && CheckFileIdentityLocked().ok()) {
@@ -377,7 +377,7 @@ SqliteStore::~SqliteStore() {
     writer_ = Db();
   }
   {
-    std::lock_guard<std::mutex> lock(read_mutex_);
+    absl::MutexLock lock(&read_mutex_);
     reader_ = Db();
   }
   if (lock_fd_ >= 0) ::close(lock_fd_);  // releases the lock last, after both connections closed
@@ -402,7 +402,7 @@ absl::Status SqliteStore::CheckFileIdentityLocked() {
 }
 
 absl::Status SqliteStore::CheckWritable() {
-  std::lock_guard<std::mutex> lock(write_mutex_);
+  absl::MutexLock lock(&write_mutex_);
   RETURN_IF_ERROR(CheckFileIdentityLocked());
   const int64_t now = SteadyMs();
   constexpr int64_t kProbeIntervalMs = 5000;
@@ -415,7 +415,7 @@ absl::Status SqliteStore::CheckWritable() {
   last_failure_or_probe_ms_ = now;
   absl::Status probe = writer_.Exec("BEGIN IMMEDIATE");
   if (probe.ok()) {
-    probe = [&]() -> absl::Status {
+    probe = [&]() ABSL_EXCLUSIVE_LOCKS_REQUIRED(write_mutex_) -> absl::Status {
       ASSIGN_OR_RETURN(Statement upsert,
                        Statement::Prepare(writer_, "INSERT INTO meta(key, value) VALUES('health_probe', ?) "
                                                    "ON CONFLICT(key) DO UPDATE SET value = excluded.value"));
@@ -435,7 +435,7 @@ absl::Status SqliteStore::CheckWritable() {
 }
 
 absl::StatusOr<std::string> SqliteStore::DescribeSettings() {
-  std::lock_guard<std::mutex> lock(write_mutex_);
+  absl::MutexLock lock(&write_mutex_);
   std::string description;
   for (const char* pragma : {"journal_mode", "synchronous", "foreign_keys", "busy_timeout"}) {
     ASSIGN_OR_RETURN(Statement query, Statement::Prepare(writer_, absl::StrCat("PRAGMA ", pragma)));
@@ -447,7 +447,7 @@ absl::StatusOr<std::string> SqliteStore::DescribeSettings() {
 }
 
 absl::Status SqliteStore::Ping() {
-  std::lock_guard<std::mutex> lock(read_mutex_);
+  absl::MutexLock lock(&read_mutex_);
   ASSIGN_OR_RETURN(Statement query,
                    Statement::Prepare(reader_, "SELECT COUNT(*) FROM sqlite_master"));
   ASSIGN_OR_RETURN(bool row, query.Step());
@@ -460,7 +460,7 @@ absl::Status SqliteStore::InWriteTransaction(const std::function<absl::Status(Db
     return absl::FailedPreconditionError(
         absl::StrCat(path_, " is open read-only here; writes go through its coordinator"));
   }
-  std::lock_guard<std::mutex> lock(write_mutex_);
+  absl::MutexLock lock(&write_mutex_);
   RETURN_IF_ERROR(CheckFileIdentityLocked());
   // IMMEDIATE takes the write lock up front: a deferred transaction that reads
   // then writes can fail with SQLITE_BUSY without the busy handler being used.
@@ -484,7 +484,7 @@ absl::Status SqliteStore::InWriteTransaction(const std::function<absl::Status(Db
 
 
 absl::StatusOr<StoreCounts> SqliteStore::Counts() {
-  std::lock_guard<std::mutex> lock(read_mutex_);
+  absl::MutexLock lock(&read_mutex_);
   ASSIGN_OR_RETURN(Statement query, Statement::Prepare(reader_, R"sql(
 SELECT (SELECT COUNT(*) FROM sweeps),
        (SELECT COUNT(*) FROM jobs WHERE state = 'queued'),

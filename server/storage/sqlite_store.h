@@ -35,9 +35,10 @@
 
 #include <cstdint>
 #include <memory>
-#include <mutex>
 #include <string>
 
+#include "absl/base/thread_annotations.h"
+#include "absl/synchronization/mutex.h"
 #include "server/storage/sqlite_db.h"
 #include "server/storage/store.h"
 
@@ -154,26 +155,27 @@ class SqliteStore final : public Store {
   // Runs `body` inside BEGIN IMMEDIATE ... COMMIT on the writer; rolls back
   // if `body` or the commit fails. Refuses at once once the file was deleted
   // or replaced; records database failures for CheckWritable.
-  absl::Status InWriteTransaction(const std::function<absl::Status(internal::Db&)>& body);
+  absl::Status InWriteTransaction(const std::function<absl::Status(internal::Db&)>& body)
+      ABSL_LOCKS_EXCLUDED(write_mutex_);
   // Unavailable (and remembered) if `path_` no longer names the opened file.
-  absl::Status CheckFileIdentityLocked();
+  absl::Status CheckFileIdentityLocked() ABSL_EXCLUSIVE_LOCKS_REQUIRED(write_mutex_);
 
   const std::string path_;
   const SqliteStoreOptions options_;
   const int lock_fd_;  // -1: opened read-only, no lock held
   const uint64_t device_;
   const uint64_t inode_;
-  std::mutex write_mutex_;
-  internal::Db writer_;  // guarded by write_mutex_
-  // Guarded by write_mutex_: the file was deleted or replaced (sticky); the
-  // last database failure of a write and when it (or the last probe) was,
-  // and when a commit last succeeded (steady clock, ms).
-  absl::Status file_error_;
-  absl::Status last_write_error_;
-  int64_t last_failure_or_probe_ms_ = 0;
-  int64_t last_commit_ms_ = 0;
-  std::mutex read_mutex_;
-  internal::Db reader_;  // guarded by read_mutex_
+  absl::Mutex write_mutex_;
+  internal::Db writer_ ABSL_GUARDED_BY(write_mutex_);
+  // The file was deleted or replaced (sticky); the last database failure of
+  // a write and when it (or the last probe) was, and when a commit last
+  // succeeded (steady clock, ms).
+  absl::Status file_error_ ABSL_GUARDED_BY(write_mutex_);
+  absl::Status last_write_error_ ABSL_GUARDED_BY(write_mutex_);
+  int64_t last_failure_or_probe_ms_ ABSL_GUARDED_BY(write_mutex_) = 0;
+  int64_t last_commit_ms_ ABSL_GUARDED_BY(write_mutex_) = 0;
+  absl::Mutex read_mutex_;
+  internal::Db reader_ ABSL_GUARDED_BY(read_mutex_);
 };
 
 }  // namespace totalgrad::storage

@@ -200,15 +200,15 @@ absl::Status SqliteStore::SetWorkerDraining(const std::string& worker_id, bool d
 
 
 absl::StatusOr<SweepRecord> SqliteStore::GetSweep(const std::string& name) {
-  std::lock_guard<std::mutex> lock(read_mutex_);
+  absl::MutexLock lock(&read_mutex_);
   return LoadSweep(reader_, name);
 }
 
 absl::StatusOr<std::vector<SweepRecord>> SqliteStore::ListSweeps() {
-  std::lock_guard<std::mutex> lock(read_mutex_);
+  absl::MutexLock lock(&read_mutex_);
   RETURN_IF_ERROR(reader_.Exec("BEGIN"));  // one snapshot for the whole list
   std::vector<SweepRecord> sweeps;
-  absl::Status status = [&]() -> absl::Status {
+  absl::Status status = [&]() ABSL_EXCLUSIVE_LOCKS_REQUIRED(read_mutex_) -> absl::Status {
     ASSIGN_OR_RETURN(Statement query,
                      Statement::Prepare(reader_, absl::StrCat("SELECT ", kSweepColumns,
                                                               " FROM sweeps s ORDER BY s.id DESC")));
@@ -225,12 +225,12 @@ absl::StatusOr<std::vector<SweepRecord>> SqliteStore::ListSweeps() {
 }
 
 absl::StatusOr<JobRecord> SqliteStore::GetJob(int64_t job_id) {
-  std::lock_guard<std::mutex> lock(read_mutex_);
+  absl::MutexLock lock(&read_mutex_);
   return LoadJob(reader_, job_id);
 }
 
 absl::StatusOr<std::vector<JobRecord>> SqliteStore::ListJobs(const JobFilter& filter) {
-  std::lock_guard<std::mutex> lock(read_mutex_);
+  absl::MutexLock lock(&read_mutex_);
   // The state filter is one bound parameter: a list ",queued,,running," that
   // each job's state is looked up in with instr().
   std::string states;
@@ -258,7 +258,7 @@ ORDER BY j.id LIMIT ?)sql")));
 
 
 absl::StatusOr<std::vector<ClaimCandidate>> SqliteStore::ListClaimCandidates(int limit) {
-  std::lock_guard<std::mutex> lock(read_mutex_);
+  absl::MutexLock lock(&read_mutex_);
   ASSIGN_OR_RETURN(Statement query, Statement::Prepare(reader_, R"sql(
 SELECT j.id, j.attempts, s.id, s.max_concurrent,
        (SELECT COUNT(*) FROM jobs r WHERE r.sweep_id = s.id AND r.state = 'running'), j.kind
@@ -304,7 +304,7 @@ WorkerRecord ReadWorkerRow(const Statement& query) {
 }  // namespace
 
 absl::StatusOr<std::vector<WorkerRecord>> SqliteStore::ListWorkers() {
-  std::lock_guard<std::mutex> lock(read_mutex_);
+  absl::MutexLock lock(&read_mutex_);
   ASSIGN_OR_RETURN(Statement query,
                    Statement::Prepare(reader_, absl::StrCat(kWorkerSelect,
                                                             " ORDER BY w.last_seen_ms DESC")));
@@ -318,7 +318,7 @@ absl::StatusOr<std::vector<WorkerRecord>> SqliteStore::ListWorkers() {
 }
 
 absl::StatusOr<WorkerRecord> SqliteStore::GetWorker(const std::string& worker_id) {
-  std::lock_guard<std::mutex> lock(read_mutex_);
+  absl::MutexLock lock(&read_mutex_);
   ASSIGN_OR_RETURN(Statement query,
                    Statement::Prepare(reader_, absl::StrCat(kWorkerSelect,
                                                             " WHERE w.worker_id = ?")));

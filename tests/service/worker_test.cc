@@ -1,6 +1,10 @@
 // The worker runtime against an in-process coordinator, with fake trial
 // runners: failures are reported with their reasons, episodes survive a
 // coordinator restart (replayed from the worker), CANCEL and drain behave.
+// Tests of the worker's own deadlines (drain_timeout, report_grace,
+// heartbeats) give it a FakeClock and move it, and pace the slow trial on a
+// second one, so they neither sleep for timeouts and episodes nor depend on
+// how fast a loaded machine runs them; the coordinator keeps the real clock.
 #include "worker/worker.h"
 
 #include <nlohmann/json.hpp>
@@ -11,6 +15,7 @@
 #include <atomic>
 #include <limits>
 #include <filesystem>
+#include <functional>
 #include <thread>
 
 #include <unistd.h>
@@ -32,8 +37,15 @@ using ::totalgrad::testing::WaitFor;
 // Behaviour by seed: 13 reports a NaN evaluation cost at episode 1, 14
 // throws, 15 returns an error, 16 is slow (300 ms per episode); others take
 // 10 ms per episode. Values are a function of (seed, episode).
+//
+// With `clock` set, the slow trial's episodes are paced on it instead of on
+// real time: episode e ends when the clock reaches the trial's start + 300 ms
+// * (e + 1), so a test that moves the clock by k * 300 ms gets exactly k
+// more episodes, however fast or loaded the machine is.
 class FakeRunner final : public TrialRunner {
  public:
+  static constexpr int64_t kSlowEpisodeMs = 300;
+
   absl::StatusOr<TrialOutcome> Run(const OptionList& options, TrialProgress* progress) override {
     int seed = 0, episodes = 0;
     for (const auto& [key, value] : options) {
@@ -42,10 +54,28 @@ class FakeRunner final : public TrialRunner {
     }
     if (seed == 14) throw std::runtime_error("boom");
     if (seed == 15) return absl::InternalError("integrator failed at step 7");
-    const int step_ms = seed == 16 ? 300 : 10;
+    const bool paced = seed == 16 && clock != nullptr;
+    const int64_t start_ms = paced ? clock->MonotonicMs() : 0;
+    ++started;  // after start_ms is read: the test may move the clock from here on
+    const int step_ms = seed == 16 ? kSlowEpisodeMs : 10;
     for (int e = 0; e <= episodes; ++e) {
-      for (int waited = 0; waited < step_ms; waited += 5) {
-        if (progress->ShouldCancel()) return absl::CancelledError("cancelled");
+      if (paced) {
+        // ShouldCancel is an atomic set by the worker's threads, so nothing
+        // releases this mutex when it changes; FakeClock::AwaitUntil polls
+        // the condition every millisecond.
+        absl::Mutex mu;
+        absl::MutexLock lock(&mu);
+        const auto cancel = [&] { return progress->ShouldCancel(); };
+        if (clock->AwaitUntil(&mu, absl::Condition(&cancel), start_ms + step_ms * (e + 1))) {
+          ++cancelled;
+          return absl::CancelledError("cancelled");
+        }
+      }
+      for (int waited = 0; !paced && waited < step_ms; waited += 5) {
+        if (progress->ShouldCancel()) {
+          ++cancelled;
+          return absl::CancelledError("cancelled");
+        }
         std::this_thread::sleep_for(std::chrono::milliseconds(5));
       }
       EpisodeOutcome outcome;
@@ -63,7 +93,10 @@ class FakeRunner final : public TrialRunner {
     }
     return TrialOutcome{true, static_cast<double>(seed * 10 + episodes), episodes + 1};
   }
+  Clock* clock = nullptr;  // paces seed 16 if set (before the worker starts)
+  std::atomic<int> started{0};    // trials that ran past the seed checks
   std::atomic<int> produced{0};
+  std::atomic<int> cancelled{0};  // trials that saw ShouldCancel()
 };
 
 // Study jobs by the study's seed: 21 returns 1200 cells and 3 references
@@ -150,12 +183,17 @@ class WorkerTest : public ::testing::Test {
     options.acquire_wait = absl::Seconds(1);
     options.call_timeout = absl::Seconds(5);
     options.drain_timeout = drain_timeout;
-    options.report_grace = absl::Milliseconds(500);
+    options.report_grace = report_grace_;
+    options.max_idle = max_idle_;
     options.state_dir = state_dir_;
     worker_ = std::make_unique<Worker>(
         options, grpc::CreateChannel(options_.listen, grpc::InsecureChannelCredentials()), &runner_,
-        studies ? &study_runner_ : nullptr);
-    worker_thread_ = std::thread([this] { summary_ = worker_->Run(); });
+        studies ? &study_runner_ : nullptr, worker_clock_);
+    worker_done_ = false;
+    worker_thread_ = std::thread([this] {
+      summary_ = worker_->Run();
+      worker_done_ = true;
+    });
   }
   void Submit(const std::string& name, const std::vector<int>& seeds, int max_attempts = 3) {
     v1::SubmitSweepRequest request;
@@ -211,6 +249,35 @@ class WorkerTest : public ::testing::Test {
     v1::SweepInfo info;
     return control_->GetSweep(&context, request, &info).ok() && info.finished();
   }
+  // Fake time for the workers (clock_) and for the slow trial's work
+  // (trial_clock_): the test moves each; nothing waits for real time to
+  // pass. Two clocks, so that moving the worker to a deadline does not also
+  // finish episodes, and finishing episodes does not move the worker's
+  // deadlines.
+  void UseFakeClocks() {
+    worker_clock_ = &clock_;
+    runner_.clock = &trial_clock_;
+  }
+  // Once the `trials`-th trial has started, lets the slow trial finish
+  // `episodes` more episodes and waits until the runner has produced them.
+  void ProduceSlowEpisodes(int trials, int episodes) {
+    ASSERT_TRUE(WaitFor([&] { return runner_.started.load() >= trials; }, seconds(30)));
+    const int target = runner_.produced + episodes;
+    trial_clock_.AdvanceMs(FakeRunner::kSlowEpisodeMs * episodes);
+    ASSERT_TRUE(WaitFor([&] { return runner_.produced.load() >= target; }, seconds(30)));
+    EXPECT_EQ(runner_.produced.load(), target);
+  }
+  // Whether the coordinator lists `worker_id`: it has polled (every poll is
+  // recorded before it waits).
+  bool WorkerKnown(const std::string& worker_id) {
+    grpc::ClientContext context;
+    v1::ListWorkersResponse workers;
+    if (!control_->ListWorkers(&context, v1::ListWorkersRequest(), &workers).ok()) return false;
+    for (const auto& worker : workers.workers()) {
+      if (worker.worker_id() == worker_id) return true;
+    }
+    return false;
+  }
   v1::GetJobLogResponse Log(int64_t job_id) {
     grpc::ClientContext context;
     v1::JobRequest request;
@@ -222,6 +289,16 @@ class WorkerTest : public ::testing::Test {
 
   std::string dir_;
   std::string state_dir_;  // the worker's --state-dir; empty: none
+  absl::Duration report_grace_ = absl::Milliseconds(500);
+  absl::Duration max_idle_ = absl::InfiniteDuration();
+  // The clock of the workers StartWorker makes; null: the system clock. A
+  // test that sets it to &clock_ moves the workers' time itself. With the
+  // clock at rest a worker beats only when an episode is new, so such a test
+  // must end well within the coordinator's (real) 5 s lease timeout or send
+  // episodes.
+  Clock* worker_clock_ = nullptr;
+  FakeClock clock_;
+  FakeClock trial_clock_;  // paces FakeRunner's slow trial after UseFakeClocks()
   service::CoordinatorOptions options_;
   std::unique_ptr<service::Coordinator> coordinator_;
   std::unique_ptr<v1::ControlService::Stub> control_;
@@ -229,6 +306,7 @@ class WorkerTest : public ::testing::Test {
   FakeStudyRunner study_runner_;
   std::unique_ptr<Worker> worker_;
   std::thread worker_thread_;
+  std::atomic<bool> worker_done_{false};  // Run() has returned (summary_ is set)
   WorkerSummary summary_;
 };
 
@@ -267,15 +345,16 @@ TEST_F(WorkerTest, FailedJobsAreRetriedUpToMaxAttempts) {
 // computing, keeps the unacknowledged episodes, and replays them when the
 // coordinator is back. The lease survives (recovery extends it).
 TEST_F(WorkerTest, EpisodesAreReplayedAfterACoordinatorRestart) {
+  UseFakeClocks();
   Submit("replay", {16});
   StartWorker(1);
-  ASSERT_TRUE(WaitFor([&] { return JobsBySeed("replay")["16"].episodes_stored() >= 2; }, seconds(30)));
+  ProduceSlowEpisodes(1, 2);
+  ASSERT_TRUE(WaitFor([&] { return JobsBySeed("replay")["16"].episodes_stored() == 2; }, seconds(30)));
   coordinator_->Shutdown();
   coordinator_.reset();
-  const int produced_at_stop = runner_.produced;
-  // Episodes finish while nobody listens.
-  ASSERT_TRUE(WaitFor([&] { return runner_.produced >= produced_at_stop + 2; }, seconds(30)));
+  ProduceSlowEpisodes(1, 2);  // episodes 2 and 3 finish while nobody listens
   StartCoordinator();
+  ProduceSlowEpisodes(1, 5);  // the rest: the trial ends
   ASSERT_TRUE(WaitFor([&] { return Finished("replay"); }, seconds(60)));
   const v1::JobInfo job = JobsBySeed("replay")["16"];
   EXPECT_EQ(job.state(), v1::JOB_STATE_COMPLETED);
@@ -284,29 +363,43 @@ TEST_F(WorkerTest, EpisodesAreReplayedAfterACoordinatorRestart) {
   EXPECT_EQ(job.episodes_stored(), 9);
 }
 
+// The CANCEL comes with a heartbeat. With no new episode (the trial is held
+// at its second), beats are due only as the worker's clock passes heartbeat
+// intervals, so the test moves it one interval at a time until the cancel
+// arrives: the trial stops after exactly its first episode.
 TEST_F(WorkerTest, CancelDirectiveStopsTheTrialAndReleasesIt) {
+  UseFakeClocks();
   Submit("cancel", {16});
   StartWorker(1);
-  ASSERT_TRUE(WaitFor([&] { return JobsBySeed("cancel")["16"].episodes_stored() >= 1; }, seconds(30)));
+  ProduceSlowEpisodes(1, 1);
+  ASSERT_TRUE(WaitFor([&] { return JobsBySeed("cancel")["16"].episodes_stored() == 1; }, seconds(30)));
   grpc::ClientContext context;
   v1::SweepRequest request;
   request.set_name("cancel");
   v1::SweepInfo info;
   ASSERT_TRUE(control_->CancelSweep(&context, request, &info).ok());
   const int64_t job_id = JobsBySeed("cancel")["16"].job_id();
-  ASSERT_TRUE(WaitFor([&] { return Log(job_id).attempts(0).state() == v1::ATTEMPT_STATE_CANCELLED; },
-                      seconds(30)));
-  EXPECT_LT(runner_.produced.load(), 9);  // stopped early
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        clock_.AdvanceMs(absl::ToInt64Milliseconds(options_.scheduler.heartbeat_interval));
+        return Log(job_id).attempts(0).state() == v1::ATTEMPT_STATE_CANCELLED;
+      },
+      seconds(30)));
+  EXPECT_EQ(runner_.cancelled.load(), 1);
+  EXPECT_EQ(runner_.produced.load(), 1);  // stopped early
   worker_->Drain();
   worker_thread_.join();
   EXPECT_EQ(summary_.released, 1);
 }
 
 TEST_F(WorkerTest, DrainLetsRunningTrialsFinishWithinTheTimeout) {
+  UseFakeClocks();
   Submit("drain", {16});
   StartWorker(1, /*drain_timeout=*/absl::Seconds(60));
-  ASSERT_TRUE(WaitFor([&] { return JobsBySeed("drain")["16"].episodes_stored() >= 1; }, seconds(30)));
+  ProduceSlowEpisodes(1, 1);
+  ASSERT_TRUE(WaitFor([&] { return JobsBySeed("drain")["16"].episodes_stored() == 1; }, seconds(30)));
   worker_->Drain();
+  ProduceSlowEpisodes(1, 8);  // the trial finishes while the worker drains
   worker_thread_.join();
   EXPECT_EQ(summary_.completed, 1);
   EXPECT_EQ(JobsBySeed("drain")["16"].state(), v1::JOB_STATE_COMPLETED);
@@ -319,34 +412,58 @@ TEST_F(WorkerTest, DrainLetsRunningTrialsFinishWithinTheTimeout) {
 // state directory replays them while the lease is still valid (the
 // restarted coordinator extended it): the episodes are stored with the first
 // attempt, which ends released, not lost.
+//
+// The worker's deadlines are on a FakeClock, set far beyond the test's own
+// waits: the drain ends when, and because, the clock passes drain_timeout +
+// report_grace (a worker that timed them on the real clock would hold on for
+// minutes, and the bounded waits below would fail).
 TEST_F(WorkerTest, DrainWhileTheCoordinatorIsDownSpoolsAndTheNextWorkerReplays) {
   state_dir_ = dir_ + "/state";
+  UseFakeClocks();
+  const absl::Duration drain_timeout = absl::Minutes(10);
+  report_grace_ = absl::Minutes(5);
   Submit("spool", {16});
-  StartWorker(1, /*drain_timeout=*/absl::Milliseconds(500));
-  ASSERT_TRUE(WaitFor([&] { return JobsBySeed("spool")["16"].episodes_stored() >= 2; }, seconds(30)));
+  StartWorker(1, drain_timeout);
+  ProduceSlowEpisodes(1, 2);
+  ASSERT_TRUE(WaitFor([&] { return JobsBySeed("spool")["16"].episodes_stored() == 2; }, seconds(30)));
   coordinator_->Shutdown();
   coordinator_.reset();
-  const int produced_at_stop = runner_.produced;
-  ASSERT_TRUE(WaitFor([&] { return runner_.produced >= produced_at_stop + 1; }, seconds(30)));
-  const auto drain_start = std::chrono::steady_clock::now();
+  ProduceSlowEpisodes(1, 1);  // never acknowledged
   worker_->Drain();
   std::atomic<bool> joined{false};
   std::thread joiner([&] {
     worker_thread_.join();
     joined = true;
   });
-  // drain_timeout 0.5 s + report_grace 0.5 s, plus slack for a loaded machine.
-  const bool bounded = WaitFor([&] { return joined.load(); }, seconds(5));
-  if (!bounded) worker_->Stop();  // let the test end either way
+  // Bounded waits on the real clock; without them a broken drain would hang
+  // the test instead of failing it.
+  const auto within_5s = [&](const std::function<bool()>& done) {
+    const bool ok = WaitFor(done, seconds(5));
+    if (!ok) {
+      worker_->Stop();  // let the test end either way
+      joiner.join();
+    }
+    return ok;
+  };
+  // At the drain deadline the running trial is stopped ...
+  clock_.AdvanceMs(absl::ToInt64Milliseconds(drain_timeout));
+  ASSERT_TRUE(within_5s([&] { return runner_.cancelled.load() == 1; }))
+      << "the trial was not stopped at the drain deadline";
+  // ... and its release is retried (the coordinator is down) until the
+  // report grace has passed too: only then is it spooled and the drain ends.
+  EXPECT_FALSE(joined.load()) << "the worker gave up before report_grace had passed";
+  clock_.AdvanceMs(absl::ToInt64Milliseconds(report_grace_));
+  ASSERT_TRUE(within_5s([&] { return joined.load(); }))
+      << "the drain did not end once drain_timeout + report_grace had passed";
   joiner.join();
-  ASSERT_TRUE(bounded) << "the drain did not end within 5 s";
-  EXPECT_LT(std::chrono::steady_clock::now() - drain_start, seconds(3));
   EXPECT_EQ(summary_.spooled, 1);
   const int produced = runner_.produced;
+  EXPECT_EQ(produced, 3);
   worker_.reset();
 
   StartCoordinator();  // the same database: recovery extends the open lease
   StartWorker(1);      // the same id and state directory
+  ProduceSlowEpisodes(2, 9);  // attempt 2, from the start
   ASSERT_TRUE(WaitFor([&] { return Finished("spool"); }, seconds(60)));
   worker_->Drain();
   worker_thread_.join();
@@ -372,11 +489,17 @@ TEST_F(WorkerTest, SpooledResultsOfAnExpiredLeaseAreDropped) {
   coordinator_.reset();
   StartCoordinator();
   Submit("expired", {16});
-  StartWorker(1, /*drain_timeout=*/absl::Milliseconds(200));
-  ASSERT_TRUE(WaitFor([&] { return JobsBySeed("expired")["16"].episodes_stored() >= 1; }, seconds(30)));
+  UseFakeClocks();  // the drain's deadlines pass when the test moves the clock
+  const absl::Duration drain_timeout = absl::Milliseconds(200);
+  StartWorker(1, drain_timeout);
+  ProduceSlowEpisodes(1, 1);
+  ASSERT_TRUE(WaitFor([&] { return JobsBySeed("expired")["16"].episodes_stored() == 1; }, seconds(30)));
   coordinator_->Shutdown();
   coordinator_.reset();
   worker_->Drain();
+  clock_.AdvanceMs(absl::ToInt64Milliseconds(drain_timeout));
+  ASSERT_TRUE(WaitFor([&] { return runner_.cancelled.load() == 1; }, seconds(30)));
+  clock_.AdvanceMs(absl::ToInt64Milliseconds(report_grace_));
   worker_thread_.join();
   ASSERT_EQ(summary_.spooled, 1);
   worker_.reset();
@@ -384,6 +507,7 @@ TEST_F(WorkerTest, SpooledResultsOfAnExpiredLeaseAreDropped) {
   // Nobody beats for the lease: after the recovery extension it is lost.
   ASSERT_TRUE(WaitFor([&] { return JobsBySeed("expired")["16"].lost_leases() == 1; }, seconds(30)));
   StartWorker(1);
+  ProduceSlowEpisodes(2, 9);  // attempt 2, from the start
   ASSERT_TRUE(WaitFor([&] { return Finished("expired"); }, seconds(60)));
   worker_->Drain();
   worker_thread_.join();
@@ -436,8 +560,10 @@ TEST_F(WorkerTest, LeaseGrantedToACancelledPollIsReleasedAtOnce) {
     v1::AcquireLeaseResponse response;
     status = stub->AcquireLease(&context, request, &response);
   });
-  // Let the call reach the coordinator's long poll (nothing is queued yet).
-  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  // Let the call reach the coordinator's long poll (nothing is queued yet):
+  // every poll records its worker before it waits, so the worker is listed
+  // once the handler is in the scheduler.
+  ASSERT_TRUE(WaitFor([&] { return WorkerKnown("gone"); }, seconds(10)));
   context.TryCancel();
   poll.join();
   EXPECT_EQ(status.error_code(), grpc::StatusCode::CANCELLED);
@@ -463,6 +589,25 @@ TEST_F(WorkerTest, LeaseGrantedToACancelledPollIsReleasedAtOnce) {
   // A real worker then runs it to completion.
   StartWorker(1);
   ASSERT_TRUE(WaitFor([&] { return Finished("orphan"); }, seconds(30)));
+}
+
+// max_idle is measured on the worker's clock: a worker with nothing to do
+// exits once the clock has passed it, at the end of the poll under way
+// (acquire_wait, 1 s of real time). A worker that timed it on the real clock
+// would run on for 10 minutes.
+TEST_F(WorkerTest, IdleWorkerExitsOnceItsClockPassesMaxIdle) {
+  UseFakeClocks();
+  max_idle_ = absl::Minutes(10);
+  StartWorker(1);
+  // Its idle time counts from the start of its poll loop, which precedes
+  // its first poll.
+  ASSERT_TRUE(WaitFor([&] { return WorkerKnown("fake"); }, seconds(10)));
+  clock_.AdvanceMs(absl::ToInt64Milliseconds(max_idle_) + 1);
+  ASSERT_TRUE(WaitFor([&] { return worker_done_.load(); }, seconds(10)))
+      << "still running after max_idle on its clock";
+  worker_thread_.join();
+  EXPECT_EQ(summary_.exit, WorkerExit::kDone);
+  EXPECT_EQ(summary_.completed + summary_.failed + summary_.released, 0);
 }
 
 // ---- study jobs ----
@@ -528,12 +673,22 @@ TEST_F(WorkerTest, CancelDirectiveStopsTheStudyAndReleasesIt) {
   EXPECT_EQ(summary_.released, 1);
 }
 
+// The drain deadline is on the worker's (fake) clock: the study runs on
+// through the drain until the clock reaches it.
 TEST_F(WorkerTest, DrainTimeoutStopsTheStudyAndRequeuesItWithoutBlame) {
   SubmitStudies("study-drain", {22});
-  StartWorker(1, /*drain_timeout=*/absl::Milliseconds(300));
+  worker_clock_ = &clock_;
+  const absl::Duration drain_timeout = absl::Minutes(10);
+  StartWorker(1, drain_timeout);
   ASSERT_TRUE(WaitFor([&] { return JobsBySeed("study-drain")["22"].state() == v1::JOB_STATE_RUNNING; },
                       seconds(30)));
   worker_->Drain();
+  EXPECT_FALSE(study_runner_.stopped.load()) << "stopped before the drain deadline";
+  clock_.AdvanceMs(absl::ToInt64Milliseconds(drain_timeout));
+  // Bounded: a worker that timed the drain on the real clock would run on
+  // for 10 minutes.
+  ASSERT_TRUE(WaitFor([&] { return study_runner_.stopped.load(); }, seconds(5)))
+      << "the study was not stopped at the drain deadline";
   worker_thread_.join();
   EXPECT_TRUE(study_runner_.stopped.load());
   EXPECT_EQ(summary_.released, 1);
@@ -543,13 +698,16 @@ TEST_F(WorkerTest, DrainTimeoutStopsTheStudyAndRequeuesItWithoutBlame) {
 }
 
 // A worker without a study runner (like an older build) is never given a
-// study job; it still takes trials.
+// study job; it still takes trials. Every claim below is decided with the
+// study queued ahead of the trial, the second one on a poll woken by the
+// new sweep (no waiting for polls to time out).
 TEST_F(WorkerTest, WorkersThatDoNotRunStudiesGetOnlyTrials) {
   SubmitStudies("study-only", {21});
   Submit("trials", {1});
   StartWorker(1, absl::Seconds(30), /*studies=*/false);
   ASSERT_TRUE(WaitFor([&] { return Finished("trials"); }, seconds(60)));
-  std::this_thread::sleep_for(std::chrono::milliseconds(1500));  // more polls
+  Submit("more-trials", {2});
+  ASSERT_TRUE(WaitFor([&] { return Finished("more-trials"); }, seconds(60)));
   EXPECT_EQ(JobsBySeed("study-only")["21"].state(), v1::JOB_STATE_QUEUED);
   EXPECT_EQ(JobsBySeed("study-only")["21"].attempts(), 0);
 }
