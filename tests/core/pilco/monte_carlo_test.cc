@@ -355,6 +355,56 @@ TEST(MonteCarloTest, TipCostOnTheAugmentedGaussian) {
   EXPECT_TRUE(WithinMcError(Matrix::Constant(1, 1, cm.var), acc.Cov(), acc.CovStdError(), kSigmas));
 }
 
+// lossSat with several angles (2, as the cart-double-pendulum) and a
+// general Q on z: exact for z ~ N(AugmentWithTrig(m, S, angles)), its
+// Gaussian approximation. Each width's mean and variance against Monte
+// Carlo; the several-width cost is the mean of their means and (PILCO's
+// S2 / n) the mean of their variances.
+TEST(MonteCarloTest, SaturatingCostSeveralAnglesOnTheAugmentedGaussian) {
+  std::mt19937_64 rng(18);
+  const std::vector<int> angles = {1, 3};
+  const int d = 4, nz = 8;
+  const Matrix q = testing::RandomCovariance(nz, 0.3, &rng);
+  const Vector m = Eigen::Vector4d(0.1, 2.7, -0.2, 0.4);
+  const Matrix s = testing::RandomCovariance(d, 0.2, &rng);
+  const std::vector<double> widths = {0.7, 1.6};
+  Vector ym;
+  Matrix ys;
+  AugmentWithTrig(m, s, angles, &ym, &ys);
+  // A target near z's mean, so that neither width saturates the cost.
+  const Vector target = ym + testing::RandomVector(nz, 0.3, &rng);
+  const GaussianSampler sampler(ym, ys);
+  double mean_of_means = 0, mean_of_vars = 0;
+  for (double w : widths) {
+    auto cost = GaussianCost::Saturating(d, angles, q, target, {w});
+    ASSERT_TRUE(cost.ok()) << cost.status();
+    CostMoments cm;
+    ASSERT_TRUE(cost->Evaluate(m, s, false, &cm).ok());
+    mean_of_means += cm.mean / widths.size();
+    mean_of_vars += cm.var / widths.size();
+    EXPECT_GT(cm.var, 1e-3);  // not a degenerate case
+    MomentAccumulator acc(1);
+    acc.SetShift(Vector::Constant(1, cm.mean));
+    for (int done = 0; done < kSamples; done += kBatch) {
+      const RowMatrix y = sampler.Sample(kBatch, &rng);
+      const RowMatrix dz = y.rowwise() - target.transpose();
+      const Vector quad = (dz * q).cwiseProduct(dz).rowwise().sum();
+      const Vector c = (1.0 - (-0.5 * quad.array() / (w * w)).exp()).matrix();
+      acc.AddBatch(c);
+    }
+    EXPECT_TRUE(WithinMcError(Vector::Constant(1, cm.mean), acc.Mean(), acc.MeanStdError(), kSigmas))
+        << "width " << w;
+    EXPECT_TRUE(WithinMcError(Matrix::Constant(1, 1, cm.var), acc.Cov(), acc.CovStdError(), kSigmas))
+        << "width " << w;
+  }
+  auto both = GaussianCost::Saturating(d, angles, q, target, widths);
+  ASSERT_TRUE(both.ok());
+  CostMoments cm;
+  ASSERT_TRUE(both->Evaluate(m, s, false, &cm).ok());
+  EXPECT_NEAR(cm.mean, mean_of_means, 1e-15);
+  EXPECT_NEAR(cm.var, mean_of_vars, 1e-15);
+}
+
 // The step's assembly: for (x, g) jointly Gaussian with the covariance the step
 // forms, x' = x + f(g) has exactly the mean and covariance the step returns.
 // One angle, and two (the step's (sin, cos) pair blocks in g's covariance).
