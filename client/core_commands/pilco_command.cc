@@ -167,6 +167,10 @@ absl::Status ParseGeneral(const Json& doc, PilcoScenario* out) {
   PilcoScenario& s = *out;
   GeneralPilcoScenario& g = s.general;
   s.is_general = true;
+  if (Field(doc, "angle_index") != nullptr) {
+    return absl::InvalidArgumentError(
+        "angle_index: give angle_indices (general form) or angle_index, not both");
+  }
   if (absl::Status st = OnlyKnownKeys(
           doc,
           {"angle_indices", "dynamics_inputs", "policy_inputs", "train_inputs", "train_targets",
@@ -175,10 +179,6 @@ absl::Status ParseGeneral(const Json& doc, PilcoScenario* out) {
           "");
       !st.ok()) {
     return st;
-  }
-  if (Field(doc, "angle_index") != nullptr) {
-    return absl::InvalidArgumentError(
-        "angle_index: give angle_indices (general form) or angle_index, not both");
   }
   // D from the targets: every other shape follows from D, A, F.
   TG_ASSIGN_OR_RETURN(const Json* yi, Required(doc, "train_targets", ""));
