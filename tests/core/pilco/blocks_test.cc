@@ -314,6 +314,46 @@ TEST(GpMomentsTest, Gp2ReverseModeIncludingParametersMatchesFiniteDifferences) {
 
 // A deliberately wrong derivative must fail: (a) one entry off by 0.1 %;
 // (b) the classic bug of not counting an off-diagonal covariance entry twice.
+// The length-scale adjoint (per output, the outputs' length-scales differ):
+// <mean_bar, mean> + <cov_bar, cov> + <cross_bar, cross> against central
+// differences in every inverse squared length-scale, for gp0 (model
+// variance) and gp2 (mean function only, jitter), at a correlated input.
+TEST(GpMomentsTest, LengthscaleAdjointMatchesFiniteDifferences) {
+  std::mt19937_64 rng(14);
+  const int n = 15, e = 3, d = 3;
+  const GaussianInputGp base = testing::MakeTestGp(n, e, d, &rng);
+  ASSERT_NE(base.inv_lengthscale_sq(0, 0), base.inv_lengthscale_sq(1, 0));
+  const Vector m = testing::RandomVector(e, 0.5, &rng);
+  const Matrix s = testing::RandomCovariance(e, 0.3, &rng);
+  const Vector mean_bar = testing::RandomVector(d, 1.0, &rng);
+  const Matrix cov_bar = testing::RandomCovariance(d, 1.0, &rng) - 0.5 * Matrix::Identity(d, d);
+  Matrix cross_bar(e, d);
+  for (int a = 0; a < d; ++a) cross_bar.col(a) = testing::RandomVector(e, 1.0, &rng);
+  for (bool model_variance : {true, false}) {
+    GaussianPredictionOptions options;
+    options.model_variance = model_variance;
+    options.jitter = model_variance ? 0.0 : 1e-6;
+    const diff::VectorFunction f = [&](const Vector& il, Vector* out) {
+      GaussianInputGp gp = base;
+      gp.inv_lengthscale_sq = Eigen::Map<const RowMatrix>(il.data(), d, e);
+      GaussianPrediction p;
+      if (!PredictGaussian(gp, m, s, options, &p).ok()) return false;
+      *out = Vector::Constant(1, mean_bar.dot(p.mean) + cov_bar.cwiseProduct(p.cov).sum() +
+                                     cross_bar.cwiseProduct(p.cross).sum());
+      return true;
+    };
+    RowMatrix il_bar;
+    ASSERT_TRUE(PredictGaussianLengthscaleAdjoint(base, m, s, options, mean_bar, cov_bar,
+                                                  cross_bar, &il_bar)
+                    .ok());
+    const Vector il = Eigen::Map<const Vector>(base.inv_lengthscale_sq.data(), d * e);
+    const Vector g = Eigen::Map<const Vector>(il_bar.data(), d * e);
+    const diff::CheckResult r = diff::CheckJacobian(f, il, g.transpose(), Tight());
+    EXPECT_TRUE(r.ok) << (model_variance ? "gp0: " : "gp2: ") << r.log;
+    EXPECT_GT(g.cwiseAbs().maxCoeff(), 1e-3);
+  }
+}
+
 TEST(GpMomentsTest, WrongDerivativesAreRejected) {
   std::mt19937_64 rng(4);
   const int n = 20, e = 3, d = 2;

@@ -480,6 +480,70 @@ INSTANTIATE_TEST_SUITE_P(Angles, StepAssembly,
                          [](const auto& info) {
                            return "Angles" + std::to_string(info.param.angles.size()) + "Controls" +
                                   std::to_string(info.param.controls);
+
+// The same with the GP on its own index set into z (PILCO's dyni beside
+// poli): g = [q; u], q = z(dynamics_inputs) including a raw angle the policy
+// does not see, Cov(x, g) = [Cov(x, q), Cov(x, p) u_cross]. One and two
+// controls, two angles.
+class StepAssemblySeparate : public ::testing::TestWithParam<int> {};
+
+TEST_P(StepAssemblySeparate, GivenTheJointGaussian) {
+  std::mt19937_64 rng(19);
+  const int f = GetParam();
+  const int d = 4;
+  const std::vector<int> poli = {0, 2, 4, 5, 6, 7}, dyni = {0, 2, 3, 4, 5, 6, 7};
+  const int ep = 6, eq = 7;
+  const GaussianInputGp gp = testing::MakeTestGp(30, eq + f, d, &rng, 1.5);
+  PropagationOptions options;
+  options.angle_indices = {1, 3};
+  options.policy_inputs = poli;
+  options.dynamics_inputs = dyni;
+  if (f > 1) options.max_controls = Vector::LinSpaced(f, 2.0, 3.5);
+  options.num_basis = 6;
+  const Propagator prop(&gp, options);
+  Vector params(prop.num_parameters());
+  params.head(6 * ep) = testing::RandomVector(6 * ep, 0.7, &rng);
+  params.segment(6 * ep, ep).setConstant(std::log(0.9));
+  params.tail(6 * f) = testing::RandomVector(6 * f, 0.5, &rng);
+  const Vector m = Eigen::Vector4d(0.1, 0.4, -0.2, 0.3);
+  const Matrix s = testing::RandomCovariance(d, 0.05, &rng);
+  StepCache cache;
+  Vector m_next;
+  Matrix s_next;
+  ASSERT_TRUE(prop.Step(params, m, s, &m_next, &s_next, &cache).ok());
+  ASSERT_EQ(cache.g_mean.size(), eq + f);
+  const int eg = eq + f;
+  Matrix cxg(d, eg);
+  cxg.leftCols(eq) = cache.s_xq;
+  cxg.rightCols(f) = cache.s_xp * cache.u_cross;
+  Vector zm(d + eg);
+  zm << m, cache.g_mean;
+  Matrix zs(d + eg, d + eg);
+  zs << s, cxg, cxg.transpose(), cache.g_cov;
+  const GaussianSampler sampler(zm, zs);
+  MomentAccumulator acc(2 * d);
+  Vector shift(2 * d);
+  shift << m_next, Vector::Zero(d);
+  acc.SetShift(shift);
+  for (int done = 0; done < kSamples; done += kBatch) {
+    const RowMatrix z = sampler.Sample(kBatch, &rng);
+    RowMatrix mean, var;
+    PosteriorAt(gp, z.rightCols(eg), &mean, &var);
+    RowMatrix row(kBatch, 2 * d);
+    row << z.leftCols(d) + mean, var;
+    acc.AddBatch(row);
+  }
+  EXPECT_TRUE(WithinMcError(m_next, acc.Mean().head(d), acc.MeanStdError().head(d), kSigmas));
+  Matrix expected = acc.Cov().topLeftCorner(d, d);
+  Matrix se = acc.CovStdError().topLeftCorner(d, d);
+  expected.diagonal() += acc.Mean().tail(d);
+  se.diagonal() += acc.MeanStdError().tail(d);
+  EXPECT_TRUE(WithinMcError(s_next, expected, se, kSigmas));
+  const Matrix cross_terms = s_next - s - cache.delta.cov;
+  EXPECT_GT(cross_terms.cwiseAbs().maxCoeff(), 50.0 * se.maxCoeff());
+}
+
+INSTANTIATE_TEST_SUITE_P(Controls, StepAssemblySeparate, ::testing::Values(1, 2));
                          });
 
 }  // namespace
