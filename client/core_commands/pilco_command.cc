@@ -383,11 +383,9 @@ absl::StatusOr<nlohmann::ordered_json> RunGeneral(const PilcoScenario& s) {
   const int c = static_cast<int>(s.centres.rows());
   const int ep = static_cast<int>(g.policy_inputs.size());
   const int f = static_cast<int>(g.policy_values.cols());
-  if (!g.lengthscales_given_as_vector && f > 1) {
-    return absl::InvalidArgumentError(
-        "policy.log_lengthscales: one row per control is not supported yet (give one shared "
-        "row)");
-  }
+  // F x Ep rows with F >= 2: PILCO's per-output policy hyperparameters.
+  const bool per_control = !g.lengthscales_given_as_vector && f > 1;
+  const int ll_rows = per_control ? f : 1;
 
   absl::StatusOr<pilco::GaussianInputGp> gp;
   if (g.inducing_inputs.rows() == 0) {
@@ -423,6 +421,7 @@ absl::StatusOr<nlohmann::ordered_json> RunGeneral(const PilcoScenario& s) {
     options.max_controls = g.max_force;
   }
   options.num_basis = c;
+  options.policy_lengthscale_per_control = per_control;
   if (absl::Status st = pilco::Propagator::Validate(*gp, options); !st.ok()) return st;
   const pilco::Propagator prop(&*gp, options);
 
@@ -430,9 +429,11 @@ absl::StatusOr<nlohmann::ordered_json> RunGeneral(const PilcoScenario& s) {
       d, g.angle_indices, g.cost_q, AugmentedTarget(g.cost_target, g.angle_indices), g.widths);
   if (!cost.ok()) return cost.status();
 
-  // [centres row-major, log l, values C x F row-major] (RbfPolicy's layout).
+  // [centres row-major, log l (1 or F rows, row-major), values C x F
+  // row-major] (RbfPolicy's layout; RbfPolicyShape::lengthscale_per_control).
   Vector given(prop.num_parameters());
-  given << Eigen::Map<const Vector>(s.centres.data(), c * ep), g.log_lengthscales.row(0).transpose(),
+  given << Eigen::Map<const Vector>(s.centres.data(), c * ep),
+      Eigen::Map<const Vector>(g.log_lengthscales.data(), ll_rows * ep),
       Eigen::Map<const Vector>(g.policy_values.data(), c * f);
   Vector params = given;
   if (s.has_targets) {
@@ -474,18 +475,18 @@ absl::StatusOr<nlohmann::ordered_json> RunGeneral(const PilcoScenario& s) {
     if (g.values_given_as_vector) return VectorJson(v);
     return MatrixJson(Eigen::Map<const RowMatrix>(v.data(), c, f));
   };
-  const Vector grad_values = grad_given.tail(c * f);
+  const Vector grad_values = grad_given.tail(c * f);  // after centres and log l
   if (s.has_targets) {
     out["dJ_dtargets"] = values_json(grad_values);
     out["weights"] = values_json(params.tail(c * f));
   } else {
     out["dJ_dweights"] = values_json(grad_values);
   }
-  const Vector grad_ll = grad_given.segment(c * ep, ep);
+  const Vector grad_ll = grad_given.segment(c * ep, ll_rows * ep);
   if (g.lengthscales_given_as_vector) {
     out["dJ_dlog_lengthscales"] = VectorJson(grad_ll);
   } else {
-    out["dJ_dlog_lengthscales"] = MatrixJson(grad_ll.transpose());
+    out["dJ_dlog_lengthscales"] = MatrixJson(Eigen::Map<const RowMatrix>(grad_ll.data(), ll_rows, ep));
   }
   return out;
 }

@@ -77,6 +77,10 @@ absl::Status Propagator::Validate(const GaussianInputGp& dynamics,
   if (dynamics.variance_weights.size() != static_cast<size_t>(d)) {
     return absl::InvalidArgumentError("dynamics GP lacks its variance weights (K^-1)");
   }
+  if (options.policy_lengthscale_per_control && f < 2) {
+    return absl::InvalidArgumentError(
+        "policy length-scales per control need 2 or more controls (max_controls)");
+  }
   if (options.num_basis < 1) return absl::InvalidArgumentError("num_basis must be >= 1");
   if (!(options.max_force > 0) || !std::isfinite(options.max_force)) {
     return absl::InvalidArgumentError("max_force must be > 0");
@@ -121,6 +125,7 @@ Propagator::Propagator(const GaussianInputGp* dynamics, const PropagationOptions
   shape_.input_dim = policy_input_dim_;
   shape_.max_force = options.max_force;
   shape_.max_controls = options.max_controls;
+  shape_.lengthscale_per_control = options.policy_lengthscale_per_control;
   shape_.jitter = options.policy_jitter;
   dyn_options_.model_variance = true;
   dyn_options_.include_noise = options.prediction_includes_noise;

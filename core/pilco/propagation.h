@@ -47,6 +47,10 @@ struct PropagationOptions {
   // F >= 2 controls (the double pendulum): their bounds; the GP's inputs are
   // then [p; u_1 .. u_F] and the policy has C x F weights. Empty: one control.
   Vector max_controls;
+  // F >= 2 only: one row of policy log length-scales per control
+  // (RbfPolicyShape::lengthscale_per_control; parameters [centres, log l
+  // F x Ep, weights C x F]). false: one shared row.
+  bool policy_lengthscale_per_control = false;
   int num_basis = 10;                     // C, RBF centres
   // PILCO's general index sets (poli, dyni), 0-based indices into
   // y = [x, sin x_a1, cos x_a1, ...] (D + 2A), each strictly increasing.

@@ -177,9 +177,45 @@ def pendulum_own_dynamics_inputs(cli, sc):
     }
 
 
+def double_pendulum_per_control(cli, sc):
+    """Two angles, two torques, one row of policy length-scales per torque
+    (PILCO's per-output gp2 hyperparameters), FITC with 20 inducing inputs,
+    pseudo-targets C x 2."""
+    rng = np.random.default_rng(6)
+    dyni = poli = sc["dynamics_inputs"]
+    x, y = data(cli, sc, rng, episodes=2, steps=25, dyni=dyni)
+    inducing = x[rng.choice(x.shape[0], size=20, replace=False)]
+    c = 8
+    ll = np.zeros((2, len(poli)))
+    ll[:, -4:] = np.log(0.7)
+    ll += 0.3 * rng.standard_normal(ll.shape)
+    return {
+        "angle_indices": sc["angle_indices"],
+        "dynamics_inputs": dyni,
+        "policy_inputs": poli,
+        "train_inputs": x.tolist(),
+        "train_targets": y.tolist(),
+        "inducing_inputs": inducing.tolist(),
+        "gp_log_hyp": init_hyp(x, y).tolist(),
+        "policy": {
+            "centres": centres(sc, rng, c, poli).tolist(),
+            "targets": (0.1 * rng.standard_normal((c, 2))).tolist(),
+            "log_lengthscales": ll.tolist(),
+            "max_force": sc["max_control"],
+        },
+        "mu0": sc["mu0"],
+        "S0": np.diag(np.square(sc["start_std"])).tolist(),
+        "horizon": 15,
+        "cost": {"type": "saturating", "target": sc["target"], "Q": sc["saturating_cost"]["Q"],
+                 "width": sc["saturating_cost"]["widths"]},
+    }
+
+
 if __name__ == "__main__":
     cli = sys.argv[1] if len(sys.argv) > 1 else "build/client/totalgrad"
     sc = scenes(cli)
     write("general_double_pendulum.json", double_pendulum(cli, sc["double-pendulum"]))
     write("general_cdp_fitc.json", cart_double_pendulum_fitc(cli, sc["cart-double-pendulum"]))
     write("general_pendulum_dyni.json", pendulum_own_dynamics_inputs(cli, sc["pendulum"]))
+    write("general_double_pendulum_per_control.json",
+          double_pendulum_per_control(cli, sc["double-pendulum"]))

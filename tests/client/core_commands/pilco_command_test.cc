@@ -171,7 +171,8 @@ std::vector<double> Flat(const nlohmann::json& v) {
 
 // The general-form examples (docs/pilco-examples/make_general_examples.py):
 // two angles and two torques with pseudo-targets C x 2; two angles, FITC and
-// weights; one angle with a GP on its own inputs and two widths. Output
+// weights; one angle with a GP on its own inputs and two widths; two torques
+// with one row of length-scales per control and FITC. Output
 // shapes as documented, and every gradient block against central
 // differences of J through the file format (each block's entries with the
 // largest and the smallest index).
@@ -203,7 +204,6 @@ TEST_P(PilcoGeneralExampleTest, RunsWithDocumentedShapeAndGradient) {
   for (const auto& v : (*out)["cost_mean"]) sum += v.get<double>();
   EXPECT_NEAR((*out)["J"].get<double>(), sum, 1e-12);
   EXPECT_EQ(Flat((*out)["dJ_dcentres"]).size(), static_cast<size_t>(c * ep));
-  EXPECT_EQ((*out)["dJ_dlog_lengthscales"].size(), static_cast<size_t>(ep));
   const std::string gkey = targets ? "dJ_dtargets" : "dJ_dweights";
   ASSERT_TRUE(out->contains(gkey));
   // In the shape the file gave: C x F, or a C-vector.
@@ -248,19 +248,30 @@ TEST_P(PilcoGeneralExampleTest, RunsWithDocumentedShapeAndGradient) {
       EXPECT_TRUE(near(g, n)) << "centre " << k << "," << m << ": " << g << " vs " << n;
     }
   }
-  for (int m = 0; m < ep; ++m) {
-    const double g = (*out)["dJ_dlog_lengthscales"][m].get<double>();
-    const double n = fd([&](nlohmann::json& dd, double e) {
-      dd["policy"]["log_lengthscales"][m] = dd["policy"]["log_lengthscales"][m].get<double>() + e;
-    });
-    EXPECT_TRUE(near(g, n)) << "log l " << m << ": " << g << " vs " << n;
+  // Log length-scales: Ep numbers, or F x Ep (one row per control), the
+  // gradient in the same shape.
+  const bool ll_rows = doc["policy"]["log_lengthscales"][0].is_array();
+  const int rows = ll_rows ? static_cast<int>(doc["policy"]["log_lengthscales"].size()) : 1;
+  ASSERT_EQ((*out)["dJ_dlog_lengthscales"].size(), static_cast<size_t>(ll_rows ? rows : ep));
+  for (int r = 0; r < rows; ++r) {
+    for (int m = 0; m < ep; ++m) {
+      const double g = ll_rows ? (*out)["dJ_dlog_lengthscales"][r][m].get<double>()
+                               : (*out)["dJ_dlog_lengthscales"][m].get<double>();
+      const double n = fd([&](nlohmann::json& dd, double e) {
+        nlohmann::json& v = ll_rows ? dd["policy"]["log_lengthscales"][r][m]
+                                    : dd["policy"]["log_lengthscales"][m];
+        v = v.get<double>() + e;
+      });
+      EXPECT_TRUE(near(g, n)) << "log l " << r << "," << m << ": " << g << " vs " << n;
+    }
   }
   EXPECT_GT(largest, 1e-4) << "the examples' gradients should not vanish";
 }
 
 INSTANTIATE_TEST_SUITE_P(Examples, PilcoGeneralExampleTest,
                          ::testing::Values("general_double_pendulum.json", "general_cdp_fitc.json",
-                                           "general_pendulum_dyni.json"));
+                                           "general_pendulum_dyni.json",
+                                           "general_double_pendulum_per_control.json"));
 
 // Today's examples rewritten in the general form (one angle or none, one
 // control, full GP; the tip cost as lossSat on z = [x, sin, cos] with
@@ -381,6 +392,10 @@ TEST(PilcoCommandTest, GeneralFormBadInputIsNamed) {
       {[](nlohmann::json* d) { (*d)["policy"]["targets"].erase(0); }, "policy.targets: must be C x F"},
       {[](nlohmann::json* d) { (*d)["policy"]["weights"] = (*d)["policy"]["targets"]; }, "exactly one of"},
       {[](nlohmann::json* d) { (*d)["policy"]["log_lengthscales"].erase(0); }, "policy.log_lengthscales: must be 6 numbers"},
+      {[](nlohmann::json* d) {
+         const nlohmann::json row = (*d)["policy"]["log_lengthscales"];
+         (*d)["policy"]["log_lengthscales"] = {row, row, row};
+       }, "policy.log_lengthscales: must be 6 numbers (len(policy_inputs), shared) or 2 x 6 (one row per control), is 3 x 6"},
       {[](nlohmann::json* d) { (*d)["policy"]["max_force"] = {2.0}; }, "policy.max_force: must have 2 entries"},
       {[](nlohmann::json* d) { (*d)["policy"]["max_force"] = {2.0, -1.0}; }, "policy.max_force[1]: must be > 0"},
       {[](nlohmann::json* d) { (*d)["policy"]["output_variance_jitter"] = -1.0; }, "policy.output_variance_jitter"},
@@ -408,8 +423,8 @@ TEST(PilcoCommandTest, GeneralFormBadInputIsNamed) {
     EXPECT_NE(s.status().message().find(c.want), std::string::npos)
         << "want '" << c.want << "', got: " << s.status();
   }
-  // Found when running (they need the numbers, not only the shapes): Q not
-  // positive semi-definite; length-scales one row per control (not built).
+  // Found when running (it needs the numbers, not only the shapes): Q not
+  // positive semi-definite.
   nlohmann::json d = good;
   for (int i = 0; i < 8; ++i) d["cost"]["Q"][i][i] = i == 0 ? -1.0 : 0.0;
   absl::StatusOr<PilcoScenario> s = ParsePilcoScenario(d);
@@ -418,15 +433,6 @@ TEST(PilcoCommandTest, GeneralFormBadInputIsNamed) {
   ASSERT_FALSE(out.ok());
   EXPECT_EQ(out.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_NE(out.status().message().find("saturating cost Q is not positive semi-definite"),
-            std::string::npos)
-      << out.status();
-  d = good;
-  d["policy"]["log_lengthscales"] = {d["policy"]["log_lengthscales"], d["policy"]["log_lengthscales"]};
-  s = ParsePilcoScenario(d);
-  TG_ASSERT_OK(s.status());
-  out = RunPilcoPropagate(*s);
-  ASSERT_FALSE(out.ok());
-  EXPECT_NE(out.status().message().find("policy.log_lengthscales: one row per control"),
             std::string::npos)
       << out.status();
 }

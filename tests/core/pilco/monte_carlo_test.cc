@@ -480,6 +480,7 @@ INSTANTIATE_TEST_SUITE_P(Angles, StepAssembly,
                          [](const auto& info) {
                            return "Angles" + std::to_string(info.param.angles.size()) + "Controls" +
                                   std::to_string(info.param.controls);
+                         });
 
 // The same with the GP on its own index set into z (PILCO's dyni beside
 // poli): g = [q; u], q = z(dynamics_inputs) including a raw angle the policy
@@ -544,7 +545,6 @@ TEST_P(StepAssemblySeparate, GivenTheJointGaussian) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Controls, StepAssemblySeparate, ::testing::Values(1, 2));
-                         });
 
 }  // namespace
 }  // namespace totalgrad::pilco

@@ -330,10 +330,19 @@ TEST(ChainedObjectiveTwoControls, DoublePendulumGradientMatchesFiniteDifferences
 // a sin/cos pair ordered differently from the default, one and two
 // controls, and the several-angle saturating cost on z. J over 15 steps and
 // dJ/dtheta against central differences; every covariance symmetric PSD.
-class SeparateInputsTest : public ::testing::TestWithParam<int> {};
+// The third case gives the policy one row of length-scales per control
+// (PILCO's per-output gp2 hyperparameters; RbfPolicyShape::
+// lengthscale_per_control), whose gradient comes from
+// PredictGaussianLengthscaleAdjoint and the unscaled gp2.
+struct SeparateCase {
+  int controls;
+  bool per_control_lengthscales;
+};
+class SeparateInputsTest : public ::testing::TestWithParam<SeparateCase> {};
 
 TEST_P(SeparateInputsTest, GradientMatchesFiniteDifferences) {
-  const int f = GetParam();
+  const int f = GetParam().controls;
+  const bool per_control = GetParam().per_control_lengthscales;
   const int d = 4;
   const std::vector<int> angles = {1, 3};  // z = [x0..x3, s1, c1, s3, c3] (8)
   const std::vector<int> poli = {0, 2, 4, 5, 6, 7};
@@ -348,10 +357,12 @@ TEST_P(SeparateInputsTest, GradientMatchesFiniteDifferences) {
   options.num_basis = 5;
   if (f > 1) options.max_controls = Eigen::Vector2d(2.0, 3.0);
   else options.max_force = 2.5;
+  options.policy_lengthscale_per_control = per_control;
   ASSERT_TRUE(Propagator::Validate(gp, options).ok()) << Propagator::Validate(gp, options);
   const Propagator prop(&gp, options);
   ASSERT_EQ(prop.policy_input_dim(), 6);
-  const int ep = 6, c = 5;
+  const int ep = 6, c = 5, rows = per_control ? f : 1;
+  ASSERT_EQ(prop.num_parameters(), c * ep + rows * ep + c * f);
   std::normal_distribution<double> normal;
   Vector params(prop.num_parameters());
   const Vector mu0 = Eigen::Vector4d(0.1, 0.4, -0.2, 2.8);
@@ -360,8 +371,8 @@ TEST_P(SeparateInputsTest, GradientMatchesFiniteDifferences) {
     for (int m = 0; m < d; ++m) x(m) += 0.3 * normal(rng);
     params.segment(k * ep, ep) = prop.PolicyInput(x);
   }
-  params.segment(c * ep, ep) = testing::RandomVector(ep, 0.2, &rng);
-  for (int k = 0; k < c * f; ++k) params(c * ep + ep + k) = normal(rng);
+  params.segment(c * ep, rows * ep) = testing::RandomVector(rows * ep, 0.3, &rng);
+  for (int k = 0; k < c * f; ++k) params(c * ep + rows * ep + k) = normal(rng);
   const Matrix s0 = 0.05 * Matrix::Identity(d, d);
   const Matrix q = testing::RandomCovariance(8, 0.5, &rng);
   Vector zt = Vector::Zero(8);
@@ -393,7 +404,52 @@ TEST_P(SeparateInputsTest, GradientMatchesFiniteDifferences) {
   EXPECT_GT(grad.cwiseAbs().maxCoeff(), 1e-4);
 }
 
-INSTANTIATE_TEST_SUITE_P(Controls, SeparateInputsTest, ::testing::Values(1, 2));
+INSTANTIATE_TEST_SUITE_P(Controls, SeparateInputsTest,
+                         ::testing::Values(SeparateCase{1, false}, SeparateCase{2, false},
+                                           SeparateCase{2, true}));
+
+// Per-control length-scales with equal rows are the shared policy: the same
+// J (to rounding: unscaled vs scaled gp2), and the gradient rows sum to the
+// shared gradient (the shared log l moves every row at once).
+TEST(SeparateInputsTest, EqualPerControlLengthscalesAreTheSharedPolicy) {
+  std::mt19937_64 rng(61);
+  const int d = 4, f = 2, c = 5;
+  const GaussianInputGp gp = testing::MakeTestGp(30, 5 + f, d, &rng, 1.5);  // [x0 x2 x3 s c] + u
+  PropagationOptions shared;
+  shared.angle_index = 1;
+  shared.num_basis = c;
+  shared.max_controls = Eigen::Vector2d(2.0, 3.0);
+  PropagationOptions per = shared;
+  per.policy_lengthscale_per_control = true;
+  const Propagator a(&gp, shared), b(&gp, per);
+  const int ep = a.policy_input_dim();
+  Vector pa = testing::RandomVector(a.num_parameters(), 0.5, &rng);
+  Vector pb(b.num_parameters());
+  pb << pa.head(c * ep), pa.segment(c * ep, ep), pa.segment(c * ep, ep), pa.tail(c * f);
+  auto cost = GaussianCost::Saturating(d, std::vector<int>{1},
+                                       testing::RandomCovariance(d + 2, 0.5, &rng),
+                                       Vector::Zero(d + 2), {1.0});
+  ASSERT_TRUE(cost.ok());
+  const Vector mu0 = Eigen::Vector4d(0.0, 0.2, 0.0, 0.0);
+  const Matrix s0 = 0.05 * Matrix::Identity(d, d);
+  Trajectory ta, tb;
+  Vector ga, gb;
+  ASSERT_TRUE(PredictTrajectory(a, *cost, pa, mu0, s0, 10, &ta, &ga).ok());
+  ASSERT_TRUE(PredictTrajectory(b, *cost, pb, mu0, s0, 10, &tb, &gb).ok());
+  EXPECT_NEAR(ta.total_cost, tb.total_cost, 1e-12 * std::abs(ta.total_cost));
+  const double scale = ga.cwiseAbs().maxCoeff();
+  EXPECT_TRUE(totalgrad::testing::MatricesNear(ga.head(c * ep), gb.head(c * ep), 1e-10 * scale, 0));
+  EXPECT_TRUE(totalgrad::testing::MatricesNear(ga.segment(c * ep, ep),
+                                    gb.segment(c * ep, ep) + gb.segment(c * ep + ep, ep),
+                                    1e-10 * scale, 0));
+  EXPECT_TRUE(totalgrad::testing::MatricesNear(ga.tail(c * f), gb.tail(c * f), 1e-10 * scale, 0));
+  // The rows differ (each control's own share), so the split is real.
+  EXPECT_GT((gb.segment(c * ep, ep) - gb.segment(c * ep + ep, ep)).cwiseAbs().maxCoeff(),
+            1e-3 * scale);
+  PropagationOptions one = per;
+  one.max_controls.resize(0);
+  EXPECT_FALSE(Propagator::Validate(gp, one).ok());
+}
 
 // dynamics_inputs equal to the policy's inputs is today's shared path, bit
 // for bit; indices out of range or not increasing are refused by name.
