@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 """An independent numpy implementation of PILCO's moment matching for the general form
-of `totalgrad pilco propagate` (docs/pilco.md section 4b), written from the published
+of `totalgrad pilco propagate` (docs/pilco.md, section 4, "The general form against an
+independent numpy reference"), written from the published
 equations (Deisenroth & Rasmussen 2011; Deisenroth's thesis, 2010; the equations of
 PILCO's gTrig, gp0/gp1/gp2, gSat, lossSat and propagated), not from any code. It shares
 nothing with the C++ but the file format.
