@@ -4,13 +4,17 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <set>
 #include <string>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
 #include "absl/strings/str_cat.h"
 #include "client/core_commands/commands.h"
+#include "core/gp/fitc.h"
+#include "core/gp/gp.h"
 #include "core/pilco/expected_cost.h"
 #include "core/pilco/gp_moments.h"
 #include "core/pilco/policy_moments.h"
@@ -101,6 +105,392 @@ Json VectorJson(const Vector& v) {
   return out;
 }
 
+
+// ------------------------------------------------------------ general form
+
+absl::Status OnlyKnownKeys(const Json& obj, const std::set<std::string>& known,
+                           const std::string& where) {
+  for (auto it = obj.begin(); it != obj.end(); ++it) {
+    if (known.count(it.key()) == 0) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("unknown field '", where, it.key(), "' (general form, docs/pilco.md)"));
+    }
+  }
+  return absl::OkStatus();
+}
+
+// A JSON array of integers, strictly increasing, each in [0, bound).
+absl::StatusOr<std::vector<int>> IndexList(const Json& v, const std::string& what, int bound,
+                                           const std::string& bound_name, bool allow_empty) {
+  if (!v.is_array()) return absl::InvalidArgumentError(absl::StrCat(what, ": not an array"));
+  if (v.empty() && !allow_empty) return absl::InvalidArgumentError(absl::StrCat(what, ": empty"));
+  std::vector<int> out;
+  for (size_t k = 0; k < v.size(); ++k) {
+    const std::string entry = absl::StrCat(what, "[", k, "]");
+    absl::StatusOr<int> i = ToIndex(v[k], entry);
+    if (!i.ok()) return i.status();
+    if (*i < 0 || *i >= bound) {
+      return absl::InvalidArgumentError(absl::StrCat(entry, ": ", *i, " is out of range [0, ", bound,
+                                                     ") (", bound_name, ")"));
+    }
+    if (k > 0 && *i <= out.back()) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          what, ": indices must be strictly increasing (entry ", k, " is ", *i, " after ",
+          out.back(), ")"));
+    }
+    out.push_back(*i);
+  }
+  return out;
+}
+
+absl::Status Shape(const RowMatrix& m, Eigen::Index rows, Eigen::Index cols,
+                   const std::string& what, const std::string& meaning) {
+  if (m.rows() != rows || m.cols() != cols) {
+    return absl::InvalidArgumentError(absl::StrCat(what, ": must be ", rows, " x ", cols, " (",
+                                                   meaning, "), is ", m.rows(), " x ", m.cols()));
+  }
+  return absl::OkStatus();
+}
+
+// A matrix that is either a plain vector (one row) or an array of rows.
+absl::StatusOr<RowMatrix> VectorOrMatrix(const Json& v, const std::string& what, bool* was_vector) {
+  if (v.is_array() && !v.empty() && v.front().is_array()) {
+    *was_vector = false;
+    return ToMatrix(v, what);
+  }
+  *was_vector = true;
+  TG_ASSIGN_OR_RETURN(Vector x, ToVector(v, what));
+  return RowMatrix(x.transpose());
+}
+
+absl::Status ParseGeneral(const Json& doc, PilcoScenario* out) {
+  PilcoScenario& s = *out;
+  GeneralPilcoScenario& g = s.general;
+  s.is_general = true;
+  if (Field(doc, "angle_index") != nullptr) {
+    return absl::InvalidArgumentError(
+        "angle_index: give angle_indices (general form) or angle_index, not both");
+  }
+  if (absl::Status st = OnlyKnownKeys(
+          doc,
+          {"angle_indices", "dynamics_inputs", "policy_inputs", "train_inputs", "train_targets",
+           "inducing_inputs", "gp_log_hyp", "prediction_includes_noise", "policy", "mu0", "S0",
+           "horizon", "cost"},
+          "");
+      !st.ok()) {
+    return st;
+  }
+  // D from the targets: every other shape follows from D, A, F.
+  TG_ASSIGN_OR_RETURN(const Json* yi, Required(doc, "train_targets", ""));
+  TG_ASSIGN_OR_RETURN(s.train_targets, ToMatrix(*yi, "train_targets"));
+  const int n = static_cast<int>(s.train_targets.rows());
+  const int d = static_cast<int>(s.train_targets.cols());
+  if (n == 0 || d == 0) return absl::InvalidArgumentError("train_targets: no rows or no columns");
+  TG_ASSIGN_OR_RETURN(const Json* ai, Required(doc, "angle_indices", ""));
+  TG_ASSIGN_OR_RETURN(g.angle_indices,
+                      IndexList(*ai, "angle_indices", d, "state indices", /*allow_empty=*/true));
+  const int nz = d + 2 * static_cast<int>(g.angle_indices.size());
+  const std::string z_name = "indices into z = [x, (sin, cos) per angle]";
+  TG_ASSIGN_OR_RETURN(const Json* di, Required(doc, "dynamics_inputs", ""));
+  TG_ASSIGN_OR_RETURN(g.dynamics_inputs, IndexList(*di, "dynamics_inputs", nz, z_name, false));
+  TG_ASSIGN_OR_RETURN(const Json* pi, Required(doc, "policy_inputs", ""));
+  TG_ASSIGN_OR_RETURN(g.policy_inputs, IndexList(*pi, "policy_inputs", nz, z_name, false));
+  const int eq = static_cast<int>(g.dynamics_inputs.size());
+  const int ep = static_cast<int>(g.policy_inputs.size());
+
+  // The policy fixes F (the columns of targets / weights).
+  TG_ASSIGN_OR_RETURN(const Json* policy, Required(doc, "policy", ""));
+  if (!policy->is_object()) return absl::InvalidArgumentError("policy: not an object");
+  if (absl::Status st = OnlyKnownKeys(*policy,
+                                      {"centres", "weights", "targets", "log_lengthscales",
+                                       "max_force", "output_variance_jitter"},
+                                      "policy.");
+      !st.ok()) {
+    return st;
+  }
+  TG_ASSIGN_OR_RETURN(const Json* centres, Required(*policy, "centres", "policy."));
+  TG_ASSIGN_OR_RETURN(s.centres, ToMatrix(*centres, "policy.centres"));
+  const int c = static_cast<int>(s.centres.rows());
+  if (c == 0) return absl::InvalidArgumentError("policy.centres: no rows (C >= 1 centres)");
+  if (absl::Status st = Shape(s.centres, c, ep, "policy.centres", "C x len(policy_inputs)");
+      !st.ok()) {
+    return st;
+  }
+  const Json* weights = Field(*policy, "weights");
+  const Json* targets = Field(*policy, "targets");
+  if ((weights == nullptr) == (targets == nullptr)) {
+    return absl::InvalidArgumentError(
+        "policy: give exactly one of 'weights' (ours) or 'targets' (PILCO's congp)");
+  }
+  s.has_targets = targets != nullptr;
+  const std::string vname = s.has_targets ? "policy.targets" : "policy.weights";
+  TG_ASSIGN_OR_RETURN(g.policy_values, VectorOrMatrix(s.has_targets ? *targets : *weights, vname,
+                                                      &g.values_given_as_vector));
+  if (g.values_given_as_vector) g.policy_values.transposeInPlace();  // C x 1
+  if (g.policy_values.rows() != c || g.policy_values.cols() < 1) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        vname, ": must be C x F (or a C-vector for F = 1) with C = ", c,
+        " (the rows of policy.centres), is ", g.policy_values.rows(), " x ",
+        g.policy_values.cols()));
+  }
+  const int f = static_cast<int>(g.policy_values.cols());
+  TG_ASSIGN_OR_RETURN(const Json* ll, Required(*policy, "log_lengthscales", "policy."));
+  TG_ASSIGN_OR_RETURN(g.log_lengthscales, VectorOrMatrix(*ll, "policy.log_lengthscales",
+                                                         &g.lengthscales_given_as_vector));
+  if (g.log_lengthscales.cols() != ep ||
+      (g.lengthscales_given_as_vector ? false : g.log_lengthscales.rows() != f)) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "policy.log_lengthscales: must be ", ep, " numbers (len(policy_inputs), shared) or ", f,
+        " x ", ep, " (one row per control), is ", g.log_lengthscales.rows(), " x ",
+        g.log_lengthscales.cols()));
+  }
+  TG_ASSIGN_OR_RETURN(const Json* mf, Required(*policy, "max_force", "policy."));
+  if (mf->is_number()) {
+    TG_ASSIGN_OR_RETURN(double one, Number(*mf, "policy.max_force"));
+    g.max_force = Vector::Constant(1, one);
+  } else {
+    TG_ASSIGN_OR_RETURN(g.max_force, ToVector(*mf, "policy.max_force"));
+  }
+  if (g.max_force.size() != f) {
+    return absl::InvalidArgumentError(absl::StrCat("policy.max_force: must have ", f,
+                                                   " entries (F, the columns of ", vname,
+                                                   "), has ", g.max_force.size()));
+  }
+  for (int j = 0; j < f; ++j) {
+    if (!(g.max_force(j) > 0)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("policy.max_force[", j, "]: must be > 0, is ", g.max_force(j)));
+    }
+  }
+  if (const Json* j = Field(*policy, "output_variance_jitter"); j != nullptr) {
+    TG_ASSIGN_OR_RETURN(s.output_variance_jitter, Number(*j, "policy.output_variance_jitter"));
+    if (!(s.output_variance_jitter >= 0)) {
+      return absl::InvalidArgumentError("policy.output_variance_jitter: must be >= 0");
+    }
+  }
+
+  TG_ASSIGN_OR_RETURN(const Json* xi, Required(doc, "train_inputs", ""));
+  TG_ASSIGN_OR_RETURN(s.train_inputs, ToMatrix(*xi, "train_inputs"));
+  if (absl::Status st = Shape(s.train_inputs, n, eq + f, "train_inputs",
+                              "N = rows of train_targets, len(dynamics_inputs) + F: [z(dyni), u]");
+      !st.ok()) {
+    return st;
+  }
+  if (const Json* zi = Field(doc, "inducing_inputs"); zi != nullptr) {
+    TG_ASSIGN_OR_RETURN(g.inducing_inputs, ToMatrix(*zi, "inducing_inputs"));
+    if (g.inducing_inputs.rows() == 0) {
+      return absl::InvalidArgumentError("inducing_inputs: no rows (M >= 1, or leave it out)");
+    }
+    if (absl::Status st = Shape(g.inducing_inputs, g.inducing_inputs.rows(), eq + f,
+                                "inducing_inputs", "M x (len(dynamics_inputs) + F)");
+        !st.ok()) {
+      return st;
+    }
+  }
+  TG_ASSIGN_OR_RETURN(const Json* hyp, Required(doc, "gp_log_hyp", ""));
+  TG_ASSIGN_OR_RETURN(s.gp_log_hyp, ToMatrix(*hyp, "gp_log_hyp"));
+  if (absl::Status st = Shape(s.gp_log_hyp, d, eq + f + 2, "gp_log_hyp",
+                              "D x (len(dynamics_inputs) + F + 2): log l, log sf, log sn");
+      !st.ok()) {
+    return st;
+  }
+  if (const Json* noise = Field(doc, "prediction_includes_noise"); noise != nullptr) {
+    if (!noise->is_boolean()) {
+      return absl::InvalidArgumentError("prediction_includes_noise: not a boolean");
+    }
+    s.prediction_includes_noise = noise->get<bool>();
+  }
+
+  TG_ASSIGN_OR_RETURN(const Json* mu0, Required(doc, "mu0", ""));
+  TG_ASSIGN_OR_RETURN(s.mu0, ToVector(*mu0, "mu0"));
+  if (s.mu0.size() != d) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("mu0: must have ", d, " entries (D, the columns of train_targets), has ",
+                     s.mu0.size()));
+  }
+  TG_ASSIGN_OR_RETURN(const Json* s0, Required(doc, "S0", ""));
+  TG_ASSIGN_OR_RETURN(RowMatrix s0m, ToMatrix(*s0, "S0"));
+  if (absl::Status st = Shape(s0m, d, d, "S0", "D x D"); !st.ok()) return st;
+  if (s0m != s0m.transpose()) return absl::InvalidArgumentError("S0: not symmetric");
+  s.s0 = s0m;
+  TG_ASSIGN_OR_RETURN(const Json* h, Required(doc, "horizon", ""));
+  TG_ASSIGN_OR_RETURN(s.horizon, ToIndex(*h, "horizon"));
+  if (s.horizon < 1) return absl::InvalidArgumentError("horizon: must be >= 1");
+
+  TG_ASSIGN_OR_RETURN(const Json* cost, Required(doc, "cost", ""));
+  if (!cost->is_object()) return absl::InvalidArgumentError("cost: not an object");
+  if (absl::Status st = OnlyKnownKeys(*cost, {"type", "target", "Q", "width"}, "cost.");
+      !st.ok()) {
+    return st;
+  }
+  TG_ASSIGN_OR_RETURN(const Json* type, Required(*cost, "type", "cost."));
+  if (!type->is_string() || type->get<std::string>() != "saturating") {
+    return absl::InvalidArgumentError(
+        "cost.type: the general form takes \"saturating\" (PILCO's lossSat on z)");
+  }
+  s.cost_type = "saturating";
+  TG_ASSIGN_OR_RETURN(const Json* t, Required(*cost, "target", "cost."));
+  TG_ASSIGN_OR_RETURN(g.cost_target, ToVector(*t, "cost.target"));
+  if (g.cost_target.size() != d) {
+    return absl::InvalidArgumentError(absl::StrCat("cost.target: must have ", d,
+                                                   " entries (a state), has ",
+                                                   g.cost_target.size()));
+  }
+  TG_ASSIGN_OR_RETURN(const Json* q, Required(*cost, "Q", "cost."));
+  TG_ASSIGN_OR_RETURN(RowMatrix qm, ToMatrix(*q, "cost.Q"));
+  if (absl::Status st = Shape(qm, nz, nz, "cost.Q", "(D + 2A) x (D + 2A), on z"); !st.ok()) {
+    return st;
+  }
+  // Symmetric up to rounding in the file's decimal digits (relative 1e-12);
+  // the PSD check is GaussianCost's (it names cost Q).
+  if ((qm - qm.transpose()).cwiseAbs().maxCoeff() > 1e-12 * (1.0 + qm.cwiseAbs().maxCoeff())) {
+    return absl::InvalidArgumentError("cost.Q: not symmetric");
+  }
+  g.cost_q = qm;
+  TG_ASSIGN_OR_RETURN(const Json* w, Required(*cost, "width", "cost."));
+  if (w->is_number()) {
+    TG_ASSIGN_OR_RETURN(double one, Number(*w, "cost.width"));
+    g.widths = {one};
+  } else {
+    TG_ASSIGN_OR_RETURN(Vector ws, ToVector(*w, "cost.width"));
+    if (ws.size() == 0) return absl::InvalidArgumentError("cost.width: empty list");
+    g.widths.assign(ws.data(), ws.data() + ws.size());
+  }
+  for (size_t k = 0; k < g.widths.size(); ++k) {
+    if (!(g.widths[k] > 0)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("cost.width[", k, "]: must be > 0, is ", g.widths[k]));
+    }
+  }
+  return absl::OkStatus();
+}
+
+// The augmented target z_t = [x_t, sin x_t,a1, cos x_t,a1, ...].
+Vector AugmentedTarget(const Vector& target, const std::vector<int>& angles) {
+  const int d = static_cast<int>(target.size());
+  Vector z(d + 2 * angles.size());
+  z.head(d) = target;
+  for (size_t k = 0; k < angles.size(); ++k) {
+    z(d + 2 * k) = std::sin(target(angles[k]));
+    z(d + 2 * k + 1) = std::cos(target(angles[k]));
+  }
+  return z;
+}
+
+absl::StatusOr<nlohmann::ordered_json> RunGeneral(const PilcoScenario& s) {
+  const GeneralPilcoScenario& g = s.general;
+  const int d = static_cast<int>(s.train_targets.cols());
+  const int c = static_cast<int>(s.centres.rows());
+  const int ep = static_cast<int>(g.policy_inputs.size());
+  const int f = static_cast<int>(g.policy_values.cols());
+  // F x Ep rows with F >= 2: PILCO's per-output policy hyperparameters.
+  const bool per_control = !g.lengthscales_given_as_vector && f > 1;
+  const int ll_rows = per_control ? f : 1;
+
+  absl::StatusOr<pilco::GaussianInputGp> gp;
+  if (g.inducing_inputs.rows() == 0) {
+    gp = pilco::GaussianInputGpFromData(s.train_inputs, s.train_targets, s.gp_log_hyp);
+  } else {
+    // FITC as PILCO's gp1, with the file's inducing inputs and hyperparameters.
+    gp::GpHyperparameters hyp;
+    const int e = static_cast<int>(s.gp_log_hyp.cols()) - 2;
+    hyp.log_lengthscales = s.gp_log_hyp.leftCols(e);
+    hyp.log_signal_std = s.gp_log_hyp.col(e);
+    hyp.log_noise_std = s.gp_log_hyp.col(e + 1);
+    absl::StatusOr<gp::FitcModel> fitc =
+        gp::FitcModel::Create(s.train_inputs, s.train_targets, hyp, g.inducing_inputs);
+    if (!fitc.ok()) return fitc.status();
+    gp = pilco::GaussianInputGpFromFitc(*fitc);
+  }
+  if (!gp.ok()) return gp.status();
+
+  pilco::PropagationOptions options;
+  // One angle keeps the one-angle option (today's form's code and bits).
+  if (g.angle_indices.size() == 1) {
+    options.angle_index = g.angle_indices[0];
+  } else {
+    options.angle_indices = g.angle_indices;
+  }
+  options.policy_inputs = g.policy_inputs;
+  options.dynamics_inputs = g.dynamics_inputs;
+  options.prediction_includes_noise = s.prediction_includes_noise;
+  options.policy_jitter = s.output_variance_jitter;
+  if (f == 1) {
+    options.max_force = g.max_force(0);
+  } else {
+    options.max_controls = g.max_force;
+  }
+  options.num_basis = c;
+  options.policy_lengthscale_per_control = per_control;
+  if (absl::Status st = pilco::Propagator::Validate(*gp, options); !st.ok()) return st;
+  const pilco::Propagator prop(&*gp, options);
+
+  absl::StatusOr<pilco::GaussianCost> cost = pilco::GaussianCost::Saturating(
+      d, g.angle_indices, g.cost_q, AugmentedTarget(g.cost_target, g.angle_indices), g.widths);
+  if (!cost.ok()) return cost.status();
+
+  // [centres row-major, log l (1 or F rows, row-major), values C x F
+  // row-major] (RbfPolicy's layout; RbfPolicyShape::lengthscale_per_control).
+  Vector given(prop.num_parameters());
+  given << Eigen::Map<const Vector>(s.centres.data(), c * ep),
+      Eigen::Map<const Vector>(g.log_lengthscales.data(), ll_rows * ep),
+      Eigen::Map<const Vector>(g.policy_values.data(), c * f);
+  Vector params = given;
+  if (s.has_targets) {
+    if (absl::Status st = pilco::PseudoTargetsToWeights(prop.policy_shape(), given, &params);
+        !st.ok()) {
+      return st;
+    }
+  }
+  pilco::Trajectory tr;
+  Vector grad;
+  if (absl::Status st = pilco::PredictTrajectory(prop, *cost, params, s.mu0, s.s0, s.horizon,
+                                                 &tr, &grad);
+      !st.ok()) {
+    return st;
+  }
+  Vector grad_given = grad;
+  if (s.has_targets) {
+    if (absl::Status st =
+            pilco::PseudoTargetsBackward(prop.policy_shape(), given, grad, &grad_given);
+        !st.ok()) {
+      return st;
+    }
+  }
+
+  nlohmann::ordered_json out;
+  Json means = Json::array(), covs = Json::array();
+  for (size_t t = 0; t < tr.means.size(); ++t) {
+    means.push_back(VectorJson(tr.means[t]));
+    covs.push_back(MatrixJson(tr.covs[t]));
+  }
+  out["mean"] = std::move(means);
+  out["cov"] = std::move(covs);
+  out["cost_mean"] = VectorJson(tr.cost_mean);
+  out["cost_std"] = VectorJson(tr.cost_std);
+  out["J"] = tr.total_cost;
+  out["dJ_dcentres"] = MatrixJson(Eigen::Map<const RowMatrix>(grad_given.data(), c, ep));
+  // Values and their gradient in the shape the file gave them.
+  auto values_json = [&](const Vector& v) -> Json {
+    if (g.values_given_as_vector) return VectorJson(v);
+    return MatrixJson(Eigen::Map<const RowMatrix>(v.data(), c, f));
+  };
+  const Vector grad_values = grad_given.tail(c * f);  // after centres and log l
+  if (s.has_targets) {
+    out["dJ_dtargets"] = values_json(grad_values);
+    out["weights"] = values_json(params.tail(c * f));
+  } else {
+    out["dJ_dweights"] = values_json(grad_values);
+  }
+  const Vector grad_ll = grad_given.segment(c * ep, ll_rows * ep);
+  if (g.lengthscales_given_as_vector) {
+    out["dJ_dlog_lengthscales"] = VectorJson(grad_ll);
+  } else {
+    out["dJ_dlog_lengthscales"] = MatrixJson(Eigen::Map<const RowMatrix>(grad_ll.data(), ll_rows, ep));
+  }
+  return out;
+}
+
 int RunPropagateFile(const std::string& path) {
   std::ifstream in(path);
   if (!in) {
@@ -132,6 +522,10 @@ int RunPropagateFile(const std::string& path) {
 absl::StatusOr<PilcoScenario> ParsePilcoScenario(const nlohmann::json& doc) {
   if (!doc.is_object()) return absl::InvalidArgumentError("scenario: not a JSON object");
   PilcoScenario s;
+  if (Field(doc, "angle_indices") != nullptr) {
+    if (absl::Status st = ParseGeneral(doc, &s); !st.ok()) return st;
+    return s;
+  }
   TG_ASSIGN_OR_RETURN(const Json* angle, Required(doc, "angle_index", ""));
   if (angle->is_null()) {
     s.angle_index = -1;
@@ -221,6 +615,7 @@ absl::StatusOr<PilcoScenario> ParsePilcoScenario(const nlohmann::json& doc) {
 }
 
 absl::StatusOr<nlohmann::ordered_json> RunPilcoPropagate(const PilcoScenario& s) {
+  if (s.is_general) return RunGeneral(s);
   const int d = static_cast<int>(s.train_targets.cols());
   const int n = static_cast<int>(s.train_inputs.rows());
   if (n == 0) return absl::InvalidArgumentError("train_inputs: no rows");

@@ -9,6 +9,7 @@
 #define TOTALGRAD_CLIENT_CORE_COMMANDS_PILCO_COMMAND_H_
 
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -17,7 +18,27 @@
 
 namespace totalgrad::cli {
 
+// The general form (a file with "angle_indices"; docs/pilco.md), in PILCO's
+// conventions: z = [x, sin x_a1, cos x_a1, ...] (D + 2A), index sets into z,
+// F controls, FITC when inducing inputs are given, lossSat on z.
+struct GeneralPilcoScenario {
+  std::vector<int> angle_indices;    // strictly increasing state indices
+  std::vector<int> dynamics_inputs;  // Eq indices into z, strictly increasing
+  std::vector<int> policy_inputs;    // Ep indices into z, strictly increasing
+  RowMatrix inducing_inputs;         // M x (Eq + F); empty: full GP
+  RowMatrix policy_values;           // C x F: weights, or PILCO's pseudo-targets
+  bool values_given_as_vector = false;  // a plain C-vector (F = 1)
+  RowMatrix log_lengthscales;        // 1 x Ep (shared) or F x Ep (per control)
+  bool lengthscales_given_as_vector = false;
+  Vector max_force;                  // F, each > 0
+  Vector cost_target;                // D
+  Matrix cost_q;                     // (D + 2A) x (D + 2A), symmetric PSD
+  std::vector<double> widths;        // >= 1, each > 0
+};
+
 struct PilcoScenario {
+  bool is_general = false;  // the file has "angle_indices": `general` holds the rest
+  GeneralPilcoScenario general;
   int angle_index = -1;  // -1 for null
   RowMatrix train_inputs;
   RowMatrix train_targets;
@@ -45,7 +66,11 @@ struct PilcoScenario {
 };
 
 // InvalidArgument naming the field (and entry) that is missing, has the wrong
-// type or shape, or is not finite.
+// type or shape, or is not finite. The general form (a file with
+// "angle_indices") is validated completely here: shapes against D (the
+// columns of train_targets), A, F (the columns of policy targets / weights),
+// index sets strictly increasing and in range, Q symmetric, every number
+// finite, and unknown keys refused.
 absl::StatusOr<PilcoScenario> ParsePilcoScenario(const nlohmann::json& doc);
 
 // Runs the prediction and gradient. InvalidArgument for inconsistent

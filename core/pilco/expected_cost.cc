@@ -91,21 +91,41 @@ absl::StatusOr<GaussianCost> GaussianCost::Angle(const Vector& target, const Mat
 absl::StatusOr<GaussianCost> GaussianCost::Saturating(int state_dim, int angle_index,
                                                       const Matrix& q_z, const Vector& target_z,
                                                       const std::vector<double>& widths) {
-  const int n = state_dim + (angle_index >= 0 ? 2 : 0);
   if (state_dim <= 0 || angle_index >= state_dim) {
     return absl::InvalidArgumentError(absl::StrCat("saturating cost: angle index ", angle_index,
                                                    " outside the state of dimension ", state_dim));
   }
+  return Saturating(state_dim, angle_index >= 0 ? std::vector<int>{angle_index} : std::vector<int>{},
+                    q_z, target_z, widths);
+}
+
+absl::StatusOr<GaussianCost> GaussianCost::Saturating(int state_dim,
+                                                      const std::vector<int>& angle_indices,
+                                                      const Matrix& q_z, const Vector& target_z,
+                                                      const std::vector<double>& widths) {
+  if (state_dim <= 0) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("saturating cost: state dimension ", state_dim, " must be >= 1"));
+  }
+  for (size_t k = 0; k < angle_indices.size(); ++k) {
+    const int a = angle_indices[k];
+    if (a < 0 || a >= state_dim || (k > 0 && a <= angle_indices[k - 1])) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "saturating cost: angle indices must be strictly increasing in [0, ", state_dim,
+          "); entry ", k, " is ", a));
+    }
+  }
+  const int n = state_dim + 2 * static_cast<int>(angle_indices.size());
   if (q_z.rows() != n || q_z.cols() != n || target_z.size() != n) {
     return absl::InvalidArgumentError(absl::StrCat(
         "saturating cost: Q must be ", n, " x ", n, " and the target ", n, " long (z = [x",
-        angle_index >= 0 ? ", sin, cos" : "", "])"));
+        angle_indices.empty() ? "" : ", (sin, cos) per angle", "])"));
   }
   if (!target_z.allFinite()) return absl::InvalidArgumentError("saturating cost: target not finite");
   if (widths.empty()) return absl::InvalidArgumentError("saturating cost: no width");
   GaussianCost c;
   c.state_dim_ = state_dim;
-  c.angle_index_ = angle_index;
+  c.angles_ = angle_indices;
   c.z_ = target_z;
   for (double width : widths) {
     if (!(width > 0) || !std::isfinite(width)) {
@@ -134,7 +154,7 @@ absl::StatusOr<GaussianCost> GaussianCost::Tip(int state_dim, int position_index
   }
   GaussianCost c;
   c.state_dim_ = state_dim;
-  c.angle_index_ = angle_index;
+  c.angles_ = {angle_index};
   const int n = state_dim + 2;  // [x; sin x_a; cos x_a]
   Matrix f = Matrix::Zero(2, n);
   f(0, position_index) = 1.0 / width;
@@ -158,7 +178,13 @@ absl::Status GaussianCost::Evaluate(const Vector& m, const Matrix& S, bool with_
   }
   Vector ym = m;
   Matrix ys = S;
-  if (angle_index_ >= 0) AugmentWithTrig(m, S, angle_index_, &ym, &ys);
+  // One angle through the one-angle block (its own bits, as before several
+  // angles existed); several through the joint block with the pair moments.
+  if (angles_.size() == 1) {
+    AugmentWithTrig(m, S, angles_[0], &ym, &ys);
+  } else if (!angles_.empty()) {
+    AugmentWithTrig(m, S, angles_, &ym, &ys);
+  }
   // Several widths: the mean of their costs, and (as PILCO's lossSat, S2 / n)
   // the mean of their variances.
   const double share = 1.0 / static_cast<double>(fs_.size());
@@ -182,15 +208,20 @@ absl::Status GaussianCost::Evaluate(const Vector& m, const Matrix& S, bool with_
   out->mean = sum.mean;
   out->var = sum.var;
   if (!with_gradient) return absl::OkStatus();
-  if (angle_index_ < 0) {
+  if (angles_.empty()) {
     out->dmean_dm = std::move(sum.dmean_dm);
     out->dmean_dS = std::move(sum.dmean_dS);
     return absl::OkStatus();
   }
   out->dmean_dm = Vector::Zero(state_dim_);
   out->dmean_dS = Matrix::Zero(state_dim_, state_dim_);
-  AugmentWithTrigBackward(m, S, angle_index_, sum.dmean_dm, sum.dmean_dS, &out->dmean_dm,
-                          &out->dmean_dS);
+  if (angles_.size() == 1) {
+    AugmentWithTrigBackward(m, S, angles_[0], sum.dmean_dm, sum.dmean_dS, &out->dmean_dm,
+                            &out->dmean_dS);
+  } else {
+    AugmentWithTrigBackward(m, S, angles_, sum.dmean_dm, sum.dmean_dS, &out->dmean_dm,
+                            &out->dmean_dS);
+  }
   out->dmean_dS = 0.5 * (out->dmean_dS + out->dmean_dS.transpose()).eval();
   return absl::OkStatus();
 }

@@ -54,6 +54,17 @@ class GaussianCost {
   static absl::StatusOr<GaussianCost> Saturating(int state_dim, int angle_index,
                                                  const Matrix& q_z, const Vector& target_z,
                                                  const std::vector<double>& widths);
+  // The same on z = [x, sin x_a1, cos x_a1, sin x_a2, cos x_a2, ...] for any
+  // number A >= 0 of angles (angle_indices strictly increasing in [0, D)):
+  // z's Gaussian approximation is AugmentWithTrig's joint one (trig.h, the
+  // pair blocks of PILCO's gTrig), Z = D + 2A. Gradients with respect to
+  // (m, S) go back through AugmentWithTrigBackward. One angle is the
+  // overload above, bit for bit. InvalidArgument naming what is wrong
+  // (angle indices, shapes, widths, Q not finite / symmetric / PSD).
+  static absl::StatusOr<GaussianCost> Saturating(int state_dim,
+                                                 const std::vector<int>& angle_indices,
+                                                 const Matrix& q_z, const Vector& target_z,
+                                                 const std::vector<double>& widths);
   // Indices into the D-dim state; length > 0, width > 0.
   static absl::StatusOr<GaussianCost> Tip(int state_dim, int position_index, int angle_index,
                                           double pendulum_length, double width,
@@ -69,7 +80,9 @@ class GaussianCost {
  private:
   GaussianCost() = default;
   int state_dim_ = 0;
-  int angle_index_ = -1;  // >= 0: the cost sees [x; sin x_a; cos x_a]
+  // Non-empty: the cost sees [x; sin x_a1; cos x_a1; ...] (one angle: the
+  // one-angle AugmentWithTrig, so Tip and one-angle Saturating keep their bits).
+  std::vector<int> angles_;
   std::vector<Matrix> fs_;  // one factor per width (Angle, Tip: one)
   Vector z_;
 };

@@ -380,4 +380,99 @@ absl::Status PredictGaussianBackward(const GaussianInputGp& gp, const Vector& m,
   return absl::OkStatus();
 }
 
+absl::Status PredictGaussianLengthscaleAdjoint(const GaussianInputGp& gp, const Vector& m,
+                                               const Matrix& s,
+                                               const GaussianPredictionOptions& options,
+                                               const Vector& mean_bar, const Matrix& cov_bar,
+                                               const Matrix& cross_bar, RowMatrix* il_bar) {
+  if (absl::Status st = CheckInputs(gp, m, s, options); !st.ok()) return st;
+  const int n = gp.num_points(), e = gp.num_inputs(), d = gp.num_outputs();
+  TG_CHECK(mean_bar.size() == d && cov_bar.rows() == d && cov_bar.cols() == d);
+  TG_CHECK(cross_bar.rows() == e && cross_bar.cols() == d);
+  const Matrix delta = Delta(gp, m);  // rows nu_i
+  const Matrix sym_bar = 0.5 * (cov_bar + cov_bar.transpose());
+  il_bar->setZero(d, e);
+
+  std::vector<MeanTerms> mts(d);
+  Vector mean(d);
+  for (int a = 0; a < d; ++a) {
+    const Vector il = gp.inv_lengthscale_sq.row(a).transpose();
+    if (absl::Status st = ComputeMeanTerms(delta, s, il, gp.signal_var(a), a, &mts[a]); !st.ok()) {
+      return st;
+    }
+    mean(a) = gp.beta.col(a).dot(mts[a].q);
+  }
+  // cov_ab carries -mean_a mean_b: its adjoint reaches the means.
+  const Vector total_mean_bar = mean_bar - 2.0 * sym_bar * mean;
+
+  // Means and cross-covariances.
+  for (int a = 0; a < d; ++a) {
+    const MeanTerms& t = mts[a];
+    const Vector lambda = gp.inv_lengthscale_sq.row(a).transpose().cwiseInverse();
+    const Vector bq = gp.beta.col(a).cwiseProduct(t.q);  // beta_i q_i
+    const Vector u = delta.transpose() * bq;              // sum_i beta_i q_i nu_i
+    const Vector au = t.a * u;                            // cross_a
+    const Vector acb = t.a * cross_bar.col(a);
+    const Vector nu_acb = delta * acb;                    // nu_i . A cb
+    const Vector as_diag = (t.a * s).diagonal();
+    // weight_i multiplies g_im = d log q_i / dP_m in every term.
+    const Vector weight = bq.cwiseProduct(Vector::Constant(n, total_mean_bar(a)) + nu_acb);
+    for (int k = 0; k < e; ++k) {
+      const double l = lambda(k);
+      double sum = 0;
+      for (int i = 0; i < n; ++i) {
+        const double g = -0.5 * (l * as_diag(k) + l * l * t.da(i, k) * t.da(i, k));
+        sum += weight(i) * g;
+      }
+      (*il_bar)(a, k) += sum + l * l * acb(k) * au(k);
+    }
+  }
+
+  // Second moments: cov_ab = beta_a^T Q_ab beta_b (- [a == b] tr(Vw_a Q_aa)).
+  PairTerms p;
+  for (int a = 0; a < d; ++a) {
+    const Vector ila = gp.inv_lengthscale_sq.row(a).transpose();
+    for (int b = a; b < d; ++b) {
+      const double gamma = a == b ? sym_bar(a, a) : 2.0 * sym_bar(a, b);
+      if (gamma == 0.0) continue;
+      const Vector ilb = gp.inv_lengthscale_sq.row(b).transpose();
+      if (absl::Status st = ComputePairTerms(delta, s, ila, ilb, gp.signal_var(a),
+                                             gp.signal_var(b), a, b, &p);
+          !st.ok()) {
+        return st;
+      }
+      Matrix w = p.q;
+      if (a == b && options.model_variance) {
+        w.array() *= gamma * ((gp.beta.col(a) * gp.beta.col(b).transpose()).array() -
+                              gp.variance_weights[a].array());
+      } else {
+        w.array() *= gamma * (gp.beta.col(a) * gp.beta.col(b).transpose()).array();
+      }
+      // T z_ij = (Za T)_i + (Zb T)_j (T symmetric).
+      const Matrix tza = p.za * p.t;  // N x E
+      const Matrix tzb = p.zb * p.t;
+      for (int k = 0; k < e; ++k) {
+        const double tkk = p.t(k, k);
+        double sa = 0, sb = 0;
+        for (int j = 0; j < n; ++j) {
+          for (int i = 0; i < n; ++i) {
+            const double wij = w(i, j);
+            if (wij == 0.0) continue;
+            const double tz = tza(i, k) + tzb(j, k);
+            const double ra = delta(i, k) - tz, rb = delta(j, k) - tz;
+            sa += wij * (ra * ra + tkk);
+            sb += wij * (rb * rb + tkk);
+          }
+        }
+        (*il_bar)(a, k) -= 0.5 * sa;
+        (*il_bar)(b, k) -= 0.5 * sb;
+      }
+    }
+  }
+  if (!il_bar->allFinite()) {
+    return absl::InternalError("GP prediction length-scale derivative is not finite");
+  }
+  return absl::OkStatus();
+}
+
 }  // namespace totalgrad::pilco

@@ -104,6 +104,25 @@ absl::Status PredictGaussianBackward(const GaussianInputGp& gp, const Vector& m,
                                      const Matrix& cross_bar, Vector* m_bar, Matrix* s_bar,
                                      RowMatrix* inputs_bar, Matrix* beta_bar);
 
+// The length-scale part that PredictGaussianBackward leaves out: with the
+// same adjoints, OVERWRITES *il_bar (D x E) with the gradient of
+// <mean_bar, mean> + <cov_bar, cov> + <cross_bar, cross> with respect to
+// gp.inv_lengthscale_sq (P_a = Lambda_a^-1, one row per output; the outputs'
+// own length-scales may differ). Closed forms (derived for this function):
+//   d log q_ai / dP_a,m = -1/2 [lambda_m (A S)_mm + lambda_m^2 (A nu_i)_m^2],
+//     A = (S + Lambda_a)^-1, nu_i = x_i - m;
+//   d log Q_ab,ij / dP_a,m = -1/2 [(nu_i,m - (T z_ij)_m)^2 + T_mm],
+//   d log Q_ab,ij / dP_b,m = -1/2 [(nu_j,m - (T z_ij)_m)^2 + T_mm],
+//     T = R^-1 S, z_ij = P_a nu_i + P_b nu_j;
+//   and cross_a = A u moves with A (dA = lambda_m^2 A e_m e_m^T A dP_a,m).
+// Signal and noise variances and variance weights stay constants. Cost
+// O(D^2 N^2 E). Same errors as PredictGaussian.
+absl::Status PredictGaussianLengthscaleAdjoint(const GaussianInputGp& gp, const Vector& m,
+                                               const Matrix& s,
+                                               const GaussianPredictionOptions& options,
+                                               const Vector& mean_bar, const Matrix& cov_bar,
+                                               const Matrix& cross_bar, RowMatrix* il_bar);
+
 }  // namespace totalgrad::pilco
 
 #endif  // TOTALGRAD_CORE_PILCO_GP_MOMENTS_H_

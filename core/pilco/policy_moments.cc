@@ -42,6 +42,21 @@ Scaled MakeScaled(const RbfPolicyShape& shape, const Vector& params, const Vecto
   return sc;
 }
 
+// gp2 with one row of length-scales per control, unscaled: support points
+// the centres, P_j = exp(-2 log l_j), sf = 1, beta = weights (C x F).
+GaussianInputGp PerControlGp(const RbfPolicyShape& shape, const Vector& params) {
+  const int c = shape.num_basis, e = shape.input_dim, f = shape.num_controls();
+  TG_CHECK(params.size() == shape.num_parameters() && shape.num_lengthscale_rows() == f);
+  GaussianInputGp gp;
+  gp.inputs = Eigen::Map<const RowMatrix>(params.data(), c, e);
+  gp.inv_lengthscale_sq =
+      (-2.0 * Eigen::Map<const RowMatrix>(params.data() + c * e, f, e).array()).exp().matrix();
+  gp.signal_var = Vector::Ones(f);
+  gp.noise_var = Vector::Zero(f);
+  gp.beta = Eigen::Map<const RowMatrix>(params.data() + c * e + f * e, c, f);
+  return gp;
+}
+
 GaussianPredictionOptions Gp2Options(const RbfPolicyShape& shape) {
   GaussianPredictionOptions o;
   o.model_variance = false;
@@ -115,6 +130,21 @@ absl::Status UnsquashedPolicyBackward(const RbfPolicyShape& shape, const Vector&
 absl::Status MultiPolicyAtGaussian(const RbfPolicyShape& shape, const Vector& params,
                                    const Vector& m, const Matrix& s, MultiPolicyMoments* out) {
   TG_CHECK(shape.num_controls() >= 2);
+  if (shape.num_lengthscale_rows() > 1) {
+    // No common scaled coordinates: gp2 on the centres as they are.
+    GaussianPrediction pred;
+    if (absl::Status st = PredictGaussian(PerControlGp(shape, params), m, s, Gp2Options(shape),
+                                          &pred);
+        !st.ok()) {
+      return st;
+    }
+    out->a_mean = pred.mean;
+    out->a_cov = pred.cov;
+    out->a_cross = pred.cross;
+    GSatJoint(out->a_mean, out->a_cov, shape.max_controls, &out->sat);
+    out->u_cross = out->a_cross * out->sat.c.asDiagonal();
+    return absl::OkStatus();
+  }
   const Scaled sc = MakeScaled(shape, params, m, s);
   GaussianPrediction pred;
   if (absl::Status st = PredictGaussian(sc.gp, sc.m, sc.s, Gp2Options(shape), &pred); !st.ok()) {
@@ -144,6 +174,34 @@ absl::Status MultiPolicyAtGaussianBackward(const RbfPolicyShape& shape, const Ve
   Matrix a_cov_bar = Matrix::Zero(f, f);
   GSatJointBackward(pm.a_mean, pm.a_cov, shape.max_controls, u_mean_bar, u_cov_bar, c_bar,
                     &a_mean_bar, &a_cov_bar);
+  if (shape.num_lengthscale_rows() > 1) {
+    const GaussianInputGp gp = PerControlGp(shape, params);
+    RowMatrix inputs_bar;
+    Matrix beta_bar;
+    if (absl::Status st = PredictGaussianBackward(gp, m, s, Gp2Options(shape), a_mean_bar,
+                                                  a_cov_bar, a_cross_bar, m_bar, s_bar,
+                                                  params_bar ? &inputs_bar : nullptr,
+                                                  params_bar ? &beta_bar : nullptr);
+        !st.ok()) {
+      return st;
+    }
+    if (params_bar != nullptr) {
+      TG_CHECK(params_bar->size() == shape.num_parameters());
+      RowMatrix il_bar;
+      if (absl::Status st = PredictGaussianLengthscaleAdjoint(gp, m, s, Gp2Options(shape),
+                                                              a_mean_bar, a_cov_bar, a_cross_bar,
+                                                              &il_bar);
+          !st.ok()) {
+        return st;
+      }
+      Eigen::Map<RowMatrix>(params_bar->data(), c, e) += inputs_bar;
+      // P = exp(-2 log l): dP/dlog l = -2 P.
+      Eigen::Map<RowMatrix>(params_bar->data() + c * e, f, e) +=
+          (-2.0 * il_bar.array() * gp.inv_lengthscale_sq.array()).matrix();
+      Eigen::Map<RowMatrix>(params_bar->data() + c * e + f * e, c, f) += beta_bar;
+    }
+    return absl::OkStatus();
+  }
   // The unsquashed outputs: gp2 in scaled coordinates, as the one-control
   // UnsquashedPolicyBackward, with F columns.
   const Scaled sc = MakeScaled(shape, params, m, s);
@@ -220,10 +278,48 @@ Matrix CongpCentreKernel(const RbfPolicyShape& shape, const Vector& params) {
 }
 }  // namespace
 
+namespace {
+
+// One control's view of a per-control-length-scale parameter vector:
+// [centres, log l_j, column j of the values].
+RbfPolicyShape OneControl(const RbfPolicyShape& shape) {
+  RbfPolicyShape one = shape;
+  one.max_controls.resize(0);
+  one.lengthscale_per_control = false;
+  return one;
+}
+
+Vector ColumnView(const RbfPolicyShape& shape, const Vector& params, int j) {
+  const int c = shape.num_basis, e = shape.input_dim, f = shape.num_controls();
+  Vector out(c * e + e + c);
+  out.head(c * e) = params.head(c * e);
+  out.segment(c * e, e) = params.segment(c * e + j * e, e);
+  const Eigen::Map<const RowMatrix> values(params.data() + c * e + f * e, c, f);
+  out.tail(c) = values.col(j);
+  return out;
+}
+
+}  // namespace
+
 absl::Status PseudoTargetsToWeights(const RbfPolicyShape& shape, const Vector& pilco_params,
                                     Vector* params) {
   const int c = shape.num_basis, e = shape.input_dim, f = shape.num_controls();
   TG_CHECK(pilco_params.size() == shape.num_parameters());
+  if (shape.num_lengthscale_rows() > 1) {
+    // Column j solves (K_cc(l_j) + 1e-4 I) w_j = y_j: congp per control.
+    *params = pilco_params;
+    Eigen::Map<RowMatrix> w(params->data() + c * e + f * e, c, f);
+    for (int j = 0; j < f; ++j) {
+      Vector one;
+      if (absl::Status st = PseudoTargetsToWeights(OneControl(shape),
+                                                   ColumnView(shape, pilco_params, j), &one);
+          !st.ok()) {
+        return st;
+      }
+      w.col(j) = one.tail(c);
+    }
+    return absl::OkStatus();
+  }
   Matrix a = CongpCentreKernel(shape, pilco_params);
   a.diagonal().array() += kCongpNoiseVar;
   Eigen::LLT<Matrix> llt(a);
@@ -246,6 +342,20 @@ absl::Status WeightsToPseudoTargets(const RbfPolicyShape& shape, const Vector& p
                                     Vector* pilco_params) {
   const int c = shape.num_basis, e = shape.input_dim, f = shape.num_controls();
   TG_CHECK(params.size() == shape.num_parameters());
+  if (shape.num_lengthscale_rows() > 1) {
+    *pilco_params = params;
+    Eigen::Map<RowMatrix> y(pilco_params->data() + c * e + f * e, c, f);
+    for (int j = 0; j < f; ++j) {
+      Vector one;
+      if (absl::Status st =
+              WeightsToPseudoTargets(OneControl(shape), ColumnView(shape, params, j), &one);
+          !st.ok()) {
+        return st;
+      }
+      y.col(j) = one.tail(c);
+    }
+    return absl::OkStatus();
+  }
   Matrix a = CongpCentreKernel(shape, params);
   a.diagonal().array() += kCongpNoiseVar;
   if (!a.allFinite() || !params.tail(c * f).allFinite()) {
@@ -263,6 +373,29 @@ absl::Status PseudoTargetsBackward(const RbfPolicyShape& shape, const Vector& pi
   const int c = shape.num_basis, e = shape.input_dim, f = shape.num_controls();
   TG_CHECK(pilco_params.size() == shape.num_parameters());
   TG_CHECK(params_bar.size() == shape.num_parameters());
+  if (shape.num_lengthscale_rows() > 1) {
+    // Column j's weights depend on the centres, log l_j and y_j only: the
+    // one-control chain rule per column, the centres' parts summed (the
+    // direct centres adjoint enters once, with column 0).
+    *pilco_params_bar = params_bar;
+    Eigen::Map<RowMatrix> centres_bar(pilco_params_bar->data(), c, e);
+    centres_bar.setZero();
+    Eigen::Map<RowMatrix> y_bar(pilco_params_bar->data() + c * e + f * e, c, f);
+    for (int j = 0; j < f; ++j) {
+      Vector bar_j = ColumnView(shape, params_bar, j);
+      if (j > 0) bar_j.head(c * e).setZero();
+      Vector out;
+      if (absl::Status st = PseudoTargetsBackward(OneControl(shape), ColumnView(shape, pilco_params, j),
+                                                  bar_j, &out);
+          !st.ok()) {
+        return st;
+      }
+      centres_bar += Eigen::Map<const RowMatrix>(out.data(), c, e);
+      pilco_params_bar->segment(c * e + j * e, e) = out.segment(c * e, e);
+      y_bar.col(j) = out.tail(c);
+    }
+    return absl::OkStatus();
+  }
   const Vector il = (-pilco_params.segment(c * e, e).array()).exp().matrix();
   const Eigen::Map<const RowMatrix> centres(pilco_params.data(), c, e);
   const Matrix k = CentreKernel(centres * il.asDiagonal());

@@ -36,9 +36,18 @@ struct RbfPolicyShape {
   // F >= 2 controls (the double pendulum): their bounds, and the weights are
   // C x F row-major (RbfPolicy's layout). Empty: one control at max_force.
   Vector max_controls;
+  // F >= 2 only: one row of log length-scales per control (PILCO's gp2 with
+  // per-output hyperparameters); the layout is then [centres (C x E), log l
+  // (F x E row-major), weights (C x F)]. Cov(a_i, a_j) couples two different
+  // Lambda (gp_moments.h), and the length-scale gradient comes from
+  // PredictGaussianLengthscaleAdjoint. false: one shared row (E).
+  bool lengthscale_per_control = false;
   int num_controls() const { return max_controls.size() >= 2 ? static_cast<int>(max_controls.size()) : 1; }
+  int num_lengthscale_rows() const {
+    return lengthscale_per_control && num_controls() >= 2 ? num_controls() : 1;
+  }
   int num_parameters() const {
-    return num_basis * input_dim + input_dim + num_basis * num_controls();
+    return num_basis * input_dim + num_lengthscale_rows() * input_dim + num_basis * num_controls();
   }
 };
 

@@ -38,7 +38,25 @@ absl::Status Propagator::Validate(const GaussianInputGp& dynamics,
     }
   }
   const int a_count = static_cast<int>(options.Angles().size());
+  const int ny = d + 2 * a_count;
+  for (const auto& [name, list] : {std::pair<const char*, const std::vector<int>*>{
+                                       "policy_inputs", &options.policy_inputs},
+                                   {"dynamics_inputs", &options.dynamics_inputs}}) {
+    for (size_t k = 0; k < list->size(); ++k) {
+      const int i = (*list)[k];
+      if (i < 0 || i >= ny || (k > 0 && i <= (*list)[k - 1])) {
+        return absl::InvalidArgumentError(absl::StrCat(
+            name, " must be strictly increasing indices into z = [x, (sin, cos) per angle] in [0, ",
+            ny, "); entry ", k, " is ", i));
+      }
+    }
+  }
   const int ep = d + a_count;
+  const int eg = options.dynamics_inputs.empty()
+                     ? (options.policy_inputs.empty()
+                            ? ep
+                            : static_cast<int>(options.policy_inputs.size()))
+                     : static_cast<int>(options.dynamics_inputs.size());
   if (options.max_controls.size() == 1) {
     return absl::InvalidArgumentError("max_controls: give 2 or more bounds (one control: max_force)");
   }
@@ -47,14 +65,21 @@ absl::Status Propagator::Validate(const GaussianInputGp& dynamics,
       return absl::InvalidArgumentError(absl::StrCat("max_controls(", j, ") must be > 0"));
   }
   const int f = options.max_controls.size() >= 2 ? static_cast<int>(options.max_controls.size()) : 1;
-  if (dynamics.num_inputs() != ep + f) {
+  const bool default_inputs = options.policy_inputs.empty() && options.dynamics_inputs.empty();
+  if (dynamics.num_inputs() != eg + f) {
     return absl::InvalidArgumentError(absl::StrCat(
-        "dynamics GP has ", dynamics.num_inputs(), " inputs; expected ", ep + f,
-        a_count > 0 ? " ([state without the angles, (sin, cos) per angle, " : " ([state, ",
+        "dynamics GP has ", dynamics.num_inputs(), " inputs; expected ", eg + f,
+        !default_inputs ? " ([z(dynamics inputs), "
+        : a_count > 0   ? " ([state without the angles, (sin, cos) per angle, "
+                        : " ([state, ",
         f == 1 ? "u])" : absl::StrCat(f, " controls])")));
   }
   if (dynamics.variance_weights.size() != static_cast<size_t>(d)) {
     return absl::InvalidArgumentError("dynamics GP lacks its variance weights (K^-1)");
+  }
+  if (options.policy_lengthscale_per_control && f < 2) {
+    return absl::InvalidArgumentError(
+        "policy length-scales per control need 2 or more controls (max_controls)");
   }
   if (options.num_basis < 1) return absl::InvalidArgumentError("num_basis must be >= 1");
   if (!(options.max_force > 0) || !std::isfinite(options.max_force)) {
@@ -73,24 +98,34 @@ Propagator::Propagator(const GaussianInputGp* dynamics, const PropagationOptions
   state_dim_ = dynamics->num_outputs();
   angles_ = options.Angles();
   const int d = state_dim_;
-  // p = [x without the angles, then y's (sin, cos) entries in angle order].
-  size_t next = 0;
-  for (int i = 0; i < d; ++i) {
-    if (next < angles_.size() && angles_[next] == i) {
-      ++next;
-    } else {
-      policy_index_.push_back(i);
+  // p = [x without the angles, then y's (sin, cos) entries in angle order],
+  // unless the options give PILCO's poli.
+  if (!options.policy_inputs.empty()) {
+    policy_index_ = options.policy_inputs;
+  } else {
+    size_t next = 0;
+    for (int i = 0; i < d; ++i) {
+      if (next < angles_.size() && angles_[next] == i) {
+        ++next;
+      } else {
+        policy_index_.push_back(i);
+      }
+    }
+    for (size_t k = 0; k < angles_.size(); ++k) {
+      policy_index_.push_back(d + 2 * static_cast<int>(k));
+      policy_index_.push_back(d + 2 * static_cast<int>(k) + 1);
     }
   }
-  for (size_t k = 0; k < angles_.size(); ++k) {
-    policy_index_.push_back(d + 2 * static_cast<int>(k));
-    policy_index_.push_back(d + 2 * static_cast<int>(k) + 1);
+  // The GP on the policy's own inputs is the shared path (its own bits).
+  if (!options.dynamics_inputs.empty() && options.dynamics_inputs != policy_index_) {
+    dynamics_index_ = options.dynamics_inputs;
   }
   policy_input_dim_ = static_cast<int>(policy_index_.size());
   shape_.num_basis = options.num_basis;
   shape_.input_dim = policy_input_dim_;
   shape_.max_force = options.max_force;
   shape_.max_controls = options.max_controls;
+  shape_.lengthscale_per_control = options.policy_lengthscale_per_control;
   shape_.jitter = options.policy_jitter;
   dyn_options_.model_variance = true;
   dyn_options_.include_noise = options.prediction_includes_noise;
@@ -136,6 +171,7 @@ absl::Status Propagator::Step(const Vector& params, const Vector& m, const Matri
     for (int j = 0; j < ep; ++j) c.p_cov(i, j) = c.y_cov(policy_index_[i], policy_index_[j]);
     for (int r = 0; r < d; ++r) c.s_xp(r, i) = c.y_cov(r, policy_index_[i]);
   }
+  if (!dynamics_index_.empty()) return StepSeparate(params, m, S, m_next, S_next, &c);
   if (control_dim() > 1) return StepControls(params, m, S, m_next, S_next, &c);
   if (absl::Status st = PolicyAtGaussian(shape_, params, c.p_mean, c.p_cov, &c.policy);
       !st.ok()) {
@@ -255,6 +291,9 @@ absl::Status Propagator::StepBackward(const Vector& params, const StepCache& c,
   Matrix sb = sb_next;
   Vector p_mean_bar;
   Matrix p_cov_bar, s_xp_bar;
+  if (!dynamics_index_.empty()) {
+    return StepSeparateBackward(params, c, m_next_bar, sb_next, m_bar, S_bar, params_bar);
+  }
   if (control_dim() > 1) {
     if (absl::Status st = StepControlsBackward(params, c, m_next_bar, sb_next, &p_mean_bar,
                                                &p_cov_bar, &s_xp_bar, params_bar);
@@ -319,6 +358,13 @@ absl::Status Propagator::FinishStepBackward(const StepCache& c, const Vector& p_
     for (int j = 0; j < ep; ++j) y_cov_bar(policy_index_[i], policy_index_[j]) += p_cov_bar(i, j);
     for (int r = 0; r < d; ++r) y_cov_bar(r, policy_index_[i]) += s_xp_bar(r, i);
   }
+  TrigBackward(c, y_mean_bar, y_cov_bar, std::move(mb), std::move(sb), m_bar, S_bar);
+  return absl::OkStatus();
+}
+
+void Propagator::TrigBackward(const StepCache& c, const Vector& y_mean_bar,
+                              const Matrix& y_cov_bar, Vector mb, Matrix sb, Vector* m_bar,
+                              Matrix* S_bar) const {
   if (!angles_.empty()) {
     AugmentWithTrigBackward(c.m, c.S, angles_, y_mean_bar, y_cov_bar, &mb, &sb);
   } else {
@@ -327,6 +373,137 @@ absl::Status Propagator::FinishStepBackward(const StepCache& c, const Vector& p_
   }
   *m_bar = mb;
   *S_bar = 0.5 * (sb + sb.transpose());
+}
+
+absl::Status Propagator::StepSeparate(const Vector& params, const Vector& m, const Matrix& S,
+                                      Vector* m_next, Matrix* S_next, StepCache* cache) const {
+  // g = [q; u] with q = y(dynamics_index_) (Eq), Cov(q, u) = Cov(q, p) u_cross
+  // and Cov(x, u) = Cov(x, p) u_cross (u depends on x only through p).
+  const int d = state_dim_, f = control_dim();
+  const int eq = static_cast<int>(dynamics_index_.size()), ep = policy_input_dim_;
+  StepCache& c = *cache;
+  c.q_mean.resize(eq);
+  c.q_cov.resize(eq, eq);
+  c.s_xq.resize(d, eq);
+  c.s_qp.resize(eq, ep);
+  for (int i = 0; i < eq; ++i) {
+    c.q_mean(i) = c.y_mean(dynamics_index_[i]);
+    for (int j = 0; j < eq; ++j) c.q_cov(i, j) = c.y_cov(dynamics_index_[i], dynamics_index_[j]);
+    for (int j = 0; j < ep; ++j) c.s_qp(i, j) = c.y_cov(dynamics_index_[i], policy_index_[j]);
+    for (int r = 0; r < d; ++r) c.s_xq(r, i) = c.y_cov(r, dynamics_index_[i]);
+  }
+  Vector u_mean(f);
+  Matrix u_cov(f, f);
+  if (f == 1) {
+    if (absl::Status st = PolicyAtGaussian(shape_, params, c.p_mean, c.p_cov, &c.policy); !st.ok()) {
+      return Annotate(st, "policy");
+    }
+    u_mean(0) = c.policy.sat.mean;
+    u_cov(0, 0) = c.policy.sat.var;
+    c.u_cross = c.policy.u_cross;
+  } else {
+    if (absl::Status st = MultiPolicyAtGaussian(shape_, params, c.p_mean, c.p_cov, &c.multi);
+        !st.ok()) {
+      return Annotate(st, "policy");
+    }
+    u_mean = c.multi.sat.mean;
+    u_cov = c.multi.sat.cov;
+    c.u_cross = c.multi.u_cross;
+  }
+  c.g_mean.resize(eq + f);
+  c.g_mean.head(eq) = c.q_mean;
+  c.g_mean.tail(f) = u_mean;
+  c.g_cov.resize(eq + f, eq + f);
+  c.g_cov.topLeftCorner(eq, eq) = c.q_cov;
+  const Matrix cov_qu = c.s_qp * c.u_cross;
+  c.g_cov.topRightCorner(eq, f) = cov_qu;
+  c.g_cov.bottomLeftCorner(f, eq) = cov_qu.transpose();
+  c.g_cov.bottomRightCorner(f, f) = u_cov;
+  if (absl::Status st = PredictGaussian(*dynamics_, c.g_mean, c.g_cov, dyn_options_, &c.delta);
+      !st.ok()) {
+    return Annotate(st, "dynamics GP");
+  }
+  Matrix cxg(d, eq + f);
+  cxg.leftCols(eq) = c.s_xq;
+  cxg.rightCols(f) = c.s_xp * c.u_cross;
+  const Matrix cxd = cxg * c.delta.cross;
+  *m_next = m + c.delta.mean;
+  Matrix sn = S + c.delta.cov + cxd + cxd.transpose();
+  *S_next = 0.5 * (sn + sn.transpose());
+  if (!m_next->allFinite() || !S_next->allFinite()) {
+    return absl::InternalError("next state distribution not finite");
+  }
+  return absl::OkStatus();
+}
+
+absl::Status Propagator::StepSeparateBackward(const Vector& params, const StepCache& c,
+                                              const Vector& m_next_bar, const Matrix& sb_next,
+                                              Vector* m_bar, Matrix* S_bar,
+                                              Vector* params_bar) const {
+  const int d = state_dim_, f = control_dim();
+  const int eq = static_cast<int>(dynamics_index_.size()), ep = policy_input_dim_;
+  // m' = m + E[Delta]; S' = S + Cov[Delta] + C + C^T with C = cxg * cross.
+  const Matrix c_bar = 2.0 * sb_next;
+  Matrix cxg(d, eq + f);
+  cxg.leftCols(eq) = c.s_xq;
+  cxg.rightCols(f) = c.s_xp * c.u_cross;
+  const Matrix cxg_bar = c_bar * c.delta.cross.transpose();  // D x (Eq + F)
+  const Matrix delta_cross_bar = cxg.transpose() * c_bar;     // (Eq + F) x D
+  const Matrix s_xq_bar = cxg_bar.leftCols(eq);
+  Matrix s_xp_bar = cxg_bar.rightCols(f) * c.u_cross.transpose();
+  Matrix u_cross_bar = c.s_xp.transpose() * cxg_bar.rightCols(f);  // Ep x F
+  Vector g_mean_bar;
+  Matrix g_cov_bar;
+  if (absl::Status st = PredictGaussianBackward(*dynamics_, c.g_mean, c.g_cov, dyn_options_,
+                                                m_next_bar, sb_next, delta_cross_bar,
+                                                &g_mean_bar, &g_cov_bar, nullptr, nullptr);
+      !st.ok()) {
+    return Annotate(st, "dynamics GP (backward)");
+  }
+  const Vector q_mean_bar = g_mean_bar.head(eq);
+  const Vector u_mean_bar = g_mean_bar.tail(f);
+  const Matrix q_cov_bar = g_cov_bar.topLeftCorner(eq, eq);
+  // Both off-diagonal blocks hold cov_qu = s_qp u_cross (and its transpose).
+  const Matrix r_bar = g_cov_bar.topRightCorner(eq, f) + g_cov_bar.bottomLeftCorner(f, eq).transpose();
+  const Matrix s_qp_bar = r_bar * c.u_cross.transpose();
+  u_cross_bar.noalias() += c.s_qp.transpose() * r_bar;
+  const Matrix u_cov_bar = g_cov_bar.bottomRightCorner(f, f);
+  Vector p_mean_bar;
+  Matrix p_cov_bar;
+  if (f == 1) {
+    if (absl::Status st = PolicyAtGaussianBackward(shape_, params, c.p_mean, c.p_cov, u_mean_bar(0),
+                                                   u_cov_bar(0, 0), u_cross_bar.col(0),
+                                                   &p_mean_bar, &p_cov_bar, params_bar);
+        !st.ok()) {
+      return Annotate(st, "policy (backward)");
+    }
+  } else {
+    if (absl::Status st = MultiPolicyAtGaussianBackward(shape_, params, c.p_mean, c.p_cov,
+                                                        u_mean_bar, u_cov_bar, u_cross_bar,
+                                                        &p_mean_bar, &p_cov_bar, params_bar);
+        !st.ok()) {
+      return Annotate(st, "policy (backward)");
+    }
+  }
+  // Every y-block the step read: p's and q's moments, Cov(x, p), Cov(x, q)
+  // and Cov(q, p) (each entry its own output; TrigBackward symmetrises).
+  const int ny = static_cast<int>(c.y_mean.size());
+  Vector y_mean_bar = Vector::Zero(ny);
+  Matrix y_cov_bar = Matrix::Zero(ny, ny);
+  for (int i = 0; i < ep; ++i) {
+    y_mean_bar(policy_index_[i]) += p_mean_bar(i);
+    for (int j = 0; j < ep; ++j) y_cov_bar(policy_index_[i], policy_index_[j]) += p_cov_bar(i, j);
+    for (int r = 0; r < d; ++r) y_cov_bar(r, policy_index_[i]) += s_xp_bar(r, i);
+  }
+  for (int i = 0; i < eq; ++i) {
+    y_mean_bar(dynamics_index_[i]) += q_mean_bar(i);
+    for (int j = 0; j < eq; ++j) {
+      y_cov_bar(dynamics_index_[i], dynamics_index_[j]) += q_cov_bar(i, j);
+    }
+    for (int j = 0; j < ep; ++j) y_cov_bar(dynamics_index_[i], policy_index_[j]) += s_qp_bar(i, j);
+    for (int r = 0; r < d; ++r) y_cov_bar(r, dynamics_index_[i]) += s_xq_bar(r, i);
+  }
+  TrigBackward(c, y_mean_bar, y_cov_bar, m_next_bar, sb_next, m_bar, S_bar);
   return absl::OkStatus();
 }
 

@@ -47,7 +47,21 @@ struct PropagationOptions {
   // F >= 2 controls (the double pendulum): their bounds; the GP's inputs are
   // then [p; u_1 .. u_F] and the policy has C x F weights. Empty: one control.
   Vector max_controls;
+  // F >= 2 only: one row of policy log length-scales per control
+  // (RbfPolicyShape::lengthscale_per_control; parameters [centres, log l
+  // F x Ep, weights C x F]). false: one shared row.
+  bool policy_lengthscale_per_control = false;
   int num_basis = 10;                     // C, RBF centres
+  // PILCO's general index sets (poli, dyni), 0-based indices into
+  // y = [x, sin x_a1, cos x_a1, ...] (D + 2A), each strictly increasing.
+  // Empty policy_inputs: the default p above. Empty dynamics_inputs: the GP
+  // sees [p; u] (the policy's inputs). When given, the GP sees
+  // [y(dynamics_inputs); u] and Cov(y(dynamics_inputs), u) =
+  // Cov(y(dynamics_inputs), p) s_pp^-1 Cov(p, u), as PILCO's propagated. A
+  // dynamics_inputs equal to the resolved policy inputs is the shared case,
+  // computed by the shared code (same bits).
+  std::vector<int> policy_inputs;
+  std::vector<int> dynamics_inputs;
 
   // The angles: angle_indices, or {angle_index}, or none.
   std::vector<int> Angles() const {
@@ -72,6 +86,12 @@ struct StepCache {
   Matrix g_cov;
   GaussianPrediction delta;
   Matrix s_xp;  // D x Ep, Cov(x, p)
+  // Separate dynamics inputs q = y(dynamics_inputs) (Eq) only:
+  Vector q_mean;
+  Matrix q_cov;  // Eq x Eq
+  Matrix s_xq;   // D x Eq, Cov(x, q)
+  Matrix s_qp;   // Eq x Ep, Cov(q, p)
+  Matrix u_cross;  // Ep x F, s_pp^-1 Cov(p, u) (either control count)
 };
 
 class Propagator {
@@ -106,6 +126,17 @@ class Propagator {
   Vector PolicyInput(const Vector& x) const;
 
  private:
+  // Step and StepBackward from the policy on when the GP's inputs are a
+  // separate index set q (any F): g = [q; u].
+  absl::Status StepSeparate(const Vector& params, const Vector& m, const Matrix& S,
+                            Vector* m_next, Matrix* S_next, StepCache* cache) const;
+  absl::Status StepSeparateBackward(const Vector& params, const StepCache& c,
+                                    const Vector& m_next_bar, const Matrix& sb_next,
+                                    Vector* m_bar, Matrix* S_bar, Vector* params_bar) const;
+  // From the adjoints of y's mean and covariance (and of m, S through the
+  // identity paths) back through the trig augmentation.
+  void TrigBackward(const StepCache& c, const Vector& y_mean_bar, const Matrix& y_cov_bar,
+                    Vector mb, Matrix sb, Vector* m_bar, Matrix* S_bar) const;
   // Step and StepBackward from the policy on, with F >= 2 controls.
   absl::Status StepControls(const Vector& params, const Vector& m, const Matrix& S,
                             Vector* m_next, Matrix* S_next, StepCache* cache) const;
@@ -126,6 +157,7 @@ class Propagator {
   int state_dim_ = 0;
   int policy_input_dim_ = 0;
   std::vector<int> policy_index_;  // Ep indices into y
+  std::vector<int> dynamics_index_;  // Eq indices into y; empty: the GP sees p
   RbfPolicyShape shape_;
   GaussianPredictionOptions dyn_options_;
 };

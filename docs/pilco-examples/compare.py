@@ -19,6 +19,11 @@ Fields: mean, cov, cost_mean, cost_std, J and the gradient blocks.
      dJ/dlog l_d += sum_ij g_i w_j K_ij (c_id - c_jd)^2 / l_d^2, with g = PILCO's dJ/dy;
    [targets] our command run again on a copy of the scenario with `targets` = y (a temporary
      file), compared with PILCO's gradients directly.
+General-form scenarios (files with "angle_indices": several angles, several controls, FITC,
+index sets into z; docs/pilco.md) are compared with pilco_reference.py, our independent numpy
+implementation of PILCO's published equations (needs numpy; no Octave, no PILCO checkout),
+whose gradients are complex-step derivatives of its J: all fields, in the file's own
+parameterisation, under the label `numpy`. compare_with_pilco.m does not read the general form.
 Relative difference: `rel` = max|ours - pilco| / max|pilco| over the field; `rel_elem` = max over
 entries with |pilco| > 1e-6 max|pilco| of |ours - pilco| / |pilco|.
 Exit code 1 when any `rel` exceeds --tol (default 1e-6).
@@ -109,6 +114,22 @@ def report(name, rows, tol):
     return worst <= tol
 
 
+def compare_general(path, scenario, ours, tol):
+    """A general-form scenario against the numpy reference (pilco_reference.py)."""
+    sys.path.insert(0, HERE)
+    import pilco_reference  # numpy; only needed for the general form
+    ref = pilco_reference.run(scenario)
+    p = scenario["policy"]
+    f = len(p["targets" if "targets" in p else "weights"][0]) if isinstance(
+        p["targets" if "targets" in p else "weights"][0], list) else 1
+    print("%s (H = %d, D = %d, angles %s, F = %d, %s; numpy reference)" % (
+        path, scenario["horizon"], len(scenario["mu0"]), scenario["angle_indices"], f,
+        "FITC M = %d" % len(scenario["inducing_inputs"]) if "inducing_inputs" in scenario
+        else "full GP"))
+    rows = [(k, ours[k], ref[k]) for k in ref]
+    return report("numpy", rows, tol)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("scenarios", nargs="+")
@@ -117,14 +138,17 @@ def main():
     ap.add_argument("--octave", default="octave")
     ap.add_argument("--tol", type=float, default=1e-6)
     args = ap.parse_args()
-    if not args.pilco_dir:
-        raise SystemExit("give --pilco-dir or set PILCO_DIR (a checkout of UCL-SML/pilco-matlab)")
 
     ok = True
     for path in args.scenarios:
         with open(path) as f:
             scenario = json.load(f)
         ours = run_ours(args.totalgrad, path)
+        if "angle_indices" in scenario:
+            ok &= compare_general(path, scenario, ours, args.tol)
+            continue
+        if not args.pilco_dir:
+            raise SystemExit("give --pilco-dir or set PILCO_DIR (a checkout of UCL-SML/pilco-matlab)")
         pilco = run_pilco(args.octave, args.pilco_dir, path)
         print("%s (H = %d, Octave %s)" % (path, scenario["horizon"], pilco["octave_version"]))
         print("  PILCO: value.m J = %.17g, step-loop sum = %.17g" % (pilco["J"], pilco["J_loop"]))

@@ -8,7 +8,9 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -148,6 +150,291 @@ TEST(PilcoCommandTest, BadInputIsNamed) {
   ASSERT_FALSE(out.ok());
   EXPECT_EQ(out.status().code(), absl::StatusCode::kFailedPrecondition) << out.status();
   EXPECT_NE(out.status().message().find("step 1"), std::string::npos) << out.status();
+}
+
+
+// ------------------------------------------------------------ general form
+
+// Every entry of a JSON number array (any nesting) as doubles, row-major.
+std::vector<double> Flat(const nlohmann::json& v) {
+  std::vector<double> out;
+  if (v.is_array()) {
+    for (const auto& e : v) {
+      const std::vector<double> sub = Flat(e);
+      out.insert(out.end(), sub.begin(), sub.end());
+    }
+  } else {
+    out.push_back(v.get<double>());
+  }
+  return out;
+}
+
+// The general-form examples (docs/pilco-examples/make_general_examples.py):
+// two angles and two torques with pseudo-targets C x 2; two angles, FITC and
+// weights; one angle with a GP on its own inputs and two widths; two torques
+// with one row of length-scales per control and FITC. Output
+// shapes as documented, and every gradient block against central
+// differences of J through the file format (each block's entries with the
+// largest and the smallest index).
+class PilcoGeneralExampleTest : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(PilcoGeneralExampleTest, RunsWithDocumentedShapeAndGradient) {
+  const nlohmann::json doc = Load(GetParam());
+  absl::StatusOr<PilcoScenario> s = ParsePilcoScenario(doc);
+  TG_ASSERT_OK(s.status());
+  ASSERT_TRUE(s->is_general);
+  absl::StatusOr<nlohmann::ordered_json> out = RunPilcoPropagate(*s);
+  TG_ASSERT_OK(out.status());
+  const int h = doc["horizon"].get<int>();
+  const int d = static_cast<int>(doc["mu0"].size());
+  const int c = static_cast<int>(doc["policy"]["centres"].size());
+  const int ep = static_cast<int>(doc["policy_inputs"].size());
+  const bool targets = doc["policy"].contains("targets");
+  const char* vkey = targets ? "targets" : "weights";
+  const nlohmann::json& values = doc["policy"][vkey];
+  const bool matrix_values = values[0].is_array();
+  const int f = matrix_values ? static_cast<int>(values[0].size()) : 1;
+  EXPECT_EQ((*out)["mean"].size(), static_cast<size_t>(h + 1));
+  EXPECT_EQ((*out)["mean"][h].size(), static_cast<size_t>(d));
+  EXPECT_EQ((*out)["cov"].size(), static_cast<size_t>(h + 1));
+  EXPECT_EQ(Flat((*out)["cov"][h]).size(), static_cast<size_t>(d * d));
+  EXPECT_EQ((*out)["cost_mean"].size(), static_cast<size_t>(h));
+  EXPECT_EQ((*out)["cost_std"].size(), static_cast<size_t>(h));
+  double sum = 0;
+  for (const auto& v : (*out)["cost_mean"]) sum += v.get<double>();
+  EXPECT_NEAR((*out)["J"].get<double>(), sum, 1e-12);
+  EXPECT_EQ(Flat((*out)["dJ_dcentres"]).size(), static_cast<size_t>(c * ep));
+  const std::string gkey = targets ? "dJ_dtargets" : "dJ_dweights";
+  ASSERT_TRUE(out->contains(gkey));
+  // In the shape the file gave: C x F, or a C-vector.
+  ASSERT_EQ((*out)[gkey].size(), static_cast<size_t>(c));
+  EXPECT_EQ((*out)[gkey][0].is_array(), matrix_values);
+  if (matrix_values) EXPECT_EQ((*out)[gkey][0].size(), static_cast<size_t>(f));
+  EXPECT_EQ(targets, out->contains("weights"));
+
+  // Fourth-order central differences with step 1e-4: J carries round-off of
+  // about 1e-13 relative amplified by the pseudo-target solve (K_cc + 1e-4 I
+  // is ill-conditioned), which a 1e-6 step would turn into ~1e-5 errors.
+  const double step = 1e-4;
+  auto fd = [&](auto mutate) {
+    double j[4];
+    const double k[4] = {2, 1, -1, -2};
+    for (int i = 0; i < 4; ++i) {
+      nlohmann::json p = doc;
+      mutate(p, k[i] * step);
+      j[i] = RunJ(p);
+    }
+    return (-j[0] + 8 * j[1] - 8 * j[2] + j[3]) / (12 * step);
+  };
+  auto near = [](double analytic, double numeric) {
+    return std::abs(analytic - numeric) <= 1e-7 + 1e-5 * std::abs(numeric);
+  };
+  double largest = 0;
+  for (int k : {0, c - 1}) {
+    for (int j : {0, f - 1}) {
+      const double g = matrix_values ? (*out)[gkey][k][j].get<double>() : (*out)[gkey][k].get<double>();
+      const double n = fd([&](nlohmann::json& dd, double e) {
+        nlohmann::json& v = matrix_values ? dd["policy"][vkey][k][j] : dd["policy"][vkey][k];
+        v = v.get<double>() + e;
+      });
+      EXPECT_TRUE(near(g, n)) << vkey << " " << k << "," << j << ": " << g << " vs " << n;
+      largest = std::max(largest, std::abs(n));
+    }
+    for (int m : {0, ep - 1}) {
+      const double g = (*out)["dJ_dcentres"][k][m].get<double>();
+      const double n = fd([&](nlohmann::json& dd, double e) {
+        dd["policy"]["centres"][k][m] = dd["policy"]["centres"][k][m].get<double>() + e;
+      });
+      EXPECT_TRUE(near(g, n)) << "centre " << k << "," << m << ": " << g << " vs " << n;
+    }
+  }
+  // Log length-scales: Ep numbers, or F x Ep (one row per control), the
+  // gradient in the same shape.
+  const bool ll_rows = doc["policy"]["log_lengthscales"][0].is_array();
+  const int rows = ll_rows ? static_cast<int>(doc["policy"]["log_lengthscales"].size()) : 1;
+  ASSERT_EQ((*out)["dJ_dlog_lengthscales"].size(), static_cast<size_t>(ll_rows ? rows : ep));
+  for (int r = 0; r < rows; ++r) {
+    for (int m = 0; m < ep; ++m) {
+      const double g = ll_rows ? (*out)["dJ_dlog_lengthscales"][r][m].get<double>()
+                               : (*out)["dJ_dlog_lengthscales"][m].get<double>();
+      const double n = fd([&](nlohmann::json& dd, double e) {
+        nlohmann::json& v = ll_rows ? dd["policy"]["log_lengthscales"][r][m]
+                                    : dd["policy"]["log_lengthscales"][m];
+        v = v.get<double>() + e;
+      });
+      EXPECT_TRUE(near(g, n)) << "log l " << r << "," << m << ": " << g << " vs " << n;
+    }
+  }
+  EXPECT_GT(largest, 1e-4) << "the examples' gradients should not vanish";
+}
+
+INSTANTIATE_TEST_SUITE_P(Examples, PilcoGeneralExampleTest,
+                         ::testing::Values("general_double_pendulum.json", "general_cdp_fitc.json",
+                                           "general_pendulum_dyni.json",
+                                           "general_double_pendulum_per_control.json"));
+
+// Today's examples rewritten in the general form (one angle or none, one
+// control, full GP; the tip cost as lossSat on z = [x, sin, cos] with
+// Q = C^T C, C = [[1 0 0 0 l 0], [0 0 0 0 0 l]]; the angle cost as lossSat
+// on x with Q = 2 Q_angle, width 1): the same moment matching code runs, so
+// the predicted states are the same bits, and the costs and gradients agree
+// to rounding: the two cost forms factorise Q differently (1e-15 relative),
+// which the backward pass through the pseudo-targets' solve amplifies to
+// about 3e-11 of the field's largest entry (measured); 1e-9 is far below any
+// formula difference.
+nlohmann::json AsGeneral(const nlohmann::json& old) {
+  nlohmann::json g;
+  for (const char* k : {"train_inputs", "train_targets", "gp_log_hyp", "mu0", "S0", "horizon"}) {
+    g[k] = old[k];
+  }
+  g["policy"] = old["policy"];
+  const int d = static_cast<int>(old["mu0"].size());
+  if (old["angle_index"].is_null()) {
+    g["angle_indices"] = nlohmann::json::array();
+    std::vector<int> all;
+    for (int i = 0; i < d; ++i) all.push_back(i);
+    g["dynamics_inputs"] = all;
+    g["policy_inputs"] = all;
+    nlohmann::json q = nlohmann::json::array();
+    for (int i = 0; i < d; ++i) {
+      nlohmann::json row = nlohmann::json::array();
+      for (int j = 0; j < d; ++j) row.push_back(i == j ? 2.0 * old["cost"]["Q"][i].get<double>() : 0.0);
+      q.push_back(row);
+    }
+    g["cost"] = {{"type", "saturating"}, {"target", old["cost"]["target"]}, {"Q", q}, {"width", 1.0}};
+  } else {
+    const int a = old["angle_index"].get<int>();
+    g["angle_indices"] = {a};
+    std::vector<int> inputs;
+    for (int i = 0; i < d; ++i) {
+      if (i != a) inputs.push_back(i);
+    }
+    inputs.push_back(d);
+    inputs.push_back(d + 1);
+    g["dynamics_inputs"] = inputs;
+    g["policy_inputs"] = inputs;
+    const double l = old["cost"]["pendulum_length"].get<double>();
+    std::vector<std::vector<double>> q(d + 2, std::vector<double>(d + 2, 0.0));
+    const int p = old["cost"]["position_index"].get<int>();
+    // C^T C for d = C (z - z_t): rows (x_p + l sin, l cos).
+    q[p][p] = 1.0;
+    q[p][d] = q[d][p] = l;
+    q[d][d] = l * l;
+    q[d + 1][d + 1] = l * l;
+    std::vector<double> target(d, 0.0);
+    target[a] = M_PI;
+    g["cost"] = {{"type", "saturating"}, {"target", target}, {"Q", q},
+                 {"width", old["cost"]["width"]}};
+  }
+  return g;
+}
+
+TEST_P(PilcoExampleTest, GeneralFormOfTodaysExampleGivesTheSameResult) {
+  const nlohmann::json old = Load(GetParam());
+  const nlohmann::json general = AsGeneral(old);
+  absl::StatusOr<PilcoScenario> a = ParsePilcoScenario(old);
+  absl::StatusOr<PilcoScenario> b = ParsePilcoScenario(general);
+  TG_ASSERT_OK(a.status());
+  TG_ASSERT_OK(b.status());
+  ASSERT_TRUE(b->is_general);
+  absl::StatusOr<nlohmann::ordered_json> oa = RunPilcoPropagate(*a);
+  absl::StatusOr<nlohmann::ordered_json> ob = RunPilcoPropagate(*b);
+  TG_ASSERT_OK(oa.status());
+  TG_ASSERT_OK(ob.status());
+  EXPECT_EQ(Flat((*oa)["mean"]), Flat((*ob)["mean"]));
+  EXPECT_EQ(Flat((*oa)["cov"]), Flat((*ob)["cov"]));
+  for (const auto& [key, value] : oa->items()) {
+    if (key == "mean" || key == "cov") continue;
+    ASSERT_TRUE(ob->contains(key)) << key;
+    const std::vector<double> x = Flat(value), y = Flat((*ob)[key]);
+    ASSERT_EQ(x.size(), y.size()) << key;
+    double scale = 0;
+    for (double v : x) scale = std::max(scale, std::abs(v));
+    for (size_t i = 0; i < x.size(); ++i) {
+      EXPECT_NEAR(x[i], y[i], 1e-9 * std::max(scale, 1e-3)) << key << "[" << i << "]";
+    }
+  }
+  EXPECT_EQ(ob->size(), oa->size());
+}
+
+// Every bad input of the general form is named: the field (and entry) and
+// what is wrong with it.
+TEST(PilcoCommandTest, GeneralFormBadInputIsNamed) {
+  const nlohmann::json good = Load("general_double_pendulum.json");  // D 4, A 2, F 2, Ep 6
+  struct Case {
+    std::function<void(nlohmann::json*)> mutate;
+    std::string want;
+  };
+  const double inf = std::numeric_limits<double>::infinity();
+  const std::vector<Case> cases = {
+      {[](nlohmann::json* d) { (*d)["angle_indx"] = 1; }, "unknown field 'angle_indx'"},
+      {[](nlohmann::json* d) { (*d)["policy"]["sf"] = 1; }, "unknown field 'policy.sf'"},
+      {[](nlohmann::json* d) { (*d)["cost"]["widths"] = {1.0}; }, "unknown field 'cost.widths'"},
+      {[](nlohmann::json* d) { (*d)["angle_index"] = 2; }, "not both"},
+      {[](nlohmann::json* d) { (*d)["angle_indices"] = {3, 2}; }, "angle_indices: indices must be strictly increasing"},
+      {[](nlohmann::json* d) { (*d)["angle_indices"] = {2, 2}; }, "angle_indices: indices must be strictly increasing"},
+      {[](nlohmann::json* d) { (*d)["angle_indices"] = {2, 4}; }, "angle_indices[1]: 4 is out of range [0, 4)"},
+      {[](nlohmann::json* d) { (*d)["angle_indices"] = {2.5, 3}; }, "angle_indices[0]: not an integer"},
+      {[](nlohmann::json* d) { (*d)["angle_indices"] = 2; }, "angle_indices: not an array"},
+      {[](nlohmann::json* d) { (*d)["dynamics_inputs"][5] = 8; }, "dynamics_inputs[5]: 8 is out of range [0, 8)"},
+      {[](nlohmann::json* d) { (*d)["dynamics_inputs"][0] = -1; }, "dynamics_inputs[0]: -1 is out of range"},
+      {[](nlohmann::json* d) { (*d)["policy_inputs"] = {0, 1, 5, 4, 6, 7}; }, "policy_inputs: indices must be strictly increasing"},
+      {[](nlohmann::json* d) { (*d)["policy_inputs"] = nlohmann::json::array(); }, "policy_inputs: empty"},
+      {[](nlohmann::json* d) { (*d)["train_inputs"][3].erase(0); }, "train_inputs[3]: has 7 entries"},
+      {[](nlohmann::json* d) { for (auto& r : (*d)["train_inputs"]) r.erase(0); }, "train_inputs: must be 50 x 8"},
+      {[](nlohmann::json* d) { (*d)["train_targets"].erase(0); }, "train_inputs: must be 49 x 8"},
+      {[inf](nlohmann::json* d) { (*d)["train_inputs"][2][1] = inf; }, "train_inputs[2][1]: not finite"},
+      {[](nlohmann::json* d) { (*d)["train_targets"][0][0] = "x"; }, "train_targets[0][0]: not a number"},
+      {[](nlohmann::json* d) { (*d)["inducing_inputs"] = {{1.0, 2.0}}; }, "inducing_inputs: must be 1 x 8"},
+      {[](nlohmann::json* d) { (*d)["gp_log_hyp"][0].erase(0); }, "gp_log_hyp[1]: has 10 entries, row 0 has 9"},
+      {[](nlohmann::json* d) { (*d)["gp_log_hyp"].erase(0); }, "gp_log_hyp: must be 4 x 10"},
+      {[](nlohmann::json* d) { for (auto& r : (*d)["policy"]["centres"]) r.erase(0); }, "policy.centres: must be 8 x 6"},
+      {[](nlohmann::json* d) { (*d)["policy"]["targets"].erase(0); }, "policy.targets: must be C x F"},
+      {[](nlohmann::json* d) { (*d)["policy"]["weights"] = (*d)["policy"]["targets"]; }, "exactly one of"},
+      {[](nlohmann::json* d) { (*d)["policy"]["log_lengthscales"].erase(0); }, "policy.log_lengthscales: must be 6 numbers"},
+      {[](nlohmann::json* d) {
+         const nlohmann::json row = (*d)["policy"]["log_lengthscales"];
+         (*d)["policy"]["log_lengthscales"] = {row, row, row};
+       }, "policy.log_lengthscales: must be 6 numbers (len(policy_inputs), shared) or 2 x 6 (one row per control), is 3 x 6"},
+      {[](nlohmann::json* d) { (*d)["policy"]["max_force"] = {2.0}; }, "policy.max_force: must have 2 entries"},
+      {[](nlohmann::json* d) { (*d)["policy"]["max_force"] = {2.0, -1.0}; }, "policy.max_force[1]: must be > 0"},
+      {[](nlohmann::json* d) { (*d)["policy"]["output_variance_jitter"] = -1.0; }, "policy.output_variance_jitter"},
+      {[](nlohmann::json* d) { (*d)["mu0"].erase(0); }, "mu0: must have 4 entries"},
+      {[](nlohmann::json* d) { (*d)["S0"][0][1] = 0.5; }, "S0: not symmetric"},
+      {[](nlohmann::json* d) { (*d)["S0"].erase(0); }, "S0: must be 4 x 4"},
+      {[](nlohmann::json* d) { (*d)["horizon"] = 0; }, "horizon: must be >= 1"},
+      {[](nlohmann::json* d) { (*d)["horizon"] = 2.5; }, "horizon: not an integer"},
+      {[](nlohmann::json* d) { (*d)["cost"]["type"] = "tip"; }, "cost.type"},
+      {[](nlohmann::json* d) { (*d)["cost"]["target"] = {0.0}; }, "cost.target: must have 4 entries"},
+      {[](nlohmann::json* d) { (*d)["cost"]["Q"][4][6] = 0.3; }, "cost.Q: not symmetric"},
+      {[](nlohmann::json* d) { (*d)["cost"]["Q"].erase(0); }, "cost.Q: must be 8 x 8"},
+      {[](nlohmann::json* d) { (*d)["cost"]["width"] = {0.5, 0.0}; }, "cost.width[1]: must be > 0"},
+      {[](nlohmann::json* d) { (*d)["cost"]["width"] = nlohmann::json::array(); }, "cost.width: empty list"},
+      {[](nlohmann::json* d) { (*d)["cost"]["width"] = "wide"; }, "cost.width: not an array"},
+      {[](nlohmann::json* d) { (*d)["cost"].erase("Q"); }, "missing field 'cost.Q'"},
+      {[](nlohmann::json* d) { d->erase("dynamics_inputs"); }, "missing field 'dynamics_inputs'"},
+  };
+  for (const Case& c : cases) {
+    nlohmann::json d = good;
+    c.mutate(&d);
+    absl::StatusOr<PilcoScenario> s = ParsePilcoScenario(d);
+    ASSERT_FALSE(s.ok()) << c.want;
+    EXPECT_EQ(s.status().code(), absl::StatusCode::kInvalidArgument);
+    EXPECT_NE(s.status().message().find(c.want), std::string::npos)
+        << "want '" << c.want << "', got: " << s.status();
+  }
+  // Found when running (it needs the numbers, not only the shapes): Q not
+  // positive semi-definite.
+  nlohmann::json d = good;
+  for (int i = 0; i < 8; ++i) d["cost"]["Q"][i][i] = i == 0 ? -1.0 : 0.0;
+  absl::StatusOr<PilcoScenario> s = ParsePilcoScenario(d);
+  TG_ASSERT_OK(s.status());
+  absl::StatusOr<nlohmann::ordered_json> out = RunPilcoPropagate(*s);
+  ASSERT_FALSE(out.ok());
+  EXPECT_EQ(out.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(out.status().message().find("saturating cost Q is not positive semi-definite"),
+            std::string::npos)
+      << out.status();
 }
 
 }  // namespace

@@ -314,6 +314,46 @@ TEST(GpMomentsTest, Gp2ReverseModeIncludingParametersMatchesFiniteDifferences) {
 
 // A deliberately wrong derivative must fail: (a) one entry off by 0.1 %;
 // (b) the classic bug of not counting an off-diagonal covariance entry twice.
+// The length-scale adjoint (per output, the outputs' length-scales differ):
+// <mean_bar, mean> + <cov_bar, cov> + <cross_bar, cross> against central
+// differences in every inverse squared length-scale, for gp0 (model
+// variance) and gp2 (mean function only, jitter), at a correlated input.
+TEST(GpMomentsTest, LengthscaleAdjointMatchesFiniteDifferences) {
+  std::mt19937_64 rng(14);
+  const int n = 15, e = 3, d = 3;
+  const GaussianInputGp base = testing::MakeTestGp(n, e, d, &rng);
+  ASSERT_NE(base.inv_lengthscale_sq(0, 0), base.inv_lengthscale_sq(1, 0));
+  const Vector m = testing::RandomVector(e, 0.5, &rng);
+  const Matrix s = testing::RandomCovariance(e, 0.3, &rng);
+  const Vector mean_bar = testing::RandomVector(d, 1.0, &rng);
+  const Matrix cov_bar = testing::RandomCovariance(d, 1.0, &rng) - 0.5 * Matrix::Identity(d, d);
+  Matrix cross_bar(e, d);
+  for (int a = 0; a < d; ++a) cross_bar.col(a) = testing::RandomVector(e, 1.0, &rng);
+  for (bool model_variance : {true, false}) {
+    GaussianPredictionOptions options;
+    options.model_variance = model_variance;
+    options.jitter = model_variance ? 0.0 : 1e-6;
+    const diff::VectorFunction f = [&](const Vector& il, Vector* out) {
+      GaussianInputGp gp = base;
+      gp.inv_lengthscale_sq = Eigen::Map<const RowMatrix>(il.data(), d, e);
+      GaussianPrediction p;
+      if (!PredictGaussian(gp, m, s, options, &p).ok()) return false;
+      *out = Vector::Constant(1, mean_bar.dot(p.mean) + cov_bar.cwiseProduct(p.cov).sum() +
+                                     cross_bar.cwiseProduct(p.cross).sum());
+      return true;
+    };
+    RowMatrix il_bar;
+    ASSERT_TRUE(PredictGaussianLengthscaleAdjoint(base, m, s, options, mean_bar, cov_bar,
+                                                  cross_bar, &il_bar)
+                    .ok());
+    const Vector il = Eigen::Map<const Vector>(base.inv_lengthscale_sq.data(), d * e);
+    const Vector g = Eigen::Map<const Vector>(il_bar.data(), d * e);
+    const diff::CheckResult r = diff::CheckJacobian(f, il, g.transpose(), Tight());
+    EXPECT_TRUE(r.ok) << (model_variance ? "gp0: " : "gp2: ") << r.log;
+    EXPECT_GT(g.cwiseAbs().maxCoeff(), 1e-3);
+  }
+}
+
 TEST(GpMomentsTest, WrongDerivativesAreRejected) {
   std::mt19937_64 rng(4);
   const int n = 20, e = 3, d = 2;
@@ -661,6 +701,95 @@ TEST(ExpectedCostTest, SaturatingCostWithoutAnglesIsTheExpectationOfTheCost) {
   EXPECT_NE(GaussianCost::Saturating(3, -1, q, target, {0.0}).status().message().find("width"),
             std::string::npos);
   EXPECT_FALSE(GaussianCost::Saturating(3, 1, q, target, widths).ok());  // z would be 5-dim
+}
+
+// PILCO's lossSat on z = [x, sin x_a1, cos x_a1, sin x_a2, cos x_a2, ...]
+// with several angles (the cart-double-pendulum's 2, 3 here) and a full,
+// general PSD Q on z with two widths: E[c] through the joint trig block, its
+// gradient against central differences. A gradient that leaves out the
+// pair moments' dependence on S_kl (the covariance between two angles) is
+// rejected: the several-angle path is really exercised.
+TEST(ExpectedCostTest, SaturatingCostWithSeveralAnglesMatchesFiniteDifferences) {
+  std::mt19937_64 rng(31);
+  for (const std::vector<int>& angles : {std::vector<int>{1, 2}, std::vector<int>{0, 2, 3}}) {
+    const int d = 5, z = d + 2 * static_cast<int>(angles.size());
+    const Matrix q = testing::RandomCovariance(z, 0.5, &rng);  // full rank, general
+    Vector x_t = testing::RandomVector(d, 1.0, &rng);
+    Vector target(z);
+    target.head(d) = x_t;
+    for (size_t k = 0; k < angles.size(); ++k) {
+      target(d + 2 * k) = std::sin(x_t(angles[k]));
+      target(d + 2 * k + 1) = std::cos(x_t(angles[k]));
+    }
+    auto cost = GaussianCost::Saturating(d, angles, q, target, {0.8, 2.0});
+    ASSERT_TRUE(cost.ok()) << cost.status();
+    const Vector m = testing::RandomVector(d, 1.0, &rng);
+    Matrix s = testing::RandomCovariance(d, 0.2, &rng);
+    CheckCost(*cost, m, s);
+    CheckCost(*cost, x_t, 1e-6 * Matrix::Identity(d, d));  // near the target
+
+    // The S_kl entry between the first two angles carries a real gradient
+    // (the pair moments); zeroing it must fail the check.
+    CostMoments right;
+    ASSERT_TRUE(cost->Evaluate(m, s, true, &right).ok());
+    const int a1 = angles[0], a2 = angles[1];
+    ASSERT_GT(std::abs(right.dmean_dS(a1, a2)), 1e-4);
+    const BlockForward fwd = [&](const Vector& mm, const Matrix& ss, const Vector&, Vector* y) {
+      CostMoments c;
+      if (!cost->Evaluate(mm, ss, false, &c).ok()) return false;
+      *y = Vector::Constant(1, c.mean);
+      return true;
+    };
+    const BlockBackward wrong = [&](const Vector& mm, const Matrix& ss, const Vector&,
+                                    const Vector& yb, Vector* mb, Matrix* sb, Vector*) {
+      CostMoments c;
+      if (!cost->Evaluate(mm, ss, true, &c).ok()) return false;
+      *mb = yb(0) * c.dmean_dm;
+      *sb = yb(0) * c.dmean_dS;
+      (*sb)(a1, a2) = (*sb)(a2, a1) = 0.0;
+      return true;
+    };
+    EXPECT_FALSE(CheckBlock(fwd, wrong, m, s, Vector(), Tight()).ok);
+  }
+}
+
+// Several angles: bad index sets are refused by name, and one angle through
+// the list overload is the one-angle overload bit for bit.
+TEST(ExpectedCostTest, SaturatingCostAngleListIsValidatedAndOneAngleIsUnchanged) {
+  std::mt19937_64 rng(32);
+  const Matrix q7 = testing::RandomCovariance(7, 0.5, &rng);
+  const Vector t7 = testing::RandomVector(7, 1.0, &rng);
+  for (const std::vector<int>& bad :
+       {std::vector<int>{2, 1}, std::vector<int>{1, 1}, std::vector<int>{-1, 2},
+        std::vector<int>{1, 3}}) {
+    auto c = GaussianCost::Saturating(3, bad, q7, t7, {1.0});
+    ASSERT_FALSE(c.ok());
+    EXPECT_NE(c.status().message().find("angle indices"), std::string::npos) << c.status();
+  }
+  // Q of the wrong size for two angles (z = 3 + 4 = 7).
+  auto wrong_size = GaussianCost::Saturating(3, std::vector<int>{0, 1}, q7.topLeftCorner(5, 5),
+                                             t7.head(5), {1.0});
+  ASSERT_FALSE(wrong_size.ok());
+  EXPECT_NE(wrong_size.status().message().find("7 x 7"), std::string::npos) << wrong_size.status();
+  Matrix asym = q7;
+  asym(0, 1) += 0.1;
+  auto not_sym = GaussianCost::Saturating(5, std::vector<int>{0}, asym, t7, {1.0});
+  ASSERT_FALSE(not_sym.ok());
+  EXPECT_NE(not_sym.status().message().find("symmetric"), std::string::npos);
+
+  const Matrix q6 = q7.topLeftCorner(6, 6);
+  auto one = GaussianCost::Saturating(4, 1, q6, t7.head(6), {0.5, 1.5});
+  auto list = GaussianCost::Saturating(4, std::vector<int>{1}, q6, t7.head(6), {0.5, 1.5});
+  ASSERT_TRUE(one.ok() && list.ok());
+  const Vector m = testing::RandomVector(4, 1.0, &rng);
+  const Matrix s = testing::RandomCovariance(4, 0.2, &rng);
+  CostMoments a, b;
+  ASSERT_TRUE(one->Evaluate(m, s, true, &a).ok());
+  ASSERT_TRUE(list->Evaluate(m, s, true, &b).ok());
+  EXPECT_EQ(a.mean, b.mean);
+  EXPECT_EQ(a.var, b.var);
+  EXPECT_EQ(a.dmean_dm, b.dmean_dm);
+  EXPECT_EQ(a.dmean_dS, b.dmean_dS);
 }
 
 // ---------------------------------------------------------------- one step

@@ -355,6 +355,56 @@ TEST(MonteCarloTest, TipCostOnTheAugmentedGaussian) {
   EXPECT_TRUE(WithinMcError(Matrix::Constant(1, 1, cm.var), acc.Cov(), acc.CovStdError(), kSigmas));
 }
 
+// lossSat with several angles (2, as the cart-double-pendulum) and a
+// general Q on z: exact for z ~ N(AugmentWithTrig(m, S, angles)), its
+// Gaussian approximation. Each width's mean and variance against Monte
+// Carlo; the several-width cost is the mean of their means and (PILCO's
+// S2 / n) the mean of their variances.
+TEST(MonteCarloTest, SaturatingCostSeveralAnglesOnTheAugmentedGaussian) {
+  std::mt19937_64 rng(18);
+  const std::vector<int> angles = {1, 3};
+  const int d = 4, nz = 8;
+  const Matrix q = testing::RandomCovariance(nz, 0.3, &rng);
+  const Vector m = Eigen::Vector4d(0.1, 2.7, -0.2, 0.4);
+  const Matrix s = testing::RandomCovariance(d, 0.2, &rng);
+  const std::vector<double> widths = {0.7, 1.6};
+  Vector ym;
+  Matrix ys;
+  AugmentWithTrig(m, s, angles, &ym, &ys);
+  // A target near z's mean, so that neither width saturates the cost.
+  const Vector target = ym + testing::RandomVector(nz, 0.3, &rng);
+  const GaussianSampler sampler(ym, ys);
+  double mean_of_means = 0, mean_of_vars = 0;
+  for (double w : widths) {
+    auto cost = GaussianCost::Saturating(d, angles, q, target, {w});
+    ASSERT_TRUE(cost.ok()) << cost.status();
+    CostMoments cm;
+    ASSERT_TRUE(cost->Evaluate(m, s, false, &cm).ok());
+    mean_of_means += cm.mean / widths.size();
+    mean_of_vars += cm.var / widths.size();
+    EXPECT_GT(cm.var, 1e-3);  // not a degenerate case
+    MomentAccumulator acc(1);
+    acc.SetShift(Vector::Constant(1, cm.mean));
+    for (int done = 0; done < kSamples; done += kBatch) {
+      const RowMatrix y = sampler.Sample(kBatch, &rng);
+      const RowMatrix dz = y.rowwise() - target.transpose();
+      const Vector quad = (dz * q).cwiseProduct(dz).rowwise().sum();
+      const Vector c = (1.0 - (-0.5 * quad.array() / (w * w)).exp()).matrix();
+      acc.AddBatch(c);
+    }
+    EXPECT_TRUE(WithinMcError(Vector::Constant(1, cm.mean), acc.Mean(), acc.MeanStdError(), kSigmas))
+        << "width " << w;
+    EXPECT_TRUE(WithinMcError(Matrix::Constant(1, 1, cm.var), acc.Cov(), acc.CovStdError(), kSigmas))
+        << "width " << w;
+  }
+  auto both = GaussianCost::Saturating(d, angles, q, target, widths);
+  ASSERT_TRUE(both.ok());
+  CostMoments cm;
+  ASSERT_TRUE(both->Evaluate(m, s, false, &cm).ok());
+  EXPECT_NEAR(cm.mean, mean_of_means, 1e-15);
+  EXPECT_NEAR(cm.var, mean_of_vars, 1e-15);
+}
+
 // The step's assembly: for (x, g) jointly Gaussian with the covariance the step
 // forms, x' = x + f(g) has exactly the mean and covariance the step returns.
 // One angle, and two (the step's (sin, cos) pair blocks in g's covariance).
@@ -431,6 +481,70 @@ INSTANTIATE_TEST_SUITE_P(Angles, StepAssembly,
                            return "Angles" + std::to_string(info.param.angles.size()) + "Controls" +
                                   std::to_string(info.param.controls);
                          });
+
+// The same with the GP on its own index set into z (PILCO's dyni beside
+// poli): g = [q; u], q = z(dynamics_inputs) including a raw angle the policy
+// does not see, Cov(x, g) = [Cov(x, q), Cov(x, p) u_cross]. One and two
+// controls, two angles.
+class StepAssemblySeparate : public ::testing::TestWithParam<int> {};
+
+TEST_P(StepAssemblySeparate, GivenTheJointGaussian) {
+  std::mt19937_64 rng(19);
+  const int f = GetParam();
+  const int d = 4;
+  const std::vector<int> poli = {0, 2, 4, 5, 6, 7}, dyni = {0, 2, 3, 4, 5, 6, 7};
+  const int ep = 6, eq = 7;
+  const GaussianInputGp gp = testing::MakeTestGp(30, eq + f, d, &rng, 1.5);
+  PropagationOptions options;
+  options.angle_indices = {1, 3};
+  options.policy_inputs = poli;
+  options.dynamics_inputs = dyni;
+  if (f > 1) options.max_controls = Vector::LinSpaced(f, 2.0, 3.5);
+  options.num_basis = 6;
+  const Propagator prop(&gp, options);
+  Vector params(prop.num_parameters());
+  params.head(6 * ep) = testing::RandomVector(6 * ep, 0.7, &rng);
+  params.segment(6 * ep, ep).setConstant(std::log(0.9));
+  params.tail(6 * f) = testing::RandomVector(6 * f, 0.5, &rng);
+  const Vector m = Eigen::Vector4d(0.1, 0.4, -0.2, 0.3);
+  const Matrix s = testing::RandomCovariance(d, 0.05, &rng);
+  StepCache cache;
+  Vector m_next;
+  Matrix s_next;
+  ASSERT_TRUE(prop.Step(params, m, s, &m_next, &s_next, &cache).ok());
+  ASSERT_EQ(cache.g_mean.size(), eq + f);
+  const int eg = eq + f;
+  Matrix cxg(d, eg);
+  cxg.leftCols(eq) = cache.s_xq;
+  cxg.rightCols(f) = cache.s_xp * cache.u_cross;
+  Vector zm(d + eg);
+  zm << m, cache.g_mean;
+  Matrix zs(d + eg, d + eg);
+  zs << s, cxg, cxg.transpose(), cache.g_cov;
+  const GaussianSampler sampler(zm, zs);
+  MomentAccumulator acc(2 * d);
+  Vector shift(2 * d);
+  shift << m_next, Vector::Zero(d);
+  acc.SetShift(shift);
+  for (int done = 0; done < kSamples; done += kBatch) {
+    const RowMatrix z = sampler.Sample(kBatch, &rng);
+    RowMatrix mean, var;
+    PosteriorAt(gp, z.rightCols(eg), &mean, &var);
+    RowMatrix row(kBatch, 2 * d);
+    row << z.leftCols(d) + mean, var;
+    acc.AddBatch(row);
+  }
+  EXPECT_TRUE(WithinMcError(m_next, acc.Mean().head(d), acc.MeanStdError().head(d), kSigmas));
+  Matrix expected = acc.Cov().topLeftCorner(d, d);
+  Matrix se = acc.CovStdError().topLeftCorner(d, d);
+  expected.diagonal() += acc.Mean().tail(d);
+  se.diagonal() += acc.MeanStdError().tail(d);
+  EXPECT_TRUE(WithinMcError(s_next, expected, se, kSigmas));
+  const Matrix cross_terms = s_next - s - cache.delta.cov;
+  EXPECT_GT(cross_terms.cwiseAbs().maxCoeff(), 50.0 * se.maxCoeff());
+}
+
+INSTANTIATE_TEST_SUITE_P(Controls, StepAssemblySeparate, ::testing::Values(1, 2));
 
 }  // namespace
 }  // namespace totalgrad::pilco
