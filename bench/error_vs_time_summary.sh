@@ -24,6 +24,7 @@ studies=(
   "pendulum=$docs/pendulum/results.json"
   "cart-double-pendulum=$docs/cart-double-pendulum/results.json"
   "pendubot=$docs/pendubot/results.json"
+  "double pendulum=$docs/double-pendulum/results.json"
 )
 markdown=$("$bin" study summary "${studies[@]}" --format markdown)
 json=$("$bin" study summary "${studies[@]}" --format json)
