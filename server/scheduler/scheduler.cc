@@ -123,11 +123,14 @@ absl::Status ValidateStudyRows(const storage::StudyRows& rows) {
         c.errors < 0) {
       return absl::InvalidArgumentError(absl::StrCat(where, ": a negative index or count"));
     }
-    for (const std::string* text : {&c.estimator, &c.method, &c.note, &c.error,
-                                    &c.omission_reason}) {
-      if (text->size() > kMaxStudyTextBytes) {
+    // Every text field of the record (study::CellFields()); the note is
+    // derived from them.
+    for (const auto& field : study::CellFields()) {
+      if (field.type() == record::FieldType::kText &&
+          field.Get<std::string>(c).size() > kMaxStudyTextBytes) {
         return absl::InvalidArgumentError(absl::StrCat(where, ": a text field over ",
-                                                       kMaxStudyTextBytes, " bytes"));
+                                                       kMaxStudyTextBytes, " bytes (", field.name,
+                                                       ")"));
       }
     }
     if (c.k_lr_per_step.size() > kMaxStudyVectorSize) {
@@ -143,7 +146,8 @@ absl::Status ValidateStudyRows(const storage::StudyRows& rows) {
         r.replicates.size() > 1000) {
       return absl::InvalidArgumentError(absl::StrCat(where, ": note or estimator list too long"));
     }
-    if (r.gradient.size() > kMaxStudyVectorSize || r.standard_error.size() > kMaxStudyVectorSize) {
+    if (static_cast<size_t>(r.gradient.size()) > kMaxStudyVectorSize ||
+        static_cast<size_t>(r.standard_error.size()) > kMaxStudyVectorSize) {
       return absl::InvalidArgumentError(absl::StrCat(where, ": gradient too long"));
     }
   }
