@@ -73,15 +73,14 @@ absl::Status ValidateEpisodes(const std::vector<Episode>& episodes) {
         episodes.size(), " episodes in one call; at most ", kMaxEpisodesPerCall));
   }
   for (const Episode& e : episodes) {
-    const std::pair<const char*, double> fields[] = {
-        {"real_cost", e.real_cost},           {"eval_cost_mean", e.eval_cost_mean},
-        {"eval_cost_std", e.eval_cost_std},   {"predicted_cost", e.predicted_cost},
-        {"optimisation_seconds", e.optimisation_seconds}};
-    for (const auto& [name, value] : fields) {
-      if (std::isinf(value)) {
+    // Every number of the record (learner::EpisodeFields()), as the worker
+    // checks them before sending (worker.cc, NonFiniteReason).
+    for (const auto& field : learner::EpisodeFields()) {
+      if (field.type() != record::FieldType::kDouble) continue;
+      if (std::isinf(field.Get<double>(e))) {
         return absl::InvalidArgumentError(absl::StrCat(
-            "episode ", e.episode, ": ", name, " is infinite; a trial with a non-finite cost "
-            "must be reported with Fail"));
+            "episode ", e.episode, ": ", field.name, " is infinite; a trial with a non-finite "
+            "cost must be reported with Fail"));
       }
     }
     if (std::isnan(e.real_cost)) {
