@@ -413,15 +413,4 @@ absl::StatusOr<Json> SetStudyScene(const Json& doc, const std::string& scene) {
   return out;
 }
 
-std::string StudyCellNote(const study::CellResult& c) {
-  std::vector<std::string> notes;
-  if (c.omitted) notes.push_back("omitted: " + c.omission_reason);
-  else if (!c.omission_reason.empty()) notes.push_back(c.omission_reason);
-  if (c.budget_hit) notes.push_back("budget");
-  if (!c.reference_agrees) notes.push_back("reference disagrees");
-  if (!c.error.empty() && !c.omitted) notes.push_back(c.error);
-  return notes.empty() ? "" : absl::StrJoin(notes, "; ");
-}
-
-
 }  // namespace totalgrad::io

@@ -93,10 +93,6 @@ absl::StatusOr<nlohmann::json> SetStudyScene(const nlohmann::json& doc, const st
 // uses the inlined snapshots).
 absl::StatusOr<std::unique_ptr<study::FrozenProblem>> LoadStudyProblem(const StudySpec& spec);
 
-// The `note` column of table.csv for one cell (omission, budget, reference
-// disagreement, first error), "" when there is nothing to note.
-std::string StudyCellNote(const study::CellResult& cell);
-
 }  // namespace totalgrad::io
 
 #endif  // TOTALGRAD_IO_STUDY_FILE_H_

@@ -6,20 +6,14 @@
 //
 // Format: {"source", "scene", "num_parameters", "seconds", "blas",
 //          "options": {...the study's options...},
-//          "references": [{"horizon", "norm", "relative_error", "floor",
-//                          "objective", "used", "replicates",
-//                          "agreement_max_z", "agreement_mean_z2",
-//                          "agreement_resolution", "agree",
-//                          "note", "seconds", "gradient", "standard_error"}],
-//          "cells": [{"estimator", "method", "particles", "horizon",
-//                     "replicates", "nonfinite", "errors", "error",
-//                     "budget_hit", "omitted", "omission_reason",
-//                     "time_min_s", "time_median_s", "rel_rmse", "rel_bias",
-//                     "rel_bias_noise", "total_variance", "cos_mean",
-//                     "objective_mean", "ess_mean", "ess_min", "k_lr_mean",
-//                     "k_lr_per_step", "reference_agrees"}]}
+//          "references": [one object per study::ReferenceGradient],
+//          "cells": [one object per study::CellResult]}
+// A reference or a cell is its record's JSON (io/record_format.h) over its
+// field table (study::ReferenceFields(), study::CellFields()): every field in
+// table order, the derived "note" included (written, ignored on reading).
 // Files written before "scene" existed read with an empty scene, before
-// "agreement_resolution" existed with NaN (not computed).
+// "agreement_resolution" existed with NaN (not computed), cells before
+// "reference_floor" existed with their horizon's reference's floor.
 #ifndef TOTALGRAD_IO_STUDY_RESULTS_H_
 #define TOTALGRAD_IO_STUDY_RESULTS_H_
 

@@ -13,12 +13,6 @@ struct EpisodeResult;  // core/learner/trial.h; not included, so that users of
 
 namespace totalgrad::worker {
 
-// The JSON object stored as an episode's details_json: GP hyperparameters,
-// numerical flags, "cpu_seconds" (the whole episode's CPU time) and "timing"
-// (CPU and wall seconds per phase, learner::EpisodeTiming) and, for PILCO, "predicted_cost_mean_per_step" and
-// "predicted_cost_std_per_step" (steps 1..H). Non-finite numbers become null.
-std::string EpisodeDetailsJson(const learner::EpisodeResult& result);
-
 class LearnerTrialRunner final : public TrialRunner {
  public:
   // Every trial runs on `threads_per_trial` threads (learner::RunOptions;

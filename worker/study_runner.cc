@@ -6,6 +6,7 @@
 #include "io/study_file.h"
 #include "core/common/blas.h"
 #include "core/study/study.h"
+#include "server/common/record_proto.h"
 
 namespace totalgrad::worker {
 
@@ -35,63 +36,19 @@ absl::StatusOr<StudyOutcome> CoreStudyRunner::Run(const std::string& spec_json,
       [progress] { return progress != nullptr && progress->ShouldCancel(); });
   if (!result.ok()) return result.status();
 
+  // The rows are the core records converted by name (record_proto.h), each
+  // keyed by its position in the result.
   StudyOutcome outcome;
   for (size_t i = 0; i < result->references.size(); ++i) {
-    const study::ReferenceGradient& ref = result->references[i];
     v1::StudyReferenceRow row;
     row.set_index(static_cast<int>(i));
-    row.set_horizon(ref.horizon);
-    row.set_norm(ref.norm);
-    row.set_relative_error(ref.relative_error);
-    row.set_floor(ref.floor);
-    row.set_objective(ref.objective);
-    for (const auto& label : ref.used) row.add_used(label);
-    for (int n : ref.replicates) row.add_replicates(n);
-    row.set_agreement_max_z(ref.agreement_max_z);
-    row.set_agreement_mean_z2(ref.agreement_mean_z2);
-    row.set_agree(ref.agree);
-    row.set_seconds(ref.seconds);
-    row.set_note(ref.note);
-    for (Eigen::Index k = 0; k < ref.gradient.size(); ++k) row.add_gradient(ref.gradient(k));
-    for (Eigen::Index k = 0; k < ref.standard_error.size(); ++k) {
-      row.add_standard_error(ref.standard_error(k));
-    }
+    record_proto::RecordToProto(study::ReferenceFields(), result->references[i], &row);
     outcome.references.push_back(std::move(row));
   }
   for (size_t i = 0; i < result->cells.size(); ++i) {
-    const study::CellResult& c = result->cells[i];
     v1::StudyCellRow row;
     row.set_index(static_cast<int>(i));
-    row.set_estimator(c.estimator);
-    row.set_method(c.method);
-    row.set_particles(c.particles);
-    row.set_horizon(c.horizon);
-    row.set_replicates(c.replicates);
-    row.set_nonfinite(c.nonfinite);
-    row.set_errors(c.errors);
-    row.set_time_min_s(c.time_min_s);
-    row.set_time_median_s(c.time_median_s);
-    row.set_rel_rmse(c.rel_rmse);
-    row.set_rel_bias(c.rel_bias);
-    row.set_rel_bias_noise(c.rel_bias_noise);
-    row.set_total_variance(c.total_variance);
-    row.set_cos_mean(c.cos_mean);
-    row.set_objective_mean(c.objective_mean);
-    row.set_ess_mean(c.ess_mean);
-    row.set_ess_min(c.ess_min);
-    row.set_k_lr_mean(c.k_lr_mean);
-    row.set_reference_agrees(c.reference_agrees);
-    double floor = study::CellResult::kNaN;
-    for (const auto& ref : result->references) {
-      if (ref.horizon == c.horizon) floor = ref.floor;
-    }
-    row.set_reference_floor(floor);
-    row.set_budget_hit(c.budget_hit);
-    row.set_omitted(c.omitted);
-    row.set_note(io::StudyCellNote(c));
-    row.set_error(c.error);
-    row.set_omission_reason(c.omission_reason);
-    for (double v : c.k_lr_per_step) row.add_k_lr_per_step(v);
+    record_proto::RecordToProto(study::CellFields(), result->cells[i], &row);
     outcome.cells.push_back(std::move(row));
   }
   return outcome;

@@ -1,7 +1,8 @@
 // The seam between the worker runtime and the numerical core: a TrialRunner
 // runs one trial from its options and reports each finished episode. The real
 // one (learner_runner.h) calls learner::RunTrial; tests inject fakes, so the
-// worker's networking logic is tested without running the core.
+// worker's networking logic is tested without running the core (the
+// episode's record, core/learner/episode_record.h, is a header-only struct).
 #ifndef TOTALGRAD_WORKER_TRIAL_RUNNER_H_
 #define TOTALGRAD_WORKER_TRIAL_RUNNER_H_
 
@@ -11,27 +12,21 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
+#include "core/learner/episode_record.h"
 
 namespace totalgrad::worker {
 
 using OptionList = std::vector<std::pair<std::string, std::string>>;
 
-// One finished episode (NaN: no value, e.g. the evaluation of episode 0).
-struct EpisodeOutcome {
-  static constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-  int episode = 0;
-  double real_cost = kNaN;
-  double eval_cost_mean = kNaN;
-  double eval_cost_std = kNaN;
-  double predicted_cost = kNaN;
-  double optimisation_seconds = kNaN;
-  double cpu_seconds = kNaN;
+// One finished episode: its record (learner::EpisodeSummary, the core's own;
+// NaN: no value, e.g. the evaluation of episode 0) and the trial's details.
+struct EpisodeOutcome : learner::EpisodeSummary {
   std::string details_json;  // JSON object: hyperparameters, numerical flags
 };
 
 struct TrialOutcome {
   bool success = false;
-  double final_eval_cost = EpisodeOutcome::kNaN;
+  double final_eval_cost = learner::EpisodeSummary::kNaN;
   int episodes = 0;  // episodes reported
 };
 

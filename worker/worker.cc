@@ -11,6 +11,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/match.h"
 #include "absl/strings/str_format.h"
+#include "server/common/record_proto.h"
 #include "server/common/rpc_client.h"
 
 namespace totalgrad::worker {
@@ -53,13 +54,8 @@ std::string NonFiniteReason(const EpisodeOutcome& e) {
 
 v1::EpisodeReport ToReport(const EpisodeOutcome& e) {
   v1::EpisodeReport report;
-  report.set_episode(e.episode);
-  report.set_real_cost(e.real_cost);
-  report.set_eval_cost_mean(e.eval_cost_mean);
-  report.set_eval_cost_std(e.eval_cost_std);
-  report.set_predicted_cost(e.predicted_cost);
-  report.set_optimisation_seconds(e.optimisation_seconds);
-  if (!std::isnan(e.cpu_seconds)) report.set_cpu_seconds(e.cpu_seconds);
+  // The record by name (record_proto.h; cpu_seconds absent when NaN).
+  record_proto::RecordToProto<learner::EpisodeSummary>(learner::EpisodeFields(), e, &report);
   report.set_details_json(e.details_json);
   return report;
 }

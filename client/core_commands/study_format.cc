@@ -8,12 +8,12 @@
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
 #include "core/common/blas.h"
+#include "io/record_format.h"
 #include "io/study_results.h"
 
 namespace totalgrad::cli {
 namespace {
 
-using io::StudyCellNote;
 using io::StudySpec;
 
 using OrderedJson = nlohmann::ordered_json;
@@ -61,7 +61,7 @@ std::string StudyTableText(const study::StudyResult& r) {
                           c.replicates, Num(c.time_min_s * 1e3, "%.4g"), Num(c.rel_rmse),
                           Num(c.rel_bias), Num(c.rel_bias_noise), Num(c.cos_mean, "%.3f"),
                           Num(c.ess_mean, "%.3f"), Num(c.k_lr_mean, "%.3f"), c.nonfinite, c.errors,
-                          StudyCellNote(c));
+                          study::CellNote(c));
     if (c.omitted || !c.reference_agrees || c.nonfinite > 0 || c.errors > 0) {
       omissions.push_back(absl::StrCat(c.estimator, " P=", c.particles, " H=", c.horizon, ": ",
                                        c.omitted ? c.omission_reason
@@ -77,47 +77,22 @@ std::string StudyTableText(const study::StudyResult& r) {
   return os.str();
 }
 
+// Both CSVs are their records' CSV (io/record_format.h), the format every
+// other writer of these records uses.
 std::string StudyTableCsv(const study::StudyResult& r) {
-  std::ostringstream os;
-  os << "estimator,method,particles,horizon,replicates,nonfinite,errors,time_min_s,time_median_s,"
-        "rel_rmse,rel_bias,rel_bias_noise,total_variance,cos_mean,objective_mean,ess_mean,ess_min,"
-        "k_lr_mean,reference_agrees,reference_floor,budget_hit,omitted,note\n";
-  auto csv = [](double v) { return std::isfinite(v) ? absl::StrFormat("%.9g", v) : std::string(); };
-  auto text = [](std::string s) {
-    for (char& ch : s) {
-      if (ch == '"') ch = '\'';
-    }
-    return "\"" + s + "\"";
-  };
+  std::string out = io::CsvLine(io::RecordCsvColumns(study::CellFields())) + "\n";
   for (const auto& c : r.cells) {
-    const study::ReferenceGradient* ref = ReferenceFor(r, c.horizon);
-    os << text(c.estimator) << "," << text(c.method) << "," << c.particles << "," << c.horizon << ","
-       << c.replicates << "," << c.nonfinite << "," << c.errors << "," << csv(c.time_min_s) << ","
-       << csv(c.time_median_s) << "," << csv(c.rel_rmse) << "," << csv(c.rel_bias) << ","
-       << csv(c.rel_bias_noise) << "," << csv(c.total_variance) << "," << csv(c.cos_mean) << ","
-       << csv(c.objective_mean) << "," << csv(c.ess_mean) << "," << csv(c.ess_min) << ","
-       << csv(c.k_lr_mean) << "," << (c.reference_agrees ? 1 : 0) << ","
-       << csv(ref != nullptr ? ref->floor : study::CellResult::kNaN) << "," << (c.budget_hit ? 1 : 0)
-       << "," << (c.omitted ? 1 : 0) << "," << text(StudyCellNote(c)) << "\n";
+    out += io::CsvLine(io::RecordCsvCells(study::CellFields(), c)) + "\n";
   }
-  return os.str();
+  return out;
 }
 
 std::string StudyReferenceCsv(const study::StudyResult& r) {
-  std::ostringstream os;
-  os << "horizon,norm,relative_error,floor,objective,used,replicates,agreement_max_z,"
-        "agreement_mean_z2,agree,seconds,note\n";
+  std::string out = io::CsvLine(io::RecordCsvColumns(study::ReferenceFields())) + "\n";
   for (const auto& ref : r.references) {
-    std::vector<std::string> reps;
-    for (int n : ref.replicates) reps.push_back(std::to_string(n));
-    os << ref.horizon << "," << absl::StrFormat("%.9g,%.9g,%.9g,%.9g", ref.norm, ref.relative_error,
-                                                ref.floor, ref.objective)
-       << ",\"" << absl::StrJoin(ref.used, ";") << "\",\"" << absl::StrJoin(reps, ";") << "\","
-       << absl::StrFormat("%.6g,%.6g", ref.agreement_max_z, ref.agreement_mean_z2) << ","
-       << (ref.agree ? 1 : 0) << "," << absl::StrFormat("%.3f", ref.seconds) << ",\"" << ref.note
-       << "\"\n";
+    out += io::CsvLine(io::RecordCsvCells(study::ReferenceFields(), ref)) + "\n";
   }
-  return os.str();
+  return out;
 }
 
 OrderedJson StudyToJson(const study::StudyResult& r, const StudySpec& spec) {

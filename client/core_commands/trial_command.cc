@@ -15,6 +15,7 @@
 #include "absl/strings/str_replace.h"
 #include "client/core_commands/commands.h"
 #include "client/core_commands/trial_flags.h"
+#include "io/episode_json.h"
 #include "io/snapshot_json.h"
 #include "client/core_commands/trial_format.h"
 #include "core/common/blas.h"
@@ -45,7 +46,7 @@ class PrintingObserver final : public learner::TrialObserver {
   int snapshots_written() const { return static_cast<int>(snapshots_.size()); }
   void OnEpisode(const learner::EpisodeResult& result) override {
     if (json_) {
-      std::cout << EpisodeToJson(result).dump() << std::endl;
+      std::cout << io::EpisodeToJson(result).dump() << std::endl;
     } else {
       if (!header_printed_) {
         std::printf("%-8s %10s %10s %10s %10s %10s  %s\n", "episode", "real_cost", "eval_mean",

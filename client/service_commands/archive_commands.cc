@@ -25,6 +25,9 @@
 #include "absl/strings/str_cat.h"
 #include "client/service_commands/connection.h"
 #include "client/service_commands/format.h"
+#include "core/learner/episode_record.h"
+#include "io/record_format.h"
+#include "server/common/record_proto.h"
 #include "server/common/build_info.h"
 #include "server/service/sweep_archive.h"
 
@@ -32,10 +35,6 @@ namespace totalgrad::cli {
 namespace {
 
 constexpr size_t kImportChunkBytes = 1 << 20;
-
-nlohmann::json NumberOrNull(double v) {
-  return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
-}
 
 // The seed as a JSON number when it is one (seeds are integers below 2^53).
 nlohmann::json SeedJson(const std::string& seed) {
@@ -58,36 +57,40 @@ grpc::Status ForEachEpisodeRow(Connection* c, const std::string& sweep, bool all
   return reader->Finish();
 }
 
+// One row per episode: the row's coordinates, the episode's record (its CSV
+// columns or JSON keys, io/record_format.h over learner::EpisodeFields()),
+// when it was reported, and the details.
 int ExportRows(Connection* c, const std::string& sweep, bool all_attempts, bool csv,
                std::ostream& out, int64_t* rows) {
+  const auto& table = learner::EpisodeFields();
   if (csv) {
-    out << "job_id,attempt,final_attempt,method,seed,variant,episode,real_cost,eval_cost_mean,"
-           "eval_cost_std,predicted_cost,wall_seconds,cpu_seconds,reported_unix_ms,details_json\n";
+    std::vector<std::string> columns = {"job_id", "attempt", "final_attempt", "method", "seed",
+                                        "variant"};
+    for (const std::string& column : io::RecordCsvColumns(table)) columns.push_back(column);
+    columns.push_back("reported_unix_ms");
+    columns.push_back("details_json");
+    out << io::CsvLine(columns) << "\n";
   }
   const grpc::Status status = ForEachEpisodeRow(c, sweep, all_attempts, [&](const v1::EpisodeRow& r) {
     const auto& e = r.report();
     ++*rows;
-    const double cpu = e.has_cpu_seconds() ? e.cpu_seconds() : std::nan("");
+    learner::EpisodeSummary episode;
+    record_proto::RecordFromProto(table, e, &episode);
     if (csv) {
-      out << r.job_id() << "," << r.attempt() << "," << (r.final_attempt() ? 1 : 0) << ","
-          << CsvField(r.method()) << "," << CsvField(r.seed()) << "," << CsvField(r.variant())
-          << "," << e.episode() << "," << FormatNumber(e.real_cost()) << ","
-          << FormatNumber(e.eval_cost_mean()) << "," << FormatNumber(e.eval_cost_std()) << ","
-          << FormatNumber(e.predicted_cost()) << "," << FormatNumber(e.optimisation_seconds())
-          << "," << FormatNumber(cpu) << "," << r.reported_unix_ms() << ","
-          << CsvField(e.details_json()) << "\n";
+      std::vector<std::string> cells = {std::to_string(r.job_id()), std::to_string(r.attempt()),
+                                        r.final_attempt() ? "1" : "0", r.method(), r.seed(),
+                                        r.variant()};
+      for (std::string& cell : io::RecordCsvCells(table, episode)) cells.push_back(std::move(cell));
+      cells.push_back(std::to_string(r.reported_unix_ms()));
+      cells.push_back(e.details_json());
+      out << io::CsvLine(cells) << "\n";
       return;
     }
     nlohmann::json object = {{"job_id", r.job_id()}, {"attempt", r.attempt()},
                              {"final_attempt", r.final_attempt()}, {"method", r.method()},
-                             {"seed", SeedJson(r.seed())}, {"variant", r.variant()},
-                             {"episode", e.episode()}, {"real_cost", NumberOrNull(e.real_cost())},
-                             {"eval_cost_mean", NumberOrNull(e.eval_cost_mean())},
-                             {"eval_cost_std", NumberOrNull(e.eval_cost_std())},
-                             {"predicted_cost", NumberOrNull(e.predicted_cost())},
-                             {"wall_seconds", NumberOrNull(e.optimisation_seconds())},
-                             {"cpu_seconds", NumberOrNull(cpu)},
-                             {"reported_unix_ms", r.reported_unix_ms()}};
+                             {"seed", SeedJson(r.seed())}, {"variant", r.variant()}};
+    io::AppendRecordJson(table, episode, &object);
+    object["reported_unix_ms"] = r.reported_unix_ms();
     object["details"] = nlohmann::json::parse(e.details_json(), nullptr, false);
     if (object["details"].is_discarded()) object["details"] = e.details_json();
     out << object.dump() << "\n";

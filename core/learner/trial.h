@@ -29,6 +29,7 @@
 
 #include "absl/status/statusor.h"
 #include "core/gp/gp.h"
+#include "core/learner/episode_record.h"
 #include "core/learner/trial_options.h"
 
 namespace totalgrad::learner {
@@ -65,15 +66,15 @@ struct EpisodeTiming {
   }
 };
 
-struct EpisodeResult {
-  static constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-  int episode = 0;                 // 0 = random episode
-  double real_cost = kNaN;         // cost of the episode whose data were added
-  double eval_cost_mean = kNaN;    // over eval_rollouts episodes (NaN for episode 0)
-  double eval_cost_std = kNaN;
-  double predicted_cost = kNaN;    // model's expected episode cost of the optimised policy
-  double optimisation_seconds = 0; // GP fit + policy optimisation wall time
-  double cpu_seconds = 0;          // the whole episode's CPU time (timing.total_cpu())
+// An episode's record (episode_record.h: episode, costs, optimisation_seconds,
+// cpu_seconds = timing.total_cpu()) and what only the trial has.
+struct EpisodeResult : EpisodeSummary {
+  // A trial measures both times of every episode; episode 0 has no
+  // optimisation, 0 s (checkpoints and stored rows hold 0, not "no value").
+  EpisodeResult() {
+    optimisation_seconds = 0;
+    cpu_seconds = 0;
+  }
   EpisodeTiming timing;
   gp::GpHyperparameters hyperparameters;  // of the GP used this episode (empty for 0)
   Vector policy_parameters;        // the optimised policy of this episode (empty for 0)

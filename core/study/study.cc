@@ -608,6 +608,16 @@ absl::StatusOr<StudyResult> RunStudy(const FrozenProblem& problem, const StudyOp
       }
     }
   }
+  // Every cell, the omitted ones too, carries its horizon's floor (the
+  // plots' noise floor) so that a cell row stands on its own in a table.
+  for (CellResult& cell : result.cells) {
+    for (const ReferenceGradient& ref : result.references) {
+      if (ref.horizon == cell.horizon) {
+        cell.reference_floor = ref.floor;
+        break;
+      }
+    }
+  }
   result.seconds = SecondsSince(start);
   return result;
 }

@@ -58,6 +58,7 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
+#include "core/common/record.h"
 #include "core/common/types.h"
 #include "core/estimators/estimator.h"
 #include "core/estimators/rollout.h"
@@ -162,7 +163,20 @@ struct CellResult {
   double k_lr_mean = kNaN;
   std::vector<double> k_lr_per_step;  // H entries when the method reports k_LR
   bool reference_agrees = true;       // copied from the horizon's reference
+  double reference_floor = kNaN;      // the horizon's reference floor (1.96 |SE| / |g*|)
 };
+
+// The cell's note for tables: the omission, the budget, a disagreeing
+// reference and the first error, "; "-separated ("" when there is nothing to
+// say). A function of the cell's other fields (so it is a derived field of the
+// cell's record, core/study/study_records.h).
+std::string CellNote(const CellResult& cell);
+
+// The record tables (core/common/record.h) of a cell and of a reference
+// gradient: every writer and reader of these records (results.json, the CSVs,
+// the tables, the service's proto and SQLite rows) goes through them.
+const record::FieldTable<CellResult>& CellFields();
+const record::FieldTable<ReferenceGradient>& ReferenceFields();
 
 struct StudyResult {
   std::string source;                        // FrozenProblem::source

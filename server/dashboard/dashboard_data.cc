@@ -8,6 +8,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "client/service_commands/comparison.h"
+#include "io/record_format.h"
 #include "client/service_commands/plot_style.h"
 #include "client/service_commands/stats.h"
 
@@ -73,14 +74,12 @@ json JobJson(const storage::JobRecord& j) {
           {"last_error", j.last_error}};
 }
 
+// The episode's record (io/record_format.h), and the work seconds.
 json EpisodeJson(const storage::Episode& e) {
-  return {{"episode", e.episode},
-          {"real_cost", Number(e.real_cost)},
-          {"eval_cost_mean", Number(e.eval_cost_mean)},
-          {"eval_cost_std", Number(e.eval_cost_std)},
-          {"predicted_cost", Number(e.predicted_cost)},
-          {"optimisation_seconds", Number(e.optimisation_seconds)},
-          {"work_seconds", Number(EpisodeWorkSeconds(e.details_json, e.optimisation_seconds))}};
+  json out = json::object();
+  io::AppendRecordJson<learner::EpisodeSummary>(learner::EpisodeFields(), e, &out);
+  out["work_seconds"] = Number(EpisodeWorkSeconds(e.details_json, e.optimisation_seconds));
+  return out;
 }
 
 std::string FormatSeconds(double seconds) {

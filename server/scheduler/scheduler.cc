@@ -65,15 +65,14 @@ absl::Status ValidateEpisodes(const std::vector<Episode>& episodes) {
         episodes.size(), " episodes in one call; at most ", kMaxEpisodesPerCall));
   }
   for (const Episode& e : episodes) {
-    const std::pair<const char*, double> fields[] = {
-        {"real_cost", e.real_cost},           {"eval_cost_mean", e.eval_cost_mean},
-        {"eval_cost_std", e.eval_cost_std},   {"predicted_cost", e.predicted_cost},
-        {"optimisation_seconds", e.optimisation_seconds}};
-    for (const auto& [name, value] : fields) {
-      if (std::isinf(value)) {
+    // Every number of the record (learner::EpisodeFields()), as the worker
+    // checks them before sending (worker.cc, NonFiniteReason).
+    for (const auto& field : learner::EpisodeFields()) {
+      if (field.type() != record::FieldType::kDouble) continue;
+      if (std::isinf(field.Get<double>(e))) {
         return absl::InvalidArgumentError(absl::StrCat(
-            "episode ", e.episode, ": ", name, " is infinite; a trial with a non-finite cost "
-            "must be reported with Fail"));
+            "episode ", e.episode, ": ", field.name, " is infinite; a trial with a non-finite "
+            "cost must be reported with Fail"));
       }
     }
     if (std::isnan(e.real_cost)) {
@@ -115,11 +114,14 @@ absl::Status ValidateStudyRows(const storage::StudyRows& rows) {
         c.errors < 0) {
       return absl::InvalidArgumentError(absl::StrCat(where, ": a negative index or count"));
     }
-    for (const std::string* text : {&c.estimator, &c.method, &c.note, &c.error,
-                                    &c.omission_reason}) {
-      if (text->size() > kMaxStudyTextBytes) {
+    // Every text field of the record (study::CellFields()); the note is
+    // derived from them.
+    for (const auto& field : study::CellFields()) {
+      if (field.type() == record::FieldType::kText &&
+          field.Get<std::string>(c).size() > kMaxStudyTextBytes) {
         return absl::InvalidArgumentError(absl::StrCat(where, ": a text field over ",
-                                                       kMaxStudyTextBytes, " bytes"));
+                                                       kMaxStudyTextBytes, " bytes (", field.name,
+                                                       ")"));
       }
     }
     if (c.k_lr_per_step.size() > kMaxStudyVectorSize) {
@@ -135,7 +137,8 @@ absl::Status ValidateStudyRows(const storage::StudyRows& rows) {
         r.replicates.size() > 1000) {
       return absl::InvalidArgumentError(absl::StrCat(where, ": note or estimator list too long"));
     }
-    if (r.gradient.size() > kMaxStudyVectorSize || r.standard_error.size() > kMaxStudyVectorSize) {
+    if (static_cast<size_t>(r.gradient.size()) > kMaxStudyVectorSize ||
+        static_cast<size_t>(r.standard_error.size()) > kMaxStudyVectorSize) {
       return absl::InvalidArgumentError(absl::StrCat(where, ": gradient too long"));
     }
   }

@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "server/common/record_proto.h"
 #include "server/sweep/sweep_proto.h"
 
 #include <string>
@@ -25,55 +26,20 @@ storage::WorkerIdentity FromProto(const v1::WorkerIdentity& worker) {
   return identity;
 }
 
+// The study rows are core's records: their fields go by name through the
+// records' field tables (server/common/record_proto.h); only the row's key
+// is named here.
 storage::StudyCell FromProto(const v1::StudyCellRow& row) {
   storage::StudyCell c;
   c.index = row.index();
-  c.estimator = row.estimator();
-  c.method = row.method();
-  c.particles = row.particles();
-  c.horizon = row.horizon();
-  c.replicates = row.replicates();
-  c.nonfinite = row.nonfinite();
-  c.errors = row.errors();
-  c.time_min_s = row.time_min_s();
-  c.time_median_s = row.time_median_s();
-  c.rel_rmse = row.rel_rmse();
-  c.rel_bias = row.rel_bias();
-  c.rel_bias_noise = row.rel_bias_noise();
-  c.total_variance = row.total_variance();
-  c.cos_mean = row.cos_mean();
-  c.objective_mean = row.objective_mean();
-  c.ess_mean = row.ess_mean();
-  c.ess_min = row.ess_min();
-  c.k_lr_mean = row.k_lr_mean();
-  c.reference_agrees = row.reference_agrees();
-  c.reference_floor = row.reference_floor();
-  c.budget_hit = row.budget_hit();
-  c.omitted = row.omitted();
-  c.note = row.note();
-  c.error = row.error();
-  c.omission_reason = row.omission_reason();
-  c.k_lr_per_step.assign(row.k_lr_per_step().begin(), row.k_lr_per_step().end());
+  record_proto::RecordFromProto<study::CellResult>(study::CellFields(), row, &c);
   return c;
 }
 
 storage::StudyReference FromProto(const v1::StudyReferenceRow& row) {
   storage::StudyReference r;
   r.index = row.index();
-  r.horizon = row.horizon();
-  r.norm = row.norm();
-  r.relative_error = row.relative_error();
-  r.floor = row.floor();
-  r.objective = row.objective();
-  r.used.assign(row.used().begin(), row.used().end());
-  r.replicates.assign(row.replicates().begin(), row.replicates().end());
-  r.agreement_max_z = row.agreement_max_z();
-  r.agreement_mean_z2 = row.agreement_mean_z2();
-  r.agree = row.agree();
-  r.seconds = row.seconds();
-  r.note = row.note();
-  r.gradient.assign(row.gradient().begin(), row.gradient().end());
-  r.standard_error.assign(row.standard_error().begin(), row.standard_error().end());
+  record_proto::RecordFromProto<study::ReferenceGradient>(study::ReferenceFields(), row, &r);
   return r;
 }
 
@@ -88,50 +54,12 @@ storage::StudyRows StudyRowsFromProto(
 
 void ToProto(const storage::StudyCell& c, v1::StudyCellRow* out) {
   out->set_index(c.index);
-  out->set_estimator(c.estimator);
-  out->set_method(c.method);
-  out->set_particles(c.particles);
-  out->set_horizon(c.horizon);
-  out->set_replicates(c.replicates);
-  out->set_nonfinite(c.nonfinite);
-  out->set_errors(c.errors);
-  out->set_time_min_s(c.time_min_s);
-  out->set_time_median_s(c.time_median_s);
-  out->set_rel_rmse(c.rel_rmse);
-  out->set_rel_bias(c.rel_bias);
-  out->set_rel_bias_noise(c.rel_bias_noise);
-  out->set_total_variance(c.total_variance);
-  out->set_cos_mean(c.cos_mean);
-  out->set_objective_mean(c.objective_mean);
-  out->set_ess_mean(c.ess_mean);
-  out->set_ess_min(c.ess_min);
-  out->set_k_lr_mean(c.k_lr_mean);
-  out->set_reference_agrees(c.reference_agrees);
-  out->set_reference_floor(c.reference_floor);
-  out->set_budget_hit(c.budget_hit);
-  out->set_omitted(c.omitted);
-  out->set_note(c.note);
-  out->set_error(c.error);
-  out->set_omission_reason(c.omission_reason);
-  for (double v : c.k_lr_per_step) out->add_k_lr_per_step(v);
+  record_proto::RecordToProto<study::CellResult>(study::CellFields(), c, out);
 }
 
 void ToProto(const storage::StudyReference& r, v1::StudyReferenceRow* out) {
   out->set_index(r.index);
-  out->set_horizon(r.horizon);
-  out->set_norm(r.norm);
-  out->set_relative_error(r.relative_error);
-  out->set_floor(r.floor);
-  out->set_objective(r.objective);
-  for (const auto& u : r.used) out->add_used(u);
-  for (int n : r.replicates) out->add_replicates(n);
-  out->set_agreement_max_z(r.agreement_max_z);
-  out->set_agreement_mean_z2(r.agreement_mean_z2);
-  out->set_agree(r.agree);
-  out->set_seconds(r.seconds);
-  out->set_note(r.note);
-  for (double v : r.gradient) out->add_gradient(v);
-  for (double v : r.standard_error) out->add_standard_error(v);
+  record_proto::RecordToProto<study::ReferenceGradient>(study::ReferenceFields(), r, out);
 }
 
 void ToProto(const storage::StudyCellRecord& record, v1::StudyCellRow* out) {
@@ -154,15 +82,11 @@ v1::JobKind ToProto(storage::JobKind kind) {
 
 storage::LeaseKey FromProto(const v1::LeaseKey& key) { return {key.job_id(), key.attempt()}; }
 
+// The episode's record by name (cpu_seconds, absent from older workers,
+// reads as NaN), then the details text.
 storage::Episode FromProto(const v1::EpisodeReport& report) {
   storage::Episode e;
-  e.episode = report.episode();
-  e.real_cost = report.real_cost();
-  e.eval_cost_mean = report.eval_cost_mean();
-  e.eval_cost_std = report.eval_cost_std();
-  e.predicted_cost = report.predicted_cost();
-  e.optimisation_seconds = report.optimisation_seconds();
-  e.cpu_seconds = report.has_cpu_seconds() ? report.cpu_seconds() : storage::kNaN;
+  record_proto::RecordFromProto<learner::EpisodeSummary>(learner::EpisodeFields(), report, &e);
   e.details_json = report.details_json();
   return e;
 }
@@ -334,13 +258,7 @@ void ToProto(const storage::TrialResultRecord& result, v1::TrialResult* out) {
 }
 
 void ToProto(const storage::Episode& episode, v1::EpisodeReport* out) {
-  out->set_episode(episode.episode);
-  out->set_real_cost(episode.real_cost);
-  out->set_eval_cost_mean(episode.eval_cost_mean);
-  out->set_eval_cost_std(episode.eval_cost_std);
-  out->set_predicted_cost(episode.predicted_cost);
-  out->set_optimisation_seconds(episode.optimisation_seconds);
-  if (!std::isnan(episode.cpu_seconds)) out->set_cpu_seconds(episode.cpu_seconds);
+  record_proto::RecordToProto<learner::EpisodeSummary>(learner::EpisodeFields(), episode, out);
   out->set_details_json(episode.details_json);
 }
 

@@ -8,6 +8,9 @@
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
+#include "core/study/study.h"
+#include "io/record_format.h"
+#include "server/common/record_proto.h"
 #include "server/service/convert.h"
 
 namespace totalgrad::service {
@@ -17,12 +20,24 @@ nlohmann::ordered_json Number(double v) {
   return std::isfinite(v) ? nlohmann::ordered_json(v) : nlohmann::ordered_json(nullptr);
 }
 
-nlohmann::ordered_json ProtoJson(const google::protobuf::Message& message) {
-  std::string text;
-  google::protobuf::util::JsonPrintOptions options;
-  options.preserve_proto_field_names = true;
-  (void)google::protobuf::util::MessageToJsonString(message, &text, options);
-  return nlohmann::ordered_json::parse(text, nullptr, false);
+// A study row of an archive: {"index", ...the record's fields}.
+template <typename Record, typename Row>
+nlohmann::ordered_json RowJson(const record::FieldTable<Record>& table, const Row& row) {
+  Record record;
+  record_proto::RecordFromProto(table, row, &record);
+  nlohmann::ordered_json object = {{"index", row.index()}};
+  io::AppendRecordJson(table, record, &object);
+  return object;
+}
+
+// Reads a row that RowJson wrote into *stored (a storage row: the record
+// and its index). False when it is not one.
+template <typename Record, typename Stored>
+bool RowFromJson(const record::FieldTable<Record>& table, const nlohmann::json& row,
+                 Stored* stored) {
+  if (!row.is_object() || !row.contains("index") || !row["index"].is_number_integer()) return false;
+  stored->index = row["index"].get<int>();
+  return io::RecordFromJson<Record>(table, row, "", stored).ok();
 }
 
 std::string JobStateText(v1::JobState state) {
@@ -127,27 +142,29 @@ nlohmann::ordered_json SweepArchiveToJson(const v1::SweepInfo& sweep,
       for (const v1::EpisodeRow& row : input.episodes) {
         if (row.attempt() != attempt.attempt()) continue;
         const v1::EpisodeReport& e = row.report();
-        nlohmann::ordered_json episode = {
-            {"episode", e.episode()},
-            {"real_cost", Number(e.real_cost())},
-            {"eval_cost_mean", Number(e.eval_cost_mean())},
-            {"eval_cost_std", Number(e.eval_cost_std())},
-            {"predicted_cost", Number(e.predicted_cost())},
-            {"wall_seconds", Number(e.optimisation_seconds())},
-            {"cpu_seconds", e.has_cpu_seconds() ? Number(e.cpu_seconds()) : nlohmann::ordered_json()},
-            {"reported_unix_ms", row.reported_unix_ms()}};
+        // The episode's record (io/record_format.h), then when and the details.
+        learner::EpisodeSummary summary;
+        record_proto::RecordFromProto(learner::EpisodeFields(), e, &summary);
+        nlohmann::ordered_json episode = io::RecordToJson(learner::EpisodeFields(), summary);
+        episode["reported_unix_ms"] = row.reported_unix_ms();
         const nlohmann::ordered_json details =
             nlohmann::ordered_json::parse(e.details_json(), nullptr, false);
         episode["details"] =
             details.is_discarded() ? nlohmann::ordered_json(e.details_json()) : details;
         episodes.push_back(std::move(episode));
       }
+      // Study rows: the records' JSON (io/record_format.h, the objects of a
+      // study's results.json) after the row's index.
       nlohmann::ordered_json cells = nlohmann::ordered_json::array();
-      for (const v1::StudyCellRow& cell : input.cells)
-        if (cell.attempt() == attempt.attempt()) cells.push_back(ProtoJson(cell));
+      for (const v1::StudyCellRow& cell : input.cells) {
+        if (cell.attempt() == attempt.attempt()) cells.push_back(RowJson(study::CellFields(), cell));
+      }
       nlohmann::ordered_json references = nlohmann::ordered_json::array();
-      for (const v1::StudyReferenceRow& reference : input.references)
-        if (reference.attempt() == attempt.attempt()) references.push_back(ProtoJson(reference));
+      for (const v1::StudyReferenceRow& reference : input.references) {
+        if (reference.attempt() == attempt.attempt()) {
+          references.push_back(RowJson(study::ReferenceFields(), reference));
+        }
+      }
       attempts.push_back({{"attempt", attempt.attempt()},
                           {"state", AttemptStateText(attempt.state())},
                           {"worker_id", attempt.worker_id()},
@@ -190,9 +207,9 @@ absl::StatusOr<ParsedSweepArchive> ParseSweepArchive(const std::string& text) {
     return absl::InvalidArgumentError(absl::StrCat("archive: format '", format, "' is not '",
                                                    kSweepArchiveFormat, "'"));
   TG_READ(version, top.Integer(doc, "version"));
-  if (version != kSweepArchiveVersion)
+  if (version < 1 || version > kSweepArchiveVersion)
     return absl::InvalidArgumentError(absl::StrCat("archive: version ", version,
-                                                   "; this build reads version ",
+                                                   "; this build reads versions 1 to ",
                                                    kSweepArchiveVersion));
   if (!doc.contains("sweep") || !doc["sweep"].is_object()) return top.Error("sweep");
   const nlohmann::json& sweep = doc["sweep"];
@@ -266,20 +283,27 @@ absl::StatusOr<ParsedSweepArchive> ParseSweepArchive(const std::string& text) {
       for (const nlohmann::json& e : a["episodes"]) {
         storage::Episode episode;
         TG_READ(episode_number, jr.Integer(e, "episode"));
-        TG_READ(real_cost, jr.Real(e, "real_cost"));
-        TG_READ(eval_mean, jr.Real(e, "eval_cost_mean"));
-        TG_READ(eval_std, jr.Real(e, "eval_cost_std"));
-        TG_READ(predicted, jr.Real(e, "predicted_cost"));
-        TG_READ(wall, jr.Real(e, "wall_seconds"));
-        TG_READ(cpu, jr.Real(e, "cpu_seconds"));
         TG_READ(reported, jr.Integer(e, "reported_unix_ms"));
-        episode.episode = static_cast<int>(episode_number);
-        episode.real_cost = real_cost;
-        episode.eval_cost_mean = eval_mean;
-        episode.eval_cost_std = eval_std;
-        episode.predicted_cost = predicted;
-        episode.optimisation_seconds = wall;
-        episode.cpu_seconds = cpu;
+        if (version >= 2) {  // the episode's record
+          if (!io::RecordFromJson<learner::EpisodeSummary>(learner::EpisodeFields(), e, "", &episode)
+                   .ok()) {
+            return jr.Error("episodes");
+          }
+        } else {  // version 1 named the optimisation time wall_seconds
+          TG_READ(real_cost, jr.Real(e, "real_cost"));
+          TG_READ(eval_mean, jr.Real(e, "eval_cost_mean"));
+          TG_READ(eval_std, jr.Real(e, "eval_cost_std"));
+          TG_READ(predicted, jr.Real(e, "predicted_cost"));
+          TG_READ(wall, jr.Real(e, "wall_seconds"));
+          TG_READ(cpu, jr.Real(e, "cpu_seconds"));
+          episode.episode = static_cast<int>(episode_number);
+          episode.real_cost = real_cost;
+          episode.eval_cost_mean = eval_mean;
+          episode.eval_cost_std = eval_std;
+          episode.predicted_cost = predicted;
+          episode.optimisation_seconds = wall;
+          episode.cpu_seconds = cpu;
+        }
         if (e.contains("details")) {
           episode.details_json = e["details"].is_string() ? e["details"].get<std::string>()
                                                           : e["details"].dump();
@@ -290,6 +314,16 @@ absl::StatusOr<ParsedSweepArchive> ParseSweepArchive(const std::string& text) {
         if (!a.contains(field)) continue;
         if (!a[field].is_array()) return jr.Error(field);
         for (const nlohmann::json& row : a[field]) {
+          if (version >= 2) {  // the records' JSON
+            const bool ok = std::string(field) == "study_cells"
+                                ? RowFromJson(study::CellFields(), row,
+                                              &attempt.study.cells.emplace_back())
+                                : RowFromJson(study::ReferenceFields(), row,
+                                              &attempt.study.references.emplace_back());
+            if (!ok) return jr.Error(field);
+            continue;
+          }
+          // Version 1: protobuf's JSON mapping of the rows.
           google::protobuf::util::JsonParseOptions options;
           options.ignore_unknown_fields = false;
           if (std::string(field) == "study_cells") {

@@ -7,8 +7,8 @@
 // between machines and sessions: import it into a fresh coordinator, resubmit
 // the sweep file, and only the jobs still missing run.
 //
-// Format (version 1; docs/results_schema.md, "Sweep archives"):
-//   {"format": "totalgrad-sweep-archive", "version": 1,
+// Format (version 2; docs/results_schema.md, "Sweep archives"):
+//   {"format": "totalgrad-sweep-archive", "version": 2,
 //    "exported_by": BUILD, "exported_unix_ms": MS,
 //    "sweep": {"name", "description", "state", "spec_hash", "canonical_spec" (text),
 //              "coordinator_build", "created_unix_ms", "source_name",
@@ -20,11 +20,16 @@
 //              "attempt_log": [{"attempt", "state", "worker_id", "worker_host",
 //                  "worker_build", "started_unix_ms", "ended_unix_ms", "error",
 //                  "episodes": [{"episode", "real_cost", "eval_cost_mean",
-//                      "eval_cost_std", "predicted_cost", "wall_seconds",
-//                      "cpu_seconds", "reported_unix_ms", "details": {...}}],
+//                      "eval_cost_std", "predicted_cost", "optimisation_seconds",
+//                      "cpu_seconds" (the episode's record, learner::EpisodeFields()),
+//                      "reported_unix_ms", "details": {...}}],
 //                  "study_cells": [...], "study_references": [...]}]}]}
-// Numbers that are NaN are null. Study rows use protobuf's JSON mapping of
-// StudyCellRow / StudyReferenceRow.
+// Numbers that are NaN are null. A study row is {"index", ...} with its
+// record's JSON (io/record_format.h over study::CellFields() /
+// ReferenceFields(): the objects of a study's results.json). Version 1
+// archives (episodes with "wall_seconds" for optimisation_seconds, study rows
+// in protobuf's JSON mapping of StudyCellRow / StudyReferenceRow) are read
+// as well.
 #ifndef TOTALGRAD_SERVER_SERVICE_SWEEP_ARCHIVE_H_
 #define TOTALGRAD_SERVER_SERVICE_SWEEP_ARCHIVE_H_
 
@@ -42,7 +47,9 @@
 namespace totalgrad::service {
 
 inline constexpr char kSweepArchiveFormat[] = "totalgrad-sweep-archive";
-inline constexpr int kSweepArchiveVersion = 1;
+// 2: episodes and study rows as their records' JSON (issue 13); 1: the
+// layout before.
+inline constexpr int kSweepArchiveVersion = 2;
 
 // What the archive says of one job, as the read calls return it.
 struct ArchiveJobInput {

@@ -40,10 +40,7 @@ WHERE sweep_id = ? AND kind = ? AND method = ? AND seed = ? AND variant = ?)sql"
 INSERT INTO attempts(job_id, attempt, state, worker_id, worker_host, worker_build, started_ms,
                      lease_expires_ms, ended_ms, error)
 VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?))sql"));
-    ASSIGN_OR_RETURN(Statement episode_insert, Statement::Prepare(db, R"sql(
-INSERT INTO episodes(job_id, attempt, episode, real_cost, eval_cost_mean, eval_cost_std,
-                     predicted_cost, optimisation_seconds, details_json, reported_ms, cpu_seconds)
-VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?))sql"));
+    ASSIGN_OR_RETURN(Statement episode_insert, Statement::Prepare(db, EpisodeInsertSql()));
     ASSIGN_OR_RETURN(Statement job_update, Statement::Prepare(db, R"sql(
 UPDATE jobs SET state = 'completed', attempts = ?, completed_attempt = ?, success = ?,
                 final_eval_cost = ?, failures = failures + ?, lost_leases = lost_leases + ?,
@@ -97,11 +94,7 @@ WHERE id = ?)sql"));
                 a.attempt, ": episode ", episode.episode, " is out of range 0..",
                 episodes_expected - 1));
           }
-          episode_insert.Bind(1, job_id).Bind(2, number).Bind(3, episode.episode);
-          episode_insert.Bind(4, episode.real_cost).Bind(5, episode.eval_cost_mean);
-          episode_insert.Bind(6, episode.eval_cost_std).Bind(7, episode.predicted_cost);
-          episode_insert.Bind(8, episode.optimisation_seconds).Bind(9, episode.details_json);
-          episode_insert.Bind(10, reported_ms).Bind(11, episode.cpu_seconds);
+          BindEpisode(episode_insert, {job_id, number}, episode, reported_ms);
           RETURN_IF_ERROR(episode_insert.Run());
           episode_insert.Reset();
           ++result.episodes_imported;

@@ -11,6 +11,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "server/common/status_macros.h"
+#include "server/storage/sqlite_records.h"
 #include "server/storage/sqlite_schema.h"
 
 namespace totalgrad::storage::internal {
@@ -214,15 +215,26 @@ absl::Status CheckOpen(const LeaseKey& key, const OpenAttempt& attempt,
   return absl::OkStatus();
 }
 
+std::string EpisodeInsertSql() {
+  const auto& table = learner::EpisodeFields();
+  std::vector<std::string> marks(table.size() + 4, "?");
+  return absl::StrCat("INSERT INTO episodes(job_id, attempt, ", RecordColumnList(table, true),
+                      ", details_json, reported_ms) VALUES(", absl::StrJoin(marks, ", "),
+                      ") ON CONFLICT(job_id, attempt, episode) DO NOTHING");
+}
+
+void BindEpisode(Statement& insert, const LeaseKey& key, const Episode& episode,
+                 int64_t reported_ms) {
+  insert.Bind(1, key.job_id).Bind(2, key.attempt);
+  const int next =
+      BindRecord<learner::EpisodeSummary>(insert, 3, learner::EpisodeFields(), episode);
+  insert.Bind(next, episode.details_json).Bind(next + 1, reported_ms);
+}
+
 absl::Status InsertEpisodes(Db& db, const LeaseKey& key, int episodes_expected,
                             const std::vector<Episode>& episodes, int64_t now_ms) {
   if (episodes.empty()) return absl::OkStatus();
-  ASSIGN_OR_RETURN(Statement insert,
-                   Statement::Prepare(db, R"sql(
-INSERT INTO episodes(job_id, attempt, episode, real_cost, eval_cost_mean, eval_cost_std,
-                     predicted_cost, optimisation_seconds, details_json, reported_ms, cpu_seconds)
-VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)
-ON CONFLICT(job_id, attempt, episode) DO NOTHING)sql"));
+  ASSIGN_OR_RETURN(Statement insert, Statement::Prepare(db, EpisodeInsertSql()));
   for (const Episode& episode : episodes) {
     if (episodes_expected == 0) {
       return absl::InvalidArgumentError(absl::StrCat(
@@ -233,11 +245,7 @@ ON CONFLICT(job_id, attempt, episode) DO NOTHING)sql"));
           absl::StrCat("episode ", episode.episode, " of job ", key.job_id,
                        " is out of range: the trial has episodes 0..", episodes_expected - 1));
     }
-    insert.Bind(1, key.job_id).Bind(2, key.attempt).Bind(3, episode.episode);
-    insert.Bind(4, episode.real_cost).Bind(5, episode.eval_cost_mean);
-    insert.Bind(6, episode.eval_cost_std).Bind(7, episode.predicted_cost);
-    insert.Bind(8, episode.optimisation_seconds).Bind(9, episode.details_json).Bind(10, now_ms);
-    insert.Bind(11, episode.cpu_seconds);
+    BindEpisode(insert, key, episode, now_ms);
     RETURN_IF_ERROR(insert.Run());
     insert.Reset();
   }
@@ -251,53 +259,42 @@ absl::Status InsertStudyRows(Db& db, const LeaseKey& key, JobKind kind, const St
     return absl::InvalidArgumentError(absl::StrCat(
         "job ", key.job_id, " is a trial job; study rows belong to study jobs"));
   }
+  // The columns are the records' (sqlite_records.h), after the row's key.
+  auto insert_sql = [](const char* table, const std::string& columns, size_t count) {
+    std::vector<std::string> marks(count + 4, "?");
+    return absl::StrCat("INSERT INTO ", table, "(job_id, attempt, idx, ", columns,
+                        ", reported_ms) VALUES(", absl::StrJoin(marks, ", "),
+                        ") ON CONFLICT(job_id, attempt, idx) DO NOTHING");
+  };
   if (!rows.cells.empty()) {
-    ASSIGN_OR_RETURN(Statement insert, Statement::Prepare(db, R"sql(
-INSERT INTO study_cells(job_id, attempt, idx, estimator, method, particles, horizon, replicates,
-    nonfinite, errors, time_min_s, time_median_s, rel_rmse, rel_bias, rel_bias_noise,
-    total_variance, cos_mean, objective_mean, ess_mean, ess_min, k_lr_mean, reference_agrees,
-    reference_floor, budget_hit, omitted, note, error, omission_reason, k_lr_per_step_json,
-    reported_ms)
-VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)
-ON CONFLICT(job_id, attempt, idx) DO NOTHING)sql"));
+    const auto& table = study::CellFields();
+    ASSIGN_OR_RETURN(Statement insert,
+                     Statement::Prepare(db, insert_sql("study_cells", RecordColumnList(table, true),
+                                                       table.size())));
     for (const StudyCell& c : rows.cells) {
       if (c.index < 0) {
         return absl::InvalidArgumentError(
             absl::StrCat("study cell index ", c.index, " of job ", key.job_id, " is negative"));
       }
-      insert.Bind(1, key.job_id).Bind(2, key.attempt).Bind(3, c.index).Bind(4, c.estimator);
-      insert.Bind(5, c.method).Bind(6, c.particles).Bind(7, c.horizon).Bind(8, c.replicates);
-      insert.Bind(9, c.nonfinite).Bind(10, c.errors).Bind(11, c.time_min_s);
-      insert.Bind(12, c.time_median_s).Bind(13, c.rel_rmse).Bind(14, c.rel_bias);
-      insert.Bind(15, c.rel_bias_noise).Bind(16, c.total_variance).Bind(17, c.cos_mean);
-      insert.Bind(18, c.objective_mean).Bind(19, c.ess_mean).Bind(20, c.ess_min);
-      insert.Bind(21, c.k_lr_mean).Bind(22, c.reference_agrees ? 1 : 0);
-      insert.Bind(23, c.reference_floor).Bind(24, c.budget_hit ? 1 : 0);
-      insert.Bind(25, c.omitted ? 1 : 0).Bind(26, c.note).Bind(27, c.error);
-      insert.Bind(28, c.omission_reason).Bind(29, DoublesToJson(c.k_lr_per_step));
-      insert.Bind(30, now_ms);
+      insert.Bind(1, key.job_id).Bind(2, key.attempt).Bind(3, c.index);
+      const int next = BindRecord<study::CellResult>(insert, 4, table, c);
+      insert.Bind(next, now_ms);
       RETURN_IF_ERROR(insert.Run());
       insert.Reset();
     }
   }
   if (!rows.references.empty()) {
-    ASSIGN_OR_RETURN(Statement insert, Statement::Prepare(db, R"sql(
-INSERT INTO study_references(job_id, attempt, idx, horizon, norm, relative_error, floor,
-    objective, used_json, replicates_json, agreement_max_z, agreement_mean_z2, agree, seconds,
-    note, gradient_json, standard_error_json, reported_ms)
-VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)
-ON CONFLICT(job_id, attempt, idx) DO NOTHING)sql"));
+    const auto& table = study::ReferenceFields();
+    ASSIGN_OR_RETURN(Statement insert, Statement::Prepare(
+        db, insert_sql("study_references", RecordColumnList(table, true), table.size())));
     for (const StudyReference& r : rows.references) {
       if (r.index < 0) {
         return absl::InvalidArgumentError(absl::StrCat(
             "study reference index ", r.index, " of job ", key.job_id, " is negative"));
       }
-      insert.Bind(1, key.job_id).Bind(2, key.attempt).Bind(3, r.index).Bind(4, r.horizon);
-      insert.Bind(5, r.norm).Bind(6, r.relative_error).Bind(7, r.floor).Bind(8, r.objective);
-      insert.Bind(9, nlohmann::json(r.used).dump()).Bind(10, nlohmann::json(r.replicates).dump());
-      insert.Bind(11, r.agreement_max_z).Bind(12, r.agreement_mean_z2).Bind(13, r.agree ? 1 : 0);
-      insert.Bind(14, r.seconds).Bind(15, r.note).Bind(16, DoublesToJson(r.gradient));
-      insert.Bind(17, DoublesToJson(r.standard_error)).Bind(18, now_ms);
+      insert.Bind(1, key.job_id).Bind(2, key.attempt).Bind(3, r.index);
+      const int next = BindRecord<study::ReferenceGradient>(insert, 4, table, r);
+      insert.Bind(next, now_ms);
       RETURN_IF_ERROR(insert.Run());
       insert.Reset();
     }

@@ -30,6 +30,14 @@ std::optional<JobKind> ParseJobKind(absl::string_view text);
 std::string OptionsToJson(const OptionList& options);
 OptionList OptionsFromJson(const std::string& text);
 
+// One row of `episodes`: the key, the episode's record (its columns from
+// learner::EpisodeFields(), sqlite_records.h), details_json and
+// reported_ms; a stored (job, attempt, episode) is kept (ON CONFLICT DO
+// NOTHING). BindEpisode binds every parameter of that statement.
+std::string EpisodeInsertSql();
+void BindEpisode(Statement& insert, const LeaseKey& key, const Episode& episode,
+                 int64_t reported_ms);
+
 // Appends to the event log (sweep_id, job_id 0: none).
 absl::Status AddEvent(Db& db, int64_t ms, int64_t sweep_id, int64_t job_id, int attempt,
                       absl::string_view kind, absl::string_view message);

@@ -4,12 +4,11 @@
 #include <set>
 #include <utility>
 
-#include <nlohmann/json.hpp>
-
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "server/common/status_macros.h"
 #include "server/storage/sqlite_internal.h"
+#include "server/storage/sqlite_records.h"
 #include "server/storage/sqlite_schema.h"
 #include "server/storage/sqlite_store.h"
 
@@ -78,13 +77,14 @@ absl::Status SqliteStore::ExportEpisodes(
   ASSIGN_OR_RETURN(bool found, check.Step());
   if (!found) return absl::NotFoundError(absl::StrCat("no sweep named '", sweep_name, "'"));
   const int64_t sweep_id = check.ColumnInt(0);
-  ASSIGN_OR_RETURN(Statement query, Statement::Prepare(db, R"sql(
-SELECT e.job_id, e.attempt, j.method, j.seed, j.variant, e.episode, e.real_cost, e.eval_cost_mean,
-       e.eval_cost_std, e.predicted_cost, e.optimisation_seconds, e.details_json, e.reported_ms,
-       COALESCE(j.completed_attempt, 0) = e.attempt, e.cpu_seconds
+  // The row's coordinates, then the episode's record (sqlite_records.h).
+  ASSIGN_OR_RETURN(Statement query, Statement::Prepare(db, absl::StrCat(
+      "SELECT e.job_id, e.attempt, j.method, j.seed, j.variant, e.details_json, e.reported_ms, "
+      "COALESCE(j.completed_attempt, 0) = e.attempt, ",
+      RecordColumnList(learner::EpisodeFields(), false, "e."), R"sql(
 FROM episodes e JOIN jobs j ON j.id = e.job_id
 WHERE j.sweep_id = ? AND (? OR e.attempt = COALESCE(j.completed_attempt, j.attempts))
-ORDER BY e.job_id, e.attempt, e.episode)sql"));
+ORDER BY e.job_id, e.attempt, e.episode)sql")));
   query.Bind(1, sweep_id).Bind(2, all_attempts ? 1 : 0);
   std::vector<EpisodeRowRecord> batch;
   while (true) {
@@ -96,16 +96,10 @@ ORDER BY e.job_id, e.attempt, e.episode)sql"));
     r.method = query.ColumnText(2);
     r.seed = query.ColumnText(3);
     r.variant = query.ColumnText(4);
-    r.episode.episode = static_cast<int>(query.ColumnInt(5));
-    r.episode.real_cost = query.ColumnDouble(6);
-    r.episode.eval_cost_mean = query.ColumnDouble(7);
-    r.episode.eval_cost_std = query.ColumnDouble(8);
-    r.episode.predicted_cost = query.ColumnDouble(9);
-    r.episode.optimisation_seconds = query.ColumnDouble(10);
-    r.episode.details_json = query.ColumnText(11);
-    r.reported_ms = query.ColumnInt(12);
-    r.final_attempt = query.ColumnInt(13) != 0;
-    r.episode.cpu_seconds = query.ColumnDouble(14);
+    r.episode.details_json = query.ColumnText(5);
+    r.reported_ms = query.ColumnInt(6);
+    r.final_attempt = query.ColumnInt(7) != 0;
+    ReadRecord<learner::EpisodeSummary>(query, 8, learner::EpisodeFields(), &r.episode);
     batch.push_back(std::move(r));
     if (static_cast<int>(batch.size()) >= batch_size) {
       RETURN_IF_ERROR(sink(std::move(batch)));
@@ -128,81 +122,37 @@ absl::Status SqliteStore::ListStudyRows(const std::string& sweep_name, bool all_
     ASSIGN_OR_RETURN(bool found, check.Step());
     if (!found) return absl::NotFoundError(absl::StrCat("no sweep named '", sweep_name, "'"));
     const int64_t sweep_id = check.ColumnInt(0);
-    ASSIGN_OR_RETURN(Statement query, Statement::Prepare(reader_, R"sql(
-SELECT c.job_id, c.attempt, j.variant, COALESCE(j.completed_attempt, 0) = c.attempt, c.idx,
-       c.estimator, c.method, c.particles, c.horizon, c.replicates, c.nonfinite, c.errors,
-       c.time_min_s, c.time_median_s, c.rel_rmse, c.rel_bias, c.rel_bias_noise, c.total_variance,
-       c.cos_mean, c.objective_mean, c.ess_mean, c.ess_min, c.k_lr_mean, c.reference_agrees,
-       c.reference_floor, c.budget_hit, c.omitted, c.note, c.error, c.omission_reason,
-       c.k_lr_per_step_json
+    // The row's key, then the record's own columns (sqlite_records.h).
+    ASSIGN_OR_RETURN(Statement query, Statement::Prepare(reader_, absl::StrCat(
+        "SELECT c.job_id, c.attempt, j.variant, COALESCE(j.completed_attempt, 0) = c.attempt, "
+        "c.idx, ", RecordColumnList(study::CellFields(), false, "c."), R"sql(
 FROM study_cells c JOIN jobs j ON j.id = c.job_id
 WHERE j.sweep_id = ? AND (? OR c.attempt = COALESCE(j.completed_attempt, j.attempts))
-ORDER BY c.job_id, c.attempt, c.idx)sql"));
+ORDER BY c.job_id, c.attempt, c.idx)sql")));
     query.Bind(1, sweep_id).Bind(2, all_attempts ? 1 : 0);
     while (true) {
       ASSIGN_OR_RETURN(bool row, query.Step());
       if (!row) break;
       StudyCellRecord r;
       ReadStudyRowHeader(query, &r);
-      StudyCell& c = r.cell;
-      c.index = static_cast<int>(query.ColumnInt(4));
-      c.estimator = query.ColumnText(5);
-      c.method = query.ColumnText(6);
-      c.particles = static_cast<int>(query.ColumnInt(7));
-      c.horizon = static_cast<int>(query.ColumnInt(8));
-      c.replicates = static_cast<int>(query.ColumnInt(9));
-      c.nonfinite = static_cast<int>(query.ColumnInt(10));
-      c.errors = static_cast<int>(query.ColumnInt(11));
-      double* const doubles[] = {&c.time_min_s, &c.time_median_s, &c.rel_rmse, &c.rel_bias,
-                                 &c.rel_bias_noise, &c.total_variance, &c.cos_mean,
-                                 &c.objective_mean, &c.ess_mean, &c.ess_min, &c.k_lr_mean};
-      for (int i = 0; i < 11; ++i) *doubles[i] = query.ColumnDouble(12 + i);
-      c.reference_agrees = query.ColumnInt(23) != 0;
-      c.reference_floor = query.ColumnDouble(24);
-      c.budget_hit = query.ColumnInt(25) != 0;
-      c.omitted = query.ColumnInt(26) != 0;
-      c.note = query.ColumnText(27);
-      c.error = query.ColumnText(28);
-      c.omission_reason = query.ColumnText(29);
-      c.k_lr_per_step = DoublesFromJson(query.ColumnText(30));
+      r.cell.index = static_cast<int>(query.ColumnInt(4));
+      ReadRecord<study::CellResult>(query, 5, study::CellFields(), &r.cell);
       cells->push_back(std::move(r));
     }
-    ASSIGN_OR_RETURN(Statement refs, Statement::Prepare(reader_, R"sql(
-SELECT r.job_id, r.attempt, j.variant, COALESCE(j.completed_attempt, 0) = r.attempt, r.idx,
-       r.horizon, r.norm, r.relative_error, r.floor, r.objective, r.used_json, r.replicates_json,
-       r.agreement_max_z, r.agreement_mean_z2, r.agree, r.seconds, r.note, r.gradient_json,
-       r.standard_error_json
+    ASSIGN_OR_RETURN(Statement refs, Statement::Prepare(reader_, absl::StrCat(
+        "SELECT r.job_id, r.attempt, j.variant, COALESCE(j.completed_attempt, 0) = r.attempt, "
+        "r.idx, ", RecordColumnList(study::ReferenceFields(), false, "r."), R"sql(
 FROM study_references r JOIN jobs j ON j.id = r.job_id
 WHERE j.sweep_id = ? AND (? OR r.attempt = COALESCE(j.completed_attempt, j.attempts))
-ORDER BY r.job_id, r.attempt, r.idx)sql"));
+ORDER BY r.job_id, r.attempt, r.idx)sql")));
     refs.Bind(1, sweep_id).Bind(2, all_attempts ? 1 : 0);
     while (true) {
       ASSIGN_OR_RETURN(bool row, refs.Step());
       if (!row) break;
       StudyReferenceRecord r;
       ReadStudyRowHeader(refs, &r);
-      StudyReference& g = r.reference;
-      g.index = static_cast<int>(refs.ColumnInt(4));
-      g.horizon = static_cast<int>(refs.ColumnInt(5));
-      g.norm = refs.ColumnDouble(6);
-      g.relative_error = refs.ColumnDouble(7);
-      g.floor = refs.ColumnDouble(8);
-      g.objective = refs.ColumnDouble(9);
-      const nlohmann::json used = nlohmann::json::parse(refs.ColumnText(10), nullptr, false);
-      if (used.is_array()) {
-        for (const auto& u : used) g.used.push_back(u.is_string() ? u.get<std::string>() : "");
-      }
-      const nlohmann::json reps = nlohmann::json::parse(refs.ColumnText(11), nullptr, false);
-      if (reps.is_array()) {
-        for (const auto& n : reps) g.replicates.push_back(n.is_number_integer() ? n.get<int>() : 0);
-      }
-      g.agreement_max_z = refs.ColumnDouble(12);
-      g.agreement_mean_z2 = refs.ColumnDouble(13);
-      g.agree = refs.ColumnInt(14) != 0;
-      g.seconds = refs.ColumnDouble(15);
-      g.note = refs.ColumnText(16);
-      g.gradient = DoublesFromJson(refs.ColumnText(17));
-      g.standard_error = DoublesFromJson(refs.ColumnText(18));
+      r.reference.index = static_cast<int>(refs.ColumnInt(4));
+      ReadRecord<study::ReferenceGradient>(refs, 5, study::ReferenceFields(), &r.reference);
       references->push_back(std::move(r));
     }
     return absl::OkStatus();

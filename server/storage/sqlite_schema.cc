@@ -267,6 +267,17 @@ ALTER TABLE jobs_v5 RENAME TO jobs;
 CREATE INDEX jobs_by_state ON jobs(state, sweep_id, ordinal);
 )sql";
 
+// Version 5 -> 6 (issue 13, one description per record): the stored
+// reference gradient gains agreement_resolution, the field that core's
+// study::ReferenceGradient had and the stored copy had dropped. Rows written
+// before hold NULL: "not computed", as results.json files written before the
+// field existed read. The columns of both study tables are now generated
+// from the records' field tables (sqlite_records.h); a field added to a
+// table is a column added here.
+constexpr char kMigration6[] = R"sql(
+ALTER TABLE study_references ADD COLUMN agreement_resolution REAL;
+)sql";
+
 // One row per stored episode of every sweep (version 5: the seed is already
 // an integer; version 4 cast it).
 constexpr char kEpisodeRowsView[] = R"sql(
@@ -435,6 +446,7 @@ absl::Status Migrate(Db& db, int64_t from) {
           " refers to a missing row of ", keys.ColumnText(2)));
     }
   }
+  if (from < 6) RETURN_IF_ERROR(db.Exec(kMigration6));
   RETURN_IF_ERROR(db.Exec(absl::StrCat(
       "INSERT OR REPLACE INTO meta(key, value) VALUES ('format', 'totalgrad coordinator database'), "
       "('schema_version', '", kSchemaVersion, "'), ('documentation', 'docs/results_schema.md')")));

@@ -18,7 +18,8 @@ namespace totalgrad::storage::internal {
 
 // Version 4: job_options, episodes.cpu_seconds, the views, meta filled.
 // Version 5: jobs.seed is an INTEGER column (was TEXT).
-inline constexpr int kSchemaVersion = 5;
+// Version 6: study_references.agreement_resolution.
+inline constexpr int kSchemaVersion = 6;
 
 // The schema of version 1 (a new database is created as version 1 and
 // migrated, in one transaction, so new and migrated files are alike).

@@ -33,6 +33,8 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "core/learner/episode_record.h"
+#include "core/study/study.h"
 
 namespace totalgrad::storage {
 
@@ -88,15 +90,11 @@ struct WorkerIdentity {
   bool takes_over = false;
 };
 
-// One finished episode. NaN = no value (stored as NULL).
-struct Episode {
-  int episode = 0;
-  double real_cost = kNaN;
-  double eval_cost_mean = kNaN;
-  double eval_cost_std = kNaN;
-  double predicted_cost = kNaN;
-  double optimisation_seconds = kNaN;  // wall time of model fit + policy optimisation
-  double cpu_seconds = kNaN;           // CPU time of the whole episode
+// One finished episode: its record (learner::EpisodeSummary; fields,
+// columns and proto fields listed once in learner::EpisodeFields()) and the
+// trial's details as the worker sent them (a JSON object, stored verbatim).
+// NaN = no value (stored as NULL).
+struct Episode : learner::EpisodeSummary {
   std::string details_json;
 };
 
@@ -124,57 +122,20 @@ struct NewJob {
   std::string payload;        // study jobs: the self-contained study spec (JSON)
 };
 
-// One cell of a gradient study (study::CellResult; the columns of the
-// study's table.csv). NaN: no value (NULL). `index` is the cell's position
-// in the study's result, the row's key within an attempt.
-struct StudyCell {
+// One cell of a gradient study as stored: the core record itself
+// (study::CellResult; its fields, columns and proto fields are listed once,
+// in study::CellFields()) and the row's key: `index` is the cell's position
+// in the study's result, the row's key within an attempt. NaN: no value
+// (NULL).
+struct StudyCell : study::CellResult {
   int index = 0;
-  std::string estimator;
-  std::string method;
-  int particles = 0;
-  int horizon = 0;
-  int replicates = 0;
-  int nonfinite = 0;
-  int errors = 0;
-  double time_min_s = kNaN;
-  double time_median_s = kNaN;
-  double rel_rmse = kNaN;
-  double rel_bias = kNaN;
-  double rel_bias_noise = kNaN;
-  double total_variance = kNaN;
-  double cos_mean = kNaN;
-  double objective_mean = kNaN;
-  double ess_mean = kNaN;
-  double ess_min = kNaN;
-  double k_lr_mean = kNaN;
-  bool reference_agrees = true;
-  double reference_floor = kNaN;
-  bool budget_hit = false;
-  bool omitted = false;
-  std::string note;
-  std::string error;
-  std::string omission_reason;
-  std::vector<double> k_lr_per_step;
 };
 
-// The reference gradient of one horizon (study::ReferenceGradient; the
-// columns of references.csv plus g* and its standard errors).
-struct StudyReference {
+// The reference gradient of one horizon as stored (study::ReferenceGradient,
+// fields in study::ReferenceFields()), keyed by its position in the study's
+// reference list.
+struct StudyReference : study::ReferenceGradient {
   int index = 0;
-  int horizon = 0;
-  double norm = kNaN;
-  double relative_error = kNaN;
-  double floor = kNaN;
-  double objective = kNaN;
-  std::vector<std::string> used;
-  std::vector<int> replicates;
-  double agreement_max_z = kNaN;
-  double agreement_mean_z2 = kNaN;
-  bool agree = false;
-  double seconds = kNaN;
-  std::string note;
-  std::vector<double> gradient;
-  std::vector<double> standard_error;
 };
 
 struct StudyRows {

@@ -612,7 +612,6 @@ StudyRows MakeStudyRows() {
     c.reference_floor = 0.003;
     c.budget_hit = i == 0;
     c.omitted = false;
-    c.note = i == 1 ? "reference disagrees" : "";
     c.error = "";
     c.omission_reason = "";
     if (i == 1) c.k_lr_per_step = {0.25, 0.5, 0.75, kNaN, 1.0 / 3.0};
@@ -632,8 +631,8 @@ StudyRows MakeStudyRows() {
   r.agree = true;
   r.seconds = 0.5;
   r.note = "";
-  r.gradient = {0.1, -0.2, 1.0 / 7.0};
-  r.standard_error = {0.01, 0.02, 0.03};
+  r.gradient = Vector{{0.1, -0.2, 1.0 / 7.0}};
+  r.standard_error = Vector{{0.01, 0.02, 0.03}};
   rows.references.push_back(r);
   return rows;
 }
@@ -659,7 +658,7 @@ void ExpectSameCell(const StudyCell& a, const StudyCell& b) {
   EXPECT_EQ(a.reference_agrees, b.reference_agrees);
   EXPECT_EQ(a.budget_hit, b.budget_hit);
   EXPECT_EQ(a.omitted, b.omitted);
-  EXPECT_EQ(a.note, b.note);
+  EXPECT_EQ(study::CellNote(a), study::CellNote(b));
   ASSERT_EQ(a.k_lr_per_step.size(), b.k_lr_per_step.size());
   for (size_t k = 0; k < a.k_lr_per_step.size(); ++k) {
     EXPECT_TRUE(same(a.k_lr_per_step[k], b.k_lr_per_step[k])) << k;
@@ -879,9 +878,11 @@ TEST_F(StorageTest, VersionFourDatabaseGetsIntegerSeeds) {
   std::optional<internal::Db> db_slot;
   ASSERT_NO_FATAL_FAILURE(StoreAnEpisodeAndOpenTheFileRaw(job, &db_slot));
   {
-    // Back to version 4: jobs rebuilt with seed TEXT, as version 4 had it.
+    // Back to version 4: jobs rebuilt with seed TEXT, as version 4 had it,
+    // and study_references without version 6's column.
     internal::Db* db = &*db_slot;
     TG_ASSERT_OK(db->Exec(
+        "ALTER TABLE study_references DROP COLUMN agreement_resolution; "
         "PRAGMA foreign_keys=OFF; DROP VIEW \"episodes/texts\"; DROP VIEW episode_rows; "
         "CREATE TABLE jobs_text AS SELECT id, sweep_id, ordinal, method, CAST(seed AS TEXT) AS "
         "seed, variant, options_json, episodes_expected, state, attempts, failures, lost_leases, "

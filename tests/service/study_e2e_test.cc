@@ -108,7 +108,7 @@ TEST_F(StudyEndToEndTest, StudyRowsInSqliteEqualALocalCoreRun) {
     EXPECT_EQ(s.omission_reason(), l.omission_reason);
     EXPECT_EQ(s.error(), l.error);
     EXPECT_EQ(s.reference_agrees(), l.reference_agrees);
-    EXPECT_EQ(s.note(), io::StudyCellNote(l));
+    EXPECT_EQ(s.note(), study::CellNote(l));
     for (auto [stored, expected, name] :
          {std::tuple{s.rel_rmse(), l.rel_rmse, "rel_rmse"},
           std::tuple{s.rel_bias(), l.rel_bias, "rel_bias"},

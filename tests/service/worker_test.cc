@@ -25,6 +25,7 @@
 #include "tests/service/process_util.h"
 #include "tests/service/service_testutil.h"
 #include "core/learner/trial.h"
+#include "io/episode_json.h"
 #include "worker/learner_runner.h"
 
 namespace totalgrad::worker {
@@ -723,14 +724,14 @@ TEST(EpisodeDetailsJsonTest, PilcoPerStepPredictionsAreStored) {
   result.predicted_cost_mean_per_step = Vector{{0.5, 0.25, 0.125}};
   result.predicted_cost_std_per_step =
       Vector{{0.0625, 0.03125, std::numeric_limits<double>::quiet_NaN()}};
-  const nlohmann::json details = nlohmann::json::parse(EpisodeDetailsJson(result));
+  const nlohmann::json details = nlohmann::json::parse(io::EpisodeDetailsJson(result));
   EXPECT_EQ(details["predicted_cost_mean_per_step"], nlohmann::json::array({0.5, 0.25, 0.125}));
   ASSERT_EQ(details["predicted_cost_std_per_step"].size(), 3u);
   EXPECT_EQ(details["predicted_cost_std_per_step"][1], 0.03125);
   EXPECT_TRUE(details["predicted_cost_std_per_step"][2].is_null());
   EXPECT_TRUE(details.contains("flags"));
 
-  const nlohmann::json particle = nlohmann::json::parse(EpisodeDetailsJson(learner::EpisodeResult{}));
+  const nlohmann::json particle = nlohmann::json::parse(io::EpisodeDetailsJson(learner::EpisodeResult{}));
   EXPECT_FALSE(particle.contains("predicted_cost_mean_per_step"));
   EXPECT_FALSE(particle.contains("predicted_cost_std_per_step"));
 }

@@ -42,7 +42,6 @@ using io::ReadSnapshotFile;
 using io::ReadStudyDocument;
 using io::SnapshotsFromJson;
 using io::SnapshotsToJson;
-using io::StudyCellNote;
 using io::StudySpec;
 using io::WriteSnapshotFile;
 

@@ -1,10 +1,11 @@
-#include "client/core_commands/trial_format.h"
+// io::EpisodeToJson: `totalgrad trial --json`'s line (the episode's record, then its details).
+#include "io/episode_json.h"
 
 #include <gtest/gtest.h>
 
 #include <limits>
 
-namespace totalgrad::cli {
+namespace totalgrad::io {
 namespace {
 
 // PILCO episodes carry the model's predicted cost mean and std per step; the
@@ -50,4 +51,4 @@ TEST(EpisodeToJson, GpIsAnObjectOfArraysAsStored) {
 }
 
 }  // namespace
-}  // namespace totalgrad::cli
+}  // namespace totalgrad::io

@@ -1,0 +1,94 @@
+// One description per record (issue 13): a result record's fields written
+// once, as a table of (name, type, where the value lives, whether it is a
+// CSV column), beside the struct that holds them. Every path that copies
+// the record reads the table instead of naming the fields again:
+//   io/record_format.h          CSV header and rows, JSON objects (write, read)
+//   server/common/record_proto.h  the proto message, by reflection on names
+//   server/storage/sqlite_records.h  SQL column lists, binds and reads
+// so a field added to the struct and its table line reaches every writer,
+// and a path that drops one is a test failure (tests/service/records_test.cc),
+// not a silent copy that drifted.
+//
+// Contract of a table:
+//   * names are unique and are, verbatim, the CSV column, the JSON key, the
+//     proto field's name and (lists with the suffix "_json") the SQL column;
+//   * the order is the CSV's column order and the JSON's key order;
+//   * a derived field is computed from the others (a getter, no storage in
+//     the struct): every writer writes it, every reader ignores it, so a
+//     stored copy can never disagree with the record it was computed from.
+// The formats themselves (one per record on every path: shortest round-trip
+// numbers, NaN as an empty CSV field, null in JSON and NULL in SQL) are
+// io/record_format.h's and docs/core.md "Records".
+//
+// Header only; core/ still writes no files: this file knows no format.
+#ifndef TOTALGRAD_CORE_COMMON_RECORD_H_
+#define TOTALGRAD_CORE_COMMON_RECORD_H_
+
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "core/common/types.h"
+
+namespace totalgrad::record {
+
+// The value types a record field may have. kVector is an Eigen vector
+// (core's gradients); on the wire and in files it is a list of doubles like
+// kDoubles.
+enum class FieldType { kInt, kDouble, kBool, kText, kDoubles, kInts, kTexts, kVector, kDerivedText };
+
+template <typename R>
+struct Field {
+  // The alternatives are in FieldType's order (type() is the index).
+  using Member = std::variant<int R::*, double R::*, bool R::*, std::string R::*,
+                              std::vector<double> R::*, std::vector<int> R::*,
+                              std::vector<std::string> R::*, Vector R::*,
+                              std::string (*)(const R&)>;
+  const char* name;
+  Member member;
+  // A column of the record's CSV (long lists and free-text details that a
+  // spreadsheet cannot use are JSON-only).
+  bool csv = true;
+
+  FieldType type() const { return static_cast<FieldType>(member.index()); }
+  bool derived() const { return type() == FieldType::kDerivedText; }
+  // The value of a field of type T (the caller switched on type()).
+  template <typename T>
+  const T& Get(const R& r) const { return r.*std::get<T R::*>(member); }
+  template <typename T>
+  T& Get(R& r) const { return r.*std::get<T R::*>(member); }
+  // A derived field's value.
+  std::string Derive(const R& r) const { return std::get<std::string (*)(const R&)>(member)(r); }
+  // True for the list types (stored as one JSON text, "<name>_json").
+  bool is_list() const {
+    const FieldType t = type();
+    return t == FieldType::kDoubles || t == FieldType::kInts || t == FieldType::kTexts ||
+           t == FieldType::kVector;
+  }
+};
+
+template <typename R>
+using FieldTable = std::vector<Field<R>>;
+
+// The value of a list field of doubles (kDoubles or kVector) as a std::vector.
+template <typename R>
+std::vector<double> DoublesOf(const Field<R>& field, const R& r) {
+  if (field.type() == FieldType::kVector) {
+    const Vector& v = field.template Get<Vector>(r);
+    return std::vector<double>(v.data(), v.data() + v.size());
+  }
+  return field.template Get<std::vector<double>>(r);
+}
+template <typename R>
+void SetDoubles(const Field<R>& field, std::vector<double> values, R* r) {
+  if (field.type() == FieldType::kVector) {
+    field.template Get<Vector>(*r) =
+        Eigen::Map<const Vector>(values.data(), static_cast<Eigen::Index>(values.size()));
+  } else {
+    field.template Get<std::vector<double>>(*r) = std::move(values);
+  }
+}
+
+}  // namespace totalgrad::record
+
+#endif  // TOTALGRAD_CORE_COMMON_RECORD_H_

@@ -1,0 +1,51 @@
+// The record of one finished episode that every layer carries (issue 13):
+// the numbers a trial reports per episode, written once with their field
+// table (core/common/record.h). learner::EpisodeResult extends it with what
+// only the trial has (timing, GP, policy, flags: the stored `details_json`);
+// the worker's EpisodeOutcome and the store's Episode extend it with that
+// details text. The table is the columns of the `episodes` table, the fields
+// of the proto's EpisodeReport, the CSV columns of `totalgrad results export
+// -f csv` and the first keys of an episode's JSON (`totalgrad trial --json`,
+// sweep archives). Adding a field: docs/core.md, "Records, and adding a field".
+//
+// Header only (the table too), so that the worker's runtime, which links no
+// numerical code, shares it.
+#ifndef TOTALGRAD_CORE_LEARNER_EPISODE_RECORD_H_
+#define TOTALGRAD_CORE_LEARNER_EPISODE_RECORD_H_
+
+#include <limits>
+
+#include "core/common/record.h"
+
+namespace totalgrad::learner {
+
+// NaN: no value (the evaluation and prediction of episode 0; a time a
+// report did not carry).
+struct EpisodeSummary {
+  static constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+  int episode = 0;                     // 0 = the random episode
+  double real_cost = kNaN;             // cost of the episode whose data were added
+  double eval_cost_mean = kNaN;        // over eval_rollouts episodes (NaN for episode 0)
+  double eval_cost_std = kNaN;
+  double predicted_cost = kNaN;        // the model's expected cost of the optimised policy
+  double optimisation_seconds = kNaN;  // wall time of GP fit + policy optimisation
+  double cpu_seconds = kNaN;           // CPU time of the whole episode
+};
+
+inline const record::FieldTable<EpisodeSummary>& EpisodeFields() {
+  using E = EpisodeSummary;
+  static const record::FieldTable<E>* const table = new record::FieldTable<E>{
+      {"episode", &E::episode},
+      {"real_cost", &E::real_cost},
+      {"eval_cost_mean", &E::eval_cost_mean},
+      {"eval_cost_std", &E::eval_cost_std},
+      {"predicted_cost", &E::predicted_cost},
+      {"optimisation_seconds", &E::optimisation_seconds},
+      {"cpu_seconds", &E::cpu_seconds},
+  };
+  return *table;
+}
+
+}  // namespace totalgrad::learner
+
+#endif  // TOTALGRAD_CORE_LEARNER_EPISODE_RECORD_H_

@@ -1,0 +1,180 @@
+// A record (core/common/record.h) to and from its proto message by
+// reflection on field names: the message has one field per table field,
+// of the same name and a matching type (int32; double; bool; string;
+// repeated double for a list of doubles or an Eigen vector; repeated int32;
+// repeated string; string for a derived field). A double field with
+// presence (`optional double`) is absent for NaN and reads as NaN when
+// absent (older senders did not have it). The message may hold more
+// fields (the row's key: job, attempt, index), which these functions leave
+// alone. So the conversions name no field; a field added to a table and
+// missing from its message is found by RecordProtoMismatch, which
+// tests/service/records_test.cc asserts is empty for every record, and is a
+// crash (TG_CHECK) the first time a conversion meets it, never a silent drop.
+//
+// Header only, used by the coordinator (server/service/convert.cc) and the
+// worker (worker/study_runner.cc). Thread safety: plain functions.
+#ifndef TOTALGRAD_SERVER_COMMON_RECORD_PROTO_H_
+#define TOTALGRAD_SERVER_COMMON_RECORD_PROTO_H_
+
+#include <cmath>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include <google/protobuf/descriptor.h>
+#include <google/protobuf/message.h>
+
+#include "absl/strings/str_cat.h"
+#include "core/common/check.h"
+#include "core/common/record.h"
+
+namespace totalgrad::record_proto {
+
+namespace internal {
+
+// The proto type and cardinality a field of `type` must have.
+inline bool Matches(record::FieldType type, const google::protobuf::FieldDescriptor& fd) {
+  using google::protobuf::FieldDescriptor;
+  using record::FieldType;
+  const bool repeated = fd.is_repeated();
+  switch (type) {
+    case FieldType::kInt: return !repeated && fd.cpp_type() == FieldDescriptor::CPPTYPE_INT32;
+    case FieldType::kDouble: return !repeated && fd.cpp_type() == FieldDescriptor::CPPTYPE_DOUBLE;
+    case FieldType::kBool: return !repeated && fd.cpp_type() == FieldDescriptor::CPPTYPE_BOOL;
+    case FieldType::kText:
+    case FieldType::kDerivedText:
+      return !repeated && fd.cpp_type() == FieldDescriptor::CPPTYPE_STRING;
+    case FieldType::kDoubles:
+    case FieldType::kVector:
+      return repeated && fd.cpp_type() == FieldDescriptor::CPPTYPE_DOUBLE;
+    case FieldType::kInts: return repeated && fd.cpp_type() == FieldDescriptor::CPPTYPE_INT32;
+    case FieldType::kTexts: return repeated && fd.cpp_type() == FieldDescriptor::CPPTYPE_STRING;
+  }
+  return false;
+}
+
+template <typename R>
+const google::protobuf::FieldDescriptor& ProtoField(const record::Field<R>& field,
+                                                    const google::protobuf::Descriptor& message) {
+  const google::protobuf::FieldDescriptor* fd = message.FindFieldByName(field.name);
+  // A programmer error (tests/service/records_test.cc catches it first).
+  TG_CHECK(fd != nullptr && Matches(field.type(), *fd));
+  return *fd;
+}
+
+}  // namespace internal
+
+// "" when every field of `table` has a field of its name and a matching type
+// in `message`; else what is wrong with the first that has not.
+template <typename R>
+std::string RecordProtoMismatch(const record::FieldTable<R>& table,
+                                const google::protobuf::Descriptor& message) {
+  for (const auto& field : table) {
+    const google::protobuf::FieldDescriptor* fd = message.FindFieldByName(field.name);
+    if (fd == nullptr) {
+      return absl::StrCat(message.full_name(), " has no field '", field.name, "'");
+    }
+    if (!internal::Matches(field.type(), *fd)) {
+      return absl::StrCat(message.full_name(), ".", field.name, " is ",
+                          fd->is_repeated() ? "repeated " : "", fd->cpp_type_name(),
+                          ", which does not hold the record's value");
+    }
+  }
+  return "";
+}
+
+// Sets every table field of *out (derived ones included); repeated fields
+// are replaced.
+template <typename R>
+void RecordToProto(const record::FieldTable<R>& table, const R& r, google::protobuf::Message* out) {
+  using record::FieldType;
+  const google::protobuf::Reflection& reflection = *out->GetReflection();
+  for (const auto& field : table) {
+    const google::protobuf::FieldDescriptor* fd = &internal::ProtoField(field, *out->GetDescriptor());
+    switch (field.type()) {
+      case FieldType::kInt: reflection.SetInt32(out, fd, field.template Get<int>(r)); break;
+      case FieldType::kDouble: {
+        const double v = field.template Get<double>(r);
+        if (fd->has_presence() && std::isnan(v)) {
+          reflection.ClearField(out, fd);
+        } else {
+          reflection.SetDouble(out, fd, v);
+        }
+        break;
+      }
+      case FieldType::kBool: reflection.SetBool(out, fd, field.template Get<bool>(r)); break;
+      case FieldType::kText: reflection.SetString(out, fd, field.template Get<std::string>(r)); break;
+      case FieldType::kDerivedText: reflection.SetString(out, fd, field.Derive(r)); break;
+      case FieldType::kInts:
+        reflection.ClearField(out, fd);
+        for (int v : field.template Get<std::vector<int>>(r)) reflection.AddInt32(out, fd, v);
+        break;
+      case FieldType::kTexts:
+        reflection.ClearField(out, fd);
+        for (const std::string& v : field.template Get<std::vector<std::string>>(r)) {
+          reflection.AddString(out, fd, v);
+        }
+        break;
+      case FieldType::kDoubles:
+      case FieldType::kVector:
+        reflection.ClearField(out, fd);
+        for (double v : record::DoublesOf(field, r)) reflection.AddDouble(out, fd, v);
+        break;
+    }
+  }
+}
+
+// Reads every non-derived table field from `message` into *r.
+template <typename R>
+void RecordFromProto(const record::FieldTable<R>& table, const google::protobuf::Message& message,
+                     R* r) {
+  using record::FieldType;
+  const google::protobuf::Reflection& reflection = *message.GetReflection();
+  for (const auto& field : table) {
+    if (field.derived()) continue;
+    const google::protobuf::FieldDescriptor* fd =
+        &internal::ProtoField(field, *message.GetDescriptor());
+    switch (field.type()) {
+      case FieldType::kInt: field.template Get<int>(*r) = reflection.GetInt32(message, fd); break;
+      case FieldType::kDouble:
+        field.template Get<double>(*r) = fd->has_presence() && !reflection.HasField(message, fd)
+                                             ? std::numeric_limits<double>::quiet_NaN()
+                                             : reflection.GetDouble(message, fd);
+        break;
+      case FieldType::kBool: field.template Get<bool>(*r) = reflection.GetBool(message, fd); break;
+      case FieldType::kText:
+        field.template Get<std::string>(*r) = reflection.GetString(message, fd);
+        break;
+      case FieldType::kInts: {
+        std::vector<int>& values = field.template Get<std::vector<int>>(*r);
+        values.clear();
+        for (int i = 0; i < reflection.FieldSize(message, fd); ++i) {
+          values.push_back(reflection.GetRepeatedInt32(message, fd, i));
+        }
+        break;
+      }
+      case FieldType::kTexts: {
+        std::vector<std::string>& values = field.template Get<std::vector<std::string>>(*r);
+        values.clear();
+        for (int i = 0; i < reflection.FieldSize(message, fd); ++i) {
+          values.push_back(reflection.GetRepeatedString(message, fd, i));
+        }
+        break;
+      }
+      case FieldType::kDoubles:
+      case FieldType::kVector: {
+        std::vector<double> values;
+        for (int i = 0; i < reflection.FieldSize(message, fd); ++i) {
+          values.push_back(reflection.GetRepeatedDouble(message, fd, i));
+        }
+        record::SetDoubles(field, std::move(values), r);
+        break;
+      }
+      case FieldType::kDerivedText: break;
+    }
+  }
+}
+
+}  // namespace totalgrad::record_proto
+
+#endif  // TOTALGRAD_SERVER_COMMON_RECORD_PROTO_H_

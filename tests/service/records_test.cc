@@ -1,0 +1,552 @@
+// One description per record (issue 13): every record with a field table
+// (core/common/record.h) goes through every path that copies it, with every
+// field set to a non-default value, and comes out equal, bit for bit:
+//   core struct -> proto (the worker) -> store row (the coordinator, SQLite)
+//   -> proto (ListStudyRows) -> core struct (the CLI) -> CSV and JSON
+//   (`totalgrad results study`, `totalgrad study`'s table.csv, results.json).
+// The values are set by walking the table, so a field added to a table is
+// covered without touching this file; the comparison walks the table too,
+// and a comparison that cannot see a dropped field is itself a failure here
+// (RecordsTest.TheComparisonSeesEveryField). The table/proto/SQL agreement
+// (names and types) and the migration of stored rows are checked as well.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <set>
+
+#include "absl/strings/str_cat.h"
+#include "client/core_commands/study_format.h"
+#include "core/learner/episode_record.h"
+#include "core/learner/trial.h"
+#include "core/study/study.h"
+#include "io/episode_json.h"
+#include "io/record_format.h"
+#include "io/study_results.h"
+#include "server/common/record_proto.h"
+#include "server/service/convert.h"
+#include "server/service/sweep_archive.h"
+#include "server/storage/sqlite_db.h"
+#include "server/storage/sqlite_records.h"
+#include "server/storage/sqlite_schema.h"
+#include "server/storage/sqlite_store.h"
+#include "tests/service/service_testutil.h"
+#include "worker/trial_runner.h"
+#include "totalgrad/v1/types.pb.h"
+
+#include <google/protobuf/util/json_util.h>
+
+namespace totalgrad::testing {
+namespace {
+
+using record::FieldTable;
+using record::FieldType;
+
+constexpr int64_t kNow = 1'700'000'000'000;
+
+// Sets every (non-derived) field of *r to a value that no default has:
+// integers 1000 + position, doubles (position + 1) / 7 (not exact in
+// decimal, so a format that rounds shows), bools flipped, texts holding a
+// comma and a quote (CSV quoting), lists of two or three such values.
+template <typename R>
+void SetEveryField(const FieldTable<R>& table, R* r) {
+  for (size_t i = 0; i < table.size(); ++i) {
+    const auto& field = table[i];
+    const int n = static_cast<int>(i);
+    const double x = (n + 1) / 7.0;
+    const std::string text = absl::StrCat("value of ", field.name, ", \"quoted\"");
+    switch (field.type()) {
+      case FieldType::kInt: field.template Get<int>(*r) = 1000 + n; break;
+      case FieldType::kDouble: field.template Get<double>(*r) = x; break;
+      case FieldType::kBool: field.template Get<bool>(*r) = !field.template Get<bool>(*r); break;
+      case FieldType::kText: field.template Get<std::string>(*r) = text; break;
+      case FieldType::kInts: field.template Get<std::vector<int>>(*r) = {n, -n - 1, 7}; break;
+      case FieldType::kTexts:
+        field.template Get<std::vector<std::string>>(*r) = {text, absl::StrCat(field.name, "-b")};
+        break;
+      case FieldType::kDoubles:
+      case FieldType::kVector: record::SetDoubles(field, {x, -x / 3, 1e-300 * x}, r); break;
+      case FieldType::kDerivedText: break;
+    }
+  }
+}
+
+bool SameBits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
+
+bool SameDoubles(const std::vector<double>& a, const std::vector<double>& b) {
+  if (a.size() != b.size()) return false;
+  for (size_t k = 0; k < a.size(); ++k) {
+    if (!SameBits(a[k], b[k])) return false;
+  }
+  return true;
+}
+
+// The names of the fields (derived ones included) whose values differ;
+// doubles compare bit for bit.
+template <typename R>
+std::vector<std::string> DifferingFields(const FieldTable<R>& table, const R& a, const R& b) {
+  std::vector<std::string> names;
+  for (const auto& field : table) {
+    bool same = true;
+    switch (field.type()) {
+      case FieldType::kInt: same = field.template Get<int>(a) == field.template Get<int>(b); break;
+      case FieldType::kDouble:
+        same = SameBits(field.template Get<double>(a), field.template Get<double>(b));
+        break;
+      case FieldType::kBool: same = field.template Get<bool>(a) == field.template Get<bool>(b); break;
+      case FieldType::kText:
+        same = field.template Get<std::string>(a) == field.template Get<std::string>(b);
+        break;
+      case FieldType::kDerivedText: same = field.Derive(a) == field.Derive(b); break;
+      case FieldType::kInts:
+        same = field.template Get<std::vector<int>>(a) == field.template Get<std::vector<int>>(b);
+        break;
+      case FieldType::kTexts:
+        same = field.template Get<std::vector<std::string>>(a) ==
+               field.template Get<std::vector<std::string>>(b);
+        break;
+      case FieldType::kDoubles:
+      case FieldType::kVector:
+        same = SameDoubles(record::DoublesOf(field, a), record::DoublesOf(field, b));
+        break;
+    }
+    if (!same) names.push_back(field.name);
+  }
+  return names;
+}
+
+template <typename R>
+std::vector<std::string> Names(const FieldTable<R>& table) {
+  std::vector<std::string> names;
+  for (const auto& field : table) names.push_back(field.name);
+  return names;
+}
+
+// Every CSV cell of a double field reads back to the same bits (the
+// record's one number format is a round trip).
+template <typename R>
+void ExpectCsvNumbersRoundTrip(const FieldTable<R>& table, const R& r) {
+  for (const auto& field : table) {
+    if (!field.csv || field.type() != FieldType::kDouble) continue;
+    const std::string text = io::RecordFieldText(field, r);
+    double back = 0;
+    const auto parsed = std::from_chars(text.data(), text.data() + text.size(), back);
+    EXPECT_TRUE(parsed.ec == std::errc() && parsed.ptr == text.data() + text.size()) << text;
+    EXPECT_TRUE(SameBits(back, field.template Get<double>(r))) << field.name << ": " << text;
+  }
+}
+
+TEST(RecordTables, NamesAreUniqueAndEveryFieldHasItsProtoField) {
+  for (const auto& names : {Names(study::CellFields()), Names(study::ReferenceFields()),
+                            Names(learner::EpisodeFields())}) {
+    EXPECT_EQ(std::set<std::string>(names.begin(), names.end()).size(), names.size());
+  }
+  EXPECT_EQ(record_proto::RecordProtoMismatch(study::CellFields(),
+                                              *v1::StudyCellRow::descriptor()),
+            "");
+  EXPECT_EQ(record_proto::RecordProtoMismatch(study::ReferenceFields(),
+                                              *v1::StudyReferenceRow::descriptor()),
+            "");
+  EXPECT_EQ(record_proto::RecordProtoMismatch(learner::EpisodeFields(),
+                                              *v1::EpisodeReport::descriptor()),
+            "");
+  // The check has power: a field the message lacks, and one of another type.
+  const FieldTable<study::CellResult> missing = {{"no_such_field", &study::CellResult::ess_min}};
+  EXPECT_NE(record_proto::RecordProtoMismatch(missing, *v1::StudyCellRow::descriptor()), "");
+  const FieldTable<study::CellResult> mistyped = {{"estimator", &study::CellResult::ess_min}};
+  EXPECT_NE(record_proto::RecordProtoMismatch(mistyped, *v1::StudyCellRow::descriptor()), "");
+}
+
+TEST(RecordTables, EveryFieldIsSetToANonDefaultValue) {
+  study::CellResult cell;
+  SetEveryField(study::CellFields(), &cell);
+  EXPECT_EQ(DifferingFields(study::CellFields(), study::CellResult{}, cell),
+            Names(study::CellFields()));
+  study::ReferenceGradient ref;
+  SetEveryField(study::ReferenceFields(), &ref);
+  EXPECT_EQ(DifferingFields(study::ReferenceFields(), study::ReferenceGradient{}, ref),
+            Names(study::ReferenceFields()));
+  learner::EpisodeSummary episode;
+  SetEveryField(learner::EpisodeFields(), &episode);
+  EXPECT_EQ(DifferingFields(learner::EpisodeFields(), learner::EpisodeSummary{}, episode),
+            Names(learner::EpisodeFields()));
+}
+
+// The comparison used below reports a field whose value was lost on a path
+// (put back to its default), and that field only (and the note, which is
+// derived from the flags and texts it shows).
+TEST(RecordTables, TheComparisonSeesEveryField) {
+  study::CellResult full;
+  SetEveryField(study::CellFields(), &full);
+  for (const auto& field : study::CellFields()) {
+    if (field.derived()) continue;
+    study::CellResult dropped = full;
+    study::CellResult defaults;
+    // Copy the default of this one field over the full value.
+    const FieldTable<study::CellResult> one = {field};
+    nlohmann::ordered_json j = io::RecordToJson(one, defaults);
+    ASSERT_TRUE(io::RecordFromJson(one, j, "", &dropped).ok());
+    std::vector<std::string> differing = DifferingFields(study::CellFields(), full, dropped);
+    differing.erase(std::remove(differing.begin(), differing.end(), "note"), differing.end());
+    EXPECT_EQ(differing, std::vector<std::string>{field.name});
+  }
+}
+
+class RecordsTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = MakeTempDir();
+    path_ = dir_ + "/store.db";
+    Open();
+  }
+  void TearDown() override {
+    store_.reset();
+    if (!HasFailure()) std::filesystem::remove_all(dir_);
+  }
+  void Open() {
+    auto store = storage::SqliteStore::Open(path_);
+    ASSERT_TRUE(store.ok()) << store.status();
+    store_ = std::move(*store);
+  }
+  // A trial sweep of one job of 3 episodes, leased to "w1" as attempt 1.
+  int64_t CreateTrialJob() {
+    bool created = false;
+    EXPECT_TRUE(store_->CreateSweep(MakeSweep("trials", 1, 3), kNow, &created).ok());
+    auto jobs = store_->ListJobs({"trials", {}, 0, 1000});
+    EXPECT_TRUE(jobs.ok());
+    const int64_t job_id = jobs->back().id;
+    TG_EXPECT_OK(store_->StartAttempt({job_id, 1}, MakeWorker("w1"), kNow, kNow + 90'000));
+    return job_id;
+  }
+  // A sweep with one study job, leased to worker "w1" as attempt 1.
+  int64_t CreateStudyJob() {
+    storage::NewSweep sweep = MakeSweep("records", 1, 3);
+    storage::NewJob job;
+    job.kind = storage::JobKind::kStudy;
+    job.method = "study";
+    job.seed = "7";
+    job.variant = "tiny";
+    job.payload = R"({"problem":{"synthetic":{}}})";
+    sweep.jobs.push_back(job);
+    bool created = false;
+    EXPECT_TRUE(store_->CreateSweep(sweep, kNow, &created).ok());
+    auto jobs = store_->ListJobs({"records", {}, 0, 1000});
+    EXPECT_TRUE(jobs.ok());
+    const int64_t job_id = jobs->back().id;
+    TG_EXPECT_OK(store_->StartAttempt({job_id, 1}, MakeWorker("w1"), kNow, kNow + 90'000));
+    return job_id;
+  }
+
+  std::string dir_, path_;
+  std::unique_ptr<storage::SqliteStore> store_;
+};
+
+TEST_F(RecordsTest, StudyRowsThroughEveryPath) {
+  study::CellResult cell;
+  SetEveryField(study::CellFields(), &cell);
+  study::ReferenceGradient ref;
+  SetEveryField(study::ReferenceFields(), &ref);
+
+  // The worker: core records -> rows.
+  v1::StudyCellRow sent_cell;
+  sent_cell.set_index(4);
+  record_proto::RecordToProto(study::CellFields(), cell, &sent_cell);
+  v1::StudyReferenceRow sent_ref;
+  sent_ref.set_index(2);
+  record_proto::RecordToProto(study::ReferenceFields(), ref, &sent_ref);
+  EXPECT_EQ(sent_cell.note(), study::CellNote(cell));
+
+  // The coordinator: rows -> the store -> rows.
+  const int64_t job = CreateStudyJob();
+  storage::StudyRows rows;
+  rows.cells.push_back(service::FromProto(sent_cell));
+  rows.references.push_back(service::FromProto(sent_ref));
+  TG_ASSERT_OK_AND_ASSIGN(int stored,
+                          store_->StoreStudyRows({job, 1}, "w1", rows, kNow, std::nullopt));
+  EXPECT_EQ(stored, 2);
+  store_.reset();
+  Open();  // from the file, not from a cache
+  std::vector<storage::StudyCellRecord> cells;
+  std::vector<storage::StudyReferenceRecord> refs;
+  TG_ASSERT_OK(store_->ListStudyRows("records", true, &cells, &refs));
+  ASSERT_EQ(cells.size(), 1u);
+  ASSERT_EQ(refs.size(), 1u);
+  v1::StudyCellRow listed_cell;
+  service::ToProto(cells[0], &listed_cell);
+  v1::StudyReferenceRow listed_ref;
+  service::ToProto(refs[0], &listed_ref);
+  EXPECT_EQ(listed_cell.index(), 4);
+  EXPECT_EQ(listed_cell.job_id(), job);
+  EXPECT_EQ(listed_cell.study(), "tiny");
+  EXPECT_EQ(listed_ref.index(), 2);
+
+  // The CLI: rows -> core records.
+  study::CellResult back_cell;
+  record_proto::RecordFromProto(study::CellFields(), listed_cell, &back_cell);
+  study::ReferenceGradient back_ref;
+  record_proto::RecordFromProto(study::ReferenceFields(), listed_ref, &back_ref);
+  EXPECT_EQ(DifferingFields(study::CellFields(), cell, back_cell), std::vector<std::string>{});
+  EXPECT_EQ(DifferingFields(study::ReferenceFields(), ref, back_ref), std::vector<std::string>{});
+
+  // CSV: the same cells from the original and from the copy, numbers that
+  // read back bit for bit; `totalgrad study`'s table.csv is that CSV.
+  EXPECT_EQ(io::RecordCsvCells(study::CellFields(), back_cell),
+            io::RecordCsvCells(study::CellFields(), cell));
+  EXPECT_EQ(io::RecordCsvCells(study::ReferenceFields(), back_ref),
+            io::RecordCsvCells(study::ReferenceFields(), ref));
+  ExpectCsvNumbersRoundTrip(study::CellFields(), back_cell);
+  ExpectCsvNumbersRoundTrip(study::ReferenceFields(), back_ref);
+  study::StudyResult result;
+  result.cells = {back_cell};
+  result.references = {back_ref};
+  EXPECT_EQ(cli::StudyTableCsv(result),
+            io::CsvLine(io::RecordCsvColumns(study::CellFields())) + "\n" +
+                io::CsvLine(io::RecordCsvCells(study::CellFields(), cell)) + "\n");
+  EXPECT_EQ(cli::StudyReferenceCsv(result),
+            io::CsvLine(io::RecordCsvColumns(study::ReferenceFields())) + "\n" +
+                io::CsvLine(io::RecordCsvCells(study::ReferenceFields(), ref)) + "\n");
+
+  // JSON: results.json written from the copy and read back is the original.
+  const nlohmann::ordered_json doc = io::StudyResultToJson(result, io::StudySpec{});
+  EXPECT_EQ(doc["cells"][0].dump(), io::RecordToJson(study::CellFields(), cell).dump());
+  EXPECT_EQ(doc["references"][0].dump(), io::RecordToJson(study::ReferenceFields(), ref).dump());
+  absl::StatusOr<study::StudyResult> read =
+      io::StudyResultFromJson(nlohmann::json::parse(doc.dump()));
+  TG_ASSERT_OK(read.status());
+  ASSERT_EQ(read->cells.size(), 1u);
+  ASSERT_EQ(read->references.size(), 1u);
+  EXPECT_EQ(DifferingFields(study::CellFields(), cell, read->cells[0]), std::vector<std::string>{});
+  EXPECT_EQ(DifferingFields(study::ReferenceFields(), ref, read->references[0]),
+            std::vector<std::string>{});
+}
+
+// The episode: the trial's result -> the worker's report -> the store ->
+// the export's row -> CSV, JSON lines, `trial --json` and a sweep archive
+// (written and read back, and as version 1 wrote it).
+TEST_F(RecordsTest, EpisodesThroughEveryPath) {
+  learner::EpisodeResult result;
+  SetEveryField<learner::EpisodeSummary>(learner::EpisodeFields(), &result);
+  result.episode = 2;  // the store accepts episodes 0..2 of this trial; 0 is the default
+  result.predicted_cost_mean_per_step = Vector{{0.5, 0.25}};
+  result.predicted_cost_std_per_step = Vector{{0.125, 0.0625}};
+  const learner::EpisodeSummary& record = result;
+
+  // The worker: the record whole (learner_runner.cc) and by name (worker.cc).
+  worker::EpisodeOutcome outcome;
+  static_cast<learner::EpisodeSummary&>(outcome) = result;
+  outcome.details_json = io::EpisodeDetailsJson(result);
+  v1::EpisodeReport report;
+  record_proto::RecordToProto<learner::EpisodeSummary>(learner::EpisodeFields(), outcome, &report);
+  report.set_details_json(outcome.details_json);
+  EXPECT_TRUE(report.has_cpu_seconds());
+
+  // The coordinator and its store.
+  const int64_t job = CreateTrialJob();
+  const storage::Episode stored = service::FromProto(report);
+  TG_ASSERT_OK(store_->StoreEpisodes({job, 1}, "w1", {stored}, kNow, std::nullopt).status());
+  store_.reset();
+  Open();
+  std::vector<storage::EpisodeRowRecord> exported;
+  TG_ASSERT_OK(store_->ExportEpisodes("trials", true, 10,
+                                      [&](std::vector<storage::EpisodeRowRecord> batch) {
+                                        for (auto& row : batch) exported.push_back(std::move(row));
+                                        return absl::OkStatus();
+                                      }));
+  ASSERT_EQ(exported.size(), 1u);
+  v1::EpisodeRow row;
+  service::ToProto(exported[0], &row);
+  EXPECT_EQ(row.report().details_json(), outcome.details_json);
+
+  // The CLI.
+  learner::EpisodeSummary back;
+  record_proto::RecordFromProto(learner::EpisodeFields(), row.report(), &back);
+  EXPECT_EQ(DifferingFields(learner::EpisodeFields(), record, back), std::vector<std::string>{});
+  EXPECT_EQ(io::RecordCsvCells(learner::EpisodeFields(), back),
+            io::RecordCsvCells(learner::EpisodeFields(), record));
+  ExpectCsvNumbersRoundTrip(learner::EpisodeFields(), back);
+  // `trial --json`: the record's keys with the same values, then the details.
+  const nlohmann::json line = io::EpisodeToJson(result);
+  const nlohmann::ordered_json expected = io::RecordToJson(learner::EpisodeFields(), back);
+  for (const auto& field : learner::EpisodeFields()) {
+    EXPECT_EQ(line.at(field.name).dump(), expected.at(field.name).dump()) << field.name;
+  }
+  EXPECT_TRUE(line.contains("timing") && line.contains("flags"));
+  EXPECT_EQ(line["predicted_cost_mean_per_step"], nlohmann::json::array({0.5, 0.25}));
+
+  // A sweep archive of that row, written and read back.
+  v1::SweepInfo sweep;
+  sweep.set_name("trials");
+  sweep.set_state(v1::SWEEP_STATE_RUNNING);
+  service::ArchiveJobInput input;
+  input.job.set_method("RP");
+  input.job.set_seed("1");
+  input.job.set_state(v1::JOB_STATE_COMPLETED);
+  v1::AttemptInfo attempt;
+  attempt.set_attempt(1);
+  attempt.set_state(v1::ATTEMPT_STATE_COMPLETED);
+  input.attempts.push_back(attempt);
+  input.episodes.push_back(row);
+  nlohmann::ordered_json doc = service::SweepArchiveToJson(sweep, {input}, "test", kNow);
+  absl::StatusOr<service::ParsedSweepArchive> parsed = service::ParseSweepArchive(doc.dump());
+  TG_ASSERT_OK(parsed.status());
+  ASSERT_EQ(parsed->jobs.at(0).attempts.at(0).episodes.size(), 1u);
+  const storage::Episode& archived = parsed->jobs[0].attempts[0].episodes[0].first;
+  EXPECT_EQ(DifferingFields<learner::EpisodeSummary>(learner::EpisodeFields(), record, archived),
+            std::vector<std::string>{});
+  // Version 1 named optimisation_seconds wall_seconds; such archives still read.
+  doc["version"] = 1;
+  nlohmann::ordered_json& old = doc["jobs"][0]["attempt_log"][0]["episodes"][0];
+  old["wall_seconds"] = old["optimisation_seconds"];
+  old.erase("optimisation_seconds");
+  parsed = service::ParseSweepArchive(doc.dump());
+  TG_ASSERT_OK(parsed.status());
+  EXPECT_EQ(DifferingFields<learner::EpisodeSummary>(
+                learner::EpisodeFields(), record, parsed->jobs[0].attempts[0].episodes[0].first),
+            std::vector<std::string>{});
+}
+
+// An older worker's report has no cpu_seconds: it reads as NaN (no value),
+// and NaN is sent as no value (fields with presence, `optional double`).
+TEST(RecordProto, AnAbsentOptionalDoubleIsNaN) {
+  v1::EpisodeReport report;
+  report.set_episode(1);
+  learner::EpisodeSummary e;
+  e.cpu_seconds = 3;
+  record_proto::RecordFromProto(learner::EpisodeFields(), report, &e);
+  EXPECT_TRUE(std::isnan(e.cpu_seconds));
+  EXPECT_EQ(e.optimisation_seconds, 0);  // no presence: the proto's 0
+  v1::EpisodeReport sent;
+  record_proto::RecordToProto(learner::EpisodeFields(), e, &sent);
+  EXPECT_FALSE(sent.has_cpu_seconds());
+  // Likewise a reference row from a worker built before agreement_resolution.
+  study::ReferenceGradient ref;
+  ref.agreement_resolution = 0.5;
+  record_proto::RecordFromProto(study::ReferenceFields(), v1::StudyReferenceRow{}, &ref);
+  EXPECT_TRUE(std::isnan(ref.agreement_resolution));
+}
+
+// Study rows in a sweep archive: written as their records' JSON and read
+// back; a version-1 archive (protobuf's JSON mapping) still reads the same.
+TEST(RecordsArchive, StudyRowsRoundTripInBothVersions) {
+  study::CellResult cell;
+  SetEveryField(study::CellFields(), &cell);
+  study::ReferenceGradient ref;
+  SetEveryField(study::ReferenceFields(), &ref);
+  service::ArchiveJobInput input;
+  input.job.set_kind(v1::JOB_KIND_STUDY);
+  input.job.set_method("study");
+  input.job.set_seed("1");
+  input.job.set_state(v1::JOB_STATE_COMPLETED);
+  v1::AttemptInfo attempt;
+  attempt.set_attempt(1);
+  attempt.set_state(v1::ATTEMPT_STATE_COMPLETED);
+  input.attempts.push_back(attempt);
+  v1::StudyCellRow cell_row;
+  cell_row.set_attempt(1);
+  cell_row.set_index(5);
+  record_proto::RecordToProto(study::CellFields(), cell, &cell_row);
+  input.cells.push_back(cell_row);
+  v1::StudyReferenceRow ref_row;
+  ref_row.set_attempt(1);
+  ref_row.set_index(1);
+  record_proto::RecordToProto(study::ReferenceFields(), ref, &ref_row);
+  input.references.push_back(ref_row);
+  v1::SweepInfo sweep;
+  sweep.set_name("studies");
+  sweep.set_state(v1::SWEEP_STATE_RUNNING);
+  nlohmann::ordered_json doc = service::SweepArchiveToJson(sweep, {input}, "test", kNow);
+  auto check = [&](const std::string& text) {
+    absl::StatusOr<service::ParsedSweepArchive> parsed = service::ParseSweepArchive(text);
+    TG_ASSERT_OK(parsed.status());
+    const storage::StudyRows& rows = parsed->jobs.at(0).attempts.at(0).study;
+    ASSERT_EQ(rows.cells.size(), 1u);
+    ASSERT_EQ(rows.references.size(), 1u);
+    EXPECT_EQ(rows.cells[0].index, 5);
+    EXPECT_EQ(rows.references[0].index, 1);
+    EXPECT_EQ(DifferingFields<study::CellResult>(study::CellFields(), cell, rows.cells[0]),
+              std::vector<std::string>{});
+    EXPECT_EQ(DifferingFields<study::ReferenceGradient>(study::ReferenceFields(), ref,
+                                                        rows.references[0]),
+              std::vector<std::string>{});
+  };
+  check(doc.dump());
+  // As version 1 wrote them.
+  auto proto_json = [](const google::protobuf::Message& m) {
+    std::string text;
+    google::protobuf::util::JsonPrintOptions options;
+    options.preserve_proto_field_names = true;
+    EXPECT_TRUE(google::protobuf::util::MessageToJsonString(m, &text, options).ok());
+    return nlohmann::ordered_json::parse(text);
+  };
+  doc["version"] = 1;
+  doc["jobs"][0]["attempt_log"][0]["study_cells"] = nlohmann::ordered_json::array({proto_json(cell_row)});
+  doc["jobs"][0]["attempt_log"][0]["study_references"] =
+      nlohmann::ordered_json::array({proto_json(ref_row)});
+  check(doc.dump());
+}
+
+// Every field of the tables has its column in the database (a field added
+// without its migration fails here before any write does).
+TEST_F(RecordsTest, EveryFieldHasItsSqlColumn) {
+  store_.reset();
+  auto db = storage::internal::Db::Open(path_, false, 1000);
+  ASSERT_TRUE(db.ok()) << db.status();
+  auto columns_of = [&](const char* table) {
+    std::set<std::string> columns;
+    auto info = storage::internal::Statement::Prepare(*db, absl::StrCat("PRAGMA table_info(", table, ")"));
+    EXPECT_TRUE(info.ok());
+    while (info.ok()) {
+      absl::StatusOr<bool> row = info->Step();
+      if (!row.ok() || !*row) break;
+      columns.insert(info->ColumnText(1));
+    }
+    return columns;
+  };
+  const std::set<std::string> cells = columns_of("study_cells");
+  for (const std::string& c : storage::internal::RecordColumns(study::CellFields(), true)) {
+    EXPECT_EQ(cells.count(c), 1u) << "study_cells has no column " << c;
+  }
+  const std::set<std::string> refs = columns_of("study_references");
+  for (const std::string& c : storage::internal::RecordColumns(study::ReferenceFields(), true)) {
+    EXPECT_EQ(refs.count(c), 1u) << "study_references has no column " << c;
+  }
+}
+
+// A version-5 file (before study_references.agreement_resolution) is copied,
+// then migrated; its rows read back unchanged, the new field as NaN (not
+// computed), and new rows keep it.
+TEST_F(RecordsTest, VersionFiveStudyRowsAreMigratedAfterABackup) {
+  const int64_t job = CreateStudyJob();
+  study::ReferenceGradient ref;
+  SetEveryField(study::ReferenceFields(), &ref);
+  storage::StudyRows rows;
+  storage::StudyReference stored_ref;
+  static_cast<study::ReferenceGradient&>(stored_ref) = ref;
+  rows.references.push_back(stored_ref);
+  TG_ASSERT_OK(store_->StoreStudyRows({job, 1}, "w1", rows, kNow, std::nullopt).status());
+  store_.reset();
+  {
+    auto db = storage::internal::Db::Open(path_, false, 1000);
+    ASSERT_TRUE(db.ok()) << db.status();
+    TG_ASSERT_OK(db->Exec("ALTER TABLE study_references DROP COLUMN agreement_resolution; "
+                          "PRAGMA user_version=5"));
+  }
+  Open();
+  EXPECT_TRUE(std::filesystem::exists(path_ + ".schema-v5-backup"));
+  std::vector<storage::StudyCellRecord> cells;
+  std::vector<storage::StudyReferenceRecord> refs;
+  TG_ASSERT_OK(store_->ListStudyRows("records", true, &cells, &refs));
+  ASSERT_EQ(refs.size(), 1u);
+  EXPECT_TRUE(std::isnan(refs[0].reference.agreement_resolution));
+  study::ReferenceGradient expected = ref;
+  expected.agreement_resolution = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(DifferingFields<study::ReferenceGradient>(study::ReferenceFields(), expected,
+                                                      refs[0].reference),
+            std::vector<std::string>{});
+}
+
+}  // namespace
+}  // namespace totalgrad::testing
