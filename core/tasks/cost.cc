@@ -26,14 +26,11 @@ absl::StatusOr<pilco::GaussianCost> TipCost::GaussianExpectation() const {
 
 absl::StatusOr<pilco::GaussianCost> SaturatingCost::GaussianExpectation() const {
   const int d = static_cast<int>(target_z_.size() - 2 * angle_indices_.size());
-  if (angle_indices_.size() > 1) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "the saturating cost of a scene with ", angle_indices_.size(),
-        " angles has no closed form here yet (PILCO's moment matching of several angles is "
-        "not built)"));
-  }
-  return pilco::GaussianCost::Saturating(d, angle_indices_.empty() ? -1 : angle_indices_[0], q_,
-                                         target_z_, widths_);
+  // The angle-list form for every scene: with no angle it is lossSat on x,
+  // with one angle it is the one-angle overload bit for bit (that overload
+  // forwards here, and Evaluate keeps the one-angle trig block), with several
+  // the joint Gaussian approximation of z (PILCO's gTrig pair blocks).
+  return pilco::GaussianCost::Saturating(d, angle_indices_, q_, target_z_, widths_);
 }
 
 double StateCost::Value(const Vector& x) const {

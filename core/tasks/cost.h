@@ -91,10 +91,13 @@ class SaturatingCost final : public StateCost {
                  std::vector<double> widths);
   void Evaluate(const ConstRowMatrixRef& x, Vector* cost, RowMatrix* grad) const override;
   std::string Name() const override { return "saturating"; }
-  // PILCO's lossSat on the Gaussian approximation of z
-  // (pilco::GaussianCost::Saturating), any number of widths; with more than
-  // one angle InvalidArgument (PILCO's moment matching of several angles is
-  // not built yet).
+  // PILCO's lossSat on the Gaussian approximation of z for any number of
+  // angles and widths (pilco::GaussianCost::Saturating with the angle list:
+  // the mean over the widths, the variance the mean of theirs, gradients
+  // with respect to the state's mean and covariance). No angle or one angle
+  // gives the same bits as the one-angle form; several angles use z's joint
+  // moments (PILCO's gTrig). The constructor's checks leave no error but a
+  // Q that is not PSD (InvalidArgument from the factorisation).
   absl::StatusOr<pilco::GaussianCost> GaussianExpectation() const override;
 
  private:

@@ -102,6 +102,34 @@ TEST(SceneTrials, DoublePendulumOnFitcAndRawFeatures) {
   }
 }
 
+// PILCO on the two-angle scenes with PILCO's own loss (lossSat on z with
+// the scene's Q and widths, the closed form through the joint trig block):
+// the double pendulum (two torques) and the pendubot (one) run a learned
+// episode with finite numbers, deterministically; the predicted cost is a sum
+// of H per-step costs in [0, 1]. Tiny budgets: this only shows the path runs.
+TEST(SceneTrials, PilcoWithTheSaturatingCostOnTwoAngleScenes) {
+  for (const std::string scene : {"double-pendulum", "pendubot"}) {
+    SCOPED_TRACE(scene);
+    TrialOptions o = Short(scene, "PILCO");
+    TG_ASSERT_OK(SetTrialOption("cost", "saturating", &o));
+    TG_ASSERT_OK(o.Validate());
+    absl::StatusOr<TrialSummary> a = RunTrial(o, nullptr);
+    TG_ASSERT_OK(a.status());
+    absl::StatusOr<TrialSummary> b = RunTrial(o, nullptr);
+    TG_ASSERT_OK(b.status());
+    ASSERT_EQ(a->episodes.size(), 2u);
+    const EpisodeResult& r = a->episodes[1];
+    EXPECT_TRUE(std::isfinite(r.real_cost));
+    EXPECT_TRUE(std::isfinite(r.eval_cost_mean));
+    EXPECT_TRUE(std::isfinite(r.predicted_cost));
+    EXPECT_GE(r.predicted_cost, 0.0);
+    EXPECT_LE(r.predicted_cost, 8.0);  // horizon 8, each step's cost <= 1
+    EXPECT_TRUE(r.policy_parameters.allFinite());
+    EXPECT_EQ(r.eval_cost_mean, b->episodes[1].eval_cost_mean);
+    EXPECT_EQ(r.policy_parameters, b->episodes[1].policy_parameters);
+  }
+}
+
 TEST(SceneTrials, CartPoleOptionsAreRefusedOnOtherScenes) {
   // The cart-pole's plant options do not apply to PILCO's scenes.
   TrialOptions o = Short("pendulum", "RP");

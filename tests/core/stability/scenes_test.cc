@@ -8,8 +8,8 @@
 //  * several angles at variance 1e3 in what exists for them today: the
 //    particle methods' (sin, cos) feature adapters with two angles (RP's
 //    gradient against finite differences, every particle method finite),
-//    and PILCO's one-angle trig block (exact for independent angles; PILCO
-//    with several angles is refused by name until it exists);
+//    PILCO's one-angle trig block (exact for independent angles only) and
+//    its joint several-angle block (the pair moments exact);
 //  * a scene with no angle at all: no (sin, cos) adapter, RP's gradient
 //    against finite differences.
 #include <gtest/gtest.h>
@@ -284,8 +284,8 @@ TEST(SceneFeatureExtremes, TwoAnglesAtVariance1e3) {
 // symmetric and PSD. For correlated angles the sin/cos cross-covariances
 // need the joint moments (e.g. Cov(sin a1, sin a2) = (E cos(a1 - a2) -
 // E cos(a1 + a2)) / 2), which the one-angle block does not form: the test
-// prints the gap. PILCO's moment matching with several angles is refused
-// by name until it exists (learner::MakePilcoLearner).
+// prints the gap; PILCO's moment matching with several angles uses the
+// joint block (next test), not this one.
 TEST(SceneFeatureExtremes, OneAngleTrigBlockOnTwoAnglesAtVariance1e3) {
   Vector m(4);
   m << 0.1, -0.2, 0.5, 3.0;
