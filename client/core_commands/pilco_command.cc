@@ -377,6 +377,56 @@ Vector AugmentedTarget(const Vector& target, const std::vector<int>& angles) {
   return z;
 }
 
+// What PropagateAndWrite returns: the policy's parameters with weights (the
+// given ones, or those of the given pseudo-targets) and dJ with respect to
+// the parameters as given.
+struct Propagated {
+  Vector params;
+  Vector grad_given;
+};
+
+// Runs PILCO's propagation of both forms from the policy parameters as the
+// file gave them (`given`: weights, or pseudo-targets when s.has_targets, in
+// RbfPolicy's layout) and writes the trajectory ("mean", "cov", "cost_mean",
+// "cost_std", "J") into *out.
+absl::StatusOr<Propagated> PropagateAndWrite(const pilco::Propagator& prop, const pilco::GaussianCost& cost,
+                                         const PilcoScenario& s, const Vector& given,
+                                         nlohmann::ordered_json* out) {
+  Vector params = given;
+  if (s.has_targets) {
+    if (absl::Status st = pilco::PseudoTargetsToWeights(prop.policy_shape(), given, &params);
+        !st.ok()) {
+      return st;
+    }
+  }
+  pilco::Trajectory tr;
+  Vector grad;
+  if (absl::Status st = pilco::PredictTrajectory(prop, cost, params, s.mu0, s.s0, s.horizon,
+                                                 &tr, &grad);
+      !st.ok()) {
+    return st;
+  }
+  Vector grad_given = grad;
+  if (s.has_targets) {
+    if (absl::Status st =
+            pilco::PseudoTargetsBackward(prop.policy_shape(), given, grad, &grad_given);
+        !st.ok()) {
+      return st;
+    }
+  }
+  Json means = Json::array(), covs = Json::array();
+  for (size_t t = 0; t < tr.means.size(); ++t) {
+    means.push_back(VectorJson(tr.means[t]));
+    covs.push_back(MatrixJson(tr.covs[t]));
+  }
+  (*out)["mean"] = std::move(means);
+  (*out)["cov"] = std::move(covs);
+  (*out)["cost_mean"] = VectorJson(tr.cost_mean);
+  (*out)["cost_std"] = VectorJson(tr.cost_std);
+  (*out)["J"] = tr.total_cost;
+  return Propagated{std::move(params), std::move(grad_given)};
+}
+
 absl::StatusOr<nlohmann::ordered_json> RunGeneral(const PilcoScenario& s) {
   const GeneralPilcoScenario& g = s.general;
   const int d = static_cast<int>(s.train_targets.cols());
@@ -435,40 +485,11 @@ absl::StatusOr<nlohmann::ordered_json> RunGeneral(const PilcoScenario& s) {
   given << Eigen::Map<const Vector>(s.centres.data(), c * ep),
       Eigen::Map<const Vector>(g.log_lengthscales.data(), ll_rows * ep),
       Eigen::Map<const Vector>(g.policy_values.data(), c * f);
-  Vector params = given;
-  if (s.has_targets) {
-    if (absl::Status st = pilco::PseudoTargetsToWeights(prop.policy_shape(), given, &params);
-        !st.ok()) {
-      return st;
-    }
-  }
-  pilco::Trajectory tr;
-  Vector grad;
-  if (absl::Status st = pilco::PredictTrajectory(prop, *cost, params, s.mu0, s.s0, s.horizon,
-                                                 &tr, &grad);
-      !st.ok()) {
-    return st;
-  }
-  Vector grad_given = grad;
-  if (s.has_targets) {
-    if (absl::Status st =
-            pilco::PseudoTargetsBackward(prop.policy_shape(), given, grad, &grad_given);
-        !st.ok()) {
-      return st;
-    }
-  }
-
   nlohmann::ordered_json out;
-  Json means = Json::array(), covs = Json::array();
-  for (size_t t = 0; t < tr.means.size(); ++t) {
-    means.push_back(VectorJson(tr.means[t]));
-    covs.push_back(MatrixJson(tr.covs[t]));
-  }
-  out["mean"] = std::move(means);
-  out["cov"] = std::move(covs);
-  out["cost_mean"] = VectorJson(tr.cost_mean);
-  out["cost_std"] = VectorJson(tr.cost_std);
-  out["J"] = tr.total_cost;
+  absl::StatusOr<Propagated> propagated = PropagateAndWrite(prop, *cost, s, given, &out);
+  if (!propagated.ok()) return propagated.status();
+  const Vector& params = propagated->params;
+  const Vector& grad_given = propagated->grad_given;
   out["dJ_dcentres"] = MatrixJson(Eigen::Map<const RowMatrix>(grad_given.data(), c, ep));
   // Values and their gradient in the shape the file gave them.
   auto values_json = [&](const Vector& v) -> Json {
@@ -678,40 +699,11 @@ absl::StatusOr<nlohmann::ordered_json> RunPilcoPropagate(const PilcoScenario& s)
 
   Vector given(prop.num_parameters());
   given << Eigen::Map<const Vector>(s.centres.data(), c * ep), s.log_lengthscales, w;
-  Vector params = given;
-  if (s.has_targets) {
-    if (absl::Status st = pilco::PseudoTargetsToWeights(prop.policy_shape(), given, &params);
-        !st.ok()) {
-      return st;
-    }
-  }
-  pilco::Trajectory tr;
-  Vector grad;
-  if (absl::Status st = pilco::PredictTrajectory(prop, *cost, params, s.mu0, s.s0, s.horizon,
-                                                 &tr, &grad);
-      !st.ok()) {
-    return st;
-  }
-  Vector grad_given = grad;
-  if (s.has_targets) {
-    if (absl::Status st =
-            pilco::PseudoTargetsBackward(prop.policy_shape(), given, grad, &grad_given);
-        !st.ok()) {
-      return st;
-    }
-  }
-
   nlohmann::ordered_json out;
-  Json means = Json::array(), covs = Json::array();
-  for (size_t t = 0; t < tr.means.size(); ++t) {
-    means.push_back(VectorJson(tr.means[t]));
-    covs.push_back(MatrixJson(tr.covs[t]));
-  }
-  out["mean"] = std::move(means);
-  out["cov"] = std::move(covs);
-  out["cost_mean"] = VectorJson(tr.cost_mean);
-  out["cost_std"] = VectorJson(tr.cost_std);
-  out["J"] = tr.total_cost;
+  absl::StatusOr<Propagated> propagated = PropagateAndWrite(prop, *cost, s, given, &out);
+  if (!propagated.ok()) return propagated.status();
+  const Vector& params = propagated->params;
+  const Vector& grad_given = propagated->grad_given;
   const RowMatrix dc = Eigen::Map<const RowMatrix>(grad_given.data(), c, ep);
   out["dJ_dcentres"] = MatrixJson(dc);
   if (s.has_targets) {
