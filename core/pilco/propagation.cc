@@ -14,6 +14,21 @@ absl::Status Annotate(const absl::Status& st, const std::string& where) {
   return absl::Status(st.code(), absl::StrCat(where, ": ", st.message()));
 }
 
+// The next state of every step form: m' = m + E[Delta],
+// S' = S + Cov[Delta] + C + C^T with C = cxg * delta.cross (cxg: Cov[x, g],
+// D x dim g, g the GP's input), symmetrised. InternalError if not finite.
+absl::Status AddDelta(const Vector& m, const Matrix& S, const Matrix& cxg,
+                      const GaussianPrediction& delta, Vector* m_next, Matrix* S_next) {
+  const Matrix cxd = cxg * delta.cross;
+  *m_next = m + delta.mean;
+  Matrix sn = S + delta.cov + cxd + cxd.transpose();
+  *S_next = 0.5 * (sn + sn.transpose());
+  if (!m_next->allFinite() || !S_next->allFinite()) {
+    return absl::InternalError("next state distribution not finite");
+  }
+  return absl::OkStatus();
+}
+
 }  // namespace
 
 absl::Status Propagator::Validate(const GaussianInputGp& dynamics,
@@ -193,14 +208,7 @@ absl::Status Propagator::Step(const Vector& params, const Vector& m, const Matri
   Matrix cxg(d, ep + 1);
   cxg.leftCols(ep) = c.s_xp;
   cxg.col(ep) = c.s_xp * c.policy.u_cross;
-  const Matrix cxd = cxg * c.delta.cross;
-  *m_next = m + c.delta.mean;
-  Matrix sn = S + c.delta.cov + cxd + cxd.transpose();
-  *S_next = 0.5 * (sn + sn.transpose());
-  if (!m_next->allFinite() || !S_next->allFinite()) {
-    return absl::InternalError("next state distribution not finite");
-  }
-  return absl::OkStatus();
+  return AddDelta(m, S, cxg, c.delta, m_next, S_next);
 }
 
 absl::Status Propagator::StepControls(const Vector& params, const Vector& m, const Matrix& S,
@@ -229,14 +237,7 @@ absl::Status Propagator::StepControls(const Vector& params, const Vector& m, con
   Matrix cxg(d, ep + f);
   cxg.leftCols(ep) = c.s_xp;
   cxg.rightCols(f) = c.s_xp * c.multi.u_cross;
-  const Matrix cxd = cxg * c.delta.cross;
-  *m_next = m + c.delta.mean;
-  Matrix sn = S + c.delta.cov + cxd + cxd.transpose();
-  *S_next = 0.5 * (sn + sn.transpose());
-  if (!m_next->allFinite() || !S_next->allFinite()) {
-    return absl::InternalError("next state distribution not finite");
-  }
-  return absl::OkStatus();
+  return AddDelta(m, S, cxg, c.delta, m_next, S_next);
 }
 
 absl::Status Propagator::StepControlsBackward(const Vector& params, const StepCache& c,
@@ -426,14 +427,7 @@ absl::Status Propagator::StepSeparate(const Vector& params, const Vector& m, con
   Matrix cxg(d, eq + f);
   cxg.leftCols(eq) = c.s_xq;
   cxg.rightCols(f) = c.s_xp * c.u_cross;
-  const Matrix cxd = cxg * c.delta.cross;
-  *m_next = m + c.delta.mean;
-  Matrix sn = S + c.delta.cov + cxd + cxd.transpose();
-  *S_next = 0.5 * (sn + sn.transpose());
-  if (!m_next->allFinite() || !S_next->allFinite()) {
-    return absl::InternalError("next state distribution not finite");
-  }
-  return absl::OkStatus();
+  return AddDelta(m, S, cxg, c.delta, m_next, S_next);
 }
 
 absl::Status Propagator::StepSeparateBackward(const Vector& params, const StepCache& c,
