@@ -7,7 +7,6 @@
 #include <cmath>
 #include <random>
 
-#include "core/common/blas.h"
 #include "core/common/rng.h"
 #include "core/diff/gradient_checker.h"
 #include "core/gp/fitc.h"
@@ -169,7 +168,6 @@ TEST(FitcTest, BadShapesAreNamed) {
 
 // gp1 at a Gaussian input against Monte Carlo of FITC's own point predictive.
 TEST(FitcTest, GaussianInputMomentsMatchMonteCarlo) {
-  SetBlasThreads(1);
   const Data data = MakeData(60, 4, 2, 10);
   Rng rng(11, Stream::kGpInit);
   auto fitc = gp::FitcModel::Create(data.x, data.y, data.hyp,

@@ -13,7 +13,6 @@
 #include <string>
 #include <vector>
 
-#include "core/common/blas.h"
 #include "core/pilco/expected_cost.h"
 #include "core/pilco/gp_moments.h"
 #include "core/pilco/policy_moments.h"
@@ -35,7 +34,6 @@ constexpr double kSigmas = 5.0;
 
 // Posterior mean (B x D) and latent variance (B x D) of a full GP at rows z.
 void PosteriorAt(const GaussianInputGp& gp, const RowMatrix& z, RowMatrix* mean, RowMatrix* var) {
-  SetBlasThreads(1);
   const int b = static_cast<int>(z.rows()), n = gp.num_points(), d = gp.num_outputs();
   mean->resize(b, d);
   var->resize(b, d);
