@@ -7,6 +7,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
 #include "server/common/status_macros.h"
+#include "server/storage/job_kinds.h"
 
 namespace totalgrad::scheduler {
 
@@ -145,6 +146,11 @@ absl::Status ValidateStudyRows(const storage::StudyRows& rows) {
   return absl::OkStatus();
 }
 
+absl::Status ValidateResults(const storage::JobResults& results) {
+  RETURN_IF_ERROR(ValidateEpisodes(results.episodes));
+  return ValidateStudyRows(results.study);
+}
+
 Scheduler::Scheduler(storage::Store* store, Clock* clock, SchedulerOptions options)
     : store_(store),
       clock_(clock),
@@ -240,7 +246,7 @@ absl::StatusOr<std::optional<Lease>> Scheduler::TryAcquireLocked(const WorkerIde
     RETURN_IF_ERROR(store_->StartAttempt(key, worker, now, LeaseExpiryFrom(LeaseNowMs())));
     ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(candidate.job_id));
     Lease lease;
-    if (job.kind == storage::JobKind::kTrial && key.attempt > 1) {
+    if (storage::KindInfo(job.kind).checkpoints && key.attempt > 1) {
       ASSIGN_OR_RETURN(lease.resume_from, store_->GetCheckpoint(job.id, 0));
     }
     lease.job = std::move(job);
@@ -299,23 +305,17 @@ bool Scheduler::shut_down() const {
 }
 
 absl::StatusOr<HeartbeatResult> Scheduler::Heartbeat(
-    const std::string& worker_id, const LeaseKey& key, const std::vector<Episode>& episodes,
-    const storage::StudyRows& study, const std::optional<storage::Checkpoint>& checkpoint) {
-  RETURN_IF_ERROR(ValidateEpisodes(episodes));
-  RETURN_IF_ERROR(ValidateStudyRows(study));
+    const std::string& worker_id, const LeaseKey& key, const storage::JobResults& results,
+    const std::optional<storage::Checkpoint>& checkpoint) {
+  RETURN_IF_ERROR(ValidateResults(results));
   RETURN_IF_ERROR(ValidateCheckpoint(checkpoint));
   absl::MutexLock lock(&decision_mutex_);
   const int64_t now = clock_->NowMs();
   HeartbeatResult result;
   const int64_t lease_expires = LeaseExpiryFrom(LeaseNowMs());
-  if (!episodes.empty() || study.empty()) {
-    ASSIGN_OR_RETURN(result.episodes_stored,
-                     store_->StoreEpisodes(key, worker_id, episodes, now, lease_expires));
-  }
-  if (!study.empty()) {
-    ASSIGN_OR_RETURN(result.study_rows_stored,
-                     store_->StoreStudyRows(key, worker_id, study, now, lease_expires));
-  }
+  // Always called, rows or not: it is the fence and extends the lease.
+  ASSIGN_OR_RETURN(result.stored,
+                   store_->StoreResults(key, worker_id, results, now, lease_expires));
   if (checkpoint) RETURN_IF_ERROR(store_->StoreCheckpoint(key, worker_id, *checkpoint, now));
   ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(key.job_id));
   auto worker = store_->GetWorker(worker_id);
@@ -387,46 +387,40 @@ absl::StatusOr<EndOutcome> Scheduler::EndLocked(AttemptEnd end, LeaseBudget budg
 }
 
 absl::Status Scheduler::Complete(const std::string& worker_id, const LeaseKey& key,
-                                 const std::vector<Episode>& episodes, int episodes_total,
-                                 bool success, double final_eval_cost,
-                                 const std::optional<storage::Checkpoint>& checkpoint) {
-  RETURN_IF_ERROR(ValidateEpisodes(episodes));
-  RETURN_IF_ERROR(ValidateCheckpoint(checkpoint));
-  if (!std::isfinite(final_eval_cost)) {
-    return absl::InvalidArgumentError(
-        "final_eval_cost is not finite; a trial with a non-finite cost must be reported with Fail");
+                                 const storage::JobCompletion& completion) {
+  RETURN_IF_ERROR(ValidateResults(completion.results));
+  RETURN_IF_ERROR(ValidateCheckpoint(completion.checkpoint));
+  for (const storage::ResultTable& table : storage::ResultTables()) {
+    const int total = completion.totals.*table.total;
+    if (total < 0 || total > storage::kMaxRowsPerTable) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "a completion reports ", total, " ", table.noun, "; at most ",
+          storage::kMaxRowsPerTable, " of a table"));
+    }
   }
   absl::MutexLock lock(&decision_mutex_);
   AttemptEnd end;
   end.key = key;
   end.worker_id = worker_id;
   end.attempt_state = AttemptState::kCompleted;
-  end.episodes = episodes;
-  end.episodes_total = episodes_total;
-  end.success = success;
-  end.final_eval_cost = final_eval_cost;
-  end.checkpoint = checkpoint;
-  return EndLocked(std::move(end)).status();
-}
-
-absl::Status Scheduler::CompleteStudy(const std::string& worker_id, const LeaseKey& key,
-                                      const storage::StudyRows& rows, int cells_total,
-                                      int references_total) {
-  RETURN_IF_ERROR(ValidateStudyRows(rows));
-  if (cells_total > kMaxStudyRowsPerJob || references_total > kMaxStudyRowsPerJob) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "a study completes with ", cells_total, " cells and ", references_total,
-        " references; at most ", kMaxStudyRowsPerJob, " of each"));
+  end.results = completion.results;
+  end.totals = completion.totals;
+  end.checkpoint = completion.checkpoint;
+  ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(key.job_id));
+  if (storage::KindInfo(job.kind).reports_verdict) {
+    if (!std::isfinite(completion.final_eval_cost)) {
+      return absl::InvalidArgumentError(
+          "final_eval_cost is not finite; a trial with a non-finite cost must be reported with "
+          "Fail");
+    }
+    end.success = completion.success;
+    end.final_eval_cost = completion.final_eval_cost;
+  } else {
+    // A kind without a verdict (a study) that ran to the end succeeded; its
+    // numbers are in its rows, whatever the worker sent.
+    end.success = true;
+    end.final_eval_cost = storage::kNaN;
   }
-  absl::MutexLock lock(&decision_mutex_);
-  AttemptEnd end;
-  end.key = key;
-  end.worker_id = worker_id;
-  end.attempt_state = AttemptState::kCompleted;
-  end.study = rows;
-  end.study_cells_total = cells_total;
-  end.study_references_total = references_total;
-  end.success = true;  // a study that ran to the end; its numbers are in its rows
   return EndLocked(std::move(end)).status();
 }
 
@@ -439,7 +433,7 @@ absl::StatusOr<bool> Scheduler::Fail(const std::string& worker_id, const LeaseKe
   end.key = key;
   end.worker_id = worker_id;
   end.attempt_state = AttemptState::kFailed;
-  end.episodes = episodes;
+  end.results.episodes = episodes;
   end.error = error.empty() ? "(no error text given)" : error.substr(0, kMaxErrorBytes);
   RETURN_IF_ERROR(EndLocked(std::move(end)).status());
   ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(key.job_id));

@@ -88,8 +88,7 @@ struct ExpiryReport {
 
 struct HeartbeatResult {
   Directive directive = Directive::kContinue;
-  int episodes_stored = 0;
-  int study_rows_stored = 0;  // study jobs: cells + references stored
+  storage::ResultTotals stored;  // rows stored for the attempt, per table of its kind
 };
 
 // Limits on what a worker may send (checked before anything is stored).
@@ -102,8 +101,6 @@ inline constexpr size_t kMaxStudyTextBytes = 16 * 1024;
 inline constexpr size_t kMaxStudyVectorSize = 100000;
 // Largest trial checkpoint kept (what a worker sends must fit a message).
 inline constexpr size_t kMaxCheckpointBytes = 2 << 20;
-// Cells or references one study job may complete with.
-inline constexpr int kMaxStudyRowsPerJob = 1000000;
 
 // InvalidArgument naming the problem: empty or over-long id, control chars.
 absl::Status ValidateWorkerIdentity(const storage::WorkerIdentity& worker);
@@ -114,6 +111,8 @@ absl::Status ValidateEpisodes(const std::vector<storage::Episode>& episodes);
 // oversized text or vectors, a negative index or count. Numbers are stored
 // as they are (NaN: no value).
 absl::Status ValidateStudyRows(const storage::StudyRows& rows);
+// Both of the above, on a bundle of every table's rows.
+absl::Status ValidateResults(const storage::JobResults& results);
 
 class Scheduler {
  public:
@@ -143,27 +142,25 @@ class Scheduler {
   // for work to appear. Returns nullopt at the deadline or after Shutdown().
   absl::StatusOr<std::optional<Lease>> Acquire(const storage::WorkerIdentity& worker,
                                                absl::Duration wait);
-  // Stores `episodes` (trial jobs) or `study` rows (study jobs), then the
-  // trial's `checkpoint` if given, and extends the lease. Aborted for a stale
-  // lease; InvalidArgument for rows of the wrong kind, or a checkpoint over
-  // kMaxCheckpointBytes or of an episode outside the trial.
+  // Stores `results` (rows of the tables of the job's kind, job_kinds.h),
+  // then `checkpoint` if given, and extends the lease; an empty beat only
+  // extends it. Aborted for a stale lease; InvalidArgument for rows of a
+  // table the job's kind does not own, or a checkpoint over
+  // kMaxCheckpointBytes, of a kind without checkpoints or of an episode
+  // outside the trial.
   absl::StatusOr<HeartbeatResult> Heartbeat(
       const std::string& worker_id, const storage::LeaseKey& key,
-      const std::vector<storage::Episode>& episodes, const storage::StudyRows& study = {},
+      const storage::JobResults& results,
       const std::optional<storage::Checkpoint>& checkpoint = std::nullopt);
-  // Ends the attempt as completed (see Store::EndAttempt for the checks),
-  // storing `checkpoint` (the final state) with it if given.
+  // Ends the attempt as completed, for every kind: `completion`'s rows and
+  // checkpoint are stored first, then the kind's completion check runs
+  // (Store::EndAttempt; job_kinds.h). InvalidArgument before anything is
+  // stored for a total outside 0..storage::kMaxRowsPerTable, and, for a kind
+  // whose verdict is the worker's (trials), a non-finite final_eval_cost (a
+  // trial with a non-finite cost must Fail). A kind without a verdict
+  // (studies) completes as a success with no cost, whatever the worker sent.
   absl::Status Complete(const std::string& worker_id, const storage::LeaseKey& key,
-                        const std::vector<storage::Episode>& episodes, int episodes_total,
-                        bool success, double final_eval_cost,
-                        const std::optional<storage::Checkpoint>& checkpoint = std::nullopt);
-  // Ends a study job's attempt as completed: `rows` are stored first, then
-  // cells 0..cells_total-1 and references 0..references_total-1 must all be
-  // stored (FailedPrecondition names the missing ones). InvalidArgument for
-  // a trial job or a total above kMaxStudyRowsPerJob.
-  absl::Status CompleteStudy(const std::string& worker_id, const storage::LeaseKey& key,
-                             const storage::StudyRows& rows, int cells_total,
-                             int references_total);
+                        const storage::JobCompletion& completion);
   // Ends the attempt as failed. Returns true if the job was re-queued.
   absl::StatusOr<bool> Fail(const std::string& worker_id, const storage::LeaseKey& key,
                             const std::vector<storage::Episode>& episodes,

@@ -52,6 +52,26 @@ storage::StudyRows StudyRowsFromProto(
   return rows;
 }
 
+storage::JobResults ResultsFromProto(const v1::HeartbeatRequest& request) {
+  storage::JobResults results;
+  results.episodes = FromProto(request.episodes());
+  results.study = StudyRowsFromProto(request.study_cells(), request.study_references());
+  return results;
+}
+
+storage::JobCompletion CompletionFromProto(const v1::CompleteRequest& request) {
+  storage::JobCompletion completion;
+  completion.results.episodes = FromProto(request.episodes());
+  completion.results.study = StudyRowsFromProto(request.study_cells(), request.study_references());
+  completion.totals.episodes = request.episodes_total();
+  completion.totals.study_cells = request.study_cells_total();
+  completion.totals.study_references = request.study_references_total();
+  completion.success = request.success();
+  completion.final_eval_cost = request.final_eval_cost();
+  completion.checkpoint = CheckpointFromProto(request.has_checkpoint(), request.checkpoint());
+  return completion;
+}
+
 void ToProto(const storage::StudyCell& c, v1::StudyCellRow* out) {
   out->set_index(c.index);
   record_proto::RecordToProto<study::CellResult>(study::CellFields(), c, out);

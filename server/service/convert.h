@@ -33,6 +33,13 @@ storage::StudyReference FromProto(const v1::StudyReferenceRow& row);
 storage::StudyRows StudyRowsFromProto(
     const google::protobuf::RepeatedPtrField<v1::StudyCellRow>& cells,
     const google::protobuf::RepeatedPtrField<v1::StudyReferenceRow>& references);
+// The rows of a heartbeat (HeartbeatRequest) and a completion
+// (CompleteRequest): one bundle and one completion for every job kind. The
+// wire keeps a field per table (episodes, study_cells, study_references,
+// and their totals), so older workers and coordinators still understand
+// each other; the kind's rules apply in the store.
+storage::JobResults ResultsFromProto(const v1::HeartbeatRequest& request);
+storage::JobCompletion CompletionFromProto(const v1::CompleteRequest& request);
 // Unspecified maps to nullopt.
 std::optional<storage::JobState> FromProto(v1::JobState state);
 // nullopt when the message carries no checkpoint (no data).

@@ -59,13 +59,12 @@ grpc::Status WorkerServiceImpl::Heartbeat(grpc::ServerContext* context,
                                           v1::HeartbeatResponse* response) {
   TG_AUTHORIZE(context);
   absl::StatusOr<scheduler::HeartbeatResult> result = scheduler_->Heartbeat(
-      request->worker_id(), FromProto(request->lease()), FromProto(request->episodes()),
-      StudyRowsFromProto(request->study_cells(), request->study_references()),
+      request->worker_id(), FromProto(request->lease()), ResultsFromProto(*request),
       CheckpointFromProto(request->has_checkpoint(), request->checkpoint()));
   if (!result.ok()) return ToGrpcStatus(result.status());
   response->set_directive(ToProto(result->directive));
-  response->set_episodes_stored(result->episodes_stored);
-  response->set_study_rows_stored(result->study_rows_stored);
+  response->set_episodes_stored(result->stored.episodes);
+  response->set_study_rows_stored(result->stored.study_cells + result->stored.study_references);
   return grpc::Status::OK;
 }
 
@@ -73,17 +72,10 @@ grpc::Status WorkerServiceImpl::Complete(grpc::ServerContext* context,
                                          const v1::CompleteRequest* request,
                                          v1::CompleteResponse* response) {
   TG_AUTHORIZE(context);
-  // A study job completes with its row totals; the store checks the job's kind.
-  if (request->study_cells_total() != 0 || request->study_references_total() != 0) {
-    return ToGrpcStatus(scheduler_->CompleteStudy(
-        request->worker_id(), FromProto(request->lease()),
-        StudyRowsFromProto(request->study_cells(), request->study_references()),
-        request->study_cells_total(), request->study_references_total()));
-  }
-  return ToGrpcStatus(scheduler_->Complete(
-      request->worker_id(), FromProto(request->lease()), FromProto(request->episodes()),
-      request->episodes_total(), request->success(), request->final_eval_cost(),
-      CheckpointFromProto(request->has_checkpoint(), request->checkpoint())));
+  // One path for every kind: the job's kind decides what the completion
+  // must carry (server/storage/job_kinds.h).
+  return ToGrpcStatus(scheduler_->Complete(request->worker_id(), FromProto(request->lease()),
+                                           CompletionFromProto(*request)));
 }
 
 grpc::Status WorkerServiceImpl::Fail(grpc::ServerContext* context, const v1::FailRequest* request,

@@ -1,6 +1,5 @@
 // SqliteStore: attempts, leases, their results and checkpoints (sqlite_store.h).
 #include <algorithm>
-#include <set>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
@@ -42,15 +41,15 @@ VALUES(?, ?, 'running', ?, ?, ?, ?, ?))sql"));
   });
 }
 
-absl::StatusOr<int> SqliteStore::StoreEpisodes(const LeaseKey& key, const std::string& worker_id,
-                                               const std::vector<Episode>& episodes,
-                                               int64_t now_ms,
-                                               std::optional<int64_t> lease_expires_ms) {
-  int stored = 0;
+absl::StatusOr<ResultTotals> SqliteStore::StoreResults(const LeaseKey& key,
+                                                      const std::string& worker_id,
+                                                      const JobResults& results, int64_t now_ms,
+                                                      std::optional<int64_t> lease_expires_ms) {
+  ResultTotals stored;
   const absl::Status status = InWriteTransaction([&](Db& db) -> absl::Status {
     ASSIGN_OR_RETURN(OpenAttempt attempt, LoadAttempt(db, key));
     RETURN_IF_ERROR(CheckOpen(key, attempt, worker_id));
-    RETURN_IF_ERROR(InsertEpisodes(db, key, attempt.episodes_expected, episodes, now_ms));
+    RETURN_IF_ERROR(InsertResults(db, key, attempt, results, now_ms));
     if (lease_expires_ms.has_value()) {
       ASSIGN_OR_RETURN(Statement extend,
                        Statement::Prepare(db, "UPDATE attempts SET lease_expires_ms = ? "
@@ -58,34 +57,7 @@ absl::StatusOr<int> SqliteStore::StoreEpisodes(const LeaseKey& key, const std::s
       extend.Bind(1, *lease_expires_ms).Bind(2, key.job_id).Bind(3, key.attempt);
       RETURN_IF_ERROR(extend.Run());
     }
-    ASSIGN_OR_RETURN(Statement count,
-                     Statement::Prepare(db, "SELECT COUNT(*) FROM episodes "
-                                            "WHERE job_id = ? AND attempt = ?"));
-    count.Bind(1, key.job_id).Bind(2, key.attempt);
-    ASSIGN_OR_RETURN(bool row, count.Step());
-    stored = row ? static_cast<int>(count.ColumnInt(0)) : 0;
-    return absl::OkStatus();
-  });
-  if (!status.ok()) return status;
-  return stored;
-}
-
-absl::StatusOr<int> SqliteStore::StoreStudyRows(const LeaseKey& key, const std::string& worker_id,
-                                                const StudyRows& rows, int64_t now_ms,
-                                                std::optional<int64_t> lease_expires_ms) {
-  int stored = 0;
-  const absl::Status status = InWriteTransaction([&](Db& db) -> absl::Status {
-    ASSIGN_OR_RETURN(OpenAttempt attempt, LoadAttempt(db, key));
-    RETURN_IF_ERROR(CheckOpen(key, attempt, worker_id));
-    RETURN_IF_ERROR(InsertStudyRows(db, key, attempt.kind, rows, now_ms));
-    if (lease_expires_ms.has_value()) {
-      ASSIGN_OR_RETURN(Statement extend,
-                       Statement::Prepare(db, "UPDATE attempts SET lease_expires_ms = ? "
-                                              "WHERE job_id = ? AND attempt = ?"));
-      extend.Bind(1, *lease_expires_ms).Bind(2, key.job_id).Bind(3, key.attempt);
-      RETURN_IF_ERROR(extend.Run());
-    }
-    ASSIGN_OR_RETURN(stored, CountStudyRows(db, key));
+    ASSIGN_OR_RETURN(stored, CountResults(db, key, KindInfo(attempt.kind)));
     return absl::OkStatus();
   });
   if (!status.ok()) return status;
@@ -114,59 +86,18 @@ absl::StatusOr<EndOutcome> SqliteStore::EndAttempt(const AttemptEnd& end) {
       return absl::OkStatus();
     }
     RETURN_IF_ERROR(CheckOpen(key, attempt, end.worker_id));
-    RETURN_IF_ERROR(InsertEpisodes(db, key, attempt.episodes_expected, end.episodes, end.now_ms));
-    RETURN_IF_ERROR(InsertStudyRows(db, key, attempt.kind, end.study, end.now_ms));
+    RETURN_IF_ERROR(InsertResults(db, key, attempt, end.results, end.now_ms));
     if (end.checkpoint) RETURN_IF_ERROR(UpsertCheckpoint(db, key, attempt, *end.checkpoint, end.now_ms));
-    const bool study_totals = end.study_cells_total != 0 || end.study_references_total != 0;
-    if (end.attempt_state == AttemptState::kCompleted && attempt.kind == JobKind::kStudy) {
-      if (end.study_cells_total < 1 || end.study_references_total < 1) {
-        return absl::InvalidArgumentError(absl::StrCat(
-            "completion of study job ", key.job_id, " reports ", end.study_cells_total,
-            " cells and ", end.study_references_total,
-            " references; a study has at least one of each"));
-      }
-      for (const auto& [table, total] :
-           {std::pair<absl::string_view, int>{"study_cells", end.study_cells_total},
-            std::pair<absl::string_view, int>{"study_references", end.study_references_total}}) {
-        ASSIGN_OR_RETURN(std::vector<int> missing, MissingStudyRows(db, key, table, total));
-        if (!missing.empty()) {
-          return absl::FailedPreconditionError(absl::StrCat(
-              "cannot complete job ", key.job_id, " attempt ", key.attempt, ": ", table, " rows ",
-              absl::StrJoin(missing, ","), " of 0..", total - 1, " are not stored"));
-        }
-      }
-    } else if (end.attempt_state == AttemptState::kCompleted && study_totals) {
-      return absl::InvalidArgumentError(absl::StrCat(
-          "job ", key.job_id, " is a trial job; it completes with episodes, not study rows"));
-    } else if (end.attempt_state == AttemptState::kCompleted) {
-      // The job's own expected count decides, never the worker's: a
-      // completion reporting fewer episodes would count a trial with episodes
-      // missing (docs/results_schema.md promises every episode 0..expected-1).
-      if (end.episodes_total != attempt.episodes_expected) {
-        return absl::InvalidArgumentError(absl::StrCat(
-            "completion of job ", key.job_id, " attempt ", key.attempt, " reports ",
-            end.episodes_total, " episodes; the job expects ", attempt.episodes_expected,
-            " (episodes 0..", attempt.episodes_expected - 1, ")"));
-      }
-      ASSIGN_OR_RETURN(Statement present,
-                       Statement::Prepare(db, "SELECT episode FROM episodes WHERE job_id = ? "
-                                              "AND attempt = ? AND episode < ?"));
-      present.Bind(1, key.job_id).Bind(2, key.attempt).Bind(3, attempt.episodes_expected);
-      std::set<int> have;
-      while (true) {
-        ASSIGN_OR_RETURN(bool row, present.Step());
-        if (!row) break;
-        have.insert(static_cast<int>(present.ColumnInt(0)));
-      }
-      std::vector<int> missing;
-      for (int e = 0; e < attempt.episodes_expected; ++e) {
-        if (!have.count(e)) missing.push_back(e);
-      }
-      if (!missing.empty()) {
-        return absl::FailedPreconditionError(absl::StrCat(
-            "cannot complete job ", key.job_id, " attempt ", key.attempt, ": episodes ",
-            absl::StrJoin(missing, ","), " of 0..", attempt.episodes_expected - 1,
-            " are not stored"));
+    if (end.attempt_state == AttemptState::kCompleted) {
+      // The kind's completion check (job_kinds.h): its rule gives each of
+      // its tables a total, then one query per table finds what is missing.
+      const JobKindInfo& kind = KindInfo(attempt.kind);
+      ASSIGN_OR_RETURN(ResultTotals required,
+                       RequiredRows(kind, key, attempt.episodes_expected, end.totals));
+      for (const ResultTable* table : kind.tables) {
+        const int total = required.*table->total;
+        ASSIGN_OR_RETURN(std::vector<int> missing, MissingRows(db, key, *table, total));
+        if (!missing.empty()) return MissingRowsError(*table, key, missing, total);
       }
     }
     ASSIGN_OR_RETURN(Statement close, Statement::Prepare(db, R"sql(

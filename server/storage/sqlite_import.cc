@@ -86,9 +86,14 @@ WHERE id = ?)sql"));
         attempt_insert.Bind(9, a.ended_ms > 0 ? a.ended_ms : now_ms).Bind(10, a.error);
         RETURN_IF_ERROR(attempt_insert.Run());
         attempt_insert.Reset();
+        // Rows of a table the job's kind does not own are refused
+        // (job_kinds.h); one row of each table is enough to tell.
+        JobResults probe;
+        probe.study = a.study;
+        if (!a.episodes.empty()) probe.episodes.push_back(a.episodes.front().first);
+        RETURN_IF_ERROR(CheckOwnedTables(KindInfo(job.kind), job_id, probe));
         for (const auto& [episode, reported_ms] : a.episodes) {
-          if (episode.episode < 0 || episode.episode >= episodes_expected ||
-              job.kind != JobKind::kTrial) {
+          if (episode.episode < 0 || episode.episode >= episodes_expected) {
             return absl::InvalidArgumentError(absl::StrCat(
                 "archive: job ", job.method, " seed ", job.seed, " ", job.variant, " attempt ",
                 a.attempt, ": episode ", episode.episode, " is out of range 0..",
@@ -100,7 +105,10 @@ WHERE id = ?)sql"));
           ++result.episodes_imported;
         }
         if (!a.study.empty()) {
-          RETURN_IF_ERROR(InsertStudyRows(db, {job_id, number}, job.kind, a.study, now_ms));
+          OpenAttempt into;
+          into.kind = job.kind;
+          probe.episodes.clear();  // stored above, each with its own time
+          RETURN_IF_ERROR(InsertResults(db, {job_id, number}, into, probe, now_ms));
           result.study_rows_imported += static_cast<int64_t>(a.study.size());
         }
       }

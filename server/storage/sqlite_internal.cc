@@ -30,12 +30,6 @@ std::vector<double> DoublesFromJson(const std::string& text) {
   return values;
 }
 
-std::optional<JobKind> ParseJobKind(absl::string_view text) {
-  if (text == "trial") return JobKind::kTrial;
-  if (text == "study") return JobKind::kStudy;
-  return std::nullopt;
-}
-
 std::string OptionsToJson(const OptionList& options) {
   nlohmann::json array = nlohmann::json::array();
   for (const auto& [key, value] : options) array.push_back({key, value});
@@ -231,15 +225,13 @@ void BindEpisode(Statement& insert, const LeaseKey& key, const Episode& episode,
   insert.Bind(next, episode.details_json).Bind(next + 1, reported_ms);
 }
 
+namespace {
+
 absl::Status InsertEpisodes(Db& db, const LeaseKey& key, int episodes_expected,
                             const std::vector<Episode>& episodes, int64_t now_ms) {
   if (episodes.empty()) return absl::OkStatus();
   ASSIGN_OR_RETURN(Statement insert, Statement::Prepare(db, EpisodeInsertSql()));
   for (const Episode& episode : episodes) {
-    if (episodes_expected == 0) {
-      return absl::InvalidArgumentError(absl::StrCat(
-          "job ", key.job_id, " is a study job; it reports study rows, not episodes"));
-    }
     if (episode.episode < 0 || episode.episode >= episodes_expected) {
       return absl::InvalidArgumentError(
           absl::StrCat("episode ", episode.episode, " of job ", key.job_id,
@@ -252,72 +244,72 @@ absl::Status InsertEpisodes(Db& db, const LeaseKey& key, int episodes_expected,
   return absl::OkStatus();
 }
 
-absl::Status InsertStudyRows(Db& db, const LeaseKey& key, JobKind kind, const StudyRows& rows,
-                             int64_t now_ms) {
+// Rows of a study table: the row's key, then the record's columns
+// (sqlite_records.h), then reported_ms.
+template <typename Record, typename Row>
+absl::Status InsertStudyTable(Db& db, const LeaseKey& key, absl::string_view table,
+                              absl::string_view what, const record::FieldTable<Record>& fields,
+                              const std::vector<Row>& rows, int64_t now_ms) {
   if (rows.empty()) return absl::OkStatus();
-  if (kind != JobKind::kStudy) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "job ", key.job_id, " is a trial job; study rows belong to study jobs"));
-  }
-  // The columns are the records' (sqlite_records.h), after the row's key.
-  auto insert_sql = [](const char* table, const std::string& columns, size_t count) {
-    std::vector<std::string> marks(count + 4, "?");
-    return absl::StrCat("INSERT INTO ", table, "(job_id, attempt, idx, ", columns,
-                        ", reported_ms) VALUES(", absl::StrJoin(marks, ", "),
-                        ") ON CONFLICT(job_id, attempt, idx) DO NOTHING");
-  };
-  if (!rows.cells.empty()) {
-    const auto& table = study::CellFields();
-    ASSIGN_OR_RETURN(Statement insert,
-                     Statement::Prepare(db, insert_sql("study_cells", RecordColumnList(table, true),
-                                                       table.size())));
-    for (const StudyCell& c : rows.cells) {
-      if (c.index < 0) {
-        return absl::InvalidArgumentError(
-            absl::StrCat("study cell index ", c.index, " of job ", key.job_id, " is negative"));
-      }
-      insert.Bind(1, key.job_id).Bind(2, key.attempt).Bind(3, c.index);
-      const int next = BindRecord<study::CellResult>(insert, 4, table, c);
-      insert.Bind(next, now_ms);
-      RETURN_IF_ERROR(insert.Run());
-      insert.Reset();
+  std::vector<std::string> marks(fields.size() + 4, "?");
+  ASSIGN_OR_RETURN(Statement insert,
+                   Statement::Prepare(db, absl::StrCat("INSERT INTO ", table,
+                                                       "(job_id, attempt, idx, ",
+                                                       RecordColumnList(fields, true),
+                                                       ", reported_ms) VALUES(",
+                                                       absl::StrJoin(marks, ", "),
+                                                       ") ON CONFLICT(job_id, attempt, idx) "
+                                                       "DO NOTHING")));
+  for (const Row& row : rows) {
+    if (row.index < 0) {
+      return absl::InvalidArgumentError(
+          absl::StrCat(what, " index ", row.index, " of job ", key.job_id, " is negative"));
     }
-  }
-  if (!rows.references.empty()) {
-    const auto& table = study::ReferenceFields();
-    ASSIGN_OR_RETURN(Statement insert, Statement::Prepare(
-        db, insert_sql("study_references", RecordColumnList(table, true), table.size())));
-    for (const StudyReference& r : rows.references) {
-      if (r.index < 0) {
-        return absl::InvalidArgumentError(absl::StrCat(
-            "study reference index ", r.index, " of job ", key.job_id, " is negative"));
-      }
-      insert.Bind(1, key.job_id).Bind(2, key.attempt).Bind(3, r.index);
-      const int next = BindRecord<study::ReferenceGradient>(insert, 4, table, r);
-      insert.Bind(next, now_ms);
-      RETURN_IF_ERROR(insert.Run());
-      insert.Reset();
-    }
+    insert.Bind(1, key.job_id).Bind(2, key.attempt).Bind(3, row.index);
+    const int next = BindRecord<Record>(insert, 4, fields, row);
+    insert.Bind(next, now_ms);
+    RETURN_IF_ERROR(insert.Run());
+    insert.Reset();
   }
   return absl::OkStatus();
 }
 
-absl::StatusOr<int> CountStudyRows(Db& db, const LeaseKey& key) {
-  ASSIGN_OR_RETURN(Statement count, Statement::Prepare(db, R"sql(
-SELECT (SELECT COUNT(*) FROM study_cells WHERE job_id = ?1 AND attempt = ?2) +
-       (SELECT COUNT(*) FROM study_references WHERE job_id = ?1 AND attempt = ?2))sql"));
-  count.Bind(1, key.job_id).Bind(2, key.attempt);
-  ASSIGN_OR_RETURN(bool row, count.Step());
-  return row ? static_cast<int>(count.ColumnInt(0)) : 0;
+}  // namespace
+
+absl::Status InsertResults(Db& db, const LeaseKey& key, const OpenAttempt& attempt,
+                           const JobResults& results, int64_t now_ms) {
+  if (results.empty()) return absl::OkStatus();
+  // Ownership first (job_kinds.h), so each table's insert below sees only
+  // rows of its own kind's jobs.
+  RETURN_IF_ERROR(CheckOwnedTables(KindInfo(attempt.kind), key.job_id, results));
+  RETURN_IF_ERROR(
+      InsertEpisodes(db, key, attempt.episodes_expected, results.episodes, now_ms));
+  RETURN_IF_ERROR(InsertStudyTable(db, key, "study_cells", "study cell", study::CellFields(),
+                                   results.study.cells, now_ms));
+  return InsertStudyTable(db, key, "study_references", "study reference",
+                          study::ReferenceFields(), results.study.references, now_ms);
 }
 
-// The indexes in 0..total-1 missing from `table` for the attempt.
-absl::StatusOr<std::vector<int>> MissingStudyRows(Db& db, const LeaseKey& key,
-                                                  absl::string_view table, int total) {
+absl::StatusOr<ResultTotals> CountResults(Db& db, const LeaseKey& key, const JobKindInfo& kind) {
+  ResultTotals stored;
+  for (const ResultTable* table : kind.tables) {
+    ASSIGN_OR_RETURN(Statement count,
+                     Statement::Prepare(db, absl::StrCat("SELECT COUNT(*) FROM ", table->name,
+                                                         " WHERE job_id = ? AND attempt = ?")));
+    count.Bind(1, key.job_id).Bind(2, key.attempt);
+    ASSIGN_OR_RETURN(bool row, count.Step());
+    stored.*table->total = row ? static_cast<int>(count.ColumnInt(0)) : 0;
+  }
+  return stored;
+}
+
+absl::StatusOr<std::vector<int>> MissingRows(Db& db, const LeaseKey& key,
+                                             const ResultTable& table, int total) {
   ASSIGN_OR_RETURN(Statement present,
-                   Statement::Prepare(db, absl::StrCat("SELECT idx FROM ", table,
-                                                       " WHERE job_id = ? AND attempt = ? "
-                                                       "AND idx < ?")));
+                   Statement::Prepare(db, absl::StrCat("SELECT ", table.index_column, " FROM ",
+                                                       table.name,
+                                                       " WHERE job_id = ? AND attempt = ? AND ",
+                                                       table.index_column, " < ?")));
   present.Bind(1, key.job_id).Bind(2, key.attempt).Bind(3, total);
   std::set<int> have;
   while (true) {
@@ -335,9 +327,11 @@ absl::StatusOr<std::vector<int>> MissingStudyRows(Db& db, const LeaseKey& key,
 // Keeps `checkpoint` for the attempt unless it holds one of a later episode.
 absl::Status UpsertCheckpoint(Db& db, const LeaseKey& key, const OpenAttempt& attempt,
                               const Checkpoint& checkpoint, int64_t now_ms) {
-  if (attempt.kind != JobKind::kTrial) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("job ", key.job_id, " is a study job; only trials have checkpoints"));
+  const JobKindInfo& kind = KindInfo(attempt.kind);
+  if (!kind.checkpoints) {
+    return absl::InvalidArgumentError(absl::StrCat("job ", key.job_id, " is a ", kind.name,
+                                                   " job; ", kind.name,
+                                                   " jobs keep no checkpoints"));
   }
   if (checkpoint.episode < 0 || checkpoint.episode >= attempt.episodes_expected) {
     return absl::InvalidArgumentError(absl::StrCat(

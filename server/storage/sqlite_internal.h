@@ -18,6 +18,7 @@
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
 #include "server/storage/sqlite_db.h"
+#include "server/storage/job_kinds.h"
 #include "server/storage/store.h"
 
 namespace totalgrad::storage::internal {
@@ -25,7 +26,6 @@ namespace totalgrad::storage::internal {
 // Doubles as JSON arrays: round-trip precision; NaN and +-Inf as null.
 std::string DoublesToJson(const std::vector<double>& values);
 std::vector<double> DoublesFromJson(const std::string& text);
-std::optional<JobKind> ParseJobKind(absl::string_view text);
 // Options as the jobs.options_json column holds them: [[key, value], ...].
 std::string OptionsToJson(const OptionList& options);
 OptionList OptionsFromJson(const std::string& text);
@@ -80,14 +80,18 @@ absl::StatusOr<OpenAttempt> LoadAttempt(Db& db, const LeaseKey& key);
 absl::Status CheckOpen(const LeaseKey& key, const OpenAttempt& attempt,
                        const std::string& worker_id);
 
-absl::Status InsertEpisodes(Db& db, const LeaseKey& key, int episodes_expected,
-                            const std::vector<Episode>& episodes, int64_t now_ms);
-absl::Status InsertStudyRows(Db& db, const LeaseKey& key, JobKind kind, const StudyRows& rows,
-                             int64_t now_ms);
-absl::StatusOr<int> CountStudyRows(Db& db, const LeaseKey& key);
-// The indexes in 0..total-1 missing from `table` for the attempt.
-absl::StatusOr<std::vector<int>> MissingStudyRows(Db& db, const LeaseKey& key,
-                                                  absl::string_view table, int total);
+// Stores `results` for the attempt (rows already stored are kept:
+// ON CONFLICT DO NOTHING). InvalidArgument, before anything is written: rows
+// of a table the attempt's kind does not own (job_kinds.h), an episode
+// outside [0, episodes_expected), a negative study row index.
+absl::Status InsertResults(Db& db, const LeaseKey& key, const OpenAttempt& attempt,
+                           const JobResults& results, int64_t now_ms);
+// Rows stored for the attempt in each of its kind's tables.
+absl::StatusOr<ResultTotals> CountResults(Db& db, const LeaseKey& key, const JobKindInfo& kind);
+// The one missing-rows query: the indexes in 0..total-1 that `table` does
+// not hold for the attempt.
+absl::StatusOr<std::vector<int>> MissingRows(Db& db, const LeaseKey& key,
+                                             const ResultTable& table, int total);
 // Keeps `checkpoint` for the attempt unless it holds one of a later episode.
 absl::Status UpsertCheckpoint(Db& db, const LeaseKey& key, const OpenAttempt& attempt,
                               const Checkpoint& checkpoint, int64_t now_ms);

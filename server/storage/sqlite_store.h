@@ -105,12 +105,9 @@ class SqliteStore final : public Store {
                                             int64_t now_ms) override;
   absl::Status StartAttempt(const LeaseKey& key, const WorkerIdentity& worker, int64_t now_ms,
                             int64_t lease_expires_ms) override;
-  absl::StatusOr<int> StoreEpisodes(const LeaseKey& key, const std::string& worker_id,
-                                    const std::vector<Episode>& episodes, int64_t now_ms,
-                                    std::optional<int64_t> lease_expires_ms) override;
-  absl::StatusOr<int> StoreStudyRows(const LeaseKey& key, const std::string& worker_id,
-                                     const StudyRows& rows, int64_t now_ms,
-                                     std::optional<int64_t> lease_expires_ms) override;
+  absl::StatusOr<ResultTotals> StoreResults(const LeaseKey& key, const std::string& worker_id,
+                                            const JobResults& results, int64_t now_ms,
+                                            std::optional<int64_t> lease_expires_ms) override;
   absl::Status StoreCheckpoint(const LeaseKey& key, const std::string& worker_id,
                                const Checkpoint& checkpoint, int64_t now_ms) override;
   absl::StatusOr<EndOutcome> EndAttempt(const AttemptEnd& end) override;

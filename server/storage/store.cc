@@ -1,6 +1,8 @@
 // The names of the store's enums (store.h), as stored in the database.
 #include "server/storage/store.h"
 
+#include "server/storage/job_kinds.h"
+
 namespace totalgrad::storage {
 
 absl::string_view ToString(SweepState state) {
@@ -32,9 +34,7 @@ absl::string_view ToString(AttemptState state) {
   }
   return "unknown";
 }
-absl::string_view ToString(JobKind kind) {
-  return kind == JobKind::kStudy ? "study" : "trial";
-}
+absl::string_view ToString(JobKind kind) { return KindInfo(kind).name; }
 std::optional<SweepState> ParseSweepState(absl::string_view text) {
   for (SweepState s : {SweepState::kRunning, SweepState::kPaused, SweepState::kCancelled}) {
     if (ToString(s) == text) return s;

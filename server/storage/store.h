@@ -51,7 +51,9 @@ struct SweepContents {
 };
 enum class JobState { kQueued, kRunning, kCompleted, kFailed, kCancelled };
 enum class AttemptState { kRunning, kCompleted, kFailed, kLeaseLost, kReleased, kCancelled };
-// A trial reports episodes; a study (core/study) reports study rows.
+// What a job runs and reports. Everything that differs between kinds (its
+// result tables, its completion check, checkpoints, its verdict) is data in
+// job_kinds.h; this enum only names them.
 enum class JobKind { kTrial, kStudy };
 
 // Names as stored in the database ("running", "lease_lost", ...).
@@ -143,6 +145,37 @@ struct StudyRows {
   std::vector<StudyReference> references;
   bool empty() const { return cells.empty() && references.empty(); }
   size_t size() const { return cells.size() + references.size(); }
+};
+
+// Rows a job reports, one member per result table (job_kinds.h says which
+// kind owns which table; rows of a table the job's kind does not own are
+// refused). Each row carries its key within the attempt (its index).
+struct JobResults {
+  std::vector<Episode> episodes;  // table episodes (trials)
+  StudyRows study;                // tables study_cells, study_references (studies)
+  bool empty() const { return episodes.empty() && study.empty(); }
+};
+
+// A number of rows per result table: what a completion reports its job
+// produced, or what is stored for an attempt (Store::StoreResults).
+struct ResultTotals {
+  int episodes = 0;
+  int study_cells = 0;
+  int study_references = 0;
+  bool operator==(const ResultTotals&) const = default;
+};
+
+// How a worker completes an attempt (Scheduler::Complete): rows not yet
+// acknowledged, stored first; how many rows of each of its kind's tables the
+// job produced (the completion check, job_kinds.h); the verdict, for kinds
+// that report one (trials: success and the final evaluation cost); and the
+// final checkpoint, for kinds that keep them.
+struct JobCompletion {
+  JobResults results;
+  ResultTotals totals;
+  bool success = false;
+  double final_eval_cost = kNaN;
+  std::optional<Checkpoint> checkpoint;
 };
 
 // Stored study rows with their job's coordinates (ListStudyRows).
@@ -311,23 +344,21 @@ struct AttemptEnd {
   std::string worker_id;         // must own the attempt
   AttemptState attempt_state = AttemptState::kCompleted;  // not kRunning
   JobState job_state = JobState::kCompleted;  // the job's next state
-  std::vector<Episode> episodes;  // stored first, in the same transaction
+  JobResults results;             // stored first, in the same transaction
   std::string error;              // kept as the attempt's and job's error
   int failures_delta = 0;         // added to the job's failure count
   int lost_leases_delta = 0;      // added to the job's lost-lease count
-  // Completion only (checked whatever job_state says): must equal the job's
-  // episodes_expected, and all episodes 0..episodes_expected-1 must then be
-  // stored. The job's completed_attempt, success and final_eval_cost are set
-  // only when job_state is kCompleted.
-  int episodes_total = 0;
+  // Completion only (checked whatever job_state says): how many rows of each
+  // of the kind's result tables the job produced, checked by the kind's
+  // completion rule (job_kinds.h: a trial's episodes must be its
+  // episodes_expected; a study's totals are the worker's, >= 1). All rows
+  // 0..total-1 of each table must then be stored. The job's
+  // completed_attempt, success and final_eval_cost are set (as given) only
+  // when job_state is kCompleted.
+  ResultTotals totals;
   bool success = false;
   double final_eval_cost = kNaN;
-  // Study jobs: rows stored first, and (completion only) how many cells and
-  // references the study produced: all of 0..total-1 must then be stored.
-  StudyRows study;
-  int study_cells_total = 0;
-  int study_references_total = 0;
-  // Stored with the episodes (as StoreCheckpoint), e.g. the final state.
+  // Stored with the rows (as StoreCheckpoint), e.g. the final state.
   std::optional<Checkpoint> checkpoint;
   int64_t now_ms = 0;
 };
@@ -418,39 +449,34 @@ class Store {
   virtual absl::Status StartAttempt(const LeaseKey& key, const WorkerIdentity& worker,
                                     int64_t now_ms, int64_t lease_expires_ms) = 0;
 
-  // Stores episodes of an open attempt owned by `worker_id` (repeats are
-  // ignored) and, if given, moves its lease expiry. Returns the number of
-  // episodes stored for the attempt. Aborted: stale lease or another worker's;
-  // InvalidArgument: an episode number outside [0, episodes_expected).
-  virtual absl::StatusOr<int> StoreEpisodes(const LeaseKey& key, const std::string& worker_id,
-                                            const std::vector<Episode>& episodes, int64_t now_ms,
-                                            std::optional<int64_t> lease_expires_ms) = 0;
-
-  // Stores study rows of an open study attempt owned by `worker_id` (rows
-  // whose index is already stored are ignored) and, if given, moves its lease
-  // expiry. Returns the number of study rows (cells + references) stored for
-  // the attempt. Aborted: stale lease or another worker's; InvalidArgument: a
-  // trial job, or a negative index.
-  virtual absl::StatusOr<int> StoreStudyRows(const LeaseKey& key, const std::string& worker_id,
-                                             const StudyRows& rows, int64_t now_ms,
-                                             std::optional<int64_t> lease_expires_ms) = 0;
+  // Stores result rows of an open attempt owned by `worker_id` (a row whose
+  // key is already stored is ignored: replays are harmless) and, if given,
+  // moves its lease expiry. Returns how many rows of each of the kind's
+  // tables are stored for the attempt (0 for the tables it does not own).
+  // Aborted: stale lease or another worker's; InvalidArgument: rows of a
+  // table the job's kind does not own (naming the kind and the table), an
+  // episode outside [0, episodes_expected), a negative study row index.
+  virtual absl::StatusOr<ResultTotals> StoreResults(const LeaseKey& key,
+                                                    const std::string& worker_id,
+                                                    const JobResults& results, int64_t now_ms,
+                                                    std::optional<int64_t> lease_expires_ms) = 0;
 
   // Keeps `checkpoint` as the latest state of an open trial attempt owned by
   // `worker_id`, unless the attempt already has one of a later episode (a
   // replay). Aborted: stale lease or another worker's; InvalidArgument: a
-  // study job, or an episode outside [0, episodes_expected).
+  // job whose kind keeps no checkpoints (studies), or an episode outside
+  // [0, episodes_expected).
   virtual absl::Status StoreCheckpoint(const LeaseKey& key, const std::string& worker_id,
                                        const Checkpoint& checkpoint, int64_t now_ms) = 0;
 
   // Ends an attempt as `end` says. Aborted if the attempt is not open (unless
   // it already ended with the same attempt state: kAlreadyEnded), or belongs
-  // to another worker. For kCompleted, InvalidArgument if episodes_total is
-  // not the job's episodes_expected, FailedPrecondition naming the missing
-  // episodes if 0..episodes_expected-1 are not all stored (nothing changes); a
-  // study job instead needs cells 0..study_cells_total-1 and references
-  // 0..study_references_total-1 (both totals >= 1), and InvalidArgument is
-  // returned for a completion of the wrong kind (episodes for a study, study
-  // totals for a trial).
+  // to another worker. For kCompleted, the kind's completion check
+  // (job_kinds.h) with one missing-rows query per result table: the totals
+  // must pass the kind's rule (InvalidArgument otherwise, and for a total of
+  // a table the kind does not own), then FailedPrecondition names the
+  // missing rows of the first table that lacks some of 0..total-1 (nothing
+  // changes).
   virtual absl::StatusOr<EndOutcome> EndAttempt(const AttemptEnd& end) = 0;
 
   // Grows an existing sweep to `grown` (the union of its spec and a

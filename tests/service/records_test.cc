@@ -264,9 +264,10 @@ TEST_F(RecordsTest, StudyRowsThroughEveryPath) {
   storage::StudyRows rows;
   rows.cells.push_back(service::FromProto(sent_cell));
   rows.references.push_back(service::FromProto(sent_ref));
-  TG_ASSERT_OK_AND_ASSIGN(int stored,
-                          store_->StoreStudyRows({job, 1}, "w1", rows, kNow, std::nullopt));
-  EXPECT_EQ(stored, 2);
+  TG_ASSERT_OK_AND_ASSIGN(
+      storage::ResultTotals stored,
+      store_->StoreResults({job, 1}, "w1", {{}, rows}, kNow, std::nullopt));
+  EXPECT_EQ(stored, (storage::ResultTotals{.study_cells = 1, .study_references = 1}));
   store_.reset();
   Open();  // from the file, not from a cache
   std::vector<storage::StudyCellRecord> cells;
@@ -346,7 +347,7 @@ TEST_F(RecordsTest, EpisodesThroughEveryPath) {
   // The coordinator and its store.
   const int64_t job = CreateTrialJob();
   const storage::Episode stored = service::FromProto(report);
-  TG_ASSERT_OK(store_->StoreEpisodes({job, 1}, "w1", {stored}, kNow, std::nullopt).status());
+  TG_ASSERT_OK(store_->StoreResults({job, 1}, "w1", {{stored}}, kNow, std::nullopt).status());
   store_.reset();
   Open();
   std::vector<storage::EpisodeRowRecord> exported;
@@ -526,7 +527,7 @@ TEST_F(RecordsTest, VersionFiveStudyRowsAreMigratedAfterABackup) {
   storage::StudyReference stored_ref;
   static_cast<study::ReferenceGradient&>(stored_ref) = ref;
   rows.references.push_back(stored_ref);
-  TG_ASSERT_OK(store_->StoreStudyRows({job, 1}, "w1", rows, kNow, std::nullopt).status());
+  TG_ASSERT_OK(store_->StoreResults({job, 1}, "w1", {{}, rows}, kNow, std::nullopt).status());
   store_.reset();
   {
     auto db = storage::internal::Db::Open(path_, false, 1000);

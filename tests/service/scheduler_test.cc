@@ -91,6 +91,16 @@ class SchedulerTest : public ::testing::Test {
     for (int e = from; e < to; ++e) episodes.push_back(MakeEpisode(e, 10 + e));
     return episodes;
   }
+  // A trial's completion: its unacknowledged episodes, its total and verdict.
+  static storage::JobCompletion TrialCompletion(std::vector<Episode> episodes, int total,
+                                                bool success, double final_eval_cost) {
+    storage::JobCompletion completion;
+    completion.results.episodes = std::move(episodes);
+    completion.totals.episodes = total;
+    completion.success = success;
+    completion.final_eval_cost = final_eval_cost;
+    return completion;
+  }
 
   std::string path_;
   FakeClock clock_;
@@ -151,7 +161,7 @@ TEST_F(SchedulerTest, LeaseCarriesTheJobAndTimings) {
 TEST_F(SchedulerTest, SilentLeaseExpiresAndLateWritesAreRefused) {
   Submit("s", 1, 3);
   const Lease first = MustAcquire("w1");
-  TG_ASSERT_OK(scheduler_->Heartbeat("w1", first.key, Episodes(0, 1)));
+  TG_ASSERT_OK(scheduler_->Heartbeat("w1", first.key, {Episodes(0, 1)}));
   clock_.AdvanceMs(89'000);
   TG_ASSERT_OK_AND_ASSIGN(int expired, scheduler_->ExpireLeases());
   EXPECT_EQ(expired, 0);
@@ -167,9 +177,9 @@ TEST_F(SchedulerTest, SilentLeaseExpiresAndLateWritesAreRefused) {
   EXPECT_EQ(second.key.job_id, first.key.job_id);
   EXPECT_EQ(second.key.attempt, 2);
 
-  auto late_beat = scheduler_->Heartbeat("w1", first.key, Episodes(1, 2));
+  auto late_beat = scheduler_->Heartbeat("w1", first.key, {Episodes(1, 2)});
   EXPECT_EQ(late_beat.status().code(), absl::StatusCode::kAborted) << late_beat.status();
-  auto late_complete = scheduler_->Complete("w1", first.key, Episodes(1, 3), 3, true, 1.0);
+  auto late_complete = scheduler_->Complete("w1", first.key, TrialCompletion(Episodes(1, 3), 3, true, 1.0));
   EXPECT_EQ(late_complete.code(), absl::StatusCode::kAborted) << late_complete;
   auto late_fail = scheduler_->Fail("w1", first.key, {}, "boom");
   EXPECT_EQ(late_fail.status().code(), absl::StatusCode::kAborted);
@@ -201,18 +211,18 @@ TEST_F(SchedulerTest, DuplicateDeliveryIsANoOp) {
   const Lease a = MustAcquire("w1");
   const Lease b = MustAcquire("w2");
   for (int repeat = 0; repeat < 2; ++repeat) {
-    TG_ASSERT_OK_AND_ASSIGN(HeartbeatResult beat, scheduler_->Heartbeat("w1", a.key, Episodes(0, 2)));
-    EXPECT_EQ(beat.episodes_stored, 2);
+    TG_ASSERT_OK_AND_ASSIGN(HeartbeatResult beat, scheduler_->Heartbeat("w1", a.key, {Episodes(0, 2)}));
+    EXPECT_EQ(beat.stored.episodes, 2);
   }
   for (int repeat = 0; repeat < 2; ++repeat) {
-    TG_ASSERT_OK(scheduler_->Complete("w1", a.key, Episodes(2, 3), 3, true, 4.5));
+    TG_ASSERT_OK(scheduler_->Complete("w1", a.key, TrialCompletion(Episodes(2, 3), 3, true, 4.5)));
   }
   for (int repeat = 0; repeat < 2; ++repeat) {
     TG_ASSERT_OK_AND_ASSIGN(bool requeued, scheduler_->Fail("w2", b.key, Episodes(0, 1), "diverged"));
     EXPECT_TRUE(requeued);
   }
   // A beat overtaken by its own completion is refused and changes nothing.
-  EXPECT_EQ(scheduler_->Heartbeat("w1", a.key, Episodes(0, 3)).status().code(),
+  EXPECT_EQ(scheduler_->Heartbeat("w1", a.key, {Episodes(0, 3)}).status().code(),
             absl::StatusCode::kAborted);
   const JobRecord done = Job(a.key.job_id);
   EXPECT_EQ(done.state, JobState::kCompleted);
@@ -322,9 +332,9 @@ TEST_F(SchedulerTest, PausedSweepsHandOutNothingButRunningTrialsContinue) {
   TG_ASSERT_OK(scheduler_->SetSweepState("s", SweepState::kPaused));
   EXPECT_TRUE(NothingToAcquire("w2"));
   TG_ASSERT_OK_AND_ASSIGN(HeartbeatResult beat,
-                          scheduler_->Heartbeat("w1", running.key, Episodes(0, 2)));
+                          scheduler_->Heartbeat("w1", running.key, {Episodes(0, 2)}));
   EXPECT_EQ(beat.directive, Directive::kContinue);
-  TG_ASSERT_OK(scheduler_->Complete("w1", running.key, {}, 2, false, 30));
+  TG_ASSERT_OK(scheduler_->Complete("w1", running.key, TrialCompletion({}, 2, false, 30)));
   TG_ASSERT_OK(scheduler_->SetSweepState("s", SweepState::kRunning));
   MustAcquire("w2");
 }
@@ -335,7 +345,7 @@ TEST_F(SchedulerTest, CancelTellsRunningTrialsToStopAndOnlyAResumeUndoesIt) {
   TG_ASSERT_OK_AND_ASSIGN(auto sweep, scheduler_->SetSweepState("s", SweepState::kCancelled));
   EXPECT_EQ(sweep.jobs_cancelled, 3);
   TG_ASSERT_OK_AND_ASSIGN(HeartbeatResult beat,
-                          scheduler_->Heartbeat("w1", running.key, Episodes(0, 1)));
+                          scheduler_->Heartbeat("w1", running.key, {Episodes(0, 1)}));
   EXPECT_EQ(beat.directive, Directive::kCancel);
   TG_ASSERT_OK(scheduler_->Release("w1", running.key, "cancelled"));
   TG_ASSERT_OK(scheduler_->Release("w1", running.key, "cancelled"));  // repeated: no-op
@@ -405,7 +415,7 @@ TEST_F(SchedulerTest, MaxConcurrentLimitsRunningJobsPerSweep) {
   const Lease a = MustAcquire("w1");
   MustAcquire("w2");
   EXPECT_TRUE(NothingToAcquire("w3"));
-  TG_ASSERT_OK(scheduler_->Complete("w1", a.key, Episodes(0, 2), 2, true, 1));
+  TG_ASSERT_OK(scheduler_->Complete("w1", a.key, TrialCompletion(Episodes(0, 2), 2, true, 1)));
   MustAcquire("w3");
 }
 
@@ -420,8 +430,8 @@ TEST_F(SchedulerTest, RecoverExtendsOpenLeasesAfterARestart) {
   EXPECT_EQ(extended, 1);
   TG_ASSERT_OK_AND_ASSIGN(int expired, scheduler_->ExpireLeases());
   EXPECT_EQ(expired, 0);
-  TG_ASSERT_OK(scheduler_->Heartbeat("w1", lease.key, Episodes(0, 2)));
-  TG_ASSERT_OK(scheduler_->Complete("w1", lease.key, {}, 2, true, 2));
+  TG_ASSERT_OK(scheduler_->Heartbeat("w1", lease.key, {Episodes(0, 2)}));
+  TG_ASSERT_OK(scheduler_->Complete("w1", lease.key, TrialCompletion({}, 2, true, 2)));
   EXPECT_EQ(Job(lease.key.job_id).state, JobState::kCompleted);
 }
 
@@ -457,8 +467,8 @@ TEST_F(SchedulerTest, StallExtendsEveryOpenLeaseBeforeExpiringAny) {
   EXPECT_EQ(Job(b.key.job_id).state, JobState::kRunning);
   // After kill -CONT the workers' beats arrive and the leases carry on.
   EXPECT_EQ(RunLeaseLoopFor(500, /*step_ms=*/100), 0);
-  TG_ASSERT_OK(scheduler_->Heartbeat("w1", a.key, Episodes(0, 1)));
-  TG_ASSERT_OK(scheduler_->Heartbeat("w2", b.key, Episodes(0, 1)));
+  TG_ASSERT_OK(scheduler_->Heartbeat("w1", a.key, {Episodes(0, 1)}));
+  TG_ASSERT_OK(scheduler_->Heartbeat("w2", b.key, {Episodes(0, 1)}));
   // w1 keeps beating; w2 is really gone: only its lease is lost, 6 s later.
   int lost = 0;
   for (int i = 0; i < 14; ++i) {
@@ -493,10 +503,10 @@ TEST_F(SchedulerTest, StoreFailureBeforeCommitLosesNothing) {
   const Lease lease = MustAcquire("w1");
   EXPECT_EQ(lease.key.attempt, 1);
 
-  faulty_->FailNext("StoreEpisodes", absl::UnavailableError("disk hiccup"));
-  EXPECT_FALSE(scheduler_->Heartbeat("w1", lease.key, Episodes(0, 1)).ok());
+  faulty_->FailNext("StoreResults", absl::UnavailableError("disk hiccup"));
+  EXPECT_FALSE(scheduler_->Heartbeat("w1", lease.key, {Episodes(0, 1)}).ok());
   EXPECT_EQ(Job(lease.key.job_id).episodes_stored, 0);
-  TG_ASSERT_OK(scheduler_->Heartbeat("w1", lease.key, Episodes(0, 1)));
+  TG_ASSERT_OK(scheduler_->Heartbeat("w1", lease.key, {Episodes(0, 1)}));
   EXPECT_EQ(Job(lease.key.job_id).episodes_stored, 1);
 }
 
@@ -504,11 +514,11 @@ TEST_F(SchedulerTest, StoreFailureBeforeCommitLosesNothing) {
 TEST_F(SchedulerTest, LostReplyAfterCommitIsSafeToRetry) {
   Submit("s", 1, 2);
   const Lease lease = MustAcquire("w1");
-  TG_ASSERT_OK(scheduler_->Heartbeat("w1", lease.key, Episodes(0, 2)));
+  TG_ASSERT_OK(scheduler_->Heartbeat("w1", lease.key, {Episodes(0, 2)}));
   faulty_->FailNext("EndAttempt", absl::DeadlineExceededError("reply lost"),
                     FaultyStore::When::kAfterCommit);
-  EXPECT_FALSE(scheduler_->Complete("w1", lease.key, {}, 2, true, 1).ok());
-  TG_ASSERT_OK(scheduler_->Complete("w1", lease.key, {}, 2, true, 1));
+  EXPECT_FALSE(scheduler_->Complete("w1", lease.key, TrialCompletion({}, 2, true, 1)).ok());
+  TG_ASSERT_OK(scheduler_->Complete("w1", lease.key, TrialCompletion({}, 2, true, 1)));
   EXPECT_EQ(Job(lease.key.job_id).state, JobState::kCompleted);
   EXPECT_EQ(faulty_->faults_fired(), 1);
 }
@@ -518,21 +528,24 @@ TEST_F(SchedulerTest, BadReportsAreRefusedWithTheFieldNamed) {
   const Lease lease = MustAcquire("w1");
   std::vector<Episode> bad = Episodes(0, 1);
   bad[0].real_cost = std::numeric_limits<double>::infinity();
-  auto inf = scheduler_->Heartbeat("w1", lease.key, bad);
+  auto inf = scheduler_->Heartbeat("w1", lease.key, {bad});
   EXPECT_EQ(inf.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_NE(inf.status().message().find("real_cost is infinite"), std::string::npos);
   bad[0].real_cost = std::nan("");
-  EXPECT_EQ(scheduler_->Heartbeat("w1", lease.key, bad).status().code(),
+  EXPECT_EQ(scheduler_->Heartbeat("w1", lease.key, {bad}).status().code(),
             absl::StatusCode::kInvalidArgument);
-  auto nan_final = scheduler_->Complete("w1", lease.key, {}, 3, true, std::nan(""));
+  auto nan_final = scheduler_->Complete("w1", lease.key, TrialCompletion({}, 3, true, std::nan("")));
   EXPECT_EQ(nan_final.code(), absl::StatusCode::kInvalidArgument);
-  auto out_of_range = scheduler_->Heartbeat("w1", lease.key, Episodes(3, 4));
+  auto out_of_range = scheduler_->Heartbeat("w1", lease.key, {Episodes(3, 4)});
   EXPECT_EQ(out_of_range.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_EQ(scheduler_->TryAcquire(MakeWorker("")).status().code(),
             absl::StatusCode::kInvalidArgument);
   EXPECT_EQ(scheduler_->Heartbeat("w1", {999, 1}, {}).status().code(), absl::StatusCode::kNotFound);
   // A forged study total is refused before the store counts up to it.
-  const absl::Status huge_study = scheduler_->CompleteStudy("w1", lease.key, {}, 2147483647, 1);
+  storage::JobCompletion forged;
+  forged.totals.study_cells = 2147483647;
+  forged.totals.study_references = 1;
+  const absl::Status huge_study = scheduler_->Complete("w1", lease.key, forged);
   EXPECT_EQ(huge_study.code(), absl::StatusCode::kInvalidArgument);
   EXPECT_NE(huge_study.message().find("at most 1000000"), std::string::npos) << huge_study;
   EXPECT_EQ(Job(lease.key.job_id).episodes_stored, 0);
@@ -545,8 +558,8 @@ TEST_F(SchedulerTest, CompletionAfterCancelIsDataButTheJobStaysCancelled) {
   Submit("s", 2, 2);
   const Lease lease = MustAcquire("w1");
   TG_ASSERT_OK(scheduler_->SetSweepState("s", SweepState::kCancelled));
-  TG_ASSERT_OK(scheduler_->Complete("w1", lease.key, Episodes(0, 2), 2, true, 1));
-  TG_ASSERT_OK(scheduler_->Complete("w1", lease.key, {}, 2, true, 1));  // repeated: no-op
+  TG_ASSERT_OK(scheduler_->Complete("w1", lease.key, TrialCompletion(Episodes(0, 2), 2, true, 1)));
+  TG_ASSERT_OK(scheduler_->Complete("w1", lease.key, TrialCompletion({}, 2, true, 1)));  // repeated: no-op
   const JobRecord job = Job(lease.key.job_id);
   EXPECT_EQ(job.state, JobState::kCancelled);
   EXPECT_EQ(job.completed_attempt, 0);
@@ -670,11 +683,11 @@ TEST_F(SchedulerTest, JobStateMachineTable) {
     LeaseKey key{job_id, 1};  // the attempt the worker calls name (none yet for queued)
     if (row.start != Start::kQueued && row.start != Start::kCancelledIdle) {
       key = MustAcquire("w1").key;
-      TG_ASSERT_OK(scheduler_->Heartbeat("w1", key, Episodes(0, 1)));
+      TG_ASSERT_OK(scheduler_->Heartbeat("w1", key, {Episodes(0, 1)}));
     }
     switch (row.start) {
       case Start::kCompleted:
-        TG_ASSERT_OK(scheduler_->Complete("w1", key, Episodes(1, 2), 2, true, 1));
+        TG_ASSERT_OK(scheduler_->Complete("w1", key, TrialCompletion(Episodes(1, 2), 2, true, 1)));
         break;
       case Start::kFailed:
         TG_ASSERT_OK(scheduler_->Fail("w1", key, {}, "boom"));
@@ -691,7 +704,7 @@ TEST_F(SchedulerTest, JobStateMachineTable) {
       case Event::kAcquire: status = scheduler_->TryAcquire(MakeWorker("w2")).status(); break;
       case Event::kHeartbeat: status = scheduler_->Heartbeat("w1", key, {}).status(); break;
       case Event::kComplete:
-        status = scheduler_->Complete("w1", key, Episodes(0, 2), 2, true, 1);
+        status = scheduler_->Complete("w1", key, TrialCompletion(Episodes(0, 2), 2, true, 1));
         break;
       case Event::kFail: status = scheduler_->Fail("w1", key, {}, "boom").status(); break;
       case Event::kRelease: status = scheduler_->Release("w1", key, "drain"); break;

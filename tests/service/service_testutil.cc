@@ -91,20 +91,11 @@ absl::Status FaultyStore::StartAttempt(const storage::LeaseKey& key,
                                        int64_t lease_expires_ms) {
   TG_FORWARD("StartAttempt", target_->StartAttempt(key, worker, now_ms, lease_expires_ms));
 }
-absl::StatusOr<int> FaultyStore::StoreEpisodes(const storage::LeaseKey& key,
-                                               const std::string& worker_id,
-                                               const std::vector<storage::Episode>& episodes,
-                                               int64_t now_ms,
-                                               std::optional<int64_t> lease_expires_ms) {
-  TG_FORWARD("StoreEpisodes",
-             target_->StoreEpisodes(key, worker_id, episodes, now_ms, lease_expires_ms));
-}
-absl::StatusOr<int> FaultyStore::StoreStudyRows(const storage::LeaseKey& key,
-                                                const std::string& worker_id,
-                                                const storage::StudyRows& rows, int64_t now_ms,
-                                                std::optional<int64_t> lease_expires_ms) {
-  TG_FORWARD("StoreStudyRows",
-             target_->StoreStudyRows(key, worker_id, rows, now_ms, lease_expires_ms));
+absl::StatusOr<storage::ResultTotals> FaultyStore::StoreResults(
+    const storage::LeaseKey& key, const std::string& worker_id,
+    const storage::JobResults& results, int64_t now_ms, std::optional<int64_t> lease_expires_ms) {
+  TG_FORWARD("StoreResults",
+             target_->StoreResults(key, worker_id, results, now_ms, lease_expires_ms));
 }
 absl::Status FaultyStore::StoreCheckpoint(const storage::LeaseKey& key,
                                           const std::string& worker_id,

@@ -46,12 +46,10 @@ class FaultyStore final : public storage::Store {
                                                      int64_t now_ms) override;
   absl::Status StartAttempt(const storage::LeaseKey& key, const storage::WorkerIdentity& worker,
                             int64_t now_ms, int64_t lease_expires_ms) override;
-  absl::StatusOr<int> StoreEpisodes(const storage::LeaseKey& key, const std::string& worker_id,
-                                    const std::vector<storage::Episode>& episodes, int64_t now_ms,
-                                    std::optional<int64_t> lease_expires_ms) override;
-  absl::StatusOr<int> StoreStudyRows(const storage::LeaseKey& key, const std::string& worker_id,
-                                     const storage::StudyRows& rows, int64_t now_ms,
-                                     std::optional<int64_t> lease_expires_ms) override;
+  absl::StatusOr<storage::ResultTotals> StoreResults(
+      const storage::LeaseKey& key, const std::string& worker_id,
+      const storage::JobResults& results, int64_t now_ms,
+      std::optional<int64_t> lease_expires_ms) override;
   absl::Status StoreCheckpoint(const storage::LeaseKey& key, const std::string& worker_id,
                                const storage::Checkpoint& checkpoint, int64_t now_ms) override;
   absl::StatusOr<storage::EndOutcome> EndAttempt(const storage::AttemptEnd& end) override;

@@ -72,7 +72,7 @@ class StorageTest : public ::testing::Test {
   // Stores episode 0 of `job`'s attempt 1, closes the store and opens the
   // file with a raw connection (to turn it into an older schema).
   void StoreAnEpisodeAndOpenTheFileRaw(int64_t job, std::optional<internal::Db>* db) {
-    TG_ASSERT_OK(store_->StoreEpisodes({job, 1}, "w1", {MakeEpisode(0)}, kNow, std::nullopt)
+    TG_ASSERT_OK(store_->StoreResults({job, 1}, "w1", {{MakeEpisode(0)}}, kNow, std::nullopt)
                      .status());
     store_.reset();
     auto opened = internal::Db::Open(path_, false, 1000);
@@ -159,14 +159,15 @@ TEST_F(StorageTest, StartAttemptIsACompareAndSet) {
 
 TEST_F(StorageTest, RepeatedEpisodesAreNoOpsAndKeepTheFirstValues) {
   const int64_t job = CreateAndLease("s");
-  TG_ASSERT_OK_AND_ASSIGN(int stored,
-                          store_->StoreEpisodes({job, 1}, "w1", {MakeEpisode(0, 5), MakeEpisode(1, 6)},
-                                                kNow, std::nullopt));
-  EXPECT_EQ(stored, 2);
-  TG_ASSERT_OK_AND_ASSIGN(stored, store_->StoreEpisodes({job, 1}, "w1",
-                                                        {MakeEpisode(1, 99), MakeEpisode(2, 7)},
-                                                        kNow, std::nullopt));
-  EXPECT_EQ(stored, 3);
+  TG_ASSERT_OK_AND_ASSIGN(
+      ResultTotals stored,
+      store_->StoreResults({job, 1}, "w1", {{MakeEpisode(0, 5), MakeEpisode(1, 6)}}, kNow,
+                           std::nullopt));
+  EXPECT_EQ(stored, (ResultTotals{.episodes = 2}));
+  TG_ASSERT_OK_AND_ASSIGN(
+      stored, store_->StoreResults({job, 1}, "w1", {{MakeEpisode(1, 99), MakeEpisode(2, 7)}},
+                                   kNow, std::nullopt));
+  EXPECT_EQ(stored, (ResultTotals{.episodes = 3}));
   std::vector<EpisodeRowRecord> rows;
   TG_ASSERT_OK(store_->ExportEpisodes("s", false, 100, [&](std::vector<EpisodeRowRecord> batch) {
     rows.insert(rows.end(), batch.begin(), batch.end());
@@ -178,7 +179,7 @@ TEST_F(StorageTest, RepeatedEpisodesAreNoOpsAndKeepTheFirstValues) {
 
 TEST_F(StorageTest, MissingValuesRoundTripAsNaN) {
   const int64_t job = CreateAndLease("s");
-  TG_ASSERT_OK(store_->StoreEpisodes({job, 1}, "w1", {MakeEpisode(0, 5)}, kNow, std::nullopt));
+  TG_ASSERT_OK(store_->StoreResults({job, 1}, "w1", {{MakeEpisode(0, 5)}}, kNow, std::nullopt));
   std::vector<EpisodeRowRecord> rows;
   TG_ASSERT_OK(store_->ExportEpisodes("s", false, 100, [&](std::vector<EpisodeRowRecord> batch) {
     rows = std::move(batch);
@@ -191,7 +192,7 @@ TEST_F(StorageTest, MissingValuesRoundTripAsNaN) {
 
 TEST_F(StorageTest, OutOfRangeEpisodeStoresNothingFromTheCall) {
   const int64_t job = CreateAndLease("s", 1, 3);
-  auto result = store_->StoreEpisodes({job, 1}, "w1", {MakeEpisode(0), MakeEpisode(3)}, kNow,
+  auto result = store_->StoreResults({job, 1}, "w1", {{MakeEpisode(0), MakeEpisode(3)}}, kNow,
                                       std::nullopt);
   EXPECT_EQ(result.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_NE(result.status().message().find("episode 3"), std::string::npos) << result.status();
@@ -204,16 +205,16 @@ TEST_F(StorageTest, StaleAttemptAndForeignWorkerAreAborted) {
   TG_ASSERT_OK(LoseLease({job, 1}));
   TG_ASSERT_OK(store_->StartAttempt({job, 2}, MakeWorker("w2"), kNow, kNow + 90'000));
 
-  auto late = store_->StoreEpisodes({job, 1}, "w1", {MakeEpisode(0)}, kNow, kNow + 1);
+  auto late = store_->StoreResults({job, 1}, "w1", {{MakeEpisode(0)}}, kNow, kNow + 1);
   EXPECT_EQ(late.status().code(), absl::StatusCode::kAborted) << late.status();
-  auto foreign = store_->StoreEpisodes({job, 2}, "w1", {MakeEpisode(0)}, kNow, kNow + 1);
+  auto foreign = store_->StoreResults({job, 2}, "w1", {{MakeEpisode(0)}}, kNow, kNow + 1);
   EXPECT_EQ(foreign.status().code(), absl::StatusCode::kAborted) << foreign.status();
   AttemptEnd late_complete;
   late_complete.key = {job, 1};
   late_complete.worker_id = "w1";
   late_complete.attempt_state = AttemptState::kCompleted;
   late_complete.job_state = JobState::kCompleted;
-  late_complete.episodes_total = 1;
+  late_complete.totals.episodes = 1;
   late_complete.now_ms = kNow;
   EXPECT_EQ(store_->EndAttempt(late_complete).status().code(), absl::StatusCode::kAborted);
 
@@ -226,14 +227,14 @@ TEST_F(StorageTest, StaleAttemptAndForeignWorkerAreAborted) {
 
 TEST_F(StorageTest, CompletionNamesMissingEpisodesAndChangesNothing) {
   const int64_t job = CreateAndLease("s", 1, 4);
-  TG_ASSERT_OK(store_->StoreEpisodes({job, 1}, "w1", {MakeEpisode(0), MakeEpisode(3)}, kNow,
+  TG_ASSERT_OK(store_->StoreResults({job, 1}, "w1", {{MakeEpisode(0), MakeEpisode(3)}}, kNow,
                                      std::nullopt));
   AttemptEnd end;
   end.key = {job, 1};
   end.worker_id = "w1";
   end.attempt_state = AttemptState::kCompleted;
   end.job_state = JobState::kCompleted;
-  end.episodes_total = 4;
+  end.totals.episodes = 4;
   end.success = true;
   end.final_eval_cost = 3;
   end.now_ms = kNow;
@@ -244,7 +245,7 @@ TEST_F(StorageTest, CompletionNamesMissingEpisodesAndChangesNothing) {
   TG_ASSERT_OK_AND_ASSIGN(JobRecord still, store_->GetJob(job));
   EXPECT_EQ(still.state, JobState::kRunning);
 
-  end.episodes = {MakeEpisode(1), MakeEpisode(2)};
+  end.results.episodes = {MakeEpisode(1), MakeEpisode(2)};
   TG_ASSERT_OK_AND_ASSIGN(EndOutcome outcome, store_->EndAttempt(end));
   EXPECT_EQ(outcome, EndOutcome::kApplied);
   TG_ASSERT_OK_AND_ASSIGN(outcome, store_->EndAttempt(end));
@@ -354,7 +355,7 @@ TEST_F(StorageTest, ExtendOpenLeasesMovesOnlyEarlierExpiries) {
 
 TEST_F(StorageTest, EverythingAcknowledgedSurvivesReopen) {
   const int64_t job = CreateAndLease("s", 2, 3);
-  TG_ASSERT_OK(store_->StoreEpisodes({job, 1}, "w1", {MakeEpisode(0), MakeEpisode(1)}, kNow,
+  TG_ASSERT_OK(store_->StoreResults({job, 1}, "w1", {{MakeEpisode(0), MakeEpisode(1)}}, kNow,
                                      std::nullopt));
   Reopen();
   TG_ASSERT_OK_AND_ASSIGN(JobRecord record, store_->GetJob(job));
@@ -518,13 +519,13 @@ TEST_F(StorageTest, FullDiskIsRetryableAndReportedUntilACommitSucceeds) {
 
 TEST_F(StorageTest, BackupIsAConsistentOpenableCopy) {
   const int64_t job = CreateAndLease("s", 2, 3);
-  TG_ASSERT_OK(store_->StoreEpisodes({job, 1}, "w1", {MakeEpisode(0)}, kNow, std::nullopt));
+  TG_ASSERT_OK(store_->StoreResults({job, 1}, "w1", {{MakeEpisode(0)}}, kNow, std::nullopt));
   const std::string copy = dir_ + "/backup.db";
   TG_ASSERT_OK_AND_ASSIGN(int64_t bytes, store_->Backup(copy));
   EXPECT_GT(bytes, 0);
   EXPECT_EQ(store_->Backup(copy).status().code(), absl::StatusCode::kAlreadyExists);
   // The original keeps working after the backup.
-  TG_ASSERT_OK(store_->StoreEpisodes({job, 1}, "w1", {MakeEpisode(1)}, kNow, std::nullopt));
+  TG_ASSERT_OK(store_->StoreResults({job, 1}, "w1", {{MakeEpisode(1)}}, kNow, std::nullopt));
   auto restored = SqliteStore::Open(copy);
   ASSERT_TRUE(restored.ok()) << restored.status();
   TG_ASSERT_OK_AND_ASSIGN(JobRecord record, (*restored)->GetJob(job));
@@ -535,7 +536,7 @@ TEST_F(StorageTest, BackupIsAConsistentOpenableCopy) {
 
 TEST_F(StorageTest, ExportShowsTheCountingAttemptUnlessAllAreAsked) {
   const int64_t job = CreateAndLease("s", 1, 2);
-  TG_ASSERT_OK(store_->StoreEpisodes({job, 1}, "w1", {MakeEpisode(0, 1)}, kNow, std::nullopt));
+  TG_ASSERT_OK(store_->StoreResults({job, 1}, "w1", {{MakeEpisode(0, 1)}}, kNow, std::nullopt));
   AttemptEnd fail;
   fail.key = {job, 1};
   fail.worker_id = "w1";
@@ -546,7 +547,7 @@ TEST_F(StorageTest, ExportShowsTheCountingAttemptUnlessAllAreAsked) {
   fail.now_ms = kNow;
   TG_ASSERT_OK(store_->EndAttempt(fail));
   TG_ASSERT_OK(store_->StartAttempt({job, 2}, MakeWorker("w2"), kNow, kNow + 1000));
-  TG_ASSERT_OK(store_->StoreEpisodes({job, 2}, "w2", {MakeEpisode(0, 2), MakeEpisode(1, 3)}, kNow,
+  TG_ASSERT_OK(store_->StoreResults({job, 2}, "w2", {{MakeEpisode(0, 2), MakeEpisode(1, 3)}}, kNow,
                                      std::nullopt));
   auto collect = [&](bool all) {
     std::vector<EpisodeRowRecord> rows;
@@ -676,12 +677,15 @@ TEST_F(StorageTest, StudyRowsRoundTripExactlyAndReplaysAreNoOps) {
   // reconnect), then a changed copy of a stored row: the first values stay.
   StudyRows first;
   first.cells = {rows.cells[0]};
-  TG_ASSERT_OK_AND_ASSIGN(int stored, store_->StoreStudyRows({job, 1}, "w1", first, kNow, kNow + 1));
-  EXPECT_EQ(stored, 1);
-  TG_ASSERT_OK_AND_ASSIGN(stored, store_->StoreStudyRows({job, 1}, "w1", rows, kNow, std::nullopt));
-  EXPECT_EQ(stored, 4);
-  TG_ASSERT_OK_AND_ASSIGN(stored, store_->StoreStudyRows({job, 1}, "w1", rows, kNow, std::nullopt));
-  EXPECT_EQ(stored, 4);
+  TG_ASSERT_OK_AND_ASSIGN(ResultTotals stored,
+                          store_->StoreResults({job, 1}, "w1", {{}, first}, kNow, kNow + 1));
+  EXPECT_EQ(stored, (ResultTotals{.study_cells = 1}));
+  TG_ASSERT_OK_AND_ASSIGN(stored,
+                          store_->StoreResults({job, 1}, "w1", {{}, rows}, kNow, std::nullopt));
+  EXPECT_EQ(stored, (ResultTotals{.study_cells = 3, .study_references = 1}));
+  TG_ASSERT_OK_AND_ASSIGN(stored,
+                          store_->StoreResults({job, 1}, "w1", {{}, rows}, kNow, std::nullopt));
+  EXPECT_EQ(stored, (ResultTotals{.study_cells = 3, .study_references = 1}));
   StudyRows changed = rows;
   changed.cells[0].rel_rmse = 99;
   AttemptEnd end;
@@ -689,9 +693,8 @@ TEST_F(StorageTest, StudyRowsRoundTripExactlyAndReplaysAreNoOps) {
   end.worker_id = "w1";
   end.attempt_state = AttemptState::kCompleted;
   end.job_state = JobState::kCompleted;
-  end.study = changed;  // replayed in the completion too
-  end.study_cells_total = 3;
-  end.study_references_total = 1;
+  end.results.study = changed;  // replayed in the completion too
+  end.totals = {.study_cells = 3, .study_references = 1};
   end.success = true;
   end.now_ms = kNow;
   TG_ASSERT_OK_AND_ASSIGN(EndOutcome outcome, store_->EndAttempt(end));
@@ -736,26 +739,24 @@ TEST_F(StorageTest, StudyCompletionNamesMissingRowsAndRowsOfTheWrongKindAreRefus
   const StudyRows rows = MakeStudyRows();
   StudyRows partial;
   partial.cells = {rows.cells[0], rows.cells[2]};
-  TG_ASSERT_OK(store_->StoreStudyRows({job, 1}, "w1", partial, kNow, std::nullopt).status());
+  TG_ASSERT_OK(store_->StoreResults({job, 1}, "w1", {{}, partial}, kNow, std::nullopt).status());
   AttemptEnd end;
   end.key = {job, 1};
   end.worker_id = "w1";
   end.attempt_state = AttemptState::kCompleted;
   end.job_state = JobState::kCompleted;
-  end.study_cells_total = 3;
-  end.study_references_total = 1;
+  end.totals = {.study_cells = 3, .study_references = 1};
   end.now_ms = kNow;
   absl::StatusOr<EndOutcome> outcome = store_->EndAttempt(end);
   ASSERT_EQ(outcome.status().code(), absl::StatusCode::kFailedPrecondition) << outcome.status();
   EXPECT_NE(outcome.status().message().find("study_cells rows 1 of 0..2"), std::string::npos)
       << outcome.status();
   // Episodes for a study job, a trial-style completion: refused, nothing changes.
-  EXPECT_EQ(store_->StoreEpisodes({job, 1}, "w1", {MakeEpisode(0)}, kNow, std::nullopt)
+  EXPECT_EQ(store_->StoreResults({job, 1}, "w1", {{MakeEpisode(0)}}, kNow, std::nullopt)
                 .status().code(),
             absl::StatusCode::kInvalidArgument);
   AttemptEnd trial_style = end;
-  trial_style.study_cells_total = trial_style.study_references_total = 0;
-  trial_style.episodes_total = 1;
+  trial_style.totals = {.episodes = 1};
   EXPECT_EQ(store_->EndAttempt(trial_style).status().code(), absl::StatusCode::kInvalidArgument);
   TG_ASSERT_OK_AND_ASSIGN(JobRecord record, store_->GetJob(job));
   EXPECT_EQ(record.state, JobState::kRunning);
@@ -765,12 +766,12 @@ TEST_F(StorageTest, StudyCompletionNamesMissingRowsAndRowsOfTheWrongKindAreRefus
   const int64_t trial = jobs->front().id;
   EXPECT_EQ(jobs->front().kind, JobKind::kTrial);
   TG_ASSERT_OK(store_->StartAttempt({trial, 1}, MakeWorker("w1"), kNow, kNow + 90'000));
-  EXPECT_EQ(store_->StoreStudyRows({trial, 1}, "w1", rows, kNow, std::nullopt).status().code(),
+  EXPECT_EQ(store_->StoreResults({trial, 1}, "w1", {{}, rows}, kNow, std::nullopt).status().code(),
             absl::StatusCode::kInvalidArgument);
   // Fencing applies to study rows like to episodes.
-  EXPECT_EQ(store_->StoreStudyRows({job, 2}, "w1", rows, kNow, std::nullopt).status().code(),
+  EXPECT_EQ(store_->StoreResults({job, 2}, "w1", {{}, rows}, kNow, std::nullopt).status().code(),
             absl::StatusCode::kAborted);
-  EXPECT_EQ(store_->StoreStudyRows({job, 1}, "w2", rows, kNow, std::nullopt).status().code(),
+  EXPECT_EQ(store_->StoreResults({job, 1}, "w2", {{}, rows}, kNow, std::nullopt).status().code(),
             absl::StatusCode::kAborted);
   // Study candidates say what they are (the scheduler gives them to study workers only).
   TG_ASSERT_OK_AND_ASSIGN(JobRecord again, store_->GetJob(job));
@@ -793,7 +794,7 @@ TEST_F(StorageTest, SweepViewHasOneTypedColumnPerSweptKey) {
   TG_ASSERT_OK(store_->StartAttempt({jobs[0].id, 1}, MakeWorker("w1"), kNow, kNow + 90'000));
   Episode episode = MakeEpisode(0);
   episode.cpu_seconds = 1.5;
-  TG_ASSERT_OK(store_->StoreEpisodes({jobs[0].id, 1}, "w1", {episode}, kNow, std::nullopt).status());
+  TG_ASSERT_OK(store_->StoreResults({jobs[0].id, 1}, "w1", {{episode}}, kNow, std::nullopt).status());
   auto db = internal::Db::OpenReadOnly(path_, 1000);
   ASSERT_TRUE(db.ok()) << db.status();
   TG_ASSERT_OK_AND_ASSIGN(internal::Statement query, internal::Statement::Prepare(*db, R"sql(
@@ -851,9 +852,10 @@ TEST_F(StorageTest, VersionOneDatabaseIsMigrated) {
   EXPECT_EQ(old.kind, JobKind::kTrial);
   EXPECT_EQ(old.episodes_stored, 1);
   const int64_t job = CreateStudySweepAndLease(store_.get(), "new");
-  TG_ASSERT_OK_AND_ASSIGN(int stored, store_->StoreStudyRows({job, 1}, "w1", MakeStudyRows(), kNow,
-                                                             std::nullopt));
-  EXPECT_EQ(stored, 4);
+  TG_ASSERT_OK_AND_ASSIGN(ResultTotals stored, store_->StoreResults(
+                                                    {job, 1}, "w1", {{}, MakeStudyRows()}, kNow,
+                                                    std::nullopt));
+  EXPECT_EQ(stored.study_cells + stored.study_references, 4);
   // A newer schema than this build knows is refused.
   store_.reset();
   {
@@ -911,7 +913,7 @@ SELECT typeof(j.seed), j.seed, (SELECT COUNT(*) FROM "episodes/texts"),
   EXPECT_EQ(query.ColumnText(3), "integer");
   EXPECT_EQ(migrated.episodes_stored, 1);
   // Later writes still find the job by its seed (bound as text).
-  TG_ASSERT_OK(store_->StoreEpisodes({job, 1}, "w1", {MakeEpisode(1)}, kNow, std::nullopt)
+  TG_ASSERT_OK(store_->StoreResults({job, 1}, "w1", {{MakeEpisode(1)}}, kNow, std::nullopt)
                    .status());
   TG_ASSERT_OK_AND_ASSIGN(migrated, store_->GetJob(job));
   EXPECT_EQ(migrated.episodes_stored, 2);
@@ -922,10 +924,10 @@ SELECT typeof(j.seed), j.seed, (SELECT COUNT(*) FROM "episodes/texts"),
 // runs one of its trials; other sweeps are untouched.
 TEST_F(StorageTest, DeleteSweepRemovesEveryRowOnlyWhenIdleAndAsArchived) {
   const int64_t kept_job = CreateAndLease("kept");
-  TG_ASSERT_OK(store_->StoreEpisodes({kept_job, 1}, "w1", {MakeEpisode(0)}, kNow, std::nullopt)
+  TG_ASSERT_OK(store_->StoreResults({kept_job, 1}, "w1", {{MakeEpisode(0)}}, kNow, std::nullopt)
                    .status());
   const int64_t job = CreateAndLease("gone", /*jobs=*/2);
-  TG_ASSERT_OK(store_->StoreEpisodes({job, 1}, "w1", {MakeEpisode(0), MakeEpisode(1)}, kNow,
+  TG_ASSERT_OK(store_->StoreResults({job, 1}, "w1", {{MakeEpisode(0), MakeEpisode(1)}}, kNow,
                                      std::nullopt).status());
   const SweepContents archived{.jobs = 2, .attempts = 1, .episodes = 2, .study_rows = 0};
   // A worker holds a lease: refused, nothing deleted.
