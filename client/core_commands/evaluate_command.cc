@@ -9,6 +9,9 @@
 // snapshot's episode, so `--rollouts <eval_rollouts>` reproduces the trial's
 // evaluation of that policy exactly; --seed/--episode pick other draws, and
 // --scene/--cost/--noise-k/--set change the task the policy is tried on.
+// --states FILE.csv also writes every rollout step by step (the true states
+// in the scene's state order, the controls applied, the step's cost), e.g.
+// to look at what a policy with a given evaluation cost actually does.
 #include <iostream>
 #include <memory>
 #include <string>
@@ -20,7 +23,9 @@
 #include "absl/strings/str_cat.h"
 #include "client/core_commands/commands.h"
 #include "core/learner/evaluation.h"
+#include "io/record_format.h"
 #include "io/snapshot_json.h"
+#include "io/text_file.h"
 
 namespace totalgrad::cli {
 namespace {
@@ -33,7 +38,38 @@ struct EvaluateFlags {
   int episode = -1;  // evaluation streams of this episode; -1: the snapshot's
   int rollouts = 0;
   bool json = false;
+  std::string states_file;  // empty: no per-step output
 };
+
+// The rollouts as CSV, one row per (rollout, step t = 0..H): t, time t dt,
+// the true state x_t (columns named as the scene's states), the controls
+// u_t applied from x_t (empty at t = H) and the cost of x_t (empty at t = 0:
+// an episode's cost sums the post-step states x_1..x_H). Numbers are the
+// shortest round-trip text.
+std::string RolloutsCsv(const tasks::Scene& scene, const learner::PolicyEvaluation& evaluation) {
+  const tasks::SceneDefinition& definition = *scene.definition;
+  std::vector<std::string> header = {"rollout", "step", "time_s"};
+  for (const std::string& name : definition.state_names) header.push_back(name);
+  for (const std::string& name : definition.control_names) header.push_back(name);
+  header.push_back("cost");
+  std::string csv = io::CsvLine(header) + "\n";
+  const int d = scene.state_dim(), f = scene.control_dim();
+  for (size_t r = 0; r < evaluation.rollouts.size(); ++r) {
+    const tasks::Episode& run = evaluation.rollouts[r];
+    const int horizon = static_cast<int>(run.costs.size());
+    for (int t = 0; t <= horizon; ++t) {
+      std::vector<std::string> cells = {std::to_string(r), std::to_string(t),
+                                        io::RecordNumberText(t * definition.dt)};
+      for (int i = 0; i < d; ++i) cells.push_back(io::RecordNumberText(run.states(t, i)));
+      for (int j = 0; j < f; ++j) {
+        cells.push_back(t < horizon ? io::RecordNumberText(run.forces(t * f + j)) : "");
+      }
+      cells.push_back(t > 0 ? io::RecordNumberText(run.costs(t - 1)) : "");
+      csv += io::CsvLine(cells) + "\n";
+    }
+  }
+  return csv;
+}
 
 int RunEvaluate(const EvaluateFlags& flags) {
   absl::StatusOr<std::vector<learner::TrialSnapshot>> snapshots =
@@ -89,10 +125,25 @@ int RunEvaluate(const EvaluateFlags& flags) {
   }
   const int episode = flags.episode >= 0 ? flags.episode : snapshot->episode;
   absl::StatusOr<learner::PolicyEvaluation> evaluation =
-      learner::EvaluatePolicy(options, snapshot->policy_parameters, episode, flags.rollouts);
+      learner::EvaluatePolicy(options, snapshot->policy_parameters, episode, flags.rollouts,
+                              /*keep_rollouts=*/!flags.states_file.empty());
   if (!evaluation.ok()) {
     std::cerr << "evaluate: " << evaluation.status().message() << "\n";
     return evaluation.status().code() == absl::StatusCode::kInvalidArgument ? 2 : 1;
+  }
+  if (!flags.states_file.empty()) {
+    // EvaluatePolicy accepted these options, so the scene builds.
+    absl::StatusOr<tasks::Scene> scene = tasks::MakeScene(options.scene);
+    if (!scene.ok()) {
+      std::cerr << "evaluate: " << scene.status().message() << "\n";
+      return 2;
+    }
+    const absl::Status written =
+        io::WriteTextFile(flags.states_file, RolloutsCsv(*scene, *evaluation));
+    if (!written.ok()) {
+      std::cerr << "evaluate: " << written.message() << "\n";
+      return 1;
+    }
   }
   if (flags.json) {
     nlohmann::ordered_json out;
@@ -141,6 +192,9 @@ void AddEvaluateCommand(CLI::App* app, int* exit_code) {
                       "draw as the trial's evaluation of this episode (default: the snapshot's)");
   command->add_option("--set", flags->sets, "any other trial option, key=value (repeatable)");
   command->add_flag("--json", flags->json, "one JSON object (numbers with round-trip precision)");
+  command->add_option("--states", flags->states_file,
+                      "also write every rollout step by step to this CSV file (rollout, step, "
+                      "time_s, the true states, the controls applied, the step's cost)");
   command->callback([flags, exit_code] { *exit_code = RunEvaluate(*flags); });
 }
 

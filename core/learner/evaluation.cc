@@ -13,7 +13,8 @@ namespace totalgrad::learner {
 
 absl::StatusOr<PolicyEvaluation> EvaluateController(const tasks::Scene& scene,
                                                     const tasks::MultiController& controller,
-                                                    uint64_t seed, int episode, int rollouts) {
+                                                    uint64_t seed, int episode, int rollouts,
+                                                    bool keep_rollouts) {
   PolicyEvaluation evaluation;
   double sum = 0, sum_sq = 0;
   for (int r = 0; r < rollouts; ++r) {
@@ -26,6 +27,7 @@ absl::StatusOr<PolicyEvaluation> EvaluateController(const tasks::Scene& scene,
     evaluation.costs.push_back(run.total_cost);
     sum += run.total_cost;
     sum_sq += run.total_cost * run.total_cost;
+    if (keep_rollouts) evaluation.rollouts.push_back(std::move(run));
   }
   const double n = rollouts;
   evaluation.mean = sum / n;
@@ -35,7 +37,7 @@ absl::StatusOr<PolicyEvaluation> EvaluateController(const tasks::Scene& scene,
 
 absl::StatusOr<PolicyEvaluation> EvaluatePolicy(const TrialOptions& options,
                                                 const Vector& policy_parameters, int episode,
-                                                int rollouts) {
+                                                int rollouts, bool keep_rollouts) {
   absl::Status valid = options.Validate();
   if (!valid.ok()) return valid;
   if (rollouts < 1) return absl::InvalidArgumentError("rollouts must be >= 1");
@@ -54,7 +56,7 @@ absl::StatusOr<PolicyEvaluation> EvaluatePolicy(const TrialOptions& options,
   }
   policy.set_parameters(policy_parameters);
   return EvaluateController(*scene, FeaturePolicyController(&policy, std::move(angles)), options.seed,
-                            episode, rollouts);
+                            episode, rollouts, keep_rollouts);
 }
 
 }  // namespace totalgrad::learner

@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "client/core_commands/commands.h"
+#include "tests/client/core_commands/run_command.h"
 #include "core/tasks/cartpole.h"
 #include "core/tasks/scene.h"
 #include "tests/testutil/testutil.h"
@@ -174,30 +175,8 @@ TEST(FormatTest, JsonRoundTripsAndTableHasOneRowPerState) {
   EXPECT_NE(table.find("energy"), std::string::npos);
 }
 
-// Runs `totalgrad <args>` through CLI11 in process, as main() does.
-struct CommandRun {
-  int exit_code = -1;
-  std::string out, err;
-};
-
-CommandRun RunCommand(std::vector<std::string> args) {
-  CLI::App app;
-  app.require_subcommand(1);
-  CommandRun run;
-  run.exit_code = 0;
-  AddSimulateCommand(&app, &run.exit_code);
-  std::reverse(args.begin(), args.end());  // CLI11 takes the arguments reversed
-  ::testing::internal::CaptureStdout();
-  ::testing::internal::CaptureStderr();
-  try {
-    app.parse(args);
-  } catch (const CLI::ParseError& e) {
-    run.exit_code = app.exit(e) == 0 ? 0 : 2;
-  }
-  run.out = ::testing::internal::GetCapturedStdout();
-  run.err = ::testing::internal::GetCapturedStderr();
-  return run;
-}
+using testing_support::CommandRun;
+using testing_support::RunCommand;
 
 TEST(SimulateCommandTest, PrintsJson) {
   const CommandRun run = RunCommand(

@@ -20,6 +20,7 @@
 #include <nlohmann/json.hpp>
 
 #include "client/core_commands/commands.h"
+#include "tests/client/core_commands/run_command.h"
 #include "core/common/rng.h"
 #include "core/diff/gradient_checker.h"
 #include "core/estimators/estimator.h"
@@ -45,31 +46,8 @@ using io::SnapshotsToJson;
 using io::StudySpec;
 using io::WriteSnapshotFile;
 
-struct CommandRun {
-  int exit_code = -1;
-  std::string out, err;
-};
-
-// Runs `totalgrad <args>` through CLI11 in process, as main() does.
-CommandRun RunCommand(std::vector<std::string> args) {
-  CLI::App app;
-  app.require_subcommand(1);
-  CommandRun run;
-  run.exit_code = 0;
-  AddTrialCommand(&app, &run.exit_code);
-  AddStudyCommand(&app, &run.exit_code);
-  std::reverse(args.begin(), args.end());
-  ::testing::internal::CaptureStdout();
-  ::testing::internal::CaptureStderr();
-  try {
-    app.parse(args);
-  } catch (const CLI::ParseError& e) {
-    run.exit_code = app.exit(e) == 0 ? 0 : 2;
-  }
-  run.out = ::testing::internal::GetCapturedStdout();
-  run.err = ::testing::internal::GetCapturedStderr();
-  return run;
-}
+using testing_support::CommandRun;
+using testing_support::RunCommand;
 
 std::string Dir(const std::string& name) {
   const std::string dir = (std::filesystem::path(testing::MakeTempDir()) / name).string();
