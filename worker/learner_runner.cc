@@ -10,7 +10,7 @@ namespace {
 
 class ObserverAdapter final : public learner::TrialObserver {
  public:
-  explicit ObserverAdapter(TrialProgress* progress) : progress_(progress) {}
+  explicit ObserverAdapter(JobProgress* progress) : progress_(progress) {}
   void OnEpisode(const learner::EpisodeResult& result) override {
     if (progress_ == nullptr) return;
     EpisodeOutcome e;
@@ -26,7 +26,7 @@ class ObserverAdapter final : public learner::TrialObserver {
   }
 
  private:
-  TrialProgress* progress_;
+  JobProgress* progress_;
 };
 
 absl::StatusOr<learner::TrialOptions> ApplyOptions(const OptionList& options) {
@@ -38,16 +38,16 @@ absl::StatusOr<learner::TrialOptions> ApplyOptions(const OptionList& options) {
   return trial_options;
 }
 
-absl::StatusOr<TrialOutcome> RunFrom(const learner::TrialOptions& options,
-                                     const learner::TrialCheckpoint* resume_from, int threads,
-                                     TrialProgress* progress) {
+absl::StatusOr<JobOutcome> RunFrom(const learner::TrialOptions& options,
+                                   const learner::TrialCheckpoint* resume_from, int threads,
+                                   JobProgress* progress) {
   ObserverAdapter observer(progress);
   learner::RunOptions run;
   run.threads = threads;
   absl::StatusOr<learner::TrialSummary> summary =
       learner::RunTrial(options, &observer, resume_from, run);
   if (!summary.ok()) return summary.status();
-  TrialOutcome outcome;
+  JobOutcome outcome;
   outcome.success = summary->success;
   outcome.final_eval_cost = summary->final_eval_cost;
   outcome.episodes = static_cast<int>(summary->episodes.size());
@@ -56,19 +56,11 @@ absl::StatusOr<TrialOutcome> RunFrom(const learner::TrialOptions& options,
 
 }  // namespace
 
-absl::StatusOr<TrialOutcome> LearnerTrialRunner::Run(const OptionList& options,
-                                                     TrialProgress* progress) {
-  absl::StatusOr<learner::TrialOptions> trial_options = ApplyOptions(options);
+absl::StatusOr<JobOutcome> LearnerTrialRunner::Run(const JobInput& job, JobProgress* progress) {
+  absl::StatusOr<learner::TrialOptions> trial_options = ApplyOptions(job.options);
   if (!trial_options.ok()) return trial_options.status();
-  return RunFrom(*trial_options, nullptr, threads_, progress);
-}
-
-absl::StatusOr<TrialOutcome> LearnerTrialRunner::Resume(const OptionList& options,
-                                                        const std::string& checkpoint,
-                                                        TrialProgress* progress) {
-  absl::StatusOr<learner::TrialOptions> trial_options = ApplyOptions(options);
-  if (!trial_options.ok()) return trial_options.status();
-  absl::StatusOr<learner::TrialCheckpoint> decoded = learner::DecodeCheckpoint(checkpoint);
+  if (job.resume_from.empty()) return RunFrom(*trial_options, nullptr, threads_, progress);
+  absl::StatusOr<learner::TrialCheckpoint> decoded = learner::DecodeCheckpoint(job.resume_from);
   absl::Status usable = decoded.ok() ? learner::CheckResumable(*decoded, *trial_options)
                                      : decoded.status();
   if (!usable.ok()) {

@@ -1,30 +1,22 @@
-// LearnerTrialRunner: the real TrialRunner, over learner::RunTrial.
+// LearnerTrialRunner: the trials' JobRunner, over learner::RunTrial.
 #ifndef TOTALGRAD_WORKER_LEARNER_RUNNER_H_
 #define TOTALGRAD_WORKER_LEARNER_RUNNER_H_
 
-#include <string>
-
-#include "worker/trial_runner.h"
-
-namespace totalgrad::learner {
-struct EpisodeResult;  // core/learner/trial.h; not included, so that users of
-                       // this header need not see Eigen
-}  // namespace totalgrad::learner
+#include "worker/job_runner.h"
 
 namespace totalgrad::worker {
 
-class LearnerTrialRunner final : public TrialRunner {
+class LearnerTrialRunner final : public JobRunner {
  public:
   // Every trial runs on `threads_per_trial` threads (learner::RunOptions;
   // the numbers do not depend on it). >= 1.
   explicit LearnerTrialRunner(int threads_per_trial = 1) : threads_(threads_per_trial) {}
-  // Options go through learner::SetTrialOption, so the runner accepts exactly
-  // what the core accepts. Thread-safe (RunTrial keeps no shared state).
-  absl::StatusOr<TrialOutcome> Run(const OptionList& options, TrialProgress* progress) override;
-  // learner::DecodeCheckpoint + CheckResumable, then RunTrial from it.
-  absl::StatusOr<TrialOutcome> Resume(const OptionList& options, const std::string& checkpoint,
-                                      TrialProgress* progress) override;
-  // Both report a checkpoint after every episode (TrialProgress::OnCheckpoint).
+  // `job.options` go through learner::SetTrialOption, so the runner accepts
+  // exactly what the core accepts; `job.resume_from` through
+  // learner::DecodeCheckpoint and CheckResumable. Reports a checkpoint after
+  // every episode (JobProgress::OnCheckpoint). Thread-safe (RunTrial keeps no
+  // shared state).
+  absl::StatusOr<JobOutcome> Run(const JobInput& job, JobProgress* progress) override;
 
  private:
   int threads_;

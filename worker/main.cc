@@ -173,9 +173,11 @@ int main(int argc, char** argv) {
 
   // Deliberately never destroyed: the detached signal thread may still hold
   // them while the process exits.
-  auto* runner = new totalgrad::worker::LearnerTrialRunner(threads_per_slot);
-  auto* study_runner = new totalgrad::worker::CoreStudyRunner();
-  auto* worker_ptr = new totalgrad::worker::Worker(options, *channel, runner, study_runner);
+  auto* trials = new totalgrad::worker::LearnerTrialRunner(threads_per_slot);
+  auto* studies = new totalgrad::worker::CoreStudyRunner();
+  auto* worker_ptr = new totalgrad::worker::Worker(
+      options, *channel,
+      {{totalgrad::v1::JOB_KIND_TRIAL, trials}, {totalgrad::v1::JOB_KIND_STUDY, studies}});
   totalgrad::worker::Worker& worker = *worker_ptr;
   // A trial notices a cancellation between gradient steps, and a model fit
   // can take a while; after the drain timeout and the report grace a

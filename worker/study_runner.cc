@@ -1,18 +1,19 @@
 #include "worker/study_runner.h"
 
+#include <utility>
+
 #include <nlohmann/json.hpp>
 
 #include "absl/strings/str_cat.h"
 #include "io/study_file.h"
 #include "core/common/blas.h"
 #include "core/study/study.h"
-#include "server/common/record_proto.h"
 
 namespace totalgrad::worker {
 
-absl::StatusOr<StudyOutcome> CoreStudyRunner::Run(const std::string& spec_json,
-                                                  TrialProgress* progress) {
-  const nlohmann::json doc = nlohmann::json::parse(spec_json, nullptr, /*allow_exceptions=*/false);
+absl::StatusOr<JobOutcome> CoreStudyRunner::Run(const JobInput& job, JobProgress* progress) {
+  const nlohmann::json doc =
+      nlohmann::json::parse(job.spec_json, nullptr, /*allow_exceptions=*/false);
   if (doc.is_discarded() || !doc.is_object()) {
     return absl::InvalidArgumentError("study job: the spec is not a JSON object");
   }
@@ -36,21 +37,10 @@ absl::StatusOr<StudyOutcome> CoreStudyRunner::Run(const std::string& spec_json,
       [progress] { return progress != nullptr && progress->ShouldCancel(); });
   if (!result.ok()) return result.status();
 
-  // The rows are the core records converted by name (record_proto.h), each
-  // keyed by its position in the result.
-  StudyOutcome outcome;
-  for (size_t i = 0; i < result->references.size(); ++i) {
-    v1::StudyReferenceRow row;
-    row.set_index(static_cast<int>(i));
-    record_proto::RecordToProto(study::ReferenceFields(), result->references[i], &row);
-    outcome.references.push_back(std::move(row));
-  }
-  for (size_t i = 0; i < result->cells.size(); ++i) {
-    v1::StudyCellRow row;
-    row.set_index(static_cast<int>(i));
-    record_proto::RecordToProto(study::CellFields(), result->cells[i], &row);
-    outcome.cells.push_back(std::move(row));
-  }
+  // The rows are the core records, each keyed by its position in the result.
+  JobOutcome outcome;
+  outcome.study_cells = std::move(result->cells);
+  outcome.study_references = std::move(result->references);
   return outcome;
 }
 

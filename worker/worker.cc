@@ -10,7 +10,9 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/match.h"
+#include "absl/strings/ascii.h"
 #include "absl/strings/str_format.h"
+#include "absl/strings/strip.h"
 #include "server/common/record_proto.h"
 #include "server/common/rpc_client.h"
 
@@ -88,7 +90,7 @@ struct Worker::ActiveLease {
   std::atomic<bool> lost{false};
 };
 
-class Worker::Progress final : public TrialProgress {
+class Worker::Progress final : public JobProgress {
  public:
   Progress(Worker* worker, std::shared_ptr<ActiveLease> active)
       : worker_(worker), active_(std::move(active)) {}
@@ -138,14 +140,17 @@ WorkerOptions WithInstance(WorkerOptions options) {
   if (options.instance.empty()) options.instance = RandomInstance();
   return options;
 }
+JobRunners WithoutNull(JobRunners runners) {
+  std::erase_if(runners, [](const auto& entry) { return entry.second == nullptr; });
+  return runners;
+}
 }  // namespace
 
-Worker::Worker(WorkerOptions options, std::shared_ptr<grpc::Channel> channel, TrialRunner* runner,
-               StudyRunner* study_runner, Clock* clock)
+Worker::Worker(WorkerOptions options, std::shared_ptr<grpc::Channel> channel, JobRunners runners,
+               Clock* clock)
     : options_(WithInstance(std::move(options))),
       stub_(v1::WorkerService::NewStub(std::move(channel))),
-      runner_(runner),
-      study_runner_(study_runner),
+      runners_(WithoutNull(std::move(runners))),
       own_clock_(clock == nullptr ? std::make_unique<SystemClock>() : nullptr),
       clock_(clock == nullptr ? own_clock_.get() : clock) {}
 
@@ -227,7 +232,7 @@ void Worker::FillIdentity(v1::WorkerIdentity* identity) const {
   identity->set_host(options_.host);
   identity->set_build(options_.build);
   identity->set_slots(options_.slots);
-  identity->set_study_jobs(study_runner_ != nullptr);
+  identity->set_study_jobs(runners_.count(v1::JOB_KIND_STUDY) > 0);
   identity->set_instance(options_.instance);
   // Holding the host-local lock proves any earlier process with this id here has exited.
   identity->set_takes_over(spool_ != nullptr);
@@ -426,61 +431,61 @@ void Worker::RunLease(const v1::Lease& lease) {
       active->cancel_reason = "worker stopping";
     }
   }
-  const bool is_study = lease.kind() == v1::JOB_KIND_STUDY;
-  if (is_study) {
-    spdlog::info("{}: study {} (seed {})", Describe(lease.key()), lease.variant(), lease.seed());
-  } else {
-    spdlog::info("{}: {} seed {} {} ({} episodes)", Describe(lease.key()), lease.method(),
-                 lease.seed(), lease.variant(), lease.episodes_expected());
-  }
-  OptionList options;
-  for (const auto& option : lease.options()) options.emplace_back(option.key(), option.value());
-  Progress progress(this, active);
-  absl::StatusOr<TrialOutcome> result;
-  absl::StatusOr<StudyOutcome> study = absl::UnknownError("not a study");
-  const char* what = is_study ? "the study" : "the trial";
-  try {
-    const std::string* resume = nullptr;
-    if (!is_study && lease.has_resume_from() && !lease.resume_from().data().empty()) {
-      if (lease.resume_from_build() == options_.build) {
-        resume = &lease.resume_from().data();
-      } else {
-        spdlog::warn("{}: not resuming from the checkpoint of attempt {} (after episode {}): it "
-                     "was written by another build ({}); starting over so the results are "
-                     "those of one build",
-                     Describe(lease.key()), lease.resume_from_attempt(),
-                     lease.resume_from().episode(), lease.resume_from_build());
-      }
+  // UNSPECIFIED comes from a coordinator older than job kinds: a trial.
+  const v1::JobKind kind =
+      lease.kind() == v1::JOB_KIND_UNSPECIFIED ? v1::JOB_KIND_TRIAL : lease.kind();
+  // "trial", "study": as the coordinator's job kinds name them.
+  const std::string kind_name =
+      absl::AsciiStrToLower(absl::StripPrefix(v1::JobKind_Name(kind), "JOB_KIND_"));
+  spdlog::info("{}: {} seed {} {}", Describe(lease.key()), lease.method(), lease.seed(),
+               lease.variant());
+  JobInput job;
+  for (const auto& option : lease.options()) job.options.emplace_back(option.key(), option.value());
+  job.spec_json = lease.study_spec_json();
+  // The coordinator sends a checkpoint only for kinds that keep them.
+  if (lease.has_resume_from() && !lease.resume_from().data().empty()) {
+    if (lease.resume_from_build() == options_.build) {
+      job.resume_from = lease.resume_from().data();
+    } else {
+      spdlog::warn("{}: not resuming from the checkpoint of attempt {} (after episode {}): it "
+                   "was written by another build ({}); starting over so the results are "
+                   "those of one build",
+                   Describe(lease.key()), lease.resume_from_attempt(),
+                   lease.resume_from().episode(), lease.resume_from_build());
     }
-    if (resume != nullptr) {
+  }
+  Progress progress(this, active);
+  absl::StatusOr<JobOutcome> result;
+  const auto runner = runners_.find(kind);
+  try {
+    if (runner == runners_.end()) {
+      result = absl::FailedPreconditionError(absl::StrCat(
+          "this worker cannot run ", kind_name, " jobs"));
+    } else if (job.resume_from.empty()) {
+      result = runner->second->Run(job, &progress);
+    } else {
       spdlog::info("{}: resuming from the checkpoint of attempt {} after episode {}",
                    Describe(lease.key()), lease.resume_from_attempt(),
                    lease.resume_from().episode());
-      result = runner_->Resume(options, *resume, &progress);
+      result = runner->second->Run(job, &progress);
       if (!result.ok() && result.status().code() == absl::StatusCode::kFailedPrecondition &&
           absl::StartsWith(result.status().message(), "cannot resume")) {
         spdlog::warn("{}: {}; starting over", Describe(lease.key()),
                      std::string(result.status().message()));
-        result = runner_->Run(options, &progress);
+        job.resume_from.clear();
+        result = runner->second->Run(job, &progress);
       } else {
         absl::MutexLock lock(&mutex_);
         ++summary_.resumed;
       }
-    } else if (!is_study) {
-      result = runner_->Run(options, &progress);
-    } else if (study_runner_ == nullptr) {
-      result = absl::FailedPreconditionError("this worker cannot run study jobs");
-    } else {
-      study = study_runner_->Run(lease.study_spec_json(), &progress);
-      result = study.ok() ? absl::StatusOr<TrialOutcome>(TrialOutcome{})
-                          : absl::StatusOr<TrialOutcome>(study.status());
     }
   } catch (const std::exception& error) {
-    result = absl::InternalError(absl::StrCat(what, " threw: ", error.what()));
+    result = absl::InternalError(absl::StrCat("the ", kind_name, " threw: ", error.what()));
   } catch (...) {
-    result = absl::InternalError(absl::StrCat(what, " threw a non-standard exception"));
+    result = absl::InternalError(
+        absl::StrCat("the ", kind_name, " threw a non-standard exception"));
   }
-  Finish(active, result, is_study && result.ok() && study.ok() ? &*study : nullptr);
+  Finish(active, result);
 }
 
 void Worker::DeadlineLoop() {
@@ -623,26 +628,39 @@ void Worker::Beat(const std::shared_ptr<ActiveLease>& active) {
   }
 }
 
-grpc::Status Worker::SendStudyRows(const v1::LeaseKey& key, const StudyOutcome& study,
-                                   const rpc::RetryPolicy& policy) {
+grpc::Status Worker::SendReturnedRows(const v1::LeaseKey& key, const JobOutcome& outcome,
+                                      const rpc::RetryPolicy& policy) {
+  // The core's records as the wire's rows, by name (record_proto.h), each
+  // keyed by its position; references first, as the study computed them.
+  std::vector<v1::StudyReferenceRow> references(outcome.study_references.size());
+  for (size_t i = 0; i < references.size(); ++i) {
+    references[i].set_index(static_cast<int>(i));
+    record_proto::RecordToProto(study::ReferenceFields(), outcome.study_references[i],
+                                &references[i]);
+  }
+  std::vector<v1::StudyCellRow> cells(outcome.study_cells.size());
+  for (size_t i = 0; i < cells.size(); ++i) {
+    cells[i].set_index(static_cast<int>(i));
+    record_proto::RecordToProto(study::CellFields(), outcome.study_cells[i], &cells[i]);
+  }
   // Batches stay far below the 4 MiB message limit and the coordinator's
   // 1000 rows per call.
   constexpr size_t kMaxBatchBytes = 1 << 20;
   constexpr int kMaxBatchRows = 500;
   size_t next_cell = 0, next_reference = 0;
-  while (next_cell < study.cells.size() || next_reference < study.references.size()) {
+  while (next_cell < cells.size() || next_reference < references.size()) {
     v1::HeartbeatRequest request;
     request.set_worker_id(options_.worker_id);
     *request.mutable_lease() = key;
     size_t bytes = 0;
     int rows = 0;
     while (rows < kMaxBatchRows && bytes < kMaxBatchBytes) {
-      if (next_reference < study.references.size()) {
-        bytes += study.references[next_reference].ByteSizeLong();
-        *request.add_study_references() = study.references[next_reference++];
-      } else if (next_cell < study.cells.size()) {
-        bytes += study.cells[next_cell].ByteSizeLong();
-        *request.add_study_cells() = study.cells[next_cell++];
+      if (next_reference < references.size()) {
+        bytes += references[next_reference].ByteSizeLong();
+        *request.add_study_references() = std::move(references[next_reference++]);
+      } else if (next_cell < cells.size()) {
+        bytes += cells[next_cell].ByteSizeLong();
+        *request.add_study_cells() = std::move(cells[next_cell++]);
       } else {
         break;
       }
@@ -741,7 +759,7 @@ Worker::Delivery Worker::Deliver(const v1::SpooledAttempt& attempt, const rpc::R
 }
 
 void Worker::Finish(const std::shared_ptr<ActiveLease>& active,
-                    const absl::StatusOr<TrialOutcome>& result, const StudyOutcome* study) {
+                    const absl::StatusOr<JobOutcome>& result) {
   const v1::LeaseKey& key = active->lease.key();
   std::string failure, cancel_reason;
   bool never_started = false;
@@ -784,39 +802,41 @@ void Worker::Finish(const std::shared_ptr<ActiveLease>& active,
     release->set_reason(cancel_reason.empty() ? "cancelled" : cancel_reason);
     release->set_never_started(never_started);
   } else {
+    // One completion for every kind: the streamed rows not yet acknowledged
+    // and the checkpoint ride in it; every table's total and the verdict
+    // are sent, and the coordinator's kind decides which count.
     v1::CompleteRequest* complete = entry.mutable_complete();
     complete->set_worker_id(options_.worker_id);
     *complete->mutable_lease() = key;
-    if (study != nullptr) {
-      complete->set_study_cells_total(static_cast<int32_t>(study->cells.size()));
-      complete->set_study_references_total(static_cast<int32_t>(study->references.size()));
-    } else {
-      for (const auto& e : unacked) *complete->add_episodes() = e;
-      if (checkpoint) *complete->mutable_checkpoint() = *checkpoint;
-      entry.clear_pending();  // all of it rides in the completion
-      complete->set_episodes_total(result->episodes);
-      complete->set_success(result->success);
-      complete->set_final_eval_cost(result->final_eval_cost);
-    }
+    for (const auto& e : unacked) *complete->add_episodes() = e;
+    if (checkpoint) *complete->mutable_checkpoint() = *checkpoint;
+    entry.clear_pending();  // all of it rides in the completion
+    complete->set_episodes_total(result->episodes);
+    complete->set_study_cells_total(static_cast<int32_t>(result->study_cells.size()));
+    complete->set_study_references_total(static_cast<int32_t>(result->study_references.size()));
+    complete->set_success(result->success);
+    complete->set_final_eval_cost(result->final_eval_cost);
   }
+  const bool returned_rows =
+      result.ok() && (!result->study_cells.empty() || !result->study_references.empty());
   {
     absl::MutexLock lock(&mutex_);
     finishing_[key.job_id()] = entry;
   }
   const rpc::RetryPolicy policy = FinalReportPolicy();
   Delivery delivery;
-  if (study != nullptr) {
-    // Rows first (each batch a repeatable heartbeat), then the totals.
+  if (failure.empty() && returned_rows) {
+    // Returned rows first (each batch a repeatable heartbeat), then the totals.
     delivery.kind = Delivery::Kind::kComplete;
-    delivery.status = SendStudyRows(key, *study, policy);
+    delivery.status = SendReturnedRows(key, *result, policy);
     if (!delivery.status.ok() && !IsLeaseGone(delivery.status.error_code()) &&
         !IsAuthError(delivery.status.error_code())) {
-      // Study rows are not spooled (they can be large; a study re-runs from
-      // the start anyway): give the job back instead.
+      // Returned rows are not spooled (they can be large; a job that returns
+      // them re-runs from the start anyway): give the job back instead.
       entry = SpoolEntry(key, {});
       entry.mutable_release()->set_worker_id(options_.worker_id);
       *entry.mutable_release()->mutable_lease() = key;
-      entry.mutable_release()->set_reason("the study's rows could not be delivered");
+      entry.mutable_release()->set_reason("the job's rows could not be delivered");
       absl::MutexLock lock(&mutex_);
       finishing_[key.job_id()] = entry;
     }
@@ -852,13 +872,10 @@ void Worker::Finish(const std::shared_ptr<ActiveLease>& active,
   switch (delivery.kind) {
     case Delivery::Kind::kComplete:
       ++summary_.completed;
-      if (study != nullptr) {
-        spdlog::info("{}: study completed ({} cells, {} references)", Describe(key),
-                     study->cells.size(), study->references.size());
-      } else {
-        spdlog::info("{}: completed (success={}, final eval cost {})", Describe(key),
-                     result->success, result->final_eval_cost);
-      }
+      spdlog::info("{}: completed ({} episodes, {} study cells, {} study references; "
+                   "success={}, final eval cost {})",
+                   Describe(key), result->episodes, result->study_cells.size(),
+                   result->study_references.size(), result->success, result->final_eval_cost);
       break;
     case Delivery::Kind::kFail:
       ++summary_.failed;

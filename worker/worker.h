@@ -1,13 +1,18 @@
-// The worker runtime: pulls leases from the coordinator, runs one trial (or
-// study job) per slot, streams each finished episode, heartbeats on its own
-// thread, and reports the end of every attempt.
+// The worker runtime: pulls leases from the coordinator, runs one job per
+// slot through the runner of its kind (job_runner.h), streams each finished
+// episode, heartbeats on its own thread, and reports the end of every
+// attempt.
 //
-// Study jobs (JOB_KIND_STUDY) run through the StudyRunner, if one is given
-// (the worker then tells the coordinator it takes study jobs). Their rows
-// are sent when the study ends, in heartbeats of bounded size (repeats are
-// harmless: rows are keyed by index), then Complete names the totals. A
-// study that fails is reported with Fail and its error; cancellation and
-// drain stop it between cells and release the job, as for trials.
+// Every kind takes the same path. Rows a runner streams (episodes) are sent
+// as they come, with the checkpoint that follows each; rows a runner returns
+// at the end (a study's cells and references) are sent when the job ends, in
+// heartbeats of bounded size (repeats are harmless: rows are keyed by
+// index). Then one Complete carries the per-table totals and the verdict;
+// the coordinator's job kind (server/storage/job_kinds.h) decides which of
+// them count. A worker runs only the kinds it has a runner for (it tells the
+// coordinator whether it takes study jobs). A job that fails is reported
+// with Fail and its error; cancellation and drain stop it (a study between
+// cells) and release the job.
 //
 // Guarantees:
 //   * Episodes are sent as soon as they finish and kept until the coordinator
@@ -15,7 +20,7 @@
 //     ignores repeats), so a coordinator restart loses nothing. The trial's
 //     checkpoint after each episode goes with it (only the latest is kept).
 //   * A lease that carries an earlier attempt's checkpoint written by this
-//     same build resumes the trial from it (TrialRunner::Resume); one of
+//     same build resumes the trial from it (JobInput::resume_from); one of
 //     another build, or one the runner cannot use, is ignored with a log
 //     line and the trial starts over, so results stay those of one build.
 //   * A lease the coordinator refuses (ABORTED: lost, re-queued) is dropped:
@@ -68,8 +73,7 @@
 #include "totalgrad/v1/worker_service.grpc.pb.h"
 #include "totalgrad/v1/worker_spool.pb.h"
 #include "worker/spool.h"
-#include "worker/study_runner.h"
-#include "worker/trial_runner.h"
+#include "worker/job_runner.h"
 
 namespace totalgrad::worker {
 
@@ -142,13 +146,16 @@ struct WorkerSummary {
   std::string exit_message;  // the error behind a non-kDone exit
 };
 
+// The runner of each job kind a worker runs (a kind without one, or with
+// null, is not run: e.g. trial jobs only).
+using JobRunners = std::map<v1::JobKind, JobRunner*>;
+
 class Worker {
  public:
-  // `runner`, `study_runner` and `clock` are not owned and must outlive the
-  // worker. Without a study runner the worker takes trial jobs only; without
-  // a clock it uses the system clock.
-  Worker(WorkerOptions options, std::shared_ptr<grpc::Channel> channel, TrialRunner* runner,
-         StudyRunner* study_runner = nullptr, Clock* clock = nullptr);
+  // The runners and `clock` are not owned and must outlive the worker.
+  // Without a clock it uses the system clock.
+  Worker(WorkerOptions options, std::shared_ptr<grpc::Channel> channel, JobRunners runners,
+         Clock* clock = nullptr);
   ~Worker();
   Worker(const Worker&) = delete;
   Worker& operator=(const Worker&) = delete;
@@ -177,7 +184,7 @@ class Worker {
   };
 
   void SlotLoop(int slot) ABSL_LOCKS_EXCLUDED(mutex_);
-  // Runs the trial of `lease` and reports how it ended.
+  // Runs the job of `lease` and reports how it ended.
   void RunLease(const v1::Lease& lease) ABSL_LOCKS_EXCLUDED(mutex_);
   void HeartbeatLoop() ABSL_LOCKS_EXCLUDED(mutex_);
   // After Drain(): cancels running trials at the drain deadline and gives
@@ -185,11 +192,11 @@ class Worker {
   void DeadlineLoop() ABSL_LOCKS_EXCLUDED(mutex_);
   // Sends one heartbeat for `active`; updates its unacknowledged episodes.
   void Beat(const std::shared_ptr<ActiveLease>& active) ABSL_LOCKS_EXCLUDED(mutex_);
-  // Sends the final report of an attempt, retrying while it makes sense,
-  // and spools it if it cannot be delivered in time. `study` holds a
-  // finished study job's rows (null for trials).
-  void Finish(const std::shared_ptr<ActiveLease>& active, const absl::StatusOr<TrialOutcome>& result,
-              const StudyOutcome* study = nullptr) ABSL_LOCKS_EXCLUDED(mutex_);
+  // Sends the final report of an attempt (first the rows `result` returned,
+  // if any), retrying while it makes sense, and spools it if it cannot be
+  // delivered in time.
+  void Finish(const std::shared_ptr<ActiveLease>& active, const absl::StatusOr<JobOutcome>& result)
+      ABSL_LOCKS_EXCLUDED(mutex_);
   // Sends `attempt`: its pending heartbeat, then its final report. A refused
   // completion (INVALID_ARGUMENT/FAILED_PRECONDITION) becomes a Fail with
   // the reason. Calls go through `registry` and stop when it is cancelled.
@@ -199,9 +206,9 @@ class Worker {
   void ReplaySpool() ABSL_LOCKS_EXCLUDED(mutex_);
   // How final reports are retried now (bounded by the drain deadline).
   rpc::RetryPolicy FinalReportPolicy() const ABSL_LOCKS_EXCLUDED(mutex_);
-  // Sends a finished study's rows in heartbeats of bounded size.
-  grpc::Status SendStudyRows(const v1::LeaseKey& key, const StudyOutcome& study,
-                             const rpc::RetryPolicy& policy);
+  // Sends the rows a job returned at its end in heartbeats of bounded size.
+  grpc::Status SendReturnedRows(const v1::LeaseKey& key, const JobOutcome& outcome,
+                                const rpc::RetryPolicy& policy);
   void CancelAll(const std::string& reason) ABSL_LOCKS_EXCLUDED(mutex_);
   // Ends the worker at once for a reason retrying cannot fix.
   void FailFatally(WorkerExit exit, const std::string& message) ABSL_LOCKS_EXCLUDED(mutex_);
@@ -217,8 +224,7 @@ class Worker {
 
   const WorkerOptions options_;
   std::unique_ptr<v1::WorkerService::Stub> stub_;
-  TrialRunner* const runner_;
-  StudyRunner* const study_runner_;
+  const JobRunners runners_;
   const std::unique_ptr<SystemClock> own_clock_;  // set when no clock was given
   Clock* const clock_;
 

@@ -58,11 +58,11 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
-#include "core/common/record.h"
 #include "core/common/types.h"
 #include "core/estimators/estimator.h"
 #include "core/estimators/rollout.h"
 #include "core/study/frozen_problem.h"
+#include "core/study/study_records.h"
 
 namespace totalgrad::study {
 
@@ -111,72 +111,6 @@ struct StudyOptions {
   // option).
   absl::Status Validate() const;
 };
-
-struct ReferenceGradient {
-  int horizon = 0;
-  Vector gradient;                 // g*
-  Vector standard_error;           // per coordinate
-  double norm = 0;                 // |g*|
-  double relative_error = 0;       // |SE| / |g*|
-  double floor = 0;                // 1.96 |SE| / |g*|, the plots' noise floor
-  double objective = 0;            // J at this horizon (mean over the reference runs)
-  std::vector<std::string> used;   // labels of the estimators pooled
-  std::vector<int> replicates;     // per used estimator
-  double agreement_max_z = 0;      // between the first two used estimators
-  double agreement_mean_z2 = 0;
-  // The power of that check: 1.96 |sqrt(SE_a^2 + SE_b^2)| / |g*|, about the
-  // relative difference between the two estimators' means that would still
-  // pass. Above 1 a difference as large as g* itself passes: the check has
-  // no power (one estimator's SE dwarfs the other's, e.g. RP where its
-  // pathwise gradients explode), "agree" says nothing, and g* rests on the
-  // more precise estimator; the note says so. NaN: not computed (fewer than
-  // two estimators, |g*| = 0, or results written before it existed).
-  double agreement_resolution = std::numeric_limits<double>::quiet_NaN();
-  bool agree = true;               // false also when fewer than two could be used
-  std::string note;                // what was left out and why
-  double seconds = 0;
-};
-
-struct CellResult {
-  static constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-  std::string estimator;   // label
-  std::string method;      // estimators::MethodName of the spec's method
-  int particles = 0;       // 0 for PILCO
-  int horizon = 0;
-  int replicates = 0;      // finite estimates the statistics use
-  int nonfinite = 0;       // estimates flagged finite = false (excluded)
-  int errors = 0;          // Estimate returned an error
-  std::string error;       // the first error message
-  bool budget_hit = false; // stopped early by cell_budget_seconds
-  bool omitted = false;    // no statistics (omission_reason says why)
-  std::string omission_reason;
-  double time_min_s = kNaN;
-  double time_median_s = kNaN;
-  double rel_rmse = kNaN;
-  double rel_bias = kNaN;
-  double rel_bias_noise = kNaN;
-  double total_variance = kNaN;
-  double cos_mean = kNaN;
-  double objective_mean = kNaN;  // the estimates' J (PILCO: its moment-matched J)
-  double ess_mean = kNaN;
-  double ess_min = kNaN;
-  double k_lr_mean = kNaN;
-  std::vector<double> k_lr_per_step;  // H entries when the method reports k_LR
-  bool reference_agrees = true;       // copied from the horizon's reference
-  double reference_floor = kNaN;      // the horizon's reference floor (1.96 |SE| / |g*|)
-};
-
-// The cell's note for tables: the omission, the budget, a disagreeing
-// reference and the first error, "; "-separated ("" when there is nothing to
-// say). A function of the cell's other fields (so it is a derived field of the
-// cell's record, core/study/study_records.h).
-std::string CellNote(const CellResult& cell);
-
-// The record tables (core/common/record.h) of a cell and of a reference
-// gradient: every writer and reader of these records (results.json, the CSVs,
-// the tables, the service's proto and SQLite rows) goes through them.
-const record::FieldTable<CellResult>& CellFields();
-const record::FieldTable<ReferenceGradient>& ReferenceFields();
 
 struct StudyResult {
   std::string source;                        // FrozenProblem::source

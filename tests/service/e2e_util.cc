@@ -43,7 +43,7 @@ v1::SweepSpec MakeSpec(const std::string& name, const std::vector<int>& seeds,
 }
 
 namespace {
-class Collect final : public worker::TrialProgress {
+class Collect final : public worker::JobProgress {
  public:
   void OnEpisode(const worker::EpisodeOutcome& e) override { episodes.push_back(e); }
   bool ShouldCancel() override { return false; }
@@ -54,7 +54,9 @@ class Collect final : public worker::TrialProgress {
 std::vector<worker::EpisodeOutcome> ReferenceEpisodes(const worker::OptionList& options) {
   worker::LearnerTrialRunner runner;
   Collect collect;
-  auto outcome = runner.Run(options, &collect);
+  worker::JobInput job;
+  job.options = options;
+  auto outcome = runner.Run(job, &collect);
   EXPECT_TRUE(outcome.ok()) << outcome.status();
   return collect.episodes;
 }

@@ -14,7 +14,7 @@
 #include "tests/service/process_util.h"
 #include "totalgrad/v1/control_service.grpc.pb.h"
 #include "totalgrad/v1/worker_service.grpc.pb.h"
-#include "worker/trial_runner.h"
+#include "worker/job_runner.h"
 
 namespace totalgrad::testing {
 

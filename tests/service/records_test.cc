@@ -34,7 +34,7 @@
 #include "server/storage/sqlite_schema.h"
 #include "server/storage/sqlite_store.h"
 #include "tests/service/service_testutil.h"
-#include "worker/trial_runner.h"
+#include "worker/job_runner.h"
 #include "totalgrad/v1/types.pb.h"
 
 #include <google/protobuf/util/json_util.h>

@@ -20,13 +20,18 @@ std::string TinySpec(const std::string& scene) {
 TEST(CoreStudyRunner, RunsStudyJobsOnEveryScene) {
   CoreStudyRunner runner;
   for (const std::string scene : {"pendulum", "pendubot", "double-pendulum"}) {
-    absl::StatusOr<StudyOutcome> outcome = runner.Run(TinySpec(scene), nullptr);
+    JobInput job;
+    job.spec_json = TinySpec(scene);
+    absl::StatusOr<JobOutcome> outcome = runner.Run(job, nullptr);
     ASSERT_TRUE(outcome.ok()) << scene << ": " << outcome.status();
-    ASSERT_EQ(outcome->references.size(), 1u) << scene;
-    ASSERT_EQ(outcome->cells.size(), 2u) << scene;  // RP at P = 5, PILCO
-    EXPECT_FALSE(outcome->cells[0].omitted()) << scene << ": " << outcome->cells[0].note();
-    EXPECT_EQ(outcome->cells[1].method(), "PILCO");
-    EXPECT_FALSE(outcome->cells[1].omitted()) << scene << ": " << outcome->cells[1].note();
+    ASSERT_EQ(outcome->study_references.size(), 1u) << scene;
+    ASSERT_EQ(outcome->study_cells.size(), 2u) << scene;  // RP at P = 5, PILCO
+    EXPECT_FALSE(outcome->study_cells[0].omitted)
+        << scene << ": " << study::CellNote(outcome->study_cells[0]);
+    EXPECT_EQ(outcome->study_cells[1].method, "PILCO");
+    EXPECT_FALSE(outcome->study_cells[1].omitted)
+        << scene << ": " << study::CellNote(outcome->study_cells[1]);
+    EXPECT_EQ(outcome->episodes, 0) << scene;
   }
 }
 

@@ -43,13 +43,13 @@ using ::totalgrad::testing::WaitFor;
 // real time: episode e ends when the clock reaches the trial's start + 300 ms
 // * (e + 1), so a test that moves the clock by k * 300 ms gets exactly k
 // more episodes, however fast or loaded the machine is.
-class FakeRunner final : public TrialRunner {
+class FakeRunner final : public JobRunner {
  public:
   static constexpr int64_t kSlowEpisodeMs = 300;
 
-  absl::StatusOr<TrialOutcome> Run(const OptionList& options, TrialProgress* progress) override {
+  absl::StatusOr<JobOutcome> Run(const JobInput& job, JobProgress* progress) override {
     int seed = 0, episodes = 0;
-    for (const auto& [key, value] : options) {
+    for (const auto& [key, value] : job.options) {
       if (key == "seed") seed = std::stoi(value);
       if (key == "episodes") episodes = std::stoi(value);
     }
@@ -92,7 +92,11 @@ class FakeRunner final : public TrialRunner {
       progress->OnEpisode(outcome);
       ++produced;
     }
-    return TrialOutcome{true, static_cast<double>(seed * 10 + episodes), episodes + 1};
+    JobOutcome outcome;
+    outcome.success = true;
+    outcome.final_eval_cost = seed * 10 + episodes;
+    outcome.episodes = episodes + 1;
+    return outcome;
   }
   Clock* clock = nullptr;  // paces seed 16 if set (before the worker starts)
   std::atomic<int> started{0};    // trials that ran past the seed checks
@@ -103,9 +107,10 @@ class FakeRunner final : public TrialRunner {
 // Study jobs by the study's seed: 21 returns 1200 cells and 3 references
 // (more than one heartbeat's worth), 22 runs until cancelled (polling
 // ShouldCancel), 23 throws, 24 returns an error.
-class FakeStudyRunner final : public StudyRunner {
+class FakeStudyRunner final : public JobRunner {
  public:
-  absl::StatusOr<StudyOutcome> Run(const std::string& spec_json, TrialProgress* progress) override {
+  absl::StatusOr<JobOutcome> Run(const JobInput& job, JobProgress* progress) override {
+    const std::string& spec_json = job.spec_json;
     const int seed = spec_json.find("\"seed\":21") != std::string::npos   ? 21
                      : spec_json.find("\"seed\":22") != std::string::npos ? 22
                      : spec_json.find("\"seed\":23") != std::string::npos ? 23
@@ -122,26 +127,24 @@ class FakeStudyRunner final : public StudyRunner {
       }
       return absl::DeadlineExceededError("never cancelled");
     }
-    StudyOutcome outcome;
+    JobOutcome outcome;
+    outcome.study_cells.resize(1200);
     for (int i = 0; i < 1200; ++i) {
-      v1::StudyCellRow row;
-      row.set_index(i);
-      row.set_estimator("RP");
-      row.set_method("RP");
-      row.set_particles(10 + i);
-      row.set_horizon(5);
-      row.set_replicates(3);
-      row.set_rel_rmse(0.001 * i);
-      row.set_note(std::string(200, 'n'));
-      outcome.cells.push_back(row);
+      study::CellResult& cell = outcome.study_cells[i];
+      cell.estimator = "RP";
+      cell.method = "RP";
+      cell.particles = 10 + i;
+      cell.horizon = 5;
+      cell.replicates = 3;
+      cell.rel_rmse = 0.001 * i;
+      cell.error = std::string(200, 'n');  // bulk: the batches are bounded in bytes too
     }
     for (int i = 0; i < 3; ++i) {
-      v1::StudyReferenceRow row;
-      row.set_index(i);
-      row.set_horizon(5 * (i + 1));
-      row.set_norm(1.5);
-      for (int k = 0; k < 500; ++k) row.add_gradient(k * 0.25);
-      outcome.references.push_back(row);
+      study::ReferenceGradient reference;
+      reference.horizon = 5 * (i + 1);
+      reference.norm = 1.5;
+      reference.gradient = Vector::LinSpaced(500, 0, 499 * 0.25);
+      outcome.study_references.push_back(reference);
     }
     return outcome;
   }
@@ -187,9 +190,11 @@ class WorkerTest : public ::testing::Test {
     options.report_grace = report_grace_;
     options.max_idle = max_idle_;
     options.state_dir = state_dir_;
+    JobRunners runners{{v1::JOB_KIND_TRIAL, &runner_}};
+    if (studies) runners[v1::JOB_KIND_STUDY] = &study_runner_;
     worker_ = std::make_unique<Worker>(
-        options, grpc::CreateChannel(options_.listen, grpc::InsecureChannelCredentials()), &runner_,
-        studies ? &study_runner_ : nullptr, worker_clock_);
+        options, grpc::CreateChannel(options_.listen, grpc::InsecureChannelCredentials()),
+        std::move(runners), worker_clock_);
     worker_done_ = false;
     worker_thread_ = std::thread([this] {
       summary_ = worker_->Run();
@@ -533,7 +538,7 @@ TEST_F(WorkerTest, SecondProcessWithTheSameIdOnThisHostIsRefused) {
   options.host = "testhost";
   options.state_dir = state_dir_;
   Worker twin(options, grpc::CreateChannel(options_.listen, grpc::InsecureChannelCredentials()),
-              &runner_);
+              {{v1::JOB_KIND_TRIAL, &runner_}});
   const WorkerSummary twin_summary = twin.Run();
   EXPECT_EQ(twin_summary.exit, WorkerExit::kWorkerIdInUse);
   EXPECT_NE(twin_summary.exit_message.find("already in use on this host"), std::string::npos)
