@@ -90,6 +90,16 @@ absl::Status CheckOwnedTables(const JobKindInfo& kind, int64_t job_id, const Job
 absl::StatusOr<ResultTotals> RequiredRows(const JobKindInfo& kind, const LeaseKey& key,
                                           int episodes_expected, const ResultTotals& reported);
 
+// The jobs.episodes_expected column: the job's expected count for a kind
+// whose completion rule is kJobExpected; 1 for the others (the column's
+// CHECK wants >= 1; they have no count of their own), read back as 0.
+inline int64_t EpisodesExpectedColumn(const JobKindInfo& kind, int64_t episodes_expected) {
+  return kind.rule == CompletionRule::kJobExpected ? episodes_expected : 1;
+}
+inline int64_t ExpectedEpisodes(const JobKindInfo& kind, int64_t column) {
+  return kind.rule == CompletionRule::kJobExpected ? column : 0;
+}
+
 // FailedPrecondition for rows `missing` of 0..total-1 of `table`: "cannot
 // complete job 4 attempt 1: episodes 1,2 of 0..3 are not stored".
 absl::Status MissingRowsError(const ResultTable& table, const LeaseKey& key,

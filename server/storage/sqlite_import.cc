@@ -167,7 +167,7 @@ VALUES(?, ?, ?, ?, ?, ?, ?, 'queued', ?, ?))sql"));
       if (present) continue;
       job_insert.Bind(1, sweep_id).Bind(2, ++ordinal).Bind(3, job.method).Bind(4, job.seed);
       job_insert.Bind(5, job.variant).Bind(6, OptionsToJson(job.options));
-      job_insert.Bind(7, job.kind == JobKind::kStudy ? 1 : job.episodes_expected);
+      job_insert.Bind(7, EpisodesExpectedColumn(KindInfo(job.kind), job.episodes_expected));
       job_insert.Bind(8, ToString(job.kind)).Bind(9, job.payload);
       RETURN_IF_ERROR(job_insert.Run());
       job_insert.Reset();

@@ -85,16 +85,16 @@ absl::StatusOr<SweepRecord> ReadSweepRow(Db& db, const Statement& row) {
   sweep.max_lost_leases = static_cast<int>(row.ColumnInt(10));
   sweep.max_concurrent = static_cast<int>(row.ColumnInt(11));
   ASSIGN_OR_RETURN(Statement counts,
-                   Statement::Prepare(db, "SELECT state, COUNT(*), SUM(CASE WHEN kind = 'study' THEN 0 "
-                                          "ELSE episodes_expected END) "
-                                          "FROM jobs WHERE sweep_id = ? GROUP BY state"));
+                   Statement::Prepare(db, "SELECT state, COUNT(*), SUM(episodes_expected), kind "
+                                          "FROM jobs WHERE sweep_id = ? GROUP BY state, kind"));
   counts.Bind(1, sweep.id);
   while (true) {
     ASSIGN_OR_RETURN(bool more, counts.Step());
     if (!more) break;
     const int n = static_cast<int>(counts.ColumnInt(1));
     sweep.jobs_total += n;
-    sweep.episodes_expected += counts.ColumnInt(2);
+    const JobKind kind = ParseJobKind(counts.ColumnText(3)).value_or(JobKind::kTrial);
+    sweep.episodes_expected += ExpectedEpisodes(KindInfo(kind), counts.ColumnInt(2));
     switch (ParseJobState(counts.ColumnText(0)).value_or(JobState::kQueued)) {
       case JobState::kQueued: sweep.jobs_queued += n; break;
       case JobState::kRunning: sweep.jobs_running += n; break;
@@ -140,14 +140,15 @@ JobRecord ReadJobRow(const Statement& row) {
   job.lost_leases = static_cast<int>(row.ColumnInt(12));
   job.max_attempts = static_cast<int>(row.ColumnInt(13));
   job.max_lost_leases = static_cast<int>(row.ColumnInt(14));
-  job.episodes_expected = static_cast<int>(row.ColumnInt(15));
+  job.kind = ParseJobKind(row.ColumnText(22)).value_or(JobKind::kTrial);
+  job.episodes_expected =
+      static_cast<int>(ExpectedEpisodes(KindInfo(job.kind), row.ColumnInt(15)));
   job.episodes_stored = static_cast<int>(row.ColumnInt(16));
   job.worker_id = row.ColumnText(17);
   job.last_error = row.ColumnText(18);
   job.completed_attempt = static_cast<int>(row.ColumnInt(19));
   job.success = row.ColumnInt(20) != 0;
   job.final_eval_cost = row.ColumnDouble(21);
-  job.kind = ParseJobKind(row.ColumnText(22)).value_or(JobKind::kTrial);
   job.payload = row.ColumnText(23);
   return job;
 }
@@ -166,8 +167,7 @@ absl::StatusOr<JobRecord> LoadJob(Db& db, int64_t job_id) {
 // does not exist; Aborted if the attempt does not exist.
 absl::StatusOr<OpenAttempt> LoadAttempt(Db& db, const LeaseKey& key) {
   ASSIGN_OR_RETURN(Statement query,
-                   Statement::Prepare(db, "SELECT j.attempts, CASE WHEN j.kind = 'study' THEN 0 "
-                                          "ELSE j.episodes_expected END, j.sweep_id, "
+                   Statement::Prepare(db, "SELECT j.attempts, j.episodes_expected, j.sweep_id, "
                                           "a.state, a.worker_id, j.kind FROM jobs j LEFT JOIN "
                                           "attempts a ON a.job_id = j.id AND a.attempt = ? "
                                           "WHERE j.id = ?"));
@@ -176,9 +176,10 @@ absl::StatusOr<OpenAttempt> LoadAttempt(Db& db, const LeaseKey& key) {
   if (!row) return absl::NotFoundError(absl::StrCat("no job with id ", key.job_id));
   OpenAttempt attempt;
   attempt.job_attempts = static_cast<int>(query.ColumnInt(0));
-  attempt.episodes_expected = static_cast<int>(query.ColumnInt(1));
-  attempt.sweep_id = query.ColumnInt(2);
   attempt.kind = ParseJobKind(query.ColumnText(5)).value_or(JobKind::kTrial);
+  attempt.episodes_expected =
+      static_cast<int>(ExpectedEpisodes(KindInfo(attempt.kind), query.ColumnInt(1)));
+  attempt.sweep_id = query.ColumnInt(2);
   if (query.ColumnIsNull(3)) {
     return absl::AbortedError(absl::StrCat("job ", key.job_id, " has no attempt ", key.attempt,
                                            " (latest is ", attempt.job_attempts, ")"));
@@ -389,8 +390,7 @@ VALUES(?, ?, ?, ?, ?, ?, ?, 'queued', ?, ?))sql"));
     const NewJob& job = sweep.jobs[i];
     job_insert.Bind(1, sweep_id).Bind(2, static_cast<int64_t>(i)).Bind(3, job.method);
     job_insert.Bind(4, job.seed).Bind(5, job.variant).Bind(6, OptionsToJson(job.options));
-    // Study jobs report no episodes; the column's CHECK wants >= 1 (read back as 0).
-    job_insert.Bind(7, job.kind == JobKind::kStudy ? 1 : job.episodes_expected);
+    job_insert.Bind(7, EpisodesExpectedColumn(KindInfo(job.kind), job.episodes_expected));
     job_insert.Bind(8, ToString(job.kind)).Bind(9, job.payload);
     RETURN_IF_ERROR(job_insert.Run());
     job_insert.Reset();

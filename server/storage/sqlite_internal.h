@@ -53,7 +53,7 @@ absl::StatusOr<SweepRecord> LoadSweep(Db& db, const std::string& name);
 inline constexpr char kJobSelect[] = R"sql(
 SELECT j.id, j.sweep_id, s.name, s.state, j.ordinal, j.method, j.seed, j.variant, j.options_json,
        j.state, j.attempts, j.failures, j.lost_leases, s.max_attempts, s.max_lost_leases,
-       CASE WHEN j.kind = 'study' THEN 0 ELSE j.episodes_expected END,
+       j.episodes_expected,
        (SELECT COUNT(*) FROM episodes e WHERE e.job_id = j.id AND e.attempt = j.attempts),
        COALESCE((SELECT a.worker_id FROM attempts a
                  WHERE a.job_id = j.id AND a.attempt = j.attempts AND a.state = 'running'), ''),

@@ -150,9 +150,11 @@ struct StudyRows {
 // Rows a job reports, one member per result table (job_kinds.h says which
 // kind owns which table; rows of a table the job's kind does not own are
 // refused). Each row carries its key within the attempt (its index).
+// (The `= {}` lets a bundle of one table's rows be written `{episodes}`
+// without -Wmissing-field-initializers.)
 struct JobResults {
-  std::vector<Episode> episodes;  // table episodes (trials)
-  StudyRows study;                // tables study_cells, study_references (studies)
+  std::vector<Episode> episodes = {};  // table episodes (trials)
+  StudyRows study = {};                // tables study_cells, study_references (studies)
   bool empty() const { return episodes.empty() && study.empty(); }
 };
 
