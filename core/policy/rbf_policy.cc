@@ -47,6 +47,14 @@ typedef double Doubles4 __attribute__((vector_size(4 * sizeof(double))));
 // weights(k, j) (row-major C x F) += a_bar_j phi_k.
 inline void WeightAdjoint(const double* phi, const double* a_bar, int c_count, int f_count,
                           double* weights) {
+  if (f_count == 1) {
+    // One control (most scenes): a contiguous axpy that the compiler
+    // vectorises; the general loop's runtime-F inner loop is not, and costs
+    // the cart-pole's RP iteration ~5 % at N = 30. Same operations, same bits.
+    const double a = a_bar[0];
+    for (int k = 0; k < c_count; ++k) weights[k] += a * phi[k];
+    return;
+  }
   for (int k = 0; k < c_count; ++k)
     for (int j = 0; j < f_count; ++j) weights[k * f_count + j] += a_bar[j] * phi[k];
 }
