@@ -394,8 +394,8 @@ absl::Status Scheduler::Complete(const std::string& worker_id, const LeaseKey& k
     const int total = completion.totals.*table.total;
     if (total < 0 || total > storage::kMaxRowsPerTable) {
       return absl::InvalidArgumentError(absl::StrCat(
-          "a completion reports ", total, " ", table.noun, "; at most ",
-          storage::kMaxRowsPerTable, " of a table"));
+          "a completion reports ", total, " ", table.noun, "; a total is at least 0 and at most ",
+          storage::kMaxRowsPerTable));
     }
   }
   absl::MutexLock lock(&decision_mutex_);

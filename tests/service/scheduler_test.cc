@@ -551,6 +551,52 @@ TEST_F(SchedulerTest, BadReportsAreRefusedWithTheFieldNamed) {
   EXPECT_EQ(Job(lease.key.job_id).episodes_stored, 0);
 }
 
+// One Complete for every kind (job_kinds.h): a trial's verdict is the
+// worker's (a NaN cost is refused above), a study completes as a success with
+// no cost whatever the worker sent, and only a worker that runs studies gets
+// one.
+TEST_F(SchedulerTest, OneCompleteServesEveryKindAndTheKindDecidesTheVerdict) {
+  storage::NewSweep sweep = MakeSweep("kinds", 1, 2);
+  storage::NewJob study;
+  study.kind = storage::JobKind::kStudy;
+  study.method = "study";
+  study.seed = "7";
+  study.variant = "tiny";
+  study.payload = "{}";
+  sweep.jobs.push_back(study);
+  bool created = false;
+  TG_ASSERT_OK(scheduler_->SubmitSweep(sweep, &created).status());
+  const Lease trial = MustAcquire("w1");
+  EXPECT_EQ(trial.job.kind, storage::JobKind::kTrial);
+  EXPECT_TRUE(NothingToAcquire("w1")) << "a worker without study_jobs got a study";
+  storage::WorkerIdentity studies = MakeWorker("w1");
+  studies.study_jobs = true;
+  auto leased = scheduler_->TryAcquire(studies);
+  TG_ASSERT_OK(leased.status());
+  ASSERT_TRUE(leased->has_value());
+  const Lease lease = **leased;
+  EXPECT_EQ(lease.job.kind, storage::JobKind::kStudy);
+
+  storage::JobCompletion rows;
+  rows.results.study.cells.resize(2);
+  rows.results.study.cells[1].index = 1;
+  rows.results.study.references.resize(1);
+  rows.totals = {.study_cells = 2, .study_references = 1};
+  rows.success = false;                  // an older worker sends no verdict
+  rows.final_eval_cost = std::nan("");  // refused for a trial
+  TG_ASSERT_OK(scheduler_->Complete("w1", lease.key, rows));
+  const JobRecord done = Job(lease.key.job_id);
+  EXPECT_EQ(done.state, JobState::kCompleted);
+  EXPECT_TRUE(done.success);
+  EXPECT_TRUE(std::isnan(done.final_eval_cost));
+
+  TG_ASSERT_OK(scheduler_->Complete("w1", trial.key, TrialCompletion(Episodes(0, 2), 2, false, 31)));
+  const JobRecord trial_done = Job(trial.key.job_id);
+  EXPECT_EQ(trial_done.state, JobState::kCompleted);
+  EXPECT_FALSE(trial_done.success);
+  EXPECT_EQ(trial_done.final_eval_cost, 31);
+}
+
 // Issue 12.5: a trial that finishes after its sweep was cancelled is stored
 // as data (the attempt completed, its episodes kept) but the job stays
 // cancelled and counts nowhere as a result; it used to flip to completed.
