@@ -41,7 +41,12 @@ storage::Episode MakeEpisode(int episode, double cost) {
 }
 
 storage::WorkerIdentity MakeWorker(const std::string& id) {
-  return {id, "testhost", "test-worker-build", 1};
+  storage::WorkerIdentity worker;
+  worker.worker_id = id;
+  worker.host = "testhost";
+  worker.build = "test-worker-build";
+  worker.slots = 1;
+  return worker;
 }
 
 void FaultyStore::FailNext(const std::string& method, absl::Status error, When when) {
