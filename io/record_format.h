@@ -6,10 +6,12 @@
 // Numbers (docs/core.md, "Records"):
 //   CSV   the shortest text that reads back as the same double (std::to_chars;
 //         "0.1", "1e-05", "inf"); NaN is the empty field; integers in
-//         decimal; bools 1 / 0; lists joined with ';'; a field holding a
+//         decimal; bools 1 / 0; enumerators as their names ("running");
+//         lists joined with ';'; a field holding a
 //         comma, quote or line break is quoted as RFC 4180 says.
 //   JSON  numbers as numbers (the same shortest round trip), NaN and +-inf as
-//         null; bools true / false; lists as arrays.
+//         null; bools true / false; enumerators as their names; lists as
+//         arrays.
 // So a CSV or JSON value read back is the value written, bit for bit
 // (non-finite values aside in JSON, where they read back as NaN).
 //
@@ -58,9 +60,12 @@ std::string RecordFieldText(const record::Field<R>& field, const R& r) {
   using record::FieldType;
   switch (field.type()) {
     case FieldType::kInt: return std::to_string(field.template Get<int>(r));
+    case FieldType::kInt64: return std::to_string(field.template Get<int64_t>(r));
     case FieldType::kDouble: return RecordNumberText(field.template Get<double>(r));
     case FieldType::kBool: return field.template Get<bool>(r) ? "1" : "0";
+    case FieldType::kDerivedBool: return field.DeriveBool(r) ? "1" : "0";
     case FieldType::kText: return field.template Get<std::string>(r);
+    case FieldType::kEnum: return field.EnumToText(r);
     case FieldType::kDerivedText: return field.Derive(r);
     case FieldType::kInts: return absl::StrJoin(field.template Get<std::vector<int>>(r), ";");
     case FieldType::kTexts:
@@ -112,6 +117,9 @@ void AppendRecordJson(const record::FieldTable<R>& table, const R& r, Json* out)
     Json& v = (*out)[field.name];
     switch (field.type()) {
       case FieldType::kInt: v = field.template Get<int>(r); break;
+      case FieldType::kInt64: v = field.template Get<int64_t>(r); break;
+      case FieldType::kEnum: v = field.EnumToText(r); break;
+      case FieldType::kDerivedBool: v = field.DeriveBool(r); break;
       case FieldType::kDouble: {
         const double x = field.template Get<double>(r);
         v = std::isfinite(x) ? Json(x) : Json(nullptr);
@@ -165,6 +173,18 @@ absl::Status RecordFromJson(const record::FieldTable<R>& table, const Json& obje
         if (!v.is_number_integer()) return fail(field.name, "not an integer");
         field.template Get<int>(*r) = v.template get<int>();
         break;
+      case FieldType::kInt64:
+        if (!v.is_number_integer()) return fail(field.name, "not an integer");
+        field.template Get<int64_t>(*r) = v.template get<int64_t>();
+        break;
+      case FieldType::kEnum:
+        if (!v.is_string()) return fail(field.name, "not a string");
+        if (!field.ParseEnum(v.template get<std::string>(), r)) {
+          return absl::InvalidArgumentError(absl::StrCat(where, field.name, ": '",
+                                                         v.template get<std::string>(),
+                                                         "' is not one of its names"));
+        }
+        break;
       case FieldType::kDouble:
         if (v.is_null()) field.template Get<double>(*r) = kNaN;
         else if (v.is_number()) field.template Get<double>(*r) = v.template get<double>();
@@ -210,7 +230,8 @@ absl::Status RecordFromJson(const record::FieldTable<R>& table, const Json& obje
         record::SetDoubles(field, std::move(values), r);
         break;
       }
-      case FieldType::kDerivedText: break;
+      case FieldType::kDerivedText:
+      case FieldType::kDerivedBool: break;
     }
   }
   return absl::OkStatus();

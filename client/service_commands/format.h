@@ -8,6 +8,9 @@
 #include <string>
 #include <vector>
 
+#include "core/common/record.h"
+#include "io/record_format.h"
+
 namespace totalgrad::cli {
 
 enum class Format { kTable, kJson, kCsv };
@@ -25,6 +28,24 @@ struct Listing {
 };
 
 void Print(const Listing& listing, Format format, std::ostream& out);
+
+// Records with a field table (jobs, sweeps: server/storage/service_records.h)
+// in -f json (an array of the records' objects, keys in table order) or -f csv
+// (the table's CSV columns), in io/record_format.h's one format: every field,
+// named as on every other path. -f table is a view each command chooses
+// (Listing), so it is not written here; `format` must be kJson or kCsv.
+template <typename R>
+void PrintRecords(const record::FieldTable<R>& table, const std::vector<R>& records,
+                  Format format, std::ostream& out) {
+  if (format == Format::kCsv) {
+    out << io::CsvLine(io::RecordCsvColumns(table)) << "\n";
+    for (const R& r : records) out << io::CsvLine(io::RecordCsvCells(table, r)) << "\n";
+    return;
+  }
+  nlohmann::ordered_json array = nlohmann::ordered_json::array();
+  for (const R& r : records) array.push_back(io::RecordToJson(table, r));
+  out << array.dump(2) << "\n";
+}
 
 // A CSV field, quoted when it holds a comma, quote or line break.
 std::string CsvField(const std::string& text);

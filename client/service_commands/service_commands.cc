@@ -12,6 +12,8 @@
 #include "absl/strings/str_split.h"
 #include "client/service_commands/connection.h"
 #include "client/service_commands/format.h"
+#include "server/service/convert.h"
+#include "server/storage/service_records.h"
 #include "server/sweep/sweep_proto.h"
 #include "server/sweep/sweep_spec.h"
 
@@ -24,20 +26,26 @@ void AddCompareCommand(CLI::App* results, int* exit_code);  // compare.cc
 
 namespace {
 
-void PrintSweeps(const std::vector<const v1::SweepInfo*>& sweeps, Format format) {
+// Sweep summaries: -f json|csv are the record's table
+// (storage::SweepFields()); the text table is a view of some of its fields.
+void PrintSweeps(const std::vector<const v1::SweepInfo*>& infos, Format format) {
+  std::vector<storage::SweepRecord> sweeps;
+  for (const auto* info : infos) sweeps.push_back(service::FromProto(*info));
+  if (format != Format::kTable) {
+    PrintRecords(storage::SweepFields(), sweeps, format, std::cout);
+    return;
+  }
   Listing listing;
   listing.columns = {"name", "state", "finished", "jobs", "queued", "running", "completed",
                      "failed", "cancelled", "episodes", "episodes_expected", "created", "spec_hash"};
-  listing.numeric_columns = {"jobs", "queued", "running", "completed", "failed", "cancelled",
-                             "episodes", "episodes_expected"};
-  for (const auto* s : sweeps) {
-    listing.rows.push_back({s->name(), StateName(s->state()), s->finished() ? "yes" : "no",
-                            std::to_string(s->jobs_total()), std::to_string(s->jobs_queued()),
-                            std::to_string(s->jobs_running()), std::to_string(s->jobs_completed()),
-                            std::to_string(s->jobs_failed()), std::to_string(s->jobs_cancelled()),
-                            std::to_string(s->episodes_stored()),
-                            std::to_string(s->episodes_expected()), FormatTime(s->created_unix_ms()),
-                            s->spec_hash().substr(0, 12)});
+  for (const storage::SweepRecord& s : sweeps) {
+    listing.rows.push_back({s.name, std::string(storage::ToString(s.state)),
+                            s.finished() ? "yes" : "no", std::to_string(s.jobs_total),
+                            std::to_string(s.jobs_queued), std::to_string(s.jobs_running),
+                            std::to_string(s.jobs_completed), std::to_string(s.jobs_failed),
+                            std::to_string(s.jobs_cancelled), std::to_string(s.episodes_stored),
+                            std::to_string(s.episodes_expected), FormatTime(s.created_ms),
+                            s.spec_hash.substr(0, 12)});
   }
   Print(listing, format, std::cout);
 }
@@ -188,29 +196,34 @@ void AddJobCommands(CLI::App* app, int* exit_code) {
         request.add_states(it->second);
       }
     }
-    Listing listing;
-    listing.columns = {"job",     "sweep",    "method", "seed",     "variant", "state",
-                       "attempts", "failures", "lost",  "episodes", "worker",  "final_cost",
-                       "success", "last_error"};
-    listing.numeric_columns = {"job", "seed", "attempts", "failures", "lost", "final_cost"};
+    std::vector<storage::JobRecord> jobs;
     while (true) {
       v1::ListJobsResponse response;
       const grpc::Status status = c->Call(&v1::ControlService::Stub::ListJobs, request, &response);
       if (!status.ok()) return ReportError(status, "job list");
-      for (const auto& j : response.jobs()) {
-        const bool done = j.state() == v1::JOB_STATE_COMPLETED;
-        listing.rows.push_back(
-            {std::to_string(j.job_id()), j.sweep_name(), j.method(), j.seed(), j.variant(),
-             StateName(j.state()), std::to_string(j.attempts()), std::to_string(j.failures()),
-             std::to_string(j.lost_leases()),
-             absl::StrCat(j.episodes_stored(), "/", j.episodes_expected()), j.worker_id(),
-             done ? (c->format() == Format::kTable ? FormatFixed(j.final_eval_cost(), 3)
-                                                   : FormatNumber(j.final_eval_cost()))
-                  : "", done ? (j.success() ? "yes" : "no") : "",
-             j.last_error().substr(0, c->format() == Format::kTable ? 60 : std::string::npos)});
-      }
+      for (const auto& j : response.jobs()) jobs.push_back(service::FromProto(j));
       if (response.next_after_job_id() == 0) break;
       request.set_after_job_id(response.next_after_job_id());
+    }
+    // -f json|csv: the job's table (storage::JobFields()); the text table
+    // is a view of some of its fields.
+    if (c->format() != Format::kTable) {
+      PrintRecords(storage::JobFields(), jobs, c->format(), std::cout);
+      return 0;
+    }
+    Listing listing;
+    listing.columns = {"job",     "sweep",    "method", "seed",     "variant", "state",
+                       "attempts", "failures", "lost",  "episodes", "worker",  "final_cost",
+                       "success", "last_error"};
+    for (const storage::JobRecord& j : jobs) {
+      const bool done = j.state == storage::JobState::kCompleted;
+      listing.rows.push_back(
+          {std::to_string(j.id), j.sweep_name, j.method, j.seed, j.variant,
+           std::string(storage::ToString(j.state)), std::to_string(j.attempts),
+           std::to_string(j.failures), std::to_string(j.lost_leases),
+           absl::StrCat(j.episodes_stored, "/", j.episodes_expected), j.worker_id,
+           done ? FormatFixed(j.final_eval_cost, 3) : "", done ? (j.success ? "yes" : "no") : "",
+           j.last_error.substr(0, 60)});
     }
     Print(listing, c->format(), std::cout);
     return 0;

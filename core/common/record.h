@@ -24,6 +24,7 @@
 #ifndef TOTALGRAD_CORE_COMMON_RECORD_H_
 #define TOTALGRAD_CORE_COMMON_RECORD_H_
 
+#include <cstdint>
 #include <string>
 #include <variant>
 #include <vector>
@@ -34,8 +35,26 @@ namespace totalgrad::record {
 
 // The value types a record field may have. kVector is an Eigen vector
 // (core's gradients); on the wire and in files it is a list of doubles like
-// kDoubles.
-enum class FieldType { kInt, kDouble, kBool, kText, kDoubles, kInts, kTexts, kVector, kDerivedText };
+// kDoubles. kInt64 is a 64-bit integer (ids, Unix milliseconds). kEnum is an
+// enumerator member written everywhere as its text (EnumText: "queued",
+// "lease_lost"), so the files and the database hold a name a reader can
+// check, never a number that means something else after a reordering.
+// kDerivedText and kDerivedBool are derived fields (getters).
+enum class FieldType {
+  kInt, kDouble, kBool, kText, kDoubles, kInts, kTexts, kVector, kDerivedText,
+  kInt64, kEnum, kDerivedBool
+};
+
+// How an enumerator member of R is read and written as text: to_text gives
+// the member's name ("running"); parse sets the member from a name and
+// returns false (leaving *r as it was) for a text that names no enumerator.
+// Written once per enum as a pair of plain functions (captureless lambdas),
+// e.g. around storage::ToString(JobState) and storage::ParseJobState.
+template <typename R>
+struct EnumText {
+  std::string (*to_text)(const R&);
+  bool (*parse)(const std::string& text, R* r);
+};
 
 template <typename R>
 struct Field {
@@ -43,7 +62,8 @@ struct Field {
   using Member = std::variant<int R::*, double R::*, bool R::*, std::string R::*,
                               std::vector<double> R::*, std::vector<int> R::*,
                               std::vector<std::string> R::*, Vector R::*,
-                              std::string (*)(const R&)>;
+                              std::string (*)(const R&), int64_t R::*, EnumText<R>,
+                              bool (*)(const R&)>;
   const char* name;
   Member member;
   // A column of the record's CSV (long lists and free-text details that a
@@ -51,14 +71,23 @@ struct Field {
   bool csv = true;
 
   FieldType type() const { return static_cast<FieldType>(member.index()); }
-  bool derived() const { return type() == FieldType::kDerivedText; }
+  bool derived() const {
+    return type() == FieldType::kDerivedText || type() == FieldType::kDerivedBool;
+  }
   // The value of a field of type T (the caller switched on type()).
   template <typename T>
   const T& Get(const R& r) const { return r.*std::get<T R::*>(member); }
   template <typename T>
   T& Get(R& r) const { return r.*std::get<T R::*>(member); }
-  // A derived field's value.
+  // A derived field's value (kDerivedText, kDerivedBool).
   std::string Derive(const R& r) const { return std::get<std::string (*)(const R&)>(member)(r); }
+  bool DeriveBool(const R& r) const { return std::get<bool (*)(const R&)>(member)(r); }
+  // A kEnum field's value as text, and the field set from a text (false, *r
+  // unchanged, for a text that names no enumerator).
+  std::string EnumToText(const R& r) const { return std::get<EnumText<R>>(member).to_text(r); }
+  bool ParseEnum(const std::string& text, R* r) const {
+    return std::get<EnumText<R>>(member).parse(text, r);
+  }
   // True for the list types (stored as one JSON text, "<name>_json").
   bool is_list() const {
     const FieldType t = type();

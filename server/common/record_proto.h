@@ -1,8 +1,11 @@
 // A record (core/common/record.h) to and from its proto message by
 // reflection on field names: the message has one field per table field,
-// of the same name and a matching type (int32; double; bool; string;
+// of the same name and a matching type (int32; int64; double; bool; string;
 // repeated double for a list of doubles or an Eigen vector; repeated int32;
-// repeated string; string for a derived field). A double field with
+// repeated string; string or bool for a derived field; for an enumerator,
+// a proto enum whose value 0 is <PREFIX>UNSPECIFIED and whose value for the
+// record's text t is <PREFIX> + upper(t); reading UNSPECIFIED or a value this
+// build does not know leaves the record's value). A double field with
 // presence (`optional double`) is absent for NaN and reads as NaN when
 // absent (older senders did not have it). The message may hold more
 // fields (the row's key: job, attempt, index), which these functions leave
@@ -24,6 +27,8 @@
 #include <google/protobuf/descriptor.h>
 #include <google/protobuf/message.h>
 
+#include "absl/strings/ascii.h"
+#include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "core/common/check.h"
 #include "core/common/record.h"
@@ -32,6 +37,17 @@ namespace totalgrad::record_proto {
 
 namespace internal {
 
+// The prefix of a proto enum's value names ("JOB_STATE_"): its value 0 is
+// "<prefix>UNSPECIFIED", as every enum of the API has it; "" when it is not.
+// A record's enumerator text t is the value "<prefix>" + upper(t)
+// ("lease_lost" <-> ATTEMPT_STATE_LEASE_LOST).
+inline std::string EnumPrefix(const google::protobuf::EnumDescriptor& type) {
+  const google::protobuf::EnumValueDescriptor* zero = type.FindValueByNumber(0);
+  constexpr absl::string_view kUnspecified = "UNSPECIFIED";
+  if (zero == nullptr || !absl::EndsWith(zero->name(), kUnspecified)) return "";
+  return std::string(zero->name().substr(0, zero->name().size() - kUnspecified.size()));
+}
+
 // The proto type and cardinality a field of `type` must have.
 inline bool Matches(record::FieldType type, const google::protobuf::FieldDescriptor& fd) {
   using google::protobuf::FieldDescriptor;
@@ -39,8 +55,14 @@ inline bool Matches(record::FieldType type, const google::protobuf::FieldDescrip
   const bool repeated = fd.is_repeated();
   switch (type) {
     case FieldType::kInt: return !repeated && fd.cpp_type() == FieldDescriptor::CPPTYPE_INT32;
+    case FieldType::kInt64: return !repeated && fd.cpp_type() == FieldDescriptor::CPPTYPE_INT64;
     case FieldType::kDouble: return !repeated && fd.cpp_type() == FieldDescriptor::CPPTYPE_DOUBLE;
-    case FieldType::kBool: return !repeated && fd.cpp_type() == FieldDescriptor::CPPTYPE_BOOL;
+    case FieldType::kBool:
+    case FieldType::kDerivedBool:
+      return !repeated && fd.cpp_type() == FieldDescriptor::CPPTYPE_BOOL;
+    case FieldType::kEnum:
+      return !repeated && fd.cpp_type() == FieldDescriptor::CPPTYPE_ENUM &&
+             !EnumPrefix(*fd.enum_type()).empty();
     case FieldType::kText:
     case FieldType::kDerivedText:
       return !repeated && fd.cpp_type() == FieldDescriptor::CPPTYPE_STRING;
@@ -93,6 +115,18 @@ void RecordToProto(const record::FieldTable<R>& table, const R& r, google::proto
     const google::protobuf::FieldDescriptor* fd = &internal::ProtoField(field, *out->GetDescriptor());
     switch (field.type()) {
       case FieldType::kInt: reflection.SetInt32(out, fd, field.template Get<int>(r)); break;
+      case FieldType::kInt64: reflection.SetInt64(out, fd, field.template Get<int64_t>(r)); break;
+      case FieldType::kDerivedBool: reflection.SetBool(out, fd, field.DeriveBool(r)); break;
+      case FieldType::kEnum: {
+        const std::string text = field.EnumToText(r);
+        const google::protobuf::EnumValueDescriptor* value = fd->enum_type()->FindValueByName(
+            internal::EnumPrefix(*fd->enum_type()) + absl::AsciiStrToUpper(text));
+        // A programmer error: the C++ enum has a name the proto enum lacks
+        // (tests/service/records_test.cc sends every value of every table).
+        TG_CHECK(value != nullptr);
+        reflection.SetEnum(out, fd, value);
+        break;
+      }
       case FieldType::kDouble: {
         const double v = field.template Get<double>(r);
         if (fd->has_presence() && std::isnan(v)) {
@@ -136,6 +170,20 @@ void RecordFromProto(const record::FieldTable<R>& table, const google::protobuf:
         &internal::ProtoField(field, *message.GetDescriptor());
     switch (field.type()) {
       case FieldType::kInt: field.template Get<int>(*r) = reflection.GetInt32(message, fd); break;
+      case FieldType::kInt64:
+        field.template Get<int64_t>(*r) = reflection.GetInt64(message, fd);
+        break;
+      case FieldType::kEnum: {
+        // UNSPECIFIED (a sender that did not set it) and a value this build
+        // does not know (a newer sender's) leave *r's value: there is no
+        // enumerator to put there.
+        const google::protobuf::EnumValueDescriptor* value = reflection.GetEnum(message, fd);
+        const std::string prefix = internal::EnumPrefix(*fd->enum_type());
+        if (value->number() != 0 && absl::StartsWith(value->name(), prefix)) {
+          field.ParseEnum(absl::AsciiStrToLower(value->name().substr(prefix.size())), r);
+        }
+        break;
+      }
       case FieldType::kDouble:
         field.template Get<double>(*r) = fd->has_presence() && !reflection.HasField(message, fd)
                                              ? std::numeric_limits<double>::quiet_NaN()
@@ -170,7 +218,8 @@ void RecordFromProto(const record::FieldTable<R>& table, const google::protobuf:
         record::SetDoubles(field, std::move(values), r);
         break;
       }
-      case FieldType::kDerivedText: break;
+      case FieldType::kDerivedText:
+      case FieldType::kDerivedBool: break;
     }
   }
 }

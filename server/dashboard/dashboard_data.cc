@@ -4,11 +4,11 @@
 #include <cmath>
 #include <set>
 
-#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "client/service_commands/comparison.h"
 #include "io/record_format.h"
+#include "server/storage/service_records.h"
 #include "client/service_commands/plot_style.h"
 #include "client/service_commands/stats.h"
 
@@ -22,22 +22,13 @@ json Number(double value) { return std::isfinite(value) ? json(value) : json(nul
 
 double Median(std::vector<double> values) { return cli::Quantile(std::move(values), 0.5); }
 
+// A sweep summary and a job are their records' JSON (the field tables of
+// server/storage/service_records.h, io/record_format.h's format): the same
+// keys and values as `totalgrad sweep list -f json` and `job list -f json`.
 json SweepJson(const storage::SweepRecord& s) {
-  return {{"name", s.name},
-          {"description", s.description},
-          {"state", std::string(storage::ToString(s.state))},
-          {"finished", s.finished()},
-          {"created_ms", s.created_ms},
-          {"spec_hash", s.spec_hash},
-          {"source_name", s.source_name},
-          {"jobs_total", s.jobs_total},
-          {"jobs_queued", s.jobs_queued},
-          {"jobs_running", s.jobs_running},
-          {"jobs_completed", s.jobs_completed},
-          {"jobs_failed", s.jobs_failed},
-          {"jobs_cancelled", s.jobs_cancelled},
-          {"episodes_stored", s.episodes_stored},
-          {"episodes_expected", s.episodes_expected}};
+  json out = json::object();
+  io::AppendRecordJson(storage::SweepFields(), s, &out);
+  return out;
 }
 
 json EstimateJson(const FinishEstimate& e) {
@@ -48,30 +39,10 @@ json EstimateJson(const FinishEstimate& e) {
           {"basis", e.basis}};
 }
 
-// Seeds are stored as integers below 2^53 (exact in JSON); a seed that is
-// not one would be shown as the text it is.
-json SeedNumber(const std::string& seed) {
-  int64_t value = 0;
-  return absl::SimpleAtoi(seed, &value) ? json(value) : json(seed);
-}
-
 json JobJson(const storage::JobRecord& j) {
-  const bool completed = j.state == storage::JobState::kCompleted;
-  return {{"id", j.id},
-          {"kind", std::string(storage::ToString(j.kind))},
-          {"method", j.method},
-          {"seed", SeedNumber(j.seed)},
-          {"variant", j.variant},
-          {"state", std::string(storage::ToString(j.state))},
-          {"attempts", j.attempts},
-          {"failures", j.failures},
-          {"lost_leases", j.lost_leases},
-          {"episodes_stored", j.episodes_stored},
-          {"episodes_expected", j.episodes_expected},
-          {"worker", j.worker_id},
-          {"success", completed ? json(j.success) : json(nullptr)},
-          {"final_cost", completed ? Number(j.final_eval_cost) : json(nullptr)},
-          {"last_error", j.last_error}};
+  json out = json::object();
+  io::AppendRecordJson(storage::JobFields(), j, &out);
+  return out;
 }
 
 // The episode's record (io/record_format.h), and the work seconds.

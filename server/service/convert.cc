@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "server/common/record_proto.h"
+#include "server/storage/service_records.h"
 #include "server/sweep/sweep_proto.h"
 
 #include <string>
@@ -175,52 +176,34 @@ v1::Directive ToProto(scheduler::Directive directive) {
   return v1::DIRECTIVE_UNSPECIFIED;
 }
 
+// Jobs and sweeps go by name through their field tables
+// (server/storage/service_records.h); only a job's options, a list of pairs
+// no field type holds, are copied here.
 void ToProto(const storage::SweepRecord& sweep, v1::SweepInfo* out) {
-  out->set_name(sweep.name);
-  out->set_description(sweep.description);
-  out->set_state(ToProto(sweep.state));
-  out->set_finished(sweep.finished());
-  out->set_spec_hash(sweep.spec_hash);
-  out->set_canonical_spec(sweep.canonical_spec);
-  out->set_coordinator_build(sweep.coordinator_build);
-  out->set_created_unix_ms(sweep.created_ms);
-  out->set_jobs_total(sweep.jobs_total);
-  out->set_jobs_queued(sweep.jobs_queued);
-  out->set_jobs_running(sweep.jobs_running);
-  out->set_jobs_completed(sweep.jobs_completed);
-  out->set_jobs_failed(sweep.jobs_failed);
-  out->set_jobs_cancelled(sweep.jobs_cancelled);
-  out->set_episodes_stored(sweep.episodes_stored);
-  out->set_episodes_expected(sweep.episodes_expected);
-  out->set_max_attempts(sweep.max_attempts);
-  out->set_max_lost_leases(sweep.max_lost_leases);
-  out->set_max_concurrent(sweep.max_concurrent);
-  out->set_source_name(sweep.source_name);
+  record_proto::RecordToProto(storage::SweepFields(), sweep, out);
+}
+
+storage::SweepRecord FromProto(const v1::SweepInfo& info) {
+  storage::SweepRecord sweep;
+  record_proto::RecordFromProto(storage::SweepFields(), info, &sweep);
+  return sweep;
 }
 
 void ToProto(const storage::JobRecord& job, v1::JobInfo* out) {
-  out->set_job_id(job.id);
-  out->set_sweep_name(job.sweep_name);
-  out->set_ordinal(job.ordinal);
-  out->set_method(job.method);
-  out->set_seed(job.seed);
-  out->set_variant(job.variant);
-  out->set_state(ToProto(job.state));
-  out->set_attempts(job.attempts);
-  out->set_failures(job.failures);
-  out->set_lost_leases(job.lost_leases);
-  out->set_episodes_stored(job.episodes_stored);
-  out->set_episodes_expected(job.episodes_expected);
-  out->set_worker_id(job.worker_id);
-  out->set_last_error(job.last_error);
-  out->set_success(job.success);
-  out->set_final_eval_cost(job.final_eval_cost);
+  record_proto::RecordToProto(storage::JobFields(), job, out);
+  out->clear_options();
   for (const auto& [key, value] : job.options) {
     auto* option = out->add_options();
     option->set_key(key);
     option->set_value(value);
   }
-  out->set_kind(ToProto(job.kind));
+}
+
+storage::JobRecord FromProto(const v1::JobInfo& info) {
+  storage::JobRecord job;
+  record_proto::RecordFromProto(storage::JobFields(), info, &job);
+  for (const auto& option : info.options()) job.options.emplace_back(option.key(), option.value());
+  return job;
 }
 
 void ToProto(const storage::AttemptRecord& attempt, v1::AttemptInfo* out) {

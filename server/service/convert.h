@@ -50,6 +50,11 @@ void ToProto(const storage::Checkpoint& checkpoint, v1::TrialCheckpoint* out);
 void ToProto(const sweep::SweepSpec& spec, v1::SweepSpec* out);
 void ToProto(const storage::SweepRecord& sweep, v1::SweepInfo* out);
 void ToProto(const storage::JobRecord& job, v1::JobInfo* out);
+// The CLI's way back: what the coordinator sent, as the record it was made
+// from (the store's bookkeeping, not on the wire, at its defaults; an
+// UNSPECIFIED state or kind at the record's default).
+storage::SweepRecord FromProto(const v1::SweepInfo& info);
+storage::JobRecord FromProto(const v1::JobInfo& info);
 void ToProto(const storage::AttemptRecord& attempt, v1::AttemptInfo* out);
 void ToProto(const storage::EventRecord& event, v1::Event* out);
 // `now_ms` and `lease_timeout_ms` decide ACTIVE vs GONE.

@@ -61,6 +61,9 @@ int BindRecord(Statement& statement, int first, const record::FieldTable<R>& tab
   for (const auto& field : table) {
     switch (field.type()) {
       case FieldType::kInt: statement.Bind(index, field.template Get<int>(r)); break;
+      case FieldType::kInt64: statement.Bind(index, field.template Get<int64_t>(r)); break;
+      case FieldType::kEnum: statement.Bind(index, field.EnumToText(r)); break;
+      case FieldType::kDerivedBool: statement.Bind(index, field.DeriveBool(r) ? 1 : 0); break;
       case FieldType::kDouble: statement.Bind(index, field.template Get<double>(r)); break;
       case FieldType::kBool: statement.Bind(index, field.template Get<bool>(r) ? 1 : 0); break;
       case FieldType::kText: statement.Bind(index, field.template Get<std::string>(r)); break;
@@ -93,6 +96,12 @@ int ReadRecord(const Statement& query, int first, const record::FieldTable<R>& t
       case FieldType::kInt:
         field.template Get<int>(*r) = static_cast<int>(query.ColumnInt(column));
         break;
+      case FieldType::kInt64: field.template Get<int64_t>(*r) = query.ColumnInt(column); break;
+      case FieldType::kEnum:
+        // A name this build does not know leaves the field's value (as a
+        // proto read does); the store's own enums are CHECK-constrained.
+        field.ParseEnum(query.ColumnText(column), r);
+        break;
       case FieldType::kDouble: field.template Get<double>(*r) = query.ColumnDouble(column); break;
       case FieldType::kBool: field.template Get<bool>(*r) = query.ColumnInt(column) != 0; break;
       case FieldType::kText: field.template Get<std::string>(*r) = query.ColumnText(column); break;
@@ -118,7 +127,8 @@ int ReadRecord(const Statement& query, int first, const record::FieldTable<R>& t
       case FieldType::kVector:
         record::SetDoubles(field, DoublesFromJson(query.ColumnText(column)), r);
         break;
-      case FieldType::kDerivedText: break;
+      case FieldType::kDerivedText:
+      case FieldType::kDerivedBool: break;
     }
     ++column;
   }

@@ -191,14 +191,14 @@ start_worker "$ns_w1" w1 1
 w1_pid=${pids[-1]}
 # w1 has a trial running and at least one episode stored.
 wait_for 60 "w1 to report an episode" job_query \
-  "any(j['worker'] == 'w1' and j['state'] == 'running' and int(j['episodes'].split('/')[0]) >= 1 for j in jobs)"
+  "any(j['worker_id'] == 'w1' and j['state'] == 'running' and j['episodes_stored'] >= 1 for j in jobs)"
 # ---- pull w1's cable in the middle of its trial --------------------------------------------
 # At once: on an idle machine an episode of this protocol takes ~0.15 s.
 ip -n "$ns_switch" link set p-w1 down
 cut_at=$(date +%s%N)
 read -r job_w1 progress < <(jobs_json | python3 -c "
 import json, sys
-running = [(j['job'], j['episodes']) for j in json.load(sys.stdin) if j['worker'] == 'w1' and j['state'] == 'running']
+running = [(j['job_id'], '%d/%d' % (j['episodes_stored'], j['episodes_expected'])) for j in json.load(sys.stdin) if j['worker_id'] == 'w1' and j['state'] == 'running']
 print(*(running[0] if running else ('none', 'none')))")
 [ "$job_w1" != none ] || fail "w1's trial ended before its cable was pulled (the trial protocol is too short for this machine)"
 # Two slots: w2 runs the other job and still has one free for the re-queued one.
@@ -209,12 +209,12 @@ stored=${progress%/*} expected=${progress#*/}
 [ "$stored" -lt "$expected" ] || fail "job $job_w1 was already complete at the cut ($progress)"
 
 wait_for 60 "job $job_w1's lease to expire" job_query \
-  "any(j['job'] == $job_w1 and j['lost'] >= 1 for j in jobs)"
+  "any(j['job_id'] == $job_w1 and j['lost_leases'] >= 1 for j in jobs)"
 expired_at=$(date +%s%N)
 log "lease of job $job_w1 lost $(( (expired_at - cut_at) / 1000000 )) ms after the cut (lease timeout 4 s)"
 
 wait_for 60 "w2 to take over job $job_w1" job_query \
-  "any(j['job'] == $job_w1 and j['worker'] == 'w2' and j['state'] in ('running', 'completed') for j in jobs)"
+  "any(j['job_id'] == $job_w1 and j['worker_id'] == 'w2' and j['state'] in ('running', 'completed') for j in jobs)"
 log "job $job_w1 re-run by w2"
 
 # ---- plug it back: w1's late reports are refused -------------------------------------------

@@ -154,7 +154,7 @@ check_after_drain() {  # check_after_drain LABEL WORKER_OUTPUT
   local label=$1 output=$2 running stranded lost job
   running=$(jobs_query "sum(j['state'] == 'running' for j in jobs)")
   if [ "$running" -gt 0 ]; then
-    stranded=$(jobs_query "[j['job'] for j in jobs if j['state'] == 'running']")
+    stranded=$(jobs_query "[j['job_id'] for j in jobs if j['state'] == 'running']")
     log "$label: note: job(s) $stranded still running after the worker exited: a lease granted to the cancelled poll"
     for job in $(echo "$stranded" | tr -d '[],'); do
       if grep -q "job $job attempt" "$output"; then fail "job $job reached the worker but was not ended"; fi
@@ -163,7 +163,7 @@ check_after_drain() {  # check_after_drain LABEL WORKER_OUTPUT
     wait_for 30 "the stranded lease to expire" none_running
     log "$label: the stranded lease expired and its job was re-queued"
   fi
-  lost=$(jobs_query "sum(j['lost'] for j in jobs)")
+  lost=$(jobs_query "sum(j['lost_leases'] for j in jobs)")
   [ "$lost" -le $(( lost_before + running )) ] || fail "$label: a trial was released or lost ($lost lost leases)"
   lost_before=$lost
 }

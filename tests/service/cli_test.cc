@@ -3,6 +3,7 @@
 // listings, backups, and `totalgrad run` (the embedded default).
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -147,17 +148,46 @@ TEST_F(CliTest, SubmitWaitAndQueryResultsInEveryFormat) {
   ASSERT_EQ(Cli({"job", "list", "--sweep", "cli", "-f", "json"}, &out, &err), 0) << err;
   const nlohmann::json jobs = nlohmann::json::parse(out);
   ASSERT_EQ(jobs.size(), 3u);
+  // The job's record (server/storage/service_records.h), named as in JobInfo.
   EXPECT_EQ(jobs[0]["state"], "completed");
-  ASSERT_EQ(Cli({"job", "logs", jobs[0]["job"].dump()}, &out, &err), 0) << err;
+  EXPECT_EQ(jobs[0]["kind"], "trial");
+  EXPECT_EQ(jobs[0]["sweep_name"], "cli");
+  EXPECT_EQ(jobs[0]["episodes_stored"], 3);
+  EXPECT_EQ(jobs[0]["episodes_expected"], 3);
+  EXPECT_EQ(jobs[0]["success"], true);
+  EXPECT_TRUE(jobs[0]["final_eval_cost"].is_number()) << jobs[0];
+  EXPECT_EQ(jobs[0]["lost_leases"], 0);
+  ASSERT_EQ(Cli({"job", "list", "--sweep", "cli", "-f", "csv"}, &out, &err), 0) << err;
+  EXPECT_EQ(out.substr(0, out.find('\n')),
+            "job_id,sweep_name,kind,ordinal,method,seed,variant,state,attempts,failures,"
+            "lost_leases,episodes_stored,episodes_expected,worker_id,success,final_eval_cost,"
+            "last_error");
+  EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1 + 3) << out;
+  ASSERT_EQ(Cli({"job", "logs", jobs[0]["job_id"].dump()}, &out, &err), 0) << err;
   EXPECT_NE(out.find("lease_granted"), std::string::npos) << out;
   EXPECT_NE(out.find("particles=8"), std::string::npos) << out;
-  EXPECT_EQ(Cli({"job", "retry", jobs[0]["job"].dump()}, &out, &err), 1);  // completed: refused
+  EXPECT_EQ(Cli({"job", "retry", jobs[0]["job_id"].dump()}, &out, &err), 1);  // completed: refused
   EXPECT_NE(err.find("FAILED_PRECONDITION"), std::string::npos) << err;
 
   ASSERT_EQ(Cli({"worker", "list", "-f", "csv"}, &out, &err), 0) << err;
   EXPECT_NE(out.find("cli-worker,active"), std::string::npos) << out;
   ASSERT_EQ(Cli({"sweep", "status", "cli", "-f", "json"}, &out, &err), 0) << err;
-  EXPECT_EQ(nlohmann::json::parse(out)[0]["completed"], 3);
+  const nlohmann::json status = nlohmann::json::parse(out);
+  EXPECT_EQ(status[0]["jobs_completed"], 3);
+  EXPECT_EQ(status[0]["jobs_total"], 3);
+  EXPECT_EQ(status[0]["finished"], true);
+  EXPECT_EQ(status[0]["state"], "running");
+  EXPECT_EQ(status[0]["episodes_stored"], 9);
+  EXPECT_TRUE(status[0]["canonical_spec"].is_string());
+  ASSERT_EQ(Cli({"sweep", "list", "-f", "csv"}, &out, &err), 0) << err;
+  EXPECT_EQ(out.substr(0, out.find('\n')),
+            "name,description,state,finished,jobs_total,jobs_queued,jobs_running,jobs_completed,"
+            "jobs_failed,jobs_cancelled,episodes_stored,episodes_expected,created_unix_ms,"
+            "spec_hash,source_name,coordinator_build,max_attempts,max_lost_leases,"
+            "max_concurrent");
+  ASSERT_EQ(Cli({"sweep", "list"}, &out, &err), 0) << err;  // the text view
+  EXPECT_EQ(out.rfind("name  state    finished", 0), 0u) << out;
+  EXPECT_NE(out.find("cli   running  yes"), std::string::npos) << out;
   EXPECT_EQ(Cli({"sweep", "status", "nope"}, &out, &err), 2);
   EXPECT_NE(err.find("NOT_FOUND: no sweep named 'nope'"), std::string::npos) << err;
 }

@@ -151,7 +151,7 @@ async function renderOverview(view) {
       el('td', {}, progressBar(s)),
       el('td', {text: jobCounts(s)}),
       el('td', {class: 'eta', title: (s.eta && s.eta.basis) || '', text: etaText(s)}),
-      el('td', {text: when(s.created_ms)}),
+      el('td', {text: when(s.created_unix_ms)}),
       el('td', {class: 'muted', text: s.description})));
   const sweeps = rows.length
       ? el('table', {id: 'sweeps'},
@@ -319,14 +319,14 @@ function jobsTable(jobs) {
   return el('table', {id: 'jobs'},
       el('thead', {}, el('tr', {}, ...['job', 'method', 'seed', 'variant', 'state', 'episodes', 'attempts',
                                         'worker', 'final cost', 'success', 'last error'].map(t => el('th', {text: t})))),
-      el('tbody', {}, ...jobs.map(j => el('tr', {'data-job': j.id},
-          el('td', {}, el('a', {href: '#/job/' + j.id, text: j.id})),
+      el('tbody', {}, ...jobs.map(j => el('tr', {'data-job': j.job_id},
+          el('td', {}, el('a', {href: '#/job/' + j.job_id, text: j.job_id})),
           el('td', {text: j.method}), el('td', {text: j.seed}), el('td', {text: j.variant}),
           el('td', {}, stateSpan(j.state)),
           el('td', {class: 'num', text: `${j.episodes_stored}/${j.episodes_expected}`}),
-          el('td', {class: 'num', text: j.attempts}), el('td', {text: j.worker}),
-          el('td', {class: 'num', text: fixed(j.final_cost, 3)}),
-          el('td', {text: j.success === null ? '' : (j.success ? 'yes' : 'no')}),
+          el('td', {class: 'num', text: j.attempts}), el('td', {text: j.worker_id}),
+          el('td', {class: 'num', text: j.state === 'completed' ? fixed(j.final_eval_cost, 3) : ''}),
+          el('td', {text: j.state !== 'completed' ? '' : (j.success ? 'yes' : 'no')}),
           el('td', {class: 'error', text: j.last_error})))));
 }
 
@@ -395,10 +395,10 @@ async function renderJob(view, id) {
   const j = data.job;
   const optionText = data.options.map(([k, v]) => `${k}=${v}`).join('\n');
   view.replaceChildren(
-      el('h2', {text: `Job ${j.id}: ${j.method}, seed ${j.seed}${j.variant ? ', ' + j.variant : ''}`}),
+      el('h2', {text: `Job ${j.job_id}: ${j.method}, seed ${j.seed}${j.variant ? ', ' + j.variant : ''}`}),
       el('p', {}, stateSpan(j.state), ` — ${j.episodes_stored}/${j.episodes_expected} episodes, ` +
          `${j.attempts} attempts, ${j.failures} failures, ${j.lost_leases} lost leases` +
-         (j.final_cost !== null ? `, final cost ${fixed(j.final_cost, 3)} (${j.success ? 'success' : 'no success'})` : '')),
+         (j.state === 'completed' && j.final_eval_cost !== null ? `, final cost ${fixed(j.final_eval_cost, 3)} (${j.success ? 'success' : 'no success'})` : '')),
       j.last_error ? el('p', {class: 'error', text: j.last_error}) : null,
       el('details', {}, el('summary', {text: `options (${data.options.length})`}), el('pre', {text: optionText})),
       el('h3', {text: 'Episodes'}),
@@ -426,7 +426,7 @@ async function renderJob(view, id) {
       el('h3', {text: 'Events'}),
       el('pre', {id: 'events', text: data.events.map(e =>
           `${when(e.ms)}  attempt ${e.attempt}  ${e.kind}  ${e.message}`).join('\n') || '(none)'}));
-  setCrumbs([['#/', 'sweeps'], ['#/sweep/' + encodeURIComponent(data.sweep), data.sweep], [null, 'job ' + j.id]]);
+  setCrumbs([['#/', 'sweeps'], ['#/sweep/' + encodeURIComponent(data.sweep), data.sweep], [null, 'job ' + j.job_id]]);
 }
 
 function setCrumbs(parts) {
