@@ -19,6 +19,7 @@ namespace totalgrad::storage {
 namespace {
 
 using ::totalgrad::testing::MakeEpisode;
+using ::totalgrad::testing::MakeStudyJob;
 using ::totalgrad::testing::MakeSweep;
 using ::totalgrad::testing::MakeTempDir;
 using ::totalgrad::testing::MakeWorker;
@@ -169,13 +170,7 @@ class JobKindsStoreTest : public ::testing::Test {
   // A sweep with one trial (3 episodes) and one study job, both leased to "w1".
   void CreateAndLeaseBoth(const std::string& name) {
     NewSweep sweep = MakeSweep(name, 1, 3);
-    NewJob study;
-    study.kind = JobKind::kStudy;
-    study.method = "study";
-    study.seed = "7";
-    study.variant = "tiny";
-    study.payload = "{}";
-    sweep.jobs.push_back(study);
+    sweep.jobs.push_back(MakeStudyJob());
     bool created = false;
     ASSERT_TRUE(store_->CreateSweep(sweep, kNow, &created).ok());
     auto jobs = store_->ListJobs({name, {}, 0, 1000});

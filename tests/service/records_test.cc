@@ -332,13 +332,7 @@ class RecordsTest : public ::testing::Test {
   // A sweep with one study job, leased to worker "w1" as attempt 1.
   int64_t CreateStudyJob() {
     storage::NewSweep sweep = MakeSweep("records", 1, 3);
-    storage::NewJob job;
-    job.kind = storage::JobKind::kStudy;
-    job.method = "study";
-    job.seed = "7";
-    job.variant = "tiny";
-    job.payload = R"({"problem":{"synthetic":{}}})";
-    sweep.jobs.push_back(job);
+    sweep.jobs.push_back(::totalgrad::testing::MakeStudyJob(R"({"problem":{"synthetic":{}}})"));
     bool created = false;
     EXPECT_TRUE(store_->CreateSweep(sweep, kNow, &created).ok());
     auto jobs = store_->ListJobs({"records", {}, 0, 1000});

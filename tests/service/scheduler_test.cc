@@ -557,13 +557,7 @@ TEST_F(SchedulerTest, BadReportsAreRefusedWithTheFieldNamed) {
 // one.
 TEST_F(SchedulerTest, OneCompleteServesEveryKindAndTheKindDecidesTheVerdict) {
   storage::NewSweep sweep = MakeSweep("kinds", 1, 2);
-  storage::NewJob study;
-  study.kind = storage::JobKind::kStudy;
-  study.method = "study";
-  study.seed = "7";
-  study.variant = "tiny";
-  study.payload = "{}";
-  sweep.jobs.push_back(study);
+  sweep.jobs.push_back(::totalgrad::testing::MakeStudyJob());
   bool created = false;
   TG_ASSERT_OK(scheduler_->SubmitSweep(sweep, &created).status());
   const Lease trial = MustAcquire("w1");

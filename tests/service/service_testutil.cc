@@ -26,6 +26,16 @@ storage::NewSweep MakeSweep(const std::string& name, int jobs, int episodes,
   return sweep;
 }
 
+storage::NewJob MakeStudyJob(const std::string& payload) {
+  storage::NewJob job;
+  job.kind = storage::JobKind::kStudy;
+  job.method = "study";
+  job.seed = "7";
+  job.variant = "tiny";
+  job.payload = payload;
+  return job;
+}
+
 storage::Episode MakeEpisode(int episode, double cost) {
   storage::Episode e;
   e.episode = episode;

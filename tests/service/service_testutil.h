@@ -22,6 +22,10 @@ namespace totalgrad::testing {
 storage::NewSweep MakeSweep(const std::string& name, int jobs, int episodes,
                             const std::string& spec_hash = "hash-1");
 
+// A study job (method "study", seed "7", variant "tiny") carrying `payload`
+// as its spec; the store does not read it.
+storage::NewJob MakeStudyJob(const std::string& payload = "{}");
+
 storage::Episode MakeEpisode(int episode, double cost = 10.0);
 
 storage::WorkerIdentity MakeWorker(const std::string& id);

@@ -22,12 +22,7 @@ namespace {
 using testing_support::CommandRun;
 using testing_support::RunCommand;
 
-std::string Dir(const std::string& name) {
-  const std::string dir = (std::filesystem::path(testing::MakeTempDir()) / name).string();
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  return dir;
-}
+std::string Dir(const std::string& name) { return testing_support::FreshDir(name); }
 
 std::vector<std::vector<std::string>> ReadCsv(const std::string& path) {
   std::ifstream in(path);

@@ -7,12 +7,14 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <filesystem>
 #include <string>
 #include <vector>
 
 #include <CLI/CLI.hpp>
 
 #include "client/core_commands/commands.h"
+#include "tests/testutil/test_base.h"
 
 namespace totalgrad::cli::testing_support {
 
@@ -41,6 +43,16 @@ inline CommandRun RunCommand(std::vector<std::string> args) {
   run.out = ::testing::internal::GetCapturedStdout();
   run.err = ::testing::internal::GetCapturedStderr();
   return run;
+}
+
+// An empty directory `name` under the test's temporary directory (emptied
+// if a previous run left it).
+inline std::string FreshDir(const std::string& name) {
+  const std::string dir =
+      (std::filesystem::path(::totalgrad::testing::MakeTempDir()) / name).string();
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir;
 }
 
 }  // namespace totalgrad::cli::testing_support

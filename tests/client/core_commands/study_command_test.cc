@@ -49,12 +49,7 @@ using io::WriteSnapshotFile;
 using testing_support::CommandRun;
 using testing_support::RunCommand;
 
-std::string Dir(const std::string& name) {
-  const std::string dir = (std::filesystem::path(testing::MakeTempDir()) / name).string();
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  return dir;
-}
+std::string Dir(const std::string& name) { return testing_support::FreshDir(name); }
 
 void Write(const std::string& path, const std::string& text) {
   std::ofstream out(path);
