@@ -11,7 +11,7 @@ set key outside right top vertical box font ",9" samplen 2 spacing 0.9
 set multiplot layout 1,1 title "sweep table1-tip-k1: evaluation cost per episode, median and quartiles over trials (n = trials)"
 set title "cartpole-swingup, tip cost, k = 1"
 plot "/work/main/docs/results/table1/table1-tip-k1.curves.svg.dat" index 0 using 1:2:4 with filledcurves lc rgb "#000000" notitle, \
-     "/work/main/docs/results/table1/table1-tip-k1.curves.svg.dat" index 0 using 1:3 with linespoints lc rgb "#000000" lw 2 pt 7 ps 0.5 title "PILCO (n=7)", \
+     "/work/main/docs/results/table1/table1-tip-k1.curves.svg.dat" index 0 using 1:3 with linespoints lc rgb "#000000" lw 2 pt 7 ps 0.5 title "PILCO (n=8)", \
      "/work/main/docs/results/table1/table1-tip-k1.curves.svg.dat" index 1 using 1:2:4 with filledcurves lc rgb "#e15759" notitle, \
      "/work/main/docs/results/table1/table1-tip-k1.curves.svg.dat" index 1 using 1:3 with linespoints lc rgb "#e15759" lw 2 pt 7 ps 0.5 title "RP (n=7)", \
      "/work/main/docs/results/table1/table1-tip-k1.curves.svg.dat" index 2 using 1:2:4 with filledcurves lc rgb "#4e79a7" notitle, \
