@@ -101,6 +101,10 @@ v1::JobKind ToProto(storage::JobKind kind) {
   return kind == storage::JobKind::kStudy ? v1::JOB_KIND_STUDY : v1::JOB_KIND_TRIAL;
 }
 
+storage::JobKind FromProto(v1::JobKind kind) {
+  return kind == v1::JOB_KIND_STUDY ? storage::JobKind::kStudy : storage::JobKind::kTrial;
+}
+
 storage::LeaseKey FromProto(const v1::LeaseKey& key) { return {key.job_id(), key.attempt()}; }
 
 // The episode's record by name (cpu_seconds, absent from older workers,

@@ -69,6 +69,7 @@ void ToProto(const storage::StudyReference& reference, v1::StudyReferenceRow* ou
 void ToProto(const storage::StudyCellRecord& record, v1::StudyCellRow* out);
 void ToProto(const storage::StudyReferenceRecord& record, v1::StudyReferenceRow* out);
 v1::JobKind ToProto(storage::JobKind kind);
+storage::JobKind FromProto(v1::JobKind kind);  // unspecified: a trial
 v1::Directive ToProto(scheduler::Directive directive);
 v1::JobState ToProto(storage::JobState state);
 v1::SweepState ToProto(storage::SweepState state);

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <optional>
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
@@ -12,6 +13,7 @@
 #include "io/record_format.h"
 #include "server/common/record_proto.h"
 #include "server/service/convert.h"
+#include "server/storage/job_kinds.h"
 
 namespace totalgrad::service {
 namespace {
@@ -177,7 +179,7 @@ nlohmann::ordered_json SweepArchiveToJson(const v1::SweepInfo& sweep,
                           {"study_cells", std::move(cells)},
                           {"study_references", std::move(references)}});
     }
-    job_array.push_back({{"kind", job.kind() == v1::JOB_KIND_STUDY ? "study" : "trial"},
+    job_array.push_back({{"kind", storage::ToString(FromProto(job.kind()))},
                          {"method", job.method()},
                          {"seed", seed_json},
                          {"variant", job.variant()},
@@ -232,8 +234,10 @@ absl::StatusOr<ParsedSweepArchive> ParseSweepArchive(const std::string& text) {
     if (!j.is_object()) return jr.Error("{}");
     storage::ImportedJob job;
     TG_READ(kind, jr.String(j, "kind"));
-    if (kind != "trial" && kind != "study") return jr.Error("kind");
-    job.kind = kind == "study" ? storage::JobKind::kStudy : storage::JobKind::kTrial;
+    // The kinds' names are the job-kind table's (server/storage/job_kinds.h).
+    const std::optional<storage::JobKind> parsed_kind = storage::ParseJobKind(kind);
+    if (!parsed_kind) return jr.Error("kind");
+    job.kind = *parsed_kind;
     TG_READ(method, jr.String(j, "method"));
     job.method = method;
     if (!j.contains("seed")) return jr.Error("seed");
