@@ -7,11 +7,11 @@
 //   CSV   the shortest text that reads back as the same double (std::to_chars;
 //         "0.1", "1e-05", "inf"); NaN is the empty field; integers in
 //         decimal; bools 1 / 0; enumerators as their names ("running");
-//         lists joined with ';'; a field holding a
+//         lists joined with ';' (pairs as key=text); a field holding a
 //         comma, quote or line break is quoted as RFC 4180 says.
 //   JSON  numbers as numbers (the same shortest round trip), NaN and +-inf as
 //         null; bools true / false; enumerators as their names; lists as
-//         arrays.
+//         arrays; (key, text) pairs as an array of [key, text] arrays.
 // So a CSV or JSON value read back is the value written, bit for bit
 // (non-finite values aside in JSON, where they read back as NaN).
 //
@@ -76,6 +76,13 @@ std::string RecordFieldText(const record::Field<R>& field, const R& r) {
       for (double v : record::DoublesOf(field, r)) parts.push_back(RecordNumberText(v));
       return absl::StrJoin(parts, ";");
     }
+    case FieldType::kTextPairs: {
+      std::vector<std::string> parts;
+      for (const auto& [key, text] : field.template Get<record::TextPairs>(r)) {
+        parts.push_back(absl::StrCat(key, "=", text));
+      }
+      return absl::StrJoin(parts, ";");
+    }
   }
   return "";
 }
@@ -135,6 +142,13 @@ void AppendRecordJson(const record::FieldTable<R>& table, const R& r, Json* out)
         v = Json::array();
         for (double x : record::DoublesOf(field, r)) {
           v.push_back(std::isfinite(x) ? Json(x) : Json(nullptr));
+        }
+        break;
+      }
+      case FieldType::kTextPairs: {
+        v = Json::array();
+        for (const auto& [key, text] : field.template Get<record::TextPairs>(r)) {
+          v.push_back(Json::array({key, text}));
         }
         break;
       }
@@ -228,6 +242,18 @@ absl::Status RecordFromJson(const record::FieldTable<R>& table, const Json& obje
           else return fail(field.name, "holds an entry that is not a number or null");
         }
         record::SetDoubles(field, std::move(values), r);
+        break;
+      }
+      case FieldType::kTextPairs: {
+        if (!v.is_array()) return fail(field.name, "not an array");
+        record::TextPairs values;
+        for (const Json& x : v) {
+          if (!x.is_array() || x.size() != 2 || !x[0].is_string() || !x[1].is_string()) {
+            return fail(field.name, "holds an entry that is not a [key, text] pair of strings");
+          }
+          values.emplace_back(x[0].template get<std::string>(), x[1].template get<std::string>());
+        }
+        field.template Get<record::TextPairs>(*r) = std::move(values);
         break;
       }
       case FieldType::kDerivedText:

@@ -26,6 +26,7 @@
 
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <variant>
 #include <vector>
 
@@ -39,11 +40,17 @@ namespace totalgrad::record {
 // enumerator member written everywhere as its text (EnumText: "queued",
 // "lease_lost"), so the files and the database hold a name a reader can
 // check, never a number that means something else after a reordering.
-// kDerivedText and kDerivedBool are derived fields (getters).
+// kDerivedText and kDerivedBool are derived fields (getters). kTextPairs is
+// an ordered list of (key, text) pairs (a job's options); in JSON, SQL and
+// protos it keeps its order and any repeated key: a JSON array of
+// [key, text] arrays, a proto's repeated message with string fields `key`
+// and `value`, and in CSV "key=text" entries joined with ';'.
 enum class FieldType {
   kInt, kDouble, kBool, kText, kDoubles, kInts, kTexts, kVector, kDerivedText,
-  kInt64, kEnum, kDerivedBool
+  kInt64, kEnum, kDerivedBool, kTextPairs
 };
+
+using TextPairs = std::vector<std::pair<std::string, std::string>>;
 
 // How an enumerator member of R is read and written as text: to_text gives
 // the member's name ("running"); parse sets the member from a name and
@@ -63,7 +70,7 @@ struct Field {
                               std::vector<double> R::*, std::vector<int> R::*,
                               std::vector<std::string> R::*, Vector R::*,
                               std::string (*)(const R&), int64_t R::*, EnumText<R>,
-                              bool (*)(const R&)>;
+                              bool (*)(const R&), TextPairs R::*>;
   const char* name;
   Member member;
   // A column of the record's CSV (long lists and free-text details that a
@@ -92,7 +99,7 @@ struct Field {
   bool is_list() const {
     const FieldType t = type();
     return t == FieldType::kDoubles || t == FieldType::kInts || t == FieldType::kTexts ||
-           t == FieldType::kVector;
+           t == FieldType::kVector || t == FieldType::kTextPairs;
   }
 };
 

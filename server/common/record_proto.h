@@ -2,7 +2,8 @@
 // reflection on field names: the message has one field per table field,
 // of the same name and a matching type (int32; int64; double; bool; string;
 // repeated double for a list of doubles or an Eigen vector; repeated int32;
-// repeated string; string or bool for a derived field; for an enumerator,
+// repeated string; string or bool for a derived field; for (key, text)
+// pairs, a repeated message with string fields `key` and `value`; for an enumerator,
 // a proto enum whose value 0 is <PREFIX>UNSPECIFIED and whose value for the
 // record's text t is <PREFIX> + upper(t); reading UNSPECIFIED or a value this
 // build does not know leaves the record's value). A double field with
@@ -71,6 +72,14 @@ inline bool Matches(record::FieldType type, const google::protobuf::FieldDescrip
       return repeated && fd.cpp_type() == FieldDescriptor::CPPTYPE_DOUBLE;
     case FieldType::kInts: return repeated && fd.cpp_type() == FieldDescriptor::CPPTYPE_INT32;
     case FieldType::kTexts: return repeated && fd.cpp_type() == FieldDescriptor::CPPTYPE_STRING;
+    case FieldType::kTextPairs: {
+      if (!repeated || fd.cpp_type() != FieldDescriptor::CPPTYPE_MESSAGE) return false;
+      const FieldDescriptor* key = fd.message_type()->FindFieldByName("key");
+      const FieldDescriptor* value = fd.message_type()->FindFieldByName("value");
+      return key != nullptr && value != nullptr && !key->is_repeated() &&
+             !value->is_repeated() && key->cpp_type() == FieldDescriptor::CPPTYPE_STRING &&
+             value->cpp_type() == FieldDescriptor::CPPTYPE_STRING;
+    }
   }
   return false;
 }
@@ -154,6 +163,17 @@ void RecordToProto(const record::FieldTable<R>& table, const R& r, google::proto
         reflection.ClearField(out, fd);
         for (double v : record::DoublesOf(field, r)) reflection.AddDouble(out, fd, v);
         break;
+      case FieldType::kTextPairs: {
+        reflection.ClearField(out, fd);
+        const google::protobuf::Descriptor& pair = *fd->message_type();
+        for (const auto& [key, text] : field.template Get<record::TextPairs>(r)) {
+          google::protobuf::Message* entry = reflection.AddMessage(out, fd);
+          const google::protobuf::Reflection& entry_reflection = *entry->GetReflection();
+          entry_reflection.SetString(entry, pair.FindFieldByName("key"), key);
+          entry_reflection.SetString(entry, pair.FindFieldByName("value"), text);
+        }
+        break;
+      }
     }
   }
 }
@@ -216,6 +236,18 @@ void RecordFromProto(const record::FieldTable<R>& table, const google::protobuf:
           values.push_back(reflection.GetRepeatedDouble(message, fd, i));
         }
         record::SetDoubles(field, std::move(values), r);
+        break;
+      }
+      case FieldType::kTextPairs: {
+        record::TextPairs& values = field.template Get<record::TextPairs>(*r);
+        values.clear();
+        const google::protobuf::Descriptor& pair = *fd->message_type();
+        for (int i = 0; i < reflection.FieldSize(message, fd); ++i) {
+          const google::protobuf::Message& entry = reflection.GetRepeatedMessage(message, fd, i);
+          const google::protobuf::Reflection& entry_reflection = *entry.GetReflection();
+          values.emplace_back(entry_reflection.GetString(entry, pair.FindFieldByName("key")),
+                              entry_reflection.GetString(entry, pair.FindFieldByName("value")));
+        }
         break;
       }
       case FieldType::kDerivedText:

@@ -181,8 +181,7 @@ v1::Directive ToProto(scheduler::Directive directive) {
 }
 
 // Jobs and sweeps go by name through their field tables
-// (server/storage/service_records.h); only a job's options, a list of pairs
-// no field type holds, are copied here.
+// (server/storage/service_records.h), a job's options included.
 void ToProto(const storage::SweepRecord& sweep, v1::SweepInfo* out) {
   record_proto::RecordToProto(storage::SweepFields(), sweep, out);
 }
@@ -195,18 +194,11 @@ storage::SweepRecord FromProto(const v1::SweepInfo& info) {
 
 void ToProto(const storage::JobRecord& job, v1::JobInfo* out) {
   record_proto::RecordToProto(storage::JobFields(), job, out);
-  out->clear_options();
-  for (const auto& [key, value] : job.options) {
-    auto* option = out->add_options();
-    option->set_key(key);
-    option->set_value(value);
-  }
 }
 
 storage::JobRecord FromProto(const v1::JobInfo& info) {
   storage::JobRecord job;
   record_proto::RecordFromProto(storage::JobFields(), info, &job);
-  for (const auto& option : info.options()) job.options.emplace_back(option.key(), option.value());
   return job;
 }
 

@@ -28,6 +28,12 @@ bool ParseSweepStateInto(const std::string& text, SweepRecord* s) {
   return state.has_value();
 }
 bool SweepFinished(const SweepRecord& s) { return s.finished(); }
+std::string SweepStateOfJobText(const JobRecord& j) { return std::string(ToString(j.sweep_state)); }
+bool ParseSweepStateOfJobInto(const std::string& text, JobRecord* j) {
+  const std::optional<SweepState> state = ParseSweepState(text);
+  if (state) j->sweep_state = *state;
+  return state.has_value();
+}
 
 }  // namespace
 
@@ -42,6 +48,7 @@ const record::FieldTable<JobRecord>& JobFields() {
       {"method", &JobRecord::method},
       {"seed", &JobRecord::seed},
       {"variant", &JobRecord::variant},
+      {"options", &JobRecord::options},
       {"state", record::EnumText<JobRecord>{&JobStateText, &ParseJobStateInto}},
       {"attempts", &JobRecord::attempts},
       {"failures", &JobRecord::failures},
@@ -80,6 +87,26 @@ const record::FieldTable<SweepRecord>& SweepFields() {
       {"max_lost_leases", &SweepRecord::max_lost_leases},
       {"max_concurrent", &SweepRecord::max_concurrent},
       {"canonical_spec", &SweepRecord::canonical_spec, /*csv=*/false},
+  };
+  return table;
+}
+
+const record::FieldTable<JobRecord>& JobStoreOnlyFields() {
+  static const record::FieldTable<JobRecord> table = {
+      {"sweep_id", &JobRecord::sweep_id},
+      {"sweep_state",
+       record::EnumText<JobRecord>{&SweepStateOfJobText, &ParseSweepStateOfJobInto}},
+      {"max_attempts", &JobRecord::max_attempts},
+      {"max_lost_leases", &JobRecord::max_lost_leases},
+      {"completed_attempt", &JobRecord::completed_attempt},
+      {"payload", &JobRecord::payload},
+  };
+  return table;
+}
+
+const record::FieldTable<SweepRecord>& SweepStoreOnlyFields() {
+  static const record::FieldTable<SweepRecord> table = {
+      {"id", &SweepRecord::id},
   };
   return table;
 }

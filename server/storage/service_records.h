@@ -9,18 +9,20 @@
 // Contract, beyond record.h's:
 //   * a name is the proto field's name (job_id, created_unix_ms), which is
 //     therefore also the CSV column and JSON key on every path;
-//   * the tables hold what the service shows of a record; the store's own
-//     bookkeeping (JobRecord::payload, sweep_id, sweep_state, max_attempts,
-//     max_lost_leases, completed_attempt; SweepRecord::id) is not shown and
-//     not in them;
-//   * JobRecord::options, a list of (key, text) pairs that no field type
-//     holds, is not in the table: ToProto/FromProto copy it as repeated
-//     TrialOption, and the CLI shows it in `job logs`;
+//   * JobFields() and SweepFields() hold what the service shows of a
+//     record; the store's own bookkeeping (JobRecord::payload, sweep_id,
+//     sweep_state, max_attempts, max_lost_leases, completed_attempt;
+//     SweepRecord::id) is not shown: it is in the *StoreOnlyFields() tables,
+//     which only the store reads;
+//   * a job's options are (key, text) pairs (record::TextPairs): repeated
+//     TrialOption in the proto, [[key, text], ...] in JSON, key=text;... in
+//     CSV;
 //   * state and kind are enumerators written as their stored names
 //     ("queued", "lease_lost", "study"; storage::ToString).
-// The job and sweep SELECTs are not generated from these tables: their
-// values are computed (counts, the latest attempt's worker) by joins, not
-// read from columns of one table (docs/core.md "Records").
+// The store's SELECTs are generated from these tables too
+// (sqlite_records.h MakeSqlView): the store says, per field name, which SQL
+// expression reads it (a column, a join, a count), and a field it does not
+// place is an abort in the first test that lists a record.
 //
 // Thread safety: the tables are built once (function-local statics) and
 // read-only after.
@@ -34,6 +36,8 @@ namespace totalgrad::storage {
 
 const record::FieldTable<JobRecord>& JobFields();
 const record::FieldTable<SweepRecord>& SweepFields();
+const record::FieldTable<JobRecord>& JobStoreOnlyFields();
+const record::FieldTable<SweepRecord>& SweepStoreOnlyFields();
 
 }  // namespace totalgrad::storage
 

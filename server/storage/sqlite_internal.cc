@@ -11,6 +11,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "server/common/status_macros.h"
+#include "server/storage/service_records.h"
 #include "server/storage/sqlite_records.h"
 #include "server/storage/sqlite_schema.h"
 
@@ -70,20 +71,77 @@ absl::StatusOr<int64_t> QueryInt(Db& db, absl::string_view sql, int64_t param) {
 }
 
 
+namespace {
+
+// Where the store reads each field of a sweep summary from; the counts are
+// computed by ReadSweepRow from the sweep's jobs.
+const SqlView<SweepRecord>& SweepView() {
+  static const SqlView<SweepRecord> view = MakeSqlView<SweepRecord>(
+      {&SweepFields(), &SweepStoreOnlyFields()},
+      {{"id", "s.id"},
+       {"name", "s.name"},
+       {"description", "s.description"},
+       {"state", "s.state"},
+       {"canonical_spec", "s.canonical_spec"},
+       {"spec_hash", "s.spec_hash"},
+       {"source_name", "s.source_name"},
+       {"coordinator_build", "s.coordinator_build"},
+       {"created_unix_ms", "s.created_ms"},
+       {"max_attempts", "s.max_attempts"},
+       {"max_lost_leases", "s.max_lost_leases"},
+       {"max_concurrent", "s.max_concurrent"}},
+      {"jobs_total", "jobs_queued", "jobs_running", "jobs_completed", "jobs_failed",
+       "jobs_cancelled", "episodes_stored", "episodes_expected"});
+  return view;
+}
+
+// Where the store reads each field of a job from: its row j, its sweep's s,
+// or the rows of its latest attempt. episodes_expected is the column as
+// stored; ReadJobRow applies the job kind's rule to it.
+const SqlView<JobRecord>& JobView() {
+  static const SqlView<JobRecord> view = MakeSqlView<JobRecord>(
+      {&JobFields(), &JobStoreOnlyFields()},
+      {{"job_id", "j.id"},
+       {"sweep_name", "s.name"},
+       {"kind", "j.kind"},
+       {"ordinal", "j.ordinal"},
+       {"method", "j.method"},
+       {"seed", "j.seed"},
+       {"variant", "j.variant"},
+       {"options", "j.options_json"},
+       {"state", "j.state"},
+       {"attempts", "j.attempts"},
+       {"failures", "j.failures"},
+       {"lost_leases", "j.lost_leases"},
+       {"episodes_stored",
+        "(SELECT COUNT(*) FROM episodes e WHERE e.job_id = j.id AND e.attempt = j.attempts)"},
+       {"episodes_expected", "j.episodes_expected"},
+       {"worker_id",
+        "COALESCE((SELECT a.worker_id FROM attempts a WHERE a.job_id = j.id AND "
+        "a.attempt = j.attempts AND a.state = 'running'), '')"},
+       {"success", "COALESCE(j.success, 0)"},
+       {"final_eval_cost", "j.final_eval_cost"},
+       {"last_error", "j.last_error"},
+       {"sweep_id", "j.sweep_id"},
+       {"sweep_state", "s.state"},
+       {"max_attempts", "s.max_attempts"},
+       {"max_lost_leases", "s.max_lost_leases"},
+       {"completed_attempt", "COALESCE(j.completed_attempt, 0)"},
+       {"payload", "j.payload"}},
+      {});
+  return view;
+}
+
+}  // namespace
+
+const std::string& SweepSelectSql() {
+  static const std::string sql = absl::StrCat("SELECT ", SweepView().select_list, " FROM sweeps s");
+  return sql;
+}
+
 absl::StatusOr<SweepRecord> ReadSweepRow(Db& db, const Statement& row) {
   SweepRecord sweep;
-  sweep.id = row.ColumnInt(0);
-  sweep.name = row.ColumnText(1);
-  sweep.description = row.ColumnText(2);
-  sweep.state = ParseSweepState(row.ColumnText(3)).value_or(SweepState::kRunning);
-  sweep.canonical_spec = row.ColumnText(4);
-  sweep.spec_hash = row.ColumnText(5);
-  sweep.source_name = row.ColumnText(6);
-  sweep.coordinator_build = row.ColumnText(7);
-  sweep.created_ms = row.ColumnInt(8);
-  sweep.max_attempts = static_cast<int>(row.ColumnInt(9));
-  sweep.max_lost_leases = static_cast<int>(row.ColumnInt(10));
-  sweep.max_concurrent = static_cast<int>(row.ColumnInt(11));
+  ReadRecord(row, 0, SweepView().fields, &sweep);
   ASSIGN_OR_RETURN(Statement counts,
                    Statement::Prepare(db, "SELECT state, COUNT(*), SUM(episodes_expected), kind "
                                           "FROM jobs WHERE sweep_id = ? GROUP BY state, kind"));
@@ -114,8 +172,7 @@ absl::StatusOr<SweepRecord> ReadSweepRow(Db& db, const Statement& row) {
 
 absl::StatusOr<SweepRecord> LoadSweep(Db& db, const std::string& name) {
   ASSIGN_OR_RETURN(Statement query,
-                   Statement::Prepare(db, absl::StrCat("SELECT ", kSweepColumns,
-                                                       " FROM sweeps s WHERE s.name = ?")));
+                   Statement::Prepare(db, absl::StrCat(SweepSelectSql(), " WHERE s.name = ?")));
   query.Bind(1, name);
   ASSIGN_OR_RETURN(bool row, query.Step());
   if (!row) return absl::NotFoundError(absl::StrCat("no sweep named '", name, "'"));
@@ -123,39 +180,23 @@ absl::StatusOr<SweepRecord> LoadSweep(Db& db, const std::string& name) {
 }
 
 
+const std::string& JobSelectSql() {
+  static const std::string sql = absl::StrCat("SELECT ", JobView().select_list,
+                                              " FROM jobs j JOIN sweeps s ON s.id = j.sweep_id");
+  return sql;
+}
+
 JobRecord ReadJobRow(const Statement& row) {
   JobRecord job;
-  job.id = row.ColumnInt(0);
-  job.sweep_id = row.ColumnInt(1);
-  job.sweep_name = row.ColumnText(2);
-  job.sweep_state = ParseSweepState(row.ColumnText(3)).value_or(SweepState::kRunning);
-  job.ordinal = static_cast<int>(row.ColumnInt(4));
-  job.method = row.ColumnText(5);
-  job.seed = row.ColumnText(6);
-  job.variant = row.ColumnText(7);
-  job.options = OptionsFromJson(row.ColumnText(8));
-  job.state = ParseJobState(row.ColumnText(9)).value_or(JobState::kQueued);
-  job.attempts = static_cast<int>(row.ColumnInt(10));
-  job.failures = static_cast<int>(row.ColumnInt(11));
-  job.lost_leases = static_cast<int>(row.ColumnInt(12));
-  job.max_attempts = static_cast<int>(row.ColumnInt(13));
-  job.max_lost_leases = static_cast<int>(row.ColumnInt(14));
-  job.kind = ParseJobKind(row.ColumnText(22)).value_or(JobKind::kTrial);
+  ReadRecord(row, 0, JobView().fields, &job);
   job.episodes_expected =
-      static_cast<int>(ExpectedEpisodes(KindInfo(job.kind), row.ColumnInt(15)));
-  job.episodes_stored = static_cast<int>(row.ColumnInt(16));
-  job.worker_id = row.ColumnText(17);
-  job.last_error = row.ColumnText(18);
-  job.completed_attempt = static_cast<int>(row.ColumnInt(19));
-  job.success = row.ColumnInt(20) != 0;
-  job.final_eval_cost = row.ColumnDouble(21);
-  job.payload = row.ColumnText(23);
+      static_cast<int>(ExpectedEpisodes(KindInfo(job.kind), job.episodes_expected));
   return job;
 }
 
 absl::StatusOr<JobRecord> LoadJob(Db& db, int64_t job_id) {
   ASSIGN_OR_RETURN(Statement query,
-                   Statement::Prepare(db, absl::StrCat(kJobSelect, " WHERE j.id = ?")));
+                   Statement::Prepare(db, absl::StrCat(JobSelectSql(), " WHERE j.id = ?")));
   query.Bind(1, job_id);
   ASSIGN_OR_RETURN(bool row, query.Step());
   if (!row) return absl::NotFoundError(absl::StrCat("no job with id ", job_id));

@@ -44,23 +44,15 @@ absl::Status AddEvent(Db& db, int64_t ms, int64_t sweep_id, int64_t job_id, int 
 // Reads an int from a one-row query with one parameter (0 without a row).
 absl::StatusOr<int64_t> QueryInt(Db& db, absl::string_view sql, int64_t param);
 
-inline constexpr char kSweepColumns[] =
-    "s.id, s.name, s.description, s.state, s.canonical_spec, s.spec_hash, s.source_name, "
-    "s.coordinator_build, s.created_ms, s.max_attempts, s.max_lost_leases, s.max_concurrent";
+// "SELECT <a sweep's columns> FROM sweeps s" (append WHERE / ORDER BY);
+// ReadSweepRow reads its rows and adds the job counts.
+const std::string& SweepSelectSql();
 absl::StatusOr<SweepRecord> ReadSweepRow(Db& db, const Statement& row);
 absl::StatusOr<SweepRecord> LoadSweep(Db& db, const std::string& name);
 
-inline constexpr char kJobSelect[] = R"sql(
-SELECT j.id, j.sweep_id, s.name, s.state, j.ordinal, j.method, j.seed, j.variant, j.options_json,
-       j.state, j.attempts, j.failures, j.lost_leases, s.max_attempts, s.max_lost_leases,
-       j.episodes_expected,
-       (SELECT COUNT(*) FROM episodes e WHERE e.job_id = j.id AND e.attempt = j.attempts),
-       COALESCE((SELECT a.worker_id FROM attempts a
-                 WHERE a.job_id = j.id AND a.attempt = j.attempts AND a.state = 'running'), ''),
-       j.last_error, COALESCE(j.completed_attempt, 0), COALESCE(j.success, 0), j.final_eval_cost,
-       j.kind, j.payload
-FROM jobs j JOIN sweeps s ON s.id = j.sweep_id
-)sql";
+// "SELECT <a job's values> FROM jobs j JOIN sweeps s ON s.id = j.sweep_id"
+// (append WHERE / ORDER BY); ReadJobRow reads its rows.
+const std::string& JobSelectSql();
 JobRecord ReadJobRow(const Statement& row);
 absl::StatusOr<JobRecord> LoadJob(Db& db, int64_t job_id);
 

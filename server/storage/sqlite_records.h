@@ -5,7 +5,8 @@
 //
 // Columns: a scalar field is the column of its name (REAL, NULL for NaN;
 // INTEGER; INTEGER 0/1 for a bool; TEXT); a list field is "<name>_json", a
-// JSON array (doubles at round-trip precision, non-finite as null). A
+// JSON array (doubles at round-trip precision, non-finite as null; (key,
+// text) pairs as [[key, text], ...], OptionsToJson's layout). A
 // derived field is written (so a reader of the file sees it) and never read
 // back: the record recomputes it. The table's own columns are created by the
 // schema's migrations (sqlite_schema.cc); tests/service/records_test.cc
@@ -15,6 +16,11 @@
 #ifndef TOTALGRAD_SERVER_STORAGE_SQLITE_RECORDS_H_
 #define TOTALGRAD_SERVER_STORAGE_SQLITE_RECORDS_H_
 
+#include <cstdio>
+#include <cstdlib>
+#include <initializer_list>
+#include <map>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -77,6 +83,9 @@ int BindRecord(Statement& statement, int first, const record::FieldTable<R>& tab
         break;
       case FieldType::kDoubles:
       case FieldType::kVector: statement.Bind(index, DoublesToJson(record::DoublesOf(field, r))); break;
+      case FieldType::kTextPairs:
+        statement.Bind(index, OptionsToJson(field.template Get<record::TextPairs>(r)));
+        break;
     }
     ++index;
   }
@@ -127,12 +136,71 @@ int ReadRecord(const Statement& query, int first, const record::FieldTable<R>& t
       case FieldType::kVector:
         record::SetDoubles(field, DoublesFromJson(query.ColumnText(column)), r);
         break;
+      case FieldType::kTextPairs:
+        field.template Get<record::TextPairs>(*r) = OptionsFromJson(query.ColumnText(column));
+        break;
       case FieldType::kDerivedText:
       case FieldType::kDerivedBool: break;
     }
     ++column;
   }
   return column;
+}
+
+// A record read by a query whose values are not all plain columns (joins,
+// counts, COALESCEs): its fields in read order, and the SELECT list that
+// yields them in that order. ReadRecord(query, 0, view.fields, &r) reads a
+// row of "SELECT " + view.select_list + " FROM ...".
+// A record table and its SQL disagree: a programmer error (check.h's rule),
+// reported with the field's name before aborting.
+[[noreturn]] inline void RecordSqlMismatch(const std::string& what) {
+  std::fprintf(stderr, "record/SQL mismatch: %s\n", what.c_str());
+  std::abort();
+}
+
+template <typename R>
+struct SqlView {
+  record::FieldTable<R> fields;
+  std::string select_list;
+};
+
+// The view of the non-derived fields of `tables`, in their order, each read
+// from its expression in `sql` (field name -> SQL expression); the fields
+// named in `computed` are left out (the reader fills them after the row:
+// counts over other rows, rules of the job's kind). A field with neither, or
+// an expression naming no field, is a programmer error (TG_CHECK; every
+// store test reads records, so it cannot go unnoticed). So adding a field
+// to a record's table without saying where the store reads it from fails
+// the first test that lists the record, instead of a column silently
+// missing or read from the wrong position.
+template <typename R>
+SqlView<R> MakeSqlView(std::initializer_list<const record::FieldTable<R>*> tables,
+                       const std::map<std::string, std::string>& sql,
+                       const std::set<std::string>& computed) {
+  SqlView<R> view;
+  std::vector<std::string> expressions;
+  std::set<std::string> used;
+  for (const record::FieldTable<R>* table : tables) {
+    for (const auto& field : *table) {
+      if (field.derived() || computed.count(field.name) > 0) continue;
+      const auto it = sql.find(field.name);
+      if (it == sql.end()) {
+        RecordSqlMismatch(absl::StrCat("record field '", field.name,
+                                       "' has no SQL expression to read it from"));
+      }
+      view.fields.push_back(field);
+      expressions.push_back(it->second);
+      used.insert(field.name);
+    }
+  }
+  for (const auto& [name, expression] : sql) {
+    if (used.count(name) == 0) {
+      RecordSqlMismatch(absl::StrCat("SQL expression '", expression, "' names no field ('",
+                                     name, "') of its record"));
+    }
+  }
+  view.select_list = absl::StrJoin(expressions, ", ");
+  return view;
 }
 
 }  // namespace totalgrad::storage::internal

@@ -210,8 +210,8 @@ absl::StatusOr<std::vector<SweepRecord>> SqliteStore::ListSweeps() {
   std::vector<SweepRecord> sweeps;
   absl::Status status = [&]() ABSL_EXCLUSIVE_LOCKS_REQUIRED(read_mutex_) -> absl::Status {
     ASSIGN_OR_RETURN(Statement query,
-                     Statement::Prepare(reader_, absl::StrCat("SELECT ", kSweepColumns,
-                                                              " FROM sweeps s ORDER BY s.id DESC")));
+                     Statement::Prepare(reader_, absl::StrCat(SweepSelectSql(),
+                                                              " ORDER BY s.id DESC")));
     while (true) {
       ASSIGN_OR_RETURN(bool row, query.Step());
       if (!row) return absl::OkStatus();
@@ -235,7 +235,7 @@ absl::StatusOr<std::vector<JobRecord>> SqliteStore::ListJobs(const JobFilter& fi
   // each job's state is looked up in with instr().
   std::string states;
   for (JobState s : filter.states) absl::StrAppend(&states, ",", ToString(s), ",");
-  ASSIGN_OR_RETURN(Statement query, Statement::Prepare(reader_, absl::StrCat(kJobSelect, R"sql(
+  ASSIGN_OR_RETURN(Statement query, Statement::Prepare(reader_, absl::StrCat(JobSelectSql(), R"sql(
 WHERE (? = '' OR s.name = ?) AND (? = '' OR instr(?, ',' || j.state || ',') > 0) AND j.id > ?
 ORDER BY j.id LIMIT ?)sql")));
   query.Bind(1, filter.sweep_name).Bind(2, filter.sweep_name).Bind(3, states).Bind(4, states);

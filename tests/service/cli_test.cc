@@ -157,9 +157,13 @@ TEST_F(CliTest, SubmitWaitAndQueryResultsInEveryFormat) {
   EXPECT_EQ(jobs[0]["success"], true);
   EXPECT_TRUE(jobs[0]["final_eval_cost"].is_number()) << jobs[0];
   EXPECT_EQ(jobs[0]["lost_leases"], 0);
+  // A job's options, in their order, as [key, text] pairs.
+  ASSERT_TRUE(jobs[0]["options"].is_array()) << jobs[0];
+  ASSERT_FALSE(jobs[0]["options"].empty()) << jobs[0];
+  EXPECT_EQ(jobs[0]["options"][0].size(), 2u) << jobs[0];
   ASSERT_EQ(Cli({"job", "list", "--sweep", "cli", "-f", "csv"}, &out, &err), 0) << err;
   EXPECT_EQ(out.substr(0, out.find('\n')),
-            "job_id,sweep_name,kind,ordinal,method,seed,variant,state,attempts,failures,"
+            "job_id,sweep_name,kind,ordinal,method,seed,variant,options,state,attempts,failures,"
             "lost_leases,episodes_stored,episodes_expected,worker_id,success,final_eval_cost,"
             "last_error");
   EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1 + 3) << out;

@@ -87,6 +87,12 @@ void SetEveryField(const FieldTable<R>& table, R* r) {
         break;
       case FieldType::kDoubles:
       case FieldType::kVector: record::SetDoubles(field, {x, -x / 3, 1e-300 * x}, r); break;
+      case FieldType::kTextPairs:
+        // Out of key order, and a key repeated: a path that sorts or
+        // de-duplicates shows.
+        field.template Get<record::TextPairs>(*r) = {
+            {"zeta", text}, {"alpha", "1"}, {"zeta", "again"}};
+        break;
       case FieldType::kDerivedText: break;
     }
   }
@@ -134,6 +140,9 @@ std::vector<std::string> DifferingFields(const FieldTable<R>& table, const R& a,
       case FieldType::kDoubles:
       case FieldType::kVector:
         same = SameDoubles(record::DoublesOf(field, a), record::DoublesOf(field, b));
+        break;
+      case FieldType::kTextPairs:
+        same = field.template Get<record::TextPairs>(a) == field.template Get<record::TextPairs>(b);
         break;
     }
     if (!same) names.push_back(field.name);
@@ -254,12 +263,12 @@ TEST(ServiceRecords, JobThroughEveryPath) {
   EXPECT_EQ(std::set<std::string>(names.begin(), names.end()).size(), names.size());
   storage::JobRecord job;
   SetEveryField(table, &job);
-  // Options are no field type: copied by convert.cc's own lines.
-  job.options = {{"episodes", "3"}, {"learning_rate", "0.1"}};
   ExpectServiceRecordThroughEveryPath<storage::JobRecord, v1::JobInfo>(table, job);
   v1::JobInfo info;
   service::ToProto(job, &info);
-  EXPECT_EQ(service::FromProto(info).options, job.options);
+  ASSERT_EQ(info.options_size(), 3);
+  EXPECT_EQ(info.options(2).key(), "zeta");
+  EXPECT_EQ(info.options(2).value(), "again");
   // The CSV/JSON names are the proto's: job_id, not the struct's `id`.
   EXPECT_EQ(io::RecordToJson(table, job)["job_id"], job.id);
   EXPECT_EQ(io::RecordToJson(table, job)["state"], "cancelled");
@@ -345,6 +354,47 @@ class RecordsTest : public ::testing::Test {
   std::string dir_, path_;
   std::unique_ptr<storage::SqliteStore> store_;
 };
+
+// The store reads a job and a sweep through views generated from their
+// tables (sqlite_records.h MakeSqlView): a job's options come back in their
+// order, and the store's own fields are read too.
+TEST_F(RecordsTest, JobAndSweepReadThroughTheirTables) {
+  const int64_t job_id = CreateTrialJob();
+  store_.reset();
+  Open();
+  TG_ASSERT_OK_AND_ASSIGN(storage::JobRecord job, store_->GetJob(job_id));
+  const storage::OptionList expected = {{"method", "RP"}, {"seed", "1"}, {"noise_k", "1"}};
+  EXPECT_EQ(job.options, expected);
+  EXPECT_EQ(job.worker_id, "w1");
+  EXPECT_EQ(job.state, storage::JobState::kRunning);
+  EXPECT_EQ(job.episodes_expected, 3);
+  EXPECT_EQ(job.max_attempts, 3);
+  EXPECT_EQ(job.max_lost_leases, 20);
+  EXPECT_GT(job.sweep_id, 0);
+  EXPECT_EQ(job.sweep_name, "trials");
+  TG_ASSERT_OK_AND_ASSIGN(storage::SweepRecord sweep, store_->GetSweep("trials"));
+  EXPECT_EQ(sweep.id, job.sweep_id);
+  EXPECT_EQ(sweep.jobs_running, 1);
+  EXPECT_EQ(sweep.episodes_expected, 3);
+  EXPECT_EQ(sweep.max_lost_leases, 20);
+  EXPECT_EQ(sweep.created_ms, kNow);
+}
+
+// A field the store does not place, and a placement naming no field, stop
+// the program with the field's name (the first store test would show it).
+TEST(RecordSqlViewDeathTest, EveryFieldHasAnExpressionAndEveryExpressionAField) {
+  EXPECT_DEATH(storage::internal::MakeSqlView<storage::SweepRecord>(
+                   {&storage::SweepStoreOnlyFields()}, {}, {}),
+               "record field 'id' has no SQL expression");
+  EXPECT_DEATH(storage::internal::MakeSqlView<storage::SweepRecord>(
+                   {&storage::SweepStoreOnlyFields()}, {{"id", "s.id"}, {"colour", "s.colour"}},
+                   {}),
+               "SQL expression 's.colour' names no field");
+  const auto view = storage::internal::MakeSqlView<storage::SweepRecord>(
+      {&storage::SweepStoreOnlyFields()}, {{"id", "s.id"}}, {});
+  EXPECT_EQ(view.select_list, "s.id");
+  EXPECT_EQ(view.fields.size(), 1u);
+}
 
 TEST_F(RecordsTest, StudyRowsThroughEveryPath) {
   study::CellResult cell;
