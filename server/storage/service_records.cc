@@ -28,6 +28,12 @@ bool ParseSweepStateInto(const std::string& text, SweepRecord* s) {
   return state.has_value();
 }
 bool SweepFinished(const SweepRecord& s) { return s.finished(); }
+std::string AttemptStateText(const ImportedAttempt& a) { return std::string(ToString(a.state)); }
+bool ParseAttemptStateInto(const std::string& text, ImportedAttempt* a) {
+  const std::optional<AttemptState> state = ParseAttemptState(text);
+  if (state) a->state = *state;
+  return state.has_value();
+}
 
 }  // namespace
 
@@ -80,6 +86,22 @@ const record::FieldTable<SweepRecord>& SweepFields() {
       {"max_lost_leases", &SweepRecord::max_lost_leases},
       {"max_concurrent", &SweepRecord::max_concurrent},
       {"canonical_spec", &SweepRecord::canonical_spec, /*csv=*/false},
+  };
+  return table;
+}
+
+// The order is v1::AttemptInfo's: which attempt, how it ended, where and
+// when it ran, its error.
+const record::FieldTable<ImportedAttempt>& ImportedAttemptFields() {
+  static const record::FieldTable<ImportedAttempt> table = {
+      {"attempt", &ImportedAttempt::attempt},
+      {"state", record::EnumText<ImportedAttempt>{&AttemptStateText, &ParseAttemptStateInto}},
+      {"worker_id", &ImportedAttempt::worker_id},
+      {"worker_host", &ImportedAttempt::worker_host},
+      {"worker_build", &ImportedAttempt::worker_build},
+      {"started_unix_ms", &ImportedAttempt::started_ms},
+      {"ended_unix_ms", &ImportedAttempt::ended_ms},
+      {"error", &ImportedAttempt::error},
   };
   return table;
 }

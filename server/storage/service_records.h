@@ -1,10 +1,13 @@
 // The field tables (core/common/record.h) of the service's own records: a
-// job (storage::JobRecord, `totalgrad job list`, the dashboard's jobs) and a
+// job (storage::JobRecord, `totalgrad job list`, the dashboard's jobs), a
 // sweep summary (storage::SweepRecord, `totalgrad sweep list|status`, the
-// dashboard's sweeps). One description per record (issue 13): the proto
-// conversion (server/service/convert.cc, by reflection on these names into
-// v1::JobInfo and v1::SweepInfo), the CLI's CSV and JSON and the dashboard's
-// JSON (io/record_format.h) read these tables and name no field.
+// dashboard's sweeps) and an archived attempt (storage::ImportedAttempt, the
+// `attempt_log` of a sweep archive). One description per record (issue 13):
+// the proto conversion (server/service/convert.cc, by reflection on these
+// names into v1::JobInfo, v1::SweepInfo, from v1::AttemptInfo), the CLI's CSV
+// and JSON, the dashboard's JSON and the sweep archive's `sweep`, `jobs` and
+// `attempt_log` objects (io/record_format.h; server/service/sweep_archive.h,
+// written and read) read these tables and name no field.
 //
 // Contract, beyond record.h's:
 //   * a name is the proto field's name (job_id, created_unix_ms), which is
@@ -15,7 +18,17 @@
 //     not in them;
 //   * JobRecord::options, a list of (key, text) pairs that no field type
 //     holds, is not in the table: ToProto/FromProto copy it as repeated
-//     TrialOption, and the CLI shows it in `job logs`;
+//     TrialOption, the CLI shows it in `job logs` and the sweep archive
+//     writes it as its own key `options` ({KEY: TEXT}), beside the job's
+//     `completed_attempt` (bookkeeping, above) and `attempt_log`;
+//   * ImportedAttemptFields() is the archive's attempt: what the importing
+//     store takes (ImportedAttempt; its episodes and study rows are records
+//     of their own tables). It is not on storage::AttemptRecord, the store's
+//     attempt as ListAttempts reads it: that struct's number sits in a nested
+//     LeaseKey, which no member pointer of a table reaches, and it holds
+//     lease bookkeeping (lease expiry, episodes_stored, checkpoint_episode)
+//     that an archive does not carry. Its names are v1::AttemptInfo's, so
+//     the export reads it from the proto by reflection;
 //   * state and kind are enumerators written as their stored names
 //     ("queued", "lease_lost", "study"; storage::ToString).
 // The job and sweep SELECTs are not generated from these tables: their
@@ -34,6 +47,7 @@ namespace totalgrad::storage {
 
 const record::FieldTable<JobRecord>& JobFields();
 const record::FieldTable<SweepRecord>& SweepFields();
+const record::FieldTable<ImportedAttempt>& ImportedAttemptFields();
 
 }  // namespace totalgrad::storage
 
