@@ -219,6 +219,12 @@ void ToProto(const storage::AttemptRecord& attempt, v1::AttemptInfo* out) {
   out->set_checkpoint_episode(attempt.checkpoint_episode);
 }
 
+storage::ImportedAttempt FromProto(const v1::AttemptInfo& info) {
+  storage::ImportedAttempt attempt;
+  record_proto::RecordFromProto(storage::ImportedAttemptFields(), info, &attempt);
+  return attempt;
+}
+
 void ToProto(const storage::EventRecord& event, v1::Event* out) {
   out->set_unix_ms(event.ms);
   out->set_job_id(event.job_id);

@@ -56,6 +56,10 @@ void ToProto(const storage::JobRecord& job, v1::JobInfo* out);
 storage::SweepRecord FromProto(const v1::SweepInfo& info);
 storage::JobRecord FromProto(const v1::JobInfo& info);
 void ToProto(const storage::AttemptRecord& attempt, v1::AttemptInfo* out);
+// An attempt as a sweep archive carries it (storage::ImportedAttemptFields(),
+// by name): job_id, the lease expiry, episodes_stored and
+// checkpoint_episode are not carried; episodes and study rows are left empty.
+storage::ImportedAttempt FromProto(const v1::AttemptInfo& info);
 void ToProto(const storage::EventRecord& event, v1::Event* out);
 // `now_ms` and `lease_timeout_ms` decide ACTIVE vs GONE.
 void ToProto(const storage::WorkerRecord& worker, int64_t now_ms, int64_t lease_timeout_ms,

@@ -2,25 +2,22 @@
 
 #include <google/protobuf/util/json_util.h>
 
-#include <cmath>
+#include <initializer_list>
 #include <limits>
-#include <map>
 #include <optional>
 
-#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/string_view.h"
 #include "core/study/study.h"
 #include "io/record_format.h"
 #include "server/common/record_proto.h"
+#include "server/common/status_macros.h"
 #include "server/service/convert.h"
 #include "server/storage/job_kinds.h"
+#include "server/storage/service_records.h"
 
 namespace totalgrad::service {
 namespace {
-
-nlohmann::ordered_json Number(double v) {
-  return std::isfinite(v) ? nlohmann::ordered_json(v) : nlohmann::ordered_json(nullptr);
-}
 
 // A study row of an archive: {"index", ...the record's fields}.
 template <typename Record, typename Row>
@@ -32,7 +29,175 @@ nlohmann::ordered_json RowJson(const record::FieldTable<Record>& table, const Ro
   return object;
 }
 
-// Reads a row that RowJson wrote into *stored (a storage row: the record
+// An episode of an archive: its record (learner::EpisodeFields()), then when
+// it was reported and its details.
+nlohmann::ordered_json EpisodeJson(const v1::EpisodeRow& row) {
+  const v1::EpisodeReport& e = row.report();
+  learner::EpisodeSummary summary;
+  record_proto::RecordFromProto(learner::EpisodeFields(), e, &summary);
+  nlohmann::ordered_json episode = io::RecordToJson(learner::EpisodeFields(), summary);
+  episode["reported_unix_ms"] = row.reported_unix_ms();
+  const nlohmann::ordered_json details =
+      nlohmann::ordered_json::parse(e.details_json(), nullptr, false);
+  episode["details"] = details.is_discarded() ? nlohmann::ordered_json(e.details_json()) : details;
+  return episode;
+}
+
+// ---- Reading version 3: every record through its table ----
+
+// "archive: jobs[3].attempt_log[0]: not an object". `where` is the path of
+// the value in the document ("" for the document itself).
+absl::Status Malformed(const std::string& where, absl::string_view why) {
+  return absl::InvalidArgumentError(absl::StrCat("archive: ", where, ": ", why));
+}
+
+std::string Member(const std::string& where, absl::string_view key) {
+  return where.empty() ? std::string(key) : absl::StrCat(where, ".", key);
+}
+
+// Reads the record at `where` through its table (io/record_format.h):
+// InvalidArgument "archive: <where>.<key>: <why>" for a mistyped value.
+template <typename R>
+absl::Status ReadRecord(const record::FieldTable<R>& table, const nlohmann::json& object,
+                        const std::string& where, R* r) {
+  if (!object.is_object()) return Malformed(where, "not an object");
+  return io::RecordFromJson(table, object, absl::StrCat("archive: ", where, "."), r);
+}
+
+// A table's reader keeps the record's default for a missing key (a file
+// written before the field existed). The keys the import takes must be
+// there: a default would import another job, or another verdict, silently.
+absl::Status Require(const nlohmann::json& object, const std::string& where,
+                     std::initializer_list<const char*> keys) {
+  for (const char* key : keys) {
+    if (!object.contains(key)) return Malformed(Member(where, key), "missing");
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<int64_t> Integer(const nlohmann::json& object, const std::string& where,
+                                const char* key) {
+  const auto it = object.find(key);
+  if (it == object.end()) return Malformed(Member(where, key), "missing");
+  if (!it->is_number_integer()) return Malformed(Member(where, key), "not an integer");
+  return it->get<int64_t>();
+}
+
+// The array at `key`; nullptr when it is absent and not `required`.
+absl::StatusOr<const nlohmann::json*> Array(const nlohmann::json& object, const std::string& where,
+                                            const char* key, bool required) {
+  const auto it = object.find(key);
+  if (it == object.end()) {
+    if (required) return Malformed(Member(where, key), "missing");
+    return nullptr;
+  }
+  if (!it->is_array()) return Malformed(Member(where, key), "not an array");
+  return &*it;
+}
+
+// A study row: {"index", ...the record's fields} (RowJson).
+template <typename Record, typename Stored>
+absl::Status ReadRow(const record::FieldTable<Record>& table, const nlohmann::json& row,
+                     const std::string& where, Stored* stored) {
+  if (!row.is_object()) return Malformed(where, "not an object");
+  ASSIGN_OR_RETURN(const int64_t index, Integer(row, where, "index"));
+  stored->index = static_cast<int>(index);
+  return ReadRecord<Record>(table, row, where, stored);
+}
+
+// One object of a job's attempt_log: the attempt's record
+// (storage::ImportedAttemptFields(), every field of which the import takes,
+// so every one must be there), its episodes and its study rows.
+absl::Status ReadAttempt(const nlohmann::json& object, const std::string& where,
+                         storage::ImportedAttempt* attempt) {
+  RETURN_IF_ERROR(ReadRecord(storage::ImportedAttemptFields(), object, where, attempt));
+  for (const auto& field : storage::ImportedAttemptFields()) {
+    RETURN_IF_ERROR(Require(object, where, {field.name}));
+  }
+  ASSIGN_OR_RETURN(const nlohmann::json* episodes, Array(object, where, "episodes", true));
+  for (size_t k = 0; k < episodes->size(); ++k) {
+    const nlohmann::json& e = (*episodes)[k];
+    const std::string at = absl::StrCat(where, ".episodes[", k, "]");
+    storage::Episode episode;
+    RETURN_IF_ERROR(ReadRecord<learner::EpisodeSummary>(learner::EpisodeFields(), e, at, &episode));
+    RETURN_IF_ERROR(Require(e, at, {"episode"}));
+    ASSIGN_OR_RETURN(const int64_t reported, Integer(e, at, "reported_unix_ms"));
+    if (e.contains("details")) {
+      episode.details_json =
+          e["details"].is_string() ? e["details"].get<std::string>() : e["details"].dump();
+    }
+    attempt->episodes.emplace_back(std::move(episode), reported);
+  }
+  ASSIGN_OR_RETURN(const nlohmann::json* cells, Array(object, where, "study_cells", false));
+  for (size_t k = 0; cells != nullptr && k < cells->size(); ++k) {
+    RETURN_IF_ERROR(ReadRow(study::CellFields(), (*cells)[k],
+                            absl::StrCat(where, ".study_cells[", k, "]"),
+                            &attempt->study.cells.emplace_back()));
+  }
+  ASSIGN_OR_RETURN(const nlohmann::json* references,
+                   Array(object, where, "study_references", false));
+  for (size_t k = 0; references != nullptr && k < references->size(); ++k) {
+    RETURN_IF_ERROR(ReadRow(study::ReferenceFields(), (*references)[k],
+                            absl::StrCat(where, ".study_references[", k, "]"),
+                            &attempt->study.references.emplace_back()));
+  }
+  return absl::OkStatus();
+}
+
+// Version 3. Of the sweep's record the import takes its name, spec, hash
+// and state (the coordinator recreates the rest from the spec, and counts
+// its own jobs); of a job's record its identity (kind, method, seed,
+// variant) and verdict; the other fields (job_id, ordinal, the counts,
+// worker_id, ...) are informative: checked for their type, then ignored.
+absl::StatusOr<ParsedSweepArchive> ParseVersion3(const nlohmann::json& doc) {
+  ParsedSweepArchive archive;
+  if (!doc.contains("sweep")) return Malformed("sweep", "missing");
+  const nlohmann::json& sweep_object = doc["sweep"];
+  storage::SweepRecord sweep;
+  RETURN_IF_ERROR(ReadRecord(storage::SweepFields(), sweep_object, "sweep", &sweep));
+  RETURN_IF_ERROR(Require(sweep_object, "sweep", {"name", "canonical_spec", "spec_hash", "state"}));
+  archive.name = sweep.name;
+  archive.canonical_spec = sweep.canonical_spec;
+  archive.spec_hash = sweep.spec_hash;
+  archive.state = sweep.state;
+  ASSIGN_OR_RETURN(const nlohmann::json* jobs, Array(doc, "", "jobs", true));
+  for (size_t i = 0; i < jobs->size(); ++i) {
+    const nlohmann::json& j = (*jobs)[i];
+    const std::string where = absl::StrCat("jobs[", i, "]");
+    storage::JobRecord record;
+    RETURN_IF_ERROR(ReadRecord(storage::JobFields(), j, where, &record));
+    RETURN_IF_ERROR(Require(j, where,
+                            {"kind", "method", "seed", "variant", "state", "failures",
+                             "lost_leases", "last_error", "success", "final_eval_cost"}));
+    storage::ImportedJob job;
+    job.kind = record.kind;
+    job.method = record.method;
+    job.seed = record.seed;
+    job.variant = record.variant;
+    job.state = record.state;
+    job.failures = record.failures;
+    job.lost_leases = record.lost_leases;
+    job.last_error = record.last_error;
+    job.success = record.success;
+    job.final_eval_cost = record.final_eval_cost;
+    // (The job's options are read with its table and not used: the variant
+    // identifies the job.) The archive's own keys: the completed attempt
+    // and the attempt log.
+    ASSIGN_OR_RETURN(const int64_t completed, Integer(j, where, "completed_attempt"));
+    job.completed_attempt = static_cast<int>(completed);
+    ASSIGN_OR_RETURN(const nlohmann::json* log, Array(j, where, "attempt_log", true));
+    for (size_t k = 0; k < log->size(); ++k) {
+      RETURN_IF_ERROR(ReadAttempt((*log)[k], absl::StrCat(where, ".attempt_log[", k, "]"),
+                                  &job.attempts.emplace_back()));
+    }
+    archive.jobs.push_back(std::move(job));
+  }
+  return archive;
+}
+
+// ---- Reading versions 1 and 2: a frozen exchange format, read as it was ----
+
+// A study row that RowJson wrote into *stored (a storage row: the record
 // and its index). False when it is not one.
 template <typename Record, typename Stored>
 bool RowFromJson(const record::FieldTable<Record>& table, const nlohmann::json& row,
@@ -40,38 +205,6 @@ bool RowFromJson(const record::FieldTable<Record>& table, const nlohmann::json& 
   if (!row.is_object() || !row.contains("index") || !row["index"].is_number_integer()) return false;
   stored->index = row["index"].get<int>();
   return io::RecordFromJson<Record>(table, row, "", stored).ok();
-}
-
-std::string JobStateText(v1::JobState state) {
-  switch (state) {
-    case v1::JOB_STATE_QUEUED: return "queued";
-    case v1::JOB_STATE_RUNNING: return "running";
-    case v1::JOB_STATE_COMPLETED: return "completed";
-    case v1::JOB_STATE_FAILED: return "failed";
-    case v1::JOB_STATE_CANCELLED: return "cancelled";
-    default: return "unknown";
-  }
-}
-
-std::string AttemptStateText(v1::AttemptState state) {
-  switch (state) {
-    case v1::ATTEMPT_STATE_RUNNING: return "running";
-    case v1::ATTEMPT_STATE_COMPLETED: return "completed";
-    case v1::ATTEMPT_STATE_FAILED: return "failed";
-    case v1::ATTEMPT_STATE_LEASE_LOST: return "lease_lost";
-    case v1::ATTEMPT_STATE_RELEASED: return "released";
-    case v1::ATTEMPT_STATE_CANCELLED: return "cancelled";
-    default: return "unknown";
-  }
-}
-
-std::string SweepStateText(v1::SweepState state) {
-  switch (state) {
-    case v1::SWEEP_STATE_RUNNING: return "running";
-    case v1::SWEEP_STATE_PAUSED: return "paused";
-    case v1::SWEEP_STATE_CANCELLED: return "cancelled";
-    default: return "unknown";
-  }
 }
 
 // Field readers with errors that name where in the archive.
@@ -107,112 +240,8 @@ class Reader {
   if (!var##_or.ok()) return var##_or.status(); \
   const auto var = *var##_or
 
-}  // namespace
-
-nlohmann::ordered_json SweepArchiveToJson(const v1::SweepInfo& sweep,
-                                          const std::vector<ArchiveJobInput>& jobs,
-                                          const std::string& exported_by, int64_t exported_ms) {
-  nlohmann::ordered_json doc;
-  doc["format"] = kSweepArchiveFormat;
-  doc["version"] = kSweepArchiveVersion;
-  doc["exported_by"] = exported_by;
-  doc["exported_unix_ms"] = exported_ms;
-  doc["sweep"] = {{"name", sweep.name()},
-                  {"description", sweep.description()},
-                  {"state", SweepStateText(sweep.state())},
-                  {"spec_hash", sweep.spec_hash()},
-                  {"canonical_spec", sweep.canonical_spec()},
-                  {"coordinator_build", sweep.coordinator_build()},
-                  {"created_unix_ms", sweep.created_unix_ms()},
-                  {"source_name", sweep.source_name()},
-                  {"max_attempts", sweep.max_attempts()},
-                  {"max_lost_leases", sweep.max_lost_leases()},
-                  {"max_concurrent", sweep.max_concurrent()}};
-  nlohmann::ordered_json job_array = nlohmann::ordered_json::array();
-  for (const ArchiveJobInput& input : jobs) {
-    const v1::JobInfo& job = input.job;
-    nlohmann::ordered_json options = nlohmann::ordered_json::object();
-    for (const auto& option : job.options()) options[option.key()] = option.value();
-    int64_t seed = 0;
-    nlohmann::ordered_json seed_json = job.seed();
-    if (absl::SimpleAtoi(job.seed(), &seed)) seed_json = seed;
-    int completed_attempt = 0;
-    nlohmann::ordered_json attempts = nlohmann::ordered_json::array();
-    for (const v1::AttemptInfo& attempt : input.attempts) {
-      if (attempt.state() == v1::ATTEMPT_STATE_COMPLETED) completed_attempt = attempt.attempt();
-      nlohmann::ordered_json episodes = nlohmann::ordered_json::array();
-      for (const v1::EpisodeRow& row : input.episodes) {
-        if (row.attempt() != attempt.attempt()) continue;
-        const v1::EpisodeReport& e = row.report();
-        // The episode's record (io/record_format.h), then when and the details.
-        learner::EpisodeSummary summary;
-        record_proto::RecordFromProto(learner::EpisodeFields(), e, &summary);
-        nlohmann::ordered_json episode = io::RecordToJson(learner::EpisodeFields(), summary);
-        episode["reported_unix_ms"] = row.reported_unix_ms();
-        const nlohmann::ordered_json details =
-            nlohmann::ordered_json::parse(e.details_json(), nullptr, false);
-        episode["details"] =
-            details.is_discarded() ? nlohmann::ordered_json(e.details_json()) : details;
-        episodes.push_back(std::move(episode));
-      }
-      // Study rows: the records' JSON (io/record_format.h, the objects of a
-      // study's results.json) after the row's index.
-      nlohmann::ordered_json cells = nlohmann::ordered_json::array();
-      for (const v1::StudyCellRow& cell : input.cells) {
-        if (cell.attempt() == attempt.attempt()) cells.push_back(RowJson(study::CellFields(), cell));
-      }
-      nlohmann::ordered_json references = nlohmann::ordered_json::array();
-      for (const v1::StudyReferenceRow& reference : input.references) {
-        if (reference.attempt() == attempt.attempt()) {
-          references.push_back(RowJson(study::ReferenceFields(), reference));
-        }
-      }
-      attempts.push_back({{"attempt", attempt.attempt()},
-                          {"state", AttemptStateText(attempt.state())},
-                          {"worker_id", attempt.worker_id()},
-                          {"worker_host", attempt.worker_host()},
-                          {"worker_build", attempt.worker_build()},
-                          {"started_unix_ms", attempt.started_unix_ms()},
-                          {"ended_unix_ms", attempt.ended_unix_ms()},
-                          {"error", attempt.error()},
-                          {"episodes", std::move(episodes)},
-                          {"study_cells", std::move(cells)},
-                          {"study_references", std::move(references)}});
-    }
-    job_array.push_back({{"kind", storage::ToString(FromProto(job.kind()))},
-                         {"method", job.method()},
-                         {"seed", seed_json},
-                         {"variant", job.variant()},
-                         {"options", std::move(options)},
-                         {"state", JobStateText(job.state())},
-                         {"attempts", job.attempts()},
-                         {"failures", job.failures()},
-                         {"lost_leases", job.lost_leases()},
-                         {"last_error", job.last_error()},
-                         {"success", job.success()},
-                         {"final_eval_cost", Number(job.final_eval_cost())},
-                         {"completed_attempt",
-                          job.state() == v1::JOB_STATE_COMPLETED ? completed_attempt : 0},
-                         {"attempt_log", std::move(attempts)}});
-  }
-  doc["jobs"] = std::move(job_array);
-  return doc;
-}
-
-absl::StatusOr<ParsedSweepArchive> ParseSweepArchive(const std::string& text) {
-  const nlohmann::json doc = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
-  if (doc.is_discarded() || !doc.is_object())
-    return absl::InvalidArgumentError("archive: not a JSON document");
+absl::StatusOr<ParsedSweepArchive> ParseVersion1Or2(const nlohmann::json& doc, int64_t version) {
   const Reader top("");
-  TG_READ(format, top.String(doc, "format"));
-  if (format != kSweepArchiveFormat)
-    return absl::InvalidArgumentError(absl::StrCat("archive: format '", format, "' is not '",
-                                                   kSweepArchiveFormat, "'"));
-  TG_READ(version, top.Integer(doc, "version"));
-  if (version < 1 || version > kSweepArchiveVersion)
-    return absl::InvalidArgumentError(absl::StrCat("archive: version ", version,
-                                                   "; this build reads versions 1 to ",
-                                                   kSweepArchiveVersion));
   if (!doc.contains("sweep") || !doc["sweep"].is_object()) return top.Error("sweep");
   const nlohmann::json& sweep = doc["sweep"];
   const Reader sr("sweep: ");
@@ -348,6 +377,79 @@ absl::StatusOr<ParsedSweepArchive> ParseSweepArchive(const std::string& text) {
     archive.jobs.push_back(std::move(job));
   }
   return archive;
+}
+
+}  // namespace
+
+nlohmann::ordered_json SweepArchiveToJson(const v1::SweepInfo& sweep,
+                                          const std::vector<ArchiveJobInput>& jobs,
+                                          const std::string& exported_by, int64_t exported_ms) {
+  nlohmann::ordered_json doc;
+  doc["format"] = kSweepArchiveFormat;
+  doc["version"] = kSweepArchiveVersion;
+  doc["exported_by"] = exported_by;
+  doc["exported_unix_ms"] = exported_ms;
+  // The sweep's, the jobs' and the attempts' records, read from their protos
+  // by name (convert.cc) and written through their tables
+  // (server/storage/service_records.h): no field is named here.
+  doc["sweep"] = io::RecordToJson(storage::SweepFields(), FromProto(sweep));
+  nlohmann::ordered_json job_array = nlohmann::ordered_json::array();
+  for (const ArchiveJobInput& input : jobs) {
+    const storage::JobRecord record = FromProto(input.job);
+    nlohmann::ordered_json job = io::RecordToJson(storage::JobFields(), record);
+    int completed_attempt = 0;
+    nlohmann::ordered_json attempts = nlohmann::ordered_json::array();
+    for (const v1::AttemptInfo& attempt : input.attempts) {
+      if (attempt.state() == v1::ATTEMPT_STATE_COMPLETED) completed_attempt = attempt.attempt();
+      nlohmann::ordered_json entry =
+          io::RecordToJson(storage::ImportedAttemptFields(), FromProto(attempt));
+      nlohmann::ordered_json episodes = nlohmann::ordered_json::array();
+      for (const v1::EpisodeRow& row : input.episodes) {
+        if (row.attempt() == attempt.attempt()) episodes.push_back(EpisodeJson(row));
+      }
+      // Study rows: the records' JSON (io/record_format.h, the objects of a
+      // study's results.json) after the row's index.
+      nlohmann::ordered_json cells = nlohmann::ordered_json::array();
+      for (const v1::StudyCellRow& cell : input.cells) {
+        if (cell.attempt() == attempt.attempt()) cells.push_back(RowJson(study::CellFields(), cell));
+      }
+      nlohmann::ordered_json references = nlohmann::ordered_json::array();
+      for (const v1::StudyReferenceRow& reference : input.references) {
+        if (reference.attempt() == attempt.attempt()) {
+          references.push_back(RowJson(study::ReferenceFields(), reference));
+        }
+      }
+      entry["episodes"] = std::move(episodes);
+      entry["study_cells"] = std::move(cells);
+      entry["study_references"] = std::move(references);
+      attempts.push_back(std::move(entry));
+    }
+    // What the job's table leaves out (service_records.h) and the archive needs.
+    job["completed_attempt"] =
+        input.job.state() == v1::JOB_STATE_COMPLETED ? completed_attempt : 0;
+    job["attempt_log"] = std::move(attempts);
+    job_array.push_back(std::move(job));
+  }
+  doc["jobs"] = std::move(job_array);
+  return doc;
+}
+
+absl::StatusOr<ParsedSweepArchive> ParseSweepArchive(const std::string& text) {
+  const nlohmann::json doc = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (doc.is_discarded() || !doc.is_object())
+    return absl::InvalidArgumentError("archive: not a JSON document");
+  const Reader top("");
+  TG_READ(format, top.String(doc, "format"));
+  if (format != kSweepArchiveFormat)
+    return absl::InvalidArgumentError(absl::StrCat("archive: format '", format, "' is not '",
+                                                   kSweepArchiveFormat, "'"));
+  TG_READ(version, top.Integer(doc, "version"));
+  if (version < 1 || version > kSweepArchiveVersion)
+    return absl::InvalidArgumentError(absl::StrCat("archive: version ", version,
+                                                   "; this build reads versions 1 to ",
+                                                   kSweepArchiveVersion));
+  if (version >= 3) return ParseVersion3(doc);
+  return ParseVersion1Or2(doc, version);
 }
 
 #undef TG_READ

@@ -7,29 +7,42 @@
 // between machines and sessions: import it into a fresh coordinator, resubmit
 // the sweep file, and only the jobs still missing run.
 //
-// Format (version 2; docs/results_schema.md, "Sweep archives"):
-//   {"format": "totalgrad-sweep-archive", "version": 2,
+// Format (version 3; docs/results_schema.md, "Sweep archives"). Each
+// record is its field table's JSON (io/record_format.h): every field of the
+// table, in its order, named as the proto field (job_id, sweep_name,
+// created_unix_ms); NaN is null, enumerators are their names ("completed",
+// "lease_lost", "study"), a seed is its text ("7").
+//   {"format": "totalgrad-sweep-archive", "version": 3,
 //    "exported_by": BUILD, "exported_unix_ms": MS,
-//    "sweep": {"name", "description", "state", "spec_hash", "canonical_spec" (text),
-//              "coordinator_build", "created_unix_ms", "source_name",
-//              "max_attempts", "max_lost_leases", "max_concurrent"},
-//    "jobs": [{"kind": "trial"|"study", "method", "seed" (integer), "variant",
-//              "options": {KEY: TEXT}, "state", "attempts", "failures",
-//              "lost_leases", "last_error", "success", "final_eval_cost",
-//              "completed_attempt" (0: none),
-//              "attempt_log": [{"attempt", "state", "worker_id", "worker_host",
+//    "sweep": {...storage::SweepFields(): "name", "description", "state",
+//              "finished", "jobs_total", ..., "canonical_spec" (text)},
+//    "jobs": [{...storage::JobFields(): "job_id", "sweep_name", "kind",
+//              "ordinal", "method", "seed", "variant",
+//              "options" ([[KEY, TEXT], ...]), "state", ...,
+//              "final_eval_cost", "last_error",
+//              then what that table leaves out: "completed_attempt" (0: none),
+//              "attempt_log": [{...storage::ImportedAttemptFields():
+//                  "attempt", "state", "worker_id", "worker_host",
 //                  "worker_build", "started_unix_ms", "ended_unix_ms", "error",
-//                  "episodes": [{"episode", "real_cost", "eval_cost_mean",
-//                      "eval_cost_std", "predicted_cost", "optimisation_seconds",
-//                      "cpu_seconds" (the episode's record, learner::EpisodeFields()),
+//                  "episodes": [{...learner::EpisodeFields(),
 //                      "reported_unix_ms", "details": {...}}],
-//                  "study_cells": [...], "study_references": [...]}]}]}
-// Numbers that are NaN are null. A study row is {"index", ...} with its
-// record's JSON (io/record_format.h over study::CellFields() /
-// ReferenceFields(): the objects of a study's results.json). Version 1
-// archives (episodes with "wall_seconds" for optimisation_seconds, study rows
-// in protobuf's JSON mapping of StudyCellRow / StudyReferenceRow) are read
-// as well.
+//                  "study_cells": [{"index", ...study::CellFields()}],
+//                  "study_references": [{"index", ...study::ReferenceFields()}]}]}]}
+// A field added to one of these tables is written and read with no change
+// here (the study rows are the objects of a study's results.json). Reading
+// takes from the sweep its name, canonical_spec, spec_hash and state; from a
+// job its kind, method, seed, variant, state, failures, lost_leases,
+// last_error, success, final_eval_cost (these must be present),
+// completed_attempt and attempt_log; every field of an attempt; the rest
+// (counts, finished, ids, ordinal, episodes_stored/expected, worker_id,
+// options) is informative: type-checked, then ignored, as the importing
+// coordinator has its own. Unknown keys are ignored.
+// Versions 2 (the same objects with their own hand-named keys: the sweep's
+// limits, build and source but no counts; a job without job_id, sweep_name,
+// ordinal, episodes_* and worker_id, its seed an integer when it is one) and
+// 1 (as 2, with episodes naming optimisation_seconds "wall_seconds" and
+// study rows in protobuf's JSON mapping of StudyCellRow /
+// StudyReferenceRow) are read as before.
 #ifndef TOTALGRAD_SERVER_SERVICE_SWEEP_ARCHIVE_H_
 #define TOTALGRAD_SERVER_SERVICE_SWEEP_ARCHIVE_H_
 
@@ -47,9 +60,10 @@
 namespace totalgrad::service {
 
 inline constexpr char kSweepArchiveFormat[] = "totalgrad-sweep-archive";
-// 2: episodes and study rows as their records' JSON (issue 13); 1: the
-// layout before.
-inline constexpr int kSweepArchiveVersion = 2;
+// 3: the sweep, jobs and attempts as their records' JSON (their field
+// tables); 2: episodes and study rows as their records' JSON (issue 13); 1:
+// the layout before.
+inline constexpr int kSweepArchiveVersion = 3;
 
 // What the archive says of one job, as the read calls return it.
 struct ArchiveJobInput {
@@ -72,8 +86,12 @@ struct ParsedSweepArchive {
   std::vector<storage::ImportedJob> jobs;
 };
 
-// InvalidArgument naming the field (and job) that is missing or mistyped, or
-// another format or version.
+// Reads an archive of version 1, 2 or 3. InvalidArgument for another format
+// or version, or naming the value that is missing or mistyped: in version 3
+// by its path and why ("archive: jobs[3].state: 'x' is not one of its
+// names", "archive: jobs[0].attempt_log[1].episodes[2].real_cost: not a
+// number or null", "archive: sweep.spec_hash: missing"); in versions 1 and 2
+// as before ("archive: jobs[3]: 'state' is missing or mistyped").
 absl::StatusOr<ParsedSweepArchive> ParseSweepArchive(const std::string& text);
 
 }  // namespace totalgrad::service

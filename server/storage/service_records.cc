@@ -34,6 +34,12 @@ bool ParseSweepStateOfJobInto(const std::string& text, JobRecord* j) {
   if (state) j->sweep_state = *state;
   return state.has_value();
 }
+std::string AttemptStateText(const ImportedAttempt& a) { return std::string(ToString(a.state)); }
+bool ParseAttemptStateInto(const std::string& text, ImportedAttempt* a) {
+  const std::optional<AttemptState> state = ParseAttemptState(text);
+  if (state) a->state = *state;
+  return state.has_value();
+}
 
 }  // namespace
 
@@ -107,6 +113,22 @@ const record::FieldTable<JobRecord>& JobStoreOnlyFields() {
 const record::FieldTable<SweepRecord>& SweepStoreOnlyFields() {
   static const record::FieldTable<SweepRecord> table = {
       {"id", &SweepRecord::id},
+  };
+  return table;
+}
+
+// The order is v1::AttemptInfo's: which attempt, how it ended, where and
+// when it ran, its error.
+const record::FieldTable<ImportedAttempt>& ImportedAttemptFields() {
+  static const record::FieldTable<ImportedAttempt> table = {
+      {"attempt", &ImportedAttempt::attempt},
+      {"state", record::EnumText<ImportedAttempt>{&AttemptStateText, &ParseAttemptStateInto}},
+      {"worker_id", &ImportedAttempt::worker_id},
+      {"worker_host", &ImportedAttempt::worker_host},
+      {"worker_build", &ImportedAttempt::worker_build},
+      {"started_unix_ms", &ImportedAttempt::started_ms},
+      {"ended_unix_ms", &ImportedAttempt::ended_ms},
+      {"error", &ImportedAttempt::error},
   };
   return table;
 }

@@ -1,10 +1,13 @@
 // The field tables (core/common/record.h) of the service's own records: a
-// job (storage::JobRecord, `totalgrad job list`, the dashboard's jobs) and a
+// job (storage::JobRecord, `totalgrad job list`, the dashboard's jobs), a
 // sweep summary (storage::SweepRecord, `totalgrad sweep list|status`, the
-// dashboard's sweeps). One description per record (issue 13): the proto
-// conversion (server/service/convert.cc, by reflection on these names into
-// v1::JobInfo and v1::SweepInfo), the CLI's CSV and JSON and the dashboard's
-// JSON (io/record_format.h) read these tables and name no field.
+// dashboard's sweeps) and an archived attempt (storage::ImportedAttempt, the
+// `attempt_log` of a sweep archive). One description per record (issue 13):
+// the proto conversion (server/service/convert.cc, by reflection on these
+// names into v1::JobInfo, v1::SweepInfo, from v1::AttemptInfo), the CLI's CSV
+// and JSON, the dashboard's JSON and the sweep archive's `sweep`, `jobs` and
+// `attempt_log` objects (io/record_format.h; server/service/sweep_archive.h,
+// written and read) read these tables and name no field.
 //
 // Contract, beyond record.h's:
 //   * a name is the proto field's name (job_id, created_unix_ms), which is
@@ -17,6 +20,14 @@
 //   * a job's options are (key, text) pairs (record::TextPairs): repeated
 //     TrialOption in the proto, [[key, text], ...] in JSON, key=text;... in
 //     CSV;
+//   * ImportedAttemptFields() is the archive's attempt: what the importing
+//     store takes (ImportedAttempt; its episodes and study rows are records
+//     of their own tables). It is not on storage::AttemptRecord, the store's
+//     attempt as ListAttempts reads it: that struct's number sits in a nested
+//     LeaseKey, which no member pointer of a table reaches, and it holds
+//     lease bookkeeping (lease expiry, episodes_stored, checkpoint_episode)
+//     that an archive does not carry. Its names are v1::AttemptInfo's, so
+//     the export reads it from the proto by reflection;
 //   * state and kind are enumerators written as their stored names
 //     ("queued", "lease_lost", "study"; storage::ToString).
 // The store's SELECTs are generated from these tables too
@@ -38,6 +49,7 @@ const record::FieldTable<JobRecord>& JobFields();
 const record::FieldTable<SweepRecord>& SweepFields();
 const record::FieldTable<JobRecord>& JobStoreOnlyFields();
 const record::FieldTable<SweepRecord>& SweepStoreOnlyFields();
+const record::FieldTable<ImportedAttempt>& ImportedAttemptFields();
 
 }  // namespace totalgrad::storage
 

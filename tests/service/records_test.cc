@@ -8,7 +8,9 @@
 // covered without touching this file; the comparison walks the table too,
 // and a comparison that cannot see a dropped field is itself a failure here
 // (RecordsTest.TheComparisonSeesEveryField). The table/proto/SQL agreement
-// (names and types) and the migration of stored rows are checked as well.
+// (names and types) and the migration of stored rows are checked as well,
+// and so is the sweep archive: every record written and read back
+// (RecordsArchive.*), and the archives of older versions still read.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -16,7 +18,11 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
+#include <functional>
 #include <set>
+#include <sstream>
+#include <type_traits>
 
 #include "absl/strings/str_cat.h"
 #include "client/core_commands/study_format.h"
@@ -639,6 +645,282 @@ TEST(RecordsArchive, StudyRowsRoundTripInBothVersions) {
   doc["jobs"][0]["attempt_log"][0]["study_references"] =
       nlohmann::ordered_json::array({proto_json(ref_row)});
   check(doc.dump());
+}
+
+// Archive version 3: the sweep, a job and its attempts are written through
+// their field tables (server/storage/service_records.h) and read back
+// through them. Every field of each table, set to a non-default value by
+// walking the table, is a key of the archive's object holding that value, so
+// a field added to a table that the archive does not carry fails here; the
+// parsed archive holds what the import takes, bit for bit.
+TEST(RecordsArchive, EveryFieldOfTheSweepJobAndAttemptTablesIsCarried) {
+  storage::SweepRecord sweep;
+  SetEveryField(storage::SweepFields(), &sweep);
+  ASSERT_EQ(DifferingFields(storage::SweepFields(), storage::SweepRecord{}, sweep),
+            Names(storage::SweepFields()));
+  storage::JobRecord job;
+  SetEveryField(storage::JobFields(), &job);
+  job.state = storage::JobState::kCompleted;  // so that its completed attempt is written
+  job.options = {{"episodes", "3"}, {"learning_rate", "0.1"}};
+  ASSERT_EQ(DifferingFields(storage::JobFields(), storage::JobRecord{}, job),
+            Names(storage::JobFields()));
+  storage::ImportedAttempt failed;
+  SetEveryField(storage::ImportedAttemptFields(), &failed);
+  ASSERT_EQ(DifferingFields(storage::ImportedAttemptFields(), storage::ImportedAttempt{}, failed),
+            Names(storage::ImportedAttemptFields()));
+  const std::vector<std::string> names = Names(storage::ImportedAttemptFields());
+  EXPECT_EQ(std::set<std::string>(names.begin(), names.end()).size(), names.size());
+  storage::ImportedAttempt completed = failed;
+  completed.attempt = failed.attempt + 1;
+  completed.state = storage::AttemptState::kCompleted;
+
+  v1::SweepInfo sweep_info;
+  service::ToProto(sweep, &sweep_info);
+  service::ArchiveJobInput input;
+  service::ToProto(job, &input.job);
+  ASSERT_EQ(record_proto::RecordProtoMismatch(storage::ImportedAttemptFields(),
+                                              *v1::AttemptInfo::descriptor()),
+            "");
+  for (const storage::ImportedAttempt* attempt : {&failed, &completed}) {
+    record_proto::RecordToProto(storage::ImportedAttemptFields(), *attempt,
+                                &input.attempts.emplace_back());
+  }
+  const nlohmann::ordered_json doc = service::SweepArchiveToJson(sweep_info, {input}, "test", kNow);
+  EXPECT_EQ(doc.at("version"), 3);
+
+  // Written: every field's key, holding the record's value.
+  auto expect_carried = [](const auto& table, const auto& full,
+                           const nlohmann::ordered_json& object, const std::string& what) {
+    for (const auto& field : table) {
+      EXPECT_TRUE(object.contains(field.name)) << what << " lacks '" << field.name << "'";
+    }
+    std::decay_t<decltype(full)> back;
+    TG_ASSERT_OK(io::RecordFromJson(table, object, what + ".", &back));
+    EXPECT_EQ(DifferingFields(table, full, back), std::vector<std::string>{}) << what;
+  };
+  expect_carried(storage::SweepFields(), sweep, doc.at("sweep"), "sweep");
+  const nlohmann::ordered_json& written = doc.at("jobs").at(0);
+  expect_carried(storage::JobFields(), job, written, "jobs[0]");
+  ASSERT_EQ(written.at("attempt_log").size(), 2u);
+  expect_carried(storage::ImportedAttemptFields(), failed, written["attempt_log"][0],
+                 "jobs[0].attempt_log[0]");
+  expect_carried(storage::ImportedAttemptFields(), completed, written["attempt_log"][1],
+                 "jobs[0].attempt_log[1]");
+  EXPECT_EQ(written.at("options").dump(), R"([["episodes","3"],["learning_rate","0.1"]])");
+  EXPECT_EQ(written.at("completed_attempt"), completed.attempt);
+
+  // Read back: what the import takes.
+  const absl::StatusOr<service::ParsedSweepArchive> parsed =
+      service::ParseSweepArchive(doc.dump());
+  TG_ASSERT_OK(parsed.status());
+  EXPECT_EQ(parsed->name, sweep.name);
+  EXPECT_EQ(parsed->canonical_spec, sweep.canonical_spec);
+  EXPECT_EQ(parsed->spec_hash, sweep.spec_hash);
+  EXPECT_EQ(parsed->state, sweep.state);
+  ASSERT_EQ(parsed->jobs.size(), 1u);
+  const storage::ImportedJob& read = parsed->jobs[0];
+  EXPECT_EQ(read.kind, job.kind);
+  EXPECT_EQ(read.method, job.method);
+  EXPECT_EQ(read.seed, job.seed);
+  EXPECT_EQ(read.variant, job.variant);
+  EXPECT_EQ(read.state, job.state);
+  EXPECT_EQ(read.failures, job.failures);
+  EXPECT_EQ(read.lost_leases, job.lost_leases);
+  EXPECT_EQ(read.last_error, job.last_error);
+  EXPECT_EQ(read.success, job.success);
+  EXPECT_TRUE(SameBits(read.final_eval_cost, job.final_eval_cost));
+  EXPECT_EQ(read.completed_attempt, completed.attempt);
+  ASSERT_EQ(read.attempts.size(), 2u);
+  EXPECT_EQ(DifferingFields(storage::ImportedAttemptFields(), failed, read.attempts[0]),
+            std::vector<std::string>{});
+  EXPECT_EQ(DifferingFields(storage::ImportedAttemptFields(), completed, read.attempts[1]),
+            std::vector<std::string>{});
+}
+
+// A version-3 archive of one sweep with two completed trials, one episode each.
+nlohmann::ordered_json TwoTrialArchive() {
+  v1::SweepInfo sweep;
+  sweep.set_name("trials");
+  sweep.set_state(v1::SWEEP_STATE_PAUSED);
+  sweep.set_spec_hash("abc");
+  sweep.set_canonical_spec("{}");
+  sweep.set_jobs_total(2);
+  sweep.set_jobs_completed(2);
+  std::vector<service::ArchiveJobInput> jobs(2);
+  for (int k = 0; k < 2; ++k) {
+    service::ArchiveJobInput& input = jobs[static_cast<size_t>(k)];
+    input.job.set_job_id(k + 1);
+    input.job.set_method("RP");
+    input.job.set_seed(std::to_string(k + 1));
+    input.job.set_state(v1::JOB_STATE_COMPLETED);
+    input.job.set_success(true);
+    input.job.set_final_eval_cost(1.5 + k);
+    v1::AttemptInfo& attempt = input.attempts.emplace_back();
+    attempt.set_attempt(1);
+    attempt.set_state(v1::ATTEMPT_STATE_COMPLETED);
+    attempt.set_worker_id("w1");
+    attempt.set_started_unix_ms(kNow);
+    attempt.set_ended_unix_ms(kNow + 10);
+    v1::EpisodeRow& row = input.episodes.emplace_back();
+    row.set_attempt(1);
+    row.set_reported_unix_ms(kNow + 5);
+    row.mutable_report()->set_episode(0);
+    row.mutable_report()->set_real_cost(2.25 + k);
+    row.mutable_report()->set_details_json("{\"flags\": {}}");
+  }
+  return service::SweepArchiveToJson(sweep, jobs, "test", kNow);
+}
+
+// A malformed version-3 archive is refused by the path of the bad value and
+// what is wrong with it (the tables' reader's words), be it a field the
+// import takes or an informative one; an informative field's value is
+// ignored.
+TEST(RecordsArchive, AMalformedValueIsNamedByItsPath) {
+  const nlohmann::ordered_json doc = TwoTrialArchive();
+  const absl::StatusOr<service::ParsedSweepArchive> good = service::ParseSweepArchive(doc.dump());
+  TG_ASSERT_OK(good.status());
+  ASSERT_EQ(good->jobs.size(), 2u);
+  EXPECT_EQ(good->state, storage::SweepState::kPaused);
+  EXPECT_EQ(good->jobs[1].seed, "2");
+  EXPECT_EQ(good->jobs[1].final_eval_cost, 2.5);
+  ASSERT_EQ(good->jobs[1].attempts.at(0).episodes.size(), 1u);
+  EXPECT_EQ(good->jobs[1].attempts[0].episodes[0].first.real_cost, 3.25);
+  EXPECT_EQ(good->jobs[1].attempts[0].episodes[0].second, kNow + 5);
+
+  auto error_after = [&](const std::function<void(nlohmann::ordered_json&)>& edit) {
+    nlohmann::ordered_json broken = doc;
+    edit(broken);
+    const absl::StatusOr<service::ParsedSweepArchive> parsed =
+        service::ParseSweepArchive(broken.dump());
+    EXPECT_EQ(parsed.status().code(), absl::StatusCode::kInvalidArgument);
+    return std::string(parsed.status().message());
+  };
+  using J = nlohmann::ordered_json;
+  EXPECT_EQ(error_after([](J& d) { d["jobs"][1]["failures"] = "two"; }),
+            "archive: jobs[1].failures: not an integer");
+  EXPECT_EQ(error_after([](J& d) { d["jobs"][1]["state"] = "sleeping"; }),
+            "archive: jobs[1].state: 'sleeping' is not one of its names");
+  EXPECT_EQ(error_after([](J& d) { d["jobs"][1]["seed"] = 2; }),
+            "archive: jobs[1].seed: not a string");
+  EXPECT_EQ(error_after([](J& d) { d["jobs"][1]["success"] = 1; }),
+            "archive: jobs[1].success: not true or false");
+  EXPECT_EQ(error_after([](J& d) { d["jobs"][1].erase("method"); }),
+            "archive: jobs[1].method: missing");
+  EXPECT_EQ(error_after([](J& d) { d["jobs"][1].erase("completed_attempt"); }),
+            "archive: jobs[1].completed_attempt: missing");
+  EXPECT_EQ(error_after([](J& d) { d["jobs"][1]["attempt_log"] = J::object(); }),
+            "archive: jobs[1].attempt_log: not an array");
+  EXPECT_EQ(error_after([](J& d) { d["jobs"][1]["ordinal"] = 0.5; }),
+            "archive: jobs[1].ordinal: not an integer");
+  EXPECT_EQ(error_after([](J& d) { d["jobs"][1] = "RP"; }), "archive: jobs[1]: not an object");
+  EXPECT_EQ(error_after([](J& d) { d["sweep"].erase("spec_hash"); }),
+            "archive: sweep.spec_hash: missing");
+  EXPECT_EQ(error_after([](J& d) { d["sweep"]["state"] = "running fast"; }),
+            "archive: sweep.state: 'running fast' is not one of its names");
+  EXPECT_EQ(error_after([](J& d) { d["sweep"]["jobs_total"] = "2"; }),
+            "archive: sweep.jobs_total: not an integer");
+  EXPECT_EQ(error_after([](J& d) { d["jobs"][1]["attempt_log"][0]["started_unix_ms"] = 1.5; }),
+            "archive: jobs[1].attempt_log[0].started_unix_ms: not an integer");
+  EXPECT_EQ(error_after([](J& d) { d["jobs"][1]["attempt_log"][0].erase("worker_build"); }),
+            "archive: jobs[1].attempt_log[0].worker_build: missing");
+  EXPECT_EQ(error_after([](J& d) { d["jobs"][1]["attempt_log"][0]["state"] = "queued"; }),
+            "archive: jobs[1].attempt_log[0].state: 'queued' is not one of its names");
+  EXPECT_EQ(error_after([](J& d) {
+              d["jobs"][1]["attempt_log"][0]["episodes"][0]["real_cost"] = "low";
+            }),
+            "archive: jobs[1].attempt_log[0].episodes[0].real_cost: not a number or null");
+  EXPECT_EQ(error_after([](J& d) {
+              d["jobs"][1]["attempt_log"][0]["episodes"][0].erase("reported_unix_ms");
+            }),
+            "archive: jobs[1].attempt_log[0].episodes[0].reported_unix_ms: missing");
+  EXPECT_EQ(error_after([](J& d) {
+              d["jobs"][1]["attempt_log"][0]["study_cells"] = J::array({J{{"estimator", "RP"}}});
+            }),
+            "archive: jobs[1].attempt_log[0].study_cells[0].index: missing");
+
+  // Informative values (the counts, ids, the open attempt's worker) are
+  // not taken: the import has its own.
+  nlohmann::ordered_json other = doc;
+  other["sweep"]["jobs_total"] = 99;
+  other["sweep"]["finished"] = false;
+  other["jobs"][1]["job_id"] = 12345;
+  other["jobs"][1]["worker_id"] = "elsewhere";
+  other["jobs"][1]["episodes_stored"] = 7;
+  const absl::StatusOr<service::ParsedSweepArchive> same = service::ParseSweepArchive(other.dump());
+  TG_ASSERT_OK(same.status());
+  ASSERT_EQ(same->jobs.size(), 2u);
+  EXPECT_EQ(same->jobs[1].attempts.size(), 1u);
+  EXPECT_EQ(same->jobs[1].completed_attempt, 1);
+}
+
+std::string ReadText(const std::string& path) {
+  std::ifstream in(path);
+  EXPECT_TRUE(in.good()) << path;
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+// Archives written before version 3 still read as they were written: the
+// committed results of table 1 (version 1, docs/results/table1/) and an
+// archive written by the version-2 exporter (`results export -f json` of
+// tests/service/cli_test.cc's tiny sweep, tests/service/testdata/).
+TEST(RecordsArchive, ArchivesOfVersions1And2StillRead) {
+  const std::string v1_text =
+      ReadText(std::string(TOTALGRAD_SOURCE_DIR) + "/docs/results/table1/table1-tip-k1.archive.json");
+  ASSERT_EQ(nlohmann::json::parse(v1_text).at("version"), 1);
+  absl::StatusOr<service::ParsedSweepArchive> v1 = service::ParseSweepArchive(v1_text);
+  TG_ASSERT_OK(v1.status());
+  EXPECT_EQ(v1->name, "table1-tip-k1");
+  EXPECT_EQ(v1->state, storage::SweepState::kRunning);
+  ASSERT_EQ(v1->jobs.size(), 40u);
+  const storage::ImportedJob& pilco = v1->jobs[0];
+  EXPECT_EQ(pilco.method, "PILCO");
+  EXPECT_EQ(pilco.seed, "10");  // an integer in the file
+  EXPECT_EQ(pilco.state, storage::JobState::kCompleted);
+  EXPECT_FALSE(pilco.success);
+  EXPECT_EQ(pilco.final_eval_cost, 29.87976685061682);
+  EXPECT_EQ(pilco.completed_attempt, 1);
+  ASSERT_EQ(pilco.attempts.size(), 1u);
+  EXPECT_EQ(pilco.attempts[0].worker_id, "t1-w1");
+  EXPECT_EQ(pilco.attempts[0].started_ms, 1795502224958);
+  ASSERT_EQ(pilco.attempts[0].episodes.size(), 16u);
+  const auto& [last, reported] = pilco.attempts[0].episodes[15];
+  EXPECT_EQ(last.episode, 15);
+  EXPECT_EQ(last.eval_cost_mean, 29.87976685061682);
+  EXPECT_EQ(last.optimisation_seconds, 38.444816686);  // "wall_seconds" in version 1
+  EXPECT_EQ(last.cpu_seconds, 37.298129113000016);
+  EXPECT_EQ(reported, 1795502464508);
+
+  const std::string v2_text = ReadText(std::string(TOTALGRAD_SOURCE_DIR) +
+                                       "/tests/service/testdata/sweep_archive_v2.json");
+  ASSERT_EQ(nlohmann::json::parse(v2_text).at("version"), 2);
+  absl::StatusOr<service::ParsedSweepArchive> v2 = service::ParseSweepArchive(v2_text);
+  TG_ASSERT_OK(v2.status());
+  EXPECT_EQ(v2->name, "cli");
+  EXPECT_EQ(v2->state, storage::SweepState::kRunning);
+  EXPECT_EQ(v2->spec_hash, "48f57d7b5c7bdc9f91d9ee2d8f1783f5c3e232db320b6ac9687c3a1ef3c2743f");
+  ASSERT_EQ(v2->jobs.size(), 3u);
+  const storage::ImportedJob& rp = v2->jobs[1];
+  EXPECT_EQ(rp.kind, storage::JobKind::kTrial);
+  EXPECT_EQ(rp.method, "RP");
+  EXPECT_EQ(rp.seed, "2");  // an integer in the file
+  EXPECT_EQ(rp.state, storage::JobState::kCompleted);
+  EXPECT_TRUE(rp.success);
+  EXPECT_EQ(rp.final_eval_cost, 9.995945407509343);
+  EXPECT_EQ(rp.completed_attempt, 1);
+  ASSERT_EQ(rp.attempts.size(), 1u);
+  EXPECT_EQ(rp.attempts[0].state, storage::AttemptState::kCompleted);
+  EXPECT_EQ(rp.attempts[0].worker_id, "fixture-worker");
+  EXPECT_EQ(rp.attempts[0].ended_ms, 1795553015690);
+  ASSERT_EQ(rp.attempts[0].episodes.size(), 3u);
+  const auto& [episode, when] = rp.attempts[0].episodes[2];
+  EXPECT_EQ(episode.episode, 2);
+  EXPECT_EQ(episode.eval_cost_mean, 9.995945407509343);
+  EXPECT_EQ(episode.optimisation_seconds, 0.006351128);
+  EXPECT_EQ(episode.cpu_seconds, 0.0063668119999999995);
+  EXPECT_EQ(when, 1795553015688);
+  EXPECT_TRUE(nlohmann::json::parse(episode.details_json).is_object());
 }
 
 // Every field of the tables has its column in the database (a field added

@@ -87,8 +87,14 @@ def estimated_cpu_seconds(binary, options, cache):
     return cache[keys]
 
 
+def job_options(job):
+    """A job's options as a dict: archives of version 3 hold [key, text]
+    pairs, earlier ones an object."""
+    return dict(job["options"])
+
+
 def options_without_seed(job):
-    return {k: v for k, v in job["options"].items() if k != "seed"}
+    return {k: v for k, v in job_options(job).items() if k != "seed"}
 
 
 def apply_reruns(sweep_name, jobs, reruns):
@@ -133,7 +139,7 @@ def report(archive_path, binary, cache, reruns):
         n = len(done)
         successes = sum(1 for job in done if job.get("success"))
         low, high = wilson_interval(successes, n)
-        options = next(job["options"] for job in jobs if job["method"] == method)
+        options = next(job_options(job) for job in jobs if job["method"] == method)
         rate = paper_rate(options, method)
         inside = "" if rate is None or n == 0 else ("yes" if low <= rate <= high else "**no**")
         costs = [job["final_eval_cost"] for job in done]
