@@ -138,16 +138,7 @@ switch c.type
 end
 
 % --- step loop (trajectory and per-step cost), as value.m accumulates ---------------------
-m = sc.mu0(:); S = sc.S0;
-means = zeros(H + 1, D); means(1, :) = m';
-covs = cell(1, H + 1); covs{1} = S;
-cost_mean = zeros(1, H); cost_std = zeros(1, H);
-for t = 1:H
-  [m, S, dmdm, dSdm, dmdS, dSdS, dmdp, dSdp] = propagated(m, S, plant, dynmodel, policy);
-  [L, dLdm, dLdS, S2] = cost.fcn(cost, m, S);
-  means(t + 1, :) = full(m)'; covs{t + 1} = full(S);
-  cost_mean(t) = L; cost_std(t) = sqrt(max(S2, 0));
-end
+[means, covs, cost_mean, cost_std] = step_loop(sc, H, D, plant, dynmodel, policy, cost);
 
 % --- value.m: J and dJ in PILCO's parameterisation ----------------------------------------
 [J, dJ] = value(policy.p, sc.mu0(:), sc.S0, dynmodel, policy, plant, cost, H);
@@ -276,16 +267,7 @@ if size(cost.Q, 1) ~= D + 2 * A
 end
 
 % --- step loop and value.m, as for today's form -------------------------------------------
-m = sc.mu0(:); S = sc.S0;
-means = zeros(H + 1, D); means(1, :) = m';
-covs = cell(1, H + 1); covs{1} = S;
-cost_mean = zeros(1, H); cost_std = zeros(1, H);
-for t = 1:H
-  [m, S, dmdm, dSdm, dmdS, dSdS, dmdp, dSdp] = propagated(m, S, plant, dynmodel, policy);
-  [L, dLdm, dLdS, S2] = cost.fcn(cost, m, S);
-  means(t + 1, :) = full(m)'; covs{t + 1} = full(S);
-  cost_mean(t) = L; cost_std(t) = sqrt(max(S2, 0));
-end
+[means, covs, cost_mean, cost_std] = step_loop(sc, H, D, plant, dynmodel, policy, cost);
 [J, dJ] = value(policy.p, sc.mu0(:), sc.S0, dynmodel, policy, plant, cost, H);
 
 shape = @(M) M;
@@ -346,5 +328,22 @@ if A > 0
   dLdm = dLdm + gM(k) * mdm + reshape(gS(k, k), 1, []) * sdm + GxS * Cdm;
   dLds = dLds + gM(k) * mds + reshape(gS(k, k), 1, []) * sds + GxS * Cds ...
          + reshape(Gx * Ck', 1, []);  % d L / d s through s*C at fixed C
+end
+end
+
+% The trajectory and per-step cost, step by step with propagated.m and the cost, as value.m
+% accumulates them (both forms share it).
+function [means, covs, cost_mean, cost_std] = step_loop(sc, H, D, plant, dynmodel, policy, cost)
+m = sc.mu0(:); S = sc.S0;
+means = zeros(H + 1, D); means(1, :) = m';
+covs = cell(1, H + 1); covs{1} = S;
+cost_mean = zeros(1, H); cost_std = zeros(1, H);
+for t = 1:H
+  % All outputs asked for, as value.m asks: the derivative paths of propagated.m and the cost
+  % are the ones being checked.
+  [m, S, dmdm, dSdm, dmdS, dSdS, dmdp, dSdp] = propagated(m, S, plant, dynmodel, policy);
+  [L, dLdm, dLdS, S2] = cost.fcn(cost, m, S);
+  means(t + 1, :) = full(m)'; covs{t + 1} = full(S);
+  cost_mean(t) = L; cost_std(t) = sqrt(max(S2, 0));
 end
 end
