@@ -170,16 +170,7 @@ absl::StatusOr<ParsedSweepArchive> ParseVersion3(const nlohmann::json& doc) {
                             {"kind", "method", "seed", "variant", "state", "failures",
                              "lost_leases", "last_error", "success", "final_eval_cost"}));
     storage::ImportedJob job;
-    job.kind = record.kind;
-    job.method = record.method;
-    job.seed = record.seed;
-    job.variant = record.variant;
-    job.state = record.state;
-    job.failures = record.failures;
-    job.lost_leases = record.lost_leases;
-    job.last_error = record.last_error;
-    job.success = record.success;
-    job.final_eval_cost = record.final_eval_cost;
+    job.record = std::move(record);
     // (The job's options are read with its table and not used: the variant
     // identifies the job.) The archive's own keys: the completed attempt
     // and the attempt log.
@@ -266,31 +257,31 @@ absl::StatusOr<ParsedSweepArchive> ParseVersion1Or2(const nlohmann::json& doc, i
     // The kinds' names are the job-kind table's (server/storage/job_kinds.h).
     const std::optional<storage::JobKind> parsed_kind = storage::ParseJobKind(kind);
     if (!parsed_kind) return jr.Error("kind");
-    job.kind = *parsed_kind;
+    job.record.kind = *parsed_kind;
     TG_READ(method, jr.String(j, "method"));
-    job.method = method;
+    job.record.method = method;
     if (!j.contains("seed")) return jr.Error("seed");
-    if (j["seed"].is_number_integer()) job.seed = std::to_string(j["seed"].get<int64_t>());
-    else if (j["seed"].is_string()) job.seed = j["seed"].get<std::string>();
+    if (j["seed"].is_number_integer()) job.record.seed = std::to_string(j["seed"].get<int64_t>());
+    else if (j["seed"].is_string()) job.record.seed = j["seed"].get<std::string>();
     else return jr.Error("seed");
     TG_READ(variant, jr.String(j, "variant"));
-    job.variant = variant;
+    job.record.variant = variant;
     TG_READ(job_state, jr.String(j, "state"));
     const std::optional<storage::JobState> parsed_state = storage::ParseJobState(job_state);
     if (!parsed_state) return jr.Error("state");
-    job.state = *parsed_state;
+    job.record.state = *parsed_state;
     TG_READ(failures, jr.Integer(j, "failures"));
     TG_READ(lost, jr.Integer(j, "lost_leases"));
     TG_READ(last_error, jr.String(j, "last_error"));
     TG_READ(final_cost, jr.Real(j, "final_eval_cost"));
     TG_READ(completed, jr.Integer(j, "completed_attempt"));
     if (!j.contains("success") || !j["success"].is_boolean()) return jr.Error("success");
-    job.failures = static_cast<int>(failures);
-    job.lost_leases = static_cast<int>(lost);
-    job.last_error = last_error;
-    job.final_eval_cost = final_cost;
+    job.record.failures = static_cast<int>(failures);
+    job.record.lost_leases = static_cast<int>(lost);
+    job.record.last_error = last_error;
+    job.record.final_eval_cost = final_cost;
     job.completed_attempt = static_cast<int>(completed);
-    job.success = j["success"].get<bool>();
+    job.record.success = j["success"].get<bool>();
     if (!j.contains("attempt_log") || !j["attempt_log"].is_array()) return jr.Error("attempt_log");
     for (const nlohmann::json& a : j["attempt_log"]) {
       storage::ImportedAttempt attempt;

@@ -47,8 +47,8 @@ UPDATE jobs SET state = 'completed', attempts = ?, completed_attempt = ?, succes
                 last_error = ?
 WHERE id = ?)sql"));
     for (const ImportedJob& job : jobs) {
-      job_query.Bind(1, sweep_id).Bind(2, ToString(job.kind)).Bind(3, job.method);
-      job_query.Bind(4, job.seed).Bind(5, job.variant);
+      job_query.Bind(1, sweep_id).Bind(2, ToString(job.record.kind)).Bind(3, job.record.method);
+      job_query.Bind(4, job.record.seed).Bind(5, job.record.variant);
       ASSIGN_OR_RETURN(bool match, job_query.Step());
       const int64_t job_id = match ? job_query.ColumnInt(0) : 0;
       const std::string state = match ? job_query.ColumnText(1) : "";
@@ -63,7 +63,7 @@ WHERE id = ?)sql"));
         ++result.jobs_already_complete;
         continue;
       }
-      if (job.state != JobState::kCompleted || job.completed_attempt <= 0) {
+      if (job.record.state != JobState::kCompleted || job.completed_attempt <= 0) {
         ++result.jobs_not_completed;
         continue;
       }
@@ -91,11 +91,12 @@ WHERE id = ?)sql"));
         JobResults probe;
         probe.study = a.study;
         if (!a.episodes.empty()) probe.episodes.push_back(a.episodes.front().first);
-        RETURN_IF_ERROR(CheckOwnedTables(KindInfo(job.kind), job_id, probe));
+        RETURN_IF_ERROR(CheckOwnedTables(KindInfo(job.record.kind), job_id, probe));
         for (const auto& [episode, reported_ms] : a.episodes) {
           if (episode.episode < 0 || episode.episode >= episodes_expected) {
             return absl::InvalidArgumentError(absl::StrCat(
-                "archive: job ", job.method, " seed ", job.seed, " ", job.variant, " attempt ",
+                "archive: job ", job.record.method, " seed ", job.record.seed, " ",
+                job.record.variant, " attempt ",
                 a.attempt, ": episode ", episode.episode, " is out of range 0..",
                 episodes_expected - 1));
           }
@@ -106,7 +107,7 @@ WHERE id = ?)sql"));
         }
         if (!a.study.empty()) {
           OpenAttempt into;
-          into.kind = job.kind;
+          into.kind = job.record.kind;
           probe.episodes.clear();  // stored above, each with its own time
           RETURN_IF_ERROR(InsertResults(db, {job_id, number}, into, probe, now_ms));
           result.study_rows_imported += static_cast<int64_t>(a.study.size());
@@ -114,13 +115,14 @@ WHERE id = ?)sql"));
       }
       if (completed_here == 0) {
         return absl::InvalidArgumentError(absl::StrCat(
-            "archive: job ", job.method, " seed ", job.seed, " ", job.variant,
+            "archive: job ", job.record.method, " seed ", job.record.seed, " ", job.record.variant,
             " is completed by attempt ", job.completed_attempt, ", which the archive lacks"));
       }
       job_update.Bind(1, attempts_here + static_cast<int>(job.attempts.size()));
-      job_update.Bind(2, completed_here).Bind(3, job.success ? 1 : 0);
-      job_update.Bind(4, job.final_eval_cost).Bind(5, job.failures).Bind(6, job.lost_leases);
-      job_update.Bind(7, job.last_error).Bind(8, job_id);
+      job_update.Bind(2, completed_here).Bind(3, job.record.success ? 1 : 0);
+      job_update.Bind(4, job.record.final_eval_cost).Bind(5, job.record.failures);
+      job_update.Bind(6, job.record.lost_leases);
+      job_update.Bind(7, job.record.last_error).Bind(8, job_id);
       RETURN_IF_ERROR(job_update.Run());
       job_update.Reset();
       RETURN_IF_ERROR(AddEvent(db, now_ms, sweep_id, job_id, completed_here, "imported",

@@ -382,17 +382,12 @@ struct ImportedAttempt {
 
 // A job of a sweep archive, identified by (kind, method, seed, variant).
 struct ImportedJob {
-  JobKind kind = JobKind::kTrial;
-  std::string method;
-  std::string seed;
-  std::string variant;
-  JobState state = JobState::kQueued;
-  int failures = 0;
-  int lost_leases = 0;
-  std::string last_error;
+  // The job as the archive has it (storage::JobFields()). The import takes
+  // its identity (kind, method, seed, variant), state, failures,
+  // lost_leases, last_error, success and final_eval_cost; the rest (ids,
+  // counts, worker, options) is the exporting coordinator's and is ignored.
+  JobRecord record;
   int completed_attempt = 0;  // archive numbering; 0 unless completed
-  bool success = false;
-  double final_eval_cost = kNaN;
   std::vector<ImportedAttempt> attempts;
 };
 

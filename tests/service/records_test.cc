@@ -719,16 +719,16 @@ TEST(RecordsArchive, EveryFieldOfTheSweepJobAndAttemptTablesIsCarried) {
   EXPECT_EQ(parsed->state, sweep.state);
   ASSERT_EQ(parsed->jobs.size(), 1u);
   const storage::ImportedJob& read = parsed->jobs[0];
-  EXPECT_EQ(read.kind, job.kind);
-  EXPECT_EQ(read.method, job.method);
-  EXPECT_EQ(read.seed, job.seed);
-  EXPECT_EQ(read.variant, job.variant);
-  EXPECT_EQ(read.state, job.state);
-  EXPECT_EQ(read.failures, job.failures);
-  EXPECT_EQ(read.lost_leases, job.lost_leases);
-  EXPECT_EQ(read.last_error, job.last_error);
-  EXPECT_EQ(read.success, job.success);
-  EXPECT_TRUE(SameBits(read.final_eval_cost, job.final_eval_cost));
+  EXPECT_EQ(read.record.kind, job.kind);
+  EXPECT_EQ(read.record.method, job.method);
+  EXPECT_EQ(read.record.seed, job.seed);
+  EXPECT_EQ(read.record.variant, job.variant);
+  EXPECT_EQ(read.record.state, job.state);
+  EXPECT_EQ(read.record.failures, job.failures);
+  EXPECT_EQ(read.record.lost_leases, job.lost_leases);
+  EXPECT_EQ(read.record.last_error, job.last_error);
+  EXPECT_EQ(read.record.success, job.success);
+  EXPECT_TRUE(SameBits(read.record.final_eval_cost, job.final_eval_cost));
   EXPECT_EQ(read.completed_attempt, completed.attempt);
   ASSERT_EQ(read.attempts.size(), 2u);
   EXPECT_EQ(DifferingFields(storage::ImportedAttemptFields(), failed, read.attempts[0]),
@@ -781,8 +781,8 @@ TEST(RecordsArchive, AMalformedValueIsNamedByItsPath) {
   TG_ASSERT_OK(good.status());
   ASSERT_EQ(good->jobs.size(), 2u);
   EXPECT_EQ(good->state, storage::SweepState::kPaused);
-  EXPECT_EQ(good->jobs[1].seed, "2");
-  EXPECT_EQ(good->jobs[1].final_eval_cost, 2.5);
+  EXPECT_EQ(good->jobs[1].record.seed, "2");
+  EXPECT_EQ(good->jobs[1].record.final_eval_cost, 2.5);
   ASSERT_EQ(good->jobs[1].attempts.at(0).episodes.size(), 1u);
   EXPECT_EQ(good->jobs[1].attempts[0].episodes[0].first.real_cost, 3.25);
   EXPECT_EQ(good->jobs[1].attempts[0].episodes[0].second, kNow + 5);
@@ -875,11 +875,11 @@ TEST(RecordsArchive, ArchivesOfVersions1And2StillRead) {
   EXPECT_EQ(v1->state, storage::SweepState::kRunning);
   ASSERT_EQ(v1->jobs.size(), 40u);
   const storage::ImportedJob& pilco = v1->jobs[0];
-  EXPECT_EQ(pilco.method, "PILCO");
-  EXPECT_EQ(pilco.seed, "10");  // an integer in the file
-  EXPECT_EQ(pilco.state, storage::JobState::kCompleted);
-  EXPECT_FALSE(pilco.success);
-  EXPECT_EQ(pilco.final_eval_cost, 29.87976685061682);
+  EXPECT_EQ(pilco.record.method, "PILCO");
+  EXPECT_EQ(pilco.record.seed, "10");  // an integer in the file
+  EXPECT_EQ(pilco.record.state, storage::JobState::kCompleted);
+  EXPECT_FALSE(pilco.record.success);
+  EXPECT_EQ(pilco.record.final_eval_cost, 29.87976685061682);
   EXPECT_EQ(pilco.completed_attempt, 1);
   ASSERT_EQ(pilco.attempts.size(), 1u);
   EXPECT_EQ(pilco.attempts[0].worker_id, "t1-w1");
@@ -902,12 +902,12 @@ TEST(RecordsArchive, ArchivesOfVersions1And2StillRead) {
   EXPECT_EQ(v2->spec_hash, "48f57d7b5c7bdc9f91d9ee2d8f1783f5c3e232db320b6ac9687c3a1ef3c2743f");
   ASSERT_EQ(v2->jobs.size(), 3u);
   const storage::ImportedJob& rp = v2->jobs[1];
-  EXPECT_EQ(rp.kind, storage::JobKind::kTrial);
-  EXPECT_EQ(rp.method, "RP");
-  EXPECT_EQ(rp.seed, "2");  // an integer in the file
-  EXPECT_EQ(rp.state, storage::JobState::kCompleted);
-  EXPECT_TRUE(rp.success);
-  EXPECT_EQ(rp.final_eval_cost, 9.995945407509343);
+  EXPECT_EQ(rp.record.kind, storage::JobKind::kTrial);
+  EXPECT_EQ(rp.record.method, "RP");
+  EXPECT_EQ(rp.record.seed, "2");  // an integer in the file
+  EXPECT_EQ(rp.record.state, storage::JobState::kCompleted);
+  EXPECT_TRUE(rp.record.success);
+  EXPECT_EQ(rp.record.final_eval_cost, 9.995945407509343);
   EXPECT_EQ(rp.completed_attempt, 1);
   ASSERT_EQ(rp.attempts.size(), 1u);
   EXPECT_EQ(rp.attempts[0].state, storage::AttemptState::kCompleted);
