@@ -426,9 +426,18 @@ void Worker::RunLease(const v1::Lease& lease) {
     absl::MutexLock lock(&mutex_);
     active_[lease.key().job_id()] = active;
     ++heartbeat_generation_;  // the heartbeat thread plans this lease's first beat
+    const int64_t drain_deadline_ms =
+        drain_started_ms_ + absl::ToInt64Milliseconds(options_.drain_timeout);
     if (stopping_) {
       active->cancel = true;
       active->cancel_reason = "worker stopping";
+    } else if (draining_ && clock_->MonotonicMs() >= drain_deadline_ms) {
+      // Granted before the drain began but registered only after its
+      // deadline (a slow thread on a busy machine): DeadlineLoop has already
+      // stopped the leases it saw, so this one is stopped here, the same way,
+      // instead of running unbounded.
+      active->cancel = true;
+      active->cancel_reason = "drain timeout";
     }
   }
   // UNSPECIFIED comes from a coordinator older than job kinds: a trial.
