@@ -138,19 +138,9 @@ switch c.type
 end
 
 % --- step loop (trajectory and per-step cost), as value.m accumulates ---------------------
-[means, covs, cost_mean, cost_std] = step_loop(sc, H, D, plant, dynmodel, policy, cost);
-
-% --- value.m: J and dJ in PILCO's parameterisation ----------------------------------------
-[J, dJ] = value(policy.p, sc.mu0(:), sc.S0, dynmodel, policy, plant, cost, H);
+% --- and value.m: J and dJ in PILCO's parameterisation -----------------------------------
+[out, dJ] = trajectory_and_value(sc, H, D, plant, dynmodel, policy, cost);
 Ep = numel(loglen);
-
-out = struct();
-out.mean = means;
-out.cov = covs;
-out.cost_mean = cost_mean;
-out.cost_std = cost_std;
-out.J = J;
-out.J_loop = sum(cost_mean);
 out.dJ_dcentres = dJ.inputs;
 out.dJ_dtargets = dJ.targets(:)';
 out.dJ_dlog_lengthscales = dJ.hyp(1:Ep)';
@@ -267,19 +257,11 @@ if size(cost.Q, 1) ~= D + 2 * A
 end
 
 % --- step loop and value.m, as for today's form -------------------------------------------
-[means, covs, cost_mean, cost_std] = step_loop(sc, H, D, plant, dynmodel, policy, cost);
-[J, dJ] = value(policy.p, sc.mu0(:), sc.S0, dynmodel, policy, plant, cost, H);
+[out, dJ] = trajectory_and_value(sc, H, D, plant, dynmodel, policy, cost);
 
 shape = @(M) M;
 if vector_values, shape = @(M) M(:)'; end
-out = struct();
 out.form = 'general';
-out.mean = means;
-out.cov = covs;
-out.cost_mean = cost_mean;
-out.cost_std = cost_std;
-out.J = J;
-out.J_loop = sum(cost_mean);
 out.dJ_dcentres = dJ.inputs;
 out.dJ_dtargets = shape(dJ.targets);
 out.dJ_dlog_lengthscales_per_control = dJ.hyp(1:Ep, :)';
@@ -332,8 +314,9 @@ end
 end
 
 % The trajectory and per-step cost, step by step with propagated.m and the cost, as value.m
-% accumulates them (both forms share it).
-function [means, covs, cost_mean, cost_std] = step_loop(sc, H, D, plant, dynmodel, policy, cost)
+% accumulates them, then value.m itself for J and dJ (both forms share it): out holds mean, cov,
+% cost_mean, cost_std, J and J_loop (the step loop's sum, which must equal J).
+function [out, dJ] = trajectory_and_value(sc, H, D, plant, dynmodel, policy, cost)
 m = sc.mu0(:); S = sc.S0;
 means = zeros(H + 1, D); means(1, :) = m';
 covs = cell(1, H + 1); covs{1} = S;
@@ -346,4 +329,12 @@ for t = 1:H
   means(t + 1, :) = full(m)'; covs{t + 1} = full(S);
   cost_mean(t) = L; cost_std(t) = sqrt(max(S2, 0));
 end
+[J, dJ] = value(policy.p, sc.mu0(:), sc.S0, dynmodel, policy, plant, cost, H);
+out = struct();
+out.mean = means;
+out.cov = covs;
+out.cost_mean = cost_mean;
+out.cost_std = cost_std;
+out.J = J;
+out.J_loop = sum(cost_mean);
 end
