@@ -11,12 +11,12 @@ set key outside right top vertical box font ",9" samplen 2 spacing 0.9
 set multiplot layout 1,1 title "sweep table1-tip-k1: evaluation cost per episode, median and quartiles over trials (n = trials)"
 set title "cartpole-swingup, tip cost, k = 1"
 plot "/work/main/docs/results/table1/table1-tip-k1.curves.svg.dat" index 0 using 1:2:4 with filledcurves lc rgb "#000000" notitle, \
-     "/work/main/docs/results/table1/table1-tip-k1.curves.svg.dat" index 0 using 1:3 with linespoints lc rgb "#000000" lw 2 pt 7 ps 0.5 title "PILCO (n=9)", \
+     "/work/main/docs/results/table1/table1-tip-k1.curves.svg.dat" index 0 using 1:3 with linespoints lc rgb "#000000" lw 2 pt 7 ps 0.5 title "PILCO (n=10)", \
      "/work/main/docs/results/table1/table1-tip-k1.curves.svg.dat" index 1 using 1:2:4 with filledcurves lc rgb "#e15759" notitle, \
-     "/work/main/docs/results/table1/table1-tip-k1.curves.svg.dat" index 1 using 1:3 with linespoints lc rgb "#e15759" lw 2 pt 7 ps 0.5 title "RP (n=9)", \
+     "/work/main/docs/results/table1/table1-tip-k1.curves.svg.dat" index 1 using 1:3 with linespoints lc rgb "#e15759" lw 2 pt 7 ps 0.5 title "RP (n=10)", \
      "/work/main/docs/results/table1/table1-tip-k1.curves.svg.dat" index 2 using 1:2:4 with filledcurves lc rgb "#4e79a7" notitle, \
-     "/work/main/docs/results/table1/table1-tip-k1.curves.svg.dat" index 2 using 1:3 with linespoints lc rgb "#4e79a7" lw 2 pt 7 ps 0.5 title "TP (n=8)", \
+     "/work/main/docs/results/table1/table1-tip-k1.curves.svg.dat" index 2 using 1:3 with linespoints lc rgb "#4e79a7" lw 2 pt 7 ps 0.5 title "TP (n=10)", \
      "/work/main/docs/results/table1/table1-tip-k1.curves.svg.dat" index 3 using 1:2:4 with filledcurves lc rgb "#59a14f" notitle, \
-     "/work/main/docs/results/table1/table1-tip-k1.curves.svg.dat" index 3 using 1:3 with linespoints lc rgb "#59a14f" lw 2 pt 7 ps 0.5 title "GTP (n=8)", \
+     "/work/main/docs/results/table1/table1-tip-k1.curves.svg.dat" index 3 using 1:3 with linespoints lc rgb "#59a14f" lw 2 pt 7 ps 0.5 title "GTP (n=10)", \
      15 with lines dt 2 lw 1.5 lc rgb "#555555" title "success threshold 15"
 unset multiplot
