@@ -1,45 +1,30 @@
 #include "server/storage/service_records.h"
 
+#include <optional>
 #include <string>
+
+#include "absl/strings/string_view.h"
 
 #include "server/storage/job_kinds.h"
 
 namespace totalgrad::storage {
 namespace {
 
-// The enumerators as text, one pair per (record, member): record.h's
-// EnumText holds plain function pointers.
-std::string JobStateText(const JobRecord& j) { return std::string(ToString(j.state)); }
-bool ParseJobStateInto(const std::string& text, JobRecord* j) {
-  const std::optional<JobState> state = ParseJobState(text);
-  if (state) j->state = *state;
-  return state.has_value();
+// An enumerator member as text: storage's ToString for it, and its Parse
+// function to set it from a name (false, the record unchanged, for a name
+// the enum lacks). Captureless lambdas, as record.h's EnumText holds plain
+// function pointers.
+template <typename R, typename E, E R::*kMember, std::optional<E> (*kParse)(absl::string_view)>
+record::EnumText<R> EnumMember() {
+  return {[](const R& r) { return std::string(ToString(r.*kMember)); },
+          [](const std::string& text, R* r) {
+            const std::optional<E> value = kParse(text);
+            if (value) r->*kMember = *value;
+            return value.has_value();
+          }};
 }
-std::string JobKindText(const JobRecord& j) { return std::string(ToString(j.kind)); }
-bool ParseJobKindInto(const std::string& text, JobRecord* j) {
-  const std::optional<JobKind> kind = ParseJobKind(text);
-  if (kind) j->kind = *kind;
-  return kind.has_value();
-}
-std::string SweepStateText(const SweepRecord& s) { return std::string(ToString(s.state)); }
-bool ParseSweepStateInto(const std::string& text, SweepRecord* s) {
-  const std::optional<SweepState> state = ParseSweepState(text);
-  if (state) s->state = *state;
-  return state.has_value();
-}
+
 bool SweepFinished(const SweepRecord& s) { return s.finished(); }
-std::string SweepStateOfJobText(const JobRecord& j) { return std::string(ToString(j.sweep_state)); }
-bool ParseSweepStateOfJobInto(const std::string& text, JobRecord* j) {
-  const std::optional<SweepState> state = ParseSweepState(text);
-  if (state) j->sweep_state = *state;
-  return state.has_value();
-}
-std::string AttemptStateText(const ImportedAttempt& a) { return std::string(ToString(a.state)); }
-bool ParseAttemptStateInto(const std::string& text, ImportedAttempt* a) {
-  const std::optional<AttemptState> state = ParseAttemptState(text);
-  if (state) a->state = *state;
-  return state.has_value();
-}
 
 }  // namespace
 
@@ -49,13 +34,13 @@ const record::FieldTable<JobRecord>& JobFields() {
   static const record::FieldTable<JobRecord> table = {
       {"job_id", &JobRecord::id},
       {"sweep_name", &JobRecord::sweep_name},
-      {"kind", record::EnumText<JobRecord>{&JobKindText, &ParseJobKindInto}},
+      {"kind", EnumMember<JobRecord, JobKind, &JobRecord::kind, &ParseJobKind>()},
       {"ordinal", &JobRecord::ordinal},
       {"method", &JobRecord::method},
       {"seed", &JobRecord::seed},
       {"variant", &JobRecord::variant},
       {"options", &JobRecord::options},
-      {"state", record::EnumText<JobRecord>{&JobStateText, &ParseJobStateInto}},
+      {"state", EnumMember<JobRecord, JobState, &JobRecord::state, &ParseJobState>()},
       {"attempts", &JobRecord::attempts},
       {"failures", &JobRecord::failures},
       {"lost_leases", &JobRecord::lost_leases},
@@ -75,7 +60,7 @@ const record::FieldTable<SweepRecord>& SweepFields() {
   static const record::FieldTable<SweepRecord> table = {
       {"name", &SweepRecord::name},
       {"description", &SweepRecord::description},
-      {"state", record::EnumText<SweepRecord>{&SweepStateText, &ParseSweepStateInto}},
+      {"state", EnumMember<SweepRecord, SweepState, &SweepRecord::state, &ParseSweepState>()},
       {"finished", &SweepFinished},
       {"jobs_total", &SweepRecord::jobs_total},
       {"jobs_queued", &SweepRecord::jobs_queued},
@@ -101,7 +86,7 @@ const record::FieldTable<JobRecord>& JobStoreOnlyFields() {
   static const record::FieldTable<JobRecord> table = {
       {"sweep_id", &JobRecord::sweep_id},
       {"sweep_state",
-       record::EnumText<JobRecord>{&SweepStateOfJobText, &ParseSweepStateOfJobInto}},
+       EnumMember<JobRecord, SweepState, &JobRecord::sweep_state, &ParseSweepState>()},
       {"max_attempts", &JobRecord::max_attempts},
       {"max_lost_leases", &JobRecord::max_lost_leases},
       {"completed_attempt", &JobRecord::completed_attempt},
@@ -122,7 +107,8 @@ const record::FieldTable<SweepRecord>& SweepStoreOnlyFields() {
 const record::FieldTable<ImportedAttempt>& ImportedAttemptFields() {
   static const record::FieldTable<ImportedAttempt> table = {
       {"attempt", &ImportedAttempt::attempt},
-      {"state", record::EnumText<ImportedAttempt>{&AttemptStateText, &ParseAttemptStateInto}},
+      {"state",
+       EnumMember<ImportedAttempt, AttemptState, &ImportedAttempt::state, &ParseAttemptState>()},
       {"worker_id", &ImportedAttempt::worker_id},
       {"worker_host", &ImportedAttempt::worker_host},
       {"worker_build", &ImportedAttempt::worker_build},
