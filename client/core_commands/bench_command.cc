@@ -44,6 +44,7 @@ struct BenchState {
   int blas_threads = 1;  // OpenBLAS's own threads inside each product
   int repeats = 7;
   int inducing = 0;  // 0 = full GP
+  double variance_tolerance = 0;  // gp::GpModelOptions::variance_rank_tolerance
   std::string method = "RP";
   std::string scene;  // empty: the synthetic cart-pole problem
 };
@@ -59,6 +60,7 @@ struct SceneBenchProblem {
 
 absl::StatusOr<std::unique_ptr<SceneBenchProblem>> MakeSceneBenchProblem(const std::string& name,
                                                                          int data, int horizon,
+                                                                         double variance_tolerance,
                                                                          ThreadPool* pool) {
   tasks::SceneOptions options;
   options.scene = name;
@@ -71,6 +73,7 @@ absl::StatusOr<std::unique_ptr<SceneBenchProblem>> MakeSceneBenchProblem(const s
   synthetic.data = data;
   synthetic.horizon = horizon;
   synthetic.basis_functions = learner::TrialOptions{}.basis_functions;
+  synthetic.variance_rank_tolerance = variance_tolerance;
   absl::StatusOr<study::SceneSyntheticProblem> built =
       study::MakeSceneSyntheticProblem(out->scene, synthetic, pool);
   if (!built.ok()) return built.status();
@@ -130,6 +133,9 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
   it->add_option("--gp-inducing", state->inducing,
                  "sparse GP (FITC) with M < N inducing inputs (0 = full GP)")
       ->check(CLI::NonNegativeNumber);
+  it->add_option("--gp-variance-tolerance", state->variance_tolerance,
+                 "the full GP's low-rank predictive variance with this bound on its relative "
+                 "error (the trial option gp_variance_tolerance; 0 = exact, default)");
   it->callback([state, exit_code]() {
     SetBlasThreads(state->blas_threads);
     std::unique_ptr<ThreadPool> pool;
@@ -145,6 +151,7 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
       estimators::SyntheticProblemOptions options;
       options.data = state->data;
       options.horizon = state->horizon;
+      options.variance_rank_tolerance = state->variance_tolerance;
       auto problem = estimators::MakeSyntheticProblem(options);
       if (!problem.ok()) {
         std::cerr << "totalgrad bench: " << problem.status().message() << "\n";
@@ -162,7 +169,8 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
       p.policy = particle_policy.get();
       p.pool = pool.get();
     } else {
-      auto problem = MakeSceneBenchProblem(state->scene, state->data, state->horizon, pool.get());
+      auto problem = MakeSceneBenchProblem(state->scene, state->data, state->horizon,
+                                           state->variance_tolerance, pool.get());
       if (!problem.ok()) {
         std::cerr << "totalgrad bench: " << problem.status().message() << "\n";
         *exit_code = 2;
@@ -250,12 +258,20 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
     const double iteration_cpu_s = Median(iteration_cpu), bound_cpu = Median(gemm_cpu);
     const double min_iteration_cpu = *std::min_element(iteration_cpu.begin(), iteration_cpu.end());
     const double min_bound_cpu = *std::min_element(gemm_cpu.begin(), gemm_cpu.end());
+    std::vector<int> ranks, bound_ranks;
+    for (int a = 0; a < outputs; ++a) {
+      ranks.push_back(full.rank(a));
+      bound_ranks.push_back(full.bound_rank(a));
+    }
     nlohmann::json j = {{"method", state->method},
                         {"scene", state->scene.empty() ? std::string("synthetic cart-pole") : state->scene},
                         {"gp_inputs", full.num_inputs()},
                         {"particles", state->particles},
                         {"data", n},
                         {"gp_inducing", state->inducing},
+                        {"gp_variance_tolerance", state->variance_tolerance},
+                        {"variance_ranks", ranks},
+                        {"variance_bound_ranks", bound_ranks},
                         {"horizon", state->horizon},
                         {"threads", state->threads},
                         {"blas_threads", state->blas_threads},

@@ -5,6 +5,7 @@
 // approximation) use common random numbers, so bench/accuracy_gate.py can
 // measure the computation's error against the estimator's own Monte Carlo
 // error (docs/results/speed.md, "accuracy gate").
+#include <algorithm>
 #include <fstream>
 #include <iostream>
 #include <memory>
@@ -17,6 +18,7 @@
 #include "core/common/blas.h"
 #include "core/common/thread_pool.h"
 #include "core/estimators/estimator.h"
+#include "core/learner/trial_options.h"
 #include "core/study/frozen_problem.h"
 #include "io/snapshot_json.h"
 
@@ -33,10 +35,16 @@ struct BenchGradientsState {
   int replicates = 20;
   uint64_t seed = 1;
   int threads = 1;
+  std::string variance_tolerance;  // empty: the snapshot's gp_variance_tolerance
   std::string out;
 };
 
 constexpr uint64_t kReplicateStreamOffset = 1000;
+
+double Median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
 
 }  // namespace
 
@@ -54,6 +62,9 @@ void AddBenchGradientsCommand(CLI::App* bench, int* exit_code) {
   cmd->add_option("--replicates", state->replicates, "R (default 20)")->check(CLI::Range(1, 100000));
   cmd->add_option("--seed", state->seed, "random-number seed of the replicates (default 1)");
   cmd->add_option("--threads", state->threads, "threads (default 1)")->check(CLI::Range(1, 256));
+  cmd->add_option("--gp-variance-tolerance", state->variance_tolerance,
+                  "rebuild the snapshot's GP with this trial option gp_variance_tolerance (low-rank "
+                  "predictive variance; 0 = exact; default: the snapshot's own)");
   cmd->add_option("--out", state->out, "write the JSON here instead of stdout");
   cmd->callback([state, exit_code]() {
     auto fail = [exit_code](int code, const std::string& message) {
@@ -63,12 +74,20 @@ void AddBenchGradientsCommand(CLI::App* bench, int* exit_code) {
     absl::StatusOr<std::vector<learner::TrialSnapshot>> snapshots =
         io::ReadSnapshotFile(state->snapshot_file);
     if (!snapshots.ok()) return fail(2, std::string(snapshots.status().message()));
-    const learner::TrialSnapshot* snapshot = nullptr;
-    for (const auto& s : *snapshots)
+    learner::TrialSnapshot* snapshot = nullptr;
+    for (auto& s : *snapshots)
       if (s.episode == state->episode) snapshot = &s;
     if (snapshot == nullptr)
       return fail(2, "no snapshot of episode " + std::to_string(state->episode) + " in " +
                          state->snapshot_file);
+    if (!state->variance_tolerance.empty()) {
+      // A later pair overrides an earlier one of the same key; the option's
+      // range is checked like a trial's.
+      snapshot->options.emplace_back("gp_variance_tolerance", state->variance_tolerance);
+      absl::StatusOr<learner::TrialOptions> parsed = learner::TrialOptionsFromPairs(snapshot->options);
+      if (!parsed.ok()) return fail(2, std::string(parsed.status().message()));
+      if (absl::Status valid = parsed->Validate(); !valid.ok()) return fail(2, std::string(valid.message()));
+    }
     absl::StatusOr<std::unique_ptr<study::FrozenProblem>> frozen = study::FrozenProblemFromSnapshot(
         *snapshot, state->policy == "after" ? study::SnapshotPolicy::kAfter
                                             : study::SnapshotPolicy::kBefore);
@@ -99,15 +118,26 @@ void AddBenchGradientsCommand(CLI::App* bench, int* exit_code) {
     options.particles = state->particles;
     nlohmann::json gradients = nlohmann::json::array(), objectives = nlohmann::json::array();
     int non_finite = 0;
+    // This thread's CPU seconds per estimate (plus the pool's), for timing
+    // an iteration on a snapshot's problem; the first replicate warms up.
+    std::vector<double> cpu_seconds;
     for (int r = 0; r < state->replicates; ++r) {
       Rng rng(state->seed, Stream::kStudy, kReplicateStreamOffset + static_cast<uint64_t>(r));
       estimators::GradientEstimate estimate;
+      const double cpu_start = ThreadCpuSeconds() + (pool ? pool->WorkerCpuSeconds() : 0.0);
       const absl::Status st = (*estimator)->Estimate(problem, options, &rng, &estimate);
+      const double cpu_end = ThreadCpuSeconds() + (pool ? pool->WorkerCpuSeconds() : 0.0);
+      if (r > 0 || state->replicates == 1) cpu_seconds.push_back(cpu_end - cpu_start);
       if (!st.ok()) return fail(1, "replicate " + std::to_string(r) + ": " + std::string(st.message()));
       if (!estimate.finite) ++non_finite;
       gradients.push_back(std::vector<double>(estimate.gradient.data(),
                                               estimate.gradient.data() + estimate.gradient.size()));
       objectives.push_back(estimate.objective);
+    }
+    std::vector<int> ranks, bound_ranks;
+    for (int a = 0; a < (*frozen)->model->num_outputs(); ++a) {
+      ranks.push_back((*frozen)->model->rank(a));
+      bound_ranks.push_back((*frozen)->model->bound_rank(a));
     }
     nlohmann::json doc = {{"snapshot", state->snapshot_file},
                           {"episode", state->episode},
@@ -119,6 +149,11 @@ void AddBenchGradientsCommand(CLI::App* bench, int* exit_code) {
                           {"replicates", state->replicates},
                           {"seed", state->seed},
                           {"threads", state->threads},
+                          {"gp_variance_tolerance", (*frozen)->model->options().variance_rank_tolerance},
+                          {"variance_ranks", ranks},
+                          {"variance_bound_ranks", bound_ranks},
+                          {"cpu_seconds_per_estimate_median", Median(cpu_seconds)},
+                          {"gp_data", (*frozen)->model->num_data()},
                           {"non_finite", non_finite},
                           {"blas", BlasConfig()},
                           {"objectives", objectives},

@@ -45,7 +45,9 @@ absl::StatusOr<std::unique_ptr<SyntheticProblem>> MakeSyntheticProblem(
     absl::StatusOr<gp::TrainingSummary> summary = gp::TrainHyperparameters(x, y, training, &hyp);
     if (!summary.ok()) return summary.status();
   }
-  absl::StatusOr<gp::GpModel> model = gp::GpModel::Create(x, y, hyp);
+  gp::GpModelOptions model_options;
+  model_options.variance_rank_tolerance = options.variance_rank_tolerance;
+  absl::StatusOr<gp::GpModel> model = gp::GpModel::Create(x, y, hyp, model_options);
   if (!model.ok()) return model.status();
   out->model = std::make_unique<gp::GpModel>(*std::move(model));
 

@@ -26,6 +26,8 @@ struct SyntheticProblemOptions {
   uint64_t seed = 1;
   int train_iterations = 0;  // GP hyperparameter L-BFGS iterations (0 = initial values)
   double noise_variance_multiplier = 1.0;
+  // gp::GpModelOptions::variance_rank_tolerance of the model (0 = exact).
+  double variance_rank_tolerance = 0;
 };
 
 // Owns the model, policy and scene and the adapters `problem` points into

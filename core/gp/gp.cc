@@ -1,6 +1,8 @@
 #include "core/gp/gp.h"
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <cmath>
 #include <string>
 #include <utility>
@@ -29,6 +31,10 @@ struct PredictWorkspace {
   Vector zs_sq;          // P, |z / l_a|^2
   Matrix kstar;          // P x N, k_a(z_p, x_n)
   Matrix a;              // P x N, Kstar K^-1, then Kstar .* Kstar K^-1
+  // P x r, Kstar U_r M_r of the low-rank variance. A flat buffer that only
+  // grows, mapped to P x r per output: the outputs' ranks differ, and a
+  // Matrix resized from one output to the next would reallocate every call.
+  Vector lowrank_g;
   Matrix mean_product;   // P x (1 + E), Kstar [beta, beta .* Xs]
   Matrix var_product;    // P x (1 + E), (Kstar .* Kstar K^-1) [1, Xs]
 };
@@ -73,6 +79,22 @@ absl::Status ValidateCreateArguments(const RowMatrix& inputs, const RowMatrix& t
   return hyp.ValidateFinite();
 }
 
+// The rank GpModelOptions asks for: the smallest r with
+// sf^2 lambda_{r+1}^2 / (s^2 (lambda_{r+1} + s)) <= tolerance, lambda_{N+1} = 0
+// (gp.h derives the bound). `descending`: Kf's eigenvalues, largest first;
+// round-off negatives count as 0. The bound grows with lambda, so the first
+// r that meets it is the answer.
+int VarianceRank(const Vector& descending, double signal_var, double s, double tolerance) {
+  const Eigen::Index n = descending.size();
+  for (Eigen::Index r = 0; r < n; ++r) {
+    const double lambda = std::max(descending(r), 0.0);  // lambda_{r+1}
+    // Written so that an overflow (inf) or NaN counts as "not met".
+    if (signal_var * lambda * lambda / (s * s * (lambda + s)) <= tolerance)
+      return static_cast<int>(r);
+  }
+  return static_cast<int>(n);
+}
+
 }  // namespace
 
 Vector GpHyperparameters::Packed(int a) const {
@@ -101,11 +123,18 @@ void GpHyperparameters::SetPacked(int a, const Vector& packed) {
 }
 
 absl::StatusOr<GpModel> GpModel::Create(const RowMatrix& inputs, const RowMatrix& targets,
-                                        const GpHyperparameters& hyperparameters) {
+                                        const GpHyperparameters& hyperparameters,
+                                        const GpModelOptions& options) {
   if (absl::Status s = ValidateCreateArguments(inputs, targets, hyperparameters); !s.ok()) {
     return s;
   }
+  const double tolerance = options.variance_rank_tolerance;
+  if (!std::isfinite(tolerance) || tolerance < 0 || tolerance >= 1) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "variance_rank_tolerance must be finite, >= 0 and < 1 (got ", tolerance, ")"));
+  }
   GpModel model;
+  model.options_ = options;
   model.num_data_ = static_cast<int>(inputs.rows());
   model.num_inputs_ = static_cast<int>(inputs.cols());
   model.num_outputs_ = static_cast<int>(targets.cols());
@@ -162,6 +191,35 @@ absl::StatusOr<GpModel> GpModel::Create(const RowMatrix& inputs, const RowMatrix
     Matrix symmetric = 0.5 * (out.k_inverse + out.k_inverse.transpose());
     out.k_inverse.swap(symmetric);
     out.beta = llt.solve(targets.col(a));
+    out.rank = static_cast<int>(n);
+    out.bound_rank = static_cast<int>(n);
+    if (tolerance > 0) {
+      // Kf = K without its diagonal's noise and jitter (k is symmetric in
+      // full: SeCrossKernel filled both triangles).
+      k.diagonal().setConstant(out.signal_var);
+      const double s = out.noise_var + out.jitter;
+      Eigen::SelfAdjointEigenSolver<Matrix> eigen(k);
+      if (eigen.info() != Eigen::Success) {
+        return absl::FailedPreconditionError(absl::StrCat(
+            "the eigendecomposition of Kf for output ", a,
+            " did not converge (variance_rank_tolerance > 0)"));
+      }
+      // Eigen sorts ascending; the top r are the last r columns.
+      const Vector descending = eigen.eigenvalues().reverse();
+      const int r = VarianceRank(descending, out.signal_var, s, tolerance);
+      out.bound_rank = r;
+      if (2 * static_cast<Eigen::Index>(r) < n) {
+        out.rank = r;
+        out.inv_noise = 1.0 / s;
+        const auto u_r = eigen.eigenvectors().rightCols(r);
+        // -lambda / (s (lambda + s)) = 1/(lambda + s) - 1/s without cancellation.
+        const Vector m =
+            (-eigen.eigenvalues().tail(r).array() / (s * (eigen.eigenvalues().tail(r).array() + s)))
+                .matrix();
+        out.lowrank_w = u_r * m.asDiagonal();
+        out.lowrank_ut = u_r.transpose();
+      }
+    }
     // Right-hand sides that let one product per pass over Kstar (or over
     // Kstar .* A) give a value and its Jacobian together (see Predict).
     out.mean_rhs.resize(n, 1 + model.num_inputs_);
@@ -232,9 +290,24 @@ void GpModel::PredictOutput(int a, const ConstRowMatrixRef& z, const PredictOpti
     }
 
     if (variance == nullptr) return;
-    // The one P x N x N product per output: row p of A is (K^-1 k_p)^T.
-    ws.a.noalias() = ws.kstar * out.k_inverse;
-    ws.a.array() *= ws.kstar.array();
+    if (out.rank < num_data_) {
+      // Row p of A is (B_r k_p)^T with B_r = U_r M_r U_r^T + I/s (gp.h,
+      // GpModelOptions): two thin products of 2 P N r flops each, then the
+      // diagonal's term and the product with Kstar in one pass.
+      if (out.rank == 0) {
+        ws.a = (out.inv_noise * ws.kstar.array().square()).matrix();
+      } else {
+        if (ws.lowrank_g.size() < p * out.rank) ws.lowrank_g.resize(p * out.rank);
+        Eigen::Map<Matrix> g(ws.lowrank_g.data(), p, out.rank);
+        g.noalias() = ws.kstar * out.lowrank_w;
+        ws.a.noalias() = g * out.lowrank_ut;
+        ws.a.array() = (ws.a.array() + out.inv_noise * ws.kstar.array()) * ws.kstar.array();
+      }
+    } else {
+      // The one P x N x N product per output: row p of A is (K^-1 k_p)^T.
+      ws.a.noalias() = ws.kstar * out.k_inverse;
+      ws.a.array() *= ws.kstar.array();
+    }
     ws.var_product.noalias() = ws.a * out.var_rhs;
     const auto quadratic = ws.var_product.col(0);  // k_p^T K^-1 k_p
     const double prior = out.signal_var + options.noise_variance_multiplier * out.noise_var;

@@ -41,6 +41,40 @@ struct GpHyperparameters {
   absl::Status ValidateFinite() const;
 };
 
+// Options fixed when a model is built.
+struct GpModelOptions {
+  // 0 (default): the predictive variance uses the exact K^-1, bit for bit the
+  // path that existed before the option. t > 0 (finite, < 1): per output a,
+  // the "low rank plus diagonal" form of K^-1 in the variance and its
+  // Jacobian (never in the mean, which keeps beta = K^-1 y from the Cholesky
+  // factor):
+  //
+  //   Kf = K_a(X, X) (noise-free) = U diag(lambda) U^T, lambda descending,
+  //   s = sn_a^2 + jitter_a, so K = Kf + s I and exactly
+  //   K^-1 = U diag(1/(lambda_i + s) - 1/s) U^T + I/s.
+  //   B_r  = U_r diag(-lambda_i / (s (lambda_i + s)))_{i<=r} U_r^T + I/s
+  //
+  // keeps the top r eigenpairs. Bound (a priori, for every query z): with
+  // c_i = u_i^T k(X, z), the joint Gram matrix of [X; z] is PSD, so
+  // sum_i c_i^2 / lambda_i <= sf^2 (c_i = 0 where lambda_i = 0), and
+  //   0 <= k^T B_r k - k^T K^-1 k = sum_{i>r} (c_i^2 / lambda_i) lambda_i^2 / (s (lambda_i + s))
+  //                              <= sf^2 lambda_{r+1}^2 / (s (lambda_{r+1} + s)),
+  // i.e. the variance is lowered by at most bound(r) * s with
+  //   bound(r) = sf^2 lambda_{r+1}^2 / (s^2 (lambda_{r+1} + s))   (lambda_{N+1} = 0).
+  // rank(a) is the smallest r with bound(r) <= t, which makes the variance's
+  // relative error <= t whenever the variance includes the noise
+  // (noise_variance_multiplier >= 1, no jitter; in general <= t s / (mult sn^2)).
+  // (bench/precision_levers.py's sum_{i>r} sf^2 lambda_i^2 / s^3 is a looser
+  // form of the same bound: it gives ranks ~10 % larger.) The product
+  // A = Kstar B_r = ((Kstar U_r M_r) U_r^T) + Kstar / s costs 4 P N r flops
+  // against 2 P N^2, so it is used only when 2 r < N; otherwise that output
+  // takes the exact path (rank(a) = N), bit for bit as with t = 0. The
+  // variance Jacobian is the exact derivative of the approximate variance.
+  // The eigendecomposition (Eigen's SelfAdjointEigenSolver on the N x N
+  // matrix, once per output at Create) is not done when t = 0.
+  double variance_rank_tolerance = 0;
+};
+
 struct PredictOptions {
   // The predictive variance is sf^2 - k^T K^-1 k + noise_variance_multiplier *
   // sn^2 (the paper's sigma_f^2 + sigma_n^2). 25 gives GTP+sigma_n's model;
@@ -56,10 +90,13 @@ class GpModel {
   // used. "Fails" includes a factorisation that succeeds only by round-off: a
   // pivot L_ii^2 <= N * eps * max diag(K) (duplicated inputs with tiny noise).
   // Errors: InvalidArgument for mismatched shapes, N == 0 or non-finite
-  // numbers (the message names which); FailedPrecondition when even the
-  // largest jitter does not make K_a positive definite.
+  // numbers (the message names which), or options.variance_rank_tolerance
+  // not finite, negative or >= 1 (the message names it); FailedPrecondition
+  // when even the largest jitter does not make K_a positive definite, or
+  // (t > 0 only) when the eigendecomposition of Kf does not converge.
   static absl::StatusOr<GpModel> Create(const RowMatrix& inputs, const RowMatrix& targets,
-                                        const GpHyperparameters& hyperparameters);
+                                        const GpHyperparameters& hyperparameters,
+                                        const GpModelOptions& options = GpModelOptions());
 
   int num_inputs() const { return num_inputs_; }
   int num_outputs() const { return num_outputs_; }
@@ -67,9 +104,17 @@ class GpModel {
   const GpHyperparameters& hyperparameters() const { return hyp_; }
   // Jitter added to the diagonal of K_a (0 when none was needed).
   double jitter(int a) const { return outputs_[a].jitter; }
+  const GpModelOptions& options() const { return options_; }
+  // The rank r of output a's variance (GpModelOptions): r < N/2 when the
+  // low-rank form is used, N (num_data) when the exact K^-1 is.
+  int rank(int a) const { return outputs_[a].rank; }
+  // The r the bound asks for, whether or not it is used (N when the
+  // tolerance is 0): rank(a) == bound_rank(a) exactly when 2 r < N.
+  int bound_rank(int a) const { return outputs_[a].bound_rank; }
   // Cached quantities, for moment-matching predictors (PILCO) that reuse them.
   const RowMatrix& inputs() const { return inputs_; }    // N x E
   const RowMatrix& targets() const { return targets_; }  // N x D
+  // k_inverse is always the exact K^-1, whatever the options (PILCO reads it).
   const Matrix& k_inverse(int a) const { return outputs_[a].k_inverse; }  // N x N
   const Vector& beta(int a) const { return outputs_[a].beta; }            // N
 
@@ -96,6 +141,12 @@ class GpModel {
     RowMatrix scaled_inputs;  // N x E, X / l_a
     Vector scaled_sq_norms;   // N, |X_n / l_a|^2
     Matrix k_inverse;         // N x N, (K_a + sn_a^2 I + jitter I)^-1, symmetric
+    // Low rank plus diagonal (GpModelOptions), used when rank < N:
+    int rank = 0;             // r, or N for the exact path
+    int bound_rank = 0;       // r the bound asks for
+    Matrix lowrank_w;         // N x r, U_r diag(-lambda_i / (s (lambda_i + s)))
+    Matrix lowrank_ut;        // r x N, U_r^T
+    double inv_noise = 0;     // 1 / s, s = sn_a^2 + jitter
     Vector beta;              // N, K^-1 y_a
     Matrix mean_rhs;          // N x (1 + E), [beta, beta .* Xs]
     Matrix var_rhs;           // N x (1 + E), [1, Xs]
@@ -114,6 +165,7 @@ class GpModel {
   int num_outputs_ = 0;
   int num_data_ = 0;
   GpHyperparameters hyp_;
+  GpModelOptions options_;
   RowMatrix inputs_;
   RowMatrix targets_;
   std::vector<Output> outputs_;

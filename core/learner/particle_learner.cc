@@ -70,7 +70,7 @@ class ParticleLearner final : public PolicyLearner {
     const SparseModelFit sparse{InducingInputs(options_), &inducing_, &inducing_rng};
     absl::StatusOr<ModelProblem> model =
         ModelProblem::Build(training_set, *hyperparameters_, sparse, angles_, &policy_, scene_,
-                            options_.model_noise_multiplier, pool_);
+                            options_.model_noise_multiplier, pool_, GpOptions(options_));
     if (!model.ok())
       return absl::Status(model.status().code(), absl::StrCat("episode ", e, ": ", model.status().message()));
     if (model->jitter()) result->flags.gp_jitter = true;

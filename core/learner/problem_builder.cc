@@ -51,7 +51,8 @@ absl::StatusOr<ModelProblem> ModelProblem::Build(const GpTrainingSet& data,
                                                  const policy::RbfPolicy* policy,
                                                  const tasks::Scene& scene,
                                                  double noise_variance_multiplier,
-                                                 ThreadPool* pool) {
+                                                 ThreadPool* pool,
+                                                 const gp::GpModelOptions& gp_options) {
   TG_CHECK(policy != nullptr);
   ModelProblem out;
   if (sparse.num_inducing > 0 && data.inputs.rows() > sparse.num_inducing) {
@@ -65,7 +66,7 @@ absl::StatusOr<ModelProblem> ModelProblem::Build(const GpTrainingSet& data,
     out.sparse_ = std::make_unique<gp::FitcModel>(*std::move(model));
     out.model_dynamics_ = std::make_unique<estimators::FitcDynamics>(out.sparse_.get(), pool);
   } else {
-    absl::StatusOr<gp::GpModel> model = gp::GpModel::Create(data.inputs, data.targets, hyperparameters);
+    absl::StatusOr<gp::GpModel> model = gp::GpModel::Create(data.inputs, data.targets, hyperparameters, gp_options);
     if (!model.ok())
       return absl::Status(model.status().code(), absl::StrCat("GP model: ", model.status().message()));
     out.full_ = std::make_unique<gp::GpModel>(*std::move(model));

@@ -85,16 +85,19 @@ class ModelProblem {
   // distribution, cost and horizon from `scene` and its noise multiplier.
   // `policy` (non-null) and `scene` must outlive the result; `pool` (may be
   // null) is given to the adapters and the problem.
+  // `gp_options` go to the full GP (gp::GpModelOptions: the variance's
+  // low-rank form); FITC ignores them.
   // Errors, prefixed "GP model: " or "FITC model: ": those of
-  // gp::GpModel::Create (InvalidArgument for shapes, FailedPrecondition if K
-  // cannot be factorised) and gp::FitFitcModel.
+  // gp::GpModel::Create (InvalidArgument for shapes or options,
+  // FailedPrecondition if K cannot be factorised) and gp::FitFitcModel.
   static absl::StatusOr<ModelProblem> Build(const GpTrainingSet& data,
                                             const gp::GpHyperparameters& hyperparameters,
                                             const SparseModelFit& sparse,
                                             const std::vector<int>& angle_indices,
                                             const policy::RbfPolicy* policy,
                                             const tasks::Scene& scene,
-                                            double noise_variance_multiplier, ThreadPool* pool);
+                                            double noise_variance_multiplier, ThreadPool* pool,
+                                            const gp::GpModelOptions& gp_options = {});
 
   ModelProblem(ModelProblem&&) = default;
   ModelProblem& operator=(ModelProblem&&) = default;

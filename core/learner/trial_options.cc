@@ -43,6 +43,7 @@ const OptionTable<TrialOptions>& TrialOptions::Table() {
         .Nest(&O::gp_training, gp::TrainingOptions::Table())
         .Enum("angle_features", &O::angle_features, AngleFeaturesNames())
         .Int("gp_inducing", &O::gp_inducing)
+        .Double("gp_variance_tolerance", &O::gp_variance_tolerance)
         .Int("pilco_line_searches", &O::pilco_line_searches)
         .Int("pilco_evaluations_per_line_search", &O::pilco_evaluations_per_line_search)
         .Nest(&O::estimator, estimators::EstimatorOptions::Table());
@@ -66,6 +67,9 @@ absl::Status TrialOptions::Validate() const {
   if (absl::Status st = gp_training.Validate(); !st.ok()) return st;
   if (!std::isfinite(success_threshold)) return InvalidOption("threshold", "must be finite");
   if (gp_inducing < -1) return InvalidOption("gp_inducing", "must be -1 (auto), 0 (full GP) or a count");
+  if (!std::isfinite(gp_variance_tolerance) || !(gp_variance_tolerance >= 0) ||
+      !(gp_variance_tolerance < 1))
+    return InvalidOption("gp_variance_tolerance", "must be finite, >= 0 and < 1 (0 = exact variance)");
   if (pilco_line_searches == 0 || pilco_line_searches < -1)
     return InvalidOption("pilco_line_searches", "must be -1 (the scene's PILCO protocol) or >= 1");
   if (pilco_evaluations_per_line_search == 0 || pilco_evaluations_per_line_search < -1)
@@ -104,6 +108,12 @@ int InducingInputs(const TrialOptions& options) {
   const tasks::SceneDefinition* scene = tasks::FindSceneDefinition(options.scene.scene);
   if (scene != nullptr && scene->plant != tasks::PlantKind::kCartPole) return scene->inducing_inputs;
   return options.method == estimators::Method::kPilco ? 300 : 0;
+}
+
+gp::GpModelOptions GpOptions(const TrialOptions& options) {
+  gp::GpModelOptions gp_options;
+  gp_options.variance_rank_tolerance = options.gp_variance_tolerance;
+  return gp_options;
 }
 
 int PilcoLineSearches(const TrialOptions& options) {

@@ -9,7 +9,8 @@
 //   OptimizerOptions             learning_rate, momentum, decay, epsilon, normalisation
 //   gp::TrainingOptions          gp_iterations,
 //     gp::PenaltyOptions           gp_penalty, gp_penalty_*
-//   (the trial's own fields)     angle_features, gp_inducing, pilco_line_searches,
+//   (the trial's own fields)     angle_features, gp_inducing, gp_variance_tolerance,
+//                                pilco_line_searches,
 //                                pilco_evaluations_per_line_search
 //   estimators::EstimatorOptions lr_weights, lr_baseline, gs_derivative,
 //                                sn_noise_multiplier, forced_k_lr
@@ -33,6 +34,7 @@
 #include "core/common/option_table.h"
 #include "core/estimators/estimator.h"
 #include "core/estimators/method.h"
+#include "core/gp/gp.h"
 #include "core/gp/training.h"
 #include "core/learner/optimizer.h"
 #include "core/tasks/scene.h"
@@ -71,6 +73,13 @@ struct TrialOptions {
   // hyperparameters fixed, from a random subset of the inputs the first time
   // (1500 L-BFGS iterations), then warm-started from the previous episode (500).
   int gp_inducing = -1;
+  // The full GP's predictive variance in the particle methods: 0 = exact
+  // K^-1 (default); t in (0, 1) = "low rank plus diagonal" K^-1 per output
+  // with the a-priori bound t on the variance's relative error
+  // (gp::GpModelOptions::variance_rank_tolerance, gp/gp.h; an output whose
+  // bound needs rank >= N/2 keeps the exact product). The mean, PILCO and
+  // FITC (gp_inducing) ignore it.
+  double gp_variance_tolerance = 0;
   // PILCO's BFGS budget per policy optimisation: line searches, and function
   // evaluations per line search. -1 = auto: the scene's PILCO protocol
   // (tasks/scene_catalog.h; 150 x 30 on the cart-pole, 75 x 30 on the
@@ -102,6 +111,9 @@ std::vector<int> FeatureAngles(const TrialOptions& options, const tasks::Scene& 
 // particle methods; on the other scenes the scene's M for every method
 // (PILCO's model of that scene; tasks/scene_catalog.h).
 int InducingInputs(const TrialOptions& options);
+// The full GP's build options a particle method's trial uses
+// (gp_variance_tolerance).
+gp::GpModelOptions GpOptions(const TrialOptions& options);
 // The BFGS budget pilco_line_searches / pilco_evaluations_per_line_search
 // resolve to: the option when >= 1, else the scene's PILCO protocol (an
 // unknown scene: 150 x 30, PILCO's cart-pole).

@@ -73,7 +73,7 @@ absl::StatusOr<std::unique_ptr<FrozenProblem>> FrozenProblemFromSnapshot(
   absl::StatusOr<learner::ModelProblem> model = learner::ModelProblem::Build(
       learner::MakeGpTrainingSet(data, out->angle_indices), snapshot.hyperparameters,
       learner::SparseModelFit{}, out->angle_indices, out->policy, sc,
-      options.model_noise_multiplier, /*pool=*/nullptr);
+      options.model_noise_multiplier, /*pool=*/nullptr, learner::GpOptions(options));
   if (!model.ok()) {
     return absl::Status(model.status().code(), absl::StrCat("snapshot ", model.status().message()));
   }
@@ -155,7 +155,8 @@ absl::StatusOr<SceneSyntheticProblem> MakeSceneSyntheticProblem(const tasks::Sce
   out.policy->set_parameters(params);
   absl::StatusOr<learner::ModelProblem> model =
       learner::ModelProblem::Build(set, hyp, learner::SparseModelFit{}, angles, out.policy.get(),
-                                   scene, options.noise_variance_multiplier, pool);
+                                   scene, options.noise_variance_multiplier, pool,
+                                   gp::GpModelOptions{options.variance_rank_tolerance});
   if (!model.ok()) return model.status();
   out.model = std::make_unique<learner::ModelProblem>(*std::move(model));
   return out;

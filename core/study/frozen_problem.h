@@ -102,6 +102,8 @@ struct SceneSyntheticOptions {
   int train_iterations = 0;
   learner::AngleFeatures angle_features = learner::AngleFeatures::kAuto;
   double noise_variance_multiplier = 1.0;
+  // gp::GpModelOptions::variance_rank_tolerance of the model (0 = exact).
+  double variance_rank_tolerance = 0;
 };
 
 // What MakeSceneSyntheticProblem builds: the policy and the model problem

@@ -61,6 +61,7 @@ inline learner::TrialOptions EveryOptionChanged() {
   o.gp_training.penalty.power = 20;
   o.angle_features = learner::AngleFeatures::kSinCos;
   o.gp_inducing = 100;
+  o.gp_variance_tolerance = 1e-4;
   o.pilco_line_searches = 40;
   o.pilco_evaluations_per_line_search = 12;
   o.estimator.lr_weights = estimators::LrWeights::kPlain;

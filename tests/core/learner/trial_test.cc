@@ -168,6 +168,24 @@ TEST_P(ParticleTrialFitc, RunsFiniteAndDeterministically) {
 
 INSTANTIATE_TEST_SUITE_P(Methods, ParticleTrialFitc, ::testing::Values("RP", "TP"));
 
+TEST(TrialOptions, GpVarianceToleranceValues) {
+  TrialOptions o = Tiny();
+  for (const char* ok : {"0", "1e-6", "0.01", "0.5"}) {
+    ASSERT_TRUE(SetTrialOption("gp_variance_tolerance", ok, &o).ok()) << ok;
+    EXPECT_TRUE(o.Validate().ok()) << ok << ": " << o.Validate();
+    EXPECT_EQ(GpOptions(o).variance_rank_tolerance, o.gp_variance_tolerance);
+  }
+  for (const char* bad : {"-1e-3", "1", "nan", "inf"}) {
+    ASSERT_TRUE(SetTrialOption("gp_variance_tolerance", bad, &o).ok()) << bad;
+    const absl::Status s = o.Validate();
+    EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument) << bad;
+    EXPECT_NE(s.message().find("gp_variance_tolerance"), std::string::npos) << s;
+  }
+  const absl::Status parse = SetTrialOption("gp_variance_tolerance", "small", &o);
+  EXPECT_FALSE(parse.ok());
+  EXPECT_NE(parse.message().find("gp_variance_tolerance"), std::string::npos) << parse;
+}
+
 TEST(TrialOptions, GpInducingValues) {
   TrialOptions o = Tiny();
   for (const char* ok : {"-1", "0", "1", "300"}) {
