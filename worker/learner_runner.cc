@@ -29,13 +29,10 @@ class ObserverAdapter final : public learner::TrialObserver {
   JobProgress* progress_;
 };
 
+// A job's options are stored pairs: one stored before a key existed reads
+// as the value it was submitted with (learner::TrialOptionsFromStoredPairs).
 absl::StatusOr<learner::TrialOptions> ApplyOptions(const OptionList& options) {
-  learner::TrialOptions trial_options;
-  for (const auto& [key, value] : options) {
-    absl::Status status = learner::SetTrialOption(key, value, &trial_options);
-    if (!status.ok()) return status;
-  }
-  return trial_options;
+  return learner::TrialOptionsFromStoredPairs(options);
 }
 
 absl::StatusOr<JobOutcome> RunFrom(const learner::TrialOptions& options,

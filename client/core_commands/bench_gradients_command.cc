@@ -84,7 +84,7 @@ void AddBenchGradientsCommand(CLI::App* bench, int* exit_code) {
       // A later pair overrides an earlier one of the same key; the option's
       // range is checked like a trial's.
       snapshot->options.emplace_back("gp_variance_tolerance", state->variance_tolerance);
-      absl::StatusOr<learner::TrialOptions> parsed = learner::TrialOptionsFromPairs(snapshot->options);
+      absl::StatusOr<learner::TrialOptions> parsed = learner::TrialOptionsFromStoredPairs(snapshot->options);
       if (!parsed.ok()) return fail(2, std::string(parsed.status().message()));
       if (absl::Status valid = parsed->Validate(); !valid.ok()) return fail(2, std::string(valid.message()));
     }

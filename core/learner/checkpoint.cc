@@ -309,8 +309,9 @@ absl::StatusOr<TrialCheckpoint> DecodeCheckpoint(std::string_view bytes) {
 
 absl::Status CheckResumable(const TrialCheckpoint& checkpoint, const TrialOptions& options) {
   // Compared as options, not as texts: a checkpoint written before an option
-  // existed lists no pair for it, and resumes a trial that keeps its default.
-  absl::StatusOr<TrialOptions> theirs = TrialOptionsFromPairs(checkpoint.options);
+  // existed lists no pair for it, and resumes a trial that keeps the value
+  // it was computed with (TrialOptionsFromStoredPairs).
+  absl::StatusOr<TrialOptions> theirs = TrialOptionsFromStoredPairs(checkpoint.options);
   if (!theirs.ok()) return Invalid(absl::StrCat("its options do not parse: ", theirs.status().message()));
   const auto pairs = TrialOptionPairs(options);
   const auto there = TrialOptionPairs(*theirs);

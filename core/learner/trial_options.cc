@@ -146,4 +146,13 @@ absl::StatusOr<TrialOptions> TrialOptionsFromPairs(
   return options;
 }
 
+absl::StatusOr<TrialOptions> TrialOptionsFromStoredPairs(
+    const std::vector<std::pair<std::string, std::string>>& pairs) {
+  TrialOptions options;
+  options.gp_variance_tolerance = kAbsentGpVarianceTolerance;
+  for (const auto& [key, value] : pairs)
+    if (absl::Status st = SetTrialOption(key, value, &options); !st.ok()) return st;
+  return options;
+}
+
 }  // namespace totalgrad::learner

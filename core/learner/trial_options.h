@@ -49,6 +49,11 @@ namespace totalgrad::learner {
 enum class AngleFeatures { kAuto, kRaw, kSinCos };
 const EnumNames<AngleFeatures>& AngleFeaturesNames();  // "auto", "raw", "sincos"
 
+// gp_variance_tolerance's default, and its value in option pairs stored
+// before the key existed.
+inline constexpr double kDefaultGpVarianceTolerance = 1e-2;
+inline constexpr double kAbsentGpVarianceTolerance = 0.0;
+
 struct TrialOptions {
   tasks::SceneOptions scene;
   estimators::Method method = estimators::Method::kRp;
@@ -74,12 +79,15 @@ struct TrialOptions {
   // (1500 L-BFGS iterations), then warm-started from the previous episode (500).
   int gp_inducing = -1;
   // The full GP's predictive variance in the particle methods: 0 = exact
-  // K^-1 (default); t in (0, 1) = "low rank plus diagonal" K^-1 per output
-  // with the a-priori bound t on the variance's relative error
+  // K^-1; t in (0, 1) = "low rank plus diagonal" K^-1 per output with the
+  // a-priori bound t on the variance's relative error
   // (gp::GpModelOptions::variance_rank_tolerance, gp/gp.h; an output whose
   // bound needs rank >= N/2 keeps the exact product). The mean, PILCO and
-  // FITC (gp_inducing) ignore it.
-  double gp_variance_tolerance = 0;
+  // FITC (gp_inducing) ignore it. Default 1e-2: it passed issue 11's accuracy
+  // gate for every particle method (docs/results/speed.md, "Low rank plus
+  // diagonal"). Stored pairs without this key (written before it existed)
+  // read as 0, the exact path they were computed with (TrialOptionsFromStoredPairs).
+  double gp_variance_tolerance = kDefaultGpVarianceTolerance;
   // PILCO's BFGS budget per policy optimisation: line searches, and function
   // evaluations per line search. -1 = auto: the scene's PILCO protocol
   // (tasks/scene_catalog.h; 150 x 30 on the cart-pole, 75 x 30 on the
@@ -131,6 +139,14 @@ std::vector<std::string> TrialOptionKeys();
 // Default options with `pairs` applied in order (InvalidArgument from the
 // first pair that fails; no Validate()).
 absl::StatusOr<TrialOptions> TrialOptionsFromPairs(
+    const std::vector<std::pair<std::string, std::string>>& pairs);
+// The same for pairs that were stored (a job's options, a checkpoint, a trial
+// snapshot): a key whose default changed after files without it were written
+// starts from the value those files were computed with, so that such a file
+// still describes (and resumes, and rebuilds) the computation it came from.
+// Today: gp_variance_tolerance (absent = 0, the exact variance). Pairs
+// written by this build list every key, so for them both functions agree.
+absl::StatusOr<TrialOptions> TrialOptionsFromStoredPairs(
     const std::vector<std::pair<std::string, std::string>>& pairs);
 
 }  // namespace totalgrad::learner

@@ -21,7 +21,7 @@ std::string AnglesText(const std::vector<int>& angles) {
 
 absl::StatusOr<std::unique_ptr<FrozenProblem>> FrozenProblemFromSnapshot(
     const learner::TrialSnapshot& snapshot, SnapshotPolicy which) {
-  absl::StatusOr<learner::TrialOptions> parsed = learner::TrialOptionsFromPairs(snapshot.options);
+  absl::StatusOr<learner::TrialOptions> parsed = learner::TrialOptionsFromStoredPairs(snapshot.options);
   if (!parsed.ok()) return absl::InvalidArgumentError(absl::StrCat("snapshot options: ", parsed.status().message()));
   const learner::TrialOptions& options = *parsed;
   absl::StatusOr<tasks::Scene> scene = tasks::MakeScene(options.scene);

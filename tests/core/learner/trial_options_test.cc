@@ -111,6 +111,38 @@ TEST(TrialOptionTable, CheckpointsWithoutANewerOptionResumeItsDefault) {
   EXPECT_FALSE(CheckResumable(checkpoint, forced).ok());
 }
 
+// gp_variance_tolerance's default changed (0 -> 1e-2) after files without
+// the key were stored: such stored pairs (checkpoints, job options,
+// snapshots) read as 0, the exact variance they were computed with; options
+// from a user (flags, sweep files) take today's default.
+TEST(TrialOptionTable, StoredPairsWithoutGpVarianceToleranceReadAsExact) {
+  std::vector<std::pair<std::string, std::string>> old_pairs;
+  for (const auto& pair : TrialOptionPairs(TrialOptions()))
+    if (pair.first != "gp_variance_tolerance") old_pairs.push_back(pair);
+  ASSERT_EQ(old_pairs.size() + 1, TrialOptionPairs(TrialOptions()).size());
+  absl::StatusOr<TrialOptions> stored = TrialOptionsFromStoredPairs(old_pairs);
+  TG_ASSERT_OK(stored.status());
+  EXPECT_EQ(stored->gp_variance_tolerance, 0.0);
+  absl::StatusOr<TrialOptions> fresh = TrialOptionsFromPairs(old_pairs);
+  TG_ASSERT_OK(fresh.status());
+  EXPECT_EQ(fresh->gp_variance_tolerance, kDefaultGpVarianceTolerance);
+  EXPECT_GT(TrialOptions().gp_variance_tolerance, 0.0);
+  // Pairs that list the key keep its value either way.
+  absl::StatusOr<TrialOptions> listed = TrialOptionsFromStoredPairs(TrialOptionPairs(TrialOptions()));
+  TG_ASSERT_OK(listed.status());
+  EXPECT_TRUE(*listed == TrialOptions());
+  // An old checkpoint resumes the exact trial it came from, not a default one.
+  TrialCheckpoint checkpoint;
+  checkpoint.episodes.resize(1);
+  checkpoint.options = old_pairs;
+  TrialOptions exact;
+  exact.gp_variance_tolerance = 0;
+  TG_EXPECT_OK(CheckResumable(checkpoint, exact));
+  const absl::Status refused = CheckResumable(checkpoint, TrialOptions());
+  EXPECT_EQ(refused.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(refused.message().find("gp_variance_tolerance"), std::string::npos) << refused;
+}
+
 TEST(TrialOptionTable, ErrorsNameTheKeyAndLeaveTheOptionsUnchanged) {
   TrialOptions o;
   absl::Status s = SetTrialOption("gravity", "fast", &o);

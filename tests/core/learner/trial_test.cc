@@ -168,6 +168,32 @@ TEST_P(ParticleTrialFitc, RunsFiniteAndDeterministically) {
 
 INSTANTIATE_TEST_SUITE_P(Methods, ParticleTrialFitc, ::testing::Values("RP", "TP"));
 
+// The option reaches the particle methods' GP (a large tolerance makes the
+// low-rank variance active at these sizes and changes the trial), and PILCO
+// ignores it (the same bits).
+TEST(Trial, GpVarianceToleranceReachesTheParticleModelOnly) {
+  for (const char* method : {"RP", "PILCO"}) {
+    TrialOptions exact = Tiny();
+    ASSERT_TRUE(SetTrialOption("method", method, &exact).ok());
+    ASSERT_TRUE(SetTrialOption("horizon", "30", &exact).ok());
+    ASSERT_TRUE(SetTrialOption("gp_variance_tolerance", "0", &exact).ok());
+    TrialOptions fast = exact;
+    ASSERT_TRUE(SetTrialOption("gp_variance_tolerance", "0.5", &fast).ok());
+    auto a = RunTrial(exact, nullptr);
+    auto b = RunTrial(fast, nullptr);
+    ASSERT_TRUE(a.ok()) << a.status();
+    ASSERT_TRUE(b.ok()) << b.status();
+    const EpisodeResult& x = a->episodes.back();
+    const EpisodeResult& y = b->episodes.back();
+    if (std::string(method) == "PILCO") {
+      EXPECT_TRUE(SameBits(x.predicted_cost, y.predicted_cost));
+      EXPECT_EQ(x.policy_parameters, y.policy_parameters);
+    } else {
+      EXPECT_NE(x.policy_parameters, y.policy_parameters) << "the option did not reach the model";
+    }
+  }
+}
+
 TEST(TrialOptions, GpVarianceToleranceValues) {
   TrialOptions o = Tiny();
   for (const char* ok : {"0", "1e-6", "0.01", "0.5"}) {
@@ -175,15 +201,25 @@ TEST(TrialOptions, GpVarianceToleranceValues) {
     EXPECT_TRUE(o.Validate().ok()) << ok << ": " << o.Validate();
     EXPECT_EQ(GpOptions(o).variance_rank_tolerance, o.gp_variance_tolerance);
   }
-  for (const char* bad : {"-1e-3", "1", "nan", "inf"}) {
+  for (const char* bad : {"-1e-3", "1", "2"}) {
     ASSERT_TRUE(SetTrialOption("gp_variance_tolerance", bad, &o).ok()) << bad;
     const absl::Status s = o.Validate();
     EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument) << bad;
     EXPECT_NE(s.message().find("gp_variance_tolerance"), std::string::npos) << s;
   }
-  const absl::Status parse = SetTrialOption("gp_variance_tolerance", "small", &o);
-  EXPECT_FALSE(parse.ok());
-  EXPECT_NE(parse.message().find("gp_variance_tolerance"), std::string::npos) << parse;
+  // Non-finite values: the text parser refuses them, and a struct holding
+  // one fails Validate(), both naming the option.
+  for (const char* bad : {"nan", "inf", "small"}) {
+    const absl::Status parse = SetTrialOption("gp_variance_tolerance", bad, &o);
+    EXPECT_EQ(parse.code(), absl::StatusCode::kInvalidArgument) << bad;
+    EXPECT_NE(parse.message().find("gp_variance_tolerance"), std::string::npos) << parse;
+  }
+  for (double bad : {std::nan(""), HUGE_VAL}) {
+    o.gp_variance_tolerance = bad;
+    const absl::Status s = o.Validate();
+    EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument) << bad;
+    EXPECT_NE(s.message().find("gp_variance_tolerance"), std::string::npos) << s;
+  }
 }
 
 TEST(TrialOptions, GpInducingValues) {
@@ -364,6 +400,11 @@ TEST_P(TrialThreads, SameBitsForAnyThreadCount) {
     TrialOptions sincos = o;
     ASSERT_TRUE(SetTrialOption("angle_features", "sincos", &sincos).ok());
     variants.push_back(sincos);
+    // The low-rank variance active (a large tolerance at these sizes).
+    TrialOptions lowrank = o;
+    ASSERT_TRUE(SetTrialOption("horizon", "30", &lowrank).ok());
+    ASSERT_TRUE(SetTrialOption("gp_variance_tolerance", "0.5", &lowrank).ok());
+    variants.push_back(lowrank);
   }
   for (const TrialOptions& options : variants) {
     auto one = RunTrial(options, nullptr);
