@@ -10,6 +10,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "tests/service/service_testutil.h"
+#include "core/learner/trial_options.h"
 #include "worker/learner_runner.h"
 
 namespace totalgrad::testing {
@@ -55,7 +56,14 @@ std::vector<worker::EpisodeOutcome> ReferenceEpisodes(const worker::OptionList& 
   worker::LearnerTrialRunner runner;
   Collect collect;
   worker::JobInput job;
-  job.options = options;
+  // The service stores a job's options as every key's pair (resolved at
+  // submission), and the worker reads a key missing from stored pairs as the
+  // value it had before the key existed (learner::TrialOptionsFromStoredPairs);
+  // so the reference runs on the full list too: keys the protocol leaves out
+  // take today's defaults, as in the stored job.
+  absl::StatusOr<learner::TrialOptions> resolved = learner::TrialOptionsFromPairs(options);
+  EXPECT_TRUE(resolved.ok()) << resolved.status();
+  job.options = resolved.ok() ? learner::TrialOptionPairs(*resolved) : options;
   auto outcome = runner.Run(job, &collect);
   EXPECT_TRUE(outcome.ok()) << outcome.status();
   return collect.episodes;
