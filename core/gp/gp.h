@@ -10,7 +10,9 @@
 // GpModel caches everything that does not change while a policy is optimised
 // (K^-1 with K = K_a(X, X) + sn_a^2 I, beta_a = K^-1 y_a, the length-scale-
 // scaled inputs), so that predicting P particles costs one P x N by N x N
-// matrix product per output (BLAS-3) plus O(P N E) element-wise work.
+// matrix product per output (BLAS-3) plus O(P N E) element-wise work; with
+// GpModelOptions::variance_rank_tolerance > 0, two thin P x N x r products
+// instead where the model's spectrum allows r < N/2 (see GpModelOptions).
 //
 // Thread safety: a constructed GpModel is immutable; Predict is thread-safe.
 // Predict can spread its outputs over a ThreadPool; the outputs are computed
