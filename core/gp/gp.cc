@@ -229,6 +229,13 @@ absl::StatusOr<GpModel> GpModel::Create(const RowMatrix& inputs, const RowMatrix
     out.var_rhs.col(0).setOnes();
     out.var_rhs.rightCols(model.num_inputs_) = out.scaled_inputs;
   }
+  // Longest task first: with 4 outputs of ranks 49, 107, 113, 151 on two
+  // threads, index order gives the threads 162 and 258 rank units, this order
+  // 200 and 220.
+  model.outputs_by_cost_.resize(model.num_outputs_);
+  for (int a = 0; a < model.num_outputs_; ++a) model.outputs_by_cost_[a] = a;
+  std::stable_sort(model.outputs_by_cost_.begin(), model.outputs_by_cost_.end(),
+                   [&model](int x, int y) { return model.outputs_[x].rank > model.outputs_[y].rank; });
   return model;
 }
 
@@ -251,8 +258,8 @@ void GpModel::Predict(const ConstRowMatrixRef& z, const PredictOptions& options,
     return;
   }
   // Each output writes only its own columns and uses its thread's workspace.
-  pool->ParallelFor(num_outputs_, [&](int a) {
-    PredictOutput(a, z, options, mean, variance, dmean_dz, dvar_dz);
+  pool->ParallelFor(num_outputs_, [&](int task) {
+    PredictOutput(outputs_by_cost_[task], z, options, mean, variance, dmean_dz, dvar_dz);
   });
 }
 

@@ -132,7 +132,9 @@ class GpModel {
   // be null; `variance` may be null when dvar_dz is null too, which skips the
   // P x N x N product (a mean-only prediction costs O(P N E)). Requesting
   // Jacobians never changes the mean and variance values. `pool` (may be
-  // null: the calling thread does everything) runs one task per output;
+  // null: the calling thread does everything) runs one task per output,
+  // most expensive first (by rank(a)), so that outputs of unequal rank
+  // spread over the threads as evenly as whole outputs can;
   // results do not depend on its size.
   void Predict(const ConstRowMatrixRef& z, const PredictOptions& options, RowMatrix* mean,
                RowMatrix* variance, RowMatrix* dmean_dz, RowMatrix* dvar_dz,
@@ -171,6 +173,10 @@ class GpModel {
   RowMatrix inputs_;
   RowMatrix targets_;
   std::vector<Output> outputs_;
+  // Output indices by descending rank (ties: ascending index): the order in
+  // which Predict hands outputs to a pool. Which thread computes an output
+  // does not change its numbers, so the order only affects wall time.
+  std::vector<int> outputs_by_cost_;
 };
 
 }  // namespace totalgrad::gp

@@ -150,7 +150,6 @@ TEST(LowRankVariance, ErrorWithinTheBoundAndNotVacuous) {
           EXPECT_LT(2 * r, 300);
           ASSERT_EQ(fast.jitter(o), 0.0);
           const double s = std::exp(2 * problem.hyp.log_noise_std(o));
-          const double prior = std::exp(2 * problem.hyp.log_signal_std(o)) + mult * s;
           const double sf2 = std::exp(2 * problem.hyp.log_signal_std(o));
           const double kRoundOff = 64 * std::numeric_limits<double>::epsilon() * (300 * sf2 / s) * sf2;
           double max_rel = 0, max_diff = 0;
