@@ -21,39 +21,11 @@ namespace {
 
 using totalgrad::testing::MatricesNear;
 
-RowMatrix UniformMatrix(Rng* rng, int rows, int cols, double lo, double hi) {
-  RowMatrix m(rows, cols);
-  for (int r = 0; r < rows; ++r)
-    for (int c = 0; c < cols; ++c) m(r, c) = rng->Uniform(lo, hi);
-  return m;
-}
-
-// Three inputs, two outputs, hyperparameters that differ per output so that a
-// mixed-up output index or length-scale shows in every check.
-struct Problem {
-  RowMatrix inputs;
-  RowMatrix targets;
-  GpHyperparameters hyp;
-};
+using Problem = testing::TwoOutputProblem;
+using testing::UniformMatrix;
 
 Problem MakeProblem(int n, uint64_t seed, double noise0 = 0.1, double noise1 = 0.2) {
-  Rng rng(seed, Stream::kStudy);
-  Problem problem;
-  problem.inputs = UniformMatrix(&rng, n, 3, -2.0, 2.0);
-  problem.targets.resize(n, 2);
-  for (int i = 0; i < n; ++i) {
-    const auto x = problem.inputs.row(i);
-    problem.targets(i, 0) = std::sin(x(0)) + x(1) * x(2) + noise0 * rng.Normal();
-    problem.targets(i, 1) = std::cos(x(1)) - 0.3 * x(0) + noise1 * rng.Normal();
-  }
-  problem.hyp.log_lengthscales.resize(2, 3);
-  problem.hyp.log_lengthscales << std::log(0.9), std::log(1.3), std::log(0.7),  //
-      std::log(1.5), std::log(0.8), std::log(1.1);
-  problem.hyp.log_signal_std.resize(2);
-  problem.hyp.log_signal_std << std::log(1.2), std::log(0.7);
-  problem.hyp.log_noise_std.resize(2);
-  problem.hyp.log_noise_std << std::log(noise0), std::log(noise1);
-  return problem;
+  return testing::MakeTwoOutputProblem(n, seed, noise0, noise1, testing::ShortLengthscales());
 }
 
 // Half the queries near training inputs, half spread out.

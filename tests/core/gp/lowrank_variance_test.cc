@@ -28,11 +28,7 @@ using ::testing::HasSubstr;
 using ::totalgrad::gp::testing::BlockJacobian;
 using ::totalgrad::gp::testing::PredictFunction;
 
-struct Problem {
-  RowMatrix inputs;
-  RowMatrix targets;
-  GpHyperparameters hyp;
-};
+using Problem = testing::TwoOutputProblem;
 
 // N points in [-2, 2]^3, two outputs with different hyperparameters. The
 // length-scales are long against the box (as a trained model's are on the
@@ -40,25 +36,9 @@ struct Problem {
 // with sn = 0.2 .. 0.3 a tolerance of 1e-2 .. 1e-6 needs a rank well below
 // N/2 (N = 150 .. 300); a tiny noise needs r >= N/2.
 Problem MakeProblem(int n, uint64_t seed, double noise_std0, double noise_std1) {
-  Rng rng(seed, Stream::kStudy);
-  Problem problem;
-  problem.inputs.resize(n, 3);
-  for (int i = 0; i < n; ++i)
-    for (int m = 0; m < 3; ++m) problem.inputs(i, m) = rng.Uniform(-2.0, 2.0);
-  problem.targets.resize(n, 2);
-  for (int i = 0; i < n; ++i) {
-    const auto x = problem.inputs.row(i);
-    problem.targets(i, 0) = std::sin(x(0)) + x(1) * x(2) + noise_std0 * rng.Normal();
-    problem.targets(i, 1) = std::cos(x(1)) - 0.3 * x(0) + noise_std1 * rng.Normal();
-  }
-  problem.hyp.log_lengthscales.resize(2, 3);
-  problem.hyp.log_lengthscales << std::log(1.8), std::log(2.6), std::log(1.4),  //
-      std::log(3.0), std::log(1.6), std::log(2.2);
-  problem.hyp.log_signal_std.resize(2);
-  problem.hyp.log_signal_std << std::log(1.2), std::log(0.7);
-  problem.hyp.log_noise_std.resize(2);
-  problem.hyp.log_noise_std << std::log(noise_std0), std::log(noise_std1);
-  return problem;
+  RowMatrix long_lengthscales(2, 3);
+  long_lengthscales << 1.8, 2.6, 1.4, 3.0, 1.6, 2.2;
+  return testing::MakeTwoOutputProblem(n, seed, noise_std0, noise_std1, long_lengthscales);
 }
 
 // Half the queries near training inputs (small variance), half spread out.

@@ -6,12 +6,61 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
 
+#include "core/common/rng.h"
 #include "core/common/types.h"
 #include "core/diff/gradient_checker.h"
 #include "core/gp/gp.h"
 
 namespace totalgrad::gp::testing {
+
+// rows x cols, entries uniform in [lo, hi), drawn row by row.
+inline RowMatrix UniformMatrix(Rng* rng, int rows, int cols, double lo, double hi) {
+  RowMatrix m(rows, cols);
+  for (int r = 0; r < rows; ++r)
+    for (int c = 0; c < cols; ++c) m(r, c) = rng->Uniform(lo, hi);
+  return m;
+}
+
+// The GP predictors' test problem: N inputs uniform in [-2, 2]^3, two outputs
+// y0 = sin(z0) + z1 z2 + N(0, noise0^2), y1 = cos(z1) - 0.3 z0 + N(0, noise1^2),
+// with hyperparameters that differ per output (length-scales `lengthscales`,
+// 2 x 3; sf = 1.2 and 0.7; sn = noise0 and noise1), so that a mixed-up output
+// index or length-scale shows in every check.
+struct TwoOutputProblem {
+  RowMatrix inputs;   // N x 3
+  RowMatrix targets;  // N x 2
+  GpHyperparameters hyp;
+};
+
+// The length-scales of most tests: short against the box, so predictions vary.
+inline RowMatrix ShortLengthscales() {
+  RowMatrix l(2, 3);
+  l << 0.9, 1.3, 0.7, 1.5, 0.8, 1.1;
+  return l;
+}
+
+inline TwoOutputProblem MakeTwoOutputProblem(int n, uint64_t seed, double noise0, double noise1,
+                                             const RowMatrix& lengthscales) {
+  Rng rng(seed, Stream::kStudy);
+  TwoOutputProblem problem;
+  problem.inputs = UniformMatrix(&rng, n, 3, -2.0, 2.0);
+  problem.targets.resize(n, 2);
+  for (int i = 0; i < n; ++i) {
+    const auto x = problem.inputs.row(i);
+    problem.targets(i, 0) = std::sin(x(0)) + x(1) * x(2) + noise0 * rng.Normal();
+    problem.targets(i, 1) = std::cos(x(1)) - 0.3 * x(0) + noise1 * rng.Normal();
+  }
+  problem.hyp.log_lengthscales.resize(2, 3);
+  for (int a = 0; a < 2; ++a)
+    for (int m = 0; m < 3; ++m) problem.hyp.log_lengthscales(a, m) = std::log(lengthscales(a, m));
+  problem.hyp.log_signal_std.resize(2);
+  problem.hyp.log_signal_std << std::log(1.2), std::log(0.7);
+  problem.hyp.log_noise_std.resize(2);
+  problem.hyp.log_noise_std << std::log(noise0), std::log(noise1);
+  return problem;
+}
 
 // Jacobian of vec(output) (row-major, P*D) with respect to vec(z) (row-major,
 // P*E), built from Predict's per-particle blocks: it is block diagonal because
