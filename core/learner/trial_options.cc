@@ -138,21 +138,29 @@ std::vector<std::pair<std::string, std::string>> TrialOptionPairs(const TrialOpt
 
 std::vector<std::string> TrialOptionKeys() { return TrialOptions::Table().Keys(); }
 
+namespace {
+
+// Sets `pairs` on top of `base`, in order.
+absl::StatusOr<TrialOptions> ApplyPairs(TrialOptions base,
+                                        const std::vector<std::pair<std::string, std::string>>& pairs) {
+  for (const auto& [key, value] : pairs)
+    if (absl::Status st = SetTrialOption(key, value, &base); !st.ok()) return st;
+  return base;
+}
+
+}  // namespace
+
 absl::StatusOr<TrialOptions> TrialOptionsFromPairs(
     const std::vector<std::pair<std::string, std::string>>& pairs) {
-  TrialOptions options;
-  for (const auto& [key, value] : pairs)
-    if (absl::Status st = SetTrialOption(key, value, &options); !st.ok()) return st;
-  return options;
+  return ApplyPairs(TrialOptions{}, pairs);
 }
 
 absl::StatusOr<TrialOptions> TrialOptionsFromStoredPairs(
     const std::vector<std::pair<std::string, std::string>>& pairs) {
-  TrialOptions options;
-  options.gp_variance_tolerance = kAbsentGpVarianceTolerance;
-  for (const auto& [key, value] : pairs)
-    if (absl::Status st = SetTrialOption(key, value, &options); !st.ok()) return st;
-  return options;
+  // The keys added after pairs were first stored start at their pre-change value.
+  TrialOptions base;
+  base.gp_variance_tolerance = kAbsentGpVarianceTolerance;
+  return ApplyPairs(base, pairs);
 }
 
 }  // namespace totalgrad::learner
