@@ -26,6 +26,7 @@ done
 cli results compare balance-del --baseline DEL > "$here/balance-del.compare-vs-DEL.txt" 2>&1 || true
 /usr/bin/python3 "$here/report.py" --totalgrad "$bin/totalgrad" \
   --rerun table1-tip-k1="$here/table1-tip-k1-pilco-rerun.archive.json" \
+  --same-as "$here/table1-tip-k1.archive.json" \
   "$here/table1-tip-k1.archive.json" "$here/balance-del.archive.json" \
   "$here/table1-followup-normalisation.archive.json" > "$here/report.md"
 # Splice the tables into docs/results/table1.md between its markers.

@@ -8,7 +8,8 @@ its quartiles, the CPU hours the trials took (the per-episode CPU seconds the
 workers reported) against the cost model's estimate for the same options
 (`totalgrad bench estimate`), and the builds that ran the trials.
 
-Usage: report.py [--totalgrad BIN] [--rerun SWEEP=RERUN.json]... ARCHIVE.json...
+Usage: report.py [--totalgrad BIN] [--rerun SWEEP=RERUN.json]... [--same-as REF.json]
+                 ARCHIVE.json...
 Prints Markdown on stdout. Reads nothing but the archives (and asks BIN for
 the cost model, when given).
 
@@ -16,6 +17,18 @@ the cost model, when given).
 the place of SWEEP's trials with the same method and seed (a re-run with a
 later build of trials whose build is known to be wrong); the table says which
 trials were replaced. Only trials with the same options (seed aside) replace.
+
+A sweep with task variants (options swept beside method and seed, such as
+the follow-up's `normalisation`) gets one row per method and variant, and a
+per-seed table of final costs side by side, variant against variant.
+
+--same-as REFERENCE.json: the determinism check across sweeps: every
+completed trial of the archives whose options (seed included) agree with
+those of a completed trial in REFERENCE.json on every key both state is
+compared episode by episode
+(evaluation cost means); the report says which agree bit for bit, and which
+builds ran the two (the same seed gives the same trial only on the same
+build).
 """
 import argparse
 import json
@@ -119,27 +132,33 @@ def report(archive_path, binary, cache, reruns):
     sweep = archive["sweep"]
     jobs = [job for job in archive["jobs"] if job.get("kind") == "trial"]
     replaced = apply_reruns(sweep["name"], jobs, reruns)
-    methods = []
+    # Rows: (method, variant) in first-appearance order; the variant is the
+    # sweep's task variant ("" in a sweep without one).
+    rows = []
     for job in jobs:
-        if job["method"] not in methods:
-            methods.append(job["method"])
+        if (job["method"], job.get("variant", "")) not in rows:
+            rows.append((job["method"], job.get("variant", "")))
+    has_variants = any(variant for _, variant in rows)
     print(f"### {sweep['name']}: {sweep.get('description', '')}\n")
     completed = [job for job in jobs if job.get("state") == "completed"]
     print(f"{len(completed)} of {len(jobs)} trials completed "
           f"(archive exported by {archive['exported_by']}).\n")
     if replaced:
         print(f"Re-run trials in place of this sweep's own: {', '.join(replaced)}.\n")
-    print("| method | successes / n | 95% Wilson | paper | paper inside? "
+    variant_header = "| variant " if has_variants else ""
+    print(f"| method {variant_header}| successes / n | 95% Wilson | paper | paper inside? "
           "| final cost median [q1, q3] | CPU h (measured) | CPU min / trial: measured, model |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|" + ("---|" if has_variants else ""))
     builds = {}
     total_cpu = 0.0
-    for method in methods:
-        done = [job for job in completed if job["method"] == method]
+    for method, variant in rows:
+        def in_row(job):
+            return job["method"] == method and job.get("variant", "") == variant
+        done = [job for job in completed if in_row(job)]
         n = len(done)
         successes = sum(1 for job in done if job.get("success"))
         low, high = wilson_interval(successes, n)
-        options = next(job_options(job) for job in jobs if job["method"] == method)
+        options = next(job_options(job) for job in jobs if in_row(job))
         rate = paper_rate(options, method)
         inside = "" if rate is None or n == 0 else ("yes" if low <= rate <= high else "**no**")
         costs = [job["final_eval_cost"] for job in done]
@@ -157,7 +176,7 @@ def report(archive_path, binary, cache, reruns):
             attempt = completed_attempt(job)
             if attempt is None:
                 continue
-            builds.setdefault(attempt["worker_build"], []).append(f"{method} s{job['seed']}")
+            builds.setdefault(attempt["worker_build"], []).append(trial_label(job))
             episodes = attempt["episodes"]
             if episodes and all(e.get("cpu_seconds") is not None for e in episodes) and \
                     len(episodes) == max(e["episode"] for e in episodes) + 1:
@@ -169,7 +188,8 @@ def report(archive_path, binary, cache, reruns):
         model_text = f"{model / 60:.1f}" if model else "-"
         cost_text = f"{median:.2f} [{q1:.2f}, {q3:.2f}]" if costs else "-"
         rate_text = "-" if rate is None else f"{rate:.2f}"
-        print(f"| {method} | {successes} / {n} | [{low:.2f}, {high:.2f}] | {rate_text} | "
+        variant_cell = f"| {variant or '-'} " if has_variants else ""
+        print(f"| {method} {variant_cell}| {successes} / {n} | [{low:.2f}, {high:.2f}] | {rate_text} | "
               f"{inside} | {cost_text} | {cpu / 3600:.2f} | {per_trial}, {model_text} |")
     print(f"\nTotal CPU reported: {total_cpu / 3600:.2f} h over the attempts of "
           f"{len(completed)} completed trials (trials of builds without per-episode CPU "
@@ -177,6 +197,119 @@ def report(archive_path, binary, cache, reruns):
     for build, trials in builds.items():
         print(f"- `{build}`: {len(trials)} trials ({', '.join(trials)})")
     print()
+    if has_variants:
+        print_per_seed_table(jobs, rows)
+    return completed
+
+
+def trial_label(job):
+    variant = job.get("variant", "")
+    return f"{job['method']} s{job['seed']}" + (f" {variant}" if variant else "")
+
+
+def print_per_seed_table(jobs, rows):
+    """Final evaluation cost per seed, one column per variant of each
+    method: the paired view of a sweep over an option."""
+    variants = []
+    for _, variant in rows:
+        if variant not in variants:
+            variants.append(variant)
+    methods = []
+    for method, _ in rows:
+        if method not in methods:
+            methods.append(method)
+    final = {(job["method"], job.get("variant", ""), str(job["seed"])): job
+             for job in jobs if job.get("state") == "completed"}
+    seeds = sorted({str(job["seed"]) for job in jobs}, key=lambda s: (len(s), s))
+    print("Final evaluation cost per seed (* below the threshold; - not completed):\n")
+    print("| method | seed | " + " | ".join(variants) + " |")
+    print("|---|---|" + "---|" * len(variants))
+    for method in methods:
+        for seed in seeds:
+            cells = []
+            for variant in variants:
+                job = final.get((method, variant, seed))
+                if job is None or job.get("final_eval_cost") is None:
+                    cells.append("-")
+                else:
+                    cells.append(f"{job['final_eval_cost']:.2f}" + ("*" if job.get("success") else ""))
+            if any(cell != "-" for cell in cells):
+                print(f"| {method} | {seed} | " + " | ".join(cells) + " |")
+    print()
+
+
+def episode_eval_costs(job):
+    """Evaluation cost mean per learned episode over every attempt (a
+    resumed attempt reports only the episodes after its checkpoint)."""
+    costs = {}
+    for attempt in job.get("attempt_log", []):
+        for episode in attempt.get("episodes", []):
+            costs[episode["episode"]] = episode.get("eval_cost_mean")
+    return costs
+
+
+def print_same_as(completed_by_archive, reference_path):
+    """The determinism check: trials that repeat a reference trial exactly."""
+    reference = json.load(open(reference_path))
+    candidates = [job for job in reference["jobs"]
+                  if job.get("kind") == "trial" and job.get("state") == "completed"]
+    only_one_side = set()
+
+    def find_match(job):
+        """The reference trial whose options agree with the job's on every
+        key both state, the job's swept keys among them (a coordinator of a
+        later build states more of the defaults explicitly; those keys are
+        listed below the table)."""
+        ours = job_options(job)
+        # The keys a sweep varies must be stated on both sides: a swept value
+        # (particle_std) is not a default the other coordinator left implicit.
+        swept = {item.split("=", 1)[0] for item in job.get("variant", "").split(",") if item}
+        for candidate in candidates:
+            theirs = job_options(candidate)
+            shared = set(ours) & set(theirs)
+            if "seed" in shared and swept <= shared and all(ours[k] == theirs[k] for k in shared):
+                only_one_side.update(
+                    f"{k}={ours.get(k, theirs.get(k))}" for k in set(ours) ^ set(theirs))
+                return candidate
+        return None
+
+    print(f"### Repeated trials against {reference['sweep']['name']}\n")
+    lines = []
+    for sweep_name, completed in completed_by_archive:
+        if sweep_name == reference["sweep"]["name"]:
+            continue
+        for job in completed:
+            match = find_match(job)
+            if match is None:
+                continue
+            ours, theirs = episode_eval_costs(job), episode_eval_costs(match)
+            same_episodes = sorted(set(ours) & set(theirs))
+            identical = bool(same_episodes) and set(ours) == set(theirs) and \
+                all(ours[e] == theirs[e] for e in same_episodes)
+            first_difference = next((e for e in same_episodes if ours[e] != theirs[e]), None)
+            ours_build = (completed_attempt(job) or {}).get("worker_build", "?")
+            theirs_build = (completed_attempt(match) or {}).get("worker_build", "?")
+            same_build = "same build" if ours_build == theirs_build else "different builds"
+            if identical:
+                verdict = "identical in every episode"
+            elif first_difference is None:
+                verdict = "episodes reported differ"
+            else:
+                verdict = f"differ from episode {first_difference} on"
+            lines.append(f"| {sweep_name} | {trial_label(job)} | {verdict} | "
+                         f"{job['final_eval_cost']:.4f} vs {match['final_eval_cost']:.4f} | "
+                         f"{same_build} |")
+    if not lines:
+        print("No completed trial repeats one of the reference's.\n")
+        return
+    print("| sweep | trial | evaluation costs | final cost (this vs reference) | builds |")
+    print("|---|---|---|---|---|")
+    for line in lines:
+        print(line)
+    print()
+    if only_one_side:
+        print("Options stated by only one of a matched pair (defaults the later coordinator "
+              "wrote out): " + ", ".join(f"`{item}`" for item in sorted(only_one_side)) + ".\n")
 
 
 def main():
@@ -184,6 +317,8 @@ def main():
     parser.add_argument("--totalgrad", help="totalgrad binary for the cost model")
     parser.add_argument("--rerun", action="append", default=[], metavar="SWEEP=RERUN.json",
                         help="completed trials of RERUN.json replace SWEEP's same method and seed")
+    parser.add_argument("--same-as", metavar="REFERENCE.json",
+                        help="compare trials that repeat a completed trial of REFERENCE.json")
     parser.add_argument("archives", nargs="+")
     arguments = parser.parse_args()
     reruns = {}
@@ -193,8 +328,12 @@ def main():
             parser.error(f"--rerun wants SWEEP=RERUN.json, got '{item}'")
         reruns.setdefault(sweep, []).append(path)
     cache = {}
+    completed_by_archive = []
     for path in arguments.archives:
-        report(path, arguments.totalgrad, cache, reruns)
+        completed = report(path, arguments.totalgrad, cache, reruns)
+        completed_by_archive.append((json.load(open(path))["sweep"]["name"], completed))
+    if arguments.same_as:
+        print_same_as(completed_by_archive, arguments.same_as)
 
 
 if __name__ == "__main__":

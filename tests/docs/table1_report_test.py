@@ -1,0 +1,146 @@
+#!/usr/bin/python3
+"""docs/results/table1/report.py on synthetic sweep archives: one row per
+method and task variant, the per-seed table of a swept option, and the
+determinism check (--same-as) that tells identical repeats from trials that
+differ, naming the first differing episode.
+
+Usage: table1_report_test.py REPORT_PY
+"""
+import json
+import os
+import subprocess
+import sys
+import tempfile
+
+BUILD_A = "totalgrad test build A"
+BUILD_B = "totalgrad test build B"
+
+
+def trial(method, seed, variant, costs, build, success=None, extra_options=()):
+    """A completed trial job as `results export -f json` writes it."""
+    options = [["method", method], ["seed", str(seed)], ["scene", "cartpole-swingup"],
+               ["cost", "tip"], ["noise_k", "1"]]
+    if variant:
+        key, value = variant.split("=")
+        options.append([key, value])
+    options += [list(item) for item in extra_options]
+    episodes = [{"episode": e, "eval_cost_mean": c, "cpu_seconds": 60.0}
+                for e, c in enumerate(costs)]
+    final = costs[-1]
+    return {"kind": "trial", "method": method, "seed": seed, "variant": variant,
+            "options": options, "state": "completed",
+            "success": final < 15 if success is None else success,
+            "final_eval_cost": final, "completed_attempt": 1,
+            "attempt_log": [{"attempt": 1, "worker_build": build, "episodes": episodes}]}
+
+
+def queued(method, seed, variant):
+    job = trial(method, seed, variant, [0.0], BUILD_A)
+    job.update(state="queued", success=False, final_eval_cost=None, completed_attempt=0,
+               attempt_log=[])
+    return job
+
+
+def archive(name, jobs):
+    return {"format": "totalgrad-sweep-archive", "version": 3, "exported_by": "test",
+            "exported_unix_ms": 0, "sweep": {"name": name, "description": name}, "jobs": jobs}
+
+
+def run(report_py, directory, archives, *arguments):
+    paths = []
+    for name, content in archives:
+        path = os.path.join(directory, name + ".json")
+        with open(path, "w") as f:
+            json.dump(content, f)
+        paths.append(path)
+    result = subprocess.run([sys.executable, report_py, *arguments, *paths],
+                            capture_output=True, text=True)
+    if result.returncode != 0:
+        raise AssertionError(f"report.py failed: {result.stderr}")
+    return result.stdout, paths
+
+
+def expect(condition, message, output):
+    if not condition:
+        raise AssertionError(f"{message}\n--- output ---\n{output}")
+
+
+def main():
+    report_py = sys.argv[1]
+    with tempfile.TemporaryDirectory() as directory:
+        # The main sweep states the default normalisation, except for one
+        # trial (RP 13) whose options leave it out.
+        stated = [("normalisation", "mean_std")]
+        reference = archive("main", [
+            trial("RP", 11, "", [30.0, 29.0, 12.5], BUILD_A, extra_options=stated),
+            trial("RP", 12, "", [30.0, 28.0, 27.0], BUILD_A, extra_options=stated),
+            trial("RP", 13, "", [30.0, 28.0, 28.0], BUILD_A),
+            trial("GTP", 11, "", [30.0, 20.0, 9.0], BUILD_B, extra_options=stated),
+        ])
+        # The follow-up sweeps `normalisation`; its coordinator wrote out a
+        # default the main sweep's left implicit (matched on shared keys).
+        extra = [("gravity", "9.82")]
+        followup = archive("followup", [
+            trial("RP", 11, "normalisation=mean_std", [30.0, 29.0, 12.5], BUILD_A,
+                  extra_options=extra),
+            trial("RP", 11, "normalisation=particle_std", [30.0, 29.5, 28.0], BUILD_A,
+                  extra_options=extra),
+            trial("RP", 12, "normalisation=mean_std", [30.0, 28.0, 26.0], BUILD_A,
+                  extra_options=extra),
+            queued("RP", 12, "normalisation=particle_std"),
+            # Same numbers as main's RP 13, which does not state the swept
+            # key: no repeat (a swept value is not an implicit default).
+            trial("RP", 13, "normalisation=particle_std", [30.0, 28.0, 28.0], BUILD_A,
+                  extra_options=extra),
+            trial("GTP", 11, "normalisation=mean_std", [30.0, 20.0, 9.0], BUILD_A,
+                  extra_options=extra),
+            trial("GTP", 11, "normalisation=particle_std", [30.0, 18.0, 7.0], BUILD_A,
+                  extra_options=extra),
+        ])
+        output, paths = run(report_py, directory, [("main", reference), ("followup", followup)],
+                            "--same-as", os.path.join(directory, "main.json"))
+
+        # One row per method and variant, with its own counts.
+        expect("| RP | normalisation=mean_std | 1 / 2 |" in output,
+               "RP mean_std row: 1 success of 2", output)
+        expect("| RP | normalisation=particle_std | 0 / 2 |" in output,
+               "RP particle_std row: 0 of 2 (the queued trial is not counted)", output)
+        expect("| GTP | normalisation=particle_std | 1 / 1 |" in output,
+               "GTP particle_std row", output)
+        # A sweep without variants keeps the method-only table.
+        expect("| RP | 1 / 3 |" in output, "the main sweep's rows have no variant column",
+               output)
+
+        # The per-seed table puts the variants side by side, marks successes
+        # and leaves the queued trial as "-".
+        expect("| RP | 11 | 12.50* | 28.00 |" in output, "per-seed row RP 11", output)
+        expect("| RP | 12 | 26.00 | - |" in output, "per-seed row RP 12", output)
+        expect("| RP | 13 | - | 28.00 |" in output, "per-seed row RP 13", output)
+        expect("| GTP | 11 | 9.00* | 7.00* |" in output, "per-seed row GTP 11", output)
+
+        # Determinism check: RP 11 repeats the main trial exactly on the same
+        # build; RP 12 differs from its last episode; GTP 11 matches in
+        # numbers but ran on another build, which the row says.
+        expect("| followup | RP s11 normalisation=mean_std | identical in every episode | "
+               "12.5000 vs 12.5000 | same build |" in output, "identical repeat", output)
+        expect("| followup | RP s12 normalisation=mean_std | differ from episode 2 on | "
+               "26.0000 vs 27.0000 | same build |" in output, "differing repeat", output)
+        expect("| followup | GTP s11 normalisation=mean_std | identical in every episode | "
+               "9.0000 vs 9.0000 | different builds |" in output, "build difference named",
+               output)
+        expect("particle_std | identical" not in output and
+               "particle_std | differ" not in output,
+               "a trial with another normalisation, stated or not, is no repeat", output)
+        expect("`gravity=9.82`" in output, "keys stated on one side only are listed", output)
+
+        # A reference without any match says so instead of an empty table.
+        output, _ = run(report_py, directory,
+                        [("other", archive("other", [trial("LR", 3, "", [1.0], BUILD_A)]))],
+                        "--same-as", paths[0])
+        expect("No completed trial repeats one of the reference's." in output,
+               "no-match message", output)
+    print("table1 report: all checks passed")
+
+
+if __name__ == "__main__":
+    main()
