@@ -1,7 +1,8 @@
 #!/usr/bin/python3
 """docs/results/table1/report.py on synthetic sweep archives: one row per
 method and task variant, the per-seed table of a swept option, and the
-determinism check (--same-as) that tells identical repeats from trials that
+the reference sweep (--reference): its counterpart trials in the per-seed
+table, and the determinism check that tells identical repeats from trials that
 differ, naming the first differing episode.
 
 Usage: table1_report_test.py REPORT_PY
@@ -98,7 +99,7 @@ def main():
                   extra_options=extra),
         ])
         output, paths = run(report_py, directory, [("main", reference), ("followup", followup)],
-                            "--same-as", os.path.join(directory, "main.json"))
+                            "--reference", os.path.join(directory, "main.json"))
 
         # One row per method and variant, with its own counts.
         expect("| RP | normalisation=mean_std | 1 / 2 |" in output,
@@ -111,12 +112,18 @@ def main():
         expect("| RP | 1 / 3 |" in output, "the main sweep's rows have no variant column",
                output)
 
-        # The per-seed table puts the variants side by side, marks successes
-        # and leaves the queued trial as "-".
-        expect("| RP | 11 | 12.50* | 28.00 |" in output, "per-seed row RP 11", output)
-        expect("| RP | 12 | 26.00 | - |" in output, "per-seed row RP 12", output)
-        expect("| RP | 13 | - | 28.00 |" in output, "per-seed row RP 13", output)
-        expect("| GTP | 11 | 9.00* | 7.00* |" in output, "per-seed row GTP 11", output)
+        # The per-seed table puts the variants side by side after the
+        # reference's counterpart (same method and seed, differing in the
+        # swept option only), marks successes, leaves the queued trial as
+        # "-", marks a counterpart of another build with "+", and finds no
+        # counterpart for RP 13, whose reference trial does not state the
+        # swept key.
+        expect("| method | seed | main: normalisation=mean_std" in output,
+               "reference column header", output)
+        expect("| RP | 11 | 12.50* | 12.50* | 28.00 |" in output, "per-seed row RP 11", output)
+        expect("| RP | 12 | 27.00 | 26.00 | - |" in output, "per-seed row RP 12", output)
+        expect("| RP | 13 | - | - | 28.00 |" in output, "per-seed row RP 13", output)
+        expect("| GTP | 11 | 9.00*+ | 9.00* | 7.00* |" in output, "per-seed row GTP 11", output)
 
         # Determinism check: RP 11 repeats the main trial exactly on the same
         # build; RP 12 differs from its last episode; GTP 11 matches in
@@ -136,7 +143,7 @@ def main():
         # A reference without any match says so instead of an empty table.
         output, _ = run(report_py, directory,
                         [("other", archive("other", [trial("LR", 3, "", [1.0], BUILD_A)]))],
-                        "--same-as", paths[0])
+                        "--reference", paths[0])
         expect("No completed trial repeats one of the reference's." in output,
                "no-match message", output)
     print("table1 report: all checks passed")

@@ -16,7 +16,7 @@ bin=${1:?usage: make_report.sh BIN_DIR [COORDINATOR]}
 coordinator=${2:-127.0.0.1:7171}
 here=$(cd "$(dirname "$0")" && pwd)
 cli() { "$bin/totalgrad" "$@" --coordinator "$coordinator" --insecure; }
-for sweep in table1-tip-k1 balance-del table1-followup-normalisation table1-tip-k1-pilco-rerun; do
+for sweep in table1-tip-k1 balance-del table1-followup-particle-std table1-tip-k1-pilco-rerun; do
   cli results export "$sweep" -f json -o "$here/$sweep.archive.json"
   # A sweep with no completed trial yet has nothing to compare or plot: say
   # so in the file instead of stopping.
@@ -26,9 +26,9 @@ done
 cli results compare balance-del --baseline DEL > "$here/balance-del.compare-vs-DEL.txt" 2>&1 || true
 /usr/bin/python3 "$here/report.py" --totalgrad "$bin/totalgrad" \
   --rerun table1-tip-k1="$here/table1-tip-k1-pilco-rerun.archive.json" \
-  --same-as "$here/table1-tip-k1.archive.json" \
+  --reference "$here/table1-tip-k1.archive.json" \
   "$here/table1-tip-k1.archive.json" "$here/balance-del.archive.json" \
-  "$here/table1-followup-normalisation.archive.json" > "$here/report.md"
+  "$here/table1-followup-particle-std.archive.json" > "$here/report.md"
 # Splice the tables into docs/results/table1.md between its markers.
 /usr/bin/python3 - "$here/report.md" "$here/../table1.md" <<'PY'
 import sys

@@ -8,7 +8,7 @@ its quartiles, the CPU hours the trials took (the per-episode CPU seconds the
 workers reported) against the cost model's estimate for the same options
 (`totalgrad bench estimate`), and the builds that ran the trials.
 
-Usage: report.py [--totalgrad BIN] [--rerun SWEEP=RERUN.json]... [--same-as REF.json]
+Usage: report.py [--totalgrad BIN] [--rerun SWEEP=RERUN.json]... [--reference REF.json]
                  ARCHIVE.json...
 Prints Markdown on stdout. Reads nothing but the archives (and asks BIN for
 the cost model, when given).
@@ -22,13 +22,17 @@ A sweep with task variants (options swept beside method and seed, such as
 the follow-up's `normalisation`) gets one row per method and variant, and a
 per-seed table of final costs side by side, variant against variant.
 
---same-as REFERENCE.json: the determinism check across sweeps: every
-completed trial of the archives whose options (seed included) agree with
-those of a completed trial in REFERENCE.json on every key both state is
-compared episode by episode
-(evaluation cost means); the report says which agree bit for bit, and which
-builds ran the two (the same seed gives the same trial only on the same
-build).
+--reference REFERENCE.json: another sweep's archive to set these beside.
+(1) The per-seed table of a sweep over an option gains a column with the
+reference's trial of the same method and seed that differs in the swept
+option only (the follow-up's particle_std against table1-tip-k1's default
+mean_std); a mark says when the two ran on different builds. (2) The
+determinism check: every completed trial whose options equal a reference
+trial's is compared episode by episode (evaluation cost means); the report
+says which agree bit for bit, and which builds ran the two (the same seed
+gives the same trial only on the same build). Options are compared on the
+keys both state (a coordinator of a later build writes out more defaults;
+those keys are listed); the swept keys must be stated on both sides.
 """
 import argparse
 import json
@@ -127,7 +131,7 @@ def apply_reruns(sweep_name, jobs, reruns):
     return replaced
 
 
-def report(archive_path, binary, cache, reruns):
+def report(archive_path, binary, cache, reruns, reference=None):
     archive = json.load(open(archive_path))
     sweep = archive["sweep"]
     jobs = [job for job in archive["jobs"] if job.get("kind") == "trial"]
@@ -198,8 +202,31 @@ def report(archive_path, binary, cache, reruns):
         print(f"- `{build}`: {len(trials)} trials ({', '.join(trials)})")
     print()
     if has_variants:
-        print_per_seed_table(jobs, rows)
+        print_per_seed_table(jobs, rows, reference)
     return completed
+
+
+def swept_keys(job):
+    return {item.split("=", 1)[0] for item in job.get("variant", "").split(",") if item}
+
+
+def options_agree(job, candidate, ignore=()):
+    """Whether two trials' options agree on every key both state, ignoring
+    `ignore`; the keys `job` sweeps must be stated by both (a swept value
+    such as particle_std is not a default the other coordinator left
+    implicit). Returns the keys only one side states, or None."""
+    ours, theirs = job_options(job), job_options(candidate)
+    shared = set(ours) & set(theirs)
+    if "seed" not in shared or not swept_keys(job) <= shared:
+        return None
+    if any(ours[k] != theirs[k] for k in shared if k not in ignore):
+        return None
+    return {f"{k}={ours.get(k, theirs.get(k))}" for k in set(ours) ^ set(theirs)}
+
+
+def completed_trials(archive):
+    return [job for job in archive["jobs"]
+            if job.get("kind") == "trial" and job.get("state") == "completed"]
 
 
 def trial_label(job):
@@ -207,9 +234,25 @@ def trial_label(job):
     return f"{job['method']} s{job['seed']}" + (f" {variant}" if variant else "")
 
 
-def print_per_seed_table(jobs, rows):
+def cost_cell(job):
+    if job is None or job.get("final_eval_cost") is None:
+        return "-"
+    return f"{job['final_eval_cost']:.2f}" + ("*" if job.get("success") else "")
+
+
+def reference_counterpart(job, reference):
+    """The reference's completed trial that differs from `job` in the swept
+    options only (same method and seed), or None."""
+    for candidate in completed_trials(reference):
+        if options_agree(job, candidate, ignore=swept_keys(job)) is not None:
+            return candidate
+    return None
+
+
+def print_per_seed_table(jobs, rows, reference=None):
     """Final evaluation cost per seed, one column per variant of each
-    method: the paired view of a sweep over an option."""
+    method: the paired view of a sweep over an option; with a reference,
+    first a column of the reference's counterpart trials."""
     variants = []
     for _, variant in rows:
         if variant not in variants:
@@ -221,19 +264,39 @@ def print_per_seed_table(jobs, rows):
     final = {(job["method"], job.get("variant", ""), str(job["seed"])): job
              for job in jobs if job.get("state") == "completed"}
     seeds = sorted({str(job["seed"]) for job in jobs}, key=lambda s: (len(s), s))
-    print("Final evaluation cost per seed (* below the threshold; - not completed):\n")
-    print("| method | seed | " + " | ".join(variants) + " |")
-    print("|---|---|" + "---|" * len(variants))
+    print("Final evaluation cost per seed (* below the threshold; - not completed"
+          + ("; + the reference trial ran on another build than this sweep's" if reference
+             else "") + "):\n")
+    reference_header = []
+    if reference is not None:
+        keys = sorted({key for job in jobs for key in swept_keys(job)})
+        values = []
+        for candidate in completed_trials(reference):
+            options = job_options(candidate)
+            value = ",".join(f"{k}={options.get(k, '?')}" for k in keys)
+            if value not in values:
+                values.append(value)
+        reference_header = [f"{reference['sweep']['name']}: {', '.join(values)}"]
+    columns = reference_header + variants
+    print("| method | seed | " + " | ".join(columns) + " |")
+    print("|---|---|" + "---|" * len(columns))
     for method in methods:
         for seed in seeds:
             cells = []
-            for variant in variants:
-                job = final.get((method, variant, seed))
-                if job is None or job.get("final_eval_cost") is None:
-                    cells.append("-")
-                else:
-                    cells.append(f"{job['final_eval_cost']:.2f}" + ("*" if job.get("success") else ""))
-            if any(cell != "-" for cell in cells):
+            ours = [final.get((method, variant, seed)) for variant in variants]
+            if reference is not None:
+                anchor = next((job for job in jobs if job["method"] == method and
+                               str(job["seed"]) == seed), None)
+                counterpart = reference_counterpart(anchor, reference) if anchor else None
+                mark = ""
+                builds = {(completed_attempt(job) or {}).get("worker_build")
+                          for job in ours if job is not None}
+                if counterpart is not None and builds and \
+                        (completed_attempt(counterpart) or {}).get("worker_build") not in builds:
+                    mark = "+"
+                cells.append(cost_cell(counterpart) + mark)
+            cells += [cost_cell(job) for job in ours]
+            if any(cell != "-" for cell in cells[len(reference_header):]):
                 print(f"| {method} | {seed} | " + " | ".join(cells) + " |")
     print()
 
@@ -248,28 +311,15 @@ def episode_eval_costs(job):
     return costs
 
 
-def print_same_as(completed_by_archive, reference_path):
+def print_repeats(completed_by_archive, reference):
     """The determinism check: trials that repeat a reference trial exactly."""
-    reference = json.load(open(reference_path))
-    candidates = [job for job in reference["jobs"]
-                  if job.get("kind") == "trial" and job.get("state") == "completed"]
     only_one_side = set()
 
     def find_match(job):
-        """The reference trial whose options agree with the job's on every
-        key both state, the job's swept keys among them (a coordinator of a
-        later build states more of the defaults explicitly; those keys are
-        listed below the table)."""
-        ours = job_options(job)
-        # The keys a sweep varies must be stated on both sides: a swept value
-        # (particle_std) is not a default the other coordinator left implicit.
-        swept = {item.split("=", 1)[0] for item in job.get("variant", "").split(",") if item}
-        for candidate in candidates:
-            theirs = job_options(candidate)
-            shared = set(ours) & set(theirs)
-            if "seed" in shared and swept <= shared and all(ours[k] == theirs[k] for k in shared):
-                only_one_side.update(
-                    f"{k}={ours.get(k, theirs.get(k))}" for k in set(ours) ^ set(theirs))
+        for candidate in completed_trials(reference):
+            one_sided = options_agree(job, candidate)
+            if one_sided is not None:
+                only_one_side.update(one_sided)
                 return candidate
         return None
 
@@ -317,8 +367,9 @@ def main():
     parser.add_argument("--totalgrad", help="totalgrad binary for the cost model")
     parser.add_argument("--rerun", action="append", default=[], metavar="SWEEP=RERUN.json",
                         help="completed trials of RERUN.json replace SWEEP's same method and seed")
-    parser.add_argument("--same-as", metavar="REFERENCE.json",
-                        help="compare trials that repeat a completed trial of REFERENCE.json")
+    parser.add_argument("--reference", metavar="REFERENCE.json",
+                        help="set trials beside REFERENCE.json's: per-seed counterparts of a "
+                             "swept option, and exact repeats")
     parser.add_argument("archives", nargs="+")
     arguments = parser.parse_args()
     reruns = {}
@@ -328,12 +379,13 @@ def main():
             parser.error(f"--rerun wants SWEEP=RERUN.json, got '{item}'")
         reruns.setdefault(sweep, []).append(path)
     cache = {}
+    reference = json.load(open(arguments.reference)) if arguments.reference else None
     completed_by_archive = []
     for path in arguments.archives:
-        completed = report(path, arguments.totalgrad, cache, reruns)
+        completed = report(path, arguments.totalgrad, cache, reruns, reference)
         completed_by_archive.append((json.load(open(path))["sweep"]["name"], completed))
-    if arguments.same_as:
-        print_same_as(completed_by_archive, arguments.same_as)
+    if reference is not None:
+        print_repeats(completed_by_archive, reference)
 
 
 if __name__ == "__main__":
