@@ -81,22 +81,21 @@ def main():
         # The follow-up sweeps `normalisation`; its coordinator wrote out a
         # default the main sweep's left implicit (matched on shared keys).
         extra = [("gravity", "9.82")]
+
+        def followup_trial(method, seed, normalisation, costs):
+            return trial(method, seed, f"normalisation={normalisation}", costs, BUILD_A,
+                         extra_options=extra)
+
         followup = archive("followup", [
-            trial("RP", 11, "normalisation=mean_std", [30.0, 29.0, 12.5], BUILD_A,
-                  extra_options=extra),
-            trial("RP", 11, "normalisation=particle_std", [30.0, 29.5, 28.0], BUILD_A,
-                  extra_options=extra),
-            trial("RP", 12, "normalisation=mean_std", [30.0, 28.0, 26.0], BUILD_A,
-                  extra_options=extra),
+            followup_trial("RP", 11, "mean_std", [30.0, 29.0, 12.5]),
+            followup_trial("RP", 11, "particle_std", [30.0, 29.5, 28.0]),
+            followup_trial("RP", 12, "mean_std", [30.0, 28.0, 26.0]),
             queued("RP", 12, "normalisation=particle_std"),
             # Same numbers as main's RP 13, which does not state the swept
             # key: no repeat (a swept value is not an implicit default).
-            trial("RP", 13, "normalisation=particle_std", [30.0, 28.0, 28.0], BUILD_A,
-                  extra_options=extra),
-            trial("GTP", 11, "normalisation=mean_std", [30.0, 20.0, 9.0], BUILD_A,
-                  extra_options=extra),
-            trial("GTP", 11, "normalisation=particle_std", [30.0, 18.0, 7.0], BUILD_A,
-                  extra_options=extra),
+            followup_trial("RP", 13, "particle_std", [30.0, 28.0, 28.0]),
+            followup_trial("GTP", 11, "mean_std", [30.0, 20.0, 9.0]),
+            followup_trial("GTP", 11, "particle_std", [30.0, 18.0, 7.0]),
         ])
         output, paths = run(report_py, directory, [("main", reference), ("followup", followup)],
                             "--reference", os.path.join(directory, "main.json"))
