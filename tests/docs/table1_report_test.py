@@ -145,7 +145,44 @@ def main():
                         "--reference", paths[0])
         expect("No completed trial repeats one of the reference's." in output,
                "no-match message", output)
+        check_reruns(report_py, directory)
     print("table1 report: all checks passed")
+
+
+def check_reruns(report_py, directory):
+    """--rerun puts a re-run in the place of the trial with the same method,
+    seed and options, even when the re-run's coordinator wrote out defaults
+    the original's left implicit; a re-run that matches nothing is named;
+    --merged-dir writes the merged sweep for `results import`."""
+    original = archive("main", [
+        trial("PILCO", 10, "", [30.0, 29.9], BUILD_A),
+        trial("PILCO", 11, "", [30.0, 13.0], BUILD_A),
+        trial("RP", 10, "", [30.0, 29.0], BUILD_A),
+    ])
+    original["jobs"][0]["job_id"] = 7
+    rerun = archive("main-rerun", [
+        trial("PILCO", 10, "", [30.0, 12.0], BUILD_B, extra_options=[("gravity", "9.82")]),
+        trial("PILCO", 12, "", [30.0, 11.0], BUILD_B),
+    ])
+    rerun["jobs"][0]["job_id"] = 99
+    rerun_path = os.path.join(directory, "main-rerun.json")
+    with open(rerun_path, "w") as f:
+        json.dump(rerun, f)
+    merged_dir = os.path.join(directory, "merged")
+    os.mkdir(merged_dir)
+    output, _ = run(report_py, directory, [("main", original)],
+                    "--rerun", f"main={rerun_path}", "--merged-dir", merged_dir)
+    expect("Re-run trials in place of this sweep's own: PILCO s10 (from main-rerun)." in output,
+           "the re-run with extra stated defaults replaces PILCO s10", output)
+    expect("| PILCO | 2 / 2 |" in output, "PILCO counts the re-run's success", output)
+    expect("match no trial of this sweep (not used): PILCO s12 (from main-rerun)" in output,
+           "an unmatched re-run is named", output)
+    merged = json.load(open(os.path.join(merged_dir, "main.merged.json")))
+    pilco10 = [job for job in merged["jobs"] if job["method"] == "PILCO" and job["seed"] == 10]
+    expect(len(pilco10) == 1 and pilco10[0]["final_eval_cost"] == 12.0 and
+           pilco10[0]["job_id"] == 7 and len(merged["jobs"]) == 3,
+           "merged archive: the re-run in the original's place, keeping its job id",
+           json.dumps(merged["jobs"])[:2000])
 
 
 if __name__ == "__main__":

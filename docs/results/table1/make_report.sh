@@ -7,28 +7,59 @@
 #
 #   make_report.sh BIN_DIR [COORDINATOR]
 #
-# BIN_DIR holds the totalgrad CLI of the build the coordinator runs (an older
-# build's CLI cannot read a newer schema, and the other way round);
-# COORDINATOR defaults to 127.0.0.1:7171 (plaintext, loopback), the user
-# token comes from TOTALGRAD_TOKEN_FILE.
+# BIN_DIR holds the totalgrad CLI and coordinator of the build the
+# coordinator runs (an older build's CLI cannot read a newer schema, and the
+# other way round); COORDINATOR defaults to 127.0.0.1:7171 (plaintext,
+# loopback), the user token comes from TOTALGRAD_TOKEN_FILE.
+#
+# table1-tip-k1's PILCO seeds 10 and 11 were re-run by a sweep of their own
+# (table1-tip-k1-pilco-rerun). So that `results compare` and `results curves`
+# see the re-runs in their place, report.py writes table1-tip-k1 with them
+# merged in, which a scratch coordinator of the same build (loopback port
+# SCRATCH_PORT, default 7181, a temporary database) imports and answers for.
 set -euo pipefail
 bin=${1:?usage: make_report.sh BIN_DIR [COORDINATOR]}
 coordinator=${2:-127.0.0.1:7171}
+scratch_port=${SCRATCH_PORT:-7181}
 here=$(cd "$(dirname "$0")" && pwd)
 cli() { "$bin/totalgrad" "$@" --coordinator "$coordinator" --insecure; }
+scratch_cli() { env -u TOTALGRAD_TOKEN_FILE "$bin/totalgrad" "$@" --coordinator "127.0.0.1:$scratch_port" --insecure; }
+# A sweep with no completed trial yet has nothing to compare or plot: say so
+# in the file instead of stopping.
+compare_and_plot() {  # CLI_FUNCTION SWEEP
+  "$1" results compare "$2" > "$here/$2.compare.txt" 2>&1 || true
+  "$1" results curves "$2" --plot "$here/$2.curves.svg" > "$here/$2.curves.txt" 2>&1 || true
+}
+
 for sweep in table1-tip-k1 balance-del table1-followup-particle-std table1-tip-k1-pilco-rerun; do
   cli results export "$sweep" -f json -o "$here/$sweep.archive.json"
-  # A sweep with no completed trial yet has nothing to compare or plot: say
-  # so in the file instead of stopping.
-  cli results compare "$sweep" > "$here/$sweep.compare.txt" 2>&1 || true
-  cli results curves "$sweep" --plot "$here/$sweep.curves.svg" > "$here/$sweep.curves.txt" 2>&1 || true
 done
-cli results compare balance-del --baseline DEL > "$here/balance-del.compare-vs-DEL.txt" 2>&1 || true
-/usr/bin/python3 "$here/report.py" --totalgrad "$bin/totalgrad" \
+scratch=$(mktemp -d)
+/usr/bin/python3 "$here/report.py" --totalgrad "$bin/totalgrad" --merged-dir "$scratch" \
   --rerun table1-tip-k1="$here/table1-tip-k1-pilco-rerun.archive.json" \
   --reference "$here/table1-tip-k1.archive.json" \
   "$here/table1-tip-k1.archive.json" "$here/balance-del.archive.json" \
   "$here/table1-followup-particle-std.archive.json" > "$here/report.md"
+
+"$bin/totalgrad-coordinator" --db "$scratch/merged.db" --listen "127.0.0.1:$scratch_port" \
+  --insecure > "$scratch/coordinator.log" 2>&1 &
+scratch_pid=$!
+trap 'kill "$scratch_pid" 2>/dev/null; wait "$scratch_pid" 2>/dev/null; rm -rf "$scratch"' EXIT
+for attempt in $(seq 1 50); do
+  scratch_cli results import "$scratch/table1-tip-k1.merged.json" > /dev/null 2>&1 && break
+  if [ "$attempt" = 50 ]; then
+    echo "make_report.sh: the scratch coordinator on port $scratch_port did not take the merged archive:" >&2
+    cat "$scratch/coordinator.log" >&2
+    exit 1
+  fi
+  sleep 0.2
+done
+compare_and_plot scratch_cli table1-tip-k1
+for sweep in balance-del table1-followup-particle-std table1-tip-k1-pilco-rerun; do
+  compare_and_plot cli "$sweep"
+done
+cli results compare balance-del --baseline DEL > "$here/balance-del.compare-vs-DEL.txt" 2>&1 || true
+
 # Splice the tables into docs/results/table1.md between its markers.
 /usr/bin/python3 - "$here/report.md" "$here/../table1.md" <<'PY'
 import sys

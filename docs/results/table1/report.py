@@ -16,7 +16,11 @@ the cost model, when given).
 --rerun SWEEP=RERUN.json: the completed trials of the archive RERUN.json take
 the place of SWEEP's trials with the same method and seed (a re-run with a
 later build of trials whose build is known to be wrong); the table says which
-trials were replaced. Only trials with the same options (seed aside) replace.
+trials were replaced. Only trials whose options agree (on the keys both
+state) replace; a completed re-run that replaces nothing is named in the
+report and on stderr. --merged-dir DIR writes each archive with its re-runs
+in place (DIR/SWEEP.merged.json), for `results import` into a scratch
+coordinator whose `results compare` and `results curves` then see them.
 
 A sweep with task variants (options swept beside method and seed, such as
 the follow-up's `normalisation`) gets one row per method and variant, and a
@@ -37,6 +41,7 @@ those keys are listed); the swept keys must be stated on both sides.
 import argparse
 import json
 import math
+import os
 import statistics
 import subprocess
 import sys
@@ -110,32 +115,46 @@ def job_options(job):
     return dict(job["options"])
 
 
-def options_without_seed(job):
-    return {k: v for k, v in job_options(job).items() if k != "seed"}
-
-
 def apply_reruns(sweep_name, jobs, reruns):
-    """Replaces jobs by completed re-runs of the same (method, seed, options)."""
-    replaced = []
+    """Replaces jobs by completed re-runs of the same method and seed whose
+    options agree on every key both state (the re-run's coordinator may
+    write out defaults the original's left implicit). The replacing job
+    keeps the original's place in the sweep (job_id, sweep_name, ordinal).
+    Returns (replaced labels, unmatched labels): a completed re-run that
+    replaces nothing is reported, never dropped silently."""
+    replaced, unmatched = [], []
     for rerun_path in reruns.get(sweep_name, []):
         rerun = json.load(open(rerun_path))
         for new in rerun["jobs"]:
             if new.get("kind") != "trial" or new.get("state") != "completed":
                 continue
+            label = f"{new['method']} s{new['seed']} (from {rerun['sweep']['name']})"
             for i, old in enumerate(jobs):
-                if (old["method"], str(old["seed"])) == (new["method"], str(new["seed"])) and \
-                        options_without_seed(old) == options_without_seed(new):
-                    jobs[i] = new
-                    replaced.append(f"{new['method']} s{new['seed']} "
-                                    f"(from {rerun['sweep']['name']})")
-    return replaced
+                if options_agree(new, old) is not None:
+                    merged = dict(new)
+                    for key in ("job_id", "sweep_name", "ordinal"):
+                        if key in old:
+                            merged[key] = old[key]
+                    jobs[i] = merged
+                    replaced.append(label)
+                    break
+            else:
+                unmatched.append(label)
+    return replaced, unmatched
 
 
-def report(archive_path, binary, cache, reruns, reference=None):
+def report(archive_path, binary, cache, reruns, reference=None, merged_dir=None):
     archive = json.load(open(archive_path))
     sweep = archive["sweep"]
     jobs = [job for job in archive["jobs"] if job.get("kind") == "trial"]
-    replaced = apply_reruns(sweep["name"], jobs, reruns)
+    replaced, unmatched = apply_reruns(sweep["name"], jobs, reruns)
+    if merged_dir:
+        # The sweep with its re-runs in place, as an archive that `results
+        # import` takes, so the service's own compare and curves see them.
+        merged = dict(archive)
+        merged["jobs"] = [job for job in archive["jobs"] if job.get("kind") != "trial"] + jobs
+        with open(os.path.join(merged_dir, f"{sweep['name']}.merged.json"), "w") as f:
+            json.dump(merged, f)
     # Rows: (method, variant) in first-appearance order; the variant is the
     # sweep's task variant ("" in a sweep without one).
     rows = []
@@ -149,6 +168,11 @@ def report(archive_path, binary, cache, reruns, reference=None):
           f"(archive exported by {archive['exported_by']}).\n")
     if replaced:
         print(f"Re-run trials in place of this sweep's own: {', '.join(replaced)}.\n")
+    if unmatched:
+        message = (f"Re-run trials that match no trial of this sweep (not used): "
+                   f"{', '.join(unmatched)}.")
+        print(f"**{message}**\n")
+        print(f"report.py: {sweep['name']}: {message}", file=sys.stderr)
     variant_header = "| variant " if has_variants else ""
     print(f"| method {variant_header}| successes / n | 95% Wilson | paper | paper inside? "
           "| final cost median [q1, q3] | CPU h (measured) | CPU min / trial: measured, model |")
@@ -370,6 +394,8 @@ def main():
     parser.add_argument("--reference", metavar="REFERENCE.json",
                         help="set trials beside REFERENCE.json's: per-seed counterparts of a "
                              "swept option, and exact repeats")
+    parser.add_argument("--merged-dir", metavar="DIR",
+                        help="write each archive with its re-runs in place to DIR/SWEEP.merged.json")
     parser.add_argument("archives", nargs="+")
     arguments = parser.parse_args()
     reruns = {}
@@ -382,7 +408,8 @@ def main():
     reference = json.load(open(arguments.reference)) if arguments.reference else None
     completed_by_archive = []
     for path in arguments.archives:
-        completed = report(path, arguments.totalgrad, cache, reruns, reference)
+        completed = report(path, arguments.totalgrad, cache, reruns, reference,
+                           arguments.merged_dir)
         completed_by_archive.append((json.load(open(path))["sweep"]["name"], completed))
     if reference is not None:
         print_repeats(completed_by_archive, reference)
