@@ -35,6 +35,12 @@ for sweep in table1-tip-k1 balance-del table1-followup-particle-std table1-tip-k
   cli results export "$sweep" -f json -o "$here/$sweep.archive.json"
 done
 scratch=$(mktemp -d)
+scratch_pid=
+cleanup() {
+  if [ -n "$scratch_pid" ]; then kill "$scratch_pid" 2>/dev/null; wait "$scratch_pid" 2>/dev/null || true; fi
+  rm -rf "$scratch"
+}
+trap cleanup EXIT
 /usr/bin/python3 "$here/report.py" --totalgrad "$bin/totalgrad" --merged-dir "$scratch" \
   --rerun table1-tip-k1="$here/table1-tip-k1-pilco-rerun.archive.json" \
   --reference "$here/table1-tip-k1.archive.json" \
@@ -44,7 +50,6 @@ scratch=$(mktemp -d)
 "$bin/totalgrad-coordinator" --db "$scratch/merged.db" --listen "127.0.0.1:$scratch_port" \
   --insecure > "$scratch/coordinator.log" 2>&1 &
 scratch_pid=$!
-trap 'kill "$scratch_pid" 2>/dev/null; wait "$scratch_pid" 2>/dev/null; rm -rf "$scratch"' EXIT
 for attempt in $(seq 1 50); do
   scratch_cli results import "$scratch/table1-tip-k1.merged.json" > /dev/null 2>&1 && break
   if [ "$attempt" = 50 ]; then
