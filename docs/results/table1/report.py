@@ -227,7 +227,7 @@ def report(archive_path, binary, cache, reruns, reference=None, merged_dir=None)
     print()
     if has_variants:
         print_per_seed_table(jobs, rows, reference)
-    return completed
+    return sweep["name"], completed
 
 
 def swept_keys(job):
@@ -408,9 +408,8 @@ def main():
     reference = json.load(open(arguments.reference)) if arguments.reference else None
     completed_by_archive = []
     for path in arguments.archives:
-        completed = report(path, arguments.totalgrad, cache, reruns, reference,
-                           arguments.merged_dir)
-        completed_by_archive.append((json.load(open(path))["sweep"]["name"], completed))
+        completed_by_archive.append(report(path, arguments.totalgrad, cache, reruns, reference,
+                                           arguments.merged_dir))
     if reference is not None:
         print_repeats(completed_by_archive, reference)
 
