@@ -12,6 +12,9 @@
 // --states FILE.csv also writes every rollout step by step (the true states
 // in the scene's state order, the controls applied, the step's cost), e.g.
 // to look at what a policy with a given evaluation cost actually does.
+// --classify also gives each rollout's rollout verdict (held or not: the goal
+// distance within verdict_distance over the last verdict_hold_seconds) and
+// the fraction held, as a trial classifies its final policy.
 #include <iostream>
 #include <memory>
 #include <string>
@@ -39,6 +42,7 @@ struct EvaluateFlags {
   int rollouts = 0;
   bool json = false;
   std::string states_file;  // empty: no per-step output
+  bool classify = false;    // also the rollout verdict of each rollout
 };
 
 // The rollouts as CSV, one row per (rollout, step t = 0..H): t, time t dt,
@@ -126,18 +130,38 @@ int RunEvaluate(const EvaluateFlags& flags) {
   const int episode = flags.episode >= 0 ? flags.episode : snapshot->episode;
   absl::StatusOr<learner::PolicyEvaluation> evaluation =
       learner::EvaluatePolicy(options, snapshot->policy_parameters, episode, flags.rollouts,
-                              /*keep_rollouts=*/!flags.states_file.empty());
+                              /*keep_rollouts=*/!flags.states_file.empty() || flags.classify);
   if (!evaluation.ok()) {
     std::cerr << "evaluate: " << evaluation.status().message() << "\n";
     return evaluation.status().code() == absl::StatusCode::kInvalidArgument ? 2 : 1;
   }
-  if (!flags.states_file.empty()) {
-    // EvaluatePolicy accepted these options, so the scene builds.
-    absl::StatusOr<tasks::Scene> scene = tasks::MakeScene(options.scene);
-    if (!scene.ok()) {
-      std::cerr << "evaluate: " << scene.status().message() << "\n";
+  // EvaluatePolicy accepted these options, so the scene builds.
+  absl::StatusOr<tasks::Scene> scene = tasks::MakeScene(options.scene);
+  if (!scene.ok()) {
+    std::cerr << "evaluate: " << scene.status().message() << "\n";
+    return 2;
+  }
+  // The rollout verdict by the options' rule (verdict_distance,
+  // verdict_hold_seconds; --set changes them), rollout by rollout: the same
+  // streams as the trial's classification of this episode's policy
+  // (learner::ClassifyController), so --rollouts verdict_rollouts on a
+  // trial's last episode gives the trial's held_fraction.
+  std::vector<bool> held;
+  learner::RolloutClassification classification;
+  if (flags.classify) {
+    const int hold_steps = learner::VerdictHoldSteps(options, *scene);
+    if (hold_steps < 1 || hold_steps > scene->horizon) {
+      std::cerr << "evaluate: verdict_hold_seconds is " << hold_steps << " steps; it must be 1 to "
+                << scene->horizon << "\n";
       return 2;
     }
+    classification.rollouts = flags.rollouts;
+    for (const tasks::Episode& run : evaluation->rollouts) {
+      held.push_back(learner::RolloutHeld(*scene, run, options.verdict_distance, hold_steps));
+      if (held.back()) ++classification.held;
+    }
+  }
+  if (!flags.states_file.empty()) {
     const absl::Status written =
         io::WriteTextFile(flags.states_file, RolloutsCsv(*scene, *evaluation));
     if (!written.ok()) {
@@ -159,6 +183,13 @@ int RunEvaluate(const EvaluateFlags& flags) {
     out["mean"] = evaluation->mean;  // round-trip precision
     out["std"] = evaluation->std;
     out["costs"] = evaluation->costs;
+    if (flags.classify) {
+      out["verdict_distance"] = options.verdict_distance;
+      out["verdict_hold_seconds"] = options.verdict_hold_seconds;
+      out["held"] = held;
+      out["held_fraction"] = classification.held_fraction();
+      out["verdict"] = classification.verdict();
+    }
     std::cout << out.dump() << "\n";
   } else {
     std::cout << "policy of episode " << snapshot->episode << " (" << estimators::MethodName(options.method) << ", seed "
@@ -166,6 +197,12 @@ int RunEvaluate(const EvaluateFlags& flags) {
               << ", noise_k " << options.scene.noise_k << ": mean cost "
               << absl::StrCat(evaluation->mean) << ", std " << absl::StrCat(evaluation->std)
               << " over " << flags.rollouts << " rollouts\n";
+    if (flags.classify) {
+      std::cout << "rollout verdict: held in " << classification.held << " of " << flags.rollouts
+                << " rollouts (tip within " << options.verdict_distance << " of the goal for the last "
+                << options.verdict_hold_seconds << " s): "
+                << (classification.verdict() ? "held" : "not held") << "\n";
+    }
   }
   return 0;
 }
@@ -195,6 +232,10 @@ void AddEvaluateCommand(CLI::App* app, int* exit_code) {
   command->add_option("--states", flags->states_file,
                       "also write every rollout step by step to this CSV file (rollout, step, "
                       "time_s, the true states, the controls applied, the step's cost)");
+  command->add_flag("--classify", flags->classify,
+                    "also classify each rollout by the rollout verdict's rule (trial options "
+                    "verdict_distance, verdict_hold_seconds: --set to change) and print the "
+                    "fraction held");
   command->callback([flags, exit_code] { *exit_code = RunEvaluate(*flags); });
 }
 

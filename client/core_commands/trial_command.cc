@@ -138,12 +138,20 @@ void AddTrialCommand(CLI::App* app, int* exit_code) {
                              {"success", summary->success},
                              {"final_eval_cost", summary->final_eval_cost},
                              {"threshold", options.success_threshold},
+                             {"held_fraction", std::isnan(summary->episodes.back().held_fraction)
+                                                    ? nlohmann::json(nullptr)
+                                                    : nlohmann::json(summary->episodes.back().held_fraction)},
                              {"options", used},
                              {"threads", state->threads}};
       std::cout << done.dump() << std::endl;
     } else {
       std::printf("final evaluation cost %.3f (threshold %.3g): %s\n", summary->final_eval_cost,
                   options.success_threshold, summary->success ? "success" : "failure");
+      const double held = summary->episodes.back().held_fraction;
+      if (!std::isnan(held)) {
+        std::printf("rollout verdict: held in %.0f%% of %d rollouts of the final policy: %s\n",
+                    100 * held, options.verdict_rollouts, held >= 0.5 ? "held" : "not held");
+      }
     }
     *exit_code = 0;
   });

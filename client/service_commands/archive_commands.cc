@@ -99,7 +99,11 @@ int ExportRows(Connection* c, const std::string& sweep, bool all_attempts, bool 
   return 0;
 }
 
-int ExportArchive(Connection* c, const std::string& sweep_name, std::ostream& out) {
+// `with_checkpoints`: each completed trial's final checkpoint (its final
+// policy and GP data, what `job artifacts` writes) goes into the archive
+// with the attempt it belongs to; the sizes are reported on stderr.
+int ExportArchive(Connection* c, const std::string& sweep_name, std::ostream& out,
+                  bool with_checkpoints) {
   v1::SweepRequest sweep_request;
   sweep_request.set_name(sweep_name);
   v1::SweepInfo sweep;
@@ -132,6 +136,29 @@ int ExportArchive(Connection* c, const std::string& sweep_name, std::ostream& ou
     status = c->Call(&v1::ControlService::Stub::GetJobLog, request, &log);
     if (!status.ok()) return ReportError(status, "results export " + sweep_name);
     input.attempts.assign(log.attempts().begin(), log.attempts().end());
+  }
+  if (with_checkpoints) {
+    int kept = 0;
+    int64_t bytes = 0;
+    for (service::ArchiveJobInput& input : jobs) {
+      if (input.job.state() != v1::JOB_STATE_COMPLETED || input.job.kind() != v1::JOB_KIND_TRIAL)
+        continue;
+      v1::JobRequest request;
+      request.set_job_id(input.job.job_id());
+      v1::GetJobArtifactsResponse artifacts;
+      status = c->Call(&v1::ControlService::Stub::GetJobArtifacts, request, &artifacts);
+      // A completed trial whose worker kept no checkpoint (too large, or an
+      // import of an archive without them) is archived without one.
+      if (status.error_code() == grpc::StatusCode::NOT_FOUND) continue;
+      if (!status.ok()) return ReportError(status, "results export " + sweep_name);
+      bytes += static_cast<int64_t>(artifacts.checkpoint().data().size());
+      ++kept;
+      input.checkpoints[artifacts.attempt()] = artifacts.checkpoint();
+    }
+    std::cerr << "results export " << sweep_name << ": " << kept << " checkpoints kept, "
+              << (bytes + 1023) / 1024 << " KiB";
+    if (kept > 0) std::cerr << " (" << (bytes / kept + 1023) / 1024 << " KiB a trial; base64 adds a third)";
+    std::cerr << "\n";
   }
   status = ForEachEpisodeRow(c, sweep_name, /*all_attempts=*/true, [&](const v1::EpisodeRow& row) {
     auto it = index_of.find(row.job_id());
@@ -245,7 +272,9 @@ void AddSweepDeleteCommand(CLI::App* sweep_cmd, int* exit_code) {
         const std::string path =
             archive_path->empty() ? DefaultDeleteArchivePath(*name) : *archive_path;
         std::ostringstream archive_text;
-        if (const int code = ExportArchive(c, *name, archive_text); code != 0) return code;
+        if (const int code = ExportArchive(c, *name, archive_text, /*with_checkpoints=*/true);
+            code != 0)
+          return code;
         const nlohmann::json archive = nlohmann::json::parse(archive_text.str());
         const v1::SweepContents counted = CountArchive(archive);
         if (const absl::Status written = WriteNewFileDurably(path, archive_text.str());
@@ -284,13 +313,14 @@ void AddArchiveCommands(CLI::App* results, int* exit_code) {
   auto all_attempts = std::make_shared<bool>(false);
   auto output = std::make_shared<std::string>();
   auto format = std::make_shared<std::string>("csv");
+  auto checkpoints = std::make_shared<bool>(false);
   CLI::App* export_cmd = AddCommand(
       results, "export",
       "write a sweep's results: every episode row (-f csv, the default, or -f jsonl: one JSON "
       "object per row) or the whole sweep as an archive for `results import` (-f json: spec, "
       "jobs with their options, attempts with worker builds, episodes, study rows)",
       exit_code,
-      [sweep, all_attempts, output, format](Connection* c) {
+      [sweep, all_attempts, output, format, checkpoints](Connection* c) {
         std::ofstream file;
         if (!output->empty()) {
           file.open(*output);
@@ -302,7 +332,7 @@ void AddArchiveCommands(CLI::App* results, int* exit_code) {
         std::ostream& out = output->empty() ? std::cout : file;
         int64_t rows = 0;
         const int code = *format == "json"
-                             ? ExportArchive(c, *sweep, out)
+                             ? ExportArchive(c, *sweep, out, *checkpoints)
                              : ExportRows(c, *sweep, *all_attempts, *format == "csv", out, &rows);
         if (code != 0) return code;
         out.flush();
@@ -325,6 +355,10 @@ void AddArchiveCommands(CLI::App* results, int* exit_code) {
                        "rows of every attempt, not only each job's counting one (csv, jsonl; an "
                        "archive always has all)");
   export_cmd->add_option("-o,--output", *output, "write to FILE instead of stdout");
+  export_cmd->add_flag("--checkpoints", *checkpoints,
+                       "json: keep each completed trial's final checkpoint (its final policy and "
+                       "GP data) in the archive, so that an import can re-evaluate it (`job "
+                       "artifacts`); sizes on stderr. `sweep delete` always keeps them");
 
   auto archive = std::make_shared<std::string>();
   CLI::App* import_cmd = AddCommand(
@@ -361,7 +395,8 @@ void AddArchiveCommands(CLI::App* results, int* exit_code) {
         std::cout << (response.sweep_created() ? "created" : "into existing") << " sweep "
                   << response.sweep().name() << ": " << response.jobs_imported()
                   << " jobs taken over (" << response.episodes_imported() << " episodes, "
-                  << response.study_rows_imported() << " study rows); "
+                  << response.study_rows_imported() << " study rows, "
+                  << response.checkpoints_imported() << " checkpoints); "
                   << response.jobs_already_complete() << " already complete here, "
                   << response.jobs_not_completed() << " not completed in the archive, "
                   << response.jobs_running_here() << " running here, " << response.jobs_unknown()

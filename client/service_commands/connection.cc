@@ -282,20 +282,25 @@ int PrintResultsTable(Connection* connection, const std::string& sweep_name, For
   if (!status.ok()) return ReportError(status, "results table " + sweep_name);
   std::vector<TrialRow> rows;
   for (const auto& r : response.results()) {
-    rows.push_back({r.method(), r.variant(), r.success(), r.final_eval_cost()});
+    rows.push_back({r.method(), r.variant(), r.success(), r.final_eval_cost(), r.held_fraction()});
   }
   const std::vector<TableCell> cells = SuccessTable(rows);
   if (format != Format::kTable) {
     Listing listing;
     listing.columns = {"method", "variant", "trials", "successes", "success_rate",
-                       "wilson95_low", "wilson95_high", "median_final_cost"};
+                       "wilson95_low", "wilson95_high", "median_final_cost",
+                       "classified", "held", "held_rate", "held_wilson95_low",
+                       "held_wilson95_high"};
     listing.numeric_columns = {"trials", "successes", "success_rate", "wilson95_low",
-                               "wilson95_high", "median_final_cost"};
+                               "wilson95_high", "median_final_cost", "classified", "held",
+                               "held_rate", "held_wilson95_low", "held_wilson95_high"};
     for (const TableCell& c : cells) {
       listing.rows.push_back({c.method, c.variant, std::to_string(c.trials),
                               std::to_string(c.successes), FormatNumber(c.rate),
                               FormatNumber(c.low), FormatNumber(c.high),
-                              FormatNumber(c.median_final_cost)});
+                              FormatNumber(c.median_final_cost), std::to_string(c.classified),
+                              std::to_string(c.held), FormatNumber(c.held_rate),
+                              FormatNumber(c.held_low), FormatNumber(c.held_high)});
     }
     Print(listing, format, std::cout);
     return 0;
@@ -321,14 +326,17 @@ int PrintResultsTable(Connection* connection, const std::string& sweep_name, For
         continue;
       }
       const TableCell& c = *it->second;
-      row.push_back(absl::StrCat(FormatFixed(c.rate, 2), " [", FormatFixed(c.low, 2), ", ",
-                                 FormatFixed(c.high, 2), "] n=", c.trials));
+      std::string text = absl::StrCat(FormatFixed(c.rate, 2), " [", FormatFixed(c.low, 2), ", ",
+                                      FormatFixed(c.high, 2), "] n=", c.trials);
+      if (c.classified > 0) absl::StrAppend(&text, "; held ", c.held, "/", c.classified);
+      row.push_back(std::move(text));
     }
     listing.rows.push_back(row);
   }
   std::cout << "sweep " << sweep_name << ": success rate [95% Wilson interval] n=trials ("
             << response.sweep().jobs_completed() << " of " << response.sweep().jobs_total()
-            << " jobs completed)\n";
+            << " jobs completed); held k/n: trials whose final policy held in at least half "
+               "of its verdict rollouts, of those classified\n";
   Print(listing, Format::kTable, std::cout);
   return 0;
 }

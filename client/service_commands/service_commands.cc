@@ -250,6 +250,30 @@ void AddJobCommands(CLI::App* app, int* exit_code) {
   }, /*with_format=*/false);
   retry->add_option("JOB", *retry_ids, "job ids")->required();
 
+  auto superseded_id = std::make_shared<int64_t>(0);
+  auto by_id = std::make_shared<int64_t>(0);
+  CLI::App* supersede = AddCommand(
+      job_cmd, "supersede",
+      "replace a completed trial's result by a re-run of it from another sweep (same method, "
+      "seed and options but the rollout verdict's): the re-run's completed attempt is copied "
+      "in and counts from then on; the old attempts and an event keep the history",
+      exit_code,
+      [superseded_id, by_id](Connection* c) {
+        v1::SupersedeJobRequest request;
+        request.set_job_id(*superseded_id);
+        request.set_by_job_id(*by_id);
+        v1::JobInfo job;
+        const grpc::Status status = c->Call(&v1::ControlService::Stub::SupersedeJob, request, &job);
+        if (!status.ok()) return ReportError(status, absl::StrCat("job supersede ", *superseded_id));
+        std::cout << "job " << job.job_id() << " (" << job.method() << " seed " << job.seed()
+                  << ") now counts job " << *by_id << "'s result as its attempt " << job.attempts()
+                  << ": final cost " << job.final_eval_cost() << "\n";
+        return 0;
+      },
+      /*with_format=*/false);
+  supersede->add_option("JOB", *superseded_id, "the completed trial to supersede")->required();
+  supersede->add_option("--by", *by_id, "the completed re-run (a job of another sweep)")->required();
+
   auto artifacts_id = std::make_shared<int64_t>(0);
   auto artifacts_dir = std::make_shared<std::string>();
   CLI::App* artifacts = AddCommand(

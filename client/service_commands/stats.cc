@@ -54,6 +54,10 @@ std::vector<TableCell> SuccessTable(const std::vector<TrialRow>& rows) {
     ++cell.trials;
     if (row.success) ++cell.successes;
     costs.push_back(row.final_eval_cost);
+    if (!std::isnan(row.held_fraction)) {
+      ++cell.classified;
+      if (row.held_fraction >= 0.5) ++cell.held;
+    }
   }
   std::vector<TableCell> table;
   for (auto& [order, entry] : cells) {
@@ -61,6 +65,10 @@ std::vector<TableCell> SuccessTable(const std::vector<TrialRow>& rows) {
     cell.rate = static_cast<double>(cell.successes) / cell.trials;
     std::tie(cell.low, cell.high) = WilsonInterval(cell.successes, cell.trials);
     cell.median_final_cost = Quantile(entry.second, 0.5);
+    if (cell.classified > 0) {
+      cell.held_rate = static_cast<double>(cell.held) / cell.classified;
+      std::tie(cell.held_low, cell.held_high) = WilsonInterval(cell.held, cell.classified);
+    }
     table.push_back(cell);
   }
   return table;

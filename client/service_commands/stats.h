@@ -4,6 +4,7 @@
 #ifndef TOTALGRAD_CLIENT_SERVICE_COMMANDS_STATS_H_
 #define TOTALGRAD_CLIENT_SERVICE_COMMANDS_STATS_H_
 
+#include <limits>
 #include <string>
 #include <utility>
 #include <vector>
@@ -23,6 +24,8 @@ struct TrialRow {
   std::string variant;
   bool success = false;
   double final_eval_cost = 0;
+  // The rollout verdict's fraction held (NaN: the trial classified none).
+  double held_fraction = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct TableCell {
@@ -34,6 +37,14 @@ struct TableCell {
   double low = 0;   // Wilson 95%
   double high = 0;
   double median_final_cost = 0;
+  // The rollout verdict over the trials that have one (`classified` of
+  // `trials`): trials whose final policy held in at least half of its
+  // rollouts, their rate and its 95% Wilson interval (NaN rate when none).
+  int classified = 0;
+  int held = 0;
+  double held_rate = std::numeric_limits<double>::quiet_NaN();
+  double held_low = 0;
+  double held_high = 1;
 };
 
 // One cell per (method, variant), methods in first-appearance order, then

@@ -1,10 +1,13 @@
 #include "core/learner/checkpoint.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
 
 #include "absl/strings/str_cat.h"
+#include "core/common/check.h"
+#include "core/common/record.h"
 #include "core/common/rng.h"
 #include "core/tasks/scene.h"
 
@@ -157,6 +160,24 @@ gp::GpHyperparameters ReadHyperparameters(Reader& r) {
   return h;
 }
 
+// The episode record's double fields that version 1 wrote in fixed
+// positions; version 2 writes every other double field of EpisodeFields() as
+// (name, value), so a field added to the record is checkpointed with no
+// change here.
+std::vector<const record::Field<EpisodeSummary>*> NamedEpisodeFields() {
+  static const std::vector<std::string> kVersion1 = {
+      "episode", "real_cost", "eval_cost_mean", "eval_cost_std", "predicted_cost",
+      "optimisation_seconds", "cpu_seconds"};
+  std::vector<const record::Field<EpisodeSummary>*> named;
+  for (const record::Field<EpisodeSummary>& field : EpisodeFields()) {
+    if (std::find(kVersion1.begin(), kVersion1.end(), field.name) != kVersion1.end()) continue;
+    // Only doubles so far; a field of another type needs a writer here first.
+    TG_CHECK(field.type() == record::FieldType::kDouble);
+    named.push_back(&field);
+  }
+  return named;
+}
+
 void WriteEpisode(Writer& w, const EpisodeResult& e) {
   w.I64(e.episode);
   w.F64(e.real_cost);
@@ -179,9 +200,16 @@ void WriteEpisode(Writer& w, const EpisodeResult& e) {
                    t.evaluation_cpu, t.evaluation_wall})
     w.F64(v);
   w.I64(t.policy_steps);
+  // Version 2: the record's fields that version 1 does not list, by name.
+  const std::vector<const record::Field<EpisodeSummary>*> named = NamedEpisodeFields();
+  w.U64(named.size());
+  for (const record::Field<EpisodeSummary>* field : named) {
+    w.Str(field->name);
+    w.F64(field->Get<double>(e));
+  }
 }
 
-EpisodeResult ReadEpisode(Reader& r) {
+EpisodeResult ReadEpisode(Reader& r, uint32_t version) {
   EpisodeResult e;
   e.episode = static_cast<int>(r.I64("episodes[].episode"));
   e.real_cost = r.F64("episodes[].real_cost");
@@ -204,6 +232,21 @@ EpisodeResult ReadEpisode(Reader& r) {
                     &t.real_episode_wall, &t.evaluation_cpu, &t.evaluation_wall})
     *v = r.F64("episodes[].timing");
   t.policy_steps = static_cast<int>(r.I64("episodes[].timing.policy_steps"));
+  if (version < 2) return e;  // the fields added since read as their defaults
+  const uint64_t named = r.U64("episodes[].fields");
+  if (r.ok() && named > 10000) r.Fail("episodes[].fields", "too many");
+  for (uint64_t i = 0; i < named && r.ok(); ++i) {
+    const std::string name = r.Str("episodes[].fields[].name");
+    const double value = r.F64("episodes[].fields[].value");
+    const record::Field<EpisodeSummary>* field = nullptr;
+    for (const record::Field<EpisodeSummary>* f : NamedEpisodeFields())
+      if (name == f->name) field = f;
+    if (field == nullptr && r.ok()) {
+      r.Fail("episodes[].fields", absl::StrCat("unknown episode field '", name, "'"));
+    } else if (field != nullptr) {
+      field->Get<double>(e) = value;
+    }
+  }
   return e;
 }
 
@@ -250,9 +293,9 @@ absl::StatusOr<TrialCheckpoint> DecodeCheckpoint(std::string_view bytes) {
   }
   Reader header(bytes.substr(sizeof(kMagic)));
   const uint32_t version = header.U32("format version");
-  if (version != kCheckpointFormatVersion) {
-    return Invalid(absl::StrCat("format version ", version, "; this build reads version ",
-                                kCheckpointFormatVersion));
+  if (version < kOldestCheckpointFormatVersion || version > kCheckpointFormatVersion) {
+    return Invalid(absl::StrCat("format version ", version, "; this build reads versions ",
+                                kOldestCheckpointFormatVersion, " to ", kCheckpointFormatVersion));
   }
   const std::string_view body = bytes.substr(0, bytes.size() - 8);
   Reader tail(bytes.substr(bytes.size() - 8));
@@ -271,7 +314,7 @@ absl::StatusOr<TrialCheckpoint> DecodeCheckpoint(std::string_view bytes) {
   }
   const uint64_t episodes = r.U64("episodes");
   if (r.ok() && episodes > 1000000) r.Fail("episodes", "too many");
-  for (uint64_t i = 0; i < episodes && r.ok(); ++i) c.episodes.push_back(ReadEpisode(r));
+  for (uint64_t i = 0; i < episodes && r.ok(); ++i) c.episodes.push_back(ReadEpisode(r, version));
   c.states = r.Mat("states");
   c.forces = r.Vec("forces");
   c.next_states = r.Mat("next_states");

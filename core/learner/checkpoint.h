@@ -22,10 +22,12 @@
 // carried; its problem (cost, start state) is rebuilt from the options.
 //
 // Format (EncodeCheckpoint/DecodeCheckpoint): binary, little-endian,
-//   "TGCKPT\0\0" | u32 format version (kCheckpointFormatVersion) | fields |
+//   "TGCKPT\0\0" | u32 format version (kCheckpointFormatVersion; versions back to
+//   kOldestCheckpointFormatVersion are read) | fields |
 //   u64 FNV-1a of everything before it,
 // doubles as their IEEE-754 bits (exact, NaN kept), so what is decoded is
-// bit for bit what was encoded. Another version is refused, not guessed at.
+// bit for bit what was encoded. A version outside that range is refused, not
+// guessed at.
 //
 // Threading: free functions and plain data.
 #ifndef TOTALGRAD_CORE_LEARNER_CHECKPOINT_H_
@@ -45,7 +47,11 @@
 
 namespace totalgrad::learner {
 
-inline constexpr int kCheckpointFormatVersion = 1;
+// 2: each episode also lists the record's fields added since version 1 by
+// name (held_fraction, ...); 1: the fixed fields only (the others read as
+// their defaults, NaN).
+inline constexpr int kCheckpointFormatVersion = 2;
+inline constexpr int kOldestCheckpointFormatVersion = 1;
 
 struct TrialCheckpoint {
   // The last finished episode (0: the random one).

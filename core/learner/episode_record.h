@@ -30,6 +30,11 @@ struct EpisodeSummary {
   double predicted_cost = kNaN;        // the model's expected cost of the optimised policy
   double optimisation_seconds = kNaN;  // wall time of GP fit + policy optimisation
   double cpu_seconds = kNaN;           // CPU time of the whole episode
+  // The rollout verdict's fraction of the final policy's rollouts that were
+  // held (learner::ClassifyController; TrialOptions::verdict_*): set on a
+  // trial's last episode when verdict_rollouts > 0, NaN on every other
+  // episode and in rows stored before the field existed.
+  double held_fraction = kNaN;
 };
 
 inline const record::FieldTable<EpisodeSummary>& EpisodeFields() {
@@ -42,6 +47,7 @@ inline const record::FieldTable<EpisodeSummary>& EpisodeFields() {
       {"predicted_cost", &E::predicted_cost},
       {"optimisation_seconds", &E::optimisation_seconds},
       {"cpu_seconds", &E::cpu_seconds},
+      {"held_fraction", &E::held_fraction},
   };
   return *table;
 }

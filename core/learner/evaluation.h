@@ -50,6 +50,44 @@ absl::StatusOr<PolicyEvaluation> EvaluatePolicy(const TrialOptions& options,
                                                 const Vector& policy_parameters, int episode,
                                                 int rollouts, bool keep_rollouts = false);
 
+// The rollout verdict (TrialOptions::verdict_*): whether each rollout of a
+// policy "swung up and held".
+//
+// A rollout is held when tasks::GoalDistance of each of its last
+// `hold_steps` post-step true states x_{H-hold_steps+1}..x_H is at most
+// `distance` (on the cart-pole: the pole tip within `distance` metres of the
+// upright tip above the target for the last hold_steps * dt seconds). A
+// policy that swings up and then lets the pole fall is not held, however
+// low its summed cost.
+bool RolloutHeld(const tasks::Scene& scene, const tasks::Episode& rollout, double distance,
+                 int hold_steps);
+
+struct RolloutClassification {
+  int rollouts = 0;
+  int held = 0;
+  double held_fraction() const { return rollouts > 0 ? static_cast<double>(held) / rollouts : 0.0; }
+  // The trial's rollout verdict: held in at least half of the rollouts.
+  bool verdict() const { return rollouts > 0 && 2 * held >= rollouts; }
+};
+
+// `rollouts` rollouts of `controller` drawn as EvaluateController draws
+// episode `episode`'s (so the first eval_rollouts are that evaluation's own),
+// each classified by RolloutHeld. Errors: InvalidArgument for rollouts < 1,
+// distance not > 0 or hold_steps outside 1..horizon; Internal naming the
+// rollout when the plant fails.
+absl::StatusOr<RolloutClassification> ClassifyController(const tasks::Scene& scene,
+                                                         const tasks::MultiController& controller,
+                                                         uint64_t seed, int episode, int rollouts,
+                                                         double distance, int hold_steps);
+
+// A trial's policy classified as RunTrial classifies its final policy, by the
+// rule of `options` (verdict_rollouts, verdict_distance,
+// verdict_hold_seconds; InvalidArgument when verdict_rollouts is 0), for
+// any episode's policy, e.g. a snapshot's (`totalgrad evaluate --classify`).
+// Same errors as EvaluatePolicy.
+absl::StatusOr<RolloutClassification> ClassifyPolicy(const TrialOptions& options,
+                                                     const Vector& policy_parameters, int episode);
+
 }  // namespace totalgrad::learner
 
 #endif  // TOTALGRAD_CORE_LEARNER_EVALUATION_H_

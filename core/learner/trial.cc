@@ -154,6 +154,18 @@ absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver
       result.eval_cost_mean = evaluation->mean;
       result.eval_cost_std = evaluation->std;
     }
+    // 5. After the last episode, the rollout verdict of the final policy
+    //    (its own evaluation streams: the first eval_rollouts rollouts are
+    //    the evaluation above, so no number above depends on it).
+    if (e == options.episodes && options.verdict_rollouts > 0) {
+      absl::StatusOr<RolloutClassification> classification = ClassifyController(
+          scene, policy_controller, seed, e, options.verdict_rollouts, options.verdict_distance,
+          VerdictHoldSteps(options, scene));
+      if (!classification.ok())
+        return absl::InternalError(absl::StrCat("episode ", e, " rollout verdict: ",
+                                                classification.status().message()));
+      result.held_fraction = classification->held_fraction();
+    }
     clock.Lap(&result.timing.evaluation_cpu, &result.timing.evaluation_wall);
     result.cpu_seconds = result.timing.total_cpu();
     summary.episodes.push_back(result);

@@ -1,5 +1,6 @@
 #include "core/learner/trial_options.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "absl/status/statusor.h"
@@ -34,6 +35,9 @@ const OptionTable<TrialOptions>& TrialOptions::Table() {
         .Int("particles", &O::particles)
         .Int("eval_rollouts", &O::eval_rollouts)
         .Double("threshold", &O::success_threshold)
+        .Int("verdict_rollouts", &O::verdict_rollouts)
+        .Double("verdict_distance", &O::verdict_distance)
+        .Double("verdict_hold_seconds", &O::verdict_hold_seconds)
         .Int("basis_functions", &O::basis_functions)
         .Double("model_noise_multiplier", &O::model_noise_multiplier)
         .Int("predicted_cost_particles", &O::predicted_cost_particles)
@@ -79,8 +83,19 @@ absl::Status TrialOptions::Validate() const {
     return InvalidOption("angle_features", "is not one of auto, raw, sincos");
   if (!IsNamedEnum(estimators::MethodNames(), method)) return InvalidOption("method", "is not a known method");
   if (absl::Status st = estimator.Validate(); !st.ok()) return st;
+  if (verdict_rollouts < 0) return InvalidOption("verdict_rollouts", "must be >= 0 (0 = no rollout verdict)");
+  if (!std::isfinite(verdict_distance) || !(verdict_distance > 0))
+    return InvalidOption("verdict_distance", "must be finite and > 0 (metres from the goal)");
+  if (!std::isfinite(verdict_hold_seconds) || !(verdict_hold_seconds > 0))
+    return InvalidOption("verdict_hold_seconds", "must be finite and > 0");
   absl::StatusOr<tasks::Scene> made = tasks::MakeScene(scene);
   if (!made.ok()) return made.status();
+  const int hold_steps = VerdictHoldSteps(*this, *made);
+  if (verdict_rollouts > 0 && (hold_steps < 1 || hold_steps > made->horizon)) {
+    return InvalidOption("verdict_hold_seconds",
+                         absl::StrCat("is ", hold_steps, " steps of ", made->plant->dt(),
+                                      " s; it must be 1 to the horizon's ", made->horizon));
+  }
   return absl::OkStatus();
 }
 
@@ -114,6 +129,29 @@ gp::GpModelOptions GpOptions(const TrialOptions& options) {
   gp::GpModelOptions gp_options;
   gp_options.variance_rank_tolerance = options.gp_variance_tolerance;
   return gp_options;
+}
+
+absl::Status SameEpisodes(const TrialOptions& a, const TrialOptions& b) {
+  TrialOptions b_with_a_verdict = b;
+  b_with_a_verdict.verdict_rollouts = a.verdict_rollouts;
+  b_with_a_verdict.verdict_distance = a.verdict_distance;
+  b_with_a_verdict.verdict_hold_seconds = a.verdict_hold_seconds;
+  const auto ours = TrialOptionPairs(a);
+  const auto theirs = TrialOptionPairs(b_with_a_verdict);
+  for (size_t i = 0; i < ours.size() && i < theirs.size(); ++i) {
+    if (ours[i] != theirs[i]) {
+      return absl::InvalidArgumentError(absl::StrCat("option ", ours[i].first, " is '",
+                                                     ours[i].second, "' in one, '",
+                                                     theirs[i].second, "' in the other"));
+    }
+  }
+  return absl::OkStatus();
+}
+
+int VerdictHoldSteps(const TrialOptions& options, const tasks::Scene& scene) {
+  const double steps = std::round(options.verdict_hold_seconds / scene.plant->dt());
+  // Clamped before the cast: a huge hold time is an error Validate() names, not overflow.
+  return static_cast<int>(std::clamp(steps, 0.0, 1e9));
 }
 
 int PilcoLineSearches(const TrialOptions& options) {
@@ -160,6 +198,7 @@ absl::StatusOr<TrialOptions> TrialOptionsFromStoredPairs(
   // The keys added after pairs were first stored start at their pre-change value.
   TrialOptions base;
   base.gp_variance_tolerance = kAbsentGpVarianceTolerance;
+  base.verdict_rollouts = kAbsentVerdictRollouts;
   return ApplyPairs(base, pairs);
 }
 

@@ -53,6 +53,9 @@ const EnumNames<AngleFeatures>& AngleFeaturesNames();  // "auto", "raw", "sincos
 // before the key existed.
 inline constexpr double kDefaultGpVarianceTolerance = 1e-2;
 inline constexpr double kAbsentGpVarianceTolerance = 0.0;
+// verdict_rollouts in option pairs stored before the key existed: those
+// trials classified no rollouts.
+inline constexpr int kAbsentVerdictRollouts = 0;
 
 struct TrialOptions {
   tasks::SceneOptions scene;
@@ -63,6 +66,19 @@ struct TrialOptions {
   int particles = 300;         // particles per gradient estimate
   int eval_rollouts = 30;      // real evaluation episodes per learned episode
   double success_threshold = 15.0;  // key "threshold"; success: last evaluation mean below this
+  // The rollout verdict (evaluation.h, ClassifyController): after the last
+  // episode the final policy runs verdict_rollouts real rollouts (0 = none;
+  // the first eval_rollouts of them are the last evaluation's own), and a
+  // rollout is "held" when the goal distance (tasks::GoalDistance: on the
+  // cart-pole the tip's distance from the upright tip, m) stays at most
+  // verdict_distance over the last verdict_hold_seconds of the episode.
+  // The episode record's held_fraction is the fraction held; the trial's
+  // rollout verdict is held_fraction >= 1/2. The defaults were chosen from
+  // rollouts of clearly succeeding and clearly failing policies
+  // (docs/results/table1.md, "The rollout verdict").
+  int verdict_rollouts = 100;
+  double verdict_distance = 0.4;
+  double verdict_hold_seconds = 1.0;
   int basis_functions = 50;    // RBF policy size
   double model_noise_multiplier = 1.0;  // GP noise variance x this in policy optimisation
   int predicted_cost_particles = 1000;  // particles for the reported model-predicted cost
@@ -122,6 +138,15 @@ int InducingInputs(const TrialOptions& options);
 // The full GP's build options a particle method's trial uses
 // (gp_variance_tolerance).
 gp::GpModelOptions GpOptions(const TrialOptions& options);
+// OK when trials with options `a` and `b` compute the same episodes: every
+// option equal (as option pairs) but the rollout verdict's (verdict_*),
+// which only adds the final policy's classification. InvalidArgument naming
+// the first option that differs otherwise ("option noise_k is '1' in one,
+// '0.01' in the other").
+absl::Status SameEpisodes(const TrialOptions& a, const TrialOptions& b);
+// verdict_hold_seconds as control steps of `scene` (rounded); Validate()
+// requires 1..horizon when verdict_rollouts > 0.
+int VerdictHoldSteps(const TrialOptions& options, const tasks::Scene& scene);
 // The BFGS budget pilco_line_searches / pilco_evaluations_per_line_search
 // resolve to: the option when >= 1, else the scene's PILCO protocol (an
 // unknown scene: 150 x 30, PILCO's cart-pole).
@@ -144,7 +169,8 @@ absl::StatusOr<TrialOptions> TrialOptionsFromPairs(
 // snapshot): a key whose default changed after files without it were written
 // starts from the value those files were computed with, so that such a file
 // still describes (and resumes, and rebuilds) the computation it came from.
-// Today: gp_variance_tolerance (absent = 0, the exact variance). Pairs
+// Today: gp_variance_tolerance (absent = 0, the exact variance) and
+// verdict_rollouts (absent = 0, no rollout verdict). Pairs
 // written by this build list every key, so for them both functions agree.
 absl::StatusOr<TrialOptions> TrialOptionsFromStoredPairs(
     const std::vector<std::pair<std::string, std::string>>& pairs);

@@ -1,5 +1,6 @@
 #include "core/tasks/scene.h"
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 #include <numbers>
@@ -134,7 +135,36 @@ absl::StatusOr<Scene> MakeScene(const SceneOptions& options) {
     }
   }
   scene.observation_noise_std = std::sqrt(options.noise_k) * definition->measurement_noise_std;
+  scene.goal_q = definition->saturating_cost.q;
+  if (definition->plant == PlantKind::kCartPole) {
+    // d^2 = (s + l sin beta)^2 + l^2 (cos beta + 1)^2 = |C (z - z_t)|^2 with
+    // C = [[1, l, 0], [0, 0, l]] on z's (s, sin beta, cos beta), for this
+    // plant's l (the catalog's Q has PILCO's 0.5 m).
+    const double l = options.plant.pole_length;
+    const int at[3] = {0, d, d + 1};  // z = [x (D), sin beta, cos beta]
+    const double c[2][3] = {{1.0, l, 0.0}, {0.0, 0.0, l}};
+    scene.goal_q.setZero();
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j)
+        scene.goal_q(at[i], at[j]) = c[0][i] * c[0][j] + c[1][i] * c[1][j];
+  }
   return scene;
+}
+
+double GoalDistance(const Scene& scene, const Vector& x) {
+  const int d = scene.state_dim();
+  TG_CHECK_EQ(x.size(), d);
+  const int angles = static_cast<int>(scene.angle_indices.size());
+  Vector dz(d + 2 * angles);
+  dz.head(d) = x - scene.target;
+  for (int a = 0; a < angles; ++a) {
+    const int i = scene.angle_indices[a];
+    dz(d + 2 * a) = std::sin(x(i)) - std::sin(scene.target(i));
+    dz(d + 2 * a + 1) = std::cos(x(i)) - std::cos(scene.target(i));
+  }
+  const double quad = dz.dot(scene.goal_q * dz);
+  // Round-off can leave a PSD form slightly below 0; a NaN state stays NaN.
+  return quad < 0 ? 0.0 : std::sqrt(quad);
 }
 
 absl::Status RunEpisode(const Scene& scene, const Controller& controller, Rng* start_rng,

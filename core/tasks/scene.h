@@ -61,6 +61,10 @@ struct Scene {
   // The state indices of the angles: where PILCO's (sin, cos) features of
   // the GP's and the policy's inputs act (the definition's angle_indices).
   std::vector<int> angle_indices;
+  // The metric of GoalDistance: PILCO's saturating cost's Q on z (the
+  // definition's), for the cart-pole built from the plant's pole length, so
+  // that the distance is the pole tip's from the upright tip, in metres.
+  Matrix goal_q;
 
   int state_dim() const { return static_cast<int>(mu0.size()); }
   int control_dim() const { return static_cast<int>(max_control.size()); }
@@ -77,6 +81,13 @@ struct Scene {
 // The tip cost measures the tip of this plant's pole, so it uses
 // plant.pole_length (PILCO: cost length = pole length = 0.5 m).
 absl::StatusOr<Scene> MakeScene(const SceneOptions& options);
+
+// How far state x (D) is from the scene's goal, in the metric of PILCO's
+// saturating cost: sqrt((z - z_t)^T Q (z - z_t)), z = [x, sin x_a, cos x_a,
+// ...] and z_t the target's, Q = scene.goal_q. On PILCO's scenes and the
+// cart-pole this is the distance (m) of the tip (the pendulum's, the outer
+// pole's) from where it is at the goal, whichever cost the trial uses.
+double GoalDistance(const Scene& scene, const Vector& x);
 
 // One real episode.
 struct Episode {

@@ -266,7 +266,7 @@ absl::StatusOr<json> DashboardData::Sweep(const std::string& name, int64_t now_m
   if (!results.ok()) return results.status();
   std::vector<cli::TrialRow> rows;
   for (const auto& r : *results) {
-    rows.push_back({r.method, r.variant, r.success, r.final_eval_cost});
+    rows.push_back({r.method, r.variant, r.success, r.final_eval_cost, r.held_fraction});
   }
   json table = {{"methods", json::array()}, {"variants", json::array()}, {"cells", json::array()}};
   for (const cli::TableCell& cell : cli::SuccessTable(rows)) {
@@ -285,7 +285,12 @@ absl::StatusOr<json> DashboardData::Sweep(const std::string& name, int64_t now_m
                               {"rate", Number(cell.rate)},
                               {"wilson_low", Number(cell.low)},
                               {"wilson_high", Number(cell.high)},
-                              {"median_final_cost", Number(cell.median_final_cost)}});
+                              {"median_final_cost", Number(cell.median_final_cost)},
+                              {"classified", cell.classified},
+                              {"held", cell.held},
+                              {"held_rate", Number(cell.held_rate)},
+                              {"held_wilson_low", Number(cell.held_low)},
+                              {"held_wilson_high", Number(cell.held_high)}});
   }
   out["table"] = std::move(table);
   return out;

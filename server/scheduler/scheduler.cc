@@ -557,6 +557,12 @@ absl::StatusOr<JobRecord> Scheduler::RetryJob(int64_t job_id) {
   return store_->GetJob(job_id);
 }
 
+absl::StatusOr<JobRecord> Scheduler::SupersedeJob(int64_t job_id, int64_t by_job_id) {
+  absl::MutexLock lock(&decision_mutex_);
+  RETURN_IF_ERROR(store_->SupersedeJob(job_id, by_job_id, clock_->NowMs()).status());
+  return store_->GetJob(job_id);
+}
+
 absl::StatusOr<storage::WorkerRecord> Scheduler::DrainWorker(const std::string& worker_id) {
   absl::MutexLock lock(&decision_mutex_);
   RETURN_IF_ERROR(store_->SetWorkerDraining(worker_id, true, clock_->NowMs()));

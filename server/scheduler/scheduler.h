@@ -206,6 +206,8 @@ class Scheduler {
   absl::StatusOr<storage::SweepContents> DeleteSweep(const std::string& name,
                                                      const storage::SweepContents& expected);
   absl::StatusOr<storage::JobRecord> RetryJob(int64_t job_id);
+  // storage::Store::SupersedeJob; the job as it is then.
+  absl::StatusOr<storage::JobRecord> SupersedeJob(int64_t job_id, int64_t by_job_id);
   absl::StatusOr<storage::WorkerRecord> DrainWorker(const std::string& worker_id);
 
   // Wakes every waiting Acquire; later Acquire calls return nullopt at once.

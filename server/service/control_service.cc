@@ -9,6 +9,7 @@
 #include "absl/strings/str_cat.h"
 #include "server/service/convert.h"
 #include "server/sweep/sweep_spec.h"
+#include "core/learner/trial_options.h"
 
 namespace totalgrad::service {
 
@@ -228,6 +229,37 @@ grpc::Status ControlServiceImpl::RetryJob(grpc::ServerContext* context,
                                           const v1::JobRequest* request, v1::JobInfo* response) {
   TG_AUTHORIZE(context);
   absl::StatusOr<storage::JobRecord> job = scheduler_->RetryJob(request->job_id());
+  if (!job.ok()) return ToGrpcStatus(job.status());
+  ToProto(*job, response);
+  return grpc::Status::OK;
+}
+
+grpc::Status ControlServiceImpl::SupersedeJob(grpc::ServerContext* context,
+                                              const v1::SupersedeJobRequest* request,
+                                              v1::JobInfo* response) {
+  TG_AUTHORIZE(context);
+  // The same trial: every option that decides the episodes equal, as the
+  // worker reads them (a key stored before it existed reads as its old value).
+  std::optional<learner::TrialOptions> options[2];
+  for (int i = 0; i < 2; ++i) {
+    const int64_t id = i == 0 ? request->job_id() : request->by_job_id();
+    absl::StatusOr<storage::JobRecord> job = store_->GetJob(id);
+    if (!job.ok()) return ToGrpcStatus(job.status());
+    absl::StatusOr<learner::TrialOptions> parsed = learner::TrialOptionsFromStoredPairs(job->options);
+    if (!parsed.ok()) {
+      return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION,
+                          absl::StrCat("job ", id, ": its options do not parse: ",
+                                       parsed.status().message()));
+    }
+    options[i] = *std::move(parsed);
+  }
+  if (absl::Status same = learner::SameEpisodes(*options[0], *options[1]); !same.ok()) {
+    return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION,
+                        absl::StrCat("job ", request->by_job_id(), " is not a re-run of job ",
+                                     request->job_id(), ": ", same.message()));
+  }
+  absl::StatusOr<storage::JobRecord> job =
+      scheduler_->SupersedeJob(request->job_id(), request->by_job_id());
   if (!job.ok()) return ToGrpcStatus(job.status());
   ToProto(*job, response);
   return grpc::Status::OK;
@@ -454,6 +486,7 @@ grpc::Status ControlServiceImpl::ImportSweep(grpc::ServerContext* context,
                        "see the archive's exported_by)"));
     }
     create = *std::move(prepared);
+    create->created_ms = archive->created_ms;  // the archived sweep's own time, when kept
   } else {
     return ToGrpcStatus(existing.status());
   }
@@ -475,6 +508,7 @@ grpc::Status ControlServiceImpl::ImportSweep(grpc::ServerContext* context,
   response->set_jobs_unknown(result->jobs_unknown);
   response->set_episodes_imported(result->episodes_imported);
   response->set_study_rows_imported(result->study_rows_imported);
+  response->set_checkpoints_imported(result->checkpoints_imported);
   return grpc::Status::OK;
 }
 

@@ -63,6 +63,8 @@ class ControlServiceImpl final : public v1::ControlService::Service {
                         v1::ListJobsResponse* response) override;
   grpc::Status RetryJob(grpc::ServerContext* context, const v1::JobRequest* request,
                         v1::JobInfo* response) override;
+  grpc::Status SupersedeJob(grpc::ServerContext* context, const v1::SupersedeJobRequest* request,
+                            v1::JobInfo* response) override;
   grpc::Status GetJobLog(grpc::ServerContext* context, const v1::JobRequest* request,
                          v1::GetJobLogResponse* response) override;
   grpc::Status GetJobArtifacts(grpc::ServerContext* context, const v1::JobRequest* request,

@@ -217,6 +217,7 @@ void ToProto(const storage::AttemptRecord& attempt, v1::AttemptInfo* out) {
   out->set_error(attempt.error);
   out->set_episodes_stored(attempt.episodes_stored);
   out->set_checkpoint_episode(attempt.checkpoint_episode);
+  out->set_origin(attempt.origin);
 }
 
 storage::ImportedAttempt FromProto(const v1::AttemptInfo& info) {
@@ -260,6 +261,7 @@ void ToProto(const storage::TrialResultRecord& result, v1::TrialResult* out) {
   out->set_success(result.success);
   out->set_final_eval_cost(result.final_eval_cost);
   out->set_episodes(result.episodes);
+  out->set_held_fraction(result.held_fraction);
 }
 
 void ToProto(const storage::Episode& episode, v1::EpisodeReport* out) {

@@ -6,6 +6,7 @@
 #include <limits>
 #include <optional>
 
+#include "absl/strings/escaping.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
 #include "core/study/study.h"
@@ -108,11 +109,31 @@ absl::Status ReadRow(const record::FieldTable<Record>& table, const nlohmann::js
 // One object of a job's attempt_log: the attempt's record
 // (storage::ImportedAttemptFields(), every field of which the import takes,
 // so every one must be there), its episodes and its study rows.
-absl::Status ReadAttempt(const nlohmann::json& object, const std::string& where,
+absl::Status ReadAttempt(const nlohmann::json& object, const std::string& where, int version,
                          storage::ImportedAttempt* attempt) {
   RETURN_IF_ERROR(ReadRecord(storage::ImportedAttemptFields(), object, where, attempt));
   for (const auto& field : storage::ImportedAttemptFields()) {
+    // Version 3 predates an attempt's origin (read as "": ran where it was stored).
+    if (version < 4 && absl::string_view(field.name) == "origin") continue;
     RETURN_IF_ERROR(Require(object, where, {field.name}));
+  }
+  // Version 4: the attempt's checkpoint, when the export kept it.
+  if (const auto it = object.find("checkpoint"); it != object.end()) {
+    const std::string at = Member(where, "checkpoint");
+    if (!it->is_object()) return Malformed(at, "not an object");
+    ASSIGN_OR_RETURN(const int64_t episode, Integer(*it, at, "episode"));
+    ASSIGN_OR_RETURN(const int64_t format_version, Integer(*it, at, "format_version"));
+    const auto data = it->find("data_base64");
+    if (data == it->end() || !data->is_string())
+      return Malformed(Member(at, "data_base64"), "missing or not a string");
+    storage::Checkpoint checkpoint;
+    checkpoint.episode = static_cast<int>(episode);
+    checkpoint.format_version = static_cast<int>(format_version);
+    if (!absl::Base64Unescape(data->get<std::string>(), &checkpoint.data) ||
+        checkpoint.data.empty()) {
+      return Malformed(Member(at, "data_base64"), "not base64 of a checkpoint");
+    }
+    attempt->checkpoint = std::move(checkpoint);
   }
   ASSIGN_OR_RETURN(const nlohmann::json* episodes, Array(object, where, "episodes", true));
   for (size_t k = 0; k < episodes->size(); ++k) {
@@ -149,7 +170,7 @@ absl::Status ReadAttempt(const nlohmann::json& object, const std::string& where,
 // its own jobs); of a job's record its identity (kind, method, seed,
 // variant) and verdict; the other fields (job_id, ordinal, the counts,
 // worker_id, ...) are informative: checked for their type, then ignored.
-absl::StatusOr<ParsedSweepArchive> ParseVersion3(const nlohmann::json& doc) {
+absl::StatusOr<ParsedSweepArchive> ParseVersion3(const nlohmann::json& doc, int version) {
   ParsedSweepArchive archive;
   if (!doc.contains("sweep")) return Malformed("sweep", "missing");
   const nlohmann::json& sweep_object = doc["sweep"];
@@ -160,6 +181,11 @@ absl::StatusOr<ParsedSweepArchive> ParseVersion3(const nlohmann::json& doc) {
   archive.canonical_spec = sweep.canonical_spec;
   archive.spec_hash = sweep.spec_hash;
   archive.state = sweep.state;
+  // Version 4: the sweep keeps its first submission's time.
+  if (version >= 4) {
+    RETURN_IF_ERROR(Require(sweep_object, "sweep", {"created_unix_ms"}));
+    archive.created_ms = sweep.created_ms;
+  }
   ASSIGN_OR_RETURN(const nlohmann::json* jobs, Array(doc, "", "jobs", true));
   for (size_t i = 0; i < jobs->size(); ++i) {
     const nlohmann::json& j = (*jobs)[i];
@@ -179,7 +205,7 @@ absl::StatusOr<ParsedSweepArchive> ParseVersion3(const nlohmann::json& doc) {
     ASSIGN_OR_RETURN(const nlohmann::json* log, Array(j, where, "attempt_log", true));
     for (size_t k = 0; k < log->size(); ++k) {
       RETURN_IF_ERROR(ReadAttempt((*log)[k], absl::StrCat(where, ".attempt_log[", k, "]"),
-                                  &job.attempts.emplace_back()));
+                                  version, &job.attempts.emplace_back()));
     }
     archive.jobs.push_back(std::move(job));
   }
@@ -413,6 +439,12 @@ nlohmann::ordered_json SweepArchiveToJson(const v1::SweepInfo& sweep,
       entry["episodes"] = std::move(episodes);
       entry["study_cells"] = std::move(cells);
       entry["study_references"] = std::move(references);
+      if (const auto checkpoint = input.checkpoints.find(attempt.attempt());
+          checkpoint != input.checkpoints.end()) {
+        entry["checkpoint"] = {{"episode", checkpoint->second.episode()},
+                               {"format_version", checkpoint->second.format_version()},
+                               {"data_base64", absl::Base64Escape(checkpoint->second.data())}};
+      }
       attempts.push_back(std::move(entry));
     }
     // What the job's table leaves out (service_records.h) and the archive needs.
@@ -439,7 +471,7 @@ absl::StatusOr<ParsedSweepArchive> ParseSweepArchive(const std::string& text) {
     return absl::InvalidArgumentError(absl::StrCat("archive: version ", version,
                                                    "; this build reads versions 1 to ",
                                                    kSweepArchiveVersion));
-  if (version >= 3) return ParseVersion3(doc);
+  if (version >= 3) return ParseVersion3(doc, static_cast<int>(version));
   return ParseVersion1Or2(doc, version);
 }
 

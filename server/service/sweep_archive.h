@@ -47,6 +47,7 @@
 #define TOTALGRAD_SERVER_SERVICE_SWEEP_ARCHIVE_H_
 
 #include <cstdint>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -63,7 +64,10 @@ inline constexpr char kSweepArchiveFormat[] = "totalgrad-sweep-archive";
 // 3: the sweep, jobs and attempts as their records' JSON (their field
 // tables); 2: episodes and study rows as their records' JSON (issue 13); 1:
 // the layout before.
-inline constexpr int kSweepArchiveVersion = 3;
+// 4 (issue 25): an attempt's origin, optionally its checkpoint, and the
+// sweep's submission time kept on import (3 is read as before: no origin,
+// no checkpoints, the import's own time).
+inline constexpr int kSweepArchiveVersion = 4;
 
 // What the archive says of one job, as the read calls return it.
 struct ArchiveJobInput {
@@ -72,6 +76,9 @@ struct ArchiveJobInput {
   std::vector<v1::EpisodeRow> episodes;  // every attempt's
   std::vector<v1::StudyCellRow> cells;
   std::vector<v1::StudyReferenceRow> references;
+  // Checkpoints to keep, by attempt number (results export --checkpoints:
+  // each completed trial's final state).
+  std::map<int, v1::TrialCheckpoint> checkpoints;
 };
 
 nlohmann::ordered_json SweepArchiveToJson(const v1::SweepInfo& sweep,
@@ -83,6 +90,7 @@ struct ParsedSweepArchive {
   std::string canonical_spec;
   std::string spec_hash;
   storage::SweepState state = storage::SweepState::kRunning;
+  int64_t created_ms = 0;  // version 4: the sweep's submission time; 0: unknown
   std::vector<storage::ImportedJob> jobs;
 };
 

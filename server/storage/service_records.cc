@@ -49,6 +49,7 @@ const record::FieldTable<JobRecord>& JobFields() {
       {"worker_id", &JobRecord::worker_id},
       {"success", &JobRecord::success},
       {"final_eval_cost", &JobRecord::final_eval_cost},
+      {"held_fraction", &JobRecord::held_fraction},
       {"last_error", &JobRecord::last_error},
   };
   return table;
@@ -115,6 +116,7 @@ const record::FieldTable<ImportedAttempt>& ImportedAttemptFields() {
       {"started_unix_ms", &ImportedAttempt::started_ms},
       {"ended_unix_ms", &ImportedAttempt::ended_ms},
       {"error", &ImportedAttempt::error},
+      {"origin", &ImportedAttempt::origin},
   };
   return table;
 }

@@ -158,7 +158,8 @@ SELECT a.attempt, a.state, a.worker_id, a.worker_host, a.worker_build, a.started
        COALESCE(a.ended_ms, 0), a.lease_expires_ms, a.error,
        (SELECT COUNT(*) FROM episodes e WHERE e.job_id = a.job_id AND e.attempt = a.attempt),
        COALESCE((SELECT c.episode FROM checkpoints c
-                 WHERE c.job_id = a.job_id AND c.attempt = a.attempt), -1)
+                 WHERE c.job_id = a.job_id AND c.attempt = a.attempt), -1),
+       a.origin
 FROM attempts a WHERE a.job_id = ? ORDER BY a.attempt)sql"));
   query.Bind(1, job_id);
   std::vector<AttemptRecord> attempts;
@@ -177,6 +178,7 @@ FROM attempts a WHERE a.job_id = ? ORDER BY a.attempt)sql"));
     a.error = query.ColumnText(8);
     a.episodes_stored = static_cast<int>(query.ColumnInt(9));
     a.checkpoint_episode = static_cast<int>(query.ColumnInt(10));
+    a.origin = query.ColumnText(11);
     attempts.push_back(std::move(a));
   }
   return attempts;

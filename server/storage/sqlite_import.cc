@@ -38,8 +38,11 @@ SELECT id, state, attempts, episodes_expected FROM jobs
 WHERE sweep_id = ? AND kind = ? AND method = ? AND seed = ? AND variant = ?)sql"));
     ASSIGN_OR_RETURN(Statement attempt_insert, Statement::Prepare(db, R"sql(
 INSERT INTO attempts(job_id, attempt, state, worker_id, worker_host, worker_build, started_ms,
-                     lease_expires_ms, ended_ms, error)
-VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?))sql"));
+                     lease_expires_ms, ended_ms, error, origin)
+VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?))sql"));
+    ASSIGN_OR_RETURN(Statement checkpoint_insert, Statement::Prepare(db, R"sql(
+INSERT INTO checkpoints(job_id, attempt, episode, format_version, data, reported_ms)
+VALUES(?, ?, ?, ?, ?, ?))sql"));
     ASSIGN_OR_RETURN(Statement episode_insert, Statement::Prepare(db, EpisodeInsertSql()));
     ASSIGN_OR_RETURN(Statement job_update, Statement::Prepare(db, R"sql(
 UPDATE jobs SET state = 'completed', attempts = ?, completed_attempt = ?, success = ?,
@@ -84,8 +87,30 @@ WHERE id = ?)sql"));
         attempt_insert.Bind(4, a.worker_id).Bind(5, a.worker_host).Bind(6, a.worker_build);
         attempt_insert.Bind(7, a.started_ms).Bind(8, a.ended_ms > 0 ? a.ended_ms : a.started_ms);
         attempt_insert.Bind(9, a.ended_ms > 0 ? a.ended_ms : now_ms).Bind(10, a.error);
+        attempt_insert.Bind(11, a.origin);
         RETURN_IF_ERROR(attempt_insert.Run());
         attempt_insert.Reset();
+        if (a.checkpoint.has_value()) {
+          if (!KindInfo(job.record.kind).checkpoints) {
+            return absl::InvalidArgumentError(absl::StrCat(
+                "archive: job ", job.record.method, " seed ", job.record.seed, " attempt ",
+                a.attempt, " has a checkpoint, but ", ToString(job.record.kind),
+                " jobs keep none"));
+          }
+          if (a.checkpoint->episode < 0 || a.checkpoint->episode >= episodes_expected) {
+            return absl::InvalidArgumentError(absl::StrCat(
+                "archive: job ", job.record.method, " seed ", job.record.seed, " attempt ",
+                a.attempt, ": checkpoint episode ", a.checkpoint->episode,
+                " is out of range 0..", episodes_expected - 1));
+          }
+          checkpoint_insert.Bind(1, job_id).Bind(2, number).Bind(3, a.checkpoint->episode);
+          checkpoint_insert.Bind(4, a.checkpoint->format_version);
+          checkpoint_insert.BindBlob(5, a.checkpoint->data);
+          checkpoint_insert.Bind(6, a.ended_ms > 0 ? a.ended_ms : now_ms);
+          RETURN_IF_ERROR(checkpoint_insert.Run());
+          checkpoint_insert.Reset();
+          ++result.checkpoints_imported;
+        }
         // Rows of a table the job's kind does not own are refused
         // (job_kinds.h); one row of each table is enough to tell.
         JobResults probe;
@@ -104,6 +129,17 @@ WHERE id = ?)sql"));
           RETURN_IF_ERROR(episode_insert.Run());
           episode_insert.Reset();
           ++result.episodes_imported;
+        }
+        // The attempt that completed the job holds every episode, as Complete
+        // requires of a worker (job_kinds.h): a trial with rows missing is
+        // not taken over as completed.
+        if (a.attempt == job.completed_attempt &&
+            KindInfo(job.record.kind).rule == CompletionRule::kJobExpected &&
+            static_cast<int>(a.episodes.size()) != episodes_expected) {
+          return absl::InvalidArgumentError(absl::StrCat(
+              "archive: job ", job.record.method, " seed ", job.record.seed, " ",
+              job.record.variant, " is completed by attempt ", a.attempt, ", which holds ",
+              a.episodes.size(), " of its ", episodes_expected, " episodes"));
         }
         if (!a.study.empty()) {
           OpenAttempt into;

@@ -98,6 +98,12 @@ const SqlView<SweepRecord>& SweepView() {
 // Where the store reads each field of a job from: its row j, its sweep's s,
 // or the rows of its latest attempt. episodes_expected is the column as
 // stored; ReadJobRow applies the job kind's rule to it.
+// A job's held_fraction: its completed attempt's last episode's (NULL
+// unless completed).
+constexpr char kHeldFractionSql[] =
+    "(SELECT e.held_fraction FROM episodes e WHERE e.job_id = j.id AND "
+    "e.attempt = j.completed_attempt ORDER BY e.episode DESC LIMIT 1)";
+
 const SqlView<JobRecord>& JobView() {
   static const SqlView<JobRecord> view = MakeSqlView<JobRecord>(
       {&JobFields(), &JobStoreOnlyFields()},
@@ -121,6 +127,7 @@ const SqlView<JobRecord>& JobView() {
         "a.attempt = j.attempts AND a.state = 'running'), '')"},
        {"success", "COALESCE(j.success, 0)"},
        {"final_eval_cost", "j.final_eval_cost"},
+       {"held_fraction", kHeldFractionSql},
        {"last_error", "j.last_error"},
        {"sweep_id", "j.sweep_id"},
        {"sweep_state", "s.state"},
@@ -420,7 +427,8 @@ VALUES(?, ?, 'running', ?, ?, ?, ?, ?, ?, ?, ?, ?))sql"));
   insert.Bind(1, sweep.name).Bind(2, sweep.description).Bind(3, sweep.canonical_spec);
   insert.Bind(4, sweep.spec_hash).Bind(5, sweep.source_name).Bind(6, sweep.source_text);
   insert.Bind(7, sweep.coordinator_build).Bind(8, sweep.max_attempts);
-  insert.Bind(9, sweep.max_lost_leases).Bind(10, sweep.max_concurrent).Bind(11, now_ms);
+  insert.Bind(9, sweep.max_lost_leases).Bind(10, sweep.max_concurrent);
+  insert.Bind(11, sweep.created_ms > 0 ? sweep.created_ms : now_ms);
   RETURN_IF_ERROR(insert.Run());
   const int64_t sweep_id = db.LastInsertRowId();
   ASSIGN_OR_RETURN(Statement job_insert, Statement::Prepare(db, R"sql(

@@ -43,7 +43,9 @@ absl::StatusOr<std::vector<TrialResultRecord>> SqliteStore::ListTrialResults(
   const int64_t sweep_id = check.ColumnInt(0);
   ASSIGN_OR_RETURN(Statement query, Statement::Prepare(reader_, R"sql(
 SELECT j.id, j.method, j.seed, j.variant, j.completed_attempt, j.success, j.final_eval_cost,
-       (SELECT COUNT(*) FROM episodes e WHERE e.job_id = j.id AND e.attempt = j.completed_attempt)
+       (SELECT COUNT(*) FROM episodes e WHERE e.job_id = j.id AND e.attempt = j.completed_attempt),
+       (SELECT e.held_fraction FROM episodes e WHERE e.job_id = j.id
+        AND e.attempt = j.completed_attempt ORDER BY e.episode DESC LIMIT 1)
 FROM jobs j WHERE j.sweep_id = ? AND j.state = 'completed' AND j.kind = 'trial'
 ORDER BY j.ordinal)sql"));
   query.Bind(1, sweep_id);
@@ -60,6 +62,7 @@ ORDER BY j.ordinal)sql"));
     r.success = query.ColumnInt(5) != 0;
     r.final_eval_cost = query.ColumnDouble(6);
     r.episodes = static_cast<int>(query.ColumnInt(7));
+    r.held_fraction = query.ColumnDouble(8);
     results.push_back(std::move(r));
   }
   return results;

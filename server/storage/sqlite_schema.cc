@@ -278,8 +278,19 @@ constexpr char kMigration6[] = R"sql(
 ALTER TABLE study_references ADD COLUMN agreement_resolution REAL;
 )sql";
 
+// Version 6 -> 7 (issue 25): episodes.held_fraction, the rollout verdict's
+// fraction of a trial's final-policy rollouts that were held (NULL on every
+// other episode and in rows stored before; the views are recreated with the
+// column, Migrate); attempts.origin, where an attempt that did not run here
+// came from ('' for one a worker ran: `job supersede` copies another job's
+// completed attempt and names it, "job 57 attempt 1 of sweep S").
+constexpr char kMigration7[] = R"sql(
+ALTER TABLE episodes ADD COLUMN held_fraction REAL;
+ALTER TABLE attempts ADD COLUMN origin TEXT NOT NULL DEFAULT '';
+)sql";
+
 // One row per stored episode of every sweep (version 5: the seed is already
-// an integer; version 4 cast it).
+// an integer; version 4 cast it; version 7 adds held_fraction).
 constexpr char kEpisodeRowsView[] = R"sql(
 CREATE VIEW episode_rows AS
   SELECT s.name AS sweep, j.id AS job_id, j.method AS method, j.seed AS seed,
@@ -288,6 +299,7 @@ CREATE VIEW episode_rows AS
          e.episode AS episode, e.real_cost AS real_cost, e.eval_cost_mean AS eval_cost_mean,
          e.eval_cost_std AS eval_cost_std, e.predicted_cost AS predicted_cost,
          e.optimisation_seconds AS wall_seconds, e.cpu_seconds AS cpu_seconds,
+         e.held_fraction AS held_fraction,
          j.state AS job_state, j.success AS success, j.final_eval_cost AS final_eval_cost,
          a.worker_build AS worker_build
   FROM episodes e JOIN jobs j ON j.id = e.job_id JOIN sweeps s ON s.id = j.sweep_id
@@ -374,7 +386,8 @@ GROUP BY o.key ORDER BY MIN(j.ordinal), o.key)sql"));
   }
   absl::StrAppend(&select,
                   ", r.attempt, r.final_attempt, r.episode, r.real_cost, r.eval_cost_mean, "
-                  "r.eval_cost_std, r.predicted_cost, r.wall_seconds, r.cpu_seconds, r.job_state, "
+                  "r.eval_cost_std, r.predicted_cost, r.wall_seconds, r.cpu_seconds, r.held_fraction, "
+                  "r.job_state, "
                   "r.success, r.final_eval_cost, r.worker_build FROM episode_rows r WHERE r.sweep = ",
                   "(SELECT name FROM sweeps WHERE id = ", sweep_id, ")");
   const std::string view = QuoteIdentifier(SweepViewName(sweep_name));
@@ -386,6 +399,36 @@ absl::Status DropSweepView(Db& db, const std::string& sweep_name) {
   return db.Exec(
       absl::StrCat("DROP VIEW IF EXISTS ", QuoteIdentifier(SweepViewName(sweep_name))));
 }
+
+namespace {
+
+// Drops the episode_rows view and every sweep's view and creates them again
+// (after a column of theirs was added).
+absl::Status RecreateViews(Db& db) {
+  std::vector<std::string> views;
+  {
+    ASSIGN_OR_RETURN(Statement list, Statement::Prepare(
+        db, "SELECT name FROM sqlite_schema WHERE type = 'view' AND name LIKE 'episodes/%'"));
+    for (;;) {
+      ASSIGN_OR_RETURN(bool row, list.Step());
+      if (!row) break;
+      views.push_back(list.ColumnText(0));
+    }
+  }
+  for (const std::string& view : views)
+    RETURN_IF_ERROR(db.Exec(absl::StrCat("DROP VIEW ", QuoteIdentifier(view))));
+  RETURN_IF_ERROR(db.Exec("DROP VIEW IF EXISTS episode_rows"));
+  RETURN_IF_ERROR(db.Exec(kEpisodeRowsView));
+  ASSIGN_OR_RETURN(Statement sweeps, Statement::Prepare(db, "SELECT id, name FROM sweeps"));
+  for (;;) {
+    ASSIGN_OR_RETURN(bool row, sweeps.Step());
+    if (!row) break;
+    RETURN_IF_ERROR(CreateSweepView(db, sweeps.ColumnInt(0), sweeps.ColumnText(1)));
+  }
+  return absl::OkStatus();
+}
+
+}  // namespace
 
 absl::Status Migrate(Db& db, int64_t from) {
   if (from < 2) RETURN_IF_ERROR(db.Exec(kMigration2));
@@ -431,13 +474,8 @@ absl::Status Migrate(Db& db, int64_t from) {
       }
     }
     RETURN_IF_ERROR(db.Exec(kMigration5));
-    RETURN_IF_ERROR(db.Exec(kEpisodeRowsView));
-    ASSIGN_OR_RETURN(Statement sweeps, Statement::Prepare(db, "SELECT id, name FROM sweeps"));
-    for (;;) {
-      ASSIGN_OR_RETURN(bool row, sweeps.Step());
-      if (!row) break;
-      RETURN_IF_ERROR(CreateSweepView(db, sweeps.ColumnInt(0), sweeps.ColumnText(1)));
-    }
+    // The views are created again after the last migration (RecreateViews),
+    // with the columns of the latest version.
     ASSIGN_OR_RETURN(Statement keys, Statement::Prepare(db, "PRAGMA foreign_key_check"));
     ASSIGN_OR_RETURN(bool violation, keys.Step());
     if (violation) {
@@ -447,6 +485,10 @@ absl::Status Migrate(Db& db, int64_t from) {
     }
   }
   if (from < 6) RETURN_IF_ERROR(db.Exec(kMigration6));
+  if (from < 7) {
+    RETURN_IF_ERROR(db.Exec(kMigration7));
+    RETURN_IF_ERROR(RecreateViews(db));
+  }
   RETURN_IF_ERROR(db.Exec(absl::StrCat(
       "INSERT OR REPLACE INTO meta(key, value) VALUES ('format', 'totalgrad coordinator database'), "
       "('schema_version', '", kSchemaVersion, "'), ('documentation', 'docs/results_schema.md')")));

@@ -117,6 +117,7 @@ class SqliteStore final : public Store {
                                           const std::vector<ImportedJob>& jobs,
                                           const std::string& source, int64_t now_ms) override;
   absl::Status RetryJob(int64_t job_id, int64_t now_ms) override;
+  absl::StatusOr<int> SupersedeJob(int64_t job_id, int64_t by_job_id, int64_t now_ms) override;
   absl::StatusOr<int> ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms,
                                        const std::string& reason) override;
   absl::Status TouchWorker(const WorkerIdentity& worker, int64_t now_ms) override;

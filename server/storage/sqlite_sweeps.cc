@@ -170,6 +170,81 @@ SELECT COUNT(*) FROM attempts WHERE job_id = ? AND state = 'running')sql", job_i
   });
 }
 
+namespace {
+
+// The columns of `table` other than `except`, comma-joined (so that a copy of
+// rows keeps every column a later migration adds).
+absl::StatusOr<std::string> ColumnsExcept(Db& db, const std::string& table,
+                                          const std::vector<std::string>& except) {
+  ASSIGN_OR_RETURN(Statement info, Statement::Prepare(db, absl::StrCat("PRAGMA table_info(", table, ")")));
+  std::vector<std::string> columns;
+  for (;;) {
+    ASSIGN_OR_RETURN(bool row, info.Step());
+    if (!row) break;
+    std::string name = info.ColumnText(1);
+    if (std::find(except.begin(), except.end(), name) == except.end()) columns.push_back(name);
+  }
+  return absl::StrJoin(columns, ", ");
+}
+
+}  // namespace
+
+absl::StatusOr<int> SqliteStore::SupersedeJob(int64_t job_id, int64_t by_job_id, int64_t now_ms) {
+  int attempt = 0;
+  RETURN_IF_ERROR(InWriteTransaction([&](Db& db) -> absl::Status {
+    ASSIGN_OR_RETURN(JobRecord job, LoadJob(db, job_id));
+    ASSIGN_OR_RETURN(JobRecord by, LoadJob(db, by_job_id));
+    for (const JobRecord* j : {&job, &by}) {
+      if (j->kind != JobKind::kTrial || j->state != JobState::kCompleted) {
+        return absl::FailedPreconditionError(absl::StrCat(
+            "job ", j->id, " is a ", ToString(j->state), " ", ToString(j->kind),
+            " job; only a completed trial supersedes, or is superseded by, another"));
+      }
+    }
+    if (job.sweep_id == by.sweep_id) {
+      return absl::FailedPreconditionError(absl::StrCat(
+          "jobs ", job_id, " and ", by_job_id, " are of the same sweep '", job.sweep_name,
+          "': a re-run that supersedes a trial comes from a sweep of its own"));
+    }
+    if (job.method != by.method || job.seed != by.seed) {
+      return absl::FailedPreconditionError(absl::StrCat(
+          "job ", job_id, " is ", job.method, " seed ", job.seed, ", job ", by_job_id, " is ",
+          by.method, " seed ", by.seed, ": not a re-run of the same trial"));
+    }
+    attempt = job.attempts + 1;
+    const std::string origin = absl::StrCat("job ", by_job_id, " attempt ", by.completed_attempt,
+                                            " of sweep ", by.sweep_name);
+    ASSIGN_OR_RETURN(const std::string attempt_columns,
+                     ColumnsExcept(db, "attempts", {"job_id", "attempt", "origin"}));
+    ASSIGN_OR_RETURN(Statement copy_attempt, Statement::Prepare(db, absl::StrCat(
+        "INSERT INTO attempts(job_id, attempt, origin, ", attempt_columns, ") SELECT ?, ?, ?, ",
+        attempt_columns, " FROM attempts WHERE job_id = ? AND attempt = ?")));
+    copy_attempt.Bind(1, job_id).Bind(2, attempt).Bind(3, origin);
+    copy_attempt.Bind(4, by_job_id).Bind(5, by.completed_attempt);
+    RETURN_IF_ERROR(copy_attempt.Run());
+    for (const char* table : {"episodes", "checkpoints"}) {
+      ASSIGN_OR_RETURN(const std::string columns,
+                       ColumnsExcept(db, table, {"job_id", "attempt"}));
+      ASSIGN_OR_RETURN(Statement copy, Statement::Prepare(db, absl::StrCat(
+          "INSERT INTO ", table, "(job_id, attempt, ", columns, ") SELECT ?, ?, ", columns,
+          " FROM ", table, " WHERE job_id = ? AND attempt = ?")));
+      copy.Bind(1, job_id).Bind(2, attempt).Bind(3, by_job_id).Bind(4, by.completed_attempt);
+      RETURN_IF_ERROR(copy.Run());
+    }
+    ASSIGN_OR_RETURN(Statement update, Statement::Prepare(db, R"sql(
+UPDATE jobs SET attempts = ?, completed_attempt = ?, success = ?, final_eval_cost = ?
+WHERE id = ?)sql"));
+    update.Bind(1, attempt).Bind(2, attempt).Bind(3, by.success ? 1 : 0);
+    update.Bind(4, by.final_eval_cost).Bind(5, job_id);
+    RETURN_IF_ERROR(update.Run());
+    return AddEvent(db, now_ms, job.sweep_id, job_id, attempt, "superseded",
+                    absl::StrCat("completed attempt ", job.completed_attempt,
+                                 " superseded by ", origin, " (now attempt ", attempt,
+                                 "; final cost ", job.final_eval_cost, " -> ",
+                                 by.final_eval_cost, ")"));
+  }));
+  return attempt;
+}
 
 absl::Status SqliteStore::TouchWorker(const WorkerIdentity& worker, int64_t now_ms) {
   return InWriteTransaction([&](Db& db) -> absl::Status {

@@ -211,6 +211,9 @@ struct NewSweep {
   int max_lost_leases = 20;
   int max_concurrent = 0;
   std::vector<NewJob> jobs;
+  // When the sweep was first submitted (Unix ms); 0: now. An imported sweep
+  // keeps its archive's time.
+  int64_t created_ms = 0;
 };
 
 struct SweepRecord {
@@ -262,6 +265,10 @@ struct JobRecord {
   int completed_attempt = 0;  // 0 unless completed
   bool success = false;
   double final_eval_cost = kNaN;
+  // Of the completed attempt's last episode (learner::EpisodeSummary::
+  // held_fraction): the rollout verdict's fraction held; NaN when the job is
+  // not completed or its trial classified no rollouts.
+  double held_fraction = kNaN;
 };
 
 struct AttemptRecord {
@@ -276,6 +283,9 @@ struct AttemptRecord {
   std::string error;
   int episodes_stored = 0;
   int checkpoint_episode = -1;  // of its stored checkpoint; -1: none
+  // Where an attempt that no worker ran here came from: `job supersede`
+  // names the job, attempt and sweep it copied ("" for the others).
+  std::string origin;
 };
 
 struct EventRecord {
@@ -303,6 +313,7 @@ struct TrialResultRecord {
   bool success = false;
   double final_eval_cost = kNaN;
   int episodes = 0;
+  double held_fraction = kNaN;  // as JobRecord::held_fraction
 };
 
 struct EpisodeRowRecord {
@@ -376,8 +387,12 @@ struct ImportedAttempt {
   int64_t started_ms = 0;
   int64_t ended_ms = 0;
   std::string error;
+  std::string origin;  // AttemptRecord::origin
   std::vector<std::pair<Episode, int64_t>> episodes;  // with the time it was reported
   StudyRows study;
+  // Its checkpoint, when the archive kept it (the completed attempt's final
+  // state: the trial's final policy and GP data, `job artifacts`).
+  std::optional<Checkpoint> checkpoint;
 };
 
 // A job of a sweep archive, identified by (kind, method, seed, variant).
@@ -400,6 +415,7 @@ struct ImportResult {
   int jobs_unknown = 0;            // not a job of the sweep here
   int64_t episodes_imported = 0;
   int64_t study_rows_imported = 0;
+  int checkpoints_imported = 0;
 };
 
 enum class EndOutcome {
@@ -504,6 +520,18 @@ class Store {
   // FailedPrecondition for a job in another state, or one of a cancelled
   // sweep whose attempt is still open; NotFound if no such job.
   virtual absl::Status RetryJob(int64_t job_id, int64_t now_ms) = 0;
+
+  // Replaces completed trial `job_id`'s result by completed trial
+  // `by_job_id`'s (a re-run of the same trial in another sweep; whether the
+  // two are the same trial is the caller's to check): a new attempt of
+  // `job_id` copies `by_job_id`'s completed attempt (its worker, build,
+  // times, episodes and checkpoint), names it in its `origin`, and becomes
+  // the job's completed attempt with its success and final cost; the job's
+  // earlier attempts stay as they were, and an event records it. Returns the
+  // new attempt's number. FailedPrecondition unless both are completed trial
+  // jobs of different sweeps with the same method and seed; NotFound if
+  // either does not exist.
+  virtual absl::StatusOr<int> SupersedeJob(int64_t job_id, int64_t by_job_id, int64_t now_ms) = 0;
 
   // Sets the lease expiry of every open attempt to at least `lease_expires_ms`
   // (coordinator start-up or after a stall, so running workers can reattach);

@@ -685,8 +685,14 @@ TEST(RecordsArchive, EveryFieldOfTheSweepJobAndAttemptTablesIsCarried) {
     record_proto::RecordToProto(storage::ImportedAttemptFields(), *attempt,
                                 &input.attempts.emplace_back());
   }
+  // The completed attempt's checkpoint (results export --checkpoints), bytes
+  // that are not text.
+  v1::TrialCheckpoint& kept = input.checkpoints[completed.attempt];
+  kept.set_episode(2);
+  kept.set_format_version(2);
+  kept.set_data(std::string("\0state\xff\x01", 8));
   const nlohmann::ordered_json doc = service::SweepArchiveToJson(sweep_info, {input}, "test", kNow);
-  EXPECT_EQ(doc.at("version"), 3);
+  EXPECT_EQ(doc.at("version"), 4);
 
   // Written: every field's key, holding the record's value.
   auto expect_carried = [](const auto& table, const auto& full,
@@ -735,9 +741,39 @@ TEST(RecordsArchive, EveryFieldOfTheSweepJobAndAttemptTablesIsCarried) {
             std::vector<std::string>{});
   EXPECT_EQ(DifferingFields(storage::ImportedAttemptFields(), completed, read.attempts[1]),
             std::vector<std::string>{});
+  EXPECT_EQ(parsed->created_ms, sweep.created_ms);
+  EXPECT_FALSE(read.attempts[0].checkpoint.has_value());
+  ASSERT_TRUE(read.attempts[1].checkpoint.has_value());
+  EXPECT_EQ(read.attempts[1].checkpoint->episode, 2);
+  EXPECT_EQ(read.attempts[1].checkpoint->format_version, 2);
+  EXPECT_EQ(read.attempts[1].checkpoint->data, kept.data());
+
+  // Version 3 had no origin, no checkpoints and no kept submission time.
+  nlohmann::json v3 = nlohmann::json::parse(doc.dump());
+  v3["version"] = 3;
+  for (auto& attempt : v3["jobs"][0]["attempt_log"]) {
+    attempt.erase("origin");
+    attempt.erase("checkpoint");
+  }
+  const absl::StatusOr<service::ParsedSweepArchive> old = service::ParseSweepArchive(v3.dump());
+  TG_ASSERT_OK(old.status());
+  EXPECT_EQ(old->created_ms, 0);
+  EXPECT_EQ(old->jobs[0].attempts[1].origin, "");
+  EXPECT_FALSE(old->jobs[0].attempts[1].checkpoint.has_value());
+  // In version 4 the origin is required, and a checkpoint must be base64.
+  nlohmann::json broken = nlohmann::json::parse(doc.dump());
+  broken["jobs"][0]["attempt_log"][0].erase("origin");
+  EXPECT_NE(service::ParseSweepArchive(broken.dump()).status().message().find(
+                "jobs[0].attempt_log[0].origin"),
+            std::string::npos);
+  broken = nlohmann::json::parse(doc.dump());
+  broken["jobs"][0]["attempt_log"][1]["checkpoint"]["data_base64"] = "not base64!";
+  EXPECT_NE(service::ParseSweepArchive(broken.dump()).status().message().find(
+                "jobs[0].attempt_log[1].checkpoint.data_base64"),
+            std::string::npos);
 }
 
-// A version-3 archive of one sweep with two completed trials, one episode each.
+// A version-4 archive of one sweep with two completed trials, one episode each.
 nlohmann::ordered_json TwoTrialArchive() {
   v1::SweepInfo sweep;
   sweep.set_name("trials");

@@ -131,6 +131,9 @@ absl::StatusOr<storage::ImportResult> FaultyStore::ImportJobs(
 absl::Status FaultyStore::RetryJob(int64_t job_id, int64_t now_ms) {
   TG_FORWARD("RetryJob", target_->RetryJob(job_id, now_ms));
 }
+absl::StatusOr<int> FaultyStore::SupersedeJob(int64_t job_id, int64_t by_job_id, int64_t now_ms) {
+  TG_FORWARD("SupersedeJob", target_->SupersedeJob(job_id, by_job_id, now_ms));
+}
 absl::StatusOr<int> FaultyStore::ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms,
                                                    const std::string& reason) {
   TG_FORWARD("ExtendOpenLeases", target_->ExtendOpenLeases(lease_expires_ms, now_ms, reason));

@@ -342,6 +342,146 @@ TEST_F(StorageTest, CheckpointsAreFencedAndTheLatestIsFoundForResumption) {
   EXPECT_FALSE(none.has_value());
 }
 
+// Issue 25: `job supersede` copies a re-run's completed attempt (episodes,
+// checkpoint, worker and build) into the superseded job as a new attempt
+// that counts from then on, names its origin, keeps the old attempts and
+// refuses what is not a re-run of the same trial.
+TEST_F(StorageTest, SupersedeCopiesTheRerunsCompletedAttemptAndRefusesOthers) {
+  // Completes attempt `attempt` of `job` (worker "w1") with episodes 0..2
+  // costing `cost` each and a checkpoint holding `checkpoint`.
+  const auto complete = [&](int64_t job, int attempt, double cost, const std::string& checkpoint) {
+    TG_ASSERT_OK(store_->StartAttempt({job, attempt}, MakeWorker("w1"), kNow, kNow + 90'000));
+    AttemptEnd end;
+    end.key = {job, attempt};
+    end.worker_id = "w1";
+    end.attempt_state = AttemptState::kCompleted;
+    end.job_state = JobState::kCompleted;
+    end.totals.episodes = 3;
+    for (int e = 0; e < 3; ++e) end.results.episodes.push_back(MakeEpisode(e, cost));
+    end.results.episodes.back().held_fraction = cost / 100;
+    end.checkpoint = Checkpoint{2, 2, checkpoint};
+    end.success = cost < 15;
+    end.final_eval_cost = cost + 0.5;
+    end.now_ms = kNow;
+    TG_ASSERT_OK(store_->EndAttempt(end).status());
+  };
+  bool created = false;
+  TG_ASSERT_OK(store_->CreateSweep(MakeSweep("original", 2, 3), kNow, &created).status());
+  TG_ASSERT_OK(store_->CreateSweep(MakeSweep("rerun", 2, 3, "other-hash"), kNow, &created).status());
+  TG_ASSERT_OK_AND_ASSIGN(auto originals, store_->ListJobs({"original", {}, 0, 10}));
+  TG_ASSERT_OK_AND_ASSIGN(auto reruns, store_->ListJobs({"rerun", {}, 0, 10}));
+  const int64_t original = originals[0].id, rerun = reruns[0].id;
+  // Not completed yet: refused.
+  EXPECT_EQ(store_->SupersedeJob(original, rerun, kNow).status().code(),
+            absl::StatusCode::kFailedPrecondition);
+  complete(original, 1, 29, "old state");
+  complete(rerun, 1, 12, "new state");
+  complete(originals[1].id, 1, 20, "x");
+  complete(reruns[1].id, 1, 20, "y");
+  // Another seed, the same sweep, a missing job: refused, nothing changes.
+  EXPECT_EQ(store_->SupersedeJob(original, reruns[1].id, kNow).status().code(),
+            absl::StatusCode::kFailedPrecondition);
+  EXPECT_EQ(store_->SupersedeJob(original, originals[1].id, kNow).status().code(),
+            absl::StatusCode::kFailedPrecondition);
+  EXPECT_EQ(store_->SupersedeJob(original, 9999, kNow).status().code(),
+            absl::StatusCode::kNotFound);
+  TG_ASSERT_OK_AND_ASSIGN(JobRecord before, store_->GetJob(original));
+  EXPECT_EQ(before.attempts, 1);
+  EXPECT_EQ(before.held_fraction, 0.29);
+
+  TG_ASSERT_OK_AND_ASSIGN(const int attempt, store_->SupersedeJob(original, rerun, kNow + 5));
+  EXPECT_EQ(attempt, 2);
+  TG_ASSERT_OK_AND_ASSIGN(JobRecord after, store_->GetJob(original));
+  EXPECT_EQ(after.completed_attempt, 2);
+  EXPECT_EQ(after.attempts, 2);
+  EXPECT_TRUE(after.success);
+  EXPECT_EQ(after.final_eval_cost, 12.5);
+  EXPECT_EQ(after.held_fraction, 0.12);
+  EXPECT_EQ(after.sweep_name, "original");
+  TG_ASSERT_OK_AND_ASSIGN(auto attempts, store_->ListAttempts(original));
+  ASSERT_EQ(attempts.size(), 2u);
+  EXPECT_EQ(attempts[0].origin, "");
+  EXPECT_EQ(attempts[0].state, AttemptState::kCompleted);  // the history stays
+  EXPECT_EQ(attempts[1].origin, absl::StrCat("job ", rerun, " attempt 1 of sweep rerun"));
+  EXPECT_EQ(attempts[1].worker_build, "test-worker-build");
+  EXPECT_EQ(attempts[1].episodes_stored, 3);
+  EXPECT_EQ(attempts[1].checkpoint_episode, 2);
+  TG_ASSERT_OK_AND_ASSIGN(auto checkpoint, store_->GetCheckpoint(original, 2));
+  ASSERT_TRUE(checkpoint.has_value());
+  EXPECT_EQ(checkpoint->checkpoint.data, "new state");
+  // Every reader counts the copy: the results table and the export.
+  TG_ASSERT_OK_AND_ASSIGN(auto results, store_->ListTrialResults("original"));
+  ASSERT_EQ(results.size(), 2u);
+  EXPECT_EQ(results[0].attempt, 2);
+  EXPECT_EQ(results[0].final_eval_cost, 12.5);
+  EXPECT_EQ(results[0].held_fraction, 0.12);
+  std::vector<EpisodeRowRecord> rows;
+  TG_ASSERT_OK(store_->ExportEpisodes("original", false, 100, [&](std::vector<EpisodeRowRecord> batch) {
+    for (auto& row : batch) if (row.job_id == original) rows.push_back(std::move(row));
+    return absl::OkStatus();
+  }));
+  ASSERT_EQ(rows.size(), 3u);
+  EXPECT_EQ(rows[0].attempt, 2);
+  EXPECT_EQ(rows[0].episode.real_cost, 12);
+  TG_ASSERT_OK_AND_ASSIGN(auto events, store_->ListEvents(original));
+  EXPECT_EQ(events.back().kind, "superseded");
+  // The re-run itself is unchanged.
+  TG_ASSERT_OK_AND_ASSIGN(JobRecord source, store_->GetJob(rerun));
+  EXPECT_EQ(source.attempts, 1);
+  EXPECT_EQ(source.final_eval_cost, 12.5);
+}
+
+// Issue 25: an import keeps the archived sweep's submission time, each
+// attempt's origin and a kept checkpoint; issue 28: a job completed by an
+// attempt that lacks one of its episodes is refused, naming it, and nothing
+// of the archive is stored.
+TEST_F(StorageTest, ImportKeepsTimesOriginsAndCheckpointsAndRefusesIncompleteTrials) {
+  NewSweep sweep = MakeSweep("moved", 1, 3);
+  sweep.created_ms = 42;
+  ImportedJob job;
+  job.record.kind = JobKind::kTrial;
+  job.record.method = "RP";
+  job.record.seed = "1";
+  job.record.variant = "noise_k=1";
+  job.record.state = JobState::kCompleted;
+  job.record.success = true;
+  job.record.final_eval_cost = 2.5;
+  job.completed_attempt = 7;
+  ImportedAttempt& attempt = job.attempts.emplace_back();
+  attempt.attempt = 7;
+  attempt.state = AttemptState::kCompleted;
+  attempt.worker_id = "w9";
+  attempt.started_ms = 100;
+  attempt.ended_ms = 200;
+  attempt.origin = "job 3 attempt 1 of sweep elsewhere";
+  attempt.checkpoint = Checkpoint{2, 2, std::string("\0kept\xff", 6)};
+  for (int e = 0; e < 2; ++e) attempt.episodes.emplace_back(MakeEpisode(e), 150 + e);
+
+  // Episode 2 of 0..2 is missing from the completing attempt: refused.
+  const auto refused = store_->ImportJobs(sweep, "moved", {job}, "a.json", kNow);
+  EXPECT_EQ(refused.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(refused.status().message().find("holds 2 of its 3 episodes"), std::string::npos)
+      << refused.status();
+  EXPECT_EQ(store_->GetSweep("moved").status().code(), absl::StatusCode::kNotFound);
+
+  attempt.episodes.emplace_back(MakeEpisode(2), 152);
+  TG_ASSERT_OK_AND_ASSIGN(ImportResult result,
+                          store_->ImportJobs(sweep, "moved", {job}, "a.json", kNow));
+  EXPECT_EQ(result.jobs_imported, 1);
+  EXPECT_EQ(result.checkpoints_imported, 1);
+  TG_ASSERT_OK_AND_ASSIGN(SweepRecord stored, store_->GetSweep("moved"));
+  EXPECT_EQ(stored.created_ms, 42);
+  TG_ASSERT_OK_AND_ASSIGN(auto jobs, store_->ListJobs({"moved", {}, 0, 10}));
+  TG_ASSERT_OK_AND_ASSIGN(auto attempts, store_->ListAttempts(jobs[0].id));
+  ASSERT_EQ(attempts.size(), 1u);
+  EXPECT_EQ(attempts[0].origin, "job 3 attempt 1 of sweep elsewhere");
+  EXPECT_EQ(attempts[0].checkpoint_episode, 2);
+  TG_ASSERT_OK_AND_ASSIGN(auto checkpoint, store_->GetCheckpoint(jobs[0].id, 1));
+  ASSERT_TRUE(checkpoint.has_value());
+  EXPECT_EQ(checkpoint->checkpoint.data, std::string("\0kept\xff", 6));
+  EXPECT_EQ(checkpoint->checkpoint.format_version, 2);
+}
+
 TEST_F(StorageTest, ExtendOpenLeasesMovesOnlyEarlierExpiries) {
   const int64_t job = CreateAndLease("s");
   TG_ASSERT_OK_AND_ASSIGN(int extended, store_->ExtendOpenLeases(kNow + 500'000, kNow, "in a test"));

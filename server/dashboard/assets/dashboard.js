@@ -185,7 +185,9 @@ function table1(data) {
             return el('td', {'data-variant': v},
                 el('div', {class: 'cell-rate',
                            text: `${fixed(c.rate, 2)} [${fixed(c.wilson_low, 2)}, ${fixed(c.wilson_high, 2)}] n=${c.trials}`}),
-                el('div', {class: 'cell-sub', text: `median final cost ${fixed(c.median_final_cost, 2)}`}));
+                el('div', {class: 'cell-sub', text: `median final cost ${fixed(c.median_final_cost, 2)}`}),
+                c.classified > 0 ? el('div', {class: 'cell-sub cell-held',
+                    text: `rollout verdict: held ${c.held}/${c.classified} [${fixed(c.held_wilson_low, 2)}, ${fixed(c.held_wilson_high, 2)}]`}) : null);
           })))));
 }
 
@@ -318,7 +320,7 @@ function compareTable(data) {
 function jobsTable(jobs) {
   return el('table', {id: 'jobs'},
       el('thead', {}, el('tr', {}, ...['job', 'method', 'seed', 'variant', 'state', 'episodes', 'attempts',
-                                        'worker', 'final cost', 'success', 'last error'].map(t => el('th', {text: t})))),
+                                        'worker', 'final cost', 'success', 'held', 'last error'].map(t => el('th', {text: t})))),
       el('tbody', {}, ...jobs.map(j => el('tr', {'data-job': j.job_id},
           el('td', {}, el('a', {href: '#/job/' + j.job_id, text: j.job_id})),
           el('td', {text: j.method}), el('td', {text: j.seed}), el('td', {text: j.variant}),
@@ -327,6 +329,8 @@ function jobsTable(jobs) {
           el('td', {class: 'num', text: j.attempts}), el('td', {text: j.worker_id}),
           el('td', {class: 'num', text: j.state === 'completed' ? fixed(j.final_eval_cost, 3) : ''}),
           el('td', {text: j.state !== 'completed' ? '' : (j.success ? 'yes' : 'no')}),
+          el('td', {class: 'num', title: 'fraction of the final policy\'s verdict rollouts held',
+                    text: j.held_fraction === null || j.held_fraction === undefined ? '' : fixed(j.held_fraction, 2)}),
           el('td', {class: 'error', text: j.last_error})))));
 }
 
@@ -398,7 +402,8 @@ async function renderJob(view, id) {
       el('h2', {text: `Job ${j.job_id}: ${j.method}, seed ${j.seed}${j.variant ? ', ' + j.variant : ''}`}),
       el('p', {}, stateSpan(j.state), ` — ${j.episodes_stored}/${j.episodes_expected} episodes, ` +
          `${j.attempts} attempts, ${j.failures} failures, ${j.lost_leases} lost leases` +
-         (j.state === 'completed' && j.final_eval_cost !== null ? `, final cost ${fixed(j.final_eval_cost, 3)} (${j.success ? 'success' : 'no success'})` : '')),
+         (j.state === 'completed' && j.final_eval_cost !== null ? `, final cost ${fixed(j.final_eval_cost, 3)} (${j.success ? 'success' : 'no success'})` : '') +
+         (j.held_fraction !== null && j.held_fraction !== undefined ? `, rollouts held ${fixed(j.held_fraction, 2)} (${j.held_fraction >= 0.5 ? 'held' : 'not held'})` : '')),
       j.last_error ? el('p', {class: 'error', text: j.last_error}) : null,
       el('details', {}, el('summary', {text: `options (${data.options.length})`}), el('pre', {text: optionText})),
       el('h3', {text: 'Episodes'}),

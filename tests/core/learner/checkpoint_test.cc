@@ -53,6 +53,7 @@ void ExpectSameResult(const EpisodeResult& x, const EpisodeResult& y) {
   EXPECT_TRUE(SameBits(x.eval_cost_mean, y.eval_cost_mean));
   EXPECT_TRUE(SameBits(x.eval_cost_std, y.eval_cost_std));
   EXPECT_TRUE(SameBits(x.predicted_cost, y.predicted_cost));
+  EXPECT_TRUE(SameBits(x.held_fraction, y.held_fraction));
   EXPECT_TRUE(SameBits(x.policy_parameters, y.policy_parameters));
   EXPECT_TRUE(SameBits(x.hyperparameters.log_lengthscales, y.hyperparameters.log_lengthscales));
   EXPECT_TRUE(SameBits(x.hyperparameters.log_signal_std, y.hyperparameters.log_signal_std));
@@ -110,6 +111,14 @@ TEST(TrialCheckpoint, EncodingRoundTripsExactly) {
     ASSERT_EQ(decoded->episodes.size(), checkpoint.episodes.size());
     // Episode 0 has no evaluation: NaN survives as NaN.
     EXPECT_TRUE(std::isnan(decoded->episodes[0].eval_cost_mean));
+    // The last episode's rollout verdict (a field version 1 did not have).
+    EXPECT_TRUE(SameBits(decoded->episodes.back().held_fraction,
+                         checkpoint.episodes.back().held_fraction));
+  }
+  {
+    const std::vector<EpisodeResult>& episodes = collector.checkpoints.back().episodes;
+    EXPECT_FALSE(std::isnan(episodes.back().held_fraction));
+    EXPECT_TRUE(std::isnan(episodes[1].held_fraction) && episodes.size() == 3);
   }
   // After episode 0 there is no model yet; after episode 1 there is.
   EXPECT_FALSE(collector.checkpoints[0].hyperparameters.has_value());
@@ -133,8 +142,8 @@ TEST(TrialCheckpoint, WhatCannotBeReadIsRefusedByName) {
   EXPECT_NE(message(DecodeCheckpoint(bytes.substr(0, bytes.size() - 100))).find("checksum"),
             std::string::npos);
   std::string newer = bytes;
-  newer[8] = 2;  // the format version's low byte
-  EXPECT_NE(message(DecodeCheckpoint(newer)).find("format version 2; this build reads version 1"),
+  newer[8] = 3;  // the format version's low byte
+  EXPECT_NE(message(DecodeCheckpoint(newer)).find("format version 3; this build reads versions 1 to 2"),
             std::string::npos);
   // A checkpoint of another trial is not resumed.
   auto decoded = DecodeCheckpoint(bytes);
