@@ -27,5 +27,7 @@ function(totalgrad_test source)
   set(target "${prefix}_${stem}")
   add_executable(${target} ${source})
   target_link_libraries(${target} PRIVATE ${ARG_LIBS} totalgrad_testutil totalgrad_test_main GTest::gmock)
+  # Where committed test data lives (tests/*/testdata).
+  target_compile_definitions(${target} PRIVATE TOTALGRAD_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
   gtest_discover_tests(${target} DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "${ARG_LABELS}")
 endfunction()

@@ -44,6 +44,10 @@ struct GradientEstimate {
   // Total propagation's weight on LR per step t = 0..H-1 (the node producing
   // x_{t+1}); empty for methods that do not combine.
   std::vector<double> k_lr;
+  // The BIW importance weights' effective sample size per step t = 0..H-1
+  // (likelihood_ratio.h, MeanEffectiveSampleSize); empty for methods
+  // without them (RP, GR, DEL, plain weights).
+  std::vector<double> ess;
 };
 
 struct EstimateOptions {

@@ -213,6 +213,19 @@ void TransitionLogDensities(const StepRecord& step, RowMatrix* log_density) {
   }
 }
 
+double MeanEffectiveSampleSize(const RowMatrix& weights) {
+  const Eigen::Index p = weights.rows();
+  if (p == 0) return std::nan("");
+  double total = 0;
+  for (Eigen::Index i = 0; i < p; ++i) {
+    const double sum = weights.row(i).sum();
+    const double sum_sq = weights.row(i).squaredNorm();
+    // Written so that NaN weights give NaN, and an all-zero row 0.
+    total += sum_sq > 0 ? sum * sum / sum_sq : (sum_sq == 0 ? 0.0 : sum_sq);
+  }
+  return total / static_cast<double>(p);
+}
+
 void BiwLogWeights(const StepRecord& step, RowMatrix* log_weights, RowMatrix* weights) {
   TransitionLogDensities(step, log_weights);
   const Eigen::Index p = log_weights->rows();

@@ -45,6 +45,16 @@ void TransitionLogDensities(const StepRecord& step, RowMatrix* log_density);
 // log-sum-exp's own exponentials (no second P x P exp).
 void BiwLogWeights(const StepRecord& step, RowMatrix* log_weights, RowMatrix* weights = nullptr);
 
+// The effective sample size of BIW weights c (P x P, BiwLogWeights: row i
+// the source particle, column j the sample), averaged over the sources:
+//   ESS = (1/P) sum_i (sum_j c_ij)^2 / sum_j c_ij^2,
+// Kish's effective number of the samples that source i's likelihood-ratio
+// term weighs, in [1, P] for a row with mass: P for uniform weights, 1 when
+// each source weighs only its own sample (the degeneracy of low model
+// noise). A row whose weights all underflow to 0 counts 0; a NaN weight
+// gives NaN.
+double MeanEffectiveSampleSize(const RowMatrix& weights);
+
 // The BIW baseline from log weights (P x P) and costs to go (P): b_i =
 // sum_{j != i} c_ij G_j / sum_{j != i} c_ij, evaluated with row i's largest
 // log weight over j != i factored out so that it is exact even when every

@@ -70,6 +70,10 @@ absl::Status BackwardPass(const Problem& problem, const Rollout& rollout,
 
   result->per_particle.setZero(p, n);
   result->k_lr.clear();
+  result->ess.clear();
+  const bool biw = config.jump == JumpKind::kLikelihoodRatio &&
+                   config.lr_weights == LrWeights::kBatchImportance;
+  if (biw) result->ess.assign(horizon, std::nan(""));
   result->var_pathwise.clear();
   result->var_jump.clear();
   if (combining) {
@@ -130,6 +134,7 @@ absl::Status BackwardPass(const Problem& problem, const Rollout& rollout,
     if (config.jump == JumpKind::kLikelihoodRatio) {
       if (config.lr_weights == LrWeights::kBatchImportance) {
         BiwLogWeights(step, &log_weights, &weights);
+        result->ess[t] = MeanEffectiveSampleSize(weights);
         if (config.lr_baseline == LrBaseline::kBatchImportancePair) {
           BiwPairBaseline(log_weights, cost_to_go, &pair_baseline);
           WeightedLrCotangent(step, weights, cost_to_go, pair_baseline, scale, &zeta_jump);
@@ -304,6 +309,7 @@ absl::Status ParticleEstimator::Estimate(const Problem& problem, const EstimateO
   RowMatrix per_particle = backward_.per_particle * static_cast<double>(options.particles);
   estimate->per_particle_variance = ColumnSampleVariance(per_particle);
   estimate->k_lr = backward_.k_lr;
+  estimate->ess = backward_.ess;
   estimate->finite = rollout_.finite && estimate->gradient.allFinite() &&
                      estimate->per_particle_variance.allFinite();
   if (options.keep_per_particle) estimate->per_particle = std::move(per_particle);

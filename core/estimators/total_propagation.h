@@ -64,6 +64,10 @@ struct BackwardResult {
   // the jump branch and the two branches' trace variances.
   std::vector<double> k_lr;
   std::vector<TraceVariance> var_pathwise, var_jump;
+  // When the jump branch uses BIW weights, per node t (H entries): their
+  // effective sample size (MeanEffectiveSampleSize). Read only: recording it
+  // changes no number of the pass.
+  std::vector<double> ess;
 };
 
 // Runs the pass over `rollout` (recorded for `problem` with Jacobians, and

@@ -160,10 +160,14 @@ gp::GpHyperparameters ReadHyperparameters(Reader& r) {
   return h;
 }
 
-// The episode record's double fields that version 1 wrote in fixed
-// positions; version 2 writes every other double field of EpisodeFields() as
-// (name, value), so a field added to the record is checkpointed with no
-// change here.
+// The episode record's fields that version 1 did not write in fixed
+// positions: versions 2 and 3 write every other field of EpisodeFields() by
+// name, so a field added to the record is checkpointed with no change here
+// (version 2: (name, double); version 3: (name, type, value), a type
+// kNamedDouble or kNamedDoubles).
+constexpr uint8_t kNamedDouble = 0;
+constexpr uint8_t kNamedDoubles = 1;
+
 std::vector<const record::Field<EpisodeSummary>*> NamedEpisodeFields() {
   static const std::vector<std::string> kVersion1 = {
       "episode", "real_cost", "eval_cost_mean", "eval_cost_std", "predicted_cost",
@@ -171,8 +175,9 @@ std::vector<const record::Field<EpisodeSummary>*> NamedEpisodeFields() {
   std::vector<const record::Field<EpisodeSummary>*> named;
   for (const record::Field<EpisodeSummary>& field : EpisodeFields()) {
     if (std::find(kVersion1.begin(), kVersion1.end(), field.name) != kVersion1.end()) continue;
-    // Only doubles so far; a field of another type needs a writer here first.
-    TG_CHECK(field.type() == record::FieldType::kDouble);
+    // Doubles and lists of doubles; a field of another type needs a writer here first.
+    TG_CHECK(field.type() == record::FieldType::kDouble ||
+             field.type() == record::FieldType::kDoubles);
     named.push_back(&field);
   }
   return named;
@@ -200,12 +205,19 @@ void WriteEpisode(Writer& w, const EpisodeResult& e) {
                    t.evaluation_cpu, t.evaluation_wall})
     w.F64(v);
   w.I64(t.policy_steps);
-  // Version 2: the record's fields that version 1 does not list, by name.
+  // The record's fields that version 1 does not list, by name and type.
   const std::vector<const record::Field<EpisodeSummary>*> named = NamedEpisodeFields();
   w.U64(named.size());
   for (const record::Field<EpisodeSummary>* field : named) {
     w.Str(field->name);
-    w.F64(field->Get<double>(e));
+    if (field->type() == record::FieldType::kDouble) {
+      w.U8(kNamedDouble);
+      w.F64(field->Get<double>(e));
+    } else {
+      w.U8(kNamedDoubles);
+      const std::vector<double>& values = field->Get<std::vector<double>>(e);
+      w.Vec(Eigen::Map<const Vector>(values.data(), static_cast<Eigen::Index>(values.size())));
+    }
   }
 }
 
@@ -237,13 +249,25 @@ EpisodeResult ReadEpisode(Reader& r, uint32_t version) {
   if (r.ok() && named > 10000) r.Fail("episodes[].fields", "too many");
   for (uint64_t i = 0; i < named && r.ok(); ++i) {
     const std::string name = r.Str("episodes[].fields[].name");
-    const double value = r.F64("episodes[].fields[].value");
+    // Version 2 wrote doubles only, untyped.
+    const uint8_t type = version >= 3 ? r.U8("episodes[].fields[].type") : kNamedDouble;
+    double value = 0;
+    Vector values;
+    if (type == kNamedDouble) value = r.F64("episodes[].fields[].value");
+    else if (type == kNamedDoubles) values = r.Vec("episodes[].fields[].values");
+    else if (r.ok()) r.Fail("episodes[].fields[].type", absl::StrCat("unknown type ", type));
     const record::Field<EpisodeSummary>* field = nullptr;
     for (const record::Field<EpisodeSummary>* f : NamedEpisodeFields())
       if (name == f->name) field = f;
-    if (field == nullptr && r.ok()) {
+    const bool is_list = field != nullptr && field->type() == record::FieldType::kDoubles;
+    if (!r.ok()) break;
+    if (field == nullptr) {
       r.Fail("episodes[].fields", absl::StrCat("unknown episode field '", name, "'"));
-    } else if (field != nullptr) {
+    } else if (is_list != (type == kNamedDoubles)) {
+      r.Fail("episodes[].fields", absl::StrCat("episode field '", name, "' has the wrong type"));
+    } else if (is_list) {
+      field->Get<std::vector<double>>(e).assign(values.data(), values.data() + values.size());
+    } else {
       field->Get<double>(e) = value;
     }
   }

@@ -14,6 +14,7 @@
 #define TOTALGRAD_CORE_LEARNER_EPISODE_RECORD_H_
 
 #include <limits>
+#include <vector>
 
 #include "core/common/record.h"
 
@@ -35,6 +36,26 @@ struct EpisodeSummary {
   // trial's last episode when verdict_rollouts > 0, NaN on every other
   // episode and in rows stored before the field existed.
   double held_fraction = kNaN;
+  // What the policy optimisation did (particle methods; NaN, or empty, for
+  // PILCO, episode 0, a quantity the method lacks, and rows stored before
+  // the fields existed): learner::OptimisationDiagnostics, whose header
+  // gives the formulas. first/middle/last: gradient steps 1, S/2 and S.
+  double gradient_norm_first = kNaN;
+  double gradient_norm_middle = kNaN;
+  double gradient_norm_last = kNaN;
+  double gradient_norm_mean = kNaN;
+  double gradient_snr_first = kNaN;
+  double gradient_snr_middle = kNaN;
+  double gradient_snr_last = kNaN;
+  double gradient_snr_mean = kNaN;
+  double step_norm_first = kNaN;
+  double step_norm_middle = kNaN;
+  double step_norm_last = kNaN;
+  double step_norm_mean = kNaN;
+  double ess_min = kNaN;           // BIW importance weights' ESS, min over the horizon
+  double ess_median = kNaN;        // its median over the horizon
+  double ess_low_fraction = kNaN;  // fraction of the horizon with ESS < P / 10
+  std::vector<double> lr_share;    // per step t = 1..H, TP / GTP / GTP+sn
 };
 
 inline const record::FieldTable<EpisodeSummary>& EpisodeFields() {
@@ -48,6 +69,23 @@ inline const record::FieldTable<EpisodeSummary>& EpisodeFields() {
       {"optimisation_seconds", &E::optimisation_seconds},
       {"cpu_seconds", &E::cpu_seconds},
       {"held_fraction", &E::held_fraction},
+      {"gradient_norm_first", &E::gradient_norm_first},
+      {"gradient_norm_middle", &E::gradient_norm_middle},
+      {"gradient_norm_last", &E::gradient_norm_last},
+      {"gradient_norm_mean", &E::gradient_norm_mean},
+      {"gradient_snr_first", &E::gradient_snr_first},
+      {"gradient_snr_middle", &E::gradient_snr_middle},
+      {"gradient_snr_last", &E::gradient_snr_last},
+      {"gradient_snr_mean", &E::gradient_snr_mean},
+      {"step_norm_first", &E::step_norm_first},
+      {"step_norm_middle", &E::step_norm_middle},
+      {"step_norm_last", &E::step_norm_last},
+      {"step_norm_mean", &E::step_norm_mean},
+      {"ess_min", &E::ess_min},
+      {"ess_median", &E::ess_median},
+      {"ess_low_fraction", &E::ess_low_fraction},
+      // A list: JSON only, no CSV column.
+      {"lr_share", &E::lr_share, false},
   };
   return *table;
 }

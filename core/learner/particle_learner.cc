@@ -12,6 +12,7 @@
 #include "absl/strings/str_cat.h"
 #include "core/common/rng.h"
 #include "core/estimators/estimator.h"
+#include "core/learner/optimisation_diagnostics.h"
 #include "core/learner/optimizer.h"
 #include "core/learner/policy_learner.h"
 #include "core/pilco/angle_features.h"
@@ -81,6 +82,8 @@ class ParticleLearner final : public PolicyLearner {
     estimate_options.particles = options_.particles;
     optimiser_.Reset();
     estimators::GradientEstimate estimate;
+    OptimisationDiagnostics diagnostics(options_.policy_steps > 0 ? options_.policy_steps : 1,
+                                        options_.particles);
     Vector theta = policy_.parameters();
     for (int step = 0; step < options_.policy_steps; ++step) {
       if (observer != nullptr && observer->ShouldCancel())
@@ -95,10 +98,12 @@ class ParticleLearner final : public PolicyLearner {
       ++timing.policy_steps;
       if (estimate.gradient.isZero(0.0)) result->flags.zero_gradient = true;
       optimiser_.Step(estimate.gradient, estimate.per_particle_variance, options_.particles, &theta);
-      if (observer != nullptr)
-        observer->OnPolicyStep(e, step, estimate.objective, (theta - policy_.parameters()).norm());
+      const double step_norm = (theta - policy_.parameters()).norm();
+      diagnostics.AddStep(step, estimate, step_norm);
+      if (observer != nullptr) observer->OnPolicyStep(e, step, estimate.objective, step_norm);
       policy_.set_parameters(theta);
     }
+    diagnostics.Fill(result);
     clock->Lap(&timing.policy_cpu, &timing.policy_wall);
     estimators::Rollout rollout;
     Rng predicted_rng(options_.seed, Stream::kParticleNoise, StepStreamIndex(e, kPredictedCostStep));

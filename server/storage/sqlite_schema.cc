@@ -289,6 +289,28 @@ ALTER TABLE episodes ADD COLUMN held_fraction REAL;
 ALTER TABLE attempts ADD COLUMN origin TEXT NOT NULL DEFAULT '';
 )sql";
 
+// Version 7 -> 8 (issue 27): the optimisation diagnostics of each episode
+// (learner::OptimisationDiagnostics); NULL in rows stored before, which read
+// as absent, not zero.
+constexpr char kMigration8[] = R"sql(
+ALTER TABLE episodes ADD COLUMN gradient_norm_first REAL;
+ALTER TABLE episodes ADD COLUMN gradient_norm_middle REAL;
+ALTER TABLE episodes ADD COLUMN gradient_norm_last REAL;
+ALTER TABLE episodes ADD COLUMN gradient_norm_mean REAL;
+ALTER TABLE episodes ADD COLUMN gradient_snr_first REAL;
+ALTER TABLE episodes ADD COLUMN gradient_snr_middle REAL;
+ALTER TABLE episodes ADD COLUMN gradient_snr_last REAL;
+ALTER TABLE episodes ADD COLUMN gradient_snr_mean REAL;
+ALTER TABLE episodes ADD COLUMN step_norm_first REAL;
+ALTER TABLE episodes ADD COLUMN step_norm_middle REAL;
+ALTER TABLE episodes ADD COLUMN step_norm_last REAL;
+ALTER TABLE episodes ADD COLUMN step_norm_mean REAL;
+ALTER TABLE episodes ADD COLUMN ess_min REAL;
+ALTER TABLE episodes ADD COLUMN ess_median REAL;
+ALTER TABLE episodes ADD COLUMN ess_low_fraction REAL;
+ALTER TABLE episodes ADD COLUMN lr_share_json TEXT;
+)sql";
+
 // One row per stored episode of every sweep (version 5: the seed is already
 // an integer; version 4 cast it; version 7 adds held_fraction).
 constexpr char kEpisodeRowsView[] = R"sql(
@@ -489,6 +511,7 @@ absl::Status Migrate(Db& db, int64_t from) {
     RETURN_IF_ERROR(db.Exec(kMigration7));
     RETURN_IF_ERROR(RecreateViews(db));
   }
+  if (from < 8) RETURN_IF_ERROR(db.Exec(kMigration8));
   RETURN_IF_ERROR(db.Exec(absl::StrCat(
       "INSERT OR REPLACE INTO meta(key, value) VALUES ('format', 'totalgrad coordinator database'), "
       "('schema_version', '", kSchemaVersion, "'), ('documentation', 'docs/results_schema.md')")));

@@ -19,7 +19,7 @@ namespace totalgrad::storage::internal {
 // Version 4: job_options, episodes.cpu_seconds, the views, meta filled.
 // Version 5: jobs.seed is an INTEGER column (was TEXT).
 // Version 6: study_references.agreement_resolution.
-inline constexpr int kSchemaVersion = 7;
+inline constexpr int kSchemaVersion = 8;
 
 // The schema of version 1 (a new database is created as version 1 and
 // migrated, in one transaction, so new and migrated files are alike).

@@ -11,6 +11,8 @@
 
 #include <cmath>
 #include <cstring>
+#include <fstream>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -54,6 +56,10 @@ void ExpectSameResult(const EpisodeResult& x, const EpisodeResult& y) {
   EXPECT_TRUE(SameBits(x.eval_cost_std, y.eval_cost_std));
   EXPECT_TRUE(SameBits(x.predicted_cost, y.predicted_cost));
   EXPECT_TRUE(SameBits(x.held_fraction, y.held_fraction));
+  EXPECT_TRUE(SameBits(x.gradient_norm_mean, y.gradient_norm_mean));
+  EXPECT_TRUE(SameBits(x.gradient_snr_last, y.gradient_snr_last));
+  EXPECT_TRUE(SameBits(x.ess_median, y.ess_median));
+  EXPECT_EQ(x.lr_share, y.lr_share);
   EXPECT_TRUE(SameBits(x.policy_parameters, y.policy_parameters));
   EXPECT_TRUE(SameBits(x.hyperparameters.log_lengthscales, y.hyperparameters.log_lengthscales));
   EXPECT_TRUE(SameBits(x.hyperparameters.log_signal_std, y.hyperparameters.log_signal_std));
@@ -126,6 +132,38 @@ TEST(TrialCheckpoint, EncodingRoundTripsExactly) {
   EXPECT_EQ(collector.checkpoints[2].forces.size(), 30);  // 3 episodes x horizon 10
 }
 
+// A version-2 checkpoint (issue 25's first build, 24478a0: fields after
+// version 1 by name, doubles only), taken from a real trial of the
+// table1-tip-k001 sweep (RP seed 10, k = 0.01, after learned episode 1),
+// still reads: its fields as they were, the fields added since as absent.
+TEST(TrialCheckpoint, VersionTwoStillReads) {
+  std::ifstream in(std::string(TOTALGRAD_SOURCE_DIR) +
+                       "/tests/core/learner/testdata/checkpoint_v2_rp_episode1.bin",
+                   std::ios::binary);
+  ASSERT_TRUE(in);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  ASSERT_EQ(bytes[8], 2);  // the format version's low byte
+  auto decoded = DecodeCheckpoint(bytes);
+  ASSERT_TRUE(decoded.ok()) << decoded.status();
+  EXPECT_EQ(decoded->episode, 1);
+  ASSERT_EQ(decoded->episodes.size(), 2u);
+  EXPECT_EQ(decoded->episodes[0].real_cost, 29.98998604479523);
+  EXPECT_EQ(decoded->states.rows(), 60);  // two episodes of 30 steps
+  EXPECT_TRUE(std::isnan(decoded->episodes[1].held_fraction));  // not the last episode
+  EXPECT_TRUE(std::isnan(decoded->episodes[1].gradient_norm_mean));  // added after version 2
+  EXPECT_TRUE(decoded->episodes[1].lr_share.empty());
+  absl::StatusOr<TrialOptions> options = TrialOptionsFromStoredPairs(decoded->options);
+  ASSERT_TRUE(options.ok());
+  EXPECT_EQ(options->scene.noise_k, 0.01);
+  EXPECT_EQ(options->verdict_rollouts, 100);
+  EXPECT_TRUE(CheckResumable(*decoded, *options).ok());
+  // Written again, it is this build's version and reads back the same.
+  auto again = DecodeCheckpoint(EncodeCheckpoint(*decoded));
+  ASSERT_TRUE(again.ok()) << again.status();
+  EXPECT_TRUE(SameBits(again->policy_parameters, decoded->policy_parameters));
+  ExpectSameResult(again->episodes[1], decoded->episodes[1]);
+}
+
 TEST(TrialCheckpoint, WhatCannotBeReadIsRefusedByName) {
   Collector collector;
   ASSERT_TRUE(RunTrial(Tiny({{"episodes", "1"}}), &collector).ok());
@@ -142,8 +180,8 @@ TEST(TrialCheckpoint, WhatCannotBeReadIsRefusedByName) {
   EXPECT_NE(message(DecodeCheckpoint(bytes.substr(0, bytes.size() - 100))).find("checksum"),
             std::string::npos);
   std::string newer = bytes;
-  newer[8] = 3;  // the format version's low byte
-  EXPECT_NE(message(DecodeCheckpoint(newer)).find("format version 3; this build reads versions 1 to 2"),
+  newer[8] = 4;  // the format version's low byte
+  EXPECT_NE(message(DecodeCheckpoint(newer)).find("format version 4; this build reads versions 1 to 3"),
             std::string::npos);
   // A checkpoint of another trial is not resumed.
   auto decoded = DecodeCheckpoint(bytes);
