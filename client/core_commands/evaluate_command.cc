@@ -149,12 +149,7 @@ int RunEvaluate(const EvaluateFlags& flags) {
   std::vector<bool> held;
   learner::RolloutClassification classification;
   if (flags.classify) {
-    const int hold_steps = learner::VerdictHoldSteps(options, *scene);
-    if (hold_steps < 1 || hold_steps > scene->horizon) {
-      std::cerr << "evaluate: verdict_hold_seconds is " << hold_steps << " steps; it must be 1 to "
-                << scene->horizon << "\n";
-      return 2;
-    }
+    const int hold_steps = learner::VerdictHoldSteps(options, *scene);  // within 1..horizon
     classification.rollouts = flags.rollouts;
     for (const tasks::Episode& run : evaluation->rollouts) {
       held.push_back(learner::RolloutHeld(*scene, run, options.verdict_distance, hold_steps));

@@ -71,7 +71,8 @@ struct TrialOptions {
   // the first eval_rollouts of them are the last evaluation's own), and a
   // rollout is "held" when the goal distance (tasks::GoalDistance: on the
   // cart-pole the tip's distance from the upright tip, m) stays at most
-  // verdict_distance over the last verdict_hold_seconds of the episode.
+  // verdict_distance over the last verdict_hold_seconds of the episode (all
+  // of it when the episode is shorter).
   // The episode record's held_fraction is the fraction held; the trial's
   // rollout verdict is held_fraction >= 1/2. The defaults were chosen from
   // rollouts of clearly succeeding and clearly failing policies
@@ -144,8 +145,8 @@ gp::GpModelOptions GpOptions(const TrialOptions& options);
 // the first option that differs otherwise ("option noise_k is '1' in one,
 // '0.01' in the other").
 absl::Status SameEpisodes(const TrialOptions& a, const TrialOptions& b);
-// verdict_hold_seconds as control steps of `scene` (rounded); Validate()
-// requires 1..horizon when verdict_rollouts > 0.
+// verdict_hold_seconds as control steps of `scene`: rounded, then clamped to
+// 1..horizon (an episode shorter than the hold time is held over all of it).
 int VerdictHoldSteps(const TrialOptions& options, const tasks::Scene& scene);
 // The BFGS budget pilco_line_searches / pilco_evaluations_per_line_search
 // resolve to: the option when >= 1, else the scene's PILCO protocol (an

@@ -101,10 +101,13 @@ TEST_F(CliTest, SubmitWaitAndQueryResultsInEveryFormat) {
 
   ASSERT_EQ(Cli({"results", "table", "cli"}, &out, &err), 0) << err;
   EXPECT_NE(out.find("RP      1.00 [0.44, 1.00] n=3"), std::string::npos) << out;
+  // Every trial classified its final policy's rollouts (the rollout verdict).
+  EXPECT_NE(out.find("n=3; held "), std::string::npos) << out;
+  EXPECT_NE(out.find("/3"), std::string::npos) << out;
   ASSERT_EQ(Cli({"results", "table", "cli", "-f", "csv"}, &out, &err), 0) << err;
   EXPECT_EQ(out.substr(0, out.find('\n')),
             "method,variant,trials,successes,success_rate,wilson95_low,wilson95_high,"
-            "median_final_cost");
+            "median_final_cost,classified,held,held_rate,held_wilson95_low,held_wilson95_high");
   ASSERT_EQ(Cli({"results", "table", "cli", "-f", "json"}, &out, &err), 0) << err;
   const nlohmann::json table = nlohmann::json::parse(out);
   ASSERT_EQ(table.size(), 1u);
@@ -173,7 +176,7 @@ TEST_F(CliTest, SubmitWaitAndQueryResultsInEveryFormat) {
   EXPECT_EQ(out.substr(0, out.find('\n')),
             "job_id,sweep_name,kind,ordinal,method,seed,variant,options,state,attempts,failures,"
             "lost_leases,episodes_stored,episodes_expected,worker_id,success,final_eval_cost,"
-            "last_error");
+            "held_fraction,last_error");
   EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1 + 3) << out;
   ASSERT_EQ(Cli({"job", "logs", jobs[0]["job_id"].dump()}, &out, &err), 0) << err;
   EXPECT_NE(out.find("lease_granted"), std::string::npos) << out;
@@ -216,7 +219,15 @@ TEST_F(CliTest, ExportImportMovesASweepAndDatabasesReadWithoutACoordinator) {
   std::string out, err;
   ASSERT_EQ(Cli({"sweep", "submit", path, "--wait"}, &out, &err), 0) << out << err;
   const std::string archive = dir_ + "/cli-archive.json";
-  ASSERT_EQ(Cli({"results", "export", "cli", "-f", "json", "-o", archive}, &out, &err), 0) << err;
+  ASSERT_EQ(Cli({"results", "export", "cli", "-f", "json", "--checkpoints", "-o", archive}, &out,
+                &err),
+            0)
+      << err;
+  // Issue 25: every completed trial's final checkpoint is kept, its size said.
+  EXPECT_NE(err.find("3 checkpoints kept"), std::string::npos) << err;
+  std::string artifacts_a;
+  ASSERT_EQ(Cli({"job", "artifacts", "1", "--out", dir_ + "/artifacts-a"}, &out, &err), 0) << err;
+  artifacts_a = ReadFile(dir_ + "/artifacts-a/snapshot.json");
   std::string rows_a, table_a;
   ASSERT_EQ(Cli({"results", "export", "cli", "-f", "csv"}, &rows_a, &err), 0) << err;
   ASSERT_EQ(Cli({"results", "table", "cli"}, &table_a, &err), 0) << err;
@@ -235,25 +246,32 @@ TEST_F(CliTest, ExportImportMovesASweepAndDatabasesReadWithoutACoordinator) {
   db_ = dir_ + "/second.db";
   StartCoordinator();
   ASSERT_EQ(Cli({"results", "import", archive}, &out, &err), 0) << err;
-  EXPECT_NE(out.find("created sweep cli: 3 jobs taken over (9 episodes"), std::string::npos) << out;
+  EXPECT_NE(out.find("created sweep cli: 3 jobs taken over (9 episodes, 0 study rows, 3 checkpoints)"),
+            std::string::npos)
+      << out;
+  // The imported trial's final policy and model are there, as they were.
+  ASSERT_EQ(Cli({"job", "artifacts", "1", "--out", dir_ + "/artifacts-b"}, &out, &err), 0) << err;
+  EXPECT_EQ(ReadFile(dir_ + "/artifacts-b/snapshot.json"), artifacts_a);
   std::string rows_b;
   ASSERT_EQ(Cli({"results", "export", "cli", "-f", "csv"}, &rows_b, &err), 0) << err;
   EXPECT_EQ(rows_b, rows_a);
   // The archive of the imported sweep is the archive it came from (archive
-  // version 3: export -> import -> export), but for when it was exported,
-  // when and from which file the sweep was created here, and the ids this
-  // coordinator gave the jobs.
+  // version 4: export -> import -> export; the sweep's submission time and
+  // the checkpoints included), but for when it was exported, from which file
+  // the sweep was created here, and the ids this coordinator gave the jobs.
   std::string exported_again;
-  ASSERT_EQ(Cli({"results", "export", "cli", "-f", "json"}, &exported_again, &err), 0) << err;
+  ASSERT_EQ(Cli({"results", "export", "cli", "-f", "json", "--checkpoints"}, &exported_again, &err),
+            0)
+      << err;
   const auto comparable = [](nlohmann::json doc) {
     doc.erase("exported_unix_ms");
-    doc["sweep"].erase("created_unix_ms");
     doc["sweep"].erase("source_name");
     for (nlohmann::json& job : doc["jobs"]) job.erase("job_id");
     return doc;
   };
   const nlohmann::json exported_first = nlohmann::json::parse(ReadFile(archive));
-  EXPECT_EQ(exported_first["version"], 3);
+  EXPECT_EQ(exported_first["version"], 4);
+  EXPECT_TRUE(exported_first["jobs"][0]["attempt_log"][0].contains("checkpoint"));
   EXPECT_EQ(comparable(nlohmann::json::parse(exported_again)), comparable(exported_first))
       << nlohmann::json::diff(comparable(exported_first),
                               comparable(nlohmann::json::parse(exported_again)));
@@ -261,7 +279,7 @@ TEST_F(CliTest, ExportImportMovesASweepAndDatabasesReadWithoutACoordinator) {
   EXPECT_EQ(out, table_a);
   // Again: every job is complete here; no row is stored twice.
   ASSERT_EQ(Cli({"results", "import", archive}, &out, &err), 0) << err;
-  EXPECT_NE(out.find("0 jobs taken over (0 episodes, 0 study rows); 3 already complete here"),
+  EXPECT_NE(out.find("0 jobs taken over (0 episodes, 0 study rows, 0 checkpoints); 3 already complete here"),
             std::string::npos) << out;
   ASSERT_EQ(Cli({"results", "export", "cli", "-f", "csv"}, &out, &err), 0) << err;
   EXPECT_EQ(out, rows_a);

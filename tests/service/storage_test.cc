@@ -14,6 +14,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "tests/service/process_util.h"
+#include "tests/service/schema_downgrade.h"
 #include "tests/service/service_testutil.h"
 
 namespace totalgrad::storage {
@@ -968,8 +969,8 @@ TEST_F(StorageTest, VersionOneDatabaseIsMigrated) {
   {
     // Turn the file back into a version-1 database.
     internal::Db* db = &*db_slot;
-    TG_ASSERT_OK(db->Exec("DROP VIEW \"episodes/old\"; DROP VIEW episode_rows; "
-                          "DROP TABLE job_options; ALTER TABLE episodes DROP COLUMN cpu_seconds; "
+    TG_ASSERT_OK(::totalgrad::testing::DropColumnsAddedAfter(*db, 1));
+    TG_ASSERT_OK(db->Exec("DROP TABLE job_options; ALTER TABLE episodes DROP COLUMN cpu_seconds; "
                           "DELETE FROM meta; "
                           "DROP TABLE checkpoints; DROP TABLE study_cells; DROP TABLE study_references; "
                           "ALTER TABLE jobs DROP COLUMN payload; ALTER TABLE jobs DROP COLUMN kind; "
@@ -1023,9 +1024,10 @@ TEST_F(StorageTest, VersionFourDatabaseGetsIntegerSeeds) {
     // Back to version 4: jobs rebuilt with seed TEXT, as version 4 had it,
     // and study_references without version 6's column.
     internal::Db* db = &*db_slot;
+    TG_ASSERT_OK(::totalgrad::testing::DropColumnsAddedAfter(*db, 4));
     TG_ASSERT_OK(db->Exec(
         "ALTER TABLE study_references DROP COLUMN agreement_resolution; "
-        "PRAGMA foreign_keys=OFF; DROP VIEW \"episodes/texts\"; DROP VIEW episode_rows; "
+        "PRAGMA foreign_keys=OFF; "
         "CREATE TABLE jobs_text AS SELECT id, sweep_id, ordinal, method, CAST(seed AS TEXT) AS "
         "seed, variant, options_json, episodes_expected, state, attempts, failures, lost_leases, "
         "completed_attempt, success, final_eval_cost, last_error, kind, payload FROM jobs; "

@@ -62,6 +62,9 @@ inline learner::TrialOptions EveryOptionChanged() {
   o.angle_features = learner::AngleFeatures::kSinCos;
   o.gp_inducing = 100;
   o.gp_variance_tolerance = 1e-4;
+  o.verdict_rollouts = 7;
+  o.verdict_distance = 0.3;
+  o.verdict_hold_seconds = 0.5;
   o.pilco_line_searches = 40;
   o.pilco_evaluations_per_line_search = 12;
   o.estimator.lr_weights = estimators::LrWeights::kPlain;

@@ -145,11 +145,16 @@ TEST(VerdictOptions, AreValidatedAndAbsentFromOldPairsMeansNone) {
   absl::StatusOr<tasks::Scene> scene = tasks::MakeScene(options.scene);
   ASSERT_TRUE(scene.ok());
   EXPECT_EQ(VerdictHoldSteps(options, *scene), 10);
+  // Longer than the episode: the whole episode; shorter than a step: the last step.
+  TrialOptions longer = options;
+  longer.verdict_hold_seconds = 3.5;
+  EXPECT_TRUE(longer.Validate().ok());
+  EXPECT_EQ(VerdictHoldSteps(longer, *scene), 30);
+  longer.verdict_hold_seconds = 0.01;
+  EXPECT_EQ(VerdictHoldSteps(longer, *scene), 1);
   TrialOptions bad = options;
-  bad.verdict_hold_seconds = 3.5;  // 35 steps of a 30-step episode
+  bad.verdict_hold_seconds = 0;
   EXPECT_NE(bad.Validate().message().find("verdict_hold_seconds"), std::string::npos);
-  bad.verdict_rollouts = 0;  // no verdict: the hold time is not used
-  EXPECT_TRUE(bad.Validate().ok());
   bad = options;
   bad.verdict_distance = -1;
   EXPECT_NE(bad.Validate().message().find("verdict_distance"), std::string::npos);
