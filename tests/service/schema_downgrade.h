@@ -16,7 +16,7 @@ namespace totalgrad::testing {
 
 // Drops every view (they read the columns; Migrate recreates them) and the
 // columns that schema versions after `version` added (version 7: the rollout
-// verdict and attempt origins).
+// verdict and attempt origins; version 8: the optimisation diagnostics).
 inline absl::Status DropColumnsAddedAfter(storage::internal::Db& db, int version) {
   std::vector<std::string> views;
   {
@@ -36,6 +36,22 @@ inline absl::Status DropColumnsAddedAfter(storage::internal::Db& db, int version
   const std::vector<std::pair<int, std::string>> added = {
       {7, "ALTER TABLE episodes DROP COLUMN held_fraction"},
       {7, "ALTER TABLE attempts DROP COLUMN origin"},
+      {8, "ALTER TABLE episodes DROP COLUMN gradient_norm_first"},
+      {8, "ALTER TABLE episodes DROP COLUMN gradient_norm_middle"},
+      {8, "ALTER TABLE episodes DROP COLUMN gradient_norm_last"},
+      {8, "ALTER TABLE episodes DROP COLUMN gradient_norm_mean"},
+      {8, "ALTER TABLE episodes DROP COLUMN gradient_snr_first"},
+      {8, "ALTER TABLE episodes DROP COLUMN gradient_snr_middle"},
+      {8, "ALTER TABLE episodes DROP COLUMN gradient_snr_last"},
+      {8, "ALTER TABLE episodes DROP COLUMN gradient_snr_mean"},
+      {8, "ALTER TABLE episodes DROP COLUMN step_norm_first"},
+      {8, "ALTER TABLE episodes DROP COLUMN step_norm_middle"},
+      {8, "ALTER TABLE episodes DROP COLUMN step_norm_last"},
+      {8, "ALTER TABLE episodes DROP COLUMN step_norm_mean"},
+      {8, "ALTER TABLE episodes DROP COLUMN ess_min"},
+      {8, "ALTER TABLE episodes DROP COLUMN ess_median"},
+      {8, "ALTER TABLE episodes DROP COLUMN ess_low_fraction"},
+      {8, "ALTER TABLE episodes DROP COLUMN lr_share_json"},
   };
   for (const auto& [since, sql] : added) {
     if (since <= version) continue;
