@@ -1,0 +1,25 @@
+#!/bin/bash
+# Exports issue 25's Table-1 sweeps from the coordinator that runs them into
+# this directory, each as an archive with every completed trial's final
+# checkpoint (`results export -f json --checkpoints`; format:
+# docs/results_schema.md, "Sweep archives"), and prints each sweep's progress
+# and results table. Run before every stop; commit what it writes.
+#
+#   export_issue25.sh BIN_DIR [COORDINATOR]
+#
+# BIN_DIR holds the CLI of the coordinator's build; COORDINATOR defaults to
+# 127.0.0.1:7171 (plaintext, loopback); the user token comes from
+# TOTALGRAD_TOKEN_FILE. An archive is written to a temporary name and moved
+# into place only when complete.
+set -euo pipefail
+bin=${1:?usage: export_issue25.sh BIN_DIR [COORDINATOR]}
+coordinator=${2:-127.0.0.1:7171}
+here=$(cd "$(dirname "$0")" && pwd)
+cli() { "$bin/totalgrad" "$@" --coordinator "$coordinator" --insecure; }
+for sweep in table1-tip-k001 table1-tip-k1-rest table1-tip-k1-rerun; do
+  rm -f "$here/$sweep.archive.json.partial"
+  cli results export "$sweep" -f json --checkpoints -o "$here/$sweep.archive.json.partial"
+  mv "$here/$sweep.archive.json.partial" "$here/$sweep.archive.json"
+  cli sweep status "$sweep" | head -3
+  cli results table "$sweep" || true
+done
