@@ -36,6 +36,9 @@ OptimisationDiagnostics::OptimisationDiagnostics(int policy_steps, int particles
 double OptimisationDiagnostics::SignalToNoise(const Vector& gradient,
                                               const Vector& per_particle_variance, int particles) {
   const double noise = std::sqrt(per_particle_variance.sum() / static_cast<double>(particles));
+  // Undefined without noise: NaN, never +Inf (a stored episode holds no
+  // infinities; the coordinator refuses them as a failed trial's sign).
+  if (!(noise > 0)) return kNaN;
   return gradient.norm() / noise;
 }
 
@@ -51,7 +54,7 @@ void OptimisationDiagnostics::AddStep(int step, const estimators::GradientEstima
     step_norm_[k] = step_norm;
   }
   gradient_norm_mean_.Add(norm);
-  gradient_snr_mean_.Add(snr);
+  if (std::isfinite(snr)) gradient_snr_mean_.Add(snr);  // over the steps where it is defined
   step_norm_mean_.Add(step_norm);
   if (!estimate.ess.empty()) {
     const double low = static_cast<double>(particles_) / 10.0;

@@ -10,7 +10,8 @@
 //   gradient_snr_*    ||g|| / sqrt(sum_k s_k^2 / P), s_k^2 the sample
 //                     variance over particles of g^(i)_k (the variance the
 //                     optimiser's normaliser forms): the mean gradient's norm
-//                     over the root of the trace of its estimated covariance;
+//                     over the root of the trace of its estimated covariance
+//                     (NaN when that is 0; the mean skips such steps);
 //   step_norm_*       ||theta_after - theta_before|| of the step;
 //   ..._mean          the mean over the steps taken (non-finite estimates are
 //                     skipped by the optimiser and here).
@@ -48,8 +49,8 @@ class OptimisationDiagnostics {
   // Sets the fields listed above in *record.
   void Fill(EpisodeSummary* record) const;
 
-  // The signal-to-noise ratio of one estimate (see above); NaN for a zero
-  // variance with a zero gradient, +Inf for a zero variance otherwise.
+  // The signal-to-noise ratio of one estimate (see above); NaN where it is
+  // undefined (every per-particle gradient equal: zero variance).
   static double SignalToNoise(const Vector& gradient, const Vector& per_particle_variance,
                               int particles);
 

@@ -39,7 +39,17 @@ estimators::GradientEstimate Estimate(Vector gradient, Vector variance,
 TEST(OptimisationDiagnostics, SignalToNoiseByHand) {
   // ||(3, 4)|| = 5; the mean's variance trace (2 + 6) / 2 = 4, root 2.
   EXPECT_DOUBLE_EQ(OptimisationDiagnostics::SignalToNoise(Values({3, 4}), Values({2, 6}), 2), 2.5);
-  EXPECT_TRUE(std::isinf(OptimisationDiagnostics::SignalToNoise(Values({1, 0}), Values({0, 0}), 5)));
+  // No noise: undefined (NaN, never an infinity the store would refuse), and
+  // the mean over the steps leaves such a step out.
+  EXPECT_TRUE(std::isnan(OptimisationDiagnostics::SignalToNoise(Values({1, 0}), Values({0, 0}), 5)));
+  OptimisationDiagnostics d(2, 2);
+  d.AddStep(0, Estimate(Values({1, 0}), Values({0, 0})), 1);
+  d.AddStep(1, Estimate(Values({3, 4}), Values({2, 6})), 1);
+  EpisodeSummary r;
+  d.Fill(&r);
+  EXPECT_TRUE(std::isnan(r.gradient_snr_first));
+  EXPECT_DOUBLE_EQ(r.gradient_snr_last, 2.5);
+  EXPECT_DOUBLE_EQ(r.gradient_snr_mean, 2.5);
 }
 
 TEST(OptimisationDiagnostics, FirstMiddleLastAndMeansByHand) {
