@@ -424,9 +424,8 @@ absl::Status DropSweepView(Db& db, const std::string& sweep_name) {
 
 namespace {
 
-// Drops the episode_rows view and every sweep's view and creates them again
-// (after a column of theirs was added).
-absl::Status RecreateViews(Db& db) {
+// Drops every sweep's view ("episodes/<name>") and episode_rows.
+absl::Status DropViews(Db& db) {
   std::vector<std::string> views;
   {
     ASSIGN_OR_RETURN(Statement list, Statement::Prepare(
@@ -439,7 +438,13 @@ absl::Status RecreateViews(Db& db) {
   }
   for (const std::string& view : views)
     RETURN_IF_ERROR(db.Exec(absl::StrCat("DROP VIEW ", QuoteIdentifier(view))));
-  RETURN_IF_ERROR(db.Exec("DROP VIEW IF EXISTS episode_rows"));
+  return db.Exec("DROP VIEW IF EXISTS episode_rows");
+}
+
+// Drops the views and creates them again (after a column of theirs was
+// added, or the tables they read were rebuilt).
+absl::Status RecreateViews(Db& db) {
+  RETURN_IF_ERROR(DropViews(db));
   RETURN_IF_ERROR(db.Exec(kEpisodeRowsView));
   ASSIGN_OR_RETURN(Statement sweeps, Statement::Prepare(db, "SELECT id, name FROM sweeps"));
   for (;;) {
@@ -467,21 +472,9 @@ absl::Status Migrate(Db& db, int64_t from) {
     }
   }
   if (from < 5) {
-    // Every view reads jobs: drop them all (the per-sweep ones are rebuilt
-    // below from job_options), rebuild jobs, recreate the views.
-    std::vector<std::string> views;
-    {
-      ASSIGN_OR_RETURN(Statement list, Statement::Prepare(
-          db, "SELECT name FROM sqlite_schema WHERE type = 'view' AND name LIKE 'episodes/%'"));
-      for (;;) {
-        ASSIGN_OR_RETURN(bool row, list.Step());
-        if (!row) break;
-        views.push_back(list.ColumnText(0));
-      }
-    }
-    for (const std::string& view : views) {
-      RETURN_IF_ERROR(db.Exec(absl::StrCat("DROP VIEW ", QuoteIdentifier(view))));
-    }
+    // Every view reads jobs: drop them all, rebuild jobs; the views are
+    // created again after the last migration (version 7's RecreateViews).
+    RETURN_IF_ERROR(DropViews(db));
     {
       // A seed that is not an integer would be stored as 0 by the CAST and
       // then refused by the CHECK: name it instead.
