@@ -20,9 +20,15 @@
 #include "absl/time/time.h"
 #include "client/service_commands/curves_plot.h"
 #include "client/service_commands/local_store.h"
-#include "client/service_commands/stats.h"
+#include "results/stats.h"
 
 namespace totalgrad::cli {
+
+using results::CurvePoint;
+using results::EpisodeValue;
+using results::TableCell;
+using results::TrialRow;
+
 namespace {
 
 std::string Env(const char* name, const std::string& fallback) {
@@ -284,7 +290,7 @@ int PrintResultsTable(Connection* connection, const std::string& sweep_name, For
   for (const auto& r : response.results()) {
     rows.push_back({r.method(), r.variant(), r.success(), r.final_eval_cost(), r.held_fraction()});
   }
-  const std::vector<TableCell> cells = SuccessTable(rows);
+  const std::vector<TableCell> cells = results::SuccessTable(rows);
   if (format != Format::kTable) {
     Listing listing;
     listing.columns = {"method", "variant", "trials", "successes", "success_rate",
@@ -362,7 +368,7 @@ int PrintCurves(Connection* connection, const std::string& sweep_name, Format fo
         return reader->Finish();
       });
   if (!status.ok()) return ReportError(status, "results curves " + sweep_name);
-  const std::vector<CurvePoint> curves = Curves(values);
+  const std::vector<CurvePoint> curves = results::Curves(values);
   if (print_table) {
     Listing listing;
     listing.columns = {"method", "variant", "episode", "trials", "q25", "median", "q75"};

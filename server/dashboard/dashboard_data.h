@@ -1,7 +1,7 @@
 // What the dashboard shows, as JSON documents built from the store's read
 // interface (server/storage/store.h, the same calls the gRPC handlers make)
-// and the CLI's results statistics (client/service_commands: Wilson
-// intervals, quartile curves, comparisons). Nothing here writes.
+// and the results library (results/: Wilson intervals, quartile curves,
+// comparisons), as the CLI's are. Nothing here writes.
 //
 // Every function returns the document or the store's error (NotFound for an
 // unknown sweep or job, InvalidArgument for a bad parameter, Unavailable
@@ -87,7 +87,7 @@ class DashboardData {
   // episode, over completed trials and, with `include_running`, the
   // episodes running (and queued, partly done) trials have stored so far.
   absl::StatusOr<nlohmann::json> Curves(const std::string& name, bool include_running);
-  // Methods compared per variant (comparison.h); `baseline` may be empty.
+  // Methods compared per variant (results/comparison.h); `baseline` may be empty.
   absl::StatusOr<nlohmann::json> Compare(const std::string& name, const std::string& baseline);
   // The sweep's jobs (at most `limit`, from job id `after`).
   absl::StatusOr<nlohmann::json> Jobs(const std::string& name, int64_t after, int limit);

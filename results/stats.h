@@ -1,15 +1,16 @@
 // Statistics for the results views: Wilson score intervals for success
-// rates, quantiles, and the grouping behind `results table` (the paper's
-// Table 1) and `results curves` (its Figure 2). Pure functions.
-#ifndef TOTALGRAD_CLIENT_SERVICE_COMMANDS_STATS_H_
-#define TOTALGRAD_CLIENT_SERVICE_COMMANDS_STATS_H_
+// rates, quantiles, and the grouping behind `results table` (a sweep's
+// success table) and `results curves` (the paper's Figure 2). Pure
+// functions of their arguments; thread-safe.
+#ifndef TOTALGRAD_RESULTS_STATS_H_
+#define TOTALGRAD_RESULTS_STATS_H_
 
 #include <limits>
 #include <string>
 #include <utility>
 #include <vector>
 
-namespace totalgrad::cli {
+namespace totalgrad::results {
 
 // 95% Wilson score interval for `successes` out of `trials` (z = 1.959964).
 // Returns {0, 1} for trials == 0. Always within [0, 1].
@@ -71,6 +72,6 @@ struct CurvePoint {
 // Median and quartiles over trials, per (method, variant, episode).
 std::vector<CurvePoint> Curves(const std::vector<EpisodeValue>& values);
 
-}  // namespace totalgrad::cli
+}  // namespace totalgrad::results
 
-#endif  // TOTALGRAD_CLIENT_SERVICE_COMMANDS_STATS_H_
+#endif  // TOTALGRAD_RESULTS_STATS_H_

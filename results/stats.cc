@@ -1,4 +1,4 @@
-#include "client/service_commands/stats.h"
+#include "results/stats.h"
 
 #include <algorithm>
 #include <cmath>
@@ -6,7 +6,7 @@
 #include <map>
 #include <tuple>
 
-namespace totalgrad::cli {
+namespace totalgrad::results {
 
 std::pair<double, double> WilsonInterval(int successes, int trials, double z) {
   if (trials <= 0) return {0.0, 1.0};
@@ -97,4 +97,4 @@ std::vector<CurvePoint> Curves(const std::vector<EpisodeValue>& values) {
   return curves;
 }
 
-}  // namespace totalgrad::cli
+}  // namespace totalgrad::results
