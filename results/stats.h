@@ -10,6 +10,8 @@
 #include <utility>
 #include <vector>
 
+#include "core/common/record.h"
+
 namespace totalgrad::results {
 
 // 95% Wilson score interval for `successes` out of `trials` (z = 1.959964).
@@ -51,6 +53,13 @@ struct TableCell {
 // One cell per (method, variant), methods in first-appearance order, then
 // variants in first-appearance order.
 std::vector<TableCell> SuccessTable(const std::vector<TrialRow>& rows);
+
+// A TableCell's fields under the one name each statistic has wherever it is
+// shown (`results table -f csv|json`, the dashboard's /api/sweep): method,
+// variant, trials, successes, success_rate, wilson95_low, wilson95_high,
+// median_final_cost, classified, held, held_rate, held_wilson95_low,
+// held_wilson95_high. Written through io/record_format.h.
+const record::FieldTable<TableCell>& TableCellFields();
 
 struct EpisodeValue {
   std::string method;

@@ -292,23 +292,8 @@ int PrintResultsTable(Connection* connection, const std::string& sweep_name, For
   }
   const std::vector<TableCell> cells = results::SuccessTable(rows);
   if (format != Format::kTable) {
-    Listing listing;
-    listing.columns = {"method", "variant", "trials", "successes", "success_rate",
-                       "wilson95_low", "wilson95_high", "median_final_cost",
-                       "classified", "held", "held_rate", "held_wilson95_low",
-                       "held_wilson95_high"};
-    listing.numeric_columns = {"trials", "successes", "success_rate", "wilson95_low",
-                               "wilson95_high", "median_final_cost", "classified", "held",
-                               "held_rate", "held_wilson95_low", "held_wilson95_high"};
-    for (const TableCell& c : cells) {
-      listing.rows.push_back({c.method, c.variant, std::to_string(c.trials),
-                              std::to_string(c.successes), FormatNumber(c.rate),
-                              FormatNumber(c.low), FormatNumber(c.high),
-                              FormatNumber(c.median_final_cost), std::to_string(c.classified),
-                              std::to_string(c.held), FormatNumber(c.held_rate),
-                              FormatNumber(c.held_low), FormatNumber(c.held_high)});
-    }
-    Print(listing, format, std::cout);
+    // The cells' record, named as the dashboard's /api/sweep names them.
+    PrintRecords(results::TableCellFields(), cells, format, std::cout);
     return 0;
   }
   // Table 1 layout: one row per method, one column per task variant; each

@@ -278,19 +278,10 @@ absl::StatusOr<json> DashboardData::Sweep(const std::string& name, int64_t now_m
         table["variants"].end()) {
       table["variants"].push_back(cell.variant);
     }
-    table["cells"].push_back({{"method", cell.method},
-                              {"variant", cell.variant},
-                              {"trials", cell.trials},
-                              {"successes", cell.successes},
-                              {"rate", Number(cell.rate)},
-                              {"wilson_low", Number(cell.low)},
-                              {"wilson_high", Number(cell.high)},
-                              {"median_final_cost", Number(cell.median_final_cost)},
-                              {"classified", cell.classified},
-                              {"held", cell.held},
-                              {"held_rate", Number(cell.held_rate)},
-                              {"held_wilson_low", Number(cell.held_low)},
-                              {"held_wilson_high", Number(cell.held_high)}});
+    // The cell's record: the keys of `results table -f json`.
+    json record = json::object();
+    io::AppendRecordJson(results::TableCellFields(), cell, &record);
+    table["cells"].push_back(std::move(record));
   }
   out["table"] = std::move(table);
   return out;

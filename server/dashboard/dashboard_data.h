@@ -1,7 +1,7 @@
 // What the dashboard shows, as JSON documents built from the store's read
 // interface (server/storage/store.h, the same calls the gRPC handlers make)
 // and the results library (results/: Wilson intervals, quartile curves,
-// comparisons), as the CLI's are. Nothing here writes.
+// comparisons, Table 1), as the CLI's are. Nothing here writes.
 //
 // Every function returns the document or the store's error (NotFound for an
 // unknown sweep or job, InvalidArgument for a bad parameter, Unavailable
@@ -80,8 +80,10 @@ class DashboardData {
   // Sweeps (newest first) with progress and an estimated time to finish,
   // the workers, the coordinator's build and database.
   absl::StatusOr<nlohmann::json> Overview(int64_t now_ms);
-  // One sweep: its progress, the Table 1 cells (success rate, 95% Wilson
-  // interval, n, median final cost) and the panels (one per task variant).
+  // One sweep: its progress and its success table's cells (success rate,
+  // 95% Wilson interval, n, median final cost, the rollout verdict), one per
+  // (method, variant), with the keys of `results table -f json`
+  // (results::TableCellFields()).
   absl::StatusOr<nlohmann::json> Sweep(const std::string& name, int64_t now_ms);
   // Median and quartiles of the evaluation cost per method, variant and
   // episode, over completed trials and, with `include_running`, the

@@ -104,7 +104,7 @@ TEST_F(CliTest, SubmitWaitAndQueryResultsInEveryFormat) {
   ASSERT_EQ(Cli({"results", "table", "cli", "-f", "csv"}, &out, &err), 0) << err;
   EXPECT_EQ(out.substr(0, out.find('\n')),
             "method,variant,trials,successes,success_rate,wilson95_low,wilson95_high,"
-            "median_final_cost");
+            "median_final_cost,classified,held,held_rate,held_wilson95_low,held_wilson95_high");
   ASSERT_EQ(Cli({"results", "table", "cli", "-f", "json"}, &out, &err), 0) << err;
   const nlohmann::json table = nlohmann::json::parse(out);
   ASSERT_EQ(table.size(), 1u);

@@ -1,7 +1,8 @@
 // The totalgrad dashboard: a read-only view of the coordinator's store.
 // Views (by URL fragment): #/ sweeps and workers; #/sweep/NAME progress,
 // Table 1, learning curves, comparisons, jobs; #/job/ID episodes and logs.
-// Data come from the coordinator's /api/* (server/dashboard/dashboard.h);
+// Data come from the coordinator's /api/* (server/dashboard/dashboard.h),
+// statistics named as in `totalgrad results ... -f json` (results/);
 // every text from the store is put in the page as text, never as markup.
 'use strict';
 
@@ -184,10 +185,10 @@ function table1(data) {
             if (!c) return el('td', {class: 'muted', text: '–'});
             return el('td', {'data-variant': v},
                 el('div', {class: 'cell-rate',
-                           text: `${fixed(c.rate, 2)} [${fixed(c.wilson_low, 2)}, ${fixed(c.wilson_high, 2)}] n=${c.trials}`}),
+                           text: `${fixed(c.success_rate, 2)} [${fixed(c.wilson95_low, 2)}, ${fixed(c.wilson95_high, 2)}] n=${c.trials}`}),
                 el('div', {class: 'cell-sub', text: `median final cost ${fixed(c.median_final_cost, 2)}`}),
                 c.classified > 0 ? el('div', {class: 'cell-sub cell-held',
-                    text: `rollout verdict: held ${c.held}/${c.classified} [${fixed(c.held_wilson_low, 2)}, ${fixed(c.held_wilson_high, 2)}]`}) : null);
+                    text: `rollout verdict: held ${c.held}/${c.classified} [${fixed(c.held_wilson95_low, 2)}, ${fixed(c.held_wilson95_high, 2)}]`}) : null);
           })))));
 }
 
