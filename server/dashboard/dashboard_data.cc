@@ -10,6 +10,7 @@
 #include "results/comparison.h"
 #include "results/plot_style.h"
 #include "results/stats.h"
+#include "results/table1.h"
 #include "server/storage/service_records.h"
 
 namespace totalgrad::dashboard {
@@ -413,6 +414,48 @@ absl::StatusOr<json> DashboardData::Compare(const std::string& name, const std::
          {"fisher_p", Number(c.fisher_p)},
          {"fisher_p_holm", Number(c.fisher_p_holm)},
          {"fisher_power", Number(c.fisher_power)}});
+  }
+  return out;
+}
+
+absl::StatusOr<json> DashboardData::Table1(const std::vector<std::string>& names) {
+  if (names.empty()) return absl::InvalidArgumentError("name at least one sweep");
+  std::vector<results::Table1Trial> trials;
+  for (const std::string& name : names) {
+    absl::StatusOr<std::vector<storage::TrialResultRecord>> completed =
+        store_->ListTrialResults(name);
+    if (!completed.ok()) return completed.status();
+    absl::StatusOr<std::vector<storage::JobRecord>> jobs = AllJobs(name);
+    if (!jobs.ok()) return jobs.status();
+    std::map<int64_t, const storage::JobRecord*> job_of;
+    for (const storage::JobRecord& job : *jobs) job_of[job.id] = &job;
+    for (const storage::TrialResultRecord& r : *completed) {
+      auto job = job_of.find(r.job_id);
+      if (job == job_of.end()) {
+        return absl::InternalError(absl::StrCat("job ", r.job_id, " of sweep ", name,
+                                                " has a result but is not listed"));
+      }
+      trials.push_back({name, r.job_id, r.method, r.seed, r.variant, r.success, r.held_fraction,
+                        job->second->options});
+    }
+  }
+  absl::StatusOr<results::Table1> table = results::ComputeTable1(trials);
+  if (!table.ok()) return table.status();
+  json out = {{"sweeps", names},
+              {"methods", results::Table1Methods()},
+              {"rows", json::array()},
+              {"protocol", json::array()},
+              {"cells", json::array()},
+              {"outside", table->outside},
+              {"trials_outside", table->trials_outside}};
+  for (const results::Table1Row& row : results::Table1Rows()) {
+    out["rows"].push_back({{"cost", row.cost}, {"noise_k", row.noise_k}, {"label", row.Label()}});
+  }
+  for (const auto& [key, value] : results::PaperProtocol()) out["protocol"].push_back({key, value});
+  for (const results::Table1Cell& cell : table->cells) {
+    json record = json::object();
+    io::AppendRecordJson(results::Table1CellFields(), cell, &record);
+    out["cells"].push_back(std::move(record));
   }
   return out;
 }

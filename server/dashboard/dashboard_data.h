@@ -91,6 +91,13 @@ class DashboardData {
   absl::StatusOr<nlohmann::json> Curves(const std::string& name, bool include_running);
   // Methods compared per variant (results/comparison.h); `baseline` may be empty.
   absl::StatusOr<nlohmann::json> Compare(const std::string& name, const std::string& baseline);
+  // The paper's Table 1 from the completed trials of the named sweeps
+  // (results/table1.h): the grid's rows, methods and the paper's protocol,
+  // its 32 cells with the keys of `results table1 -f json`
+  // (results::Table1CellFields()), and the trials outside the grid.
+  // InvalidArgument with no name or when a seed would be counted twice
+  // (results::ComputeTable1); NotFound for an unknown sweep.
+  absl::StatusOr<nlohmann::json> Table1(const std::vector<std::string>& names);
   // The sweep's jobs (at most `limit`, from job id `after`).
   absl::StatusOr<nlohmann::json> Jobs(const std::string& name, int64_t after, int limit);
   // One job: its options, attempts, events and every attempt's episodes.

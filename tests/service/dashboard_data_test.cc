@@ -1,6 +1,6 @@
 // The dashboard's documents (server/dashboard/dashboard_data.h): the
-// estimated time to finish, and the success table over a real store, named
-// as the CLI names it (results/).
+// estimated time to finish, and the success table and the paper's Table 1
+// over a real store, named as the CLI names them (results/).
 #include "server/dashboard/dashboard_data.h"
 
 #include <gtest/gtest.h>
@@ -9,6 +9,7 @@
 #include <set>
 
 #include "results/stats.h"
+#include "results/table1.h"
 #include "server/storage/sqlite_store.h"
 #include "tests/service/service_testutil.h"
 
@@ -138,6 +139,39 @@ TEST_F(DashboardStoreTest, TheSuccessTableIsNamedAsTheClisTable) {
   EXPECT_EQ(cells[0]["successes"], 2);
   EXPECT_NEAR(cells[0]["wilson95_low"].get<double>(), results::WilsonInterval(2, 3).first, 1e-15);
   EXPECT_FALSE(cells[0].contains("wilson_low"));
+}
+
+TEST_F(DashboardStoreTest, Table1PoolsSweepsMarksTheProtocolAndRefusesASeedTwice) {
+  CompletedSweep("first", 1, {true, false, true});
+  CompletedSweep("second", 4, {true}, /*particles=*/"50");
+  CompletedSweep("again", 2, {true});  // seed 2 of RP on (tip, k = 1), as in "first"
+  DashboardData data(store_.get(), {});
+  absl::StatusOr<nlohmann::json> grid = data.Table1({"first", "second"});
+  ASSERT_TRUE(grid.ok()) << grid.status();
+  EXPECT_EQ((*grid)["methods"], nlohmann::json(results::Table1Methods()));
+  ASSERT_EQ((*grid)["rows"].size(), 4u);
+  EXPECT_EQ((*grid)["rows"][3]["label"], "tip, k = 1");
+  ASSERT_EQ((*grid)["cells"].size(), 32u);
+  const nlohmann::json& rp = (*grid)["cells"][3 * 8 + 1];  // (tip, k = 1), RP
+  EXPECT_EQ(rp["method"], "RP");
+  EXPECT_EQ(rp["trials"], 4);
+  EXPECT_EQ(rp["successes"], 3);
+  EXPECT_EQ(rp["paper_success_rate"], 0.15);
+  EXPECT_EQ(rp["paper_in_interval"], "no");  // 3 of 4: [0.301, 0.954]
+  EXPECT_EQ(rp["off_protocol_trials"], 1);
+  EXPECT_EQ(rp["protocol_differences"], "particles = 50 (paper 300)");
+  EXPECT_EQ(rp["sweeps"], nlohmann::json::array({"first", "second"}));
+  std::set<std::string> keys, names;
+  for (auto it = rp.begin(); it != rp.end(); ++it) keys.insert(it.key());
+  for (const auto& field : results::Table1CellFields()) names.insert(field.name);
+  EXPECT_EQ(keys, names);
+
+  absl::StatusOr<nlohmann::json> twice = data.Table1({"first", "again"});
+  ASSERT_EQ(twice.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(twice.status().message().find("seed 2 of RP in (tip, k = 1) is in sweep first"),
+            std::string::npos) << twice.status();
+  EXPECT_EQ(data.Table1({"first", "nope"}).status().code(), absl::StatusCode::kNotFound);
+  EXPECT_EQ(data.Table1({}).status().code(), absl::StatusCode::kInvalidArgument);
 }
 
 }  // namespace
