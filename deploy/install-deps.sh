@@ -19,7 +19,7 @@ PACKAGES=(
   systemd python3 python3-yaml yamllint shellcheck
   # bench/torch_rp_iteration.py, the PyTorch peer of bench iteration (tests/client/core_commands)
   python3-torch
-  # tests only: the comparison statistics against SciPy (tests/service/stats_scipy_test.py)
+  # tests only: the comparison statistics against SciPy (tests/results/stats_scipy_test.py)
   # and the dashboard in a real headless browser (tests/service/dashboard_browser_test.py)
   python3-scipy chromium chromium-driver python3-selenium
   # tests/service/pandas_view_test.py: the results recipe of docs/results_schema.md

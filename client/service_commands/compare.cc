@@ -1,15 +1,21 @@
 // `totalgrad results compare SWEEP [--baseline M] [--alpha A]`: which method
-// is better in each task variant, with paired tests (see comparison.h).
+// is better in each task variant, with paired tests (see results/comparison.h).
 #include <cmath>
 #include <iostream>
 #include <memory>
 
 #include "absl/strings/str_cat.h"
-#include "client/service_commands/comparison.h"
 #include "client/service_commands/connection.h"
 #include "client/service_commands/format.h"
+#include "results/comparison.h"
 
 namespace totalgrad::cli {
+
+using results::ComparedTrial;
+using results::Comparison;
+using results::ComparisonOptions;
+using results::ComparisonReport;
+
 namespace {
 
 // "+0.30": differences read better with their sign.
@@ -51,7 +57,7 @@ int PrintComparison(Connection* connection, const std::string& sweep_name,
   for (const auto& r : response.results()) {
     trials.push_back({r.method(), r.seed(), r.variant(), r.success(), r.final_eval_cost()});
   }
-  absl::StatusOr<ComparisonReport> report = CompareMethods(trials, options);
+  absl::StatusOr<ComparisonReport> report = results::CompareMethods(trials, options);
   if (!report.ok()) return ReportError(report.status(), "results compare " + sweep_name);
 
   if (format != Format::kTable) {
@@ -139,7 +145,7 @@ int PrintComparison(Connection* connection, const std::string& sweep_name,
   Print(success, Format::kTable, std::cout);
   std::cout << "\nfinal evaluation cost: Wilcoxon signed-rank test on per-seed differences "
                "(method - vs; exact up to "
-            << kWilcoxonExactMaxN
+            << results::kWilcoxonExactMaxN
             << " non-zero differences), shift = Hodges-Lehmann median difference (negative: "
                "method lower), power by Noether's approximation\n";
   Print(cost, Format::kTable, std::cout);

@@ -20,9 +20,15 @@
 #include "absl/time/time.h"
 #include "client/service_commands/curves_plot.h"
 #include "client/service_commands/local_store.h"
-#include "client/service_commands/stats.h"
+#include "results/stats.h"
 
 namespace totalgrad::cli {
+
+using results::CurvePoint;
+using results::EpisodeValue;
+using results::TableCell;
+using results::TrialRow;
+
 namespace {
 
 std::string Env(const char* name, const std::string& fallback) {
@@ -284,25 +290,10 @@ int PrintResultsTable(Connection* connection, const std::string& sweep_name, For
   for (const auto& r : response.results()) {
     rows.push_back({r.method(), r.variant(), r.success(), r.final_eval_cost(), r.held_fraction()});
   }
-  const std::vector<TableCell> cells = SuccessTable(rows);
+  const std::vector<TableCell> cells = results::SuccessTable(rows);
   if (format != Format::kTable) {
-    Listing listing;
-    listing.columns = {"method", "variant", "trials", "successes", "success_rate",
-                       "wilson95_low", "wilson95_high", "median_final_cost",
-                       "classified", "held", "held_rate", "held_wilson95_low",
-                       "held_wilson95_high"};
-    listing.numeric_columns = {"trials", "successes", "success_rate", "wilson95_low",
-                               "wilson95_high", "median_final_cost", "classified", "held",
-                               "held_rate", "held_wilson95_low", "held_wilson95_high"};
-    for (const TableCell& c : cells) {
-      listing.rows.push_back({c.method, c.variant, std::to_string(c.trials),
-                              std::to_string(c.successes), FormatNumber(c.rate),
-                              FormatNumber(c.low), FormatNumber(c.high),
-                              FormatNumber(c.median_final_cost), std::to_string(c.classified),
-                              std::to_string(c.held), FormatNumber(c.held_rate),
-                              FormatNumber(c.held_low), FormatNumber(c.held_high)});
-    }
-    Print(listing, format, std::cout);
+    // The cells' record, named as the dashboard's /api/sweep names them.
+    PrintRecords(results::TableCellFields(), cells, format, std::cout);
     return 0;
   }
   // Table 1 layout: one row per method, one column per task variant; each
@@ -362,7 +353,7 @@ int PrintCurves(Connection* connection, const std::string& sweep_name, Format fo
         return reader->Finish();
       });
   if (!status.ok()) return ReportError(status, "results curves " + sweep_name);
-  const std::vector<CurvePoint> curves = Curves(values);
+  const std::vector<CurvePoint> curves = results::Curves(values);
   if (print_table) {
     Listing listing;
     listing.columns = {"method", "variant", "episode", "trials", "q25", "median", "q75"};

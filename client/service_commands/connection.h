@@ -11,8 +11,8 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
-#include "client/service_commands/comparison.h"
 #include "client/service_commands/format.h"
+#include "results/comparison.h"
 #include "server/common/rpc_client.h"
 #include "totalgrad/v1/control_service.grpc.pb.h"
 
@@ -116,7 +116,7 @@ int PrintStudyResults(Connection* connection, const std::string& sweep_name, For
                       bool references, bool all_attempts, std::ostream& out);
 // The paired comparisons of the sweep's methods (compare.cc; `results compare`).
 int PrintComparison(Connection* connection, const std::string& sweep_name,
-                    const ComparisonOptions& options, Format format);
+                    const results::ComparisonOptions& options, Format format);
 // Per-method curves; optionally a gnuplot picture at `plot_path` (.svg/.png).
 int PrintCurves(Connection* connection, const std::string& sweep_name, Format format,
                 const std::string& plot_path, bool print_table);

@@ -13,6 +13,12 @@
 #include "client/service_commands/format.h"
 
 namespace totalgrad::cli {
+
+using results::CurvePanel;
+using results::CurvePoint;
+using results::DescribePanel;
+using results::MethodColour;
+
 namespace {
 
 std::string Quote(const std::string& text) {

@@ -1,7 +1,7 @@
 // The picture of `totalgrad results curves --plot FILE`: one panel per task
 // variant (scene, cost, noise level and any other swept key), each method a
 // median curve over its quartile band in the method's fixed colour
-// (plot_style.h), the success threshold as a dashed line, and n (trials)
+// (results/plot_style.h), the success threshold as a dashed line, and n (trials)
 // beside each method in the panel's legend. Drawn by gnuplot from a data
 // file and a script written beside FILE; both name files by absolute path,
 // so `gnuplot FILE.gp` redraws it from any directory.
@@ -11,8 +11,8 @@
 #include <string>
 #include <vector>
 
-#include "client/service_commands/plot_style.h"
-#include "client/service_commands/stats.h"
+#include "results/plot_style.h"
+#include "results/stats.h"
 
 namespace totalgrad::cli {
 
@@ -20,10 +20,10 @@ class Connection;
 
 struct CurvesPlotInput {
   std::string sweep_name;
-  std::vector<CurvePoint> curves;  // as from Curves()
+  std::vector<results::CurvePoint> curves;  // as from results::Curves()
   // The panels' titles and thresholds by variant; a variant of `curves`
-  // without one gets DescribePanel(variant, {}) (its name, no threshold).
-  std::vector<CurvePanel> panels;
+  // without one gets results::DescribePanel(variant, {}) (its name, no threshold).
+  std::vector<results::CurvePanel> panels;
 };
 
 // Writes `path` (.svg or .png), `path`.dat and `path`.gp and runs gnuplot on
@@ -34,7 +34,7 @@ std::string WriteCurvesPlot(const CurvesPlotInput& input, const std::string& pat
 // The panels of a sweep's variants, from the options of one job of each
 // (ListJobs). Returns "" or the error, as text for the caller to print.
 std::string FetchCurvePanels(Connection* connection, const std::string& sweep_name,
-                             std::vector<CurvePanel>* panels);
+                             std::vector<results::CurvePanel>* panels);
 
 }  // namespace totalgrad::cli
 

@@ -279,7 +279,7 @@ int Run(const RunFlags& flags) {
           if (!spec->grid.empty() && format == Format::kTable) {
             // The story of the sweep: which method is better, and how they learned.
             std::cout << "\n";
-            const int compared = PrintComparison(&*connection, spec->name, ComparisonOptions(),
+            const int compared = PrintComparison(&*connection, spec->name, results::ComparisonOptions(),
                                                  format);
             if (compared != 0 && code == 0) code = compared;
             std::cout << "\n";

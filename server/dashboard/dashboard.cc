@@ -127,6 +127,14 @@ void Dashboard::Register(httplib::Server* server) {
     if (!name.ok()) return name.status();
     return data_.Compare(*name, request.get_param_value("baseline"));
   });
+  api("/api/table1", [this](const httplib::Request& request) -> absl::StatusOr<json> {
+    std::vector<std::string> names;
+    for (size_t i = 0; i < request.get_param_value_count("name"); ++i) {
+      names.push_back(request.get_param_value("name", i));
+    }
+    if (names.empty()) return RequiredParameter(request, "name").status();
+    return data_.Table1(names);
+  });
   api("/api/jobs", [this](const httplib::Request& request) -> absl::StatusOr<json> {
     absl::StatusOr<std::string> name = RequiredParameter(request, "name");
     if (!name.ok()) return name.status();

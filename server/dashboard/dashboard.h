@@ -7,6 +7,7 @@
 //   GET /api/sweep?name=S      progress and the Table 1 cells
 //   GET /api/curves?name=S[&running=0|1]
 //   GET /api/compare?name=S[&baseline=M]
+//   GET /api/table1?name=S[&name=T...]  the paper's Table 1 from these sweeps
 //   GET /api/jobs?name=S[&after=ID][&limit=N]
 //   GET /api/job?id=ID         options, attempts, events, episodes
 //

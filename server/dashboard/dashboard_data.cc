@@ -6,11 +6,12 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
-#include "client/service_commands/comparison.h"
 #include "io/record_format.h"
+#include "results/comparison.h"
+#include "results/plot_style.h"
+#include "results/stats.h"
+#include "results/table1.h"
 #include "server/storage/service_records.h"
-#include "client/service_commands/plot_style.h"
-#include "client/service_commands/stats.h"
 
 namespace totalgrad::dashboard {
 namespace {
@@ -20,7 +21,7 @@ using nlohmann::json;
 // NaN and infinities are not JSON numbers: null.
 json Number(double value) { return std::isfinite(value) ? json(value) : json(nullptr); }
 
-double Median(std::vector<double> values) { return cli::Quantile(std::move(values), 0.5); }
+double Median(std::vector<double> values) { return results::Quantile(std::move(values), 0.5); }
 
 // A sweep summary and a job are their records' JSON (the field tables of
 // server/storage/service_records.h, io/record_format.h's format): the same
@@ -261,15 +262,15 @@ absl::StatusOr<json> DashboardData::Sweep(const std::string& name, int64_t now_m
   if (!eta.ok()) return eta.status();
   out["sweep"]["eta"] = EstimateJson(*eta);
 
-  absl::StatusOr<std::vector<storage::TrialResultRecord>> results =
+  absl::StatusOr<std::vector<storage::TrialResultRecord>> completed =
       store_->ListTrialResults(name);
-  if (!results.ok()) return results.status();
-  std::vector<cli::TrialRow> rows;
-  for (const auto& r : *results) {
+  if (!completed.ok()) return completed.status();
+  std::vector<results::TrialRow> rows;
+  for (const auto& r : *completed) {
     rows.push_back({r.method, r.variant, r.success, r.final_eval_cost, r.held_fraction});
   }
   json table = {{"methods", json::array()}, {"variants", json::array()}, {"cells", json::array()}};
-  for (const cli::TableCell& cell : cli::SuccessTable(rows)) {
+  for (const results::TableCell& cell : results::SuccessTable(rows)) {
     if (std::find(table["methods"].begin(), table["methods"].end(), cell.method) ==
         table["methods"].end()) {
       table["methods"].push_back(cell.method);
@@ -278,19 +279,10 @@ absl::StatusOr<json> DashboardData::Sweep(const std::string& name, int64_t now_m
         table["variants"].end()) {
       table["variants"].push_back(cell.variant);
     }
-    table["cells"].push_back({{"method", cell.method},
-                              {"variant", cell.variant},
-                              {"trials", cell.trials},
-                              {"successes", cell.successes},
-                              {"rate", Number(cell.rate)},
-                              {"wilson_low", Number(cell.low)},
-                              {"wilson_high", Number(cell.high)},
-                              {"median_final_cost", Number(cell.median_final_cost)},
-                              {"classified", cell.classified},
-                              {"held", cell.held},
-                              {"held_rate", Number(cell.held_rate)},
-                              {"held_wilson_low", Number(cell.held_low)},
-                              {"held_wilson_high", Number(cell.held_high)}});
+    // The cell's record: the keys of `results table -f json`.
+    json record = json::object();
+    io::AppendRecordJson(results::TableCellFields(), cell, &record);
+    table["cells"].push_back(std::move(record));
   }
   out["table"] = std::move(table);
   return out;
@@ -304,16 +296,16 @@ absl::StatusOr<json> DashboardData::Curves(const std::string& name, bool include
     if (!sweep.ok()) return sweep.status();
   }
   std::map<int64_t, storage::JobState> state_of;
-  std::vector<cli::CurvePanel> panels;
+  std::vector<results::CurvePanel> panels;
   std::set<std::string> described;
   for (const storage::JobRecord& job : *jobs) {
     if (job.kind != storage::JobKind::kTrial) continue;
     state_of[job.id] = job.state;
     if (described.insert(job.variant).second) {
-      panels.push_back(cli::DescribePanel(job.variant, job.options));
+      panels.push_back(results::DescribePanel(job.variant, job.options));
     }
   }
-  std::vector<cli::EpisodeValue> values;
+  std::vector<results::EpisodeValue> values;
   std::set<int64_t> trials_in_curves;
   const absl::Status exported = store_->ExportEpisodes(
       name, /*all_attempts=*/false, /*batch_size=*/2000,
@@ -337,17 +329,17 @@ absl::StatusOr<json> DashboardData::Curves(const std::string& name, bool include
               {"trials", trials_in_curves.size()},
               {"panels", json::array()}};
   std::map<std::string, json> by_variant;
-  for (const cli::CurvePanel& panel : panels) {
+  for (const results::CurvePanel& panel : panels) {
     by_variant[panel.variant] = {{"variant", panel.variant},
                                  {"title", panel.title},
                                  {"threshold", Number(panel.threshold)},
                                  {"methods", json::array()}};
   }
   std::map<std::pair<std::string, std::string>, size_t> method_slot;
-  for (const cli::CurvePoint& p : cli::Curves(values)) {
+  for (const results::CurvePoint& p : results::Curves(values)) {
     json& panel = by_variant[p.variant];
     if (panel.is_null()) {
-      const cli::CurvePanel described_panel = cli::DescribePanel(p.variant, {});
+      const results::CurvePanel described_panel = results::DescribePanel(p.variant, {});
       panel = {{"variant", p.variant}, {"title", described_panel.title},
                {"threshold", nullptr}, {"methods", json::array()}};
     }
@@ -355,7 +347,7 @@ absl::StatusOr<json> DashboardData::Curves(const std::string& name, bool include
                                                 panel["methods"].size());
     if (inserted) {
       panel["methods"].push_back({{"method", p.method},
-                                  {"colour", cli::MethodColour(p.method)},
+                                  {"colour", results::MethodColour(p.method)},
                                   {"trials", 0},
                                   {"points", json::array()}});
     }
@@ -367,7 +359,7 @@ absl::StatusOr<json> DashboardData::Curves(const std::string& name, bool include
                                 {"median", Number(p.median)},
                                 {"q75", Number(p.q75)}});
   }
-  for (const cli::CurvePanel& panel : panels) out["panels"].push_back(by_variant[panel.variant]);
+  for (const results::CurvePanel& panel : panels) out["panels"].push_back(by_variant[panel.variant]);
   for (auto& [variant, panel] : by_variant) {
     if (!described.count(variant)) out["panels"].push_back(panel);
   }
@@ -375,23 +367,23 @@ absl::StatusOr<json> DashboardData::Curves(const std::string& name, bool include
 }
 
 absl::StatusOr<json> DashboardData::Compare(const std::string& name, const std::string& baseline) {
-  absl::StatusOr<std::vector<storage::TrialResultRecord>> results =
+  absl::StatusOr<std::vector<storage::TrialResultRecord>> completed =
       store_->ListTrialResults(name);
-  if (!results.ok()) return results.status();
-  std::vector<cli::ComparedTrial> trials;
-  for (const auto& r : *results) {
+  if (!completed.ok()) return completed.status();
+  std::vector<results::ComparedTrial> trials;
+  for (const auto& r : *completed) {
     trials.push_back({r.method, r.seed, r.variant, r.success, r.final_eval_cost});
   }
-  cli::ComparisonOptions options;
+  results::ComparisonOptions options;
   options.baseline = baseline;
-  absl::StatusOr<cli::ComparisonReport> report = cli::CompareMethods(trials, options);
+  absl::StatusOr<results::ComparisonReport> report = results::CompareMethods(trials, options);
   if (!report.ok()) return report.status();
   json out = {{"alpha", options.alpha},
               {"baseline", baseline},
               {"methods", report->methods},
               {"variants", report->variants},
               {"comparisons", json::array()}};
-  for (const cli::Comparison& c : report->comparisons) {
+  for (const results::Comparison& c : report->comparisons) {
     out["comparisons"].push_back(
         {{"variant", c.variant},
          {"method", c.method},
@@ -422,6 +414,48 @@ absl::StatusOr<json> DashboardData::Compare(const std::string& name, const std::
          {"fisher_p", Number(c.fisher_p)},
          {"fisher_p_holm", Number(c.fisher_p_holm)},
          {"fisher_power", Number(c.fisher_power)}});
+  }
+  return out;
+}
+
+absl::StatusOr<json> DashboardData::Table1(const std::vector<std::string>& names) {
+  if (names.empty()) return absl::InvalidArgumentError("name at least one sweep");
+  std::vector<results::Table1Trial> trials;
+  for (const std::string& name : names) {
+    absl::StatusOr<std::vector<storage::TrialResultRecord>> completed =
+        store_->ListTrialResults(name);
+    if (!completed.ok()) return completed.status();
+    absl::StatusOr<std::vector<storage::JobRecord>> jobs = AllJobs(name);
+    if (!jobs.ok()) return jobs.status();
+    std::map<int64_t, const storage::JobRecord*> job_of;
+    for (const storage::JobRecord& job : *jobs) job_of[job.id] = &job;
+    for (const storage::TrialResultRecord& r : *completed) {
+      auto job = job_of.find(r.job_id);
+      if (job == job_of.end()) {
+        return absl::InternalError(absl::StrCat("job ", r.job_id, " of sweep ", name,
+                                                " has a result but is not listed"));
+      }
+      trials.push_back({name, r.job_id, r.method, r.seed, r.variant, r.success, r.held_fraction,
+                        job->second->options});
+    }
+  }
+  absl::StatusOr<results::Table1> table = results::ComputeTable1(trials);
+  if (!table.ok()) return table.status();
+  json out = {{"sweeps", names},
+              {"methods", results::Table1Methods()},
+              {"rows", json::array()},
+              {"protocol", json::array()},
+              {"cells", json::array()},
+              {"outside", table->outside},
+              {"trials_outside", table->trials_outside}};
+  for (const results::Table1Row& row : results::Table1Rows()) {
+    out["rows"].push_back({{"cost", row.cost}, {"noise_k", row.noise_k}, {"label", row.Label()}});
+  }
+  for (const auto& [key, value] : results::PaperProtocol()) out["protocol"].push_back({key, value});
+  for (const results::Table1Cell& cell : table->cells) {
+    json record = json::object();
+    io::AppendRecordJson(results::Table1CellFields(), cell, &record);
+    out["cells"].push_back(std::move(record));
   }
   return out;
 }

@@ -1,7 +1,7 @@
 // What the dashboard shows, as JSON documents built from the store's read
 // interface (server/storage/store.h, the same calls the gRPC handlers make)
-// and the CLI's results statistics (client/service_commands: Wilson
-// intervals, quartile curves, comparisons). Nothing here writes.
+// and the results library (results/: Wilson intervals, quartile curves,
+// comparisons, Table 1), as the CLI's are. Nothing here writes.
 //
 // Every function returns the document or the store's error (NotFound for an
 // unknown sweep or job, InvalidArgument for a bad parameter, Unavailable
@@ -80,15 +80,24 @@ class DashboardData {
   // Sweeps (newest first) with progress and an estimated time to finish,
   // the workers, the coordinator's build and database.
   absl::StatusOr<nlohmann::json> Overview(int64_t now_ms);
-  // One sweep: its progress, the Table 1 cells (success rate, 95% Wilson
-  // interval, n, median final cost) and the panels (one per task variant).
+  // One sweep: its progress and its success table's cells (success rate,
+  // 95% Wilson interval, n, median final cost, the rollout verdict), one per
+  // (method, variant), with the keys of `results table -f json`
+  // (results::TableCellFields()).
   absl::StatusOr<nlohmann::json> Sweep(const std::string& name, int64_t now_ms);
   // Median and quartiles of the evaluation cost per method, variant and
   // episode, over completed trials and, with `include_running`, the
   // episodes running (and queued, partly done) trials have stored so far.
   absl::StatusOr<nlohmann::json> Curves(const std::string& name, bool include_running);
-  // Methods compared per variant (comparison.h); `baseline` may be empty.
+  // Methods compared per variant (results/comparison.h); `baseline` may be empty.
   absl::StatusOr<nlohmann::json> Compare(const std::string& name, const std::string& baseline);
+  // The paper's Table 1 from the completed trials of the named sweeps
+  // (results/table1.h): the grid's rows, methods and the paper's protocol,
+  // its 32 cells with the keys of `results table1 -f json`
+  // (results::Table1CellFields()), and the trials outside the grid.
+  // InvalidArgument with no name or when a seed would be counted twice
+  // (results::ComputeTable1); NotFound for an unknown sweep.
+  absl::StatusOr<nlohmann::json> Table1(const std::vector<std::string>& names);
   // The sweep's jobs (at most `limit`, from job id `after`).
   absl::StatusOr<nlohmann::json> Jobs(const std::string& name, int64_t after, int limit);
   // One job: its options, attempts, events and every attempt's episodes.

@@ -390,6 +390,99 @@ TEST_F(CliTest, ResubmittingWithMoreValuesGrowsTheSweep) {
   EXPECT_EQ(Jobs("cli").size(), 10u);
 }
 
+// Issue 25 item 5: `results table1` lays the completed trials of several
+// sweeps out in the paper's grid. The committed archives (docs/results/
+// table1/): table1-tip-k1 ran the paper's protocol on (tip, k = 1): PILCO
+// 8/10, RP 0/10, TP 5/10, GTP 4/10; balance-del ran RP, LR and DEL on
+// scene cartpole-balance, angle cost, k = 1, so its RP and LR land on
+// (angle, k = 1) marked as off the protocol and DEL is outside the grid;
+// table1-tip-k1-pilco-rerun re-ran PILCO seeds 10 and 11 of tip-k1.
+TEST_F(CliTest, Table1LaysSweepsOutInThePapersGridAndRefusesASeedCountedTwice) {
+  StartCoordinator();
+  std::string out, err;
+  for (const char* sweep : {"table1-tip-k1", "balance-del", "table1-tip-k1-pilco-rerun"}) {
+    const std::string archive =
+        absl::StrCat(TOTALGRAD_SOURCE_DIR, "/docs/results/table1/", sweep, ".archive.json");
+    ASSERT_EQ(Cli({"results", "import", archive}, &out, &err), 0) << err;
+  }
+
+  ASSERT_EQ(Cli({"results", "table1", "table1-tip-k1", "balance-del", "-f", "json"}, &out, &err), 0)
+      << err;
+  const nlohmann::json cells = nlohmann::json::parse(out);
+  ASSERT_EQ(cells.size(), 32u);
+  const auto cell = [&](const std::string& cost, double noise_k, const std::string& method) {
+    for (const nlohmann::json& c : cells) {
+      if (c["cost"] == cost && c["noise_k"] == noise_k && c["method"] == method) return c;
+    }
+    ADD_FAILURE() << "no cell " << cost << " " << noise_k << " " << method;
+    return nlohmann::json();
+  };
+  // 8 of 10: Wilson [0.490162, 0.943318] holds the paper's 0.73.
+  const nlohmann::json pilco = cell("tip", 1, "PILCO");
+  EXPECT_EQ(pilco["trials"], 10);
+  EXPECT_EQ(pilco["successes"], 8);
+  EXPECT_NEAR(pilco["wilson95_low"].get<double>(), 0.490162, 1e-6);
+  EXPECT_NEAR(pilco["wilson95_high"].get<double>(), 0.943318, 1e-6);
+  EXPECT_EQ(pilco["paper_success_rate"], 0.73);
+  EXPECT_EQ(pilco["paper_in_interval"], "yes");
+  EXPECT_EQ(pilco["off_protocol_trials"], 0);
+  EXPECT_EQ(pilco["classified"], 0);  // these trials predate the rollout verdict
+  EXPECT_TRUE(pilco["held_rate"].is_null());
+  EXPECT_EQ(pilco["sweeps"], nlohmann::json::array({"table1-tip-k1"}));
+  // 4 of 10: [0.168180, 0.687326], just below the paper's 0.69.
+  EXPECT_EQ(cell("tip", 1, "GTP")["successes"], 4);
+  EXPECT_EQ(cell("tip", 1, "GTP")["paper_in_interval"], "no");
+  EXPECT_EQ(cell("tip", 1, "RP")["successes"], 0);
+  EXPECT_EQ(cell("tip", 1, "RP")["paper_in_interval"], "yes");  // 0.15 in [0, 0.278]
+  const nlohmann::json balance_rp = cell("angle", 1, "RP");
+  EXPECT_EQ(balance_rp["trials"], 10);
+  EXPECT_EQ(balance_rp["successes"], 8);
+  EXPECT_EQ(balance_rp["off_protocol_trials"], 10);
+  EXPECT_EQ(balance_rp["protocol_differences"], "scene = cartpole-balance (paper cartpole-swingup)");
+  EXPECT_EQ(balance_rp["sweeps"], nlohmann::json::array({"balance-del"}));
+  EXPECT_EQ(cell("angle", 1, "LR")["successes"], 10);
+  EXPECT_EQ(cell("tip", 0.01, "PILCO")["trials"], 0);
+  EXPECT_TRUE(cell("tip", 0.01, "PILCO")["success_rate"].is_null());
+  EXPECT_TRUE(cell("tip", 1, "GTP+sn")["paper_success_rate"].is_null());
+  EXPECT_NE(err.find("note: not in the grid: 10 trials of method DEL (not a Table 1 method)"),
+            std::string::npos) << err;
+
+  ASSERT_EQ(Cli({"results", "table1", "table1-tip-k1", "balance-del", "-f", "csv"}, &out, &err), 0)
+      << err;
+  EXPECT_EQ(out.substr(0, out.find('\n')),
+            "cost,noise_k,method,trials,successes,success_rate,wilson95_low,wilson95_high,"
+            "classified,held,held_rate,held_wilson95_low,held_wilson95_high,paper_success_rate,"
+            "paper_in_interval,off_protocol_trials,protocol_differences,sweeps");
+  EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 33);
+
+  std::string text;
+  ASSERT_EQ(Cli({"results", "table1", "table1-tip-k1", "balance-del"}, &text, &err), 0) << err;
+  EXPECT_NE(text.find("from sweeps table1-tip-k1, balance-del: 60 completed trials in the grid"),
+            std::string::npos) << text;
+  EXPECT_NE(text.find("task             PILCO"), std::string::npos) << text;
+  EXPECT_NE(text.find("0.80 [0.49, 0.94] n=10*"), std::string::npos) << text;  // balance RP
+  EXPECT_NE(text.find("0.40 [0.17, 0.69] n=10 "), std::string::npos) << text;  // tip GTP
+  EXPECT_NE(text.find("0.69 OUT"), std::string::npos) << text;
+  EXPECT_NE(text.find("0.73 in"), std::string::npos) << text;
+  EXPECT_NE(text.find("angle, k = 1, RP: 10 of 10 trials: scene = cartpole-balance (paper "
+                      "cartpole-swingup)"),
+            std::string::npos) << text;
+  EXPECT_NE(text.find("not in the grid: 10 trials of method DEL"), std::string::npos) << text;
+  // The database file read directly gives the same table.
+  ASSERT_EQ(Cli({"results", "table1", "table1-tip-k1", "balance-del", "--db", db_}, &out, &err,
+                false),
+            0) << err;
+  EXPECT_EQ(out, text);
+
+  // PILCO seeds 10 and 11 of (tip, k = 1) are in both: refused, naming both.
+  EXPECT_EQ(Cli({"results", "table1", "table1-tip-k1", "table1-tip-k1-pilco-rerun"}, &out, &err), 2);
+  EXPECT_NE(err.find("of PILCO in (tip, k = 1) is in sweep table1-tip-k1 (job "), std::string::npos)
+      << err;
+  EXPECT_NE(err.find(") and in sweep table1-tip-k1-pilco-rerun (job "), std::string::npos) << err;
+  EXPECT_EQ(Cli({"results", "table1", "table1-tip-k1", "nope"}, &out, &err), 2);
+  EXPECT_NE(err.find("no sweep named 'nope'"), std::string::npos) << err;
+}
+
 // Issue 15: no coordinator at the address: the client gives up within its
 // connect timeout (5 s) and says what to do, instead of retrying for a minute.
 TEST_F(CliTest, NoCoordinatorFailsFastWithWhatToDo) {

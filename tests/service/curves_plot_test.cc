@@ -6,14 +6,16 @@
 
 #include <gtest/gtest.h>
 
-#include <cmath>
 #include <filesystem>
-#include <set>
 
 #include "tests/service/process_util.h"
 #include "tests/service/service_testutil.h"
 
 namespace totalgrad::cli {
+
+using results::DescribePanel;
+using results::MethodColour;
+
 namespace {
 
 CurvesPlotInput TwoVariants() {
@@ -40,27 +42,6 @@ size_t Count(const std::string& text, const std::string& what) {
   size_t count = 0;
   for (size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++count;
   return count;
-}
-
-TEST(DescribePanelTest, NamesSceneCostNoiseAndOtherSweptKeys) {
-  const CurvePanel panel = DescribePanel(
-      "noise_k=0.01 particles=100",
-      {{"scene", "cartpole-swingup"}, {"cost", "tip"}, {"noise_k", "0.01"}, {"threshold", "12.5"}});
-  EXPECT_EQ(panel.title, "cartpole-swingup, tip cost, k = 0.01, particles=100");
-  EXPECT_DOUBLE_EQ(panel.threshold, 12.5);
-  const CurvePanel bare = DescribePanel("", {});
-  EXPECT_EQ(bare.title, "all trials");
-  EXPECT_TRUE(std::isnan(bare.threshold));
-}
-
-TEST(MethodColourTest, FixedAndDistinctForThePapersMethods) {
-  std::set<std::string> colours;
-  for (const char* method : {"PILCO", "RP", "GR", "LR", "TP", "GLR", "GTP", "GTP+sn", "DEL"}) {
-    colours.insert(MethodColour(method));
-  }
-  EXPECT_EQ(colours.size(), 9u);
-  EXPECT_EQ(MethodColour("RP"), "#e15759");
-  EXPECT_EQ(MethodColour("my-new-method"), MethodColour("my-new-method"));
 }
 
 TEST(CurvesPlotTest, OnePanelPerVariantFixedColoursThresholdAndN) {

@@ -6,8 +6,9 @@ and worker binaries on loopback.
 It submits a small sweep before any worker runs, opens the page (which asks
 for the user token), starts one worker, and watches the sweep's page: the
 stored-episode count and the learning curves must change while a trial is
-running, and at the end the Table 1 view, a curve panel per task variant and
-the comparison table must be there. It also checks over plain HTTP that
+running, and at the end the success table, the paper's Table 1 grid, a curve
+panel per task variant and the comparison table must be there, with the CLI's
+numbers under the CLI's names. It also checks over plain HTTP that
 /healthz needs no token and the API refuses a missing or worker token.
 
 Usage: dashboard_browser_test.py COORDINATOR WORKER CLI [--screenshot PNG]
@@ -135,6 +136,33 @@ def cli_checks(args, work, connection, base):
                                                           "cost_shift_hl", "wilcoxon_power"))
                for r, a in zip(rows, api))
     check(same, "the CLI's and the dashboard's comparison numbers agree")
+    # One name per statistic: the sweep's success table and the paper's
+    # Table 1 have the same keys and numbers in the CLI's JSON and the API's.
+    listed = subprocess.run([args.cli, "results", "table", "browser", "-f", "json"] + connection,
+                            capture_output=True, text=True)
+    status, body = http_get(base + "/api/sweep?name=browser", USER_TOKEN)
+    if check(listed.returncode == 0 and status == 200, "results table -f json and /api/sweep answer"):
+        cli_cells, api_cells = json.loads(listed.stdout), json.loads(body)["table"]["cells"]
+        check(len(cli_cells) == 4 and [sorted(c) for c in cli_cells] == [sorted(c) for c in api_cells]
+              and "wilson95_low" in cli_cells[0] and "wilson_low" not in api_cells[0],
+              "the success table's cells have the same keys in the CLI and the API: "
+              + ", ".join(api_cells[0]))
+        check(cli_cells == api_cells, "and the same numbers")
+    grid = subprocess.run([args.cli, "results", "table1", "browser", "-f", "json"] + connection,
+                          capture_output=True, text=True)
+    status, body = http_get(base + "/api/table1?name=browser", USER_TOKEN)
+    if check(grid.returncode == 0 and status == 200, "results table1 -f json and /api/table1 answer: "
+             + grid.stderr.strip()):
+        cli_grid, api_grid = json.loads(grid.stdout), json.loads(body)["cells"]
+        check(len(cli_grid) == 32 and cli_grid == api_grid,
+              "the Table 1 grid is the same 32 cells from the CLI and the API")
+        filled = [c for c in api_grid if c["trials"] > 0]
+        check(len(filled) == 4 and all(c["trials"] == 3 and c["off_protocol_trials"] == 3
+                                       and "episodes = 5 (paper 15)" in c["protocol_differences"]
+                                       for c in filled),
+              "RP and TP at angle k = 0.01 and k = 1, 3 trials each, marked off the paper's protocol")
+    status, body = http_get(base + "/api/table1", USER_TOKEN)
+    check(status == 400 and "'name'" in json.loads(body)["error"], f"/api/table1 without a name is 400 ({status})")
     table = subprocess.run([args.cli, "results", "compare", "browser", "--baseline", "PILCO"] + connection,
                            capture_output=True, text=True)
     check(table.returncode == 2 and "'PILCO'" in table.stderr and "RP, TP" in table.stderr,
@@ -359,6 +387,31 @@ def main():
             check(len(cells) == 4 and all("n=3" in c.text for c in cells),
                   "Table 1 has 2 methods x 2 variants, each with a Wilson interval and n=3: "
                   + " | ".join(c.text for c in cells))
+        link = find("#table1-link")
+        if check(link, "the sweep's page links to the paper's Table 1 layout"):
+            link.click()
+
+            def read_grid():  # None until the view is there (or while it is swapped)
+                try:
+                    grid, protocol = find("#table1-grid"), find("#table1-protocol")
+                    if not grid:
+                        return None
+                    return (len(grid.find_elements(By.CSS_SELECTOR, "tbody tr")),
+                            len(grid.find_elements(By.CSS_SELECTOR, "tbody td")),
+                            [c.text for c in grid.find_elements(By.CSS_SELECTOR, "td.off-protocol .cell-rate")],
+                            protocol.text if protocol else "")
+                except Exception:
+                    return None
+            grid = wait_for(read_grid, 15)
+            if check(grid, "the paper's Table 1 view opens"):
+                rows, cells, marked, protocol = grid
+                check(rows == 4 and cells == 32, f"4 tasks x 8 methods ({rows} rows, {cells} cells)")
+                check(len(marked) == 4 and all("n=3*" in text for text in marked),
+                      "the 4 cells with trials have n=3 and the protocol mark: " + " | ".join(marked))
+                check("particles = 50 (paper 300)" in protocol,
+                      "the view says which option differs from the paper's protocol")
+            driver.back()
+            table = wait_for(lambda: find("#table1"), 15)
         panels = driver.find_elements(By.CSS_SELECTOR, "#curves svg.panel")
         check(len(panels) == 2, f"one curve panel per task variant ({len(panels)})")
         curves = driver.find_elements(By.CSS_SELECTOR, "#curves svg.panel polyline.curve")

@@ -1,7 +1,17 @@
-// The dashboard's estimated time to finish (server/dashboard/dashboard_data.h).
+// The dashboard's documents (server/dashboard/dashboard_data.h): the
+// estimated time to finish, and the success table and the paper's Table 1
+// over a real store, named as the CLI names them (results/).
 #include "server/dashboard/dashboard_data.h"
 
 #include <gtest/gtest.h>
+
+#include <filesystem>
+#include <set>
+
+#include "results/stats.h"
+#include "results/table1.h"
+#include "server/storage/sqlite_store.h"
+#include "tests/service/service_testutil.h"
 
 namespace totalgrad::dashboard {
 namespace {
@@ -56,6 +66,112 @@ TEST(EpisodeWorkSecondsTest, SumsTheWallPhasesOrFallsBack) {
                    4.0);
   EXPECT_DOUBLE_EQ(EpisodeWorkSeconds("{}", 7.0), 7.0);
   EXPECT_DOUBLE_EQ(EpisodeWorkSeconds("not json", 7.0), 7.0);
+}
+
+// A store holding completed trials: sweeps of RP jobs on (tip, k = 1) under
+// the paper's protocol (but for `particles`), each with its success.
+class DashboardStoreTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = testing::MakeTempDir();
+    absl::StatusOr<std::unique_ptr<storage::SqliteStore>> store =
+        storage::SqliteStore::Open(dir_ + "/store.db");
+    ASSERT_TRUE(store.ok()) << store.status();
+    store_ = std::move(*store);
+  }
+  void TearDown() override {
+    store_.reset();
+    if (!HasFailure()) std::filesystem::remove_all(dir_);
+  }
+  // Sweep `name` of RP seeds first_seed.., one job per entry of `successes`,
+  // run to completion (two episodes each).
+  void CompletedSweep(const std::string& name, int first_seed, const std::vector<bool>& successes,
+                      const std::string& particles = "300") {
+    storage::NewSweep sweep = testing::MakeSweep(name, static_cast<int>(successes.size()), 2,
+                                                 "hash-" + name);
+    for (size_t i = 0; i < sweep.jobs.size(); ++i) {
+      storage::NewJob& job = sweep.jobs[i];
+      job.seed = std::to_string(first_seed + static_cast<int>(i));
+      job.options = {{"method", "RP"}, {"seed", job.seed}, {"scene", "cartpole-swingup"},
+                     {"cost", "tip"}, {"noise_k", "1"}, {"episodes", "15"},
+                     {"policy_steps", "600"}, {"particles", particles},
+                     {"eval_rollouts", "30"}, {"threshold", "15"}};
+    }
+    bool created = false;
+    ASSERT_TRUE(store_->CreateSweep(sweep, kNow, &created).ok());
+    absl::StatusOr<std::vector<storage::JobRecord>> jobs = store_->ListJobs({name, {}, 0, 1000});
+    ASSERT_TRUE(jobs.ok()) << jobs.status();
+    for (size_t i = 0; i < jobs->size(); ++i) {
+      const int64_t id = (*jobs)[i].id;
+      ASSERT_TRUE(store_->StartAttempt({id, 1}, testing::MakeWorker("w1"), kNow, kNow + 90'000).ok());
+      storage::AttemptEnd end;
+      end.key = {id, 1};
+      end.worker_id = "w1";
+      end.attempt_state = storage::AttemptState::kCompleted;
+      end.job_state = storage::JobState::kCompleted;
+      end.results.episodes = {testing::MakeEpisode(0), testing::MakeEpisode(1)};
+      end.totals.episodes = 2;
+      end.success = successes[i];
+      end.final_eval_cost = successes[i] ? 5 : 30;
+      end.now_ms = kNow;
+      absl::StatusOr<storage::EndOutcome> ended = store_->EndAttempt(end);
+      ASSERT_TRUE(ended.ok()) << ended.status();
+    }
+  }
+
+  std::string dir_;
+  std::unique_ptr<storage::SqliteStore> store_;
+};
+
+// One name per statistic: the success table's cells carry exactly the keys
+// of `results table -f json` (results::TableCellFields()).
+TEST_F(DashboardStoreTest, TheSuccessTableIsNamedAsTheClisTable) {
+  CompletedSweep("s", 1, {true, true, false});
+  DashboardData data(store_.get(), {});
+  absl::StatusOr<nlohmann::json> sweep = data.Sweep("s", kNow);
+  ASSERT_TRUE(sweep.ok()) << sweep.status();
+  const nlohmann::json& cells = (*sweep)["table"]["cells"];
+  ASSERT_EQ(cells.size(), 1u);
+  std::set<std::string> keys, names;
+  for (auto it = cells[0].begin(); it != cells[0].end(); ++it) keys.insert(it.key());
+  for (const auto& field : results::TableCellFields()) names.insert(field.name);
+  EXPECT_EQ(keys, names);
+  EXPECT_EQ(cells[0]["successes"], 2);
+  EXPECT_NEAR(cells[0]["wilson95_low"].get<double>(), results::WilsonInterval(2, 3).first, 1e-15);
+  EXPECT_FALSE(cells[0].contains("wilson_low"));
+}
+
+TEST_F(DashboardStoreTest, Table1PoolsSweepsMarksTheProtocolAndRefusesASeedTwice) {
+  CompletedSweep("first", 1, {true, false, true});
+  CompletedSweep("second", 4, {true}, /*particles=*/"50");
+  CompletedSweep("again", 2, {true});  // seed 2 of RP on (tip, k = 1), as in "first"
+  DashboardData data(store_.get(), {});
+  absl::StatusOr<nlohmann::json> grid = data.Table1({"first", "second"});
+  ASSERT_TRUE(grid.ok()) << grid.status();
+  EXPECT_EQ((*grid)["methods"], nlohmann::json(results::Table1Methods()));
+  ASSERT_EQ((*grid)["rows"].size(), 4u);
+  EXPECT_EQ((*grid)["rows"][3]["label"], "tip, k = 1");
+  ASSERT_EQ((*grid)["cells"].size(), 32u);
+  const nlohmann::json& rp = (*grid)["cells"][3 * 8 + 1];  // (tip, k = 1), RP
+  EXPECT_EQ(rp["method"], "RP");
+  EXPECT_EQ(rp["trials"], 4);
+  EXPECT_EQ(rp["successes"], 3);
+  EXPECT_EQ(rp["paper_success_rate"], 0.15);
+  EXPECT_EQ(rp["paper_in_interval"], "no");  // 3 of 4: [0.301, 0.954]
+  EXPECT_EQ(rp["off_protocol_trials"], 1);
+  EXPECT_EQ(rp["protocol_differences"], "particles = 50 (paper 300)");
+  EXPECT_EQ(rp["sweeps"], nlohmann::json::array({"first", "second"}));
+  std::set<std::string> keys, names;
+  for (auto it = rp.begin(); it != rp.end(); ++it) keys.insert(it.key());
+  for (const auto& field : results::Table1CellFields()) names.insert(field.name);
+  EXPECT_EQ(keys, names);
+
+  absl::StatusOr<nlohmann::json> twice = data.Table1({"first", "again"});
+  ASSERT_EQ(twice.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(twice.status().message().find("seed 2 of RP in (tip, k = 1) is in sweep first"),
+            std::string::npos) << twice.status();
+  EXPECT_EQ(data.Table1({"first", "nope"}).status().code(), absl::StatusCode::kNotFound);
+  EXPECT_EQ(data.Table1({}).status().code(), absl::StatusCode::kInvalidArgument);
 }
 
 }  // namespace

@@ -1,7 +1,9 @@
 // The totalgrad dashboard: a read-only view of the coordinator's store.
 // Views (by URL fragment): #/ sweeps and workers; #/sweep/NAME progress,
-// Table 1, learning curves, comparisons, jobs; #/job/ID episodes and logs.
-// Data come from the coordinator's /api/* (server/dashboard/dashboard.h);
+// success table, learning curves, comparisons, jobs; #/job/ID episodes and
+// logs; #/table1/NAME,NAME... the paper's Table 1 from those sweeps.
+// Data come from the coordinator's /api/* (server/dashboard/dashboard.h),
+// statistics named as in `totalgrad results ... -f json` (results/);
 // every text from the store is put in the page as text, never as markup.
 'use strict';
 
@@ -12,6 +14,7 @@ const SVG_NS = 'http://www.w3.org/2000/svg';
 const state = {
   includeRunning: true,  // curves: running trials' episodes too
   baseline: '',          // comparisons: '' = every pair
+  table1Sweeps: new Set(),  // overview: the sweeps checked for the paper's Table 1
   timer: null,
   generation: 0,         // a render that finished after a newer one started is dropped
 };
@@ -146,6 +149,10 @@ async function renderOverview(view) {
   const data = await api('/api/overview');
   document.getElementById('build').textContent = `coordinator ${data.build}; database ${data.database}`;
   const rows = data.sweeps.map(s => el('tr', {'data-sweep': s.name},
+      el('td', {}, el('input', {type: 'checkbox', class: 'table1-pick', title: 'include in the paper\'s Table 1',
+                                checked: state.table1Sweeps.has(s.name),
+                                onchange: e => { if (e.target.checked) state.table1Sweeps.add(s.name);
+                                                 else state.table1Sweeps.delete(s.name); }})),
       el('td', {}, el('a', {href: '#/sweep/' + encodeURIComponent(s.name), text: s.name})),
       el('td', {}, stateSpan(sweepState(s))),
       el('td', {}, progressBar(s)),
@@ -155,7 +162,7 @@ async function renderOverview(view) {
       el('td', {class: 'muted', text: s.description})));
   const sweeps = rows.length
       ? el('table', {id: 'sweeps'},
-           el('thead', {}, el('tr', {}, ...['sweep', 'state', 'progress', 'jobs', 'time to finish',
+           el('thead', {}, el('tr', {}, ...['Table 1', 'sweep', 'state', 'progress', 'jobs', 'time to finish',
                                              'submitted', 'description'].map(t => el('th', {text: t})))),
            el('tbody', {}, ...rows))
       : el('p', {class: 'muted', text: 'No sweep yet: submit one with `totalgrad sweep submit FILE`.'});
@@ -168,7 +175,13 @@ async function renderOverview(view) {
                el('td', {class: 'num', text: w.slots}), el('td', {class: 'num', text: w.running}),
                el('td', {text: when(w.last_seen_ms)}), el('td', {class: 'muted', text: w.build})))))
       : el('p', {class: 'muted', text: 'No worker has called in yet.'});
-  view.replaceChildren(el('h2', {text: 'Sweeps'}), sweeps, el('h2', {text: 'Workers'}), workers);
+  const table1Button = data.sweeps.length
+      ? el('p', {}, el('button', {id: 'table1-open', type: 'button', onclick: () => {
+            const names = data.sweeps.map(s => s.name).filter(n => state.table1Sweeps.has(n));
+            if (names.length) location.hash = '#/table1/' + names.map(encodeURIComponent).join(',');
+          }}, 'The paper\'s Table 1 from the checked sweeps'))
+      : null;
+  view.replaceChildren(el('h2', {text: 'Sweeps'}), sweeps, table1Button, el('h2', {text: 'Workers'}), workers);
 }
 
 function table1(data) {
@@ -184,11 +197,59 @@ function table1(data) {
             if (!c) return el('td', {class: 'muted', text: '–'});
             return el('td', {'data-variant': v},
                 el('div', {class: 'cell-rate',
-                           text: `${fixed(c.rate, 2)} [${fixed(c.wilson_low, 2)}, ${fixed(c.wilson_high, 2)}] n=${c.trials}`}),
+                           text: `${fixed(c.success_rate, 2)} [${fixed(c.wilson95_low, 2)}, ${fixed(c.wilson95_high, 2)}] n=${c.trials}`}),
                 el('div', {class: 'cell-sub', text: `median final cost ${fixed(c.median_final_cost, 2)}`}),
                 c.classified > 0 ? el('div', {class: 'cell-sub cell-held',
-                    text: `rollout verdict: held ${c.held}/${c.classified} [${fixed(c.held_wilson_low, 2)}, ${fixed(c.held_wilson_high, 2)}]`}) : null);
+                    text: `rollout verdict: held ${c.held}/${c.classified} [${fixed(c.held_wilson95_low, 2)}, ${fixed(c.held_wilson95_high, 2)}]`}) : null);
           })))));
+}
+
+// The paper's Table 1 from several sweeps (/api/table1): one row per task
+// (cost, k), one column per method; each cell our success rate with its
+// Wilson interval and n, the rollout verdict's rate, and the paper's number,
+// inside or outside our interval. '*' marks a cell whose trials left the
+// paper's protocol; the list below the grid says which option differs.
+function paperTable1(data) {
+  const {methods, rows, cells} = data;
+  const cellOf = (r, m) => cells[r * methods.length + m];
+  const marked = [];
+  const grid = el('table', {id: 'table1-grid'},
+      el('thead', {}, el('tr', {}, el('th', {text: 'task'}), ...methods.map(m => el('th', {text: m})))),
+      el('tbody', {}, ...rows.map((row, r) => el('tr', {'data-task': row.label}, el('th', {text: row.label}),
+          ...methods.map((m, i) => {
+            const c = cellOf(r, i);
+            const off = c.off_protocol_trials > 0;
+            if (off) marked.push(`${row.label}, ${m}: ${c.off_protocol_trials} of ${c.trials} trials: ${c.protocol_differences}`);
+            const paper = c.paper_success_rate === null ? 'paper: none'
+                : `paper ${fixed(c.paper_success_rate, 2)}` +
+                  (c.paper_in_interval === 'yes' ? ' in' : c.paper_in_interval === 'no' ? ' OUT' : '');
+            return el('td', {'data-method': m, class: off ? 'off-protocol' : null,
+                             title: c.sweeps.length ? 'sweeps: ' + c.sweeps.join(', ') : null},
+                el('div', {class: 'cell-rate', text: c.trials === 0 ? '–'
+                    : `${fixed(c.success_rate, 2)} [${fixed(c.wilson95_low, 2)}, ${fixed(c.wilson95_high, 2)}] n=${c.trials}` +
+                      (off ? '*' : '')}),
+                c.classified > 0 ? el('div', {class: 'cell-sub cell-held',
+                    text: `held ${c.held}/${c.classified} [${fixed(c.held_wilson95_low, 2)}, ${fixed(c.held_wilson95_high, 2)}]`}) : null,
+                el('div', {class: 'cell-sub cell-paper' + (c.paper_in_interval === 'no' ? ' outside' : ''), text: paper}));
+          })))));
+  const protocol = data.protocol.map(([k, v]) => `${k} ${v}`).join(', ');
+  return [grid,
+          marked.length ? el('div', {id: 'table1-protocol'},
+              el('p', {class: 'muted', text: `* not the paper's protocol (${protocol}):`}),
+              el('ul', {}, ...marked.map(t => el('li', {text: t})))) : null,
+          data.outside.length ? el('p', {class: 'muted', id: 'table1-outside',
+                                         text: 'not in the grid: ' + data.outside.join('; ')}) : null];
+}
+
+async function renderTable1(view, names) {
+  const data = await api('/api/table1?' + names.map(n => 'name=' + encodeURIComponent(n)).join('&'));
+  view.replaceChildren(
+      el('h2', {text: 'Table 1 (Parmas et al. 2018) from ' + names.join(', ')}),
+      el('p', {class: 'muted', text: 'Success rate [95% Wilson interval] n=trials; held: the rollout verdict ' +
+          '(trials whose final policy held in at least half of its verdict rollouts, of those classified); ' +
+          'paper: the paper\'s success rate, in or OUT of our interval. Trials of several sweeps in one cell are pooled.'}),
+      ...paperTable1(data));
+  setCrumbs([['#/', 'sweeps'], [null, 'Table 1']]);
 }
 
 // Round tick values covering [low, high].
@@ -355,8 +416,10 @@ async function renderSweep(view, name) {
       el('p', {id: 'sweep-progress'}, stateSpan(sweepState(s)), ' ', progressBar(s), ' ', jobCounts(s), '. ',
          el('span', {class: 'eta', title: s.eta.basis, text: 'Time to finish: ' + etaText(s)}),
          el('span', {class: 'muted', text: s.eta.known || s.finished ? '' : ` (${s.eta.basis})`})),
-      el('h3', {text: 'Success rate [95% Wilson interval] n=trials, median final cost (Table 1)'}),
+      el('h3', {text: 'Success rate [95% Wilson interval] n=trials, median final cost'}),
       table1(sweepData),
+      el('p', {}, el('a', {id: 'table1-link', href: '#/table1/' + encodeURIComponent(s.name),
+                           text: 'in the paper\'s Table 1 layout'})),
       el('h3', {text: 'Learning curves: evaluation cost per episode, median and quartiles over trials'}),
       el('div', {class: 'controls'}, el('label', {}, running, ' include the episodes of running trials'),
          el('span', {class: 'muted', text: `${curves.trials} trials in the curves`})),
@@ -452,6 +515,8 @@ async function refresh() {
       await renderSweep(scratch, decodeURIComponent(route[1]));
     } else if (route[0] === 'job' && route[1]) {
       await renderJob(scratch, route[1]);
+    } else if (route[0] === 'table1' && route[1]) {
+      await renderTable1(scratch, route[1].split(',').filter(n => n).map(decodeURIComponent));
     } else {
       setCrumbs([]);
       await renderOverview(scratch);

@@ -1,15 +1,18 @@
 // Statistics for the results views: Wilson score intervals for success
-// rates, quantiles, and the grouping behind `results table` (the paper's
-// Table 1) and `results curves` (its Figure 2). Pure functions.
-#ifndef TOTALGRAD_CLIENT_SERVICE_COMMANDS_STATS_H_
-#define TOTALGRAD_CLIENT_SERVICE_COMMANDS_STATS_H_
+// rates, quantiles, and the grouping behind `results table` (a sweep's
+// success table) and `results curves` (the paper's Figure 2). Pure
+// functions of their arguments; thread-safe.
+#ifndef TOTALGRAD_RESULTS_STATS_H_
+#define TOTALGRAD_RESULTS_STATS_H_
 
 #include <limits>
 #include <string>
 #include <utility>
 #include <vector>
 
-namespace totalgrad::cli {
+#include "core/common/record.h"
+
+namespace totalgrad::results {
 
 // 95% Wilson score interval for `successes` out of `trials` (z = 1.959964).
 // Returns {0, 1} for trials == 0. Always within [0, 1].
@@ -51,6 +54,13 @@ struct TableCell {
 // variants in first-appearance order.
 std::vector<TableCell> SuccessTable(const std::vector<TrialRow>& rows);
 
+// A TableCell's fields under the one name each statistic has wherever it is
+// shown (`results table -f csv|json`, the dashboard's /api/sweep): method,
+// variant, trials, successes, success_rate, wilson95_low, wilson95_high,
+// median_final_cost, classified, held, held_rate, held_wilson95_low,
+// held_wilson95_high. Written through io/record_format.h.
+const record::FieldTable<TableCell>& TableCellFields();
+
 struct EpisodeValue {
   std::string method;
   std::string variant;
@@ -71,6 +81,6 @@ struct CurvePoint {
 // Median and quartiles over trials, per (method, variant, episode).
 std::vector<CurvePoint> Curves(const std::vector<EpisodeValue>& values);
 
-}  // namespace totalgrad::cli
+}  // namespace totalgrad::results
 
-#endif  // TOTALGRAD_CLIENT_SERVICE_COMMANDS_STATS_H_
+#endif  // TOTALGRAD_RESULTS_STATS_H_

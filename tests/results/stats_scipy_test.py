@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""The comparison statistics (client/service_commands/hypothesis_tests.h)
+"""The comparison statistics (results/hypothesis_tests.h)
 against values computed independently: SciPy (Debian's python3-scipy) where
 it has the test, brute-force enumeration in this file where it does not
 (exact Wilcoxon with ties or zeros, the exact power sums), and a simulation

@@ -1,15 +1,15 @@
-// The comparison statistics (client/service_commands/hypothesis_tests.h and
+// The comparison statistics (results/hypothesis_tests.h and
 // comparison.h) against values worked out by hand or published; the
 // comparison with SciPy on random inputs is stats_scipy_test.py.
-#include "client/service_commands/hypothesis_tests.h"
+#include "results/hypothesis_tests.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 
-#include "client/service_commands/comparison.h"
+#include "results/comparison.h"
 
-namespace totalgrad::cli {
+namespace totalgrad::results {
 namespace {
 
 // Probabilities come from lgamma: equal to the rational values to ~1e-15.
@@ -278,4 +278,4 @@ TEST(CompareMethodsTest, CountsDuplicateSeedsAndSkipsLoneMethods) {
 }
 
 }  // namespace
-}  // namespace totalgrad::cli
+}  // namespace totalgrad::results

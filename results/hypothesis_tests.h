@@ -16,12 +16,12 @@
 //     non-significant result could have been significant with this n: a
 //     power of 0.3 means a real effect of the observed size would be missed
 //     7 times in 10. It is a function of the data, not a new finding.
-#ifndef TOTALGRAD_CLIENT_SERVICE_COMMANDS_HYPOTHESIS_TESTS_H_
-#define TOTALGRAD_CLIENT_SERVICE_COMMANDS_HYPOTHESIS_TESTS_H_
+#ifndef TOTALGRAD_RESULTS_HYPOTHESIS_TESTS_H_
+#define TOTALGRAD_RESULTS_HYPOTHESIS_TESTS_H_
 
 #include <vector>
 
-namespace totalgrad::cli {
+namespace totalgrad::results {
 
 // Significance level used when none is given.
 inline constexpr double kDefaultAlpha = 0.05;
@@ -101,7 +101,7 @@ WilcoxonResult WilcoxonSignedRank(const std::vector<double>& differences);
 // Power of the two-sided signed-rank test at level alpha for n pairs when
 // P(D + D' > 0) = p_prime for two independent differences (Noether 1987,
 // JASA 82:645: Phi(sqrt(3n) |p_prime - 1/2| - z_{1-alpha/2})). A
-// large-sample approximation: tests/service/stats_scipy_test.py measures it
+// large-sample approximation: tests/results/stats_scipy_test.py measures it
 // against simulated power.
 double WilcoxonPowerNoether(int n, double p_prime, double alpha = kDefaultAlpha);
 
@@ -119,6 +119,6 @@ std::vector<double> HolmAdjust(const std::vector<double>& p_values);
 double NormalCdf(double z);
 double NormalQuantile(double p);
 
-}  // namespace totalgrad::cli
+}  // namespace totalgrad::results
 
-#endif  // TOTALGRAD_CLIENT_SERVICE_COMMANDS_HYPOTHESIS_TESTS_H_
+#endif  // TOTALGRAD_RESULTS_HYPOTHESIS_TESTS_H_

@@ -1,4 +1,4 @@
-#include "client/service_commands/plot_style.h"
+#include "results/plot_style.h"
 
 #include <array>
 #include <cmath>
@@ -8,7 +8,7 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_split.h"
 
-namespace totalgrad::cli {
+namespace totalgrad::results {
 
 std::string MethodColour(const std::string& method) {
   // Distinct hues (Tableau 10 plus black for PILCO, the analytic reference),
@@ -59,4 +59,4 @@ CurvePanel DescribePanel(const std::string& variant,
   return panel;
 }
 
-}  // namespace totalgrad::cli
+}  // namespace totalgrad::results

@@ -2,14 +2,14 @@
 // one colour per estimation method (the same in every panel and in both, so
 // a method is found by its colour), and one panel per task variant with a
 // title naming the scene, cost and noise level and the success threshold.
-#ifndef TOTALGRAD_CLIENT_SERVICE_COMMANDS_PLOT_STYLE_H_
-#define TOTALGRAD_CLIENT_SERVICE_COMMANDS_PLOT_STYLE_H_
+#ifndef TOTALGRAD_RESULTS_PLOT_STYLE_H_
+#define TOTALGRAD_RESULTS_PLOT_STYLE_H_
 
 #include <string>
 #include <utility>
 #include <vector>
 
-namespace totalgrad::cli {
+namespace totalgrad::results {
 
 // "#rrggbb". The paper's methods (PILCO, RP, GR, LR, TP, GLR, GTP, GTP+sn,
 // DEL) have fixed, distinct colours; any other name gets one of a further
@@ -32,6 +32,6 @@ struct CurvePanel {
 CurvePanel DescribePanel(const std::string& variant,
                          const std::vector<std::pair<std::string, std::string>>& options);
 
-}  // namespace totalgrad::cli
+}  // namespace totalgrad::results
 
-#endif  // TOTALGRAD_CLIENT_SERVICE_COMMANDS_PLOT_STYLE_H_
+#endif  // TOTALGRAD_RESULTS_PLOT_STYLE_H_

@@ -1,4 +1,4 @@
-#include "client/service_commands/hypothesis_tests.h"
+#include "results/hypothesis_tests.h"
 
 #include <algorithm>
 #include <cmath>
@@ -6,7 +6,7 @@
 #include <numbers>
 #include <numeric>
 
-namespace totalgrad::cli {
+namespace totalgrad::results {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
@@ -335,4 +335,4 @@ std::vector<double> HolmAdjust(const std::vector<double>& p_values) {
   return adjusted;
 }
 
-}  // namespace totalgrad::cli
+}  // namespace totalgrad::results

@@ -6,16 +6,16 @@
 // completed trials of each method is the unpaired check. Within a variant
 // the p-values of each test are Holm-corrected over that variant's
 // comparisons. Pure functions; see hypothesis_tests.h for the tests.
-#ifndef TOTALGRAD_CLIENT_SERVICE_COMMANDS_COMPARISON_H_
-#define TOTALGRAD_CLIENT_SERVICE_COMMANDS_COMPARISON_H_
+#ifndef TOTALGRAD_RESULTS_COMPARISON_H_
+#define TOTALGRAD_RESULTS_COMPARISON_H_
 
 #include <string>
 #include <vector>
 
 #include "absl/status/statusor.h"
-#include "client/service_commands/hypothesis_tests.h"
+#include "results/hypothesis_tests.h"
 
-namespace totalgrad::cli {
+namespace totalgrad::results {
 
 // One completed trial (the job's counting attempt).
 struct ComparedTrial {
@@ -89,6 +89,6 @@ struct ComparisonReport {
 absl::StatusOr<ComparisonReport> CompareMethods(const std::vector<ComparedTrial>& trials,
                                                 const ComparisonOptions& options);
 
-}  // namespace totalgrad::cli
+}  // namespace totalgrad::results
 
-#endif  // TOTALGRAD_CLIENT_SERVICE_COMMANDS_COMPARISON_H_
+#endif  // TOTALGRAD_RESULTS_COMPARISON_H_

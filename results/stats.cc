@@ -1,4 +1,4 @@
-#include "client/service_commands/stats.h"
+#include "results/stats.h"
 
 #include <algorithm>
 #include <cmath>
@@ -6,7 +6,7 @@
 #include <map>
 #include <tuple>
 
-namespace totalgrad::cli {
+namespace totalgrad::results {
 
 std::pair<double, double> WilsonInterval(int successes, int trials, double z) {
   if (trials <= 0) return {0.0, 1.0};
@@ -74,6 +74,25 @@ std::vector<TableCell> SuccessTable(const std::vector<TrialRow>& rows) {
   return table;
 }
 
+const record::FieldTable<TableCell>& TableCellFields() {
+  static const record::FieldTable<TableCell> table = {
+      {"method", &TableCell::method},
+      {"variant", &TableCell::variant},
+      {"trials", &TableCell::trials},
+      {"successes", &TableCell::successes},
+      {"success_rate", &TableCell::rate},
+      {"wilson95_low", &TableCell::low},
+      {"wilson95_high", &TableCell::high},
+      {"median_final_cost", &TableCell::median_final_cost},
+      {"classified", &TableCell::classified},
+      {"held", &TableCell::held},
+      {"held_rate", &TableCell::held_rate},
+      {"held_wilson95_low", &TableCell::held_low},
+      {"held_wilson95_high", &TableCell::held_high},
+  };
+  return table;
+}
+
 std::vector<CurvePoint> Curves(const std::vector<EpisodeValue>& values) {
   Order methods, variants;
   std::map<std::tuple<int, int, int>, std::pair<CurvePoint, std::vector<double>>> points;
@@ -97,4 +116,4 @@ std::vector<CurvePoint> Curves(const std::vector<EpisodeValue>& values) {
   return curves;
 }
 
-}  // namespace totalgrad::cli
+}  // namespace totalgrad::results

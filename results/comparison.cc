@@ -1,4 +1,4 @@
-#include "client/service_commands/comparison.h"
+#include "results/comparison.h"
 
 #include <algorithm>
 #include <cmath>
@@ -8,7 +8,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 
-namespace totalgrad::cli {
+namespace totalgrad::results {
 namespace {
 
 void AddOnce(std::vector<std::string>* list, const std::string& value) {
@@ -141,4 +141,4 @@ absl::StatusOr<ComparisonReport> CompareMethods(const std::vector<ComparedTrial>
   return report;
 }
 
-}  // namespace totalgrad::cli
+}  // namespace totalgrad::results

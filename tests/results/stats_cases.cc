@@ -15,12 +15,12 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "client/service_commands/hypothesis_tests.h"
+#include "results/hypothesis_tests.h"
 
 namespace {
 
 using nlohmann::json;
-using namespace totalgrad::cli;
+using namespace totalgrad::results;
 
 json Number(double value) { return std::isnan(value) ? json(nullptr) : json(value); }
 
