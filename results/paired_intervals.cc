@@ -12,23 +12,19 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-// P(T+ <= t) for t = 0 .. n(n+1)/2 under the null hypothesis, ranks 1..n:
-// each rank enters the sum with probability 1/2. Scaled counts k / 2^n with
-// 2^n <= 2^50 keep every addition exact.
+// P(T+ <= t) for t = 0 .. n(n+1)/2 under the null hypothesis, ranks 1..n
+// (hypothesis_tests.h's distribution, whose entries are doubled sums).
 std::vector<double> SignedRankCdf(int n) {
-  const int total = n * (n + 1) / 2;
-  std::vector<double> pmf(total + 1, 0.0);
-  pmf[0] = 1.0;
-  int reach = 0;
-  for (int rank = 1; rank <= n; ++rank) {
-    for (int s = reach; s >= 0; --s) {
-      pmf[s + rank] += pmf[s] * 0.5;
-      pmf[s] *= 0.5;
-    }
-    reach += rank;
+  std::vector<int> doubled_ranks(n);
+  for (int rank = 1; rank <= n; ++rank) doubled_ranks[rank - 1] = 2 * rank;
+  const std::vector<double> doubled = SignedRankNullDistribution(doubled_ranks);
+  std::vector<double> cdf(n * (n + 1) / 2 + 1, 0.0);
+  double running = 0;
+  for (size_t t = 0; t < cdf.size(); ++t) {
+    running += doubled[2 * t];  // odd doubled sums have probability 0
+    cdf[t] = running;
   }
-  for (int s = 1; s <= total; ++s) pmf[s] += pmf[s - 1];
-  return pmf;
+  return cdf;
 }
 
 }  // namespace
