@@ -64,126 +64,128 @@ int ExitCode(const totalgrad::worker::WorkerSummary& summary) {
   return 1;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  totalgrad::SelectBlasKernels(argv);  // may re-execute this program (core/common/blas.h)
-  CLI::App app{"totalgrad-worker: runs policy-learning trials leased from a coordinator"};
+// Every flag's value (the defaults shown in --help) before it becomes the
+// worker's options.
+struct Flags {
   totalgrad::rpc::ConnectionOptions connection;
   totalgrad::worker::WorkerOptions options;
-  options.slots = std::max(1u, std::thread::hardware_concurrency());
-  options.host = HostName();
-  options.worker_id = options.host + "-" + std::to_string(getpid());
-  // The BLAS kernels change a trial's last bits: they are part of its provenance.
-  options.build = totalgrad::BuildId() + " blas " + totalgrad::BlasCoreName();
   std::string token_file;
+  int threads_per_slot = 1;
   double drain_seconds = 60, max_idle_seconds = -1, acquire_wait_seconds = 20;
-  app.add_option("--coordinator", connection.target, "coordinator host:port")->required();
-  app.add_option("--slots", options.slots, "trials run at once (default: one per core)")
+  double report_grace_seconds = 5;
+  double worker_id_wait_seconds = 120;
+  double max_unreachable_seconds = 600;
+  double walltime_seconds = -1, trial_seconds = 0;
+};
+
+Flags DefaultFlags() {
+  Flags flags;
+  flags.options.slots = std::max(1u, std::thread::hardware_concurrency());
+  flags.options.host = HostName();
+  flags.options.worker_id = flags.options.host + "-" + std::to_string(getpid());
+  // The BLAS kernels change a trial's last bits: they are part of its provenance.
+  flags.options.build = totalgrad::BuildId() + " blas " + totalgrad::BlasCoreName();
+  flags.options.state_dir = DefaultStateDir();
+  return flags;
+}
+
+// Declares every flag on `app`, bound to `flags`.
+void AddFlags(CLI::App& app, Flags& flags) {
+  app.add_option("--coordinator", flags.connection.target, "coordinator host:port")->required();
+  app.add_option("--slots", flags.options.slots, "trials run at once (default: one per core)")
       ->check(CLI::Range(1, 4096))
       ->capture_default_str();
-  int threads_per_slot = 1;
-  app.add_option("--threads-per-slot", threads_per_slot,
+  app.add_option("--threads-per-slot", flags.threads_per_slot,
                  "threads each trial runs on (default 1); results are the same bits for any "
                  "value, so a job gives the same numbers on any worker")
       ->check(CLI::Range(1, 256))
       ->capture_default_str();
-  app.add_option("--token-file", token_file, "file holding the worker token");
-  app.add_option("--ca-cert", connection.ca_cert_file, "CA certificate to trust (PEM)");
-  app.add_option("--client-cert", connection.client_cert_file, "client certificate (PEM)");
-  app.add_option("--client-key", connection.client_key_file, "client key (PEM)");
-  app.add_option("--tls-server-name", connection.tls_server_name,
+  app.add_option("--token-file", flags.token_file, "file holding the worker token");
+  app.add_option("--ca-cert", flags.connection.ca_cert_file, "CA certificate to trust (PEM)");
+  app.add_option("--client-cert", flags.connection.client_cert_file, "client certificate (PEM)");
+  app.add_option("--client-key", flags.connection.client_key_file, "client key (PEM)");
+  app.add_option("--tls-server-name", flags.connection.tls_server_name,
                  "expected name in the server certificate (default: the host)");
-  app.add_flag("--insecure", connection.insecure, "plaintext; only to a loopback coordinator");
-  app.add_option("--worker-id", options.worker_id, "unique id of this worker")
+  app.add_flag("--insecure", flags.connection.insecure,
+               "plaintext; only to a loopback coordinator");
+  app.add_option("--worker-id", flags.options.worker_id, "unique id of this worker")
       ->capture_default_str();
-  app.add_option("--drain-timeout", drain_seconds,
+  app.add_option("--drain-timeout", flags.drain_seconds,
                  "seconds running trials get to finish after SIGTERM (then --report-grace for "
                  "the final reports)")
       ->capture_default_str();
-  double report_grace_seconds = 5;
-  app.add_option("--report-grace", report_grace_seconds,
+  app.add_option("--report-grace", flags.report_grace_seconds,
                  "seconds final reports get after --drain-timeout before they are kept in "
                  "--state-dir instead")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
-  options.state_dir = DefaultStateDir();
-  app.add_option("--state-dir", options.state_dir,
+  app.add_option("--state-dir", flags.options.state_dir,
                  "directory for this worker id's lock and its spool of undelivered results "
                  "(replayed by the next worker with the same id on this host)")
       ->capture_default_str();
-  double worker_id_wait_seconds = 120;
-  app.add_option("--worker-id-wait", worker_id_wait_seconds,
+  app.add_option("--worker-id-wait", flags.worker_id_wait_seconds,
                  "seconds to wait while the coordinator says another live worker uses this "
                  "--worker-id before exiting with code 78")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
-  app.add_option("--max-idle", max_idle_seconds,
+  app.add_option("--max-idle", flags.max_idle_seconds,
                  "exit after this many seconds without work, time without a coordinator "
                  "included (default: never)");
-  double max_unreachable_seconds = 600;
-  app.add_option("--max-unreachable", max_unreachable_seconds,
+  app.add_option("--max-unreachable", flags.max_unreachable_seconds,
                  "exit with code 69 after this many seconds in which the coordinator never "
                  "answered and no trial ran (codes: 0 done, 69 no coordinator, 77 token refused, "
                  "78 worker id in use)")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
-  app.add_option("--acquire-wait", acquire_wait_seconds, "long-poll length, seconds")
+  app.add_option("--acquire-wait", flags.acquire_wait_seconds, "long-poll length, seconds")
       ->capture_default_str();
   // Batch allocations (deploy/slurm): drain --trial-time before the end of
   // --walltime, so no trial is taken that cannot finish in time.
-  double walltime_seconds = -1, trial_seconds = 0;
-  app.add_option("--walltime", walltime_seconds,
+  app.add_option("--walltime", flags.walltime_seconds,
                  "seconds this worker may run (e.g. what is left of a batch allocation); it "
                  "drains --trial-time before the end, taking no trial it cannot finish")
       ->check(CLI::NonNegativeNumber);
-  app.add_option("--trial-time", trial_seconds, "longest expected trial, seconds (with --walltime)")
+  app.add_option("--trial-time", flags.trial_seconds,
+                 "longest expected trial, seconds (with --walltime)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
-  app.set_version_flag("--version", totalgrad::BuildId());
-  CLI11_PARSE(app, argc, argv);
-  spdlog::flush_on(spdlog::level::info);
+}
 
-  if (!token_file.empty()) {
-    auto token = totalgrad::ReadTokenFile(token_file);
+// Reads the token file and turns the flags' seconds into the worker's
+// options; false (after a log line) if the token file is unusable.
+bool ApplyFlags(Flags& flags) {
+  if (!flags.token_file.empty()) {
+    auto token = totalgrad::ReadTokenFile(flags.token_file);
     if (!token.ok()) {
       spdlog::error("{}", token.status().ToString());
-      return 2;
+      return false;
     }
     if (!token->warning.empty()) spdlog::warn("{}", token->warning);
-    options.token = token->token;
-    connection.token = token->token;
+    flags.options.token = token->token;
+    flags.connection.token = token->token;
   }
-  options.drain_timeout = absl::Seconds(drain_seconds);
-  options.report_grace = absl::Seconds(report_grace_seconds);
-  options.worker_id_wait = absl::Seconds(worker_id_wait_seconds);
-  options.acquire_wait = absl::Seconds(acquire_wait_seconds);
-  if (max_idle_seconds >= 0) options.max_idle = absl::Seconds(max_idle_seconds);
-  options.max_unreachable = absl::Seconds(max_unreachable_seconds);
+  flags.options.drain_timeout = absl::Seconds(flags.drain_seconds);
+  flags.options.report_grace = absl::Seconds(flags.report_grace_seconds);
+  flags.options.worker_id_wait = absl::Seconds(flags.worker_id_wait_seconds);
+  flags.options.acquire_wait = absl::Seconds(flags.acquire_wait_seconds);
+  if (flags.max_idle_seconds >= 0) {
+    flags.options.max_idle = absl::Seconds(flags.max_idle_seconds);
+  }
+  flags.options.max_unreachable = absl::Seconds(flags.max_unreachable_seconds);
+  return true;
+}
 
-  auto channel = totalgrad::rpc::MakeChannel(connection);
-  if (!channel.ok()) {
-    spdlog::error("{}", channel.status().ToString());
-    return 2;
-  }
-  if (!totalgrad::InstallShutdownSignals()) {
-    spdlog::error("cannot install signal handlers");
-    return 2;
-  }
-
-  // Deliberately never destroyed: the detached signal thread may still hold
-  // them while the process exits.
-  auto* trials = new totalgrad::worker::LearnerTrialRunner(threads_per_slot);
-  auto* studies = new totalgrad::worker::CoreStudyRunner();
-  auto* worker_ptr = new totalgrad::worker::Worker(
-      options, *channel,
-      {{totalgrad::v1::JOB_KIND_TRIAL, trials}, {totalgrad::v1::JOB_KIND_STUDY, studies}});
-  totalgrad::worker::Worker& worker = *worker_ptr;
+// The threads that end the worker from outside: the signal thread (the first
+// SIGTERM/SIGINT drains, a second exits at once), the watchdog it starts, and
+// the --walltime drain. All are detached and hold `worker` until the process
+// exits (main ends with std::_Exit).
+void StartShutdownThreads(totalgrad::worker::Worker& worker, const Flags& flags) {
   // A trial notices a cancellation between gradient steps, and a model fit
   // can take a while; after the drain timeout and the report grace a
   // watchdog exits anyway, keeping what is unfinished, so the shutdown a
   // supervisor (systemd, Kubernetes, Slurm) waits for is bounded.
-  const auto hard_stop_after = options.drain_timeout + options.report_grace + absl::Seconds(5);
+  const auto hard_stop_after =
+      flags.options.drain_timeout + flags.options.report_grace + absl::Seconds(5);
   std::thread signal_thread([&worker, hard_stop_after] {
     int signal_number = totalgrad::WaitForShutdownSignal();
     spdlog::info("signal {}: draining (send again to exit at once)", signal_number);
@@ -206,16 +208,51 @@ int main(int argc, char** argv) {
     std::_Exit(0);
   });
   signal_thread.detach();
-  if (walltime_seconds >= 0) {
-    const double drain_after = std::max(0.0, walltime_seconds - trial_seconds);
+  if (flags.walltime_seconds >= 0) {
+    const double drain_after = std::max(0.0, flags.walltime_seconds - flags.trial_seconds);
     std::thread([&worker, drain_after] {
       std::this_thread::sleep_for(std::chrono::duration<double>(drain_after));
       spdlog::info("walltime: less than --trial-time left; taking no new trial");
       worker.Drain();
     }).detach();
   }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  totalgrad::SelectBlasKernels(argv);  // may re-execute this program (core/common/blas.h)
+  CLI::App app{"totalgrad-worker: runs policy-learning trials leased from a coordinator"};
+  Flags flags = DefaultFlags();
+  AddFlags(app, flags);
+  app.set_version_flag("--version", totalgrad::BuildId());
+  CLI11_PARSE(app, argc, argv);
+  spdlog::flush_on(spdlog::level::info);
+  if (!ApplyFlags(flags)) return 2;
+  const totalgrad::rpc::ConnectionOptions& connection = flags.connection;
+  const totalgrad::worker::WorkerOptions& options = flags.options;
+
+  auto channel = totalgrad::rpc::MakeChannel(connection);
+  if (!channel.ok()) {
+    spdlog::error("{}", channel.status().ToString());
+    return 2;
+  }
+  if (!totalgrad::InstallShutdownSignals()) {
+    spdlog::error("cannot install signal handlers");
+    return 2;
+  }
+
+  // Deliberately never destroyed: the detached signal thread may still hold
+  // them while the process exits.
+  auto* trials = new totalgrad::worker::LearnerTrialRunner(flags.threads_per_slot);
+  auto* studies = new totalgrad::worker::CoreStudyRunner();
+  auto* worker_ptr = new totalgrad::worker::Worker(
+      options, *channel,
+      {{totalgrad::v1::JOB_KIND_TRIAL, trials}, {totalgrad::v1::JOB_KIND_STUDY, studies}});
+  totalgrad::worker::Worker& worker = *worker_ptr;
+  StartShutdownThreads(worker, flags);
   spdlog::info("worker {} ({} slots x {} threads per trial) -> {} [{}]", options.worker_id,
-               options.slots, threads_per_slot, connection.target, options.build);
+               options.slots, flags.threads_per_slot, connection.target, options.build);
   const totalgrad::worker::WorkerSummary summary = worker.Run();
   spdlog::info("worker done: {} completed, {} failed, {} released, {} dropped, {} kept in the "
                "spool, {} replayed from it",

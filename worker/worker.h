@@ -49,6 +49,9 @@
 // call deadlines (acquire_wait, call_timeout) and the retries of final
 // reports (rpc::CallWithRetry) stay on real time.
 //
+// Files: worker.cc leases, runs and heartbeats; worker_final_reports.cc ends
+// an attempt (final reports, their delivery, the spool and its replay).
+//
 // Threading: Run() blocks on the calling thread and owns one thread per slot,
 // the heartbeat thread and the drain-deadline thread. Drain(), Stop() and SpoolUnfinished() may be
 // called from any thread.
@@ -197,6 +200,24 @@ class Worker {
   // delivered in time.
   void Finish(const std::shared_ptr<ActiveLease>& active, const absl::StatusOr<JobOutcome>& result)
       ABSL_LOCKS_EXCLUDED(mutex_);
+  // What Finish takes from an attempt that ended (copied under mutex_).
+  struct EndedAttempt {
+    std::string failure;  // set: the attempt is reported with Fail
+    std::string cancel_reason;
+    bool never_started = false;
+    std::vector<v1::EpisodeReport> unacked;
+    std::optional<v1::TrialCheckpoint> checkpoint;
+  };
+  // The final report of an attempt that ended with `result`: Fail when
+  // `ended.failure` is set, Release when the job stopped without a result,
+  // else Complete with the unacknowledged rows and the checkpoint in it.
+  v1::SpooledAttempt FinalReport(const v1::LeaseKey& key, const absl::StatusOr<JobOutcome>& result,
+                                 const EndedAttempt& ended) const;
+  // Counts (and logs) how the delivery of `entry`, the final report of
+  // `key`, ended: delivered, dropped, or spooled when it could not be sent.
+  void CountFinalReport(const v1::LeaseKey& key, const absl::StatusOr<JobOutcome>& result,
+                        const EndedAttempt& ended, const Delivery& delivery,
+                        const v1::SpooledAttempt& entry) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mutex_);
   // Sends `attempt`: its pending heartbeat, then its final report. A refused
   // completion (INVALID_ARGUMENT/FAILED_PRECONDITION) becomes a Fail with
   // the reason. Calls go through `registry` and stop when it is cancelled.

@@ -105,6 +105,192 @@ Timing TimeOnce(const ThreadPool* pool, F&& f) {
           cpu() - cpu_start};
 }
 
+// The problem an iteration is timed on, and the objects its pointers (model,
+// policy, dynamics) refer to.
+struct IterationProblem {
+  estimators::Problem p;
+  const gp::GpModel* full_model = nullptr;
+  std::unique_ptr<estimators::SyntheticProblem> synthetic;
+  std::unique_ptr<SceneBenchProblem> on_scene;
+  std::unique_ptr<estimators::GpDynamics> full_dynamics;
+  std::unique_ptr<estimators::RbfParticlePolicy> particle_policy;
+  std::unique_ptr<gp::FitcModel> sparse;
+  std::unique_ptr<estimators::FitcDynamics> sparse_dynamics;
+};
+
+// The synthetic cart-pole problem, or one on --scene, its model and policy
+// using `pool` as a trial's do. Returns the exit code: 0, or 1/2 after a
+// message on stderr.
+int MakeIterationProblem(const BenchState& state, ThreadPool* pool, IterationProblem* out) {
+  estimators::Problem& p = out->p;
+  const gp::GpModel*& full_model = out->full_model;
+  std::unique_ptr<estimators::SyntheticProblem>& synthetic = out->synthetic;
+  std::unique_ptr<SceneBenchProblem>& on_scene = out->on_scene;
+  std::unique_ptr<estimators::GpDynamics>& full_dynamics = out->full_dynamics;
+  std::unique_ptr<estimators::RbfParticlePolicy>& particle_policy = out->particle_policy;
+  if (state.scene.empty()) {
+    estimators::SyntheticProblemOptions options;
+    options.data = state.data;
+    options.horizon = state.horizon;
+    options.variance_rank_tolerance = state.variance_tolerance;
+    auto problem = estimators::MakeSyntheticProblem(options);
+    if (!problem.ok()) {
+      std::cerr << "totalgrad bench: " << problem.status().message() << "\n";
+      return 1;
+    }
+    synthetic = *std::move(problem);
+    full_model = synthetic->model.get();
+    // The synthetic problem's model and policy behind adapters that use the
+    // iteration's thread pool, as a trial's ModelProblem gives them its pool.
+    full_dynamics = std::make_unique<estimators::GpDynamics>(full_model, pool);
+    particle_policy = std::make_unique<estimators::RbfParticlePolicy>(synthetic->policy.get(), pool);
+    p = synthetic->problem;
+    p.dynamics = full_dynamics.get();
+    p.policy = particle_policy.get();
+    p.pool = pool;
+  } else {
+    auto problem = MakeSceneBenchProblem(state.scene, state.data, state.horizon,
+                                         state.variance_tolerance, pool);
+    if (!problem.ok()) {
+      std::cerr << "totalgrad bench: " << problem.status().message() << "\n";
+      return 2;
+    }
+    on_scene = *std::move(problem);
+    full_model = on_scene->built.model->full_model();
+    p = on_scene->built.model->problem();
+  }
+  return 0;
+}
+
+// --gp-inducing M: the rollout runs on a sparse GP (FITC) on M random
+// inputs of the full model. Returns the exit code: 0, or 1/2 after a message.
+int UseSparseGp(const BenchState& state, ThreadPool* pool, IterationProblem* out) {
+  estimators::Problem& p = out->p;
+  std::unique_ptr<gp::FitcModel>& sparse = out->sparse;
+  std::unique_ptr<estimators::FitcDynamics>& sparse_dynamics = out->sparse_dynamics;
+  const bool on_scene = out->on_scene != nullptr;
+  const gp::GpModel* full_model = out->full_model;
+  if (state.inducing > 0) {
+    if (on_scene) {
+      std::cerr << "totalgrad bench: --gp-inducing with --scene is not supported yet\n";
+      return 2;
+    }
+    const gp::GpModel& full = *full_model;
+    Rng inducing_rng(1, Stream::kGpInit);
+    absl::StatusOr<gp::FitcModel> fitc = gp::FitcModel::Create(
+        full.inputs(), full.targets(), full.hyperparameters(),
+        gp::RandomSubsetOfInputs(full.inputs(), state.inducing, &inducing_rng));
+    if (!fitc.ok()) {
+      std::cerr << "totalgrad bench: " << fitc.status().message() << "\n";
+      return 1;
+    }
+    sparse = std::make_unique<gp::FitcModel>(*std::move(fitc));
+    sparse_dynamics = std::make_unique<estimators::FitcDynamics>(sparse.get(), pool);
+    p.dynamics = sparse_dynamics.get();
+  }
+  return 0;
+}
+
+// `bench iteration`: times the iteration and the gemm bound in alternation
+// and prints the JSON. Returns the exit code.
+int RunBenchIteration(const BenchState& state) {
+  SetBlasThreads(state.blas_threads);
+  std::unique_ptr<ThreadPool> pool;
+  if (state.threads > 1) pool = std::make_unique<ThreadPool>(state.threads);
+  IterationProblem problem;
+  if (const int code = MakeIterationProblem(state, pool.get(), &problem); code != 0) return code;
+  estimators::Problem& p = problem.p;
+  const gp::GpModel* full_model = problem.full_model;
+  absl::StatusOr<estimators::Method> method = estimators::ParseMethod(state.method);
+  absl::StatusOr<std::unique_ptr<estimators::Estimator>> estimator =
+      method.ok() ? estimators::MakeEstimator(*method, {}) : method.status();
+  if (!estimator.ok()) {
+    std::cerr << "totalgrad bench: " << estimator.status().message() << "\n";
+    return 2;
+  }
+  if (state.inducing >= state.data) {
+    std::cerr << "totalgrad bench: --gp-inducing must be < --data (FITC is used once N > M)\n";
+    return 2;
+  }
+  if (const int code = UseSparseGp(state, pool.get(), &problem); code != 0) return code;
+  const std::unique_ptr<gp::FitcModel>& sparse = problem.sparse;
+  estimators::EstimateOptions eo;
+  eo.particles = state.particles;
+  estimators::GradientEstimate estimate;
+  // The bound: horizon x outputs products of (P x N) by (N x N), as Predict
+  // does (with FITC: (P x M) by (M x M)).
+  const gp::GpModel& full = *full_model;
+  const int n = full.num_data(), outputs = full.num_outputs();
+  const int support = sparse ? sparse->num_inducing() : n;
+  // One P x N operand and the N x N weights per output, as Predict reads
+  // them: the D weight matrices together exceed the L2 cache, so reusing
+  // one of them would time a cache-hot product that Predict never runs.
+  std::vector<Matrix> kstar, kinv;
+  for (int a = 0; a < outputs; ++a) {
+    kstar.push_back(Matrix::Random(state.particles, support));
+    kinv.push_back(sparse ? sparse->variance_weights(a) : full.k_inverse(a));
+  }
+  Matrix product(state.particles, support);
+  // Iteration and bound are timed in alternation, one of each per repeat,
+  // so that a load change on a shared machine hits both; the ratio of each
+  // pair and the ratio of the minima are the numbers robust to it.
+  std::vector<double> iteration_times, iteration_cpu, gemm_times, gemm_cpu, paired_ratio;
+  for (int r = 0; r < state.repeats + 1; ++r) {
+    Rng rng(1, Stream::kStudy, 100 + r);
+    const Timing it_time = TimeOnce(pool.get(), [&] {
+      absl::Status st = (*estimator)->Estimate(p, eo, &rng, &estimate);
+      (void)st;
+    });
+    const Timing gemm_time = TimeOnce(nullptr, [&] {
+      for (int t = 0; t < state.horizon; ++t) {
+        for (int a = 0; a < outputs; ++a) product.noalias() = kstar[a] * kinv[a];
+      }
+    });
+    if (r == 0) continue;  // the first round warms caches and allocations
+    iteration_times.push_back(it_time.wall);
+    iteration_cpu.push_back(it_time.cpu);
+    gemm_times.push_back(gemm_time.wall);
+    gemm_cpu.push_back(gemm_time.cpu);
+    paired_ratio.push_back(it_time.cpu / gemm_time.cpu);
+  }
+  const double iteration = Median(iteration_times), bound = Median(gemm_times);
+  const double iteration_cpu_s = Median(iteration_cpu), bound_cpu = Median(gemm_cpu);
+  const double min_iteration_cpu = *std::min_element(iteration_cpu.begin(), iteration_cpu.end());
+  const double min_bound_cpu = *std::min_element(gemm_cpu.begin(), gemm_cpu.end());
+  std::vector<int> ranks, bound_ranks;
+  for (int a = 0; a < outputs; ++a) {
+    ranks.push_back(full.rank(a));
+    bound_ranks.push_back(full.bound_rank(a));
+  }
+  nlohmann::json j = {{"method", state.method},
+                      {"scene", state.scene.empty() ? std::string("synthetic cart-pole") : state.scene},
+                      {"gp_inputs", full.num_inputs()},
+                      {"particles", state.particles},
+                      {"data", n},
+                      {"gp_inducing", state.inducing},
+                      {"gp_variance_tolerance", state.variance_tolerance},
+                      {"variance_ranks", ranks},
+                      {"variance_bound_ranks", bound_ranks},
+                      {"horizon", state.horizon},
+                      {"threads", state.threads},
+                      {"blas_threads", state.blas_threads},
+                      {"repeats", state.repeats},
+                      {"seconds_per_iteration", iteration},
+                      {"gemm_bound_seconds", bound},
+                      {"ratio", iteration / bound},
+                      {"cpu_seconds_per_iteration", iteration_cpu_s},
+                      {"gemm_bound_cpu_seconds", bound_cpu},
+                      {"cpu_ratio", iteration_cpu_s / bound_cpu},
+                      {"paired_cpu_ratio_median", Median(paired_ratio)},
+                      {"min_cpu_seconds_per_iteration", min_iteration_cpu},
+                      {"min_gemm_bound_cpu_seconds", min_bound_cpu},
+                      {"min_cpu_ratio", min_iteration_cpu / min_bound_cpu},
+                      {"blas", BlasConfig()},
+                      {"gradient_finite", estimate.finite}};
+  std::cout << j.dump(2) << std::endl;
+  return 0;
+}
+
 }  // namespace
 
 void AddBenchCommand(CLI::App* app, int* exit_code) {
@@ -136,161 +322,7 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
   it->add_option("--gp-variance-tolerance", state->variance_tolerance,
                  "the full GP's low-rank predictive variance with this bound on its relative "
                  "error (the trial option gp_variance_tolerance; 0 = exact, default)");
-  it->callback([state, exit_code]() {
-    SetBlasThreads(state->blas_threads);
-    std::unique_ptr<ThreadPool> pool;
-    if (state->threads > 1) pool = std::make_unique<ThreadPool>(state->threads);
-    // The problem: the synthetic cart-pole problem, or one on --scene.
-    estimators::Problem p;
-    const gp::GpModel* full_model = nullptr;
-    std::unique_ptr<estimators::SyntheticProblem> synthetic;
-    std::unique_ptr<SceneBenchProblem> on_scene;
-    std::unique_ptr<estimators::GpDynamics> full_dynamics;
-    std::unique_ptr<estimators::RbfParticlePolicy> particle_policy;
-    if (state->scene.empty()) {
-      estimators::SyntheticProblemOptions options;
-      options.data = state->data;
-      options.horizon = state->horizon;
-      options.variance_rank_tolerance = state->variance_tolerance;
-      auto problem = estimators::MakeSyntheticProblem(options);
-      if (!problem.ok()) {
-        std::cerr << "totalgrad bench: " << problem.status().message() << "\n";
-        *exit_code = 1;
-        return;
-      }
-      synthetic = *std::move(problem);
-      full_model = synthetic->model.get();
-      // The synthetic problem's model and policy behind adapters that use the
-      // iteration's thread pool, as a trial's ModelProblem gives them its pool.
-      full_dynamics = std::make_unique<estimators::GpDynamics>(full_model, pool.get());
-      particle_policy = std::make_unique<estimators::RbfParticlePolicy>(synthetic->policy.get(), pool.get());
-      p = synthetic->problem;
-      p.dynamics = full_dynamics.get();
-      p.policy = particle_policy.get();
-      p.pool = pool.get();
-    } else {
-      auto problem = MakeSceneBenchProblem(state->scene, state->data, state->horizon,
-                                           state->variance_tolerance, pool.get());
-      if (!problem.ok()) {
-        std::cerr << "totalgrad bench: " << problem.status().message() << "\n";
-        *exit_code = 2;
-        return;
-      }
-      on_scene = *std::move(problem);
-      full_model = on_scene->built.model->full_model();
-      p = on_scene->built.model->problem();
-    }
-    absl::StatusOr<estimators::Method> method = estimators::ParseMethod(state->method);
-    absl::StatusOr<std::unique_ptr<estimators::Estimator>> estimator =
-        method.ok() ? estimators::MakeEstimator(*method, {}) : method.status();
-    if (!estimator.ok()) {
-      std::cerr << "totalgrad bench: " << estimator.status().message() << "\n";
-      *exit_code = 2;
-      return;
-    }
-    if (state->inducing >= state->data) {
-      std::cerr << "totalgrad bench: --gp-inducing must be < --data (FITC is used once N > M)\n";
-      *exit_code = 2;
-      return;
-    }
-    std::unique_ptr<gp::FitcModel> sparse;
-    std::unique_ptr<estimators::FitcDynamics> sparse_dynamics;
-    if (state->inducing > 0) {
-      if (on_scene != nullptr) {
-        std::cerr << "totalgrad bench: --gp-inducing with --scene is not supported yet\n";
-        *exit_code = 2;
-        return;
-      }
-      const gp::GpModel& full = *full_model;
-      Rng inducing_rng(1, Stream::kGpInit);
-      absl::StatusOr<gp::FitcModel> fitc = gp::FitcModel::Create(
-          full.inputs(), full.targets(), full.hyperparameters(),
-          gp::RandomSubsetOfInputs(full.inputs(), state->inducing, &inducing_rng));
-      if (!fitc.ok()) {
-        std::cerr << "totalgrad bench: " << fitc.status().message() << "\n";
-        *exit_code = 1;
-        return;
-      }
-      sparse = std::make_unique<gp::FitcModel>(*std::move(fitc));
-      sparse_dynamics = std::make_unique<estimators::FitcDynamics>(sparse.get(), pool.get());
-      p.dynamics = sparse_dynamics.get();
-    }
-    estimators::EstimateOptions eo;
-    eo.particles = state->particles;
-    estimators::GradientEstimate estimate;
-    // The bound: horizon x outputs products of (P x N) by (N x N), as Predict
-    // does (with FITC: (P x M) by (M x M)).
-    const gp::GpModel& full = *full_model;
-    const int n = full.num_data(), outputs = full.num_outputs();
-    const int support = sparse ? sparse->num_inducing() : n;
-    // One P x N operand and the N x N weights per output, as Predict reads
-    // them: the D weight matrices together exceed the L2 cache, so reusing
-    // one of them would time a cache-hot product that Predict never runs.
-    std::vector<Matrix> kstar, kinv;
-    for (int a = 0; a < outputs; ++a) {
-      kstar.push_back(Matrix::Random(state->particles, support));
-      kinv.push_back(sparse ? sparse->variance_weights(a) : full.k_inverse(a));
-    }
-    Matrix product(state->particles, support);
-    // Iteration and bound are timed in alternation, one of each per repeat,
-    // so that a load change on a shared machine hits both; the ratio of each
-    // pair and the ratio of the minima are the numbers robust to it.
-    std::vector<double> iteration_times, iteration_cpu, gemm_times, gemm_cpu, paired_ratio;
-    for (int r = 0; r < state->repeats + 1; ++r) {
-      Rng rng(1, Stream::kStudy, 100 + r);
-      const Timing it_time = TimeOnce(pool.get(), [&] {
-        absl::Status st = (*estimator)->Estimate(p, eo, &rng, &estimate);
-        (void)st;
-      });
-      const Timing gemm_time = TimeOnce(nullptr, [&] {
-        for (int t = 0; t < state->horizon; ++t) {
-          for (int a = 0; a < outputs; ++a) product.noalias() = kstar[a] * kinv[a];
-        }
-      });
-      if (r == 0) continue;  // the first round warms caches and allocations
-      iteration_times.push_back(it_time.wall);
-      iteration_cpu.push_back(it_time.cpu);
-      gemm_times.push_back(gemm_time.wall);
-      gemm_cpu.push_back(gemm_time.cpu);
-      paired_ratio.push_back(it_time.cpu / gemm_time.cpu);
-    }
-    const double iteration = Median(iteration_times), bound = Median(gemm_times);
-    const double iteration_cpu_s = Median(iteration_cpu), bound_cpu = Median(gemm_cpu);
-    const double min_iteration_cpu = *std::min_element(iteration_cpu.begin(), iteration_cpu.end());
-    const double min_bound_cpu = *std::min_element(gemm_cpu.begin(), gemm_cpu.end());
-    std::vector<int> ranks, bound_ranks;
-    for (int a = 0; a < outputs; ++a) {
-      ranks.push_back(full.rank(a));
-      bound_ranks.push_back(full.bound_rank(a));
-    }
-    nlohmann::json j = {{"method", state->method},
-                        {"scene", state->scene.empty() ? std::string("synthetic cart-pole") : state->scene},
-                        {"gp_inputs", full.num_inputs()},
-                        {"particles", state->particles},
-                        {"data", n},
-                        {"gp_inducing", state->inducing},
-                        {"gp_variance_tolerance", state->variance_tolerance},
-                        {"variance_ranks", ranks},
-                        {"variance_bound_ranks", bound_ranks},
-                        {"horizon", state->horizon},
-                        {"threads", state->threads},
-                        {"blas_threads", state->blas_threads},
-                        {"repeats", state->repeats},
-                        {"seconds_per_iteration", iteration},
-                        {"gemm_bound_seconds", bound},
-                        {"ratio", iteration / bound},
-                        {"cpu_seconds_per_iteration", iteration_cpu_s},
-                        {"gemm_bound_cpu_seconds", bound_cpu},
-                        {"cpu_ratio", iteration_cpu_s / bound_cpu},
-                        {"paired_cpu_ratio_median", Median(paired_ratio)},
-                        {"min_cpu_seconds_per_iteration", min_iteration_cpu},
-                        {"min_gemm_bound_cpu_seconds", min_bound_cpu},
-                        {"min_cpu_ratio", min_iteration_cpu / min_bound_cpu},
-                        {"blas", BlasConfig()},
-                        {"gradient_finite", estimate.finite}};
-    std::cout << j.dump(2) << std::endl;
-    *exit_code = 0;
-  });
+  it->callback([state, exit_code]() { *exit_code = RunBenchIteration(*state); });
 }
 
 }  // namespace totalgrad::cli

@@ -75,21 +75,27 @@ std::string RolloutsCsv(const tasks::Scene& scene, const learner::PolicyEvaluati
   return csv;
 }
 
-int RunEvaluate(const EvaluateFlags& flags) {
-  absl::StatusOr<std::vector<learner::TrialSnapshot>> snapshots =
+// The snapshot the flags select (the file's last, or that of
+// --snapshot-episode) and its trial options with the flags' overrides
+// (--scene, --cost, --noise-k, --seed, --set). Returns the exit code: 0, or
+// 2 after a message on stderr.
+int LoadPolicy(const EvaluateFlags& flags, std::vector<learner::TrialSnapshot>& snapshots,
+               const learner::TrialSnapshot*& snapshot, learner::TrialOptions& options) {
+  absl::StatusOr<std::vector<learner::TrialSnapshot>> read =
       io::ReadSnapshotFile(flags.policy_file);
-  if (!snapshots.ok()) {
-    std::cerr << "evaluate: " << snapshots.status().message() << "\n";
+  if (!read.ok()) {
+    std::cerr << "evaluate: " << read.status().message() << "\n";
     return 2;
   }
-  if (snapshots->empty()) {
+  snapshots = *std::move(read);
+  if (snapshots.empty()) {
     std::cerr << "evaluate: " << flags.policy_file << " holds no snapshot\n";
     return 2;
   }
-  const learner::TrialSnapshot* snapshot = &snapshots->back();
+  snapshot = &snapshots.back();
   if (flags.snapshot_episode >= 0) {
     snapshot = nullptr;
-    for (const auto& s : *snapshots) {
+    for (const auto& s : snapshots) {
       if (s.episode == flags.snapshot_episode) snapshot = &s;
     }
     if (snapshot == nullptr) {
@@ -98,7 +104,6 @@ int RunEvaluate(const EvaluateFlags& flags) {
       return 2;
     }
   }
-  learner::TrialOptions options;
   for (const auto& [key, value] : snapshot->options) {
     const absl::Status status = learner::SetTrialOption(key, value, &options);
     if (!status.ok()) {
@@ -127,6 +132,14 @@ int RunEvaluate(const EvaluateFlags& flags) {
       return 2;
     }
   }
+  return 0;
+}
+
+int RunEvaluate(const EvaluateFlags& flags) {
+  std::vector<learner::TrialSnapshot> snapshots;
+  const learner::TrialSnapshot* snapshot = nullptr;
+  learner::TrialOptions options;
+  if (const int code = LoadPolicy(flags, snapshots, snapshot, options); code != 0) return code;
   const int episode = flags.episode >= 0 ? flags.episode : snapshot->episode;
   absl::StatusOr<learner::PolicyEvaluation> evaluation =
       learner::EvaluatePolicy(options, snapshot->policy_parameters, episode, flags.rollouts,

@@ -4,7 +4,8 @@
 // that anyone can compare our numbers with the original PILCO's. The file
 // format is documented in docs/pilco.md; examples in docs/pilco-examples/.
 //
-// The parsing and running are exposed for in-process tests.
+// The parsing (pilco_scenario.cc) and running (pilco_command.cc) are exposed
+// for in-process tests.
 #ifndef TOTALGRAD_CLIENT_CORE_COMMANDS_PILCO_COMMAND_H_
 #define TOTALGRAD_CLIENT_CORE_COMMANDS_PILCO_COMMAND_H_
 

@@ -33,34 +33,48 @@ std::string Quote(const std::string& s) {  // gnuplot single-quoted string
   return out + "'";
 }
 
-}  // namespace
 
-absl::StatusOr<std::vector<std::string>> WriteStudyPlots(const study::StudyResult& r,
-                                                         const StudySpec& spec,
-                                                         const std::string& dir, bool run_gnuplot) {
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  fs::create_directories(dir, ec);
-  if (ec) return absl::UnavailableError(absl::StrCat("cannot create '", dir, "': ", ec.message()));
-  std::vector<std::string> written;
-  const std::vector<int>& horizons = spec.options.horizons;
+// Twelve gnuplot line styles, one per estimator (modulo 12).
+constexpr char kLineStyles[] =
+    "set style line 1 lc rgb '#1f77b4' pt 7\nset style line 2 lc rgb '#ff7f0e' pt 5\n"
+    "set style line 3 lc rgb '#2ca02c' pt 9\nset style line 4 lc rgb '#d62728' pt 11\n"
+    "set style line 5 lc rgb '#9467bd' pt 13\nset style line 6 lc rgb '#8c564b' pt 4\n"
+    "set style line 7 lc rgb '#e377c2' pt 6\nset style line 8 lc rgb '#7f7f7f' pt 8\n"
+    "set style line 9 lc rgb '#bcbd22' pt 10\nset style line 10 lc rgb '#17becf' pt 12\n"
+    "set style line 11 lc rgb '#000000' pt 3\nset style line 12 lc rgb '#aaaa00' pt 1\n";
+
+// A data file of estimator e (wp_<e>.dat, sweep_<e>.dat) as a gnuplot string.
+std::string DataFile(const std::string& dir, const std::string& stem, size_t e) {
+  return Quote((std::filesystem::path(dir) / absl::StrCat(stem, "_", e, ".dat")).string());
+}
+
+// The estimators in the order of their first cell.
+std::vector<std::string> EstimatorLabels(const study::StudyResult& r) {
   std::vector<std::string> labels;
   for (const auto& c : r.cells) {
     if (std::find(labels.begin(), labels.end(), c.estimator) == labels.end()) labels.push_back(c.estimator);
   }
-  // The horizon sweep's P: the requested one, else the study's nearest.
-  int sweep_p = spec.sweep_particles;
-  {
-    int best = -1;
-    for (int p : spec.options.particles) {
-      if (best < 0 || std::abs(std::log(static_cast<double>(p) / sweep_p)) <
-                          std::abs(std::log(static_cast<double>(best) / sweep_p))) {
-        best = p;
-      }
-    }
-    sweep_p = best;
-  }
+  return labels;
+}
 
+// The horizon sweep's P: the requested one, else the study's nearest.
+int SweepParticles(const StudySpec& spec) {
+  const int sweep_p = spec.sweep_particles;
+  int best = -1;
+  for (int p : spec.options.particles) {
+    if (best < 0 || std::abs(std::log(static_cast<double>(p) / sweep_p)) <
+                        std::abs(std::log(static_cast<double>(best) / sweep_p))) {
+      best = p;
+    }
+  }
+  return best;
+}
+
+// The data files: per estimator wp_<e>.dat and sweep_<e>.dat, and floor.dat.
+absl::Status WriteDataFiles(const study::StudyResult& r, const std::vector<int>& horizons,
+                            const std::vector<std::string>& labels, int sweep_p,
+                            const std::string& dir, std::vector<std::string>& written) {
+  namespace fs = std::filesystem;
   // Data: per estimator one file, one block per horizon ("P seconds rmse
   // bias cos"), and one horizon-sweep block ("H rmse cos").
   for (size_t e = 0; e < labels.size(); ++e) {
@@ -101,131 +115,160 @@ absl::StatusOr<std::vector<std::string>> WriteStudyPlots(const study::StudyResul
     written.push_back(wp_path);
     written.push_back(sweep_path);
   }
-  {
-    std::ostringstream floor;
-    floor << "# horizon reference_floor (1.96 |SE| / |g*|)\n";
-    int floor_rows = 0;
-    for (const auto& ref : r.references) {
-      if (ref.floor > 0) {
-        floor << ref.horizon << " " << absl::StrFormat("%.6g", ref.floor) << "\n";
-        ++floor_rows;
-      }
+  std::ostringstream floor;
+  floor << "# horizon reference_floor (1.96 |SE| / |g*|)\n";
+  int floor_rows = 0;
+  for (const auto& ref : r.references) {
+    if (ref.floor > 0) {
+      floor << ref.horizon << " " << absl::StrFormat("%.6g", ref.floor) << "\n";
+      ++floor_rows;
     }
-    if (floor_rows == 0) floor << "0 NaN\n";
-    const std::string path = (fs::path(dir) / "floor.dat").string();
-    if (absl::Status st = io::WriteTextFile(path, floor.str()); !st.ok()) return st;
-    written.push_back(path);
   }
+  if (floor_rows == 0) floor << "0 NaN\n";
+  const std::string path = (fs::path(dir) / "floor.dat").string();
+  if (absl::Status st = io::WriteTextFile(path, floor.str()); !st.ok()) return st;
+  written.push_back(path);
+  return absl::OkStatus();
+}
 
-  // Work-precision: one panel per horizon.
+// work_precision.gp: one panel per horizon.
+absl::Status WriteWorkPrecisionScript(const study::StudyResult& r, const std::vector<int>& horizons,
+                                      const std::vector<std::string>& labels,
+                                      const std::string& dir, std::vector<std::string>& written) {
+  namespace fs = std::filesystem;
   const int n = static_cast<int>(horizons.size());
   const int cols = n <= 1 ? 1 : 2;
   const int rows = (n + cols - 1) / cols;
-  const std::string styles =
-      "set style line 1 lc rgb '#1f77b4' pt 7\nset style line 2 lc rgb '#ff7f0e' pt 5\n"
-      "set style line 3 lc rgb '#2ca02c' pt 9\nset style line 4 lc rgb '#d62728' pt 11\n"
-      "set style line 5 lc rgb '#9467bd' pt 13\nset style line 6 lc rgb '#8c564b' pt 4\n"
-      "set style line 7 lc rgb '#e377c2' pt 6\nset style line 8 lc rgb '#7f7f7f' pt 8\n"
-      "set style line 9 lc rgb '#bcbd22' pt 10\nset style line 10 lc rgb '#17becf' pt 12\n"
-      "set style line 11 lc rgb '#000000' pt 3\nset style line 12 lc rgb '#aaaa00' pt 1\n";
-  auto dat = [&](const std::string& stem, size_t e) {
-    return Quote((fs::path(dir) / absl::StrCat(stem, "_", e, ".dat")).string());
-  };
-  {
-    std::ostringstream gp;
-    gp << "# Work-precision diagram of a gradient study (totalgrad study).\n"
-       << "# Problem: " << r.source << "\n"
-       << "set terminal pngcairo noenhanced size " << 620 * cols << "," << 470 * rows
-       << " font ',9'\n"
-       << "set output " << Quote((fs::path(dir) / "work_precision.png").string()) << "\n"
-       << styles << "set logscale xy\nset format x '%.0e'\nset format y '%g'\n"
-       << "set xlabel 'seconds per gradient (min of single-threaded runs)'\n"
-       << "set ylabel 'relative RMSE vs reference'\nset grid\nset key outside right top\n"
-       << "set multiplot layout " << rows << "," << cols
-       << " title '" << (r.scene.empty() ? std::string() : r.scene + ": ")
-       << "error against run time, one curve per estimator (points: P); dashed: reference noise floor'\n";
-    for (int hi = 0; hi < n; ++hi) {
-      const study::ReferenceGradient* ref = ReferenceFor(r, horizons[hi]);
-      gp << "set title 'H = " << horizons[hi] << (ref != nullptr && !ref->agree ? " (reference estimators disagree)" : "")
-         << "'\n";
-      bool any = false;
-      for (const auto& c : r.cells) any = any || (c.horizon == horizons[hi] && Plottable(c));
-      if (!any) {
-        // Nothing to draw: gnuplot cannot autoscale a log axis on no data.
-        gp << "set xrange [1e-4:1]\nset yrange [1e-2:10]\n"
-           << "set label 1 'no plottable cells (see the table)' at graph 0.5,0.5 center\n"
-           << "plot NaN notitle\nunset label 1\nset autoscale xy\n";
-        continue;
-      }
-      gp << "plot ";
-      for (size_t e = 0; e < labels.size(); ++e) {
-        gp << dat("wp", e) << " index " << hi << " using 2:3 with linespoints ls "
-           << (e % 12) + 1 << " title " << Quote(labels[e]) << ", \\\n     ";
-      }
-      const double floor = ref != nullptr ? ref->floor : 0.0;
-      if (floor > 0) {
-        gp << absl::StrFormat("%.6g", floor) << " with lines dt 2 lc rgb 'black' title 'floor'\n";
-      } else {
-        gp << "NaN notitle\n";
-      }
-    }
-    gp << "unset multiplot\n";
-    const std::string path = (fs::path(dir) / "work_precision.gp").string();
-    if (absl::Status st = io::WriteTextFile(path, gp.str()); !st.ok()) return st;
-    written.push_back(path);
-  }
-  // Horizon sweep at fixed P: error and direction against H.
-  {
-    std::ostringstream gp;
-    gp << "# Horizon sweep at P = " << sweep_p << " (PILCO: its single value per H).\n"
-       << "# Problem: " << r.source << "\n"
-       << "set terminal pngcairo noenhanced size 1240,470 font ',9'\n"
-       << "set output " << Quote((fs::path(dir) / "horizon_sweep.png").string()) << "\n"
-       << styles << "set grid\nset key outside right top\nset xlabel 'horizon H (steps)'\n"
-       << "set multiplot layout 1,2 title '" << (r.scene.empty() ? std::string() : r.scene + ": ")
-       << "horizon sweep at P = " << sweep_p << "'\n";
+  std::ostringstream gp;
+  gp << "# Work-precision diagram of a gradient study (totalgrad study).\n"
+     << "# Problem: " << r.source << "\n"
+     << "set terminal pngcairo noenhanced size " << 620 * cols << "," << 470 * rows
+     << " font ',9'\n"
+     << "set output " << Quote((fs::path(dir) / "work_precision.png").string()) << "\n"
+     << kLineStyles << "set logscale xy\nset format x '%.0e'\nset format y '%g'\n"
+     << "set xlabel 'seconds per gradient (min of single-threaded runs)'\n"
+     << "set ylabel 'relative RMSE vs reference'\nset grid\nset key outside right top\n"
+     << "set multiplot layout " << rows << "," << cols
+     << " title '" << (r.scene.empty() ? std::string() : r.scene + ": ")
+     << "error against run time, one curve per estimator (points: P); dashed: reference noise floor'\n";
+  for (int hi = 0; hi < n; ++hi) {
+    const study::ReferenceGradient* ref = ReferenceFor(r, horizons[hi]);
+    gp << "set title 'H = " << horizons[hi] << (ref != nullptr && !ref->agree ? " (reference estimators disagree)" : "")
+       << "'\n";
     bool any = false;
-    for (const auto& c : r.cells) {
-      any = any || (Plottable(c) && (c.particles == sweep_p || c.particles == 0));
-    }
+    for (const auto& c : r.cells) any = any || (c.horizon == horizons[hi] && Plottable(c));
     if (!any) {
-      gp << "set xrange [0:*]\nset yrange [1e-2:10]\n"
-         << "set label 1 'no plottable cells (see the table)' at graph 0.5,0.5 center\n";
+      // Nothing to draw: gnuplot cannot autoscale a log axis on no data.
+      gp << "set xrange [1e-4:1]\nset yrange [1e-2:10]\n"
+         << "set label 1 'no plottable cells (see the table)' at graph 0.5,0.5 center\n"
+         << "plot NaN notitle\nunset label 1\nset autoscale xy\n";
+      continue;
     }
-    gp << "set logscale y\nset ylabel 'relative RMSE vs reference'\nset title 'error'\nplot ";
+    gp << "plot ";
     for (size_t e = 0; e < labels.size(); ++e) {
-      gp << dat("sweep", e) << " using 1:2 with linespoints ls " << (e % 12) + 1 << " title "
-         << Quote(labels[e]) << ", \\\n     ";
+      gp << DataFile(dir, "wp", e) << " index " << hi << " using 2:3 with linespoints ls "
+         << (e % 12) + 1 << " title " << Quote(labels[e]) << ", \\\n     ";
     }
-    gp << Quote((fs::path(dir) / "floor.dat").string())
-       << " using 1:2 with lines dt 2 lc rgb 'black' title 'floor'\n"
-       << "unset logscale y\nset yrange [-1.05:1.05]\nset ylabel 'mean cosine to the reference'\n"
-       << "set title 'direction'\nplot ";
-    for (size_t e = 0; e < labels.size(); ++e) {
-      gp << dat("sweep", e) << " using 1:3 with linespoints ls " << (e % 12) + 1 << " title "
-         << Quote(labels[e]) << (e + 1 < labels.size() ? ", \\\n     " : "\n");
+    const double floor = ref != nullptr ? ref->floor : 0.0;
+    if (floor > 0) {
+      gp << absl::StrFormat("%.6g", floor) << " with lines dt 2 lc rgb 'black' title 'floor'\n";
+    } else {
+      gp << "NaN notitle\n";
     }
-    gp << "unset multiplot\n";
-    const std::string path = (fs::path(dir) / "horizon_sweep.gp").string();
-    if (absl::Status st = io::WriteTextFile(path, gp.str()); !st.ok()) return st;
-    written.push_back(path);
+  }
+  gp << "unset multiplot\n";
+  const std::string path = (fs::path(dir) / "work_precision.gp").string();
+  if (absl::Status st = io::WriteTextFile(path, gp.str()); !st.ok()) return st;
+  written.push_back(path);
+  return absl::OkStatus();
+}
+
+// horizon_sweep.gp: error and direction against H at fixed P.
+absl::Status WriteHorizonSweepScript(const study::StudyResult& r,
+                                     const std::vector<std::string>& labels, int sweep_p,
+                                     const std::string& dir, std::vector<std::string>& written) {
+  namespace fs = std::filesystem;
+  std::ostringstream gp;
+  gp << "# Horizon sweep at P = " << sweep_p << " (PILCO: its single value per H).\n"
+     << "# Problem: " << r.source << "\n"
+     << "set terminal pngcairo noenhanced size 1240,470 font ',9'\n"
+     << "set output " << Quote((fs::path(dir) / "horizon_sweep.png").string()) << "\n"
+     << kLineStyles << "set grid\nset key outside right top\nset xlabel 'horizon H (steps)'\n"
+     << "set multiplot layout 1,2 title '" << (r.scene.empty() ? std::string() : r.scene + ": ")
+     << "horizon sweep at P = " << sweep_p << "'\n";
+  bool any = false;
+  for (const auto& c : r.cells) {
+    any = any || (Plottable(c) && (c.particles == sweep_p || c.particles == 0));
+  }
+  if (!any) {
+    gp << "set xrange [0:*]\nset yrange [1e-2:10]\n"
+       << "set label 1 'no plottable cells (see the table)' at graph 0.5,0.5 center\n";
+  }
+  gp << "set logscale y\nset ylabel 'relative RMSE vs reference'\nset title 'error'\nplot ";
+  for (size_t e = 0; e < labels.size(); ++e) {
+    gp << DataFile(dir, "sweep", e) << " using 1:2 with linespoints ls " << (e % 12) + 1
+       << " title " << Quote(labels[e]) << ", \\\n     ";
+  }
+  gp << Quote((fs::path(dir) / "floor.dat").string())
+     << " using 1:2 with lines dt 2 lc rgb 'black' title 'floor'\n"
+     << "unset logscale y\nset yrange [-1.05:1.05]\nset ylabel 'mean cosine to the reference'\n"
+     << "set title 'direction'\nplot ";
+  for (size_t e = 0; e < labels.size(); ++e) {
+    gp << DataFile(dir, "sweep", e) << " using 1:3 with linespoints ls " << (e % 12) + 1
+       << " title " << Quote(labels[e]) << (e + 1 < labels.size() ? ", \\\n     " : "\n");
+  }
+  gp << "unset multiplot\n";
+  const std::string path = (fs::path(dir) / "horizon_sweep.gp").string();
+  if (absl::Status st = io::WriteTextFile(path, gp.str()); !st.ok()) return st;
+  written.push_back(path);
+  return absl::OkStatus();
+}
+
+// Runs gnuplot on both scripts; the PNGs are added to `written`.
+absl::Status RunGnuplot(const std::string& dir, std::vector<std::string>& written) {
+  namespace fs = std::filesystem;
+  for (const char* script : {"work_precision", "horizon_sweep"}) {
+    const std::string gp = (fs::path(dir) / absl::StrCat(script, ".gp")).string();
+    const std::string command = absl::StrCat("gnuplot ", Quote(gp), " 2>&1");
+    FILE* pipe = popen(command.c_str(), "r");
+    if (pipe == nullptr) return absl::UnavailableError("cannot run gnuplot");
+    std::string output;
+    char buffer[256];
+    while (fgets(buffer, sizeof(buffer), pipe) != nullptr) output += buffer;
+    const int rc = pclose(pipe);
+    if (rc != 0) {
+      return absl::InternalError(absl::StrCat("gnuplot failed on '", gp, "' (status ", rc,
+                                              "): ", output));
+    }
+    written.push_back((fs::path(dir) / absl::StrCat(script, ".png")).string());
+  }
+  return absl::OkStatus();
+}
+
+}  // namespace
+
+absl::StatusOr<std::vector<std::string>> WriteStudyPlots(const study::StudyResult& r,
+                                                         const StudySpec& spec,
+                                                         const std::string& dir, bool run_gnuplot) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) return absl::UnavailableError(absl::StrCat("cannot create '", dir, "': ", ec.message()));
+  std::vector<std::string> written;
+  const std::vector<int>& horizons = spec.options.horizons;
+  const std::vector<std::string> labels = EstimatorLabels(r);
+  const int sweep_p = SweepParticles(spec);
+  if (absl::Status st = WriteDataFiles(r, horizons, labels, sweep_p, dir, written); !st.ok()) {
+    return st;
+  }
+  if (absl::Status st = WriteWorkPrecisionScript(r, horizons, labels, dir, written); !st.ok()) {
+    return st;
+  }
+  if (absl::Status st = WriteHorizonSweepScript(r, labels, sweep_p, dir, written); !st.ok()) {
+    return st;
   }
   if (run_gnuplot) {
-    for (const char* script : {"work_precision", "horizon_sweep"}) {
-      const std::string gp = (fs::path(dir) / absl::StrCat(script, ".gp")).string();
-      const std::string command = absl::StrCat("gnuplot ", Quote(gp), " 2>&1");
-      FILE* pipe = popen(command.c_str(), "r");
-      if (pipe == nullptr) return absl::UnavailableError("cannot run gnuplot");
-      std::string output;
-      char buffer[256];
-      while (fgets(buffer, sizeof(buffer), pipe) != nullptr) output += buffer;
-      const int rc = pclose(pipe);
-      if (rc != 0) {
-        return absl::InternalError(absl::StrCat("gnuplot failed on '", gp, "' (status ", rc,
-                                                "): ", output));
-      }
-      written.push_back((fs::path(dir) / absl::StrCat(script, ".png")).string());
-    }
+    if (absl::Status st = RunGnuplot(dir, written); !st.ok()) return st;
   }
   return written;
 }

@@ -29,6 +29,147 @@ absl::Status ValidateConfig(const BackwardConfig& config) {
   return absl::OkStatus();
 }
 
+// The rollout must hold, at every step, this problem's P x S states with
+// their Jacobians, and resampling noise exactly when the configuration
+// resamples.
+absl::Status CheckRollout(const Rollout& rollout, const BackwardConfig& config, Eigen::Index p,
+                          int s_dim) {
+  for (const StepRecord& step : rollout.steps) {
+    if (step.state.rows() != p || step.state.cols() != s_dim ||
+        step.dmean_dz.rows() != p || step.cost_gradient.rows() != p)
+      return absl::InvalidArgumentError(
+          "backward pass: rollout not recorded with Jacobians for this problem");
+    if ((config.resampler != nullptr) != (step.resample_noise.rows() == p))
+      return absl::InvalidArgumentError(
+          "backward pass: the rollout's resampling does not match the configuration");
+  }
+  return absl::OkStatus();
+}
+
+// Exact Gaussian-shaping derivatives need the cost's closed-form expectation
+// (into `exact_cost`); sampled ones need an Rng.
+absl::Status PrepareShaping(const Problem& problem, const BackwardConfig& config, const Rng* rng,
+                            std::optional<pilco::GaussianCost>& exact_cost) {
+  if (config.cost == CostNodeKind::kGaussianShaped && config.gs_derivative == GsDerivative::kExact) {
+    absl::StatusOr<pilco::GaussianCost> c = problem.cost->GaussianExpectation();
+    if (!c.ok())
+      return absl::InvalidArgumentError(absl::StrCat("exact Gaussian-shaping derivatives: ", c.status().message(),
+                                                     " (use gs_derivative=sampled)"));
+    exact_cost = *std::move(c);
+  } else if (config.cost == CostNodeKind::kGaussianShaped && rng == nullptr) {
+    return absl::InvalidArgumentError("backward pass: sampled shaping derivatives need an Rng");
+  }
+  return absl::OkStatus();
+}
+
+// 1. The cost node at x_{t+1}: each particle's cost into `local` and, with a
+// pathwise branch, dJ/dx_{t+1} of the node into `rp_cost` (1/P inside).
+void CostNode(const Problem& problem, const BackwardConfig& config, const StepRecord& step,
+              const std::optional<pilco::GaussianCost>& exact_cost, int s_dim, Eigen::Index p,
+              double scale, Rng* rng, GaussianFit& fit, ExpectedCostGradient& expected,
+              Vector& local, RowMatrix& rp_cost) {
+  if (config.cost == CostNodeKind::kPlain) {
+    local = step.cost;
+    if (config.pathwise) rp_cost = scale * step.cost_gradient;
+  } else {
+    FitGaussian(step.next_state, kShapingJitter, &fit);
+    if (exact_cost) {
+      // Fails only on a non-finite fit (non-finite particles): that is a
+      // non-finite estimate for the caller to skip, not an error.
+      if (!ExactExpectedCostGradient(*exact_cost, fit, &expected).ok()) {
+        const double nan = std::nan("");
+        expected.value = nan;
+        expected.dmean = Vector::Constant(s_dim, nan);
+        expected.dcov = Matrix::Constant(s_dim, s_dim, nan);
+      }
+    } else {
+      SampledExpectedCostGradient(*problem.cost, fit, static_cast<int>(p), rng, &expected);
+    }
+    ShapedValues(fit, expected, &local);
+    if (config.pathwise) GaussianFitBackward(fit, expected.dmean, expected.dcov, &rp_cost);
+  }
+}
+
+// 3. The jump branch at step t: the cotangent of the transition's output
+// (`zeta_jump`) from the cost-to-go, by likelihood ratio (plain or BIW
+// weights; BIW records its ESS in result->ess[t]) or density estimation.
+// InvalidArgument when DEL's particles have collapsed.
+absl::Status JumpCotangent(const BackwardConfig& config, const StepRecord& step, int t,
+                           Eigen::Index p, double scale, const Vector& cost_to_go,
+                           BackwardResult* result, RowMatrix& log_weights, RowMatrix& weights,
+                           RowMatrix& pair_baseline, Vector& baseline, GaussianFit& fit,
+                           RowMatrix& x_bar, ZetaCotangent& zeta_jump) {
+  if (config.jump == JumpKind::kLikelihoodRatio) {
+    if (config.lr_weights == LrWeights::kBatchImportance) {
+      BiwLogWeights(step, &log_weights, &weights);
+      result->ess[t] = MeanEffectiveSampleSize(weights);
+      if (config.lr_baseline == LrBaseline::kBatchImportancePair) {
+        BiwPairBaseline(log_weights, cost_to_go, &pair_baseline);
+        WeightedLrCotangent(step, weights, cost_to_go, pair_baseline, scale, &zeta_jump);
+      } else {
+        switch (config.lr_baseline) {
+          case LrBaseline::kBatchImportance: BiwBaseline(log_weights, weights, cost_to_go, &baseline); break;
+          case LrBaseline::kLeaveOneOut: baseline = LeaveOneOutBaseline(cost_to_go); break;
+          default: baseline.setZero(p); break;
+        }
+        WeightedLrCotangent(step, weights, cost_to_go, baseline, scale, &zeta_jump);
+      }
+    } else {
+      if (config.lr_baseline == LrBaseline::kNone) baseline.setZero(p);
+      else baseline = LeaveOneOutBaseline(cost_to_go);
+      PlainLrCotangent(step, cost_to_go, baseline, scale, &zeta_jump);
+    }
+  } else if (config.jump == JumpKind::kDensityEstimation) {
+    FitGaussian(step.next_state, kShapingJitter, &fit);
+    // DEL's score is d_i / (cov + jitter). When every dimension's spread is
+    // below the jitter, the fitted density is the jitter's, not the
+    // particles', and the estimate shrinks towards zero by the ratio of the
+    // two (measured ~1e-25 against a true 0.17): refuse rather than return
+    // a silently wrong gradient.
+    if (fit.covariance.diagonal().maxCoeff() < kShapingJitter) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "DEL: the ", p, " particles collapsed onto one point at step ", t + 1,
+          " (largest fitted variance ", fit.covariance.diagonal().maxCoeff(), " < jitter ",
+          kShapingJitter, "); density-estimation LR needs spread particles: use more "
+          "particles, injected noise, or a pathwise method"));
+    }
+    if (config.lr_baseline == LrBaseline::kNone) baseline.setZero(p);
+    else baseline = LeaveOneOutBaseline(cost_to_go);
+    const Vector a = scale * (cost_to_go - baseline);
+    DensityEstimationCotangent(fit, a, &x_bar);
+    RpZetaCotangent(step, x_bar, &zeta_jump);  // one-step reparameterisation of the fit
+  }
+  return absl::OkStatus();
+}
+
+// 4-5 with both branches, several controls and k_LR by the rule: adds the
+// combined rows to result->per_particle and, for t > 0, sets `gamma` to
+// dJ/dx_t.
+void CombineSeveralControls(const ParticlePolicy& policy, const StepRecord& step, int t,
+                            Eigen::Index p, int n, const Vector& f_rp, const Vector& f_jump,
+                            const RowMatrix& x_rp, const RowMatrix& x_jump, BackwardResult* result,
+                            RowMatrix& rows_rp, RowMatrix& rows_jump, RowMatrix& state_bar,
+                            RowMatrix& gamma) {
+  // Several controls: a particle's two branch gradients, sum_j f_ij
+  // du_ij/dtheta, no longer share one Jacobian row, so both are formed.
+  rows_rp.setZero(p, n);
+  policy.Backward(step.policy_cache, f_rp, nullptr, &rows_rp, nullptr);
+  rows_jump.setZero(p, n);
+  policy.Backward(step.policy_cache, f_jump, nullptr, &rows_jump, nullptr);
+  const TraceVariance v_rp = RowTraceVariance(rows_rp);
+  const TraceVariance v_jump = RowTraceVariance(rows_jump);
+  const double k = CombinationWeight(v_rp, v_jump);
+  result->k_lr[t] = k;
+  result->var_pathwise[t] = v_rp;
+  result->var_jump[t] = v_jump;
+  result->per_particle.noalias() += Mix(k, rows_jump, rows_rp);
+  if (t > 0) {
+    policy.Backward(step.policy_cache, Mix(k, f_jump, f_rp), &state_bar, nullptr, nullptr);
+    gamma = Mix(k, x_jump, x_rp);
+    gamma += state_bar;
+  }
+}
+
 }  // namespace
 
 absl::Status BackwardPass(const Problem& problem, const Rollout& rollout,
@@ -41,25 +182,9 @@ absl::Status BackwardPass(const Problem& problem, const Rollout& rollout,
   const int s_dim = policy.state_dim();
   const int n = policy.num_parameters();
   const Eigen::Index p = rollout.steps.front().state.rows();
-  for (const StepRecord& step : rollout.steps) {
-    if (step.state.rows() != p || step.state.cols() != s_dim ||
-        step.dmean_dz.rows() != p || step.cost_gradient.rows() != p)
-      return absl::InvalidArgumentError(
-          "backward pass: rollout not recorded with Jacobians for this problem");
-    if ((config.resampler != nullptr) != (step.resample_noise.rows() == p))
-      return absl::InvalidArgumentError(
-          "backward pass: the rollout's resampling does not match the configuration");
-  }
+  if (absl::Status st = CheckRollout(rollout, config, p, s_dim); !st.ok()) return st;
   std::optional<pilco::GaussianCost> exact_cost;
-  if (config.cost == CostNodeKind::kGaussianShaped && config.gs_derivative == GsDerivative::kExact) {
-    absl::StatusOr<pilco::GaussianCost> c = problem.cost->GaussianExpectation();
-    if (!c.ok())
-      return absl::InvalidArgumentError(absl::StrCat("exact Gaussian-shaping derivatives: ", c.status().message(),
-                                                     " (use gs_derivative=sampled)"));
-    exact_cost = *std::move(c);
-  } else if (config.cost == CostNodeKind::kGaussianShaped && rng == nullptr) {
-    return absl::InvalidArgumentError("backward pass: sampled shaping derivatives need an Rng");
-  }
+  if (absl::Status st = PrepareShaping(problem, config, rng, exact_cost); !st.ok()) return st;
 
   const bool combining = config.pathwise && config.jump != JumpKind::kNone;
   const bool forced = combining && config.forced_k_lr >= 0.0 && config.forced_k_lr <= 1.0;
@@ -97,26 +222,7 @@ absl::Status BackwardPass(const Problem& problem, const Rollout& rollout,
     const StepRecord& step = rollout.steps[t];
 
     // 1. Cost node at x_{t+1}.
-    if (config.cost == CostNodeKind::kPlain) {
-      local = step.cost;
-      if (config.pathwise) rp_cost = scale * step.cost_gradient;
-    } else {
-      FitGaussian(step.next_state, kShapingJitter, &fit);
-      if (exact_cost) {
-        // Fails only on a non-finite fit (non-finite particles): that is a
-        // non-finite estimate for the caller to skip, not an error.
-        if (!ExactExpectedCostGradient(*exact_cost, fit, &expected).ok()) {
-          const double nan = std::nan("");
-          expected.value = nan;
-          expected.dmean = Vector::Constant(s_dim, nan);
-          expected.dcov = Matrix::Constant(s_dim, s_dim, nan);
-        }
-      } else {
-        SampledExpectedCostGradient(*problem.cost, fit, static_cast<int>(p), rng, &expected);
-      }
-      ShapedValues(fit, expected, &local);
-      if (config.pathwise) GaussianFitBackward(fit, expected.dmean, expected.dcov, &rp_cost);
-    }
+    CostNode(problem, config, step, exact_cost, s_dim, p, scale, rng, fit, expected, local, rp_cost);
     cost_to_go += local;
 
     // 2. Pathwise branch.
@@ -131,45 +237,10 @@ absl::Status BackwardPass(const Problem& problem, const Rollout& rollout,
     }
 
     // 3. Jump branch.
-    if (config.jump == JumpKind::kLikelihoodRatio) {
-      if (config.lr_weights == LrWeights::kBatchImportance) {
-        BiwLogWeights(step, &log_weights, &weights);
-        result->ess[t] = MeanEffectiveSampleSize(weights);
-        if (config.lr_baseline == LrBaseline::kBatchImportancePair) {
-          BiwPairBaseline(log_weights, cost_to_go, &pair_baseline);
-          WeightedLrCotangent(step, weights, cost_to_go, pair_baseline, scale, &zeta_jump);
-        } else {
-          switch (config.lr_baseline) {
-            case LrBaseline::kBatchImportance: BiwBaseline(log_weights, weights, cost_to_go, &baseline); break;
-            case LrBaseline::kLeaveOneOut: baseline = LeaveOneOutBaseline(cost_to_go); break;
-            default: baseline.setZero(p); break;
-          }
-          WeightedLrCotangent(step, weights, cost_to_go, baseline, scale, &zeta_jump);
-        }
-      } else {
-        if (config.lr_baseline == LrBaseline::kNone) baseline.setZero(p);
-        else baseline = LeaveOneOutBaseline(cost_to_go);
-        PlainLrCotangent(step, cost_to_go, baseline, scale, &zeta_jump);
-      }
-    } else if (config.jump == JumpKind::kDensityEstimation) {
-      FitGaussian(step.next_state, kShapingJitter, &fit);
-      // DEL's score is d_i / (cov + jitter). When every dimension's spread is
-      // below the jitter, the fitted density is the jitter's, not the
-      // particles', and the estimate shrinks towards zero by the ratio of the
-      // two (measured ~1e-25 against a true 0.17): refuse rather than return
-      // a silently wrong gradient.
-      if (fit.covariance.diagonal().maxCoeff() < kShapingJitter) {
-        return absl::InvalidArgumentError(absl::StrCat(
-            "DEL: the ", p, " particles collapsed onto one point at step ", t + 1,
-            " (largest fitted variance ", fit.covariance.diagonal().maxCoeff(), " < jitter ",
-            kShapingJitter, "); density-estimation LR needs spread particles: use more "
-            "particles, injected noise, or a pathwise method"));
-      }
-      if (config.lr_baseline == LrBaseline::kNone) baseline.setZero(p);
-      else baseline = LeaveOneOutBaseline(cost_to_go);
-      const Vector a = scale * (cost_to_go - baseline);
-      DensityEstimationCotangent(fit, a, &x_bar);
-      RpZetaCotangent(step, x_bar, &zeta_jump);  // one-step reparameterisation of the fit
+    if (absl::Status st = JumpCotangent(config, step, t, p, scale, cost_to_go, result, log_weights,
+                                        weights, pair_baseline, baseline, fit, x_bar, zeta_jump);
+        !st.ok()) {
+      return st;
     }
     if (config.jump != JumpKind::kNone)
       TransitionVjp(step, zeta_jump, &f_jump, combining && need_message ? &x_jump : nullptr,
@@ -177,24 +248,8 @@ absl::Status BackwardPass(const Problem& problem, const Rollout& rollout,
 
     // 4-5. Combine, then cross the policy.
     if (combining && !forced && policy.control_dim() > 1) {
-      // Several controls: a particle's two branch gradients, sum_j f_ij
-      // du_ij/dtheta, no longer share one Jacobian row, so both are formed.
-      rows_rp.setZero(p, n);
-      policy.Backward(step.policy_cache, f_rp, nullptr, &rows_rp, nullptr);
-      rows_jump.setZero(p, n);
-      policy.Backward(step.policy_cache, f_jump, nullptr, &rows_jump, nullptr);
-      const TraceVariance v_rp = RowTraceVariance(rows_rp);
-      const TraceVariance v_jump = RowTraceVariance(rows_jump);
-      const double k = CombinationWeight(v_rp, v_jump);
-      result->k_lr[t] = k;
-      result->var_pathwise[t] = v_rp;
-      result->var_jump[t] = v_jump;
-      result->per_particle.noalias() += Mix(k, rows_jump, rows_rp);
-      if (t > 0) {
-        policy.Backward(step.policy_cache, Mix(k, f_jump, f_rp), &state_bar, nullptr, nullptr);
-        gamma = Mix(k, x_jump, x_rp);
-        gamma += state_bar;
-      }
+      CombineSeveralControls(policy, step, t, p, n, f_rp, f_jump, x_rp, x_jump, result, rows_rp,
+                             rows_jump, state_bar, gamma);
       continue;
     }
     if (combining && !forced) {

@@ -23,6 +23,78 @@ double Seconds(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
 }
 
+// Episode 0: random exploration, each control uniform in its bounds; its
+// data are appended to `data`.
+absl::StatusOr<EpisodeResult> RandomEpisode(const tasks::Scene& scene, uint64_t seed,
+                                            ThreadPool* pool, Transitions& data) {
+  PhaseClock clock(pool);
+  Rng action_rng(seed, Stream::kExplorationAction);
+  // Each control uniform in its bounds, drawn in control order.
+  const tasks::MultiController random_controller = [&](const Vector&) {
+    Vector u(scene.control_dim());
+    for (int j = 0; j < scene.control_dim(); ++j)
+      u(j) = action_rng.Uniform(-scene.max_control(j), scene.max_control(j));
+    return u;
+  };
+  Rng start_rng(seed, Stream::kInitialState, 0), noise_rng(seed, Stream::kObservationNoise, 0);
+  tasks::Episode episode;
+  const absl::Status status =
+      tasks::RunEpisode(scene, random_controller, &start_rng, &noise_rng, &episode);
+  if (!status.ok()) return absl::InternalError(absl::StrCat("episode 0: ", status.message()));
+  data.Append(episode);
+  EpisodeResult result;
+  result.episode = 0;
+  result.real_cost = episode.total_cost;
+  clock.Lap(&result.timing.real_episode_cpu, &result.timing.real_episode_wall);
+  result.cpu_seconds = result.timing.total_cpu();
+  return result;
+}
+
+// 3-5 of learned episode e: one real episode with the new policy (its data
+// appended to `data`), the evaluation on independent real episodes, and
+// after the last episode the rollout verdict of the final policy; their
+// costs and times into `result`.
+absl::Status RealEpisodeAndEvaluation(const TrialOptions& options, const tasks::Scene& scene,
+                                      const tasks::MultiController& policy_controller,
+                                      uint64_t seed, int e, PhaseClock& clock, Transitions& data,
+                                      EpisodeResult& result) {
+  absl::Status status;
+  // 3. One real episode with the new policy; its data are added.
+  {
+    Rng start_rng(seed, Stream::kInitialState, e), noise_rng(seed, Stream::kObservationNoise, e);
+    tasks::Episode episode;
+    status = tasks::RunEpisode(scene, policy_controller, &start_rng, &noise_rng, &episode);
+    if (!status.ok()) return absl::InternalError(absl::StrCat("episode ", e, ": ", status.message()));
+    data.Append(episode);
+    result.real_cost = episode.total_cost;
+  }
+  clock.Lap(&result.timing.real_episode_cpu, &result.timing.real_episode_wall);
+
+  // 4. Evaluate the policy on independent real episodes (not added to the data).
+  {
+    absl::StatusOr<PolicyEvaluation> evaluation =
+        EvaluateController(scene, policy_controller, seed, e, options.eval_rollouts);
+    if (!evaluation.ok())
+      return absl::InternalError(absl::StrCat("episode ", e, " evaluation: ", evaluation.status().message()));
+    result.eval_cost_mean = evaluation->mean;
+    result.eval_cost_std = evaluation->std;
+  }
+  // 5. After the last episode, the rollout verdict of the final policy
+  //    (its own evaluation streams: the first eval_rollouts rollouts are
+  //    the evaluation above, so no number above depends on it).
+  if (e == options.episodes && options.verdict_rollouts > 0) {
+    absl::StatusOr<RolloutClassification> classification = ClassifyController(
+        scene, policy_controller, seed, e, options.verdict_rollouts, options.verdict_distance,
+        VerdictHoldSteps(options, scene));
+    if (!classification.ok())
+      return absl::InternalError(absl::StrCat("episode ", e, " rollout verdict: ",
+                                              classification.status().message()));
+    result.held_fraction = classification->held_fraction();
+  }
+  clock.Lap(&result.timing.evaluation_cpu, &result.timing.evaluation_wall);
+  return absl::OkStatus();
+}
+
 }  // namespace
 
 absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver* observer,
@@ -85,25 +157,9 @@ absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver
 
   // Episode 0: random exploration (unless resuming).
   if (resume_from == nullptr) {
-    PhaseClock clock(pool.get());
-    Rng action_rng(seed, Stream::kExplorationAction);
-    // Each control uniform in its bounds, drawn in control order.
-    const tasks::MultiController random_controller = [&](const Vector&) {
-      Vector u(scene.control_dim());
-      for (int j = 0; j < scene.control_dim(); ++j)
-        u(j) = action_rng.Uniform(-scene.max_control(j), scene.max_control(j));
-      return u;
-    };
-    Rng start_rng(seed, Stream::kInitialState, 0), noise_rng(seed, Stream::kObservationNoise, 0);
-    tasks::Episode episode;
-    status = tasks::RunEpisode(scene, random_controller, &start_rng, &noise_rng, &episode);
-    if (!status.ok()) return absl::InternalError(absl::StrCat("episode 0: ", status.message()));
-    data.Append(episode);
-    EpisodeResult result;
-    result.episode = 0;
-    result.real_cost = episode.total_cost;
-    clock.Lap(&result.timing.real_episode_cpu, &result.timing.real_episode_wall);
-    result.cpu_seconds = result.timing.total_cpu();
+    absl::StatusOr<EpisodeResult> random = RandomEpisode(scene, seed, pool.get(), data);
+    if (!random.ok()) return random.status();
+    const EpisodeResult& result = *random;
     summary.episodes.push_back(result);
     if (observer != nullptr) observer->OnEpisode(result);
     if (checkpoints) emit_checkpoint(0);
@@ -134,39 +190,9 @@ absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver
     }
     clock.Restart();  // the snapshot copy above is not the trial's work
 
-    // 3. One real episode with the new policy; its data are added.
-    {
-      Rng start_rng(seed, Stream::kInitialState, e), noise_rng(seed, Stream::kObservationNoise, e);
-      tasks::Episode episode;
-      status = tasks::RunEpisode(scene, policy_controller, &start_rng, &noise_rng, &episode);
-      if (!status.ok()) return absl::InternalError(absl::StrCat("episode ", e, ": ", status.message()));
-      data.Append(episode);
-      result.real_cost = episode.total_cost;
-    }
-    clock.Lap(&result.timing.real_episode_cpu, &result.timing.real_episode_wall);
-
-    // 4. Evaluate the policy on independent real episodes (not added to the data).
-    {
-      absl::StatusOr<PolicyEvaluation> evaluation =
-          EvaluateController(scene, policy_controller, seed, e, options.eval_rollouts);
-      if (!evaluation.ok())
-        return absl::InternalError(absl::StrCat("episode ", e, " evaluation: ", evaluation.status().message()));
-      result.eval_cost_mean = evaluation->mean;
-      result.eval_cost_std = evaluation->std;
-    }
-    // 5. After the last episode, the rollout verdict of the final policy
-    //    (its own evaluation streams: the first eval_rollouts rollouts are
-    //    the evaluation above, so no number above depends on it).
-    if (e == options.episodes && options.verdict_rollouts > 0) {
-      absl::StatusOr<RolloutClassification> classification = ClassifyController(
-          scene, policy_controller, seed, e, options.verdict_rollouts, options.verdict_distance,
-          VerdictHoldSteps(options, scene));
-      if (!classification.ok())
-        return absl::InternalError(absl::StrCat("episode ", e, " rollout verdict: ",
-                                                classification.status().message()));
-      result.held_fraction = classification->held_fraction();
-    }
-    clock.Lap(&result.timing.evaluation_cpu, &result.timing.evaluation_wall);
+    status = RealEpisodeAndEvaluation(options, scene, policy_controller, seed, e, clock, data,
+                                      result);
+    if (!status.ok()) return status;
     result.cpu_seconds = result.timing.total_cpu();
     summary.episodes.push_back(result);
     if (observer != nullptr) observer->OnEpisode(result);

@@ -1,3 +1,6 @@
+// The gradient study (study.h): options, the error metrics and ESS, the
+// cells of each estimator and RunStudy. Replicates of one cell are in
+// replicates.cc, the reference gradient in reference.cc.
 #include "core/study/study.h"
 
 #include <algorithm>
@@ -15,94 +18,18 @@
 #include "core/estimators/total_propagation.h"
 #include "core/pilco/gp_moments.h"
 #include "core/pilco/pilco.h"
+#include "core/study/reference.h"
+#include "core/study/replicates.h"
 
 namespace totalgrad::study {
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
-double SecondsSince(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
-
-// Substream index of replicate r of a cell (P, H): the same for every
-// estimator (common random numbers). kind 0 = cells, 1 + k = reference
-// estimator k (independent of the cells and of each other).
-uint64_t StreamIndex(uint64_t kind, int horizon, int particles, int replicate) {
-  return (kind << 60) | (static_cast<uint64_t>(horizon) << 44) |
-         (static_cast<uint64_t>(particles) << 20) | static_cast<uint64_t>(replicate);
-}
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return CellResult::kNaN;
-  std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n % 2 == 1 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
-// What R runs of one estimator at (P, H) produced.
-struct Replicates {
-  std::vector<Vector> estimates;  // finite ones
-  std::vector<double> seconds;    // every successful Estimate call
-  std::vector<double> objectives;
-  std::vector<double> k_lr_sum;   // per step, over finite estimates that report k_LR
-  int k_lr_count = 0;
-  int nonfinite = 0;
-  int errors = 0;
-  std::string first_error;
-  bool budget_hit = false;
-};
-
-Replicates RunReplicates(estimators::Estimator* estimator, const estimators::Problem& problem,
-                         int particles, int replicates, double budget_seconds, uint64_t seed,
-                         uint64_t kind) {
-  Replicates out;
-  estimators::EstimateOptions options;
-  options.particles = particles;
-  estimators::GradientEstimate estimate;
-  const Clock::time_point cell_start = Clock::now();
-  for (int r = 0; r < replicates; ++r) {
-    if (r >= 2 && SecondsSince(cell_start) >= budget_seconds) {
-      out.budget_hit = true;
-      break;
-    }
-    Rng rng(seed, Stream::kStudy, StreamIndex(kind, problem.horizon, particles, r));
-    const Clock::time_point start = Clock::now();
-    const absl::Status st = estimator->Estimate(problem, options, &rng, &estimate);
-    const double seconds = SecondsSince(start);
-    if (!st.ok()) {
-      ++out.errors;
-      if (out.first_error.empty()) out.first_error = std::string(st.message());
-      break;  // a configuration error repeats; do not spend the budget on it
-    }
-    out.seconds.push_back(seconds);
-    if (!estimate.finite || !estimate.gradient.allFinite()) {
-      ++out.nonfinite;
-      continue;
-    }
-    out.estimates.push_back(estimate.gradient);
-    out.objectives.push_back(estimate.objective);
-    if (!estimate.k_lr.empty()) {
-      if (out.k_lr_sum.empty()) out.k_lr_sum.assign(estimate.k_lr.size(), 0.0);
-      if (out.k_lr_sum.size() == estimate.k_lr.size()) {
-        for (size_t t = 0; t < estimate.k_lr.size(); ++t) out.k_lr_sum[t] += estimate.k_lr[t];
-        ++out.k_lr_count;
-      }
-    }
-  }
-  return out;
-}
-
-void MeanAndStandardError(const std::vector<Vector>& estimates, Vector* mean, Vector* se) {
-  const int r = static_cast<int>(estimates.size());
-  *mean = Vector::Zero(estimates.front().size());
-  for (const Vector& g : estimates) *mean += g;
-  *mean /= r;
-  Vector var = Vector::Zero(mean->size());
-  for (const Vector& g : estimates) var += (g - *mean).cwiseAbs2();
-  var /= std::max(1, r - 1);
-  *se = (var / r).cwiseSqrt();
-}
+using internal::Clock;
+using internal::Median;
+using internal::Replicates;
+using internal::RunReplicates;
+using internal::SecondsSince;
+using internal::StreamIndex;
 
 // The batch-importance-weighted LR part of a particle method, if it has one:
 // returns the noise factor its forward pass uses.
@@ -157,109 +84,6 @@ void FillErrorMetrics(const std::vector<Vector>& estimates, const ReferenceGradi
   cell->rel_bias_noise = m.rel_bias_noise;
   cell->total_variance = m.total_variance;
   cell->cos_mean = m.cos_mean;
-}
-
-ReferenceGradient ComputeReference(const estimators::Problem& problem, const StudyOptions& options,
-                                   const StudyProgress& progress) {
-  const ReferenceOptions& ro = options.reference;
-  ReferenceGradient ref;
-  ref.horizon = problem.horizon;
-  const Clock::time_point start = Clock::now();
-  std::vector<Vector> means, ses;
-  double objective_sum = 0;
-  int objective_count = 0;
-  for (size_t k = 0; k < ro.estimators.size(); ++k) {
-    const EstimatorSpec& spec = ro.estimators[k];
-    absl::StatusOr<std::unique_ptr<estimators::Estimator>> estimator =
-        estimators::MakeEstimator(spec.method, spec.options);
-    if (!estimator.ok()) {  // Validate() rules this out; keep it visible anyway
-      absl::StrAppend(&ref.note, spec.label, ": ", estimator.status().message(), "; ");
-      continue;
-    }
-    const Replicates reps = RunReplicates(estimator->get(), problem, ro.particles, ro.replicates,
-                                          ro.budget_seconds, options.seed, 1 + k);
-    if (progress) {
-      progress(absl::StrFormat("reference H=%d: %s %d x P=%d (%d non-finite, %d errors)",
-                               problem.horizon, spec.label, static_cast<int>(reps.estimates.size()),
-                               ro.particles, reps.nonfinite, reps.errors));
-    }
-    if (reps.estimates.size() < 2) {
-      absl::StrAppend(&ref.note, spec.label, " left out (", reps.estimates.size(),
-                      " finite estimates, ", reps.nonfinite, " non-finite, ", reps.errors,
-                      " errors", reps.first_error.empty() ? "" : ": ", reps.first_error, "); ");
-      continue;
-    }
-    if (reps.budget_hit) {
-      absl::StrAppend(&ref.note, spec.label, " cut to ", reps.estimates.size(),
-                      " replicates by the time budget; ");
-    }
-    Vector mean, se;
-    MeanAndStandardError(reps.estimates, &mean, &se);
-    means.push_back(mean);
-    ses.push_back(se);
-    ref.used.push_back(spec.label);
-    ref.replicates.push_back(static_cast<int>(reps.estimates.size()));
-    for (double j : reps.objectives) objective_sum += j;
-    objective_count += static_cast<int>(reps.objectives.size());
-  }
-  ref.seconds = SecondsSince(start);
-  if (means.empty()) {
-    ref.agree = false;
-    absl::StrAppend(&ref.note, "no reference estimator produced finite estimates");
-    return ref;
-  }
-  PoolMeans(means, ses, &ref.gradient, &ref.standard_error);
-  ref.norm = ref.gradient.norm();
-  ref.objective = objective_sum / objective_count;
-  if (ref.norm > 0) {
-    ref.relative_error = ref.standard_error.norm() / ref.norm;
-    ref.floor = 1.96 * ref.relative_error;
-  } else {
-    absl::StrAppend(&ref.note, "the reference gradient is exactly zero (saturated cost?); ");
-  }
-  if (means.size() < 2) {
-    ref.agree = false;
-    absl::StrAppend(&ref.note, "only one reference estimator: agreement not tested");
-    return ref;
-  }
-  double max_z = 0, sum_z2 = 0;
-  int used = 0;
-  for (Eigen::Index j = 0; j < means[0].size(); ++j) {
-    const double denom = std::sqrt(ses[0](j) * ses[0](j) + ses[1](j) * ses[1](j));
-    const double diff = means[0](j) - means[1](j);
-    if (!(denom > 0)) {
-      if (diff != 0) max_z = std::numeric_limits<double>::infinity();
-      continue;
-    }
-    const double z = diff / denom;
-    max_z = std::max(max_z, std::abs(z));
-    sum_z2 += z * z;
-    ++used;
-  }
-  ref.agreement_max_z = max_z;
-  ref.agreement_mean_z2 = used > 0 ? sum_z2 / used : 0.0;
-  if (ref.norm > 0) {
-    ref.agreement_resolution =
-        1.96 * (ses[0].cwiseAbs2() + ses[1].cwiseAbs2()).cwiseSqrt().norm() / ref.norm;
-    if (ref.agreement_resolution > 1.0) {
-      const double n0 = ses[0].norm(), n1 = ses[1].norm();
-      const size_t precise = n0 <= n1 ? 0 : 1;
-      absl::StrAppend(&ref.note, "the agreement check has no power: a difference of ",
-                      absl::StrFormat("%.3g", ref.agreement_resolution), " |g*| between ",
-                      ref.used[0], " and ", ref.used[1], " would pass (|SE| of ",
-                      ref.used[1 - precise], " ",
-                      absl::StrFormat("%.3g", precise == 0 ? n1 / std::max(n0, 1e-300)
-                                                           : n0 / std::max(n1, 1e-300)),
-                      " x ", ref.used[precise], "'s); g* rests on ", ref.used[precise], "; ");
-    }
-  }
-  ref.agree = max_z <= ro.agreement_max_z && ref.agreement_mean_z2 <= ro.agreement_mean_z2;
-  if (!ref.agree) {
-    absl::StrAppend(&ref.note, ref.used[0], " and ", ref.used[1], " disagree (max |z| ",
-                    absl::StrFormat("%.3g", max_z), ", mean z^2 ",
-                    absl::StrFormat("%.3g", ref.agreement_mean_z2), ")");
-  }
-  return ref;
 }
 
 CellResult RunPilcoCell(const FrozenProblem& frozen, const pilco::GaussianInputGp& gp,
@@ -324,6 +148,58 @@ CellResult RunPilcoCell(const FrozenProblem& frozen, const pilco::GaussianInputG
   cell.replicates = 1;  // deterministic: one value, timed repeatedly
   FillErrorMetrics({gradient}, reference, &cell);
   cell.rel_bias_noise = 0;
+  return cell;
+}
+
+// One cell of a particle estimator: R replicates at (particles, p.horizon)
+// against the horizon's reference `ref`, with the BIW ESS when `biw`.
+CellResult RunEstimatorCell(estimators::Estimator* estimator, const EstimatorSpec& spec,
+                            bool biw, double noise_factor, int particles,
+                            const estimators::Problem& p, const ReferenceGradient& ref,
+                            const StudyOptions& options) {
+  CellResult cell;
+  cell.estimator = spec.label;
+  cell.method = estimators::MethodName(spec.method);
+  cell.particles = particles;
+  cell.horizon = p.horizon;
+  cell.reference_agrees = ref.agree;
+  const Replicates reps = RunReplicates(estimator, p, particles, options.replicates,
+                                        options.cell_budget_seconds, options.seed, 0);
+  cell.replicates = static_cast<int>(reps.estimates.size());
+  cell.nonfinite = reps.nonfinite;
+  cell.errors = reps.errors;
+  cell.error = reps.first_error;
+  cell.budget_hit = reps.budget_hit;
+  if (!reps.seconds.empty()) {
+    cell.time_min_s = *std::min_element(reps.seconds.begin(), reps.seconds.end());
+    cell.time_median_s = Median(reps.seconds);
+  }
+  if (reps.estimates.empty()) {
+    cell.omitted = true;
+    cell.omission_reason = reps.errors > 0 ? absl::StrCat("error: ", reps.first_error)
+                                           : "every estimate was non-finite";
+  } else {
+    FillErrorMetrics(reps.estimates, ref, &cell);
+    double j = 0;
+    for (double v : reps.objectives) j += v;
+    cell.objective_mean = j / static_cast<double>(reps.objectives.size());
+    if (ref.gradient.size() == 0 || !(ref.norm > 0)) {
+      cell.omission_reason = "no usable reference gradient at this horizon";
+    }
+  }
+  if (reps.k_lr_count > 0) {
+    cell.k_lr_per_step = reps.k_lr_sum;
+    double sum = 0;
+    for (double& v : cell.k_lr_per_step) {
+      v /= reps.k_lr_count;
+      sum += v;
+    }
+    cell.k_lr_mean = sum / static_cast<double>(cell.k_lr_per_step.size());
+  }
+  if (biw && options.ess_replicates > 0 && particles <= options.ess_max_particles) {
+    BiwEss(p, noise_factor, particles, options.ess_replicates, options.seed, &cell.ess_mean,
+           &cell.ess_min);
+  }
   return cell;
 }
 
@@ -504,7 +380,7 @@ absl::StatusOr<StudyResult> RunStudy(const FrozenProblem& problem, const StudyOp
     if (stopped()) return kStopped;
     estimators::Problem p = problem.problem;
     p.horizon = h;
-    result.references.push_back(ComputeReference(p, options, progress));
+    result.references.push_back(internal::ComputeReference(p, options, progress));
     const ReferenceGradient& ref = result.references.back();
     if (progress) {
       progress(absl::StrFormat("reference H=%d: |g*| %.4g, relative SE %.3g, agree %s (max |z| %.3g) %s",
@@ -554,49 +430,8 @@ absl::StatusOr<StudyResult> RunStudy(const FrozenProblem& problem, const StudyOp
         estimators::Problem p = problem.problem;
         p.horizon = options.horizons[hi];
         const ReferenceGradient& ref = result.references[hi];
-        CellResult cell;
-        cell.estimator = spec.label;
-        cell.method = estimators::MethodName(spec.method);
-        cell.particles = particles;
-        cell.horizon = p.horizon;
-        cell.reference_agrees = ref.agree;
-        const Replicates reps = RunReplicates(estimator->get(), p, particles, options.replicates,
-                                              options.cell_budget_seconds, options.seed, 0);
-        cell.replicates = static_cast<int>(reps.estimates.size());
-        cell.nonfinite = reps.nonfinite;
-        cell.errors = reps.errors;
-        cell.error = reps.first_error;
-        cell.budget_hit = reps.budget_hit;
-        if (!reps.seconds.empty()) {
-          cell.time_min_s = *std::min_element(reps.seconds.begin(), reps.seconds.end());
-          cell.time_median_s = Median(reps.seconds);
-        }
-        if (reps.estimates.empty()) {
-          cell.omitted = true;
-          cell.omission_reason = reps.errors > 0 ? absl::StrCat("error: ", reps.first_error)
-                                                 : "every estimate was non-finite";
-        } else {
-          FillErrorMetrics(reps.estimates, ref, &cell);
-          double j = 0;
-          for (double v : reps.objectives) j += v;
-          cell.objective_mean = j / static_cast<double>(reps.objectives.size());
-          if (ref.gradient.size() == 0 || !(ref.norm > 0)) {
-            cell.omission_reason = "no usable reference gradient at this horizon";
-          }
-        }
-        if (reps.k_lr_count > 0) {
-          cell.k_lr_per_step = reps.k_lr_sum;
-          double sum = 0;
-          for (double& v : cell.k_lr_per_step) {
-            v /= reps.k_lr_count;
-            sum += v;
-          }
-          cell.k_lr_mean = sum / static_cast<double>(cell.k_lr_per_step.size());
-        }
-        if (biw && options.ess_replicates > 0 && particles <= options.ess_max_particles) {
-          BiwEss(p, noise_factor, particles, options.ess_replicates, options.seed, &cell.ess_mean,
-                 &cell.ess_min);
-        }
+        CellResult cell = RunEstimatorCell(estimator->get(), spec, biw, noise_factor, particles, p,
+                                           ref, options);
         if (progress) {
           progress(absl::StrFormat(
               "%s P=%d H=%d: %d reps, %.3g s, rel_rmse %.3g, bias %.3g, cos %.3f%s%s", spec.label,

@@ -590,9 +590,8 @@ class Store {
 };
 
 // Opens an existing coordinator database for reading only, behind Store's
-// interface (SqliteStore::OpenReadOnly in sqlite_store.h says what it
-// refuses; every write returns FailedPrecondition). For readers such as
-// `totalgrad results --db` that need nothing SQLite-specific, so that they
+// interface (SqliteStore::OpenReadOnly says what it refuses; every write
+// returns FailedPrecondition), so that readers such as `results --db`
 // include no storage implementation.
 absl::StatusOr<std::unique_ptr<Store>> OpenStoreReadOnly(const std::string& path);
 

@@ -32,6 +32,8 @@
 // parsed and inlined (only the snapshot the study uses), so the spec that
 // travels to the coordinator and workers is self-contained.
 //
+// Files: sweep_toml.cc reads sweep files; sweep_spec.cc the rest.
+//
 // Threading: free functions, no shared state.
 #ifndef TOTALGRAD_SERVER_SWEEP_SWEEP_SPEC_H_
 #define TOTALGRAD_SERVER_SWEEP_SWEEP_SPEC_H_
@@ -138,6 +140,9 @@ absl::StatusOr<SweepSpec> SpecFromCanonicalJson(const std::string& text);
 // resubmission of a sweep stored under this hash as the same sweep.
 std::string LegacySpecHash(const SweepSpec& canonical,
                            const std::vector<std::string>& protocol_order);
+
+// A sweep or study name: 1 to 64 characters from A-Z a-z 0-9 . _ -.
+bool ValidSweepName(const std::string& name);
 
 // Checks one study entry's self-contained spec (what the coordinator
 // receives): a JSON object the study parser accepts, its snapshot inlined
