@@ -6,6 +6,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "client/service_commands/connection.h"
+#include "client/service_commands/streamed_reads.h"
 #include "client/service_commands/format.h"
 #include "results/comparison.h"
 
@@ -47,11 +48,8 @@ std::string Verdict(double p_holm, double direction, const Comparison& c, double
 
 int PrintComparison(Connection* connection, const std::string& sweep_name,
                     const ComparisonOptions& options, Format format) {
-  v1::SweepRequest request;
-  request.set_name(sweep_name);
   v1::ListTrialResultsResponse response;
-  const grpc::Status status =
-      connection->Call(&v1::ControlService::Stub::ListTrialResults, request, &response);
+  const grpc::Status status = FetchTrialResults(connection, sweep_name, &response);
   if (!status.ok()) return ReportError(status, "results compare " + sweep_name);
   std::vector<ComparedTrial> trials;
   for (const auto& r : response.results()) {

@@ -20,6 +20,7 @@
 #include "absl/time/time.h"
 #include "client/service_commands/curves_plot.h"
 #include "client/service_commands/local_store.h"
+#include "client/service_commands/streamed_reads.h"
 #include "results/stats.h"
 
 namespace totalgrad::cli {
@@ -280,11 +281,8 @@ int WaitForSweep(Connection* connection, const std::string& sweep_name,
 }
 
 int PrintResultsTable(Connection* connection, const std::string& sweep_name, Format format) {
-  v1::SweepRequest request;
-  request.set_name(sweep_name);
   v1::ListTrialResultsResponse response;
-  const grpc::Status status =
-      connection->Call(&v1::ControlService::Stub::ListTrialResults, request, &response);
+  const grpc::Status status = FetchTrialResults(connection, sweep_name, &response);
   if (!status.ok()) return ReportError(status, "results table " + sweep_name);
   std::vector<TrialRow> rows;
   for (const auto& r : response.results()) {

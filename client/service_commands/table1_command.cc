@@ -10,6 +10,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "client/service_commands/connection.h"
+#include "client/service_commands/streamed_reads.h"
 #include "client/service_commands/format.h"
 #include "results/table1.h"
 
@@ -26,11 +27,8 @@ using results::Table1Trial;
 // are listed.
 grpc::Status FetchTrials(Connection* connection, const std::string& sweep,
                          std::vector<Table1Trial>* trials) {
-  v1::SweepRequest request;
-  request.set_name(sweep);
   v1::ListTrialResultsResponse completed;
-  grpc::Status status =
-      connection->Call(&v1::ControlService::Stub::ListTrialResults, request, &completed);
+  grpc::Status status = FetchTrialResults(connection, sweep, &completed);
   if (!status.ok()) return status;
   std::map<int64_t, record::TextPairs> options_of;
   v1::ListJobsRequest jobs_request;
