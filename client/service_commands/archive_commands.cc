@@ -2,19 +2,10 @@
 // sweep as an archive), `totalgrad results import` (an archive into this
 // coordinator) and `totalgrad sweep delete` (archive, then delete). The
 // archive format is server/service/sweep_archive.h.
-#include <fcntl.h>
-#include <unistd.h>
-
-#include <cerrno>
-#include <chrono>
-#include <cstring>
 #include <ctime>
-#include <filesystem>
 #include <fstream>
 #include <iostream>
-#include <map>
 #include <memory>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -23,13 +14,14 @@
 #include "absl/status/status.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
+#include "client/service_commands/archive_export.h"
 #include "client/service_commands/connection.h"
+#include "client/service_commands/output_file.h"
 #include "client/service_commands/format.h"
+#include "client/service_commands/streamed_reads.h"
 #include "core/learner/episode_record.h"
 #include "io/record_format.h"
 #include "server/common/record_proto.h"
-#include "server/common/build_info.h"
-#include "server/service/sweep_archive.h"
 
 namespace totalgrad::cli {
 namespace {
@@ -40,21 +32,6 @@ constexpr size_t kImportChunkBytes = 1 << 20;
 nlohmann::json SeedJson(const std::string& seed) {
   int64_t value;
   return absl::SimpleAtoi(seed, &value) ? nlohmann::json(value) : nlohmann::json(seed);
-}
-
-// Streams every episode row of the sweep to `sink` (constant memory).
-grpc::Status ForEachEpisodeRow(Connection* c, const std::string& sweep, bool all_attempts,
-                               const std::function<void(const v1::EpisodeRow&)>& sink) {
-  v1::ExportEpisodesRequest request;
-  request.set_sweep_name(sweep);
-  request.set_all_attempts(all_attempts);
-  grpc::ClientContext context;
-  rpc::PrepareContext(&context, c->token(), absl::Minutes(30), /*wait_for_ready=*/false);
-  auto reader = c->control()->ExportEpisodes(&context, request);
-  v1::ExportEpisodesResponse batch;
-  while (reader->Read(&batch))
-    for (const auto& row : batch.rows()) sink(row);
-  return reader->Finish();
 }
 
 // One row per episode: the row's coordinates, the episode's record (its CSV
@@ -99,154 +76,6 @@ int ExportRows(Connection* c, const std::string& sweep, bool all_attempts, bool 
   return 0;
 }
 
-// `with_checkpoints`: each completed trial's final checkpoint (its final
-// policy and GP data, what `job artifacts` writes) goes into the archive
-// with the attempt it belongs to; the sizes are reported on stderr.
-int ExportArchive(Connection* c, const std::string& sweep_name, std::ostream& out,
-                  bool with_checkpoints) {
-  v1::SweepRequest sweep_request;
-  sweep_request.set_name(sweep_name);
-  v1::SweepInfo sweep;
-  grpc::Status status = c->Call(&v1::ControlService::Stub::GetSweep, sweep_request, &sweep);
-  if (!status.ok()) return ReportError(status, "results export " + sweep_name);
-  std::vector<service::ArchiveJobInput> jobs;
-  std::map<int64_t, size_t> index_of;
-  int64_t after = 0;
-  for (;;) {
-    v1::ListJobsRequest request;
-    request.set_sweep_name(sweep_name);
-    request.set_page_size(10000);
-    request.set_after_job_id(after);
-    v1::ListJobsResponse page;
-    status = c->Call(&v1::ControlService::Stub::ListJobs, request, &page);
-    if (!status.ok()) return ReportError(status, "results export " + sweep_name);
-    if (page.jobs_size() == 0) break;
-    for (const v1::JobInfo& job : page.jobs()) {
-      index_of[job.job_id()] = jobs.size();
-      service::ArchiveJobInput input;
-      input.job = job;
-      jobs.push_back(std::move(input));
-      after = job.job_id();
-    }
-  }
-  for (service::ArchiveJobInput& input : jobs) {
-    v1::JobRequest request;
-    request.set_job_id(input.job.job_id());
-    v1::GetJobLogResponse log;
-    status = c->Call(&v1::ControlService::Stub::GetJobLog, request, &log);
-    if (!status.ok()) return ReportError(status, "results export " + sweep_name);
-    input.attempts.assign(log.attempts().begin(), log.attempts().end());
-  }
-  if (with_checkpoints) {
-    int kept = 0;
-    int64_t bytes = 0;
-    for (service::ArchiveJobInput& input : jobs) {
-      if (input.job.state() != v1::JOB_STATE_COMPLETED || input.job.kind() != v1::JOB_KIND_TRIAL)
-        continue;
-      v1::JobRequest request;
-      request.set_job_id(input.job.job_id());
-      v1::GetJobArtifactsResponse artifacts;
-      status = c->Call(&v1::ControlService::Stub::GetJobArtifacts, request, &artifacts);
-      // A completed trial whose worker kept no checkpoint (too large, or an
-      // import of an archive without them) is archived without one.
-      if (status.error_code() == grpc::StatusCode::NOT_FOUND) continue;
-      if (!status.ok()) return ReportError(status, "results export " + sweep_name);
-      bytes += static_cast<int64_t>(artifacts.checkpoint().data().size());
-      ++kept;
-      input.checkpoints[artifacts.attempt()] = artifacts.checkpoint();
-    }
-    std::cerr << "results export " << sweep_name << ": " << kept << " checkpoints kept, "
-              << (bytes + 1023) / 1024 << " KiB";
-    if (kept > 0) std::cerr << " (" << (bytes / kept + 1023) / 1024 << " KiB a trial; base64 adds a third)";
-    std::cerr << "\n";
-  }
-  status = ForEachEpisodeRow(c, sweep_name, /*all_attempts=*/true, [&](const v1::EpisodeRow& row) {
-    auto it = index_of.find(row.job_id());
-    if (it != index_of.end()) jobs[it->second].episodes.push_back(row);
-  });
-  if (!status.ok()) return ReportError(status, "results export " + sweep_name);
-  v1::ListStudyRowsRequest study_request;
-  study_request.set_sweep_name(sweep_name);
-  study_request.set_all_attempts(true);
-  v1::ListStudyRowsResponse study;
-  status = c->Call(&v1::ControlService::Stub::ListStudyRows, study_request, &study);
-  if (!status.ok()) return ReportError(status, "results export " + sweep_name);
-  for (const auto& cell : study.cells()) {
-    auto it = index_of.find(cell.job_id());
-    if (it != index_of.end()) jobs[it->second].cells.push_back(cell);
-  }
-  for (const auto& reference : study.references()) {
-    auto it = index_of.find(reference.job_id());
-    if (it != index_of.end()) jobs[it->second].references.push_back(reference);
-  }
-  const int64_t now_ms = std::chrono::duration_cast<std::chrono::milliseconds>(
-                             std::chrono::system_clock::now().time_since_epoch())
-                             .count();
-  out << service::SweepArchiveToJson(sweep, jobs, BuildId(), now_ms).dump(1) << "\n";
-  return 0;
-}
-
-// What an archive holds, counted as the coordinator counts a sweep
-// (storage::SweepContents): the guard of DeleteSweep.
-v1::SweepContents CountArchive(const nlohmann::json& archive) {
-  v1::SweepContents counts;
-  for (const auto& job : archive.at("jobs")) {
-    counts.set_jobs(counts.jobs() + 1);
-    for (const auto& attempt : job.at("attempt_log")) {
-      counts.set_attempts(counts.attempts() + 1);
-      if (attempt.contains("episodes")) {
-        counts.set_episodes(counts.episodes() + static_cast<int64_t>(attempt["episodes"].size()));
-      }
-      for (const char* rows : {"study_cells", "study_references"}) {
-        if (attempt.contains(rows)) {
-          counts.set_study_rows(counts.study_rows() + static_cast<int64_t>(attempt[rows].size()));
-        }
-      }
-    }
-  }
-  return counts;
-}
-
-// Writes `text` to `path` durably: a new file (never over an existing one),
-// written, fsync'ed, then renamed into place. The error names the path and
-// the system's reason (e.g. "No space left on device").
-absl::Status WriteNewFileDurably(const std::string& path, const std::string& text) {
-  if (std::filesystem::exists(path)) {
-    return absl::AlreadyExistsError(absl::StrCat(path, " already exists; not overwriting it"));
-  }
-  const std::string temporary = path + ".partial";
-  const int fd = ::open(temporary.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
-  if (fd < 0) {
-    return absl::UnavailableError(absl::StrCat("cannot create ", temporary, ": ",
-                                               std::strerror(errno)));
-  }
-  size_t written = 0;
-  while (written < text.size()) {
-    const ssize_t n = ::write(fd, text.data() + written, text.size() - written);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) {
-      const std::string reason = std::strerror(errno);
-      ::close(fd);
-      std::filesystem::remove(temporary);
-      return absl::UnavailableError(absl::StrCat("writing ", temporary, ": ", reason));
-    }
-    written += static_cast<size_t>(n);
-  }
-  if (::fsync(fd) != 0 || ::close(fd) != 0) {
-    const std::string reason = std::strerror(errno);
-    std::filesystem::remove(temporary);
-    return absl::UnavailableError(absl::StrCat("syncing ", temporary, ": ", reason));
-  }
-  std::error_code error;
-  std::filesystem::rename(temporary, path, error);
-  if (error) {
-    std::filesystem::remove(temporary);
-    return absl::UnavailableError(
-        absl::StrCat("renaming ", temporary, " to ", path, ": ", error.message()));
-  }
-  return absl::OkStatus();
-}
-
 // "NAME.deleted-YYYYMMDDTHHMMSSZ.archive.json" in the current directory.
 std::string DefaultDeleteArchivePath(const std::string& sweep) {
   const std::time_t now = std::time(nullptr);
@@ -271,17 +100,21 @@ void AddSweepDeleteCommand(CLI::App* sweep_cmd, int* exit_code) {
       [name, archive_path](Connection* c) {
         const std::string path =
             archive_path->empty() ? DefaultDeleteArchivePath(*name) : *archive_path;
-        std::ostringstream archive_text;
-        if (const int code = ExportArchive(c, *name, archive_text, /*with_checkpoints=*/true);
+        const auto archive_not_written = [&](const absl::Status& error) {
+          std::cerr << "error: sweep delete " << *name << ": the archive could not be written ("
+                    << error.message() << "); nothing was deleted\n";
+          return 1;
+        };
+        absl::StatusOr<std::unique_ptr<OutputFile>> file =
+            OutputFile::Create(path, OutputFile::Existing::kRefuse, 0600);
+        if (!file.ok()) return archive_not_written(file.status());
+        v1::SweepContents counted;
+        if (const int code =
+                ExportArchive(c, *name, (*file)->stream(), /*with_checkpoints=*/true, &counted);
             code != 0)
           return code;
-        const nlohmann::json archive = nlohmann::json::parse(archive_text.str());
-        const v1::SweepContents counted = CountArchive(archive);
-        if (const absl::Status written = WriteNewFileDurably(path, archive_text.str());
-            !written.ok()) {
-          std::cerr << "error: sweep delete " << *name << ": the archive could not be written ("
-                    << written.message() << "); nothing was deleted\n";
-          return 1;
+        if (const absl::Status written = (*file)->Commit(); !written.ok()) {
+          return archive_not_written(written);
         }
         v1::DeleteSweepRequest request;
         request.set_name(*name);
@@ -321,24 +154,32 @@ void AddArchiveCommands(CLI::App* results, int* exit_code) {
       "jobs with their options, attempts with worker builds, episodes, study rows)",
       exit_code,
       [sweep, all_attempts, output, format, checkpoints](Connection* c) {
-        std::ofstream file;
+        // A file appears under its name only complete (output_file.h);
+        // stdout gets the rows as they arrive.
+        std::unique_ptr<OutputFile> file;
         if (!output->empty()) {
-          file.open(*output);
-          if (!file) {
-            std::cerr << "error: results export: cannot write " << *output << "\n";
+          absl::StatusOr<std::unique_ptr<OutputFile>> created =
+              OutputFile::Create(*output, OutputFile::Existing::kReplace, 0666);
+          if (!created.ok()) {
+            std::cerr << "error: results export: " << created.status().message() << "\n";
             return 1;
           }
+          file = *std::move(created);
         }
-        std::ostream& out = output->empty() ? std::cout : file;
+        std::ostream& out = file ? file->stream() : std::cout;
         int64_t rows = 0;
-        const int code = *format == "json"
-                             ? ExportArchive(c, *sweep, out, *checkpoints)
-                             : ExportRows(c, *sweep, *all_attempts, *format == "csv", out, &rows);
+        const int code =
+            *format == "json"
+                ? ExportArchive(c, *sweep, out, *checkpoints, /*counted=*/nullptr)
+                : ExportRows(c, *sweep, *all_attempts, *format == "csv", out, &rows);
         if (code != 0) return code;
-        out.flush();
-        if (!out) {
-          std::cerr << "error: results export: writing " << (output->empty() ? "stdout" : *output)
-                    << " failed\n";
+        if (file) {
+          if (const absl::Status written = file->Commit(); !written.ok()) {
+            std::cerr << "error: results export: " << written.message() << "\n";
+            return 1;
+          }
+        } else if (!out.flush()) {
+          std::cerr << "error: results export: writing stdout failed\n";
           return 1;
         }
         if (!output->empty()) {

@@ -4,6 +4,7 @@
 #ifndef TOTALGRAD_CLIENT_SERVICE_COMMANDS_FORMAT_H_
 #define TOTALGRAD_CLIENT_SERVICE_COMMANDS_FORMAT_H_
 
+#include <cstdint>
 #include <ostream>
 #include <string>
 #include <vector>
@@ -46,6 +47,42 @@ void PrintRecords(const record::FieldTable<R>& table, const std::vector<R>& reco
   for (const R& r : records) array.push_back(io::RecordToJson(table, r));
   out << array.dump(2) << "\n";
 }
+
+// PrintRecords for records that arrive page by page: the same text, written
+// as they come (Add), completed by Finish.
+template <typename R>
+class RecordPrinter {
+ public:
+  RecordPrinter(const record::FieldTable<R>& table, Format format, std::ostream& out)
+      : table_(table), format_(format), out_(out) {}
+  void Add(const R& r) {
+    if (format_ == Format::kCsv) {
+      if (count_++ == 0) out_ << io::CsvLine(io::RecordCsvColumns(table_)) << "\n";
+      out_ << io::CsvLine(io::RecordCsvCells(table_, r)) << "\n";
+      return;
+    }
+    // An element of PrintRecords' array.dump(2): its own dump(2), indented
+    // (a JSON text has line breaks only between its tokens).
+    out_ << (count_++ == 0 ? "[\n  " : ",\n  ");
+    for (const char c : io::RecordToJson(table_, r).dump(2)) {
+      out_ << c;
+      if (c == '\n') out_ << "  ";
+    }
+  }
+  void Finish() {
+    if (format_ == Format::kCsv) {
+      if (count_ == 0) out_ << io::CsvLine(io::RecordCsvColumns(table_)) << "\n";
+      return;
+    }
+    out_ << (count_ == 0 ? "[]\n" : "\n]\n");
+  }
+
+ private:
+  const record::FieldTable<R>& table_;
+  Format format_;
+  std::ostream& out_;
+  int64_t count_ = 0;
+};
 
 // A CSV field, quoted when it holds a comma, quote or line break.
 std::string CsvField(const std::string& text);

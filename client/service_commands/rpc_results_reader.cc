@@ -4,6 +4,7 @@
 
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
+#include "client/service_commands/streamed_reads.h"
 
 namespace totalgrad::cli {
 namespace {
@@ -19,29 +20,22 @@ absl::StatusOr<std::vector<results::CompletedTrial>> RpcResultsReader::Completed
     const std::string& sweep) {
   // Results first, so every job they name is already completed when the
   // jobs are listed.
-  v1::SweepRequest request;
-  request.set_name(sweep);
   v1::ListTrialResultsResponse completed;
-  grpc::Status status =
-      connection_->Call(&v1::ControlService::Stub::ListTrialResults, request, &completed);
+  grpc::Status status = FetchTrialResults(connection_, sweep, &completed);
   if (!status.ok()) return ToAbsl(status);
   last_sweep_ = completed.sweep();
   std::map<int64_t, record::TextPairs> options_of;
   v1::ListJobsRequest jobs_request;
   jobs_request.set_sweep_name(sweep);
   jobs_request.add_states(v1::JOB_STATE_COMPLETED);
-  jobs_request.set_page_size(1000);
-  while (true) {
-    v1::ListJobsResponse jobs;
-    status = connection_->Call(&v1::ControlService::Stub::ListJobs, jobs_request, &jobs);
-    if (!status.ok()) return ToAbsl(status);
+  status = ForEachJobPage(connection_, jobs_request, [&](const v1::ListJobsResponse& jobs) {
     for (const v1::JobInfo& job : jobs.jobs()) {
       record::TextPairs& options = options_of[job.job_id()];
       for (const auto& option : job.options()) options.emplace_back(option.key(), option.value());
     }
-    if (jobs.next_after_job_id() == 0) break;
-    jobs_request.set_after_job_id(jobs.next_after_job_id());
-  }
+    return grpc::Status::OK;
+  });
+  if (!status.ok()) return ToAbsl(status);
   std::vector<results::CompletedTrial> trials;
   trials.reserve(completed.results_size());
   for (const v1::TrialResult& result : completed.results()) {

@@ -11,6 +11,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
 #include "client/service_commands/connection.h"
+#include "client/service_commands/streamed_reads.h"
 #include "client/service_commands/format.h"
 #include "server/service/convert.h"
 #include "server/storage/service_records.h"
@@ -182,7 +183,6 @@ void AddJobCommands(CLI::App* app, int* exit_code) {
   CLI::App* list = AddCommand(job_cmd, "list", "list jobs", exit_code, [sweep_name, states](Connection* c) {
     v1::ListJobsRequest request;
     request.set_sweep_name(*sweep_name);
-    request.set_page_size(1000);
     if (!states->empty()) {
       for (absl::string_view state : absl::StrSplit(*states, ',')) {
         const std::map<std::string, v1::JobState> names = {
@@ -198,34 +198,37 @@ void AddJobCommands(CLI::App* app, int* exit_code) {
         request.add_states(it->second);
       }
     }
-    std::vector<storage::JobRecord> jobs;
-    while (true) {
-      v1::ListJobsResponse response;
-      const grpc::Status status = c->Call(&v1::ControlService::Stub::ListJobs, request, &response);
-      if (!status.ok()) return ReportError(status, "job list");
-      for (const auto& j : response.jobs()) jobs.push_back(service::FromProto(j));
-      if (response.next_after_job_id() == 0) break;
-      request.set_after_job_id(response.next_after_job_id());
-    }
-    // -f json|csv: the job's table (storage::JobFields()); the text table
-    // is a view of some of its fields.
-    if (c->format() != Format::kTable) {
-      PrintRecords(storage::JobFields(), jobs, c->format(), std::cout);
-      return 0;
-    }
+    // -f json|csv: the job's table (storage::JobFields()), written page by
+    // page as the pages arrive; the text table is a view of some of its
+    // fields (its widths need every row first).
+    RecordPrinter<storage::JobRecord> printer(storage::JobFields(), c->format(), std::cout);
     Listing listing;
     listing.columns = {"job",     "sweep",    "method", "seed",     "variant", "state",
                        "attempts", "failures", "lost",  "episodes", "worker",  "final_cost",
                        "success", "last_error"};
-    for (const storage::JobRecord& j : jobs) {
-      const bool done = j.state == storage::JobState::kCompleted;
-      listing.rows.push_back(
-          {std::to_string(j.id), j.sweep_name, j.method, j.seed, j.variant,
-           std::string(storage::ToString(j.state)), std::to_string(j.attempts),
-           std::to_string(j.failures), std::to_string(j.lost_leases),
-           absl::StrCat(j.episodes_stored, "/", j.episodes_expected), j.worker_id,
-           done ? FormatFixed(j.final_eval_cost, 3) : "", done ? (j.success ? "yes" : "no") : "",
-           j.last_error.substr(0, 60)});
+    const grpc::Status status =
+        ForEachJobPage(c, request, [&](const v1::ListJobsResponse& page) {
+          for (const v1::JobInfo& info : page.jobs()) {
+            const storage::JobRecord j = service::FromProto(info);
+            if (c->format() != Format::kTable) {
+              printer.Add(j);
+              continue;
+            }
+            const bool done = j.state == storage::JobState::kCompleted;
+            listing.rows.push_back(
+                {std::to_string(j.id), j.sweep_name, j.method, j.seed, j.variant,
+                 std::string(storage::ToString(j.state)), std::to_string(j.attempts),
+                 std::to_string(j.failures), std::to_string(j.lost_leases),
+                 absl::StrCat(j.episodes_stored, "/", j.episodes_expected), j.worker_id,
+                 done ? FormatFixed(j.final_eval_cost, 3) : "",
+                 done ? (j.success ? "yes" : "no") : "", j.last_error.substr(0, 60)});
+          }
+          return grpc::Status::OK;
+        });
+    if (!status.ok()) return ReportError(status, "job list");
+    if (c->format() != Format::kTable) {
+      printer.Finish();
+      return 0;
     }
     Print(listing, c->format(), std::cout);
     return 0;

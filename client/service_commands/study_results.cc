@@ -12,6 +12,7 @@
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
 #include "client/service_commands/connection.h"
+#include "client/service_commands/streamed_reads.h"
 #include "client/service_commands/format.h"
 #include "core/study/study.h"
 #include "io/record_format.h"
@@ -115,12 +116,8 @@ Listing ReferenceTable(const v1::ListStudyRowsResponse& response) {
 
 int PrintStudyResults(Connection* connection, const std::string& sweep_name, Format format,
                       bool references, bool all_attempts, std::ostream& out) {
-  v1::ListStudyRowsRequest request;
-  request.set_sweep_name(sweep_name);
-  request.set_all_attempts(all_attempts);
   v1::ListStudyRowsResponse response;
-  const grpc::Status status =
-      connection->Call(&v1::ControlService::Stub::ListStudyRows, request, &response);
+  const grpc::Status status = FetchStudyRows(connection, sweep_name, all_attempts, &response);
   if (!status.ok()) return ReportError(status, "results study " + sweep_name);
   if (format != Format::kTable) {
     if (references) {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 
+#include "server/service/message_budget.h"
 #include "server/service/sweep_archive.h"
 
 #include <filesystem>
@@ -12,6 +13,13 @@
 #include "core/learner/trial_options.h"
 
 namespace totalgrad::service {
+
+namespace {
+// A stream whose client stopped reading (cancelled, or its deadline passed).
+grpc::Status ClientWentAway() {
+  return grpc::Status(grpc::StatusCode::CANCELLED, "the client went away during the stream");
+}
+}  // namespace
 
 #define TG_AUTHORIZE(context)                                                \
   do {                                                                       \
@@ -218,9 +226,18 @@ grpc::Status ControlServiceImpl::ListJobs(grpc::ServerContext* context,
   }
   absl::StatusOr<std::vector<storage::JobRecord>> jobs = store_->ListJobs(filter);
   if (!jobs.ok()) return ToGrpcStatus(jobs.status());
-  for (const auto& job : *jobs) ToProto(job, response->add_jobs());
-  if (static_cast<int>(jobs->size()) == filter.limit) {
-    response->set_next_after_job_id(jobs->back().id);
+  // The page ends at page_size jobs or at the byte budget, whichever first.
+  MessageBudget budget;
+  for (size_t i = 0; i < jobs->size(); ++i) {
+    v1::JobInfo* job = response->add_jobs();
+    ToProto((*jobs)[i], job);
+    budget.Add(*job);
+    const bool more = i + 1 < jobs->size() || static_cast<int>(jobs->size()) == filter.limit;
+    if (!more) break;
+    if (budget.Full() || i + 1 == jobs->size()) {
+      response->set_next_after_job_id((*jobs)[i].id);
+      break;
+    }
   }
   return grpc::Status::OK;
 }
@@ -322,19 +339,44 @@ grpc::Status ControlServiceImpl::ListTrialResults(grpc::ServerContext* context,
   return grpc::Status::OK;
 }
 
+grpc::Status ControlServiceImpl::ExportTrialResults(
+    grpc::ServerContext* context, const v1::SweepRequest* request,
+    grpc::ServerWriter<v1::ListTrialResultsResponse>* writer) {
+  TG_AUTHORIZE(context);
+  absl::StatusOr<storage::SweepRecord> sweep = store_->GetSweep(request->name());
+  if (!sweep.ok()) return ToGrpcStatus(sweep.status());
+  absl::StatusOr<std::vector<storage::TrialResultRecord>> results =
+      store_->ListTrialResults(request->name());
+  if (!results.ok()) return ToGrpcStatus(results.status());
+  BatchWriter<v1::ListTrialResultsResponse> batches(writer);
+  ToProto(*sweep, batches.batch()->mutable_sweep());
+  for (const auto& result : *results) {
+    v1::TrialResult* row = batches.batch()->add_results();
+    ToProto(result, row);
+    if (!batches.Added(*row)) return ClientWentAway();
+  }
+  return batches.Finish() ? grpc::Status::OK : ClientWentAway();
+}
+
 grpc::Status ControlServiceImpl::ExportEpisodes(
     grpc::ServerContext* context, const v1::ExportEpisodesRequest* request,
     grpc::ServerWriter<v1::ExportEpisodesResponse>* writer) {
   TG_AUTHORIZE(context);
+  // Batches of at most 500 rows (the store's) and of about the byte budget
+  // (episode details reach 64 KiB a row).
+  BatchWriter<v1::ExportEpisodesResponse> batches(writer);
   const absl::Status status = store_->ExportEpisodes(
       request->sweep_name(), request->all_attempts(), /*batch_size=*/500,
       [&](std::vector<storage::EpisodeRowRecord> rows) -> absl::Status {
-        v1::ExportEpisodesResponse batch;
-        for (const auto& row : rows) ToProto(row, batch.add_rows());
-        if (!writer->Write(batch)) {
-          return absl::CancelledError("the client went away during the export");
+        for (const auto& row : rows) {
+          v1::EpisodeRow* added = batches.batch()->add_rows();
+          ToProto(row, added);
+          if (!batches.Added(*added)) {
+            return absl::CancelledError("the client went away during the export");
+          }
         }
-        return absl::OkStatus();
+        return batches.Finish() ? absl::OkStatus()
+                                : absl::CancelledError("the client went away during the export");
       });
   return ToGrpcStatus(status);
 }
@@ -354,6 +396,32 @@ grpc::Status ControlServiceImpl::ListStudyRows(grpc::ServerContext* context,
   for (const auto& cell : cells) ToProto(cell, response->add_cells());
   for (const auto& reference : references) ToProto(reference, response->add_references());
   return grpc::Status::OK;
+}
+
+grpc::Status ControlServiceImpl::ExportStudyRows(
+    grpc::ServerContext* context, const v1::ListStudyRowsRequest* request,
+    grpc::ServerWriter<v1::ListStudyRowsResponse>* writer) {
+  TG_AUTHORIZE(context);
+  absl::StatusOr<storage::SweepRecord> sweep = store_->GetSweep(request->sweep_name());
+  if (!sweep.ok()) return ToGrpcStatus(sweep.status());
+  std::vector<storage::StudyCellRecord> cells;
+  std::vector<storage::StudyReferenceRecord> references;
+  const absl::Status status =
+      store_->ListStudyRows(request->sweep_name(), request->all_attempts(), &cells, &references);
+  if (!status.ok()) return ToGrpcStatus(status);
+  BatchWriter<v1::ListStudyRowsResponse> batches(writer);
+  ToProto(*sweep, batches.batch()->mutable_sweep());
+  for (const auto& cell : cells) {
+    v1::StudyCellRow* row = batches.batch()->add_cells();
+    ToProto(cell, row);
+    if (!batches.Added(*row)) return ClientWentAway();
+  }
+  for (const auto& reference : references) {
+    v1::StudyReferenceRow* row = batches.batch()->add_references();
+    ToProto(reference, row);
+    if (!batches.Added(*row)) return ClientWentAway();
+  }
+  return batches.Finish() ? grpc::Status::OK : ClientWentAway();
 }
 
 grpc::Status ControlServiceImpl::ListWorkers(grpc::ServerContext* context,

@@ -76,6 +76,11 @@ class ControlServiceImpl final : public v1::ControlService::Service {
                               grpc::ServerWriter<v1::ExportEpisodesResponse>* writer) override;
   grpc::Status ListStudyRows(grpc::ServerContext* context, const v1::ListStudyRowsRequest* request,
                              v1::ListStudyRowsResponse* response) override;
+  grpc::Status ExportStudyRows(grpc::ServerContext* context,
+                               const v1::ListStudyRowsRequest* request,
+                               grpc::ServerWriter<v1::ListStudyRowsResponse>* writer) override;
+  grpc::Status ExportTrialResults(grpc::ServerContext* context, const v1::SweepRequest* request,
+                                  grpc::ServerWriter<v1::ListTrialResultsResponse>* writer) override;
   grpc::Status ListWorkers(grpc::ServerContext* context, const v1::ListWorkersRequest* request,
                            v1::ListWorkersResponse* response) override;
   grpc::Status DrainWorker(grpc::ServerContext* context, const v1::DrainWorkerRequest* request,

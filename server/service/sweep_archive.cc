@@ -398,9 +398,9 @@ absl::StatusOr<ParsedSweepArchive> ParseVersion1Or2(const nlohmann::json& doc, i
 
 }  // namespace
 
-nlohmann::ordered_json SweepArchiveToJson(const v1::SweepInfo& sweep,
-                                          const std::vector<ArchiveJobInput>& jobs,
-                                          const std::string& exported_by, int64_t exported_ms) {
+nlohmann::ordered_json SweepArchiveOpeningJson(const v1::SweepInfo& sweep,
+                                               const std::string& exported_by,
+                                               int64_t exported_ms) {
   nlohmann::ordered_json doc;
   doc["format"] = kSweepArchiveFormat;
   doc["version"] = kSweepArchiveVersion;
@@ -410,49 +410,57 @@ nlohmann::ordered_json SweepArchiveToJson(const v1::SweepInfo& sweep,
   // by name (convert.cc) and written through their tables
   // (server/storage/service_records.h): no field is named here.
   doc["sweep"] = io::RecordToJson(storage::SweepFields(), FromProto(sweep));
-  nlohmann::ordered_json job_array = nlohmann::ordered_json::array();
-  for (const ArchiveJobInput& input : jobs) {
-    const storage::JobRecord record = FromProto(input.job);
-    nlohmann::ordered_json job = io::RecordToJson(storage::JobFields(), record);
-    int completed_attempt = 0;
-    nlohmann::ordered_json attempts = nlohmann::ordered_json::array();
-    for (const v1::AttemptInfo& attempt : input.attempts) {
-      if (attempt.state() == v1::ATTEMPT_STATE_COMPLETED) completed_attempt = attempt.attempt();
-      nlohmann::ordered_json entry =
-          io::RecordToJson(storage::ImportedAttemptFields(), FromProto(attempt));
-      nlohmann::ordered_json episodes = nlohmann::ordered_json::array();
-      for (const v1::EpisodeRow& row : input.episodes) {
-        if (row.attempt() == attempt.attempt()) episodes.push_back(EpisodeJson(row));
-      }
-      // Study rows: the records' JSON (io/record_format.h, the objects of a
-      // study's results.json) after the row's index.
-      nlohmann::ordered_json cells = nlohmann::ordered_json::array();
-      for (const v1::StudyCellRow& cell : input.cells) {
-        if (cell.attempt() == attempt.attempt()) cells.push_back(RowJson(study::CellFields(), cell));
-      }
-      nlohmann::ordered_json references = nlohmann::ordered_json::array();
-      for (const v1::StudyReferenceRow& reference : input.references) {
-        if (reference.attempt() == attempt.attempt()) {
-          references.push_back(RowJson(study::ReferenceFields(), reference));
-        }
-      }
-      entry["episodes"] = std::move(episodes);
-      entry["study_cells"] = std::move(cells);
-      entry["study_references"] = std::move(references);
-      if (const auto checkpoint = input.checkpoints.find(attempt.attempt());
-          checkpoint != input.checkpoints.end()) {
-        entry["checkpoint"] = {{"episode", checkpoint->second.episode()},
-                               {"format_version", checkpoint->second.format_version()},
-                               {"data_base64", absl::Base64Escape(checkpoint->second.data())}};
-      }
-      attempts.push_back(std::move(entry));
+  return doc;
+}
+
+nlohmann::ordered_json ArchiveJobJson(const ArchiveJobInput& input) {
+  const storage::JobRecord record = FromProto(input.job);
+  nlohmann::ordered_json job = io::RecordToJson(storage::JobFields(), record);
+  int completed_attempt = 0;
+  nlohmann::ordered_json attempts = nlohmann::ordered_json::array();
+  for (const v1::AttemptInfo& attempt : input.attempts) {
+    if (attempt.state() == v1::ATTEMPT_STATE_COMPLETED) completed_attempt = attempt.attempt();
+    nlohmann::ordered_json entry =
+        io::RecordToJson(storage::ImportedAttemptFields(), FromProto(attempt));
+    nlohmann::ordered_json episodes = nlohmann::ordered_json::array();
+    for (const v1::EpisodeRow& row : input.episodes) {
+      if (row.attempt() == attempt.attempt()) episodes.push_back(EpisodeJson(row));
     }
-    // What the job's table leaves out (service_records.h) and the archive needs.
-    job["completed_attempt"] =
-        input.job.state() == v1::JOB_STATE_COMPLETED ? completed_attempt : 0;
-    job["attempt_log"] = std::move(attempts);
-    job_array.push_back(std::move(job));
+    // Study rows: the records' JSON (io/record_format.h, the objects of a
+    // study's results.json) after the row's index.
+    nlohmann::ordered_json cells = nlohmann::ordered_json::array();
+    for (const v1::StudyCellRow& cell : input.cells) {
+      if (cell.attempt() == attempt.attempt()) cells.push_back(RowJson(study::CellFields(), cell));
+    }
+    nlohmann::ordered_json references = nlohmann::ordered_json::array();
+    for (const v1::StudyReferenceRow& reference : input.references) {
+      if (reference.attempt() == attempt.attempt()) {
+        references.push_back(RowJson(study::ReferenceFields(), reference));
+      }
+    }
+    entry["episodes"] = std::move(episodes);
+    entry["study_cells"] = std::move(cells);
+    entry["study_references"] = std::move(references);
+    if (const auto checkpoint = input.checkpoints.find(attempt.attempt());
+        checkpoint != input.checkpoints.end()) {
+      entry["checkpoint"] = {{"episode", checkpoint->second.episode()},
+                             {"format_version", checkpoint->second.format_version()},
+                             {"data_base64", absl::Base64Escape(checkpoint->second.data())}};
+    }
+    attempts.push_back(std::move(entry));
   }
+  // What the job's table leaves out (service_records.h) and the archive needs.
+  job["completed_attempt"] = input.job.state() == v1::JOB_STATE_COMPLETED ? completed_attempt : 0;
+  job["attempt_log"] = std::move(attempts);
+  return job;
+}
+
+nlohmann::ordered_json SweepArchiveToJson(const v1::SweepInfo& sweep,
+                                          const std::vector<ArchiveJobInput>& jobs,
+                                          const std::string& exported_by, int64_t exported_ms) {
+  nlohmann::ordered_json doc = SweepArchiveOpeningJson(sweep, exported_by, exported_ms);
+  nlohmann::ordered_json job_array = nlohmann::ordered_json::array();
+  for (const ArchiveJobInput& input : jobs) job_array.push_back(ArchiveJobJson(input));
   doc["jobs"] = std::move(job_array);
   return doc;
 }

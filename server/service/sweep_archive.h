@@ -81,6 +81,19 @@ struct ArchiveJobInput {
   std::map<int, v1::TrialCheckpoint> checkpoints;
 };
 
+// The archive's members before "jobs": format, version, exported_by,
+// exported_unix_ms and the sweep's record.
+nlohmann::ordered_json SweepArchiveOpeningJson(const v1::SweepInfo& sweep,
+                                               const std::string& exported_by,
+                                               int64_t exported_ms);
+
+// One element of the archive's "jobs": the job's record, its completed
+// attempt and its attempt log with each attempt's episodes, study rows and
+// kept checkpoint. Rows of an attempt not in job.attempts are left out.
+nlohmann::ordered_json ArchiveJobJson(const ArchiveJobInput& job);
+
+// The whole document in memory (tests; the CLI writes an archive job by job
+// with SweepArchiveWriter, sweep_archive_writer.h).
 nlohmann::ordered_json SweepArchiveToJson(const v1::SweepInfo& sweep,
                                           const std::vector<ArchiveJobInput>& jobs,
                                           const std::string& exported_by, int64_t exported_ms);

@@ -1,0 +1,137 @@
+#include "client/service_commands/streamed_reads.h"
+
+#include <utility>
+
+#include "server/common/rpc_client.h"
+
+namespace totalgrad::cli {
+namespace {
+
+// Jobs asked for per page; the coordinator ends a page earlier at about
+// 1 MiB (server/service/message_budget.h).
+constexpr int kJobsPerPage = 1000;
+// A listing's stream: the whole sweep's rows, read as fast as they come.
+constexpr absl::Duration kListingStreamTimeout = absl::Minutes(30);
+
+// Reads a server stream of batches into *whole: `merge` moves one batch in.
+// A coordinator without the stream (UNIMPLEMENTED, before issue 28) is asked
+// with `fallback` (its unary call) instead.
+template <typename Request, typename Response, typename Merge, typename Fallback>
+grpc::Status ReadBatches(
+    Connection* connection,
+    std::unique_ptr<grpc::ClientReader<Response>> (v1::ControlService::Stub::*stream)(
+        grpc::ClientContext*, const Request&),
+    const Request& request, Response* whole, Merge merge, Fallback fallback) {
+  grpc::ClientContext context;
+  rpc::PrepareContext(&context, connection->token(), kListingStreamTimeout,
+                      /*wait_for_ready=*/false);
+  auto reader = (connection->control()->*stream)(&context, request);
+  Response batch;
+  bool first = true;
+  while (reader->Read(&batch)) {
+    merge(first, &batch, whole);
+    first = false;
+  }
+  grpc::Status status = reader->Finish();
+  if (status.error_code() == grpc::StatusCode::UNIMPLEMENTED) {
+    whole->Clear();
+    return fallback();
+  }
+  return status;
+}
+
+}  // namespace
+
+grpc::Status ForEachJobPage(Connection* connection, v1::ListJobsRequest request,
+                            const std::function<grpc::Status(const v1::ListJobsResponse&)>& page) {
+  request.set_page_size(kJobsPerPage);
+  request.set_after_job_id(0);
+  while (true) {
+    v1::ListJobsResponse response;
+    grpc::Status status = connection->Call(&v1::ControlService::Stub::ListJobs, request, &response);
+    if (!status.ok()) return status;
+    status = page(response);
+    if (!status.ok()) return status;
+    if (response.next_after_job_id() == 0) return grpc::Status::OK;
+    request.set_after_job_id(response.next_after_job_id());
+  }
+}
+
+grpc::Status ForEachEpisodeRow(Connection* connection, const std::string& sweep,
+                               bool all_attempts,
+                               const std::function<void(const v1::EpisodeRow&)>& sink) {
+  EpisodeRowCursor rows(connection, sweep, all_attempts, kListingStreamTimeout);
+  for (const v1::EpisodeRow* row = rows.Peek(); row != nullptr; row = rows.Peek()) {
+    sink(*row);
+    rows.Pop();
+  }
+  return rows.Finish();
+}
+
+EpisodeRowCursor::EpisodeRowCursor(Connection* connection, const std::string& sweep,
+                                   bool all_attempts, absl::Duration timeout) {
+  v1::ExportEpisodesRequest request;
+  request.set_sweep_name(sweep);
+  request.set_all_attempts(all_attempts);
+  rpc::PrepareContext(&context_, connection->token(), timeout, /*wait_for_ready=*/false);
+  reader_ = connection->control()->ExportEpisodes(&context_, request);
+}
+
+EpisodeRowCursor::~EpisodeRowCursor() {
+  if (finished_) return;
+  context_.TryCancel();
+  Finish();
+}
+
+const v1::EpisodeRow* EpisodeRowCursor::Peek() {
+  while (next_ >= batch_.rows_size()) {
+    if (ended_ || !reader_->Read(&batch_)) {
+      ended_ = true;
+      return nullptr;
+    }
+    next_ = 0;
+  }
+  return &batch_.rows(next_);
+}
+
+grpc::Status EpisodeRowCursor::Finish() {
+  finished_ = true;
+  while (!ended_ && reader_->Read(&batch_)) {
+  }
+  ended_ = true;
+  return reader_->Finish();
+}
+
+grpc::Status FetchTrialResults(Connection* connection, const std::string& sweep,
+                               v1::ListTrialResultsResponse* response) {
+  v1::SweepRequest request;
+  request.set_name(sweep);
+  return ReadBatches(
+      connection, &v1::ControlService::Stub::ExportTrialResults, request, response,
+      [](bool first, v1::ListTrialResultsResponse* batch, v1::ListTrialResultsResponse* whole) {
+        if (first) *whole->mutable_sweep() = batch->sweep();
+        for (auto& row : *batch->mutable_results()) *whole->add_results() = std::move(row);
+      },
+      [&] {
+        return connection->Call(&v1::ControlService::Stub::ListTrialResults, request, response);
+      });
+}
+
+grpc::Status FetchStudyRows(Connection* connection, const std::string& sweep, bool all_attempts,
+                            v1::ListStudyRowsResponse* response) {
+  v1::ListStudyRowsRequest request;
+  request.set_sweep_name(sweep);
+  request.set_all_attempts(all_attempts);
+  return ReadBatches(
+      connection, &v1::ControlService::Stub::ExportStudyRows, request, response,
+      [](bool first, v1::ListStudyRowsResponse* batch, v1::ListStudyRowsResponse* whole) {
+        if (first) *whole->mutable_sweep() = batch->sweep();
+        for (auto& row : *batch->mutable_cells()) *whole->add_cells() = std::move(row);
+        for (auto& row : *batch->mutable_references()) *whole->add_references() = std::move(row);
+      },
+      [&] {
+        return connection->Call(&v1::ControlService::Stub::ListStudyRows, request, response);
+      });
+}
+
+}  // namespace totalgrad::cli
