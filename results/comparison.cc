@@ -16,7 +16,7 @@ void AddOnce(std::vector<std::string>* list, const std::string& value) {
 }
 
 // The outcome of one trial, by seed, for one (method, variant).
-using BySeed = std::map<std::string, const ComparedTrial*>;
+using BySeed = std::map<std::string, const CompletedTrial*>;
 
 Comparison Compare(const std::string& variant, const std::string& method,
                    const std::string& other, const BySeed& first, const BySeed& second,
@@ -35,7 +35,7 @@ Comparison Compare(const std::string& variant, const std::string& method,
     else if (a) ++c.method_only;
     else if (b) ++c.other_only;
     else ++c.neither;
-    const double difference = trial->final_cost - partner->second->final_cost;
+    const double difference = trial->final_eval_cost - partner->second->final_eval_cost;
     if (!std::isnan(difference)) cost_differences.push_back(difference);
   }
   c.success_difference =
@@ -74,7 +74,7 @@ Comparison Compare(const std::string& variant, const std::string& method,
 
 }  // namespace
 
-absl::StatusOr<ComparisonReport> CompareMethods(const std::vector<ComparedTrial>& trials,
+absl::StatusOr<ComparisonReport> CompareMethods(const std::vector<CompletedTrial>& trials,
                                                 const ComparisonOptions& options) {
   if (!(options.alpha > 0 && options.alpha < 1)) {
     return absl::InvalidArgumentError(
@@ -82,7 +82,7 @@ absl::StatusOr<ComparisonReport> CompareMethods(const std::vector<ComparedTrial>
   }
   ComparisonReport report;
   std::map<std::pair<std::string, std::string>, BySeed> groups;  // (variant, method) -> seeds
-  for (const ComparedTrial& trial : trials) {
+  for (const CompletedTrial& trial : trials) {
     AddOnce(&report.methods, trial.method);
     AddOnce(&report.variants, trial.variant);
     BySeed& seeds = groups[{trial.variant, trial.method}];

@@ -13,18 +13,10 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
+#include "results/completed_trial.h"
 #include "results/hypothesis_tests.h"
 
 namespace totalgrad::results {
-
-// One completed trial (the job's counting attempt).
-struct ComparedTrial {
-  std::string method;
-  std::string seed;
-  std::string variant;
-  bool success = false;
-  double final_cost = 0;  // NaN: no cost (left out of the cost test)
-};
 
 struct ComparisonOptions {
   // Compare every other method with this one; empty: every pair of methods.
@@ -86,7 +78,7 @@ struct ComparisonReport {
 // Compares the methods. InvalidArgument when the baseline is not among the
 // methods (naming those that are), or alpha is not in (0, 1). A variant with
 // a single method yields no comparison.
-absl::StatusOr<ComparisonReport> CompareMethods(const std::vector<ComparedTrial>& trials,
+absl::StatusOr<ComparisonReport> CompareMethods(const std::vector<CompletedTrial>& trials,
                                                 const ComparisonOptions& options);
 
 }  // namespace totalgrad::results

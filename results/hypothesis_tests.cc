@@ -81,9 +81,8 @@ HypergeometricPValues FisherPValuesForMargins(int r1, int r2, int c1) {
   return out;
 }
 
-// Counts of sign assignments (scaled by 2^-n: probabilities) of the sum of
-// doubled ranks: entry s is P(2 * W+ = s) under the null hypothesis. The
-// scaled values are k / 2^n with k < 2^n <= 2^50, so every addition is exact.
+}  // namespace
+
 std::vector<double> SignedRankNullDistribution(const std::vector<int>& doubled_ranks) {
   const int total = std::accumulate(doubled_ranks.begin(), doubled_ranks.end(), 0);
   std::vector<double> distribution(total + 1, 0.0);
@@ -99,8 +98,6 @@ std::vector<double> SignedRankNullDistribution(const std::vector<int>& doubled_r
   }
   return distribution;
 }
-
-}  // namespace
 
 double LogChoose(int n, int k) {
   if (k < 0 || k > n || n < 0) return -std::numeric_limits<double>::infinity();

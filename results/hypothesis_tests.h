@@ -98,6 +98,12 @@ struct WilcoxonResult {
 inline constexpr int kWilcoxonExactMaxN = 50;
 WilcoxonResult WilcoxonSignedRank(const std::vector<double>& differences);
 
+// The exact null distribution of the signed-rank statistic for the given
+// ranks held doubled (so midranks are integers): entry s is P(2 W+ = s) when
+// each rank enters W+ with probability 1/2. The values are k / 2^n with
+// 2^n <= 2^50, so every addition is exact.
+std::vector<double> SignedRankNullDistribution(const std::vector<int>& doubled_ranks);
+
 // Power of the two-sided signed-rank test at level alpha for n pairs when
 // P(D + D' > 0) = p_prime for two independent differences (Noether 1987,
 // JASA 82:645: Phi(sqrt(3n) |p_prime - 1/2| - z_{1-alpha/2})). A

@@ -44,16 +44,16 @@ class Order {
 
 }  // namespace
 
-std::vector<TableCell> SuccessTable(const std::vector<TrialRow>& rows) {
+std::vector<TableCell> SuccessTable(const std::vector<CompletedTrial>& rows) {
   Order methods, variants;
   std::map<std::pair<int, int>, std::pair<TableCell, std::vector<double>>> cells;
-  for (const TrialRow& row : rows) {
+  for (const CompletedTrial& row : rows) {
     auto& [cell, costs] = cells[{methods.Of(row.method), variants.Of(row.variant)}];
     cell.method = row.method;
     cell.variant = row.variant;
     ++cell.trials;
     if (row.success) ++cell.successes;
-    costs.push_back(row.final_eval_cost);
+    if (!std::isnan(row.final_eval_cost)) costs.push_back(row.final_eval_cost);
     if (!std::isnan(row.held_fraction)) {
       ++cell.classified;
       if (row.held_fraction >= 0.5) ++cell.held;

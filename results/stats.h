@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "core/common/record.h"
+#include "results/completed_trial.h"
 
 namespace totalgrad::results {
 
@@ -22,15 +23,6 @@ std::pair<double, double> WilsonInterval(int successes, int trials, double z = 1
 // statistics (Hyndman & Fan type 7, as R and NumPy default). NaN if empty.
 double Quantile(std::vector<double> values, double q);
 
-struct TrialRow {
-  std::string method;
-  std::string variant;
-  bool success = false;
-  double final_eval_cost = 0;
-  // The rollout verdict's fraction held (NaN: the trial classified none).
-  double held_fraction = std::numeric_limits<double>::quiet_NaN();
-};
-
 struct TableCell {
   std::string method;
   std::string variant;
@@ -39,7 +31,7 @@ struct TableCell {
   double rate = 0;
   double low = 0;   // Wilson 95%
   double high = 0;
-  double median_final_cost = 0;
+  double median_final_cost = 0;  // over the trials with a cost; NaN when none has one
   // The rollout verdict over the trials that have one (`classified` of
   // `trials`): trials whose final policy held in at least half of its
   // rollouts, their rate and its 95% Wilson interval (NaN rate when none).
@@ -52,7 +44,7 @@ struct TableCell {
 
 // One cell per (method, variant), methods in first-appearance order, then
 // variants in first-appearance order.
-std::vector<TableCell> SuccessTable(const std::vector<TrialRow>& rows);
+std::vector<TableCell> SuccessTable(const std::vector<CompletedTrial>& trials);
 
 // A TableCell's fields under the one name each statistic has wherever it is
 // shown (`results table -f csv|json`, the dashboard's /api/sweep): method,

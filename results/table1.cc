@@ -38,7 +38,7 @@ struct Placement {
   std::string reason;  // when !cell: "of method DEL (not a Table 1 method)"
 };
 
-Placement Place(const Table1Trial& trial) {
+Placement Place(const CompletedTrial& trial) {
   const std::vector<std::string>& methods = Table1Methods();
   const auto method = std::find(methods.begin(), methods.end(), trial.method);
   if (method == methods.end()) {
@@ -155,11 +155,12 @@ const record::FieldTable<Table1Cell>& Table1CellFields() {
   return table;
 }
 
-absl::StatusOr<Table1> ComputeTable1(const std::vector<Table1Trial>& trials) {
+absl::StatusOr<Table1> ComputeTable1(const std::vector<CompletedTrial>& trials) {
   const std::vector<Table1Row>& rows = Table1Rows();
   const std::vector<std::string>& methods = Table1Methods();
   Table1 table;
   table.cells.resize(rows.size() * methods.size());
+  table.cell_trials.resize(table.cells.size());
   for (size_t r = 0; r < rows.size(); ++r) {
     for (size_t m = 0; m < methods.size(); ++m) {
       Table1Cell& cell = table.cells[r * methods.size() + m];
@@ -170,10 +171,10 @@ absl::StatusOr<Table1> ComputeTable1(const std::vector<Table1Trial>& trials) {
     }
   }
 
-  std::vector<std::vector<const Table1Trial*>> members(table.cells.size());
-  std::map<std::pair<size_t, std::string>, const Table1Trial*> by_seed;  // (cell, seed)
+  std::vector<std::vector<const CompletedTrial*>> members(table.cells.size());
+  std::map<std::pair<size_t, std::string>, const CompletedTrial*> by_seed;  // (cell, seed)
   std::vector<std::pair<std::string, int>> outside;  // reason, trials
-  for (const Table1Trial& trial : trials) {
+  for (const CompletedTrial& trial : trials) {
     const Placement placement = Place(trial);
     if (!placement.cell) {
       auto reason = std::find_if(outside.begin(), outside.end(),
@@ -189,7 +190,7 @@ absl::StatusOr<Table1> ComputeTable1(const std::vector<Table1Trial>& trials) {
     const size_t index = *placement.cell;
     const auto [seen, inserted] = by_seed.emplace(std::pair{index, trial.seed}, &trial);
     if (!inserted) {
-      const Table1Trial& first = *seen->second;
+      const CompletedTrial& first = *seen->second;
       const std::string what = absl::StrCat("seed ", trial.seed, " of ", trial.method, " in (",
                                             rows[index / methods.size()].Label(), ")");
       if (first.sweep != trial.sweep) {
@@ -212,11 +213,13 @@ absl::StatusOr<Table1> ComputeTable1(const std::vector<Table1Trial>& trials) {
   for (size_t index = 0; index < table.cells.size(); ++index) {
     if (members[index].empty()) continue;
     Table1Cell& cell = table.cells[index];
-    std::vector<TrialRow> cell_rows;
+    std::vector<CompletedTrial> cell_rows;
     std::vector<std::string> differences;
-    for (const Table1Trial* trial : members[index]) {
-      cell_rows.push_back({trial->method, /*variant=*/"", trial->success,
-                           /*final_eval_cost=*/kNaN, trial->held_fraction});
+    for (const CompletedTrial* trial : members[index]) {
+      CompletedTrial row = *trial;
+      row.variant = "";  // one cell: the grid's place, whatever the sweep called it
+      cell_rows.push_back(std::move(row));
+      table.cell_trials[index].push_back(*trial);
       AddOnce(&cell.sweeps, trial->sweep);
       const std::vector<std::string> off = ProtocolDifferences(trial->options);
       if (!off.empty()) ++cell.off_protocol_trials;

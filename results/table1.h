@@ -25,6 +25,7 @@
 
 #include "absl/status/statusor.h"
 #include "core/common/record.h"
+#include "results/completed_trial.h"
 
 namespace totalgrad::results {
 
@@ -58,19 +59,6 @@ const record::TextPairs& PaperProtocol();
 // the options lack the key. Numbers are compared as numbers ("15" equals
 // "15.0"), the scene as text. Empty: the trial ran the paper's protocol.
 std::vector<std::string> ProtocolDifferences(const record::TextPairs& options);
-
-// One completed trial: the counting attempt's verdict and its job's options.
-struct Table1Trial {
-  std::string sweep;
-  int64_t job_id = 0;
-  std::string method;
-  std::string seed;
-  std::string variant;  // the job's variant, for messages only
-  bool success = false;
-  // The rollout verdict's fraction held; NaN: the trial classified none.
-  double held_fraction = std::numeric_limits<double>::quiet_NaN();
-  record::TextPairs options;
-};
 
 // One cell of the grid. With no trial, every rate and bound is NaN.
 struct Table1Cell {
@@ -115,6 +103,9 @@ struct Table1 {
   // Every cell of the grid, row-major: cells[r * Table1Methods().size() + m]
   // is row Table1Rows()[r], method Table1Methods()[m].
   std::vector<Table1Cell> cells;
+  // The trials of each cell, indexed as `cells`, in input order (each seed
+  // once: ComputeTable1 refuses a seed twice in a cell).
+  std::vector<std::vector<CompletedTrial>> cell_trials;
   // Trials that have no cell, counted per reason in first-appearance order:
   // "12 trials of method DEL (not a Table 1 method)", "3 trials with cost
   // 'saturating' (Table 1 has angle and tip)", "2 trials with noise_k 0.1
@@ -131,7 +122,7 @@ struct Table1 {
 // of two sweeps ("... seed 11 of PILCO in (tip, k = 1) is in sweep A (job
 // 3) and in sweep B (job 41) ..."), or of one sweep twice (two variants
 // mapping to one cell). Pooling them would count a seed twice.
-absl::StatusOr<Table1> ComputeTable1(const std::vector<Table1Trial>& trials);
+absl::StatusOr<Table1> ComputeTable1(const std::vector<CompletedTrial>& trials);
 
 }  // namespace totalgrad::results
 

@@ -7,11 +7,11 @@
 #include "absl/strings/str_cat.h"
 #include "client/service_commands/connection.h"
 #include "client/service_commands/format.h"
+#include "client/service_commands/rpc_results_reader.h"
 #include "results/comparison.h"
 
 namespace totalgrad::cli {
 
-using results::ComparedTrial;
 using results::Comparison;
 using results::ComparisonOptions;
 using results::ComparisonReport;
@@ -47,17 +47,11 @@ std::string Verdict(double p_holm, double direction, const Comparison& c, double
 
 int PrintComparison(Connection* connection, const std::string& sweep_name,
                     const ComparisonOptions& options, Format format) {
-  v1::SweepRequest request;
-  request.set_name(sweep_name);
-  v1::ListTrialResultsResponse response;
-  const grpc::Status status =
-      connection->Call(&v1::ControlService::Stub::ListTrialResults, request, &response);
-  if (!status.ok()) return ReportError(status, "results compare " + sweep_name);
-  std::vector<ComparedTrial> trials;
-  for (const auto& r : response.results()) {
-    trials.push_back({r.method(), r.seed(), r.variant(), r.success(), r.final_eval_cost()});
-  }
-  absl::StatusOr<ComparisonReport> report = results::CompareMethods(trials, options);
+  RpcResultsReader reader(connection);
+  const absl::StatusOr<std::vector<results::CompletedTrial>> trials =
+      reader.CompletedTrials(sweep_name);
+  if (!trials.ok()) return ReportError(trials.status(), "results compare " + sweep_name);
+  absl::StatusOr<ComparisonReport> report = results::CompareMethods(*trials, options);
   if (!report.ok()) return ReportError(report.status(), "results compare " + sweep_name);
 
   if (format != Format::kTable) {
@@ -95,8 +89,8 @@ int PrintComparison(Connection* connection, const std::string& sweep_name,
     return 0;
   }
 
-  std::cout << "sweep " << sweep_name << ": " << response.sweep().jobs_completed() << " of "
-            << response.sweep().jobs_total() << " jobs completed; "
+  std::cout << "sweep " << sweep_name << ": " << reader.last_sweep().jobs_completed() << " of "
+            << reader.last_sweep().jobs_total() << " jobs completed; "
             << (options.baseline.empty() ? "every pair of methods"
                                          : "every method against " + options.baseline)
             << ", within each task variant, paired by seed.\n"

@@ -21,6 +21,7 @@
 #include "absl/time/time.h"
 #include "client/service_commands/curves_plot.h"
 #include "client/service_commands/local_store.h"
+#include "client/service_commands/rpc_results_reader.h"
 #include "results/stats.h"
 
 namespace totalgrad::cli {
@@ -28,7 +29,6 @@ namespace totalgrad::cli {
 using results::CurvePoint;
 using results::EpisodeValue;
 using results::TableCell;
-using results::TrialRow;
 
 namespace {
 
@@ -292,17 +292,11 @@ int WaitForSweep(Connection* connection, const std::string& sweep_name,
 }
 
 int PrintResultsTable(Connection* connection, const std::string& sweep_name, Format format) {
-  v1::SweepRequest request;
-  request.set_name(sweep_name);
-  v1::ListTrialResultsResponse response;
-  const grpc::Status status =
-      connection->Call(&v1::ControlService::Stub::ListTrialResults, request, &response);
-  if (!status.ok()) return ReportError(status, "results table " + sweep_name);
-  std::vector<TrialRow> rows;
-  for (const auto& r : response.results()) {
-    rows.push_back({r.method(), r.variant(), r.success(), r.final_eval_cost(), r.held_fraction()});
-  }
-  const std::vector<TableCell> cells = results::SuccessTable(rows);
+  RpcResultsReader reader(connection);
+  const absl::StatusOr<std::vector<results::CompletedTrial>> trials =
+      reader.CompletedTrials(sweep_name);
+  if (!trials.ok()) return ReportError(trials.status(), "results table " + sweep_name);
+  const std::vector<TableCell> cells = results::SuccessTable(*trials);
   if (format != Format::kTable) {
     // The cells' record, named as the dashboard's /api/sweep names them.
     PrintRecords(results::TableCellFields(), cells, format, std::cout);
@@ -337,7 +331,7 @@ int PrintResultsTable(Connection* connection, const std::string& sweep_name, For
     listing.rows.push_back(row);
   }
   std::cout << "sweep " << sweep_name << ": success rate [95% Wilson interval] n=trials ("
-            << response.sweep().jobs_completed() << " of " << response.sweep().jobs_total()
+            << reader.last_sweep().jobs_completed() << " of " << reader.last_sweep().jobs_total()
             << " jobs completed); held k/n: trials whose final policy held in at least half "
                "of its verdict rollouts, of those classified\n";
   Print(listing, Format::kTable, std::cout);

@@ -10,12 +10,12 @@
 #include "server/scheduler/scheduler.h"
 #include "server/service/auth.h"
 #include "server/service/control_service.h"
-#include "server/storage/sqlite_store.h"
+#include "server/storage/store.h"
 
 namespace totalgrad::cli {
 
 struct LocalCoordinator::Parts {
-  std::unique_ptr<storage::SqliteStore> store;
+  std::unique_ptr<storage::Store> store;
   scheduler::SystemClock clock;
   std::unique_ptr<scheduler::Scheduler> scheduler;
   std::unique_ptr<service::TokenAuthenticator> auth;
@@ -35,8 +35,7 @@ LocalCoordinator::~LocalCoordinator() {
 absl::StatusOr<std::shared_ptr<LocalCoordinator>> LocalCoordinator::Open(
     const std::string& database) {
   auto parts = std::make_unique<Parts>();
-  absl::StatusOr<std::unique_ptr<storage::SqliteStore>> store =
-      storage::SqliteStore::OpenReadOnly(database);
+  absl::StatusOr<std::unique_ptr<storage::Store>> store = storage::OpenStoreReadOnly(database);
   if (!store.ok()) return store.status();
   parts->store = *std::move(store);
   parts->scheduler = std::make_unique<scheduler::Scheduler>(parts->store.get(), &parts->clock,

@@ -24,6 +24,7 @@ int WriteJobArtifacts(Connection* connection, int64_t job_id,
                       const std::string& dir);  // artifacts.cc
 void AddCompareCommand(CLI::App* results, int* exit_code);  // compare.cc
 void AddTable1Command(CLI::App* results, int* exit_code);   // table1_command.cc
+void AddPowerCommand(CLI::App* results, int* exit_code);    // table1_command.cc
 
 namespace {
 
@@ -387,6 +388,7 @@ void AddResultsCommands(CLI::App* app, int* exit_code) {
   AddArchiveCommands(results, exit_code);  // export, import (archive_commands.cc)
   AddCompareCommand(results, exit_code);
   AddTable1Command(results, exit_code);
+  AddPowerCommand(results, exit_code);
 
   auto study_sweep = std::make_shared<std::string>();
   auto study_references = std::make_shared<bool>(false);

@@ -11,63 +11,14 @@
 #include "absl/strings/str_join.h"
 #include "client/service_commands/connection.h"
 #include "client/service_commands/format.h"
+#include "client/service_commands/rpc_results_reader.h"
 #include "results/table1.h"
+#include "results/table1_claims.h"
 
 namespace totalgrad::cli {
 namespace {
 
 using results::Table1Cell;
-using results::Table1Trial;
-
-// Appends the completed trials of `sweep` to *trials: the counting attempts
-// (ListTrialResults) with the options of their jobs (ListJobs of the
-// completed jobs, page by page), joined on the job id. The results are
-// fetched first, so every job they name is already completed when the jobs
-// are listed.
-grpc::Status FetchTrials(Connection* connection, const std::string& sweep,
-                         std::vector<Table1Trial>* trials) {
-  v1::SweepRequest request;
-  request.set_name(sweep);
-  v1::ListTrialResultsResponse completed;
-  grpc::Status status =
-      connection->Call(&v1::ControlService::Stub::ListTrialResults, request, &completed);
-  if (!status.ok()) return status;
-  std::map<int64_t, record::TextPairs> options_of;
-  v1::ListJobsRequest jobs_request;
-  jobs_request.set_sweep_name(sweep);
-  jobs_request.add_states(v1::JOB_STATE_COMPLETED);
-  jobs_request.set_page_size(1000);
-  while (true) {
-    v1::ListJobsResponse jobs;
-    status = connection->Call(&v1::ControlService::Stub::ListJobs, jobs_request, &jobs);
-    if (!status.ok()) return status;
-    for (const v1::JobInfo& job : jobs.jobs()) {
-      record::TextPairs& options = options_of[job.job_id()];
-      for (const auto& option : job.options()) options.emplace_back(option.key(), option.value());
-    }
-    if (jobs.next_after_job_id() == 0) break;
-    jobs_request.set_after_job_id(jobs.next_after_job_id());
-  }
-  for (const v1::TrialResult& result : completed.results()) {
-    auto options = options_of.find(result.job_id());
-    if (options == options_of.end()) {
-      return grpc::Status(grpc::StatusCode::INTERNAL,
-                          absl::StrCat("job ", result.job_id(), " of sweep ", sweep,
-                                       " has a result but is not listed as completed"));
-    }
-    Table1Trial trial;
-    trial.sweep = sweep;
-    trial.job_id = result.job_id();
-    trial.method = result.method();
-    trial.seed = result.seed();
-    trial.variant = result.variant();
-    trial.success = result.success();
-    trial.held_fraction = result.held_fraction();
-    trial.options = std::move(options->second);
-    trials->push_back(std::move(trial));
-  }
-  return grpc::Status::OK;
-}
 
 std::string Rate(double rate, double low, double high) {
   return absl::StrCat(FormatFixed(rate, 2), " [", FormatFixed(low, 2), ", ", FormatFixed(high, 2),
@@ -140,14 +91,135 @@ void PrintGrid(const results::Table1& table, const std::vector<std::string>& swe
   }
 }
 
-int PrintTable1(Connection* connection, const std::vector<std::string>& sweeps, Format format) {
-  std::vector<Table1Trial> trials;
-  for (const std::string& sweep : sweeps) {
-    const grpc::Status status = FetchTrials(connection, sweep, &trials);
-    if (!status.ok()) return ReportError(status, "results table1 " + sweep);
+// The thresholds as a text table: one line per cell, "successes/trials"
+// at each threshold, then the trials whose verdict differs from the
+// stored one at the lowest and the highest threshold.
+void PrintSensitivity(const std::vector<results::ThresholdRate>& rates,
+                      const std::vector<double>& thresholds, std::ostream& out) {
+  out << "Threshold sensitivity: successes/trials with final evaluation cost below each "
+         "threshold (the trials' own threshold is 15)\n\n";
+  Listing listing;
+  listing.columns = {"task", "method"};
+  for (double threshold : thresholds) listing.columns.push_back(absl::StrCat("< ", threshold));
+  std::vector<std::string> changes;
+  for (size_t start = 0; start + thresholds.size() <= rates.size(); start += thresholds.size()) {
+    const results::ThresholdRate& first = rates[start];
+    std::vector<std::string> row = {
+        results::Table1Row{first.cost, first.noise_k}.Label(), first.method};
+    for (size_t t = 0; t < thresholds.size(); ++t) {
+      const results::ThresholdRate& rate = rates[start + t];
+      row.push_back(absl::StrCat(rate.successes, "/", rate.trials));
+      if (rate.changed > 0) {
+        changes.push_back(absl::StrCat("  ", row[0], ", ", first.method, " at ", rate.threshold,
+                                       ": ", rate.changed_trials));
+      }
+    }
+    listing.rows.push_back(std::move(row));
   }
-  const absl::StatusOr<results::Table1> table = results::ComputeTable1(trials);
+  Print(listing, Format::kTable, out);
+  if (!changes.empty()) out << "\nverdicts that change:\n" << absl::StrJoin(changes, "\n") << "\n";
+}
+
+std::string Interval(double estimate, double low, double high, int decimals) {
+  if (std::isnan(estimate)) return "-";
+  return absl::StrCat(FormatFixed(estimate, decimals), " [", FormatFixed(low, decimals), ", ",
+                      FormatFixed(high, decimals), "]");
+}
+
+std::string PValue(double p, double holm) {
+  if (std::isnan(holm)) return "-";
+  return absl::StrCat(FormatFixed(p, 3), " (", FormatFixed(holm, 3), ")");
+}
+
+void PrintClaims(const std::vector<results::ClaimComparison>& claims, std::ostream& out) {
+  out << "The paper's claims as paired comparisons by seed (method minus other): 95% "
+         "intervals first, then p (Holm-adjusted within the row, each test its own family)\n"
+         "success: threshold verdicts, Newcombe's paired interval; McNemar's exact test\n"
+         "held: rollout verdicts (held in >= half), same; cost: Hodges-Lehmann shift of the "
+         "final costs with the signed-rank interval; Wilcoxon's test\n\n";
+  Listing listing;
+  listing.columns = {"task",  "comparison", "pairs",       "success diff", "McNemar p (Holm)",
+                     "held diff", "held p (Holm)", "cost shift", "Wilcoxon p (Holm)"};
+  std::vector<std::string> claims_text;
+  for (const results::ClaimComparison& claim : claims) {
+    const std::string comparison = absl::StrCat(claim.method, " - ", claim.other);
+    listing.rows.push_back(
+        {results::Table1Row{claim.cost, claim.noise_k}.Label(), comparison,
+         absl::StrCat(claim.pairs),
+         Interval(claim.success_difference, claim.success_difference95_low,
+                  claim.success_difference95_high, 2),
+         PValue(claim.mcnemar_p, claim.mcnemar_p_holm),
+         claim.verdict_pairs == 0
+             ? "-"
+             : absl::StrCat(Interval(claim.verdict_difference, claim.verdict_difference95_low,
+                                     claim.verdict_difference95_high, 2),
+                            " n=", claim.verdict_pairs),
+         PValue(claim.verdict_mcnemar_p, claim.verdict_mcnemar_p_holm),
+         Interval(claim.cost_shift, claim.cost_shift95_low, claim.cost_shift95_high, 2),
+         PValue(claim.wilcoxon_p, claim.wilcoxon_p_holm)});
+    claims_text.push_back(absl::StrCat("  ", comparison, ": ", claim.claim));
+  }
+  Print(listing, Format::kTable, out);
+  out << "\nclaims:\n" << absl::StrJoin(claims_text, "\n") << "\n";
+}
+
+void PrintPower(const std::vector<results::PowerEntry>& entries, std::ostream& out) {
+  if (entries.empty()) return;
+  out << "What " << entries.front().pairs
+      << " paired seeds can settle: the exact power of McNemar's test for a true success-rate "
+         "difference, at alpha 0.05 and at Holm's first step in a row of 2 and of 4 "
+         "comparisons\n"
+      << "a significant difference needs at least " << entries.front().min_one_sided_discordant
+      << " discordant pairs all one way\n\n";
+  Listing listing;
+  listing.columns = {"P(method only)", "P(other only)", "difference", "power", "power/2",
+                     "power/4"};
+  for (const results::PowerEntry& entry : entries) {
+    listing.rows.push_back({FormatFixed(entry.method_only_rate, 1),
+                            FormatFixed(entry.other_only_rate, 1),
+                            FormatFixed(entry.difference, 1), FormatFixed(entry.power, 3),
+                            FormatFixed(entry.power_holm2, 3), FormatFixed(entry.power_holm4, 3)});
+  }
+  Print(listing, Format::kTable, out);
+}
+
+// What `results table1` shows: the grid, or what its verdicts rest on.
+struct Table1View {
+  std::string view = "grid";
+  std::vector<double> thresholds = results::DefaultSensitivityThresholds();
+};
+
+int PrintTable1(Connection* connection, const std::vector<std::string>& sweeps,
+                const Table1View& view, Format format) {
+  if (sweeps.empty()) {
+    std::cerr << "error: results table1: name at least one sweep\n";
+    return 2;
+  }
+  RpcResultsReader reader(connection);
+  const absl::StatusOr<std::vector<results::CompletedTrial>> trials =
+      results::ReadCompletedTrials(reader, sweeps);
+  if (!trials.ok()) return ReportError(trials.status(), "results table1");
+  const absl::StatusOr<results::Table1> table = results::ComputeTable1(*trials);
   if (!table.ok()) return ReportError(table.status(), "results table1");
+  if (view.view == "sensitivity") {
+    const std::vector<results::ThresholdRate> rates =
+        results::ThresholdSensitivity(*table, view.thresholds);
+    if (format == Format::kTable) {
+      PrintSensitivity(rates, view.thresholds, std::cout);
+    } else {
+      PrintRecords(results::ThresholdRateFields(), rates, format, std::cout);
+    }
+    return 0;
+  }
+  if (view.view == "comparisons") {
+    const std::vector<results::ClaimComparison> claims = results::CompareClaims(*table);
+    if (format == Format::kTable) {
+      PrintClaims(claims, std::cout);
+    } else {
+      PrintRecords(results::ClaimComparisonFields(), claims, format, std::cout);
+    }
+    return 0;
+  }
   if (format == Format::kTable) {
     PrintGrid(*table, sweeps, std::cout);
     return 0;
@@ -163,13 +235,53 @@ int PrintTable1(Connection* connection, const std::vector<std::string>& sweeps, 
 
 void AddTable1Command(CLI::App* results, int* exit_code) {
   auto sweeps = std::make_shared<std::vector<std::string>>();
+  auto view = std::make_shared<Table1View>();
   CLI::App* command = AddCommand(
       results, "table1",
       "the paper's Table 1 from the completed trials of the named sweeps: success rate with "
       "95% Wilson interval and n, the rollout verdict's rate, the paper's number and whether "
-      "it lies in our interval, per task (cost, noise_k) and method; pooled across sweeps",
-      exit_code, [sweeps](Connection* c) { return PrintTable1(c, *sweeps, c->format()); });
+      "it lies in our interval, per task (cost, noise_k) and method; pooled across sweeps. "
+      "--view sensitivity: each cell's rate at other thresholds and the verdicts that change; "
+      "--view comparisons: the paper's claims as paired comparisons by seed with intervals "
+      "and Holm-adjusted p-values (`results power`: what n paired seeds can settle)",
+      exit_code,
+      [sweeps, view](Connection* c) { return PrintTable1(c, *sweeps, *view, c->format()); });
   command->add_option("SWEEP", *sweeps, "sweep names (one or more)")->required();
+  command->add_option("--view", view->view, "grid (default), sensitivity or comparisons")
+      ->check(CLI::IsMember({"grid", "sensitivity", "comparisons"}));
+  command->add_option("--thresholds", view->thresholds,
+                      "thresholds on the final evaluation cost for --view sensitivity "
+                      "(default 13,14,15,16,17)")
+      ->delimiter(',')
+      ->check(CLI::Range(0.0, 1e6));
+}
+
+void AddPowerCommand(CLI::App* results, int* exit_code) {
+  struct Flags {
+    int pairs = 10;
+    std::string format = "table";
+  };
+  auto flags = std::make_shared<Flags>();
+  CLI::App* command = results->add_subcommand(
+      "power",
+      "what a paired comparison of n seeds can settle: the exact power of McNemar's test for "
+      "true success-rate differences 0.1 .. 1.0, at alpha 0.05 and at Holm's first step in "
+      "families of 2 and 4 (computed here, no coordinator needed)");
+  command->add_option("--pairs", flags->pairs, "paired seeds (default 10)")
+      ->check(CLI::Range(1, 1000));
+  command->add_option("-f,--format", flags->format, "table (default), json or csv")
+      ->check(CLI::IsMember({"table", "json", "csv"}));
+  command->callback([flags, exit_code] {
+    Format format = Format::kTable;
+    ParseFormat(flags->format, &format);
+    const std::vector<results::PowerEntry> power = results::PairedPowerTable(flags->pairs);
+    if (format == Format::kTable) {
+      PrintPower(power, std::cout);
+    } else {
+      PrintRecords(results::PowerEntryFields(), power, format, std::cout);
+    }
+    *exit_code = 0;
+  });
 }
 
 }  // namespace totalgrad::cli

@@ -12,6 +12,7 @@
 #include "results/stats.h"
 #include "results/table1.h"
 #include "server/storage/service_records.h"
+#include "server/storage/store_results_reader.h"
 
 namespace totalgrad::dashboard {
 namespace {
@@ -262,15 +263,11 @@ absl::StatusOr<json> DashboardData::Sweep(const std::string& name, int64_t now_m
   if (!eta.ok()) return eta.status();
   out["sweep"]["eta"] = EstimateJson(*eta);
 
-  absl::StatusOr<std::vector<storage::TrialResultRecord>> completed =
-      store_->ListTrialResults(name);
+  storage::StoreResultsReader reader(store_);
+  absl::StatusOr<std::vector<results::CompletedTrial>> completed = reader.CompletedTrials(name);
   if (!completed.ok()) return completed.status();
-  std::vector<results::TrialRow> rows;
-  for (const auto& r : *completed) {
-    rows.push_back({r.method, r.variant, r.success, r.final_eval_cost, r.held_fraction});
-  }
   json table = {{"methods", json::array()}, {"variants", json::array()}, {"cells", json::array()}};
-  for (const results::TableCell& cell : results::SuccessTable(rows)) {
+  for (const results::TableCell& cell : results::SuccessTable(*completed)) {
     if (std::find(table["methods"].begin(), table["methods"].end(), cell.method) ==
         table["methods"].end()) {
       table["methods"].push_back(cell.method);
@@ -367,16 +364,12 @@ absl::StatusOr<json> DashboardData::Curves(const std::string& name, bool include
 }
 
 absl::StatusOr<json> DashboardData::Compare(const std::string& name, const std::string& baseline) {
-  absl::StatusOr<std::vector<storage::TrialResultRecord>> completed =
-      store_->ListTrialResults(name);
-  if (!completed.ok()) return completed.status();
-  std::vector<results::ComparedTrial> trials;
-  for (const auto& r : *completed) {
-    trials.push_back({r.method, r.seed, r.variant, r.success, r.final_eval_cost});
-  }
+  storage::StoreResultsReader reader(store_);
+  absl::StatusOr<std::vector<results::CompletedTrial>> trials = reader.CompletedTrials(name);
+  if (!trials.ok()) return trials.status();
   results::ComparisonOptions options;
   options.baseline = baseline;
-  absl::StatusOr<results::ComparisonReport> report = results::CompareMethods(trials, options);
+  absl::StatusOr<results::ComparisonReport> report = results::CompareMethods(*trials, options);
   if (!report.ok()) return report.status();
   json out = {{"alpha", options.alpha},
               {"baseline", baseline},
@@ -420,26 +413,11 @@ absl::StatusOr<json> DashboardData::Compare(const std::string& name, const std::
 
 absl::StatusOr<json> DashboardData::Table1(const std::vector<std::string>& names) {
   if (names.empty()) return absl::InvalidArgumentError("name at least one sweep");
-  std::vector<results::Table1Trial> trials;
-  for (const std::string& name : names) {
-    absl::StatusOr<std::vector<storage::TrialResultRecord>> completed =
-        store_->ListTrialResults(name);
-    if (!completed.ok()) return completed.status();
-    absl::StatusOr<std::vector<storage::JobRecord>> jobs = AllJobs(name);
-    if (!jobs.ok()) return jobs.status();
-    std::map<int64_t, const storage::JobRecord*> job_of;
-    for (const storage::JobRecord& job : *jobs) job_of[job.id] = &job;
-    for (const storage::TrialResultRecord& r : *completed) {
-      auto job = job_of.find(r.job_id);
-      if (job == job_of.end()) {
-        return absl::InternalError(absl::StrCat("job ", r.job_id, " of sweep ", name,
-                                                " has a result but is not listed"));
-      }
-      trials.push_back({name, r.job_id, r.method, r.seed, r.variant, r.success, r.held_fraction,
-                        job->second->options});
-    }
-  }
-  absl::StatusOr<results::Table1> table = results::ComputeTable1(trials);
+  storage::StoreResultsReader reader(store_);
+  absl::StatusOr<std::vector<results::CompletedTrial>> trials =
+      results::ReadCompletedTrials(reader, names);
+  if (!trials.ok()) return trials.status();
+  absl::StatusOr<results::Table1> table = results::ComputeTable1(*trials);
   if (!table.ok()) return table.status();
   json out = {{"sweeps", names},
               {"methods", results::Table1Methods()},

@@ -25,6 +25,7 @@
 #include <cstdint>
 #include <functional>
 #include <limits>
+#include <memory>
 #include <optional>
 #include <string>
 #include "absl/strings/string_view.h"
@@ -587,6 +588,13 @@ class Store {
   // exist) while the store stays usable. Returns its size in bytes.
   virtual absl::StatusOr<int64_t> Backup(const std::string& path) = 0;
 };
+
+// Opens an existing coordinator database for reading only, behind Store's
+// interface (SqliteStore::OpenReadOnly in sqlite_store.h says what it
+// refuses; every write returns FailedPrecondition). For readers such as
+// `totalgrad results --db` that need nothing SQLite-specific, so that they
+// include no storage implementation.
+absl::StatusOr<std::unique_ptr<Store>> OpenStoreReadOnly(const std::string& path);
 
 }  // namespace totalgrad::storage
 

@@ -188,10 +188,10 @@ TEST(HolmTest, StepDownAdjustmentWorkedByHand) {
 
 // ---- grouping into comparisons ----
 
-std::vector<ComparedTrial> TwoMethods() {
+std::vector<CompletedTrial> TwoMethods() {
   // Seeds 1..8 in one variant: A succeeds on 1..7, B on 1 and 2 only; A's
   // final costs are lower by 1..8; B has a seed 9 that A lacks.
-  std::vector<ComparedTrial> trials;
+  std::vector<CompletedTrial> trials;
   for (int seed = 1; seed <= 8; ++seed) {
     trials.push_back({"A", std::to_string(seed), "k=1", seed <= 7, 10.0 - seed});
     trials.push_back({"B", std::to_string(seed), "k=1", seed <= 2, 10.0});
@@ -229,7 +229,7 @@ TEST(CompareMethodsTest, PairsBySeedAndTestsEachWay) {
 }
 
 TEST(CompareMethodsTest, BaselineAndHolmPerVariant) {
-  std::vector<ComparedTrial> trials = TwoMethods();
+  std::vector<CompletedTrial> trials = TwoMethods();
   for (int seed = 1; seed <= 8; ++seed) {
     trials.push_back({"C", std::to_string(seed), "k=1", seed <= 2, 10.0 + seed});
     trials.push_back({"A", std::to_string(seed), "k=2", true, 1.0});
@@ -270,7 +270,7 @@ TEST(CompareMethodsTest, RefusesAnUnknownBaselineNamingTheMethods) {
 }
 
 TEST(CompareMethodsTest, CountsDuplicateSeedsAndSkipsLoneMethods) {
-  std::vector<ComparedTrial> trials = {{"A", "1", "", true, 1.0}, {"A", "1", "", false, 2.0}};
+  std::vector<CompletedTrial> trials = {{"A", "1", "", true, 1.0}, {"A", "1", "", false, 2.0}};
   absl::StatusOr<ComparisonReport> report = CompareMethods(trials, {});
   ASSERT_TRUE(report.ok());
   EXPECT_EQ(report->duplicate_trials, 1);

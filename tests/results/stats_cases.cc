@@ -11,11 +11,16 @@
 //   {"test": "noether", "n": 30, "p_prime": 0.7}          -> {"power": ...}
 //   {"test": "walsh", "d": [...]}                         -> {"fraction": ...}
 //   {"test": "holm", "p": [...]}                          -> {"adjusted": [...]}
+//   {"test": "hl_interval", "d": [...]}                   -> {"estimate", "low", "high",
+//                                                             "coverage"}
+//   {"test": "newcombe_paired", "table": [both, first_only, second_only, neither]}
+//                                                         -> {"difference", "low", "high"}
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <string>
 
 #include "results/hypothesis_tests.h"
+#include "results/paired_intervals.h"
 
 namespace {
 
@@ -53,6 +58,16 @@ json Evaluate(const json& c) {
   }
   if (test == "walsh") {
     return {{"fraction", WalshPositiveFraction(c.at("d").get<std::vector<double>>())}};
+  }
+  if (test == "hl_interval") {
+    const ShiftInterval r = HodgesLehmannInterval(c.at("d").get<std::vector<double>>());
+    return {{"estimate", Number(r.estimate)}, {"low", Number(r.low)}, {"high", Number(r.high)},
+            {"coverage", Number(r.coverage)}};
+  }
+  if (test == "newcombe_paired") {
+    const auto& t = c.at("table");
+    const RateDifferenceInterval r = NewcombePairedInterval({t[0], t[1], t[2], t[3]});
+    return {{"difference", Number(r.difference)}, {"low", Number(r.low)}, {"high", Number(r.high)}};
   }
   if (test == "holm") {
     json adjusted = json::array();

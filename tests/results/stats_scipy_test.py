@@ -222,6 +222,56 @@ def main(binary):
         expect("noether", case, "power vs simulation", answer["power"], sim, rel=0, abs_tol=0.08)
     print("noether vs simulation (2000 replicates each):\n  " + "\n  ".join(gaps))
 
+    # Hodges-Lehmann interval: k from the exact null distribution of T+ by
+    # enumerating all 2^n sign assignments, the order statistics of the
+    # Walsh averages sorted here.
+    cases = [{"test": "hl_interval", "d": [round(float(x), 3) for x in rng.normal(0.5, 2, size=int(rng.integers(1, 13)))]}
+             for _ in range(60)]
+    for case, answer in zip(cases, run_cases(binary, cases)):
+        d = case["d"]
+        n = len(d)
+        counts = [0] * (n * (n + 1) // 2 + 1)
+        for signs in itertools.product((0, 1), repeat=n):
+            counts[sum(r for r, s in zip(range(1, n + 1), signs) if s)] += 1
+        cdf = list(itertools.accumulate(c / 2 ** n for c in counts))
+        k = next(t for t, value in enumerate(cdf) if value >= 0.025)
+        k = max(k, 1)
+        walsh = sorted((d[i] + d[j]) / 2 for i in range(n) for j in range(i, n))
+        expect("hl_interval", case, "estimate", answer["estimate"], float(np.median(walsh)), rel=1e-12)
+        expect("hl_interval", case, "low", answer["low"], walsh[k - 1], rel=1e-14)
+        expect("hl_interval", case, "high", answer["high"], walsh[len(walsh) - k], rel=1e-14)
+        expect("hl_interval", case, "coverage", answer["coverage"], 1 - 2 * cdf[k - 1], rel=1e-12)
+
+    # Newcombe's paired interval (method 10), written out here from the
+    # paper's formulas with SciPy's normal quantile.
+    z = float(stats.norm.ppf(0.975))
+
+    def wilson(k, n):
+        p = k / n
+        centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+        half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+        return centre - half, centre + half
+
+    cases = [{"test": "newcombe_paired", "table": [int(x) for x in rng.integers(0, 8, size=4)]}
+             for _ in range(80)]
+    for case, answer in zip(cases, run_cases(binary, cases)):
+        a, b, c, dd = case["table"]
+        n = a + b + c + dd
+        if n == 0:
+            expect("newcombe_paired", case, "difference", answer["difference"], None)
+            continue
+        p1, p2 = (a + b) / n, (a + c) / n
+        l1, u1 = wilson(a + b, n)
+        l2, u2 = wilson(a + c, n)
+        margins = (a + b) * (c + dd) * (a + c) * (b + dd)
+        phi = (a * dd - b * c) / math.sqrt(margins) if margins > 0 else 0.0
+        delta = p1 - p2
+        low = delta - math.sqrt(max(0.0, (p1 - l1) ** 2 - 2 * phi * (p1 - l1) * (u2 - p2) + (u2 - p2) ** 2))
+        high = delta + math.sqrt(max(0.0, (p2 - l2) ** 2 - 2 * phi * (p2 - l2) * (u1 - p1) + (u1 - p1) ** 2))
+        expect("newcombe_paired", case, "difference", answer["difference"], delta, rel=1e-12, abs_tol=1e-15)
+        expect("newcombe_paired", case, "low", answer["low"], max(-1.0, low), rel=1e-9, abs_tol=1e-12)
+        expect("newcombe_paired", case, "high", answer["high"], min(1.0, high), rel=1e-9, abs_tol=1e-12)
+
     print(f"{checked - len(failures)} passed, {len(failures)} failed")
     for failure in failures[:40]:
         print("FAIL", failure)

@@ -40,9 +40,10 @@ TEST(QuantileTest, InterpolatesLinearlyBetweenOrderStatistics) {
 }
 
 TEST(SuccessTableTest, GroupsByMethodAndVariantInFirstAppearanceOrder) {
-  const std::vector<TrialRow> rows = {
-      {"RP", "k=1", true, 10}, {"LR", "k=1", false, 30}, {"RP", "k=1", false, 20},
-      {"RP", "k=0.01", true, 5}, {"RP", "k=1", true, 12}};
+  // (method, seed, variant, success, final_eval_cost)
+  const std::vector<CompletedTrial> rows = {
+      {"RP", "1", "k=1", true, 10}, {"LR", "1", "k=1", false, 30}, {"RP", "2", "k=1", false, 20},
+      {"RP", "1", "k=0.01", true, 5}, {"RP", "3", "k=1", true, 12}};
   const std::vector<TableCell> table = SuccessTable(rows);
   ASSERT_EQ(table.size(), 3u);
   EXPECT_EQ(table[0].method, "RP");

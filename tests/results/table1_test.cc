@@ -27,10 +27,10 @@ record::TextPairs PaperOptions(const std::string& cost, const std::string& noise
   return options;
 }
 
-Table1Trial Trial(const std::string& sweep, int64_t job_id, const std::string& method, int seed,
+CompletedTrial Trial(const std::string& sweep, int64_t job_id, const std::string& method, int seed,
                   bool success, const std::string& cost, const std::string& noise_k,
                   double held_fraction = kNaN) {
-  Table1Trial trial;
+  CompletedTrial trial;
   trial.sweep = sweep;
   trial.job_id = job_id;
   trial.method = method;
@@ -75,7 +75,7 @@ TEST(Table1Test, ACellsRatesAndWilsonIntervalsAreTheHandComputedOnes) {
   // Ten PILCO trials on (tip, k = 1), eight successes; six classified by
   // the rollout verdict, of which three held (held_fraction >= 0.5, the
   // edge 0.5 included) and three did not.
-  std::vector<Table1Trial> trials;
+  std::vector<CompletedTrial> trials;
   const double held[10] = {0.5, 0.9, 1.0, 0.49, 0.0, 0.2, kNaN, kNaN, kNaN, kNaN};
   for (int seed = 0; seed < 10; ++seed) {
     trials.push_back(Trial("t", seed + 1, "PILCO", seed, seed >= 2, "tip", "1", held[seed]));
@@ -120,7 +120,7 @@ TEST(Table1Test, ThePapersNumberIsInsideOrOutsideOurInterval) {
   // (tip, k = 1): GTP 4 of 10 gives [0.168180, 0.687326], and the paper's
   // 0.69 lies just above it; TP 5 of 10 gives [0.236593, 0.763407], which
   // holds the paper's 0.48. The paper has no GTP+sn at k = 1.
-  std::vector<Table1Trial> trials;
+  std::vector<CompletedTrial> trials;
   for (int seed = 0; seed < 10; ++seed) {
     trials.push_back(Trial("t", 100 + seed, "GTP", seed, seed < 4, "tip", "1"));
     trials.push_back(Trial("t", 200 + seed, "TP", seed, seed < 5, "tip", "1"));
@@ -178,9 +178,9 @@ TEST(Table1Test, TheProtocolMarkNamesEachOptionThatDiffers) {
 
   // In a cell: how many trials were off the protocol, and each difference
   // once, in first-appearance order.
-  std::vector<Table1Trial> trials;
+  std::vector<CompletedTrial> trials;
   for (int seed = 0; seed < 4; ++seed) {
-    Table1Trial trial = Trial("t", seed, "RP", seed, true, "angle", "0.01");
+    CompletedTrial trial = Trial("t", seed, "RP", seed, true, "angle", "0.01");
     for (auto& [key, value] : trial.options) {
       if (key == "particles" && seed >= 1) value = "50";
       if (key == "episodes" && seed == 3) value = "5";
@@ -196,7 +196,7 @@ TEST(Table1Test, TheProtocolMarkNamesEachOptionThatDiffers) {
 }
 
 TEST(Table1Test, TrialsOutsideTheGridAreCountedByReason) {
-  std::vector<Table1Trial> trials = {
+  std::vector<CompletedTrial> trials = {
       Trial("a", 1, "DEL", 1, true, "angle", "1"),
       Trial("a", 2, "DEL", 2, true, "angle", "1"),
       Trial("a", 3, "RP", 1, true, "saturating", "1"),
@@ -220,7 +220,7 @@ TEST(Table1Test, TrialsOutsideTheGridAreCountedByReason) {
 
 TEST(Table1Test, CellsPoolTheirSweepsButASeedInTwoSweepsIsRefusedNamingBoth) {
   // Different seeds of one cell from two sweeps pool.
-  std::vector<Table1Trial> trials = {
+  std::vector<CompletedTrial> trials = {
       Trial("first", 1, "PILCO", 10, true, "tip", "1"),
       Trial("first", 2, "PILCO", 11, false, "tip", "1"),
       Trial("second", 7, "PILCO", 12, true, "tip", "1"),
@@ -245,7 +245,7 @@ TEST(Table1Test, CellsPoolTheirSweepsButASeedInTwoSweepsIsRefusedNamingBoth) {
             "sweeps");
 
   // Twice in one sweep (two variants that map to one cell).
-  std::vector<Table1Trial> twice = {Trial("s", 1, "RP", 3, true, "angle", "1"),
+  std::vector<CompletedTrial> twice = {Trial("s", 1, "RP", 3, true, "angle", "1"),
                                     Trial("s", 2, "RP", 3, false, "angle", "1")};
   twice[0].variant = "particle_std=0";
   twice[1].variant = "particle_std=1";
@@ -259,7 +259,7 @@ TEST(Table1Test, CellsPoolTheirSweepsButASeedInTwoSweepsIsRefusedNamingBoth) {
 }
 
 TEST(Table1Test, ACellsFieldsAreNamedAsTheSweepTablesAndWrittenOnce) {
-  std::vector<Table1Trial> trials = {Trial("s", 1, "RP", 1, true, "angle", "1", 0.75)};
+  std::vector<CompletedTrial> trials = {Trial("s", 1, "RP", 1, true, "angle", "1", 0.75)};
   absl::StatusOr<Table1> table = ComputeTable1(trials);
   ASSERT_TRUE(table.ok()) << table.status();
   const Table1Cell& cell = Cell(*table, kAngle1, "RP");

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
 
 #include "absl/strings/str_cat.h"
@@ -481,6 +482,57 @@ TEST_F(CliTest, Table1LaysSweepsOutInThePapersGridAndRefusesASeedCountedTwice) {
   EXPECT_NE(err.find(") and in sweep table1-tip-k1-pilco-rerun (job "), std::string::npos) << err;
   EXPECT_EQ(Cli({"results", "table1", "table1-tip-k1", "nope"}, &out, &err), 2);
   EXPECT_NE(err.find("no sweep named 'nope'"), std::string::npos) << err;
+
+  // Issue 25 items 4 and 6 on the same archives. Threshold sensitivity: TP
+  // and GTP do not depend on PILCO's re-runs (not imported as supersessions
+  // here); TP's costs lie outside 13..17, GTP's seed 12 (14.00) and seed 10
+  // (16.98) change verdict at 13 and 17.
+  ASSERT_EQ(Cli({"results", "table1", "table1-tip-k1", "--view", "sensitivity", "-f", "json"}, &out,
+                &err),
+            0) << err;
+  const nlohmann::json rates = nlohmann::json::parse(out);
+  ASSERT_EQ(rates.size(), 20u);  // 4 methods x 5 thresholds
+  std::map<std::string, std::vector<int>> successes;
+  for (const auto& rate : rates) {
+    EXPECT_EQ(rate["trials"], 10) << rate;
+    successes[rate["method"]].push_back(rate["successes"]);
+  }
+  EXPECT_EQ(successes["RP"], (std::vector<int>{0, 0, 0, 0, 0}));
+  EXPECT_EQ(successes["TP"], (std::vector<int>{5, 5, 5, 5, 5}));
+  EXPECT_EQ(successes["GTP"], (std::vector<int>{3, 4, 4, 4, 5}));
+  ASSERT_EQ(Cli({"results", "table1", "table1-tip-k1", "--view", "sensitivity"}, &text, &err), 0);
+  EXPECT_NE(text.find("GTP at 13: seed 12: 14.00 succeeds -> fails"), std::string::npos) << text;
+  EXPECT_NE(text.find("GTP at 17: seed 10: 16.98 fails -> succeeds"), std::string::npos) << text;
+
+  // The claims, paired by seed: TP - GTP on (tip, k = 1), 10 pairs.
+  ASSERT_EQ(Cli({"results", "table1", "table1-tip-k1", "--view", "comparisons", "-f", "json"},
+                &out, &err),
+            0) << err;
+  const nlohmann::json claims = nlohmann::json::parse(out);
+  ASSERT_EQ(claims.size(), 6u);
+  nlohmann::json tp_gtp;
+  for (const auto& claim : claims) {
+    if (claim["noise_k"] == 0.01) EXPECT_EQ(claim["pairs"], 0) << claim;  // not in this sweep
+    if (claim["noise_k"] == 1 && claim["method"] == "TP") tp_gtp = claim;
+  }
+  ASSERT_FALSE(tp_gtp.is_null()) << out;
+  EXPECT_EQ(tp_gtp["other"], "GTP");
+  EXPECT_EQ(tp_gtp["pairs"], 10);
+  EXPECT_EQ(tp_gtp["both_succeeded"], 3);
+  EXPECT_EQ(tp_gtp["method_only"], 2);
+  EXPECT_EQ(tp_gtp["other_only"], 1);
+  EXPECT_NEAR(tp_gtp["success_difference95_low"].get<double>(), -0.200240, 1e-6);
+  EXPECT_NEAR(tp_gtp["success_difference95_high"].get<double>(), 0.370677, 1e-6);
+  EXPECT_NEAR(tp_gtp["cost_shift"].get<double>(), -2.076058, 1e-6);
+  EXPECT_NEAR(tp_gtp["cost_shift95_low"].get<double>(), -7.010961, 1e-6);
+  EXPECT_NEAR(tp_gtp["cost_shift95_high"].get<double>(), 0.963506, 1e-6);
+  EXPECT_DOUBLE_EQ(tp_gtp["wilcoxon_p"].get<double>(), 198.0 / 1024);  // exact, n = 10
+  EXPECT_TRUE(tp_gtp["verdict_difference"].is_null()) << "the archived trials have no verdict";
+
+  // What 10 pairs can settle needs no coordinator.
+  ASSERT_EQ(Cli({"results", "power", "--pairs", "10", "-f", "csv"}, &out, &err, false), 0) << err;
+  EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 20);  // header + 19
+  EXPECT_NE(out.find("\n10,0.5,0,0.5,0.3769531250"), std::string::npos) << out;  // 386/1024
 }
 
 // Issue 15: no coordinator at the address: the client gives up within its

@@ -1,0 +1,70 @@
+#include "client/service_commands/rpc_results_reader.h"
+
+#include <map>
+
+#include "absl/status/status.h"
+#include "absl/strings/str_cat.h"
+
+namespace totalgrad::cli {
+namespace {
+
+absl::Status ToAbsl(const grpc::Status& status) {
+  return absl::Status(static_cast<absl::StatusCode>(status.error_code()),
+                      status.error_message());
+}
+
+}  // namespace
+
+absl::StatusOr<std::vector<results::CompletedTrial>> RpcResultsReader::CompletedTrials(
+    const std::string& sweep) {
+  // Results first, so every job they name is already completed when the
+  // jobs are listed.
+  v1::SweepRequest request;
+  request.set_name(sweep);
+  v1::ListTrialResultsResponse completed;
+  grpc::Status status =
+      connection_->Call(&v1::ControlService::Stub::ListTrialResults, request, &completed);
+  if (!status.ok()) return ToAbsl(status);
+  last_sweep_ = completed.sweep();
+  std::map<int64_t, record::TextPairs> options_of;
+  v1::ListJobsRequest jobs_request;
+  jobs_request.set_sweep_name(sweep);
+  jobs_request.add_states(v1::JOB_STATE_COMPLETED);
+  jobs_request.set_page_size(1000);
+  while (true) {
+    v1::ListJobsResponse jobs;
+    status = connection_->Call(&v1::ControlService::Stub::ListJobs, jobs_request, &jobs);
+    if (!status.ok()) return ToAbsl(status);
+    for (const v1::JobInfo& job : jobs.jobs()) {
+      record::TextPairs& options = options_of[job.job_id()];
+      for (const auto& option : job.options()) options.emplace_back(option.key(), option.value());
+    }
+    if (jobs.next_after_job_id() == 0) break;
+    jobs_request.set_after_job_id(jobs.next_after_job_id());
+  }
+  std::vector<results::CompletedTrial> trials;
+  trials.reserve(completed.results_size());
+  for (const v1::TrialResult& result : completed.results()) {
+    auto options = options_of.find(result.job_id());
+    if (options == options_of.end()) {
+      return absl::InternalError(absl::StrCat("job ", result.job_id(), " of sweep ", sweep,
+                                              " has a result but is not listed as completed"));
+    }
+    results::CompletedTrial trial;
+    trial.method = result.method();
+    trial.seed = result.seed();
+    trial.variant = result.variant();
+    trial.success = result.success();
+    trial.final_eval_cost = result.final_eval_cost();
+    trial.held_fraction = result.held_fraction();
+    trial.sweep = sweep;
+    trial.job_id = result.job_id();
+    trial.attempt = result.attempt();
+    trial.episodes = result.episodes();
+    trial.options = std::move(options->second);
+    trials.push_back(std::move(trial));
+  }
+  return trials;
+}
+
+}  // namespace totalgrad::cli
