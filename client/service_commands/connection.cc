@@ -16,6 +16,7 @@
 
 #include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
+#include "server/common/status_origin.h"
 #include "server/common/token_file.h"
 #include "absl/time/time.h"
 #include "client/service_commands/curves_plot.h"
@@ -104,6 +105,7 @@ absl::StatusOr<Connection> Connection::Open(const ServiceFlags& flags) {
   connection.policy_.call_timeout = absl::Seconds(flags.timeout_seconds);
   connection.policy_.give_up_after = absl::Seconds(flags.timeout_seconds);
   connection.policy_.wait_for_ready = false;
+  connection.policy_.retry_coordinator_answers = false;  // a refusal is reported at once
   if (!flags.db.empty()) {
     absl::StatusOr<std::shared_ptr<LocalCoordinator>> local = LocalCoordinator::Open(flags.db);
     if (!local.ok()) return local.status();
@@ -168,19 +170,29 @@ CLI::App* AddCommand(CLI::App* parent, const std::string& name, const std::strin
 int ReportError(const grpc::Status& status, const std::string& what) {
   std::cerr << "error: " << what << ": " << CodeName(status.error_code()) << ": "
             << status.error_message() << "\n";
+  const bool refused = rpc::AnsweredByCoordinator(status);
   switch (status.error_code()) {
     case grpc::StatusCode::UNAVAILABLE:
     case grpc::StatusCode::DEADLINE_EXCEEDED:
-      return 3;
+      if (refused) break;
+      return kExitUnreachable;
     case grpc::StatusCode::INVALID_ARGUMENT:
     case grpc::StatusCode::NOT_FOUND:
     case grpc::StatusCode::ALREADY_EXISTS:
     case grpc::StatusCode::UNAUTHENTICATED:
     case grpc::StatusCode::PERMISSION_DENIED:
-      return 2;
+      return kExitBadInput;
+    case grpc::StatusCode::INTERNAL:
+    case grpc::StatusCode::RESOURCE_EXHAUSTED:
+    case grpc::StatusCode::DATA_LOSS:
+      if (refused) break;
+      return kExitFailed;
     default:
-      return 1;
+      return kExitFailed;
   }
+  std::cerr << "(the coordinator answered: it cannot do this now; see its log and "
+               "`totalgrad admin health`)\n";
+  return kExitCoordinatorRefused;
 }
 
 int ReportError(const absl::Status& status, const std::string& what) {

@@ -89,9 +89,22 @@ void AddArchiveCommands(CLI::App* results, int* exit_code);
 // (archive_commands.cc).
 void AddSweepDeleteCommand(CLI::App* sweep, int* exit_code);
 
+// The service commands' exit codes (also in `totalgrad --help`, README and
+// docs/service.md).
+inline constexpr int kExitFailed = 1;    // the operation failed (or a waited sweep did)
+inline constexpr int kExitBadInput = 2;  // malformed file, unknown name, bad token
+inline constexpr int kExitUnreachable = 3;  // no answer from the coordinator
+// The coordinator answered but cannot do it: its store is full, failing,
+// deleted or locked by another process (server-side UNAVAILABLE, INTERNAL,
+// RESOURCE_EXHAUSTED, DATA_LOSS; rpc::AnsweredByCoordinator).
+inline constexpr int kExitCoordinatorRefused = 4;
+
 // Prints "error: <what>: <message>" and returns the exit code for `status`:
-// 3 for UNAVAILABLE/DEADLINE_EXCEEDED, 2 for INVALID_ARGUMENT/NOT_FOUND/
-// ALREADY_EXISTS/UNAUTHENTICATED/PERMISSION_DENIED, 1 otherwise.
+// kExitUnreachable for UNAVAILABLE/DEADLINE_EXCEEDED that the gRPC library
+// made (no answer), kExitCoordinatorRefused for UNAVAILABLE, DEADLINE_EXCEEDED,
+// INTERNAL, RESOURCE_EXHAUSTED and DATA_LOSS that the coordinator answered
+// with, kExitBadInput for INVALID_ARGUMENT/NOT_FOUND/ALREADY_EXISTS/
+// UNAUTHENTICATED/PERMISSION_DENIED, kExitFailed otherwise.
 int ReportError(const grpc::Status& status, const std::string& what);
 int ReportError(const absl::Status& status, const std::string& what);
 

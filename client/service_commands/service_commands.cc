@@ -470,6 +470,11 @@ void AddServiceCommands(CLI::App* app, int* exit_code) {
   AddResultsCommands(app, exit_code);
   AddAdminCommands(app, exit_code);
   AddRunCommand(app, exit_code);
+  app->footer(
+      "Exit codes of the service commands: 0 success; 1 failed (a refused operation, a waited "
+      "sweep with failed jobs); 2 bad input (malformed file, unknown name, bad token); 3 the "
+      "coordinator is unreachable (no answer); 4 the coordinator answered but cannot do it "
+      "(its database is full, failing, deleted or locked by another process: see its log).");
 }
 
 }  // namespace totalgrad::cli

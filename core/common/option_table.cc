@@ -16,6 +16,13 @@ absl::Status ParseOptionDouble(absl::string_view key, absl::string_view text, do
   return absl::OkStatus();
 }
 
+absl::Status CheckOptionRange(absl::string_view key, double value, const OptionRange& range) {
+  if (value >= range.min && value <= range.max) return absl::OkStatus();
+  return absl::InvalidArgumentError(absl::StrCat("option '", key, "': ", value,
+                                                 " is out of range: allowed ", range.min, " to ",
+                                                 range.max, " (", range.meaning, ")"));
+}
+
 absl::Status ParseOptionInt(absl::string_view key, absl::string_view text, int* out) {
   int v;
   if (!absl::SimpleAtoi(text, &v)) {

@@ -53,6 +53,18 @@ absl::Status ParseOptionUint64(absl::string_view key, absl::string_view text, ui
 absl::Status ParseOptionBool(absl::string_view key, absl::string_view text, bool* out);
 // "%.17g": parses back to the same double.
 std::string FormatOptionDouble(double value);
+
+// The values of a numeric option that mean something physically (or
+// numerically), with what the option is, for the message. Values outside are
+// refused when the option is set, i.e. at submission, not at run time.
+struct OptionRange {
+  double min;
+  double max;
+  const char* meaning;  // e.g. "observation noise variance multiplier"
+};
+// InvalidArgument "option 'noise_k': 1e+308 is out of range: allowed 0 to
+// 10000 (observation noise variance multiplier)" unless min <= value <= max.
+absl::Status CheckOptionRange(absl::string_view key, double value, const OptionRange& range);
 // InvalidArgument "option 'KEY' WHY", the form of every Validate() message.
 absl::Status InvalidOption(absl::string_view key, absl::string_view why);
 
@@ -108,6 +120,32 @@ class OptionTable {
     return Custom(
         key, [key, member](absl::string_view text, T* o) { return ParseOptionDouble(key, text, &(o->*member)); },
         [member](const T& o) { return FormatOptionDouble(o.*member); });
+  }
+  // A double that must lie in `range` (CheckOptionRange).
+  OptionTable& Double(const std::string& key, double T::*member, OptionRange range) {
+    return Custom(
+        key,
+        [key, member, range](absl::string_view text, T* o) {
+          double value = 0;
+          if (absl::Status st = ParseOptionDouble(key, text, &value); !st.ok()) return st;
+          if (absl::Status st = CheckOptionRange(key, value, range); !st.ok()) return st;
+          o->*member = value;
+          return absl::OkStatus();
+        },
+        [member](const T& o) { return FormatOptionDouble(o.*member); });
+  }
+  // An int that must lie in `range` (CheckOptionRange).
+  OptionTable& Int(const std::string& key, int T::*member, OptionRange range) {
+    return Custom(
+        key,
+        [key, member, range](absl::string_view text, T* o) {
+          int value = 0;
+          if (absl::Status st = ParseOptionInt(key, text, &value); !st.ok()) return st;
+          if (absl::Status st = CheckOptionRange(key, value, range); !st.ok()) return st;
+          o->*member = value;
+          return absl::OkStatus();
+        },
+        [member](const T& o) { return std::to_string(o.*member); });
   }
   OptionTable& Int(const std::string& key, int T::*member) {
     return Custom(

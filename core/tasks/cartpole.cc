@@ -10,13 +10,16 @@ namespace totalgrad::tasks {
 const OptionTable<CartPoleParams>& CartPoleParams::Table() {
   static const OptionTable<CartPoleParams>* table = [] {
     auto* t = new OptionTable<CartPoleParams>();
-    t->Double("cart_mass", &CartPoleParams::cart_mass)
-        .Double("pole_mass", &CartPoleParams::pole_mass)
-        .Double("pole_length", &CartPoleParams::pole_length)
-        .Double("friction", &CartPoleParams::friction)
-        .Double("dt", &CartPoleParams::dt)
-        .Double("max_force", &CartPoleParams::max_force)
-        .Double("gravity", &CartPoleParams::gravity)
+    // Ranges: a plant the integrator and the GP can still follow, wide
+    // around the paper's (tests/core/stability covers masses of 1e-4 kg,
+    // a pole of 1 mm and friction of 1e4).
+    t->Double("cart_mass", &CartPoleParams::cart_mass, {1e-6, 1e6, "kg"})
+        .Double("pole_mass", &CartPoleParams::pole_mass, {1e-6, 1e6, "kg"})
+        .Double("pole_length", &CartPoleParams::pole_length, {1e-4, 1e3, "m"})
+        .Double("friction", &CartPoleParams::friction, {0, 1e6, "cart friction, N s/m"})
+        .Double("dt", &CartPoleParams::dt, {1e-5, 10, "control period, s"})
+        .Double("max_force", &CartPoleParams::max_force, {0, 1e6, "N"})
+        .Double("gravity", &CartPoleParams::gravity, {0, 1e3, "m/s^2"})
         .Nest(&CartPoleParams::integrator, ode::IntegratorOptions::Table());
     return t;
   }();

@@ -53,9 +53,13 @@ const OptionTable<SceneOptions>& SceneOptions::Table() {
     auto* t = new OptionTable<SceneOptions>();
     t->String("scene", &SceneOptions::scene)
         .String("cost", &SceneOptions::cost)
-        .Double("noise_k", &SceneOptions::noise_k)
-        .Int("horizon", &SceneOptions::horizon)
-        .Double("initial_std", &SceneOptions::initial_std)
+        // The noise std is the scene's times sqrt(noise_k): at most 100 times
+        // the paper's (the paper sweeps 0.01 to 1).
+        .Double("noise_k", &SceneOptions::noise_k,
+                {0, 1e4, "observation noise variance multiplier of the scene's measurement noise"})
+        .Int("horizon", &SceneOptions::horizon, {1, 1e5, "time steps per episode"})
+        .Double("initial_std", &SceneOptions::initial_std,
+                {0, 100, "std of the start state around the scene's mean, state units"})
         .Nest(&SceneOptions::plant, CartPoleParams::Table());
     return t;
   }();

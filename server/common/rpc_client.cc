@@ -11,6 +11,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "server/common/address.h"
+#include "server/common/status_origin.h"
 
 namespace totalgrad::rpc {
 namespace {
@@ -120,6 +121,7 @@ grpc::Status CallWithRetry(const RetryPolicy& policy, const std::string& token,
     status = call(&context);
     if (registry != nullptr) registry->Remove(&context);
     if (status.ok() || !IsRetryable(status.error_code())) return status;
+    if (!policy.retry_coordinator_answers && AnsweredByCoordinator(status)) return status;
     std::uniform_real_distribution<double> jitter(1 - policy.jitter, 1 + policy.jitter);
     const auto sleep = std::chrono::milliseconds(
         static_cast<int64_t>(absl::ToDoubleMilliseconds(backoff) * jitter(random)));

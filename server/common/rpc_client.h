@@ -59,6 +59,11 @@ struct RetryPolicy {
   // Wait for the channel to (re)connect within the deadline instead of
   // failing at once (a restarting coordinator).
   bool wait_for_ready = true;
+  // Also retry the retryable codes when the coordinator itself answered
+  // with them (status_origin.h: its store is busy, full or gone). A worker
+  // does (it keeps its results until they are stored); the CLI does not: the
+  // user learns at once that the coordinator refused, and why.
+  bool retry_coordinator_answers = true;
 };
 
 bool IsRetryable(grpc::StatusCode code);

@@ -44,6 +44,7 @@
 #include "absl/synchronization/mutex.h"
 #include "absl/time/time.h"
 #include "server/scheduler/clock.h"
+#include "server/scheduler/result_checks.h"
 #include "server/storage/store.h"
 
 namespace totalgrad::scheduler {
@@ -90,29 +91,6 @@ struct HeartbeatResult {
   Directive directive = Directive::kContinue;
   storage::ResultTotals stored;  // rows stored for the attempt, per table of its kind
 };
-
-// Limits on what a worker may send (checked before anything is stored).
-inline constexpr int kMaxEpisodesPerCall = 1000;
-inline constexpr size_t kMaxDetailsBytes = 64 * 1024;
-inline constexpr size_t kMaxErrorBytes = 16 * 1024;
-inline constexpr size_t kMaxWorkerIdBytes = 128;
-inline constexpr int kMaxStudyRowsPerCall = 1000;
-inline constexpr size_t kMaxStudyTextBytes = 16 * 1024;
-inline constexpr size_t kMaxStudyVectorSize = 100000;
-// Largest trial checkpoint kept (what a worker sends must fit a message).
-inline constexpr size_t kMaxCheckpointBytes = 2 << 20;
-
-// InvalidArgument naming the problem: empty or over-long id, control chars.
-absl::Status ValidateWorkerIdentity(const storage::WorkerIdentity& worker);
-// InvalidArgument naming the episode and field: +-Inf anywhere (NaN means
-// "no value"), a NaN real cost, too many episodes, oversized details.
-absl::Status ValidateEpisodes(const std::vector<storage::Episode>& episodes);
-// InvalidArgument naming the row: more than kMaxStudyRowsPerCall rows,
-// oversized text or vectors, a negative index or count. Numbers are stored
-// as they are (NaN: no value).
-absl::Status ValidateStudyRows(const storage::StudyRows& rows);
-// Both of the above, on a bundle of every table's rows.
-absl::Status ValidateResults(const storage::JobResults& results);
 
 class Scheduler {
  public:
@@ -188,8 +166,8 @@ class Scheduler {
   absl::StatusOr<storage::SweepRecord> SubmitSweep(const storage::NewSweep& sweep, bool* created);
   // Store::GrowSweep, then wakes waiting workers.
   absl::StatusOr<int> GrowSweep(const storage::NewSweep& grown);
-  // Store::ImportJobs, then wakes waiting workers (a created sweep has
-  // queued jobs).
+  // CheckImportedJobs (the values Complete would check), Store::ImportJobs
+  // (the rows), then wakes waiting workers (a created sweep has queued jobs).
   absl::StatusOr<storage::ImportResult> ImportSweep(const std::optional<storage::NewSweep>& create,
                                                     const std::string& sweep_name,
                                                     const std::vector<storage::ImportedJob>& jobs,

@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "server/common/record_proto.h"
+#include "server/common/status_origin.h"
 #include "server/storage/service_records.h"
 #include "server/sweep/sweep_proto.h"
 
@@ -12,7 +13,10 @@ namespace totalgrad::service {
 
 grpc::Status ToGrpcStatus(const absl::Status& status) {
   if (status.ok()) return grpc::Status::OK;
-  return grpc::Status(static_cast<grpc::StatusCode>(status.code()), std::string(status.message()));
+  // Marked as the coordinator's answer (status_origin.h): a client tells a
+  // refusal (e.g. a full disk) from an unreachable coordinator.
+  return rpc::CoordinatorStatus(static_cast<grpc::StatusCode>(status.code()),
+                                std::string(status.message()));
 }
 
 storage::WorkerIdentity FromProto(const v1::WorkerIdentity& worker) {

@@ -3,6 +3,7 @@
 #include <httplib.h>
 
 #include "absl/strings/str_cat.h"
+#include "server/service/http_guard.h"
 
 namespace totalgrad::service {
 
@@ -29,8 +30,8 @@ absl::StatusOr<std::unique_ptr<HealthServer>> HealthServer::Start(
     return absl::InvalidArgumentError("HTTPS needs both a certificate and a key file");
   }
   if (!options.tls_cert_file.empty()) {
-    auto tls_server = std::make_unique<httplib::SSLServer>(options.tls_cert_file.c_str(),
-                                                           options.tls_key_file.c_str());
+    auto tls_server = std::make_unique<GuardedServer<httplib::SSLServer>>(
+        options.limits, options.tls_cert_file.c_str(), options.tls_key_file.c_str());
     if (!tls_server->is_valid()) {
       return absl::FailedPreconditionError(
           absl::StrCat("HTTP port: cannot load the TLS certificate ", options.tls_cert_file,
@@ -39,13 +40,9 @@ absl::StatusOr<std::unique_ptr<HealthServer>> HealthServer::Start(
     health->server_ = std::move(tls_server);
     health->tls_ = true;
   } else {
-    health->server_ = std::make_unique<httplib::Server>();
+    health->server_ = std::make_unique<GuardedServer<httplib::Server>>(options.limits);
   }
   httplib::Server& server = *health->server_;
-  server.new_task_queue = [] { return new httplib::ThreadPool(kHealthThreads); };
-  server.set_read_timeout(2, 0);
-  server.set_write_timeout(2, 0);
-  server.set_keep_alive_max_count(1);  // one answer per connection, then close
   server.set_payload_max_length(4096);
   server.Get("/healthz", [check = std::move(check)](const httplib::Request&,
                                                     httplib::Response& response) {

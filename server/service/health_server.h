@@ -1,7 +1,7 @@
 // The coordinator's HTTP port: a liveness endpoint for Kubernetes probes
 // and, when the coordinator adds them, the dashboard's routes
 // (server/dashboard/dashboard.h), served by cpp-httplib (Debian's
-// libcpp-httplib-dev, built with OpenSSL) on a small thread pool of its own.
+// libcpp-httplib-dev, built with OpenSSL) on threads of its own.
 //
 //   GET /healthz  -> 200 "ok\n" when `check` returns OK, else 503 "<reason>\n";
 //                    never asks for a token (it exposes nothing but "ok" or
@@ -10,16 +10,22 @@
 //   other paths or methods -> 404; malformed requests -> 400 (the library's)
 //
 // Plain HTTP, or HTTPS with the given certificate and key (then probes use
-// scheme HTTPS). Every connection is closed after one answer; a connection
-// that sends no complete request head is dropped after 2 s. Connections are
-// served by kHealthThreads threads, so a few idle or slow clients do not
-// delay a probe (the hand-written server this replaces served one
-// connection at a time, and five idle connections held a probe up for
-// 10 s). Never touches the gRPC server; Stop() stops the library's listener
-// and joins its thread.
+// scheme HTTPS). Every connection is closed after one answer. Slow or idle
+// clients cannot starve a probe (server/service/http_guard.h): the whole
+// request must arrive within HttpLimits::request_deadline (3 s) of the
+// connection being served, whatever the pace of its bytes; each connection
+// has a thread of its own, up to max_connections (64); beyond that, or
+// beyond max_connections_per_address (16) from one address, the oldest
+// connection still waiting for its request is closed to serve the new one,
+// so a probe (one packet, answered in milliseconds) always gets through, from
+// any address. /healthz therefore needs no listener of its own. Never
+// touches the gRPC server; Stop() stops the library's listener and joins its
+// thread.
 #ifndef TOTALGRAD_SERVER_SERVICE_HEALTH_SERVER_H_
 #define TOTALGRAD_SERVER_SERVICE_HEALTH_SERVER_H_
 
+#include <chrono>
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <string>
@@ -34,8 +40,17 @@ class Server;
 
 namespace totalgrad::service {
 
-// Threads answering health connections at once.
-inline constexpr int kHealthThreads = 8;
+struct HttpLimits {
+  // The whole request must have arrived this long after its connection is
+  // first served; the connection is closed otherwise.
+  std::chrono::milliseconds request_deadline{3000};
+  // Each write of the answer.
+  std::chrono::milliseconds write_timeout{2000};
+  // Connections served at once (each has a thread while it is open).
+  int max_connections = 64;
+  // Connections of one client address at once.
+  int max_connections_per_address = 16;
+};
 
 struct HttpPortOptions {
   // PEM files of the certificate chain and key: serve HTTPS (both or neither).
@@ -43,6 +58,8 @@ struct HttpPortOptions {
   std::string tls_key_file;
   // Called once before serving to add routes besides /healthz; null: none.
   std::function<void(httplib::Server*)> add_routes;
+  // Deadlines and bounds of the port's connections (server/service/http_guard.h).
+  HttpLimits limits;
 };
 
 class HealthServer {

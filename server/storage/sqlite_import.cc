@@ -17,6 +17,50 @@ using internal::Db;
 using internal::Statement;
 using namespace internal;  // the row helpers of sqlite_internal.h
 
+namespace {
+
+// The completion check of EndAttempt (the kind's rule, then every row of
+// 0..total-1 of each of its tables) on the archived attempt `attempt` that
+// completed `job`, once its rows are stored as `key`: a job with rows missing
+// is not taken over as completed. InvalidArgument naming the job.
+absl::Status CheckImportedCompletion(Db& db, const ImportedJob& job, const ImportedAttempt& attempt,
+                                     const LeaseKey& key, int episodes_expected) {
+  const JobKindInfo& kind = KindInfo(job.record.kind);
+  const std::string name = absl::StrCat("archive: job ", job.record.method, " seed ",
+                                        job.record.seed, " ", job.record.variant,
+                                        " is completed by attempt ", attempt.attempt);
+  if (kind.rule == CompletionRule::kJobExpected &&
+      static_cast<int>(attempt.episodes.size()) != episodes_expected) {
+    return absl::InvalidArgumentError(absl::StrCat(name, ", which holds ", attempt.episodes.size(),
+                                                   " of its ", episodes_expected, " episodes"));
+  }
+  // What the archive holds stands for what a worker would have reported.
+  JobResults rows;
+  rows.study = attempt.study;
+  rows.episodes.reserve(attempt.episodes.size());
+  for (const auto& [episode, reported_ms] : attempt.episodes) rows.episodes.push_back(episode);
+  ResultTotals reported;
+  for (const ResultTable* table : kind.tables) {
+    reported.*table->total = static_cast<int>(table->rows(rows));
+  }
+  absl::StatusOr<ResultTotals> required = RequiredRows(kind, key, episodes_expected, reported);
+  if (!required.ok()) {
+    return absl::InvalidArgumentError(absl::StrCat(name, ": ", required.status().message()));
+  }
+  for (const ResultTable* table : kind.tables) {
+    const int total = (*required).*table->total;
+    ASSIGN_OR_RETURN(std::vector<int> missing, MissingRows(db, key, *table, total));
+    if (!missing.empty()) {
+      return absl::InvalidArgumentError(absl::StrCat(name, ", which lacks ", table->noun, " ",
+                                                     absl::StrJoin(missing, ","), " of 0..",
+                                                     total - 1));
+    }
+  }
+  return absl::OkStatus();
+}
+
+}  // namespace
+
 absl::StatusOr<ImportResult> SqliteStore::ImportJobs(const std::optional<NewSweep>& create,
                                                     const std::string& sweep_name,
                                                     const std::vector<ImportedJob>& jobs,
@@ -130,23 +174,15 @@ WHERE id = ?)sql"));
           episode_insert.Reset();
           ++result.episodes_imported;
         }
-        // The attempt that completed the job holds every episode, as Complete
-        // requires of a worker (job_kinds.h): a trial with rows missing is
-        // not taken over as completed.
-        if (a.attempt == job.completed_attempt &&
-            KindInfo(job.record.kind).rule == CompletionRule::kJobExpected &&
-            static_cast<int>(a.episodes.size()) != episodes_expected) {
-          return absl::InvalidArgumentError(absl::StrCat(
-              "archive: job ", job.record.method, " seed ", job.record.seed, " ",
-              job.record.variant, " is completed by attempt ", a.attempt, ", which holds ",
-              a.episodes.size(), " of its ", episodes_expected, " episodes"));
-        }
         if (!a.study.empty()) {
           OpenAttempt into;
           into.kind = job.record.kind;
           probe.episodes.clear();  // stored above, each with its own time
           RETURN_IF_ERROR(InsertResults(db, {job_id, number}, into, probe, now_ms));
           result.study_rows_imported += static_cast<int64_t>(a.study.size());
+        }
+        if (a.attempt == job.completed_attempt) {
+          RETURN_IF_ERROR(CheckImportedCompletion(db, job, a, {job_id, number}, episodes_expected));
         }
       }
       if (completed_here == 0) {

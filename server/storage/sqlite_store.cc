@@ -402,7 +402,25 @@ absl::Status SqliteStore::CheckFileIdentityLocked() {
 }
 
 absl::Status SqliteStore::CheckWritable() {
-  absl::MutexLock lock(&write_mutex_);
+  if (!write_mutex_.TryLock()) {
+    // A write transaction is running. It is a sign of health unless it has
+    // been waiting for SQLite's write lock (held by another connection or
+    // process) for a while; the probe must not queue behind it either way.
+    const int64_t waiting_since = lock_wait_since_ms_.load();
+    const int64_t waited = waiting_since > 0 ? SteadyMs() - waiting_since : 0;
+    if (waited >= kWriteLockWaitReportMs) {
+      return absl::UnavailableError(absl::StrCat(
+          "a write has waited ", waited, " ms for the database's write lock on ", path_,
+          " (another process or connection holds it)"));
+    }
+    return absl::OkStatus();
+  }
+  absl::Status status = CheckWritableLocked();
+  write_mutex_.Unlock();
+  return status;
+}
+
+absl::Status SqliteStore::CheckWritableLocked() {
   RETURN_IF_ERROR(CheckFileIdentityLocked());
   const int64_t now = SteadyMs();
   constexpr int64_t kProbeIntervalMs = 5000;
@@ -411,9 +429,19 @@ absl::Status SqliteStore::CheckWritable() {
     return absl::UnavailableError(
         absl::StrCat("the last database commit failed: ", last_write_error_.message()));
   }
-  // Find out with a commit of our own.
+  // Find out with a commit of our own, waiting only briefly for the write
+  // lock: a probe answers, it does not queue.
   last_failure_or_probe_ms_ = now;
+  sqlite3_busy_timeout(writer_.raw(), static_cast<int>(kWriteLockWaitReportMs));
   absl::Status probe = writer_.Exec("BEGIN IMMEDIATE");
+  sqlite3_busy_timeout(writer_.raw(), options_.busy_timeout_ms);
+  if (!probe.ok() && sqlite3_errcode(writer_.raw()) == SQLITE_BUSY) {
+    // Busy is not a failure of the disk: the next write may well succeed, so
+    // it is not remembered as last_write_error_.
+    return absl::UnavailableError(absl::StrCat(
+        "the database's write lock on ", path_, " is held by another process or connection (",
+        probe.message(), ")"));
+  }
   if (probe.ok()) {
     probe = [&]() ABSL_EXCLUSIVE_LOCKS_REQUIRED(write_mutex_) -> absl::Status {
       ASSIGN_OR_RETURN(Statement upsert,
@@ -464,7 +492,18 @@ absl::Status SqliteStore::InWriteTransaction(const std::function<absl::Status(Db
   RETURN_IF_ERROR(CheckFileIdentityLocked());
   // IMMEDIATE takes the write lock up front: a deferred transaction that reads
   // then writes can fail with SQLITE_BUSY without the busy handler being used.
+  lock_wait_since_ms_.store(SteadyMs());
   absl::Status status = writer_.Exec("BEGIN IMMEDIATE");
+  lock_wait_since_ms_.store(0);
+  // Busy is another connection's lock, not a failure of the disk: the next
+  // write may succeed, so it is not remembered for CheckWritable.
+  const bool lock_busy = !status.ok() && sqlite3_errcode(writer_.raw()) == SQLITE_BUSY;
+  if (lock_busy) {
+    status = absl::UnavailableError(
+        absl::StrCat("the database's write lock on ", path_,
+                     " is held by another process or connection; gave up after ",
+                     options_.busy_timeout_ms, " ms (", status.message(), ")"));
+  }
   if (status.ok()) {
     status = body(writer_);
     if (status.ok()) status = writer_.Exec("COMMIT");
@@ -475,7 +514,7 @@ absl::Status SqliteStore::InWriteTransaction(const std::function<absl::Status(Db
   if (status.ok()) {
     last_write_error_ = absl::OkStatus();
     last_commit_ms_ = SteadyMs();
-  } else if (IsDatabaseFailure(status)) {
+  } else if (IsDatabaseFailure(status) && !lock_busy) {
     last_write_error_ = status;
     last_failure_or_probe_ms_ = SteadyMs();
   }

@@ -33,6 +33,7 @@
 #ifndef TOTALGRAD_SERVER_STORAGE_SQLITE_STORE_H_
 #define TOTALGRAD_SERVER_STORAGE_SQLITE_STORE_H_
 
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -43,6 +44,11 @@
 #include "server/storage/store.h"
 
 namespace totalgrad::storage {
+
+// How long the health check waits for SQLite's write lock, and how long a
+// write may have waited for it before the check reports the store as not
+// writable (milliseconds).
+inline constexpr int64_t kWriteLockWaitReportMs = 300;
 
 struct SqliteStoreOptions {
   // Waited for a lock held by another connection (e.g. a backup), milliseconds.
@@ -94,8 +100,11 @@ class SqliteStore final : public Store {
   // failed in the database (a full or failing disk) and no commit has
   // succeeded since. Without a successful commit in the last 5 s it commits
   // a tiny probe (the `meta` table) to find out; after a failure at most one
-  // probe per 5 s. For the coordinator's health endpoint.
-  absl::Status CheckWritable();
+  // probe per 5 s. Answers within about kWriteLockWaitReportMs, never
+  // queueing behind a write: Unavailable when another process or connection
+  // holds SQLite's write lock (a write waiting that long for it, or the
+  // probe's own wait). For the coordinator's health endpoint.
+  absl::Status CheckWritable() ABSL_LOCKS_EXCLUDED(write_mutex_);
 
   absl::StatusOr<SweepRecord> CreateSweep(const NewSweep& sweep, int64_t now_ms,
                                           bool* created) override;
@@ -155,6 +164,7 @@ class SqliteStore final : public Store {
   // or replaced; records database failures for CheckWritable.
   absl::Status InWriteTransaction(const std::function<absl::Status(internal::Db&)>& body)
       ABSL_LOCKS_EXCLUDED(write_mutex_);
+  absl::Status CheckWritableLocked() ABSL_EXCLUSIVE_LOCKS_REQUIRED(write_mutex_);
   // Unavailable (and remembered) if `path_` no longer names the opened file.
   absl::Status CheckFileIdentityLocked() ABSL_EXCLUSIVE_LOCKS_REQUIRED(write_mutex_);
 
@@ -172,6 +182,10 @@ class SqliteStore final : public Store {
   absl::Status last_write_error_ ABSL_GUARDED_BY(write_mutex_);
   int64_t last_failure_or_probe_ms_ ABSL_GUARDED_BY(write_mutex_) = 0;
   int64_t last_commit_ms_ ABSL_GUARDED_BY(write_mutex_) = 0;
+  // When the running write transaction started waiting for SQLite's write
+  // lock (steady clock, ms); 0 when none is waiting. Read without the mutex
+  // by CheckWritable, which must not queue behind that wait.
+  std::atomic<int64_t> lock_wait_since_ms_{0};
   absl::Mutex read_mutex_;
   internal::Db reader_ ABSL_GUARDED_BY(read_mutex_);
 };

@@ -167,6 +167,55 @@ TEST_F(EndToEndTest, DeletedDatabaseIsNoLongerAcknowledgedNorSilentlyRecreated) 
   EXPECT_FALSE(std::filesystem::exists(db_));
 }
 
+// Issue 28.4 and 28.5: while another process holds SQLite's write lock
+// (here the test, as `sqlite3 FILE` with BEGIN IMMEDIATE would), /healthz
+// answers 503 naming it within a second (it hung behind the waiting write),
+// and a CLI submit fails after the store's busy timeout with exit code 4,
+// "the coordinator refused", naming the lock (it retried until the lock
+// went, then exited 3, "unreachable", for a full disk or a deleted
+// database). Once the lock goes the same submit works; after the database
+// is deleted a submit exits 4 naming that.
+TEST_F(EndToEndTest, HeldWriteLockAnswers503AtOnceAndTheCliExitsFourNamingIt) {
+  const int health_port = FreeLoopbackPort();
+  ASSERT_GT(health_port, 0);
+  StartCoordinator(0, {"--health-listen", absl::StrCat("127.0.0.1:", health_port)});
+  const std::string sweep_file = dir_ + "/locked.toml";
+  WriteFile(sweep_file,
+            "name = \"locked\"\n[grid]\nmethod = [\"RP\"]\nseed = [1]\n[protocol]\n"
+            "episodes = 1\npolicy_steps = 2\nparticles = 4\neval_rollouts = 1\nhorizon = 5\n");
+  const std::vector<std::string> submit = {
+      TOTALGRAD_CLI_BIN, "sweep",     "submit", sweep_file, "--coordinator",
+      absl::StrCat("127.0.0.1:", port_), "--insecure", "--token-file", dir_ + "/user.token"};
+  TG_ASSERT_OK_AND_ASSIGN(storage::internal::Db other, storage::internal::Db::Open(db_, false, 0));
+  TG_ASSERT_OK(other.Exec("BEGIN IMMEDIATE"));
+
+  int exit_code = -1;
+  std::string out, err;
+  const auto start = std::chrono::steady_clock::now();
+  std::thread cli([&] { exit_code = RunCommand(submit, &out, &err); });
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));  // the submit waits for the lock
+  const auto probe = std::chrono::steady_clock::now();
+  const std::string health = HttpGet(health_port, "/healthz");
+  EXPECT_LT(std::chrono::steady_clock::now() - probe, seconds(1));
+  EXPECT_EQ(health.rfind("HTTP/1.1 503 ", 0), 0u) << health;
+  EXPECT_NE(health.find("write lock"), std::string::npos) << health;
+  cli.join();
+  EXPECT_EQ(exit_code, 4) << err;
+  EXPECT_NE(err.find("write lock"), std::string::npos) << err;
+  EXPECT_NE(err.find("the coordinator answered"), std::string::npos) << err;
+  EXPECT_LT(std::chrono::steady_clock::now() - start, seconds(12));
+
+  TG_ASSERT_OK(other.Exec("ROLLBACK"));
+  EXPECT_EQ(RunCommand(submit, &out, &err), 0) << err;
+
+  for (const char* suffix : {"", "-wal", "-shm"}) std::filesystem::remove(db_ + suffix);
+  WriteFile(sweep_file,
+            "name = \"after\"\n[grid]\nmethod = [\"RP\"]\nseed = [1]\n[protocol]\n"
+            "episodes = 1\npolicy_steps = 2\nparticles = 4\neval_rollouts = 1\nhorizon = 5\n");
+  EXPECT_EQ(RunCommand(submit, &out, &err), 4) << err;
+  EXPECT_NE(err.find("was deleted"), std::string::npos) << err;
+}
+
 // Issue 12.4: a 0-byte file is not silently made a new store (--init is
 // needed), and a file of a newer schema version is refused without one
 // byte of it changing.

@@ -294,5 +294,53 @@ TEST_F(JobKindsStoreTest, RowsAndTotalsOfAnotherKindAreRefusedAndNothingChanges)
   }
 }
 
+// Issue 28.5: an import checks a completed study job as EndAttempt does:
+// each of its tables holds rows 0..n-1 with n >= 1. A study completed with
+// cell 1 of 0..2 missing, or without references, is refused naming the job
+// and the rows, and nothing of the archive is stored; whole, it is taken over.
+TEST_F(JobKindsStoreTest, ImportOfACompletedStudyChecksEveryTableAsCompleteDoes) {
+  NewSweep sweep = MakeSweep("moved", 0, 1);
+  sweep.jobs.push_back(MakeStudyJob());
+  auto archived = [] {
+    ImportedJob job;
+    job.record.kind = JobKind::kStudy;
+    job.record.method = "study";
+    job.record.seed = "7";
+    job.record.variant = "tiny";
+    job.record.state = JobState::kCompleted;
+    job.completed_attempt = 2;
+    ImportedAttempt& attempt = job.attempts.emplace_back();
+    attempt.attempt = 2;
+    attempt.state = AttemptState::kCompleted;
+    for (int i : {0, 1, 2}) {
+      StudyCell& cell = attempt.study.cells.emplace_back();
+      cell.index = i;
+      cell.estimator = cell.method = "RP";
+    }
+    attempt.study.references.emplace_back().index = 0;
+    return job;
+  };
+  ImportedJob gap = archived();
+  gap.attempts[0].study.cells.erase(gap.attempts[0].study.cells.begin() + 1);
+  auto refused = store_->ImportJobs(sweep, "moved", {gap}, "a.json", kNow);
+  EXPECT_EQ(refused.status().code(), absl::StatusCode::kInvalidArgument) << refused.status();
+  EXPECT_TRUE(Contains(refused.status(), "archive: job study seed 7 tiny is completed by "
+                                         "attempt 2, which lacks study_cells rows 1 of 0..1"))
+      << refused.status();
+  EXPECT_EQ(store_->GetSweep("moved").status().code(), absl::StatusCode::kNotFound);
+
+  ImportedJob no_references = archived();
+  no_references.attempts[0].study.references.clear();
+  refused = store_->ImportJobs(sweep, "moved", {no_references}, "a.json", kNow);
+  EXPECT_EQ(refused.status().code(), absl::StatusCode::kInvalidArgument) << refused.status();
+  EXPECT_TRUE(Contains(refused.status(), "reports 0 study_references rows")) << refused.status();
+  EXPECT_EQ(store_->GetSweep("moved").status().code(), absl::StatusCode::kNotFound);
+
+  TG_ASSERT_OK_AND_ASSIGN(ImportResult result,
+                          store_->ImportJobs(sweep, "moved", {archived()}, "a.json", kNow));
+  EXPECT_EQ(result.jobs_imported, 1);
+  EXPECT_EQ(result.study_rows_imported, 4);
+}
+
 }  // namespace
 }  // namespace totalgrad::storage

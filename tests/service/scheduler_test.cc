@@ -8,6 +8,7 @@
 #include <atomic>
 #include <chrono>
 #include <filesystem>
+#include <limits>
 #include <set>
 #include <thread>
 
@@ -799,6 +800,80 @@ TEST_F(SchedulerTest, AcquireReturnsEmptyAtTheDeadlineAndAfterShutdown) {
   ASSERT_TRUE(lease.ok());
   EXPECT_FALSE(lease->has_value());
   EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(5));
+}
+
+// Issue 28.5: a worker's details_json must be JSON (readers parse it): a
+// Complete, a Fail or a heartbeat carrying anything else is refused naming
+// the episode and details_json, and nothing of it is stored.
+TEST_F(SchedulerTest, DetailsJsonThatIsNotJsonIsRefusedNamingIt) {
+  Submit("s", 1, 1);
+  const Lease lease = MustAcquire("w1");
+  std::vector<Episode> episodes = Episodes(0, 1);
+  episodes[0].details_json = "{\"cpu_seconds\": 1.5";  // cut short
+  auto complete = scheduler_->Complete("w1", lease.key, TrialCompletion(episodes, 1, true, 1.0));
+  EXPECT_EQ(complete.code(), absl::StatusCode::kInvalidArgument) << complete;
+  EXPECT_NE(complete.message().find("episode 0: details_json is not valid JSON"),
+            std::string::npos)
+      << complete;
+  auto fail = scheduler_->Fail("w1", lease.key, episodes, "boom");
+  EXPECT_EQ(fail.status().code(), absl::StatusCode::kInvalidArgument) << fail.status();
+  EXPECT_NE(fail.status().message().find("details_json"), std::string::npos) << fail.status();
+  EXPECT_EQ(Job(lease.key.job_id).state, JobState::kRunning);
+  EXPECT_EQ(Job(lease.key.job_id).episodes_stored, 0);
+  // Empty (no details) and any JSON value are fine.
+  episodes[0].details_json = "";
+  TG_EXPECT_OK(ValidateEpisodes(episodes));
+  episodes[0].details_json = "[1, {\"a\": null}]";
+  TG_EXPECT_OK(ValidateEpisodes(episodes));
+}
+
+// Issue 28.5: an import takes over only what Complete would have accepted:
+// a completed trial with a non-finite final cost, an episode with an
+// infinite number, details that are not JSON, or a checkpoint without data
+// is refused naming the job, and nothing of the archive is stored.
+TEST_F(SchedulerTest, ImportRefusesWhatCompleteRefuses) {
+  auto archived = [&] {
+    storage::ImportedJob job;
+    job.record.kind = storage::JobKind::kTrial;
+    job.record.method = "RP";
+    job.record.seed = "1";
+    job.record.variant = "noise_k=1";
+    job.record.state = JobState::kCompleted;
+    job.record.success = true;
+    job.record.final_eval_cost = 2.5;
+    job.completed_attempt = 1;
+    storage::ImportedAttempt& attempt = job.attempts.emplace_back();
+    attempt.attempt = 1;
+    attempt.state = AttemptState::kCompleted;
+    for (int e = 0; e < 2; ++e) attempt.episodes.emplace_back(MakeEpisode(e), 100 + e);
+    return job;
+  };
+  const storage::NewSweep sweep = MakeSweep("moved", 1, 2);
+  auto expect_refused = [&](const storage::ImportedJob& job, const std::string& expected) {
+    auto refused = scheduler_->ImportSweep(sweep, "moved", {job}, "a.json");
+    EXPECT_EQ(refused.status().code(), absl::StatusCode::kInvalidArgument) << expected;
+    EXPECT_NE(refused.status().message().find(expected), std::string::npos) << refused.status();
+    EXPECT_NE(refused.status().message().find("archive: job RP seed 1 noise_k=1"),
+              std::string::npos)
+        << refused.status();
+    EXPECT_EQ(store_->GetSweep("moved").status().code(), absl::StatusCode::kNotFound);
+  };
+  storage::ImportedJob job = archived();
+  job.record.final_eval_cost = std::numeric_limits<double>::infinity();
+  expect_refused(job, "final_eval_cost that is not finite");
+  job = archived();
+  job.attempts[0].episodes[1].first.eval_cost_mean = -std::numeric_limits<double>::infinity();
+  expect_refused(job, "attempt 1: episode 1: eval_cost_mean is infinite");
+  job = archived();
+  job.attempts[0].episodes[0].first.details_json = "not json";
+  expect_refused(job, "attempt 1: episode 0: details_json is not valid JSON");
+  job = archived();
+  job.attempts[0].checkpoint = storage::Checkpoint{1, 1, ""};
+  expect_refused(job, "attempt 1: checkpoint without data");
+  // The same job with its values intact is taken over.
+  TG_ASSERT_OK_AND_ASSIGN(storage::ImportResult result,
+                          scheduler_->ImportSweep(sweep, "moved", {archived()}, "a.json"));
+  EXPECT_EQ(result.jobs_imported, 1);
 }
 
 }  // namespace

@@ -8,9 +8,11 @@
 
 #include <unistd.h>
 
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <thread>
 
 #include "absl/strings/str_cat.h"
 #include "tests/service/process_util.h"
@@ -656,6 +658,53 @@ TEST_F(StorageTest, FullDiskIsRetryableAndReportedUntilACommitSucceeds) {
   EXPECT_NE(health.message().find("the last database commit failed"), std::string::npos) << health;
   TG_ASSERT_OK(store_->TouchWorker(MakeWorker("w"), kNow));  // a small commit still fits
   TG_ASSERT_OK(store_->CheckWritable());
+}
+
+// Issue 28.4: while another process holds SQLite's write lock (here a
+// second connection in BEGIN IMMEDIATE, as the sqlite3 shell would), the
+// health check answers Unavailable within a second instead of waiting for
+// the lock, also while a write of the coordinator is queued behind it; the
+// write fails after busy_timeout naming the lock, and once the lock goes
+// both work again with nothing lost.
+TEST_F(StorageTest, HeldWriteLockMakesHealthUnavailableAtOnceAndWritesFailNamingIt) {
+  SqliteStoreOptions quick;
+  quick.busy_timeout_ms = 1500;
+  bool created = false;
+  TG_ASSERT_OK(store_->CreateSweep(MakeSweep("before", 1, 1), kNow, &created).status());
+  store_.reset();
+  // Reopened: no commit of this store yet, so the check probes.
+  TG_ASSERT_OK_AND_ASSIGN(store_, SqliteStore::Open(path_, quick));
+  TG_ASSERT_OK_AND_ASSIGN(internal::Db other, internal::Db::Open(path_, false, 0));
+  TG_ASSERT_OK(other.Exec("BEGIN IMMEDIATE"));
+
+  auto took_ms = [](auto since) {
+    return std::chrono::duration_cast<std::chrono::milliseconds>(
+               std::chrono::steady_clock::now() - since)
+        .count();
+  };
+  auto start = std::chrono::steady_clock::now();
+  absl::Status health = store_->CheckWritable();
+  EXPECT_LT(took_ms(start), 1000);
+  EXPECT_EQ(health.code(), absl::StatusCode::kUnavailable) << health;
+  EXPECT_NE(health.message().find("write lock"), std::string::npos) << health;
+
+  // A write waiting for the lock does not hold the check up either.
+  absl::Status write;
+  std::thread writer([&] { write = store_->TouchWorker(MakeWorker("w"), kNow); });
+  std::this_thread::sleep_for(std::chrono::milliseconds(600));
+  start = std::chrono::steady_clock::now();
+  health = store_->CheckWritable();
+  EXPECT_LT(took_ms(start), 1000);
+  EXPECT_EQ(health.code(), absl::StatusCode::kUnavailable) << health;
+  EXPECT_NE(health.message().find("waited"), std::string::npos) << health;
+  writer.join();
+  EXPECT_EQ(write.code(), absl::StatusCode::kUnavailable) << write;
+  EXPECT_NE(write.message().find("write lock"), std::string::npos) << write;
+
+  TG_ASSERT_OK(other.Exec("ROLLBACK"));
+  TG_ASSERT_OK(store_->CheckWritable());
+  TG_ASSERT_OK(store_->TouchWorker(MakeWorker("w"), kNow));
+  TG_ASSERT_OK(store_->GetSweep("before").status());
 }
 
 TEST_F(StorageTest, BackupIsAConsistentOpenableCopy) {

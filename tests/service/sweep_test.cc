@@ -179,6 +179,33 @@ TEST(SweepSpecTest, CountsBeyondTheLimitsNameTheLimit) {
       << status;
 }
 
+// Issue 28.5: numeric options are checked against the ranges of their
+// option tables at submission: noise_k = 1e308 was accepted and failed three
+// times at run time; now the sweep is refused naming the option, its value
+// and the allowed range, in the grid and in the protocol.
+TEST(SweepSpecTest, ValuesOutsideAnOptionsPhysicalRangeAreRefusedNamingTheRange) {
+  auto in_grid = ParseSweepToml(
+      "name = \"loud\"\n[grid]\nmethod = [\"RP\"]\nnoise_k = [1.0, 1e308]\n", "loud.toml");
+  EXPECT_EQ(in_grid.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(in_grid.status().message().find(
+                "option 'noise_k': 1e+308 is out of range: allowed 0 to 10000 (observation "
+                "noise variance multiplier"),
+            std::string::npos)
+      << in_grid.status();
+  auto in_protocol = ParseSweepToml(
+      "name = \"heavy\"\n[grid]\nmethod = [\"RP\"]\n[protocol]\ngravity = -9.82\n",
+      "heavy.toml");
+  EXPECT_EQ(in_protocol.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(in_protocol.status().message().find(
+                "option 'gravity': -9.82 is out of range: allowed 0 to 1000 (m/s^2)"),
+            std::string::npos)
+      << in_protocol.status();
+  // The ends of a range are allowed.
+  TG_EXPECT_OK(ParseSweepToml(
+      "name = \"edge\"\n[grid]\nmethod = [\"RP\"]\nnoise_k = [0.0, 10000.0]\n", "edge.toml")
+                   .status());
+}
+
 TEST(SweepSpecTest, RangesExpandToConsecutiveIntegers) {
   TG_ASSERT_OK_AND_ASSIGN(SweepSpec spec, ParseSweepToml(
       "name = \"r\"\n[grid]\nmethod = [\"RP\"]\nseed = { first = 10, count = 3 }\n", "r"));
