@@ -6,7 +6,8 @@
 // details text. The table is the columns of the `episodes` table, the fields
 // of the proto's EpisodeReport, the CSV columns of `totalgrad results export
 // -f csv` and the first keys of an episode's JSON (`totalgrad trial --json`,
-// sweep archives). Adding a field: docs/core.md, "Records, and adding a field".
+// sweep archives). Adding a field: docs/core.md, "Where to add what", "A new
+// results column".
 //
 // Header only (the table too), so that the worker's runtime, which links no
 // numerical code, shares it.

@@ -18,7 +18,7 @@
 // TrialOptions::Table() nests them in that order, so every option has one key
 // everywhere (CLI flags, sweep files, the service's option pairs, trial
 // snapshots and checkpoints). Adding an option to a module is a change in its
-// table only (docs/core.md, "Adding an option").
+// table only (docs/core.md, "Options, and adding one").
 //
 // The method and the angle-feature choice are enums, parsed from text once
 // by the table (or by estimators::ParseMethod at another edge).

@@ -10,7 +10,7 @@
 // missing-rows query per table, sqlite_internal.h MissingRows),
 // checkpoints, and whether the worker's verdict is the job's.
 //
-// Adding a kind: docs/core.md, "Job kinds, and adding one".
+// Adding a kind: docs/core.md, "Where to add what", "A new job kind".
 #ifndef TOTALGRAD_SERVER_STORAGE_JOB_KINDS_H_
 #define TOTALGRAD_SERVER_STORAGE_JOB_KINDS_H_
 
