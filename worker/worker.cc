@@ -335,6 +335,9 @@ void Worker::RunLease(const v1::Lease& lease) {
   auto active = std::make_shared<ActiveLease>();
   active->lease = lease;
   active->next_beat_ms = clock_->MonotonicMs() + std::max(100, lease.heartbeat_interval_ms());
+  // Before the lease is registered, so that SpoolUnfinished's fuller entry
+  // (its unacknowledged episodes) always replaces this mark, never the reverse.
+  MarkHeldInSpool(lease.key());
   {
     absl::MutexLock lock(&mutex_);
     active_[lease.key().job_id()] = active;

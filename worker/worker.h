@@ -38,6 +38,13 @@
 //     when it starts: results of leases the coordinator still holds are
 //     stored; those of an ended lease are refused (ABORTED) and dropped with
 //     a log line (the job re-runs).
+//   * With a spool, every lease is marked held in it when its trial starts
+//     (a release, "held by an earlier process"), and the mark is removed
+//     once the attempt's end reached the coordinator. A process killed
+//     outright (kill -9, the machine rebooted) thus leaves its leases in the
+//     spool, and its successor with the same id releases them at start
+//     instead of leaving them to expire after lease_timeout: the jobs are
+//     re-queued at once and resume from their stored checkpoints.
 //   * An auth error (UNAUTHENTICATED, PERMISSION_DENIED) or a worker id in
 //     use by another live process (ALREADY_EXISTS from AcquireLease, or the
 //     host-local lock) stops the worker at once, with results spooled, and
@@ -242,6 +249,12 @@ class Worker {
                                 const std::optional<v1::TrialCheckpoint>& checkpoint = {}) const;
   // Keeps `entry` in the spool; false (and a log line) without one.
   bool KeepInSpool(const v1::SpooledAttempt& entry, const std::string& why);
+  // Marks `key` held in the spool (a release for the next process with this
+  // id, should this one die without reporting it), and forgets the mark once
+  // the attempt's end was delivered or refused. No-ops without a spool;
+  // a failed write is logged and the lease kept (it then expires as before).
+  void MarkHeldInSpool(const v1::LeaseKey& key);
+  void ForgetHeldInSpool(const v1::LeaseKey& key);
 
   const WorkerOptions options_;
   std::unique_ptr<v1::WorkerService::Stub> stub_;

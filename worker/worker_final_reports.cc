@@ -39,6 +39,27 @@ v1::SpooledAttempt Worker::SpoolEntry(const v1::LeaseKey& key,
   return entry;
 }
 
+void Worker::MarkHeldInSpool(const v1::LeaseKey& key) {
+  if (spool_ == nullptr) return;
+  v1::SpooledAttempt entry = SpoolEntry(key, {});
+  entry.mutable_release()->set_worker_id(options_.worker_id);
+  *entry.mutable_release()->mutable_lease() = key;
+  entry.mutable_release()->set_reason(
+      "held by an earlier process with this worker id that ended without reporting it");
+  const absl::Status written = spool_->Put(entry);
+  if (!written.ok()) {
+    spdlog::warn("{}: marking the lease held in the spool failed ({}); should this process "
+                 "die, the lease is lost only after the lease timeout",
+                 Describe(key), written.ToString());
+  }
+}
+
+void Worker::ForgetHeldInSpool(const v1::LeaseKey& key) {
+  if (spool_ == nullptr) return;
+  const absl::Status removed = spool_->Remove(key);
+  if (!removed.ok()) spdlog::warn("{}", removed.ToString());
+}
+
 bool Worker::KeepInSpool(const v1::SpooledAttempt& entry, const std::string& why) {
   if (spool_ == nullptr) {
     spdlog::warn("{}: {}; no --state-dir to keep it in: dropped", Describe(entry.lease()), why);
@@ -253,6 +274,7 @@ void Worker::Finish(const std::shared_ptr<ActiveLease>& active,
                     const absl::StatusOr<JobOutcome>& result) {
   const v1::LeaseKey& key = active->lease.key();
   EndedAttempt ended;
+  bool lost = false;
   {
     // Take the lease away from the heartbeat thread; from here on it is a
     // final report in finishing_ (which SpoolUnfinished sees too).
@@ -260,15 +282,20 @@ void Worker::Finish(const std::shared_ptr<ActiveLease>& active,
     const auto no_beat_in_flight = [&] { return !active->beat_in_flight; };
     mutex_.Await(absl::Condition(&no_beat_in_flight));
     active_.erase(key.job_id());
-    if (active->lost) {
+    lost = active->lost;
+    if (lost) {
       ++summary_.dropped;
-      return;
+    } else {
+      ended.failure = active->failure;
+      ended.cancel_reason = active->cancel_reason;
+      ended.never_started = active->never_started;
+      ended.unacked = active->unacked;
+      ended.checkpoint = active->checkpoint;
     }
-    ended.failure = active->failure;
-    ended.cancel_reason = active->cancel_reason;
-    ended.never_started = active->never_started;
-    ended.unacked = active->unacked;
-    ended.checkpoint = active->checkpoint;
+  }
+  if (lost) {
+    ForgetHeldInSpool(key);
+    return;
   }
   if (ended.failure.empty() && !result.ok() &&
       result.status().code() != absl::StatusCode::kCancelled) {
@@ -311,6 +338,9 @@ void Worker::Finish(const std::shared_ptr<ActiveLease>& active,
     ++(kept ? summary_.spooled : summary_.dropped);
     return;
   }
+  // Delivered, or refused because the lease ended: nothing is left to hand
+  // over (any other failure is spooled by CountFinalReport, replacing the mark).
+  if (status.ok() || IsLeaseGone(status.error_code())) ForgetHeldInSpool(key);
   absl::MutexLock lock(&mutex_);
   finishing_.erase(key.job_id());
   CountFinalReport(key, result, ended, delivery, entry);
@@ -386,9 +416,10 @@ void Worker::ReplaySpool() {
     if (status.ok()) {
       ++summary_.replayed;
       spdlog::info("{}: spooled results delivered ({})", Describe(entry.lease()),
-                   delivery.kind == Delivery::Kind::kComplete ? "completed"
-                   : delivery.kind == Delivery::Kind::kFail   ? "failed"
-                                                              : "released");
+                   delivery.kind == Delivery::Kind::kComplete ? std::string("completed")
+                   : delivery.kind == Delivery::Kind::kFail
+                       ? std::string("failed")
+                       : absl::StrCat("released: ", entry.release().reason()));
     } else {
       ++summary_.dropped;
       spdlog::warn("{}: its lease ended before the spooled results could be delivered ({}); "

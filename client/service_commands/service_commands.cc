@@ -174,6 +174,62 @@ void AddSweepCommands(CLI::App* app, int* exit_code) {
   AddSweepDeleteCommand(sweep_cmd, exit_code);
 }
 
+// `job list`: the jobs of `sweep_name` ("" all) in `states` (comma-separated
+// names, "" all), page by page.
+int ListJobs(Connection* c, const std::string& sweep_name, const std::string& states) {
+  v1::ListJobsRequest request;
+  request.set_sweep_name(sweep_name);
+  if (!states.empty()) {
+    for (absl::string_view state : absl::StrSplit(states, ',')) {
+      const std::map<std::string, v1::JobState> names = {
+          {"queued", v1::JOB_STATE_QUEUED}, {"running", v1::JOB_STATE_RUNNING},
+          {"completed", v1::JOB_STATE_COMPLETED}, {"failed", v1::JOB_STATE_FAILED},
+          {"cancelled", v1::JOB_STATE_CANCELLED}};
+      auto it = names.find(std::string(state));
+      if (it == names.end()) {
+        std::cerr << "error: --state: '" << state
+                  << "' is not one of queued, running, completed, failed, cancelled\n";
+        return 2;
+      }
+      request.add_states(it->second);
+    }
+  }
+  // -f json|csv: the job's table (storage::JobFields()), written page by
+  // page as the pages arrive; the text table is a view of some of its
+  // fields (its widths need every row first).
+  RecordPrinter<storage::JobRecord> printer(storage::JobFields(), c->format(), std::cout);
+  Listing listing;
+  listing.columns = {"job",     "sweep",    "method", "seed",     "variant", "state",
+                     "attempts", "failures", "lost",  "episodes", "worker",  "final_cost",
+                     "success", "last_error"};
+  const grpc::Status status =
+      ForEachJobPage(c, request, [&](const v1::ListJobsResponse& page) {
+        for (const v1::JobInfo& info : page.jobs()) {
+          const storage::JobRecord j = service::FromProto(info);
+          if (c->format() != Format::kTable) {
+            printer.Add(j);
+            continue;
+          }
+          const bool done = j.state == storage::JobState::kCompleted;
+          listing.rows.push_back(
+              {std::to_string(j.id), j.sweep_name, j.method, j.seed, j.variant,
+               std::string(storage::ToString(j.state)), std::to_string(j.attempts),
+               std::to_string(j.failures), std::to_string(j.lost_leases),
+               absl::StrCat(j.episodes_stored, "/", j.episodes_expected), j.worker_id,
+               done ? FormatFixed(j.final_eval_cost, 3) : "",
+               done ? (j.success ? "yes" : "no") : "", j.last_error.substr(0, 60)});
+        }
+        return grpc::Status::OK;
+      });
+  if (!status.ok()) return ReportError(status, "job list");
+  if (c->format() != Format::kTable) {
+    printer.Finish();
+    return 0;
+  }
+  Print(listing, c->format(), std::cout);
+  return 0;
+}
+
 void AddJobCommands(CLI::App* app, int* exit_code) {
   CLI::App* job_cmd = app->add_subcommand("job", "inspect and retry jobs");
   job_cmd->require_subcommand(1);
@@ -181,57 +237,7 @@ void AddJobCommands(CLI::App* app, int* exit_code) {
   auto sweep_name = std::make_shared<std::string>();
   auto states = std::make_shared<std::string>();
   CLI::App* list = AddCommand(job_cmd, "list", "list jobs", exit_code, [sweep_name, states](Connection* c) {
-    v1::ListJobsRequest request;
-    request.set_sweep_name(*sweep_name);
-    if (!states->empty()) {
-      for (absl::string_view state : absl::StrSplit(*states, ',')) {
-        const std::map<std::string, v1::JobState> names = {
-            {"queued", v1::JOB_STATE_QUEUED}, {"running", v1::JOB_STATE_RUNNING},
-            {"completed", v1::JOB_STATE_COMPLETED}, {"failed", v1::JOB_STATE_FAILED},
-            {"cancelled", v1::JOB_STATE_CANCELLED}};
-        auto it = names.find(std::string(state));
-        if (it == names.end()) {
-          std::cerr << "error: --state: '" << state
-                    << "' is not one of queued, running, completed, failed, cancelled\n";
-          return 2;
-        }
-        request.add_states(it->second);
-      }
-    }
-    // -f json|csv: the job's table (storage::JobFields()), written page by
-    // page as the pages arrive; the text table is a view of some of its
-    // fields (its widths need every row first).
-    RecordPrinter<storage::JobRecord> printer(storage::JobFields(), c->format(), std::cout);
-    Listing listing;
-    listing.columns = {"job",     "sweep",    "method", "seed",     "variant", "state",
-                       "attempts", "failures", "lost",  "episodes", "worker",  "final_cost",
-                       "success", "last_error"};
-    const grpc::Status status =
-        ForEachJobPage(c, request, [&](const v1::ListJobsResponse& page) {
-          for (const v1::JobInfo& info : page.jobs()) {
-            const storage::JobRecord j = service::FromProto(info);
-            if (c->format() != Format::kTable) {
-              printer.Add(j);
-              continue;
-            }
-            const bool done = j.state == storage::JobState::kCompleted;
-            listing.rows.push_back(
-                {std::to_string(j.id), j.sweep_name, j.method, j.seed, j.variant,
-                 std::string(storage::ToString(j.state)), std::to_string(j.attempts),
-                 std::to_string(j.failures), std::to_string(j.lost_leases),
-                 absl::StrCat(j.episodes_stored, "/", j.episodes_expected), j.worker_id,
-                 done ? FormatFixed(j.final_eval_cost, 3) : "",
-                 done ? (j.success ? "yes" : "no") : "", j.last_error.substr(0, 60)});
-          }
-          return grpc::Status::OK;
-        });
-    if (!status.ok()) return ReportError(status, "job list");
-    if (c->format() != Format::kTable) {
-      printer.Finish();
-      return 0;
-    }
-    Print(listing, c->format(), std::cout);
-    return 0;
+    return ListJobs(c, *sweep_name, *states);
   });
   list->add_option("--sweep", *sweep_name, "only this sweep");
   list->add_option("--state", *states, "only these states, e.g. failed,running");

@@ -59,7 +59,7 @@ const OptionTable<SceneOptions>& SceneOptions::Table() {
                 {0, 1e4, "observation noise variance multiplier of the scene's measurement noise"})
         .Int("horizon", &SceneOptions::horizon, {1, 1e5, "time steps per episode"})
         .Double("initial_std", &SceneOptions::initial_std,
-                {0, 100, "std of the start state around the scene's mean, state units"})
+                {0, 1e4, "std of the start state around the scene's mean, state units"})
         .Nest(&SceneOptions::plant, CartPoleParams::Table());
     return t;
   }();

@@ -52,7 +52,6 @@ PENDING = {
     ("server/storage/sqlite_import.cc", "SqliteStore::ImportJobs"): 157,
     ("server/storage/sqlite_import.cc", "<lambda>"): 149,
     ("client/service_commands/run_command.cc", "Run"): 162,
-    ("client/service_commands/service_commands.cc", "AddJobCommands"): 155,
 }
 
 

@@ -441,6 +441,47 @@ TEST_F(CheckpointTest, KilledWorkersFitcTrialResumesFromItsCheckpointBitForBit) 
   KillAndResume("resume-fitc", protocol, /*kill_after_checkpoint=*/3);
 }
 
+// Issue 28: a worker killed outright and started again with the same id and
+// state directory (a reboot, a session's end) releases the leases its
+// predecessor held at once, from the marks in its spool, instead of leaving
+// them to expire after the lease timeout (a minute here): the job is
+// re-queued without blame, and the successor resumes it from its checkpoint
+// with the same results.
+TEST_F(CheckpointTest, KilledWorkersSuccessorWithTheSameIdReleasesItsLeasesAtOnce) {
+  StartCoordinator(0, {}, /*lease_timeout_seconds=*/60);
+  ASSERT_TRUE(Submit(MakeSpec("same-id", {7}, SlowProtocol())).ok());
+  auto first = StartWorker("same-id-worker");
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        const auto jobs = Jobs("same-id");
+        if (jobs.empty() || jobs[0].state() != v1::JOB_STATE_RUNNING) return false;
+        return JobLog(jobs[0].job_id()).attempts(0).checkpoint_episode() >= 2;
+      },
+      seconds(120)));
+  ASSERT_TRUE(first->Running());
+  first->Signal(SIGKILL);
+  first->Wait(seconds(10));
+  const int64_t job_id = Jobs("same-id")[0].job_id();
+  auto second = StartWorker("same-id-worker");
+  // Well within the lease timeout: the old attempt ended by the successor's
+  // release, not by expiry.
+  ASSERT_TRUE(WaitFor([&] { return JobLog(job_id).attempts_size() == 2; }, seconds(20)))
+      << second->Log();
+  ASSERT_TRUE(WaitFinished("same-id", seconds(180)));
+  ExpectRowsEqualReference("same-id", SlowProtocol());
+  const v1::JobInfo job = Jobs("same-id")[0];
+  EXPECT_EQ(job.failures(), 0);
+  const v1::GetJobLogResponse log = JobLog(job_id);
+  ASSERT_EQ(log.attempts_size(), 2);
+  EXPECT_EQ(log.attempts(0).state(), v1::ATTEMPT_STATE_RELEASED);
+  EXPECT_EQ(log.attempts(1).state(), v1::ATTEMPT_STATE_COMPLETED);
+  EXPECT_EQ(log.attempts(1).worker_id(), "same-id-worker");
+  const std::string resumed = absl::StrCat("resuming from the checkpoint of attempt 1 after episode ",
+                                           log.attempts(0).checkpoint_episode());
+  EXPECT_NE(second->Log().find(resumed), std::string::npos) << second->Log();
+  EXPECT_NE(second->Log().find("held by an earlier process"), std::string::npos) << second->Log();
+}
+
 // The coordinator killed in the middle of a sweep and restarted on the same
 // file and port: every row acknowledged before the kill is still there, the
 // running workers reattach, and the sweep completes with exact results.

@@ -241,7 +241,9 @@ TEST(SweepSpecTest, TooManyJobsAreRefusedBeforeExpansion) {
   SweepSpec spec;
   spec.name = "huge";
   std::vector<std::string> many;
-  for (int i = 0; i < 1000; ++i) many.push_back(std::to_string(i));
+  // Horizons 1..1000 (each in its option's range), so that only the count
+  // (10^6 jobs) is wrong.
+  for (int i = 1; i <= 1000; ++i) many.push_back(std::to_string(i));
   spec.grid = {{"method", {"RP"}}, {"seed", many}, {"horizon", many}};
   const absl::Status status = CanonicalizeSpec(&spec);
   EXPECT_NE(status.message().find("more than 100000 jobs"), std::string::npos) << status;

@@ -485,6 +485,29 @@ TEST_F(WorkerTest, DrainWhileTheCoordinatorIsDownSpoolsAndTheNextWorkerReplays) 
   EXPECT_TRUE(std::filesystem::is_empty(state_dir_ + "/id-fake/spool"));
 }
 
+// While a trial runs, its lease is marked held in the spool (so a successor
+// can release it should this process be killed outright, e2e_test
+// KilledWorkersSuccessorWithTheSameIdReleasesItsLeasesAtOnce); the mark is
+// gone once the completion reached the coordinator.
+TEST_F(WorkerTest, RunningLeaseIsMarkedHeldInTheSpoolUntilItsEndIsDelivered) {
+  state_dir_ = dir_ + "/state";
+  UseFakeClocks();
+  Submit("held", {16});
+  StartWorker(1);
+  ProduceSlowEpisodes(1, 1);
+  const int64_t job_id = JobsBySeed("held")["16"].job_id();
+  const std::string mark =
+      absl::StrCat(state_dir_, "/id-fake/spool/job-", job_id, "-attempt-1.pb");
+  EXPECT_TRUE(std::filesystem::exists(mark));
+  ProduceSlowEpisodes(1, 8);
+  ASSERT_TRUE(WaitFor([&] { return Finished("held"); }, seconds(60)));
+  worker_->Drain();
+  worker_thread_.join();
+  EXPECT_EQ(summary_.completed, 1);
+  EXPECT_FALSE(std::filesystem::exists(mark));
+  EXPECT_TRUE(std::filesystem::is_empty(state_dir_ + "/id-fake/spool"));
+}
+
 // A spooled attempt whose lease has expired by the time the next worker
 // starts is refused by the coordinator and dropped with a log line; the job
 // re-runs and the spool is emptied.
