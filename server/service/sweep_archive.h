@@ -7,12 +7,12 @@
 // between machines and sessions: import it into a fresh coordinator, resubmit
 // the sweep file, and only the jobs still missing run.
 //
-// Format (version 3; docs/results_schema.md, "Sweep archives"). Each
+// Format (version 4; docs/results_schema.md, "Sweep archives"). Each
 // record is its field table's JSON (io/record_format.h): every field of the
 // table, in its order, named as the proto field (job_id, sweep_name,
 // created_unix_ms); NaN is null, enumerators are their names ("completed",
 // "lease_lost", "study"), a seed is its text ("7").
-//   {"format": "totalgrad-sweep-archive", "version": 3,
+//   {"format": "totalgrad-sweep-archive", "version": 4,
 //    "exported_by": BUILD, "exported_unix_ms": MS,
 //    "sweep": {...storage::SweepFields(): "name", "description", "state",
 //              "finished", "jobs_total", ..., "canonical_spec" (text)},
@@ -24,6 +24,8 @@
 //              "attempt_log": [{...storage::ImportedAttemptFields():
 //                  "attempt", "state", "worker_id", "worker_host",
 //                  "worker_build", "started_unix_ms", "ended_unix_ms", "error",
+//                  "origin", then optionally "checkpoint": {"episode",
+//                  "format_version", "data_base64"},
 //                  "episodes": [{...learner::EpisodeFields(),
 //                      "reported_unix_ms", "details": {...}}],
 //                  "study_cells": [{"index", ...study::CellFields()}],
@@ -107,8 +109,8 @@ struct ParsedSweepArchive {
   std::vector<storage::ImportedJob> jobs;
 };
 
-// Reads an archive of version 1, 2 or 3. InvalidArgument for another format
-// or version, or naming the value that is missing or mistyped: in version 3
+// Reads an archive of version 1 to 4. InvalidArgument for another format
+// or version, or naming the value that is missing or mistyped: in versions 3 and 4
 // by its path and why ("archive: jobs[3].state: 'x' is not one of its
 // names", "archive: jobs[0].attempt_log[1].episodes[2].real_cost: not a
 // number or null", "archive: sweep.spec_hash: missing"); in versions 1 and 2
