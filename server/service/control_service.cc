@@ -19,6 +19,26 @@ namespace {
 grpc::Status ClientWentAway() {
   return grpc::Status(grpc::StatusCode::CANCELLED, "the client went away during the stream");
 }
+
+// A sweep's study rows as ListStudyRows and ExportStudyRows both answer them.
+struct StudyRowsOfSweep {
+  storage::SweepRecord sweep;
+  std::vector<storage::StudyCellRecord> cells;
+  std::vector<storage::StudyReferenceRecord> references;
+};
+
+absl::StatusOr<StudyRowsOfSweep> ReadStudyRows(storage::Store* store,
+                                               const v1::ListStudyRowsRequest& request) {
+  StudyRowsOfSweep rows;
+  absl::StatusOr<storage::SweepRecord> sweep = store->GetSweep(request.sweep_name());
+  if (!sweep.ok()) return sweep.status();
+  rows.sweep = *std::move(sweep);
+  const absl::Status status = store->ListStudyRows(request.sweep_name(), request.all_attempts(),
+                                                   &rows.cells, &rows.references);
+  if (!status.ok()) return status;
+  return rows;
+}
+
 }  // namespace
 
 #define TG_AUTHORIZE(context)                                                \
@@ -385,16 +405,11 @@ grpc::Status ControlServiceImpl::ListStudyRows(grpc::ServerContext* context,
                                                const v1::ListStudyRowsRequest* request,
                                                v1::ListStudyRowsResponse* response) {
   TG_AUTHORIZE(context);
-  absl::StatusOr<storage::SweepRecord> sweep = store_->GetSweep(request->sweep_name());
-  if (!sweep.ok()) return ToGrpcStatus(sweep.status());
-  std::vector<storage::StudyCellRecord> cells;
-  std::vector<storage::StudyReferenceRecord> references;
-  const absl::Status status =
-      store_->ListStudyRows(request->sweep_name(), request->all_attempts(), &cells, &references);
-  if (!status.ok()) return ToGrpcStatus(status);
-  ToProto(*sweep, response->mutable_sweep());
-  for (const auto& cell : cells) ToProto(cell, response->add_cells());
-  for (const auto& reference : references) ToProto(reference, response->add_references());
+  const absl::StatusOr<StudyRowsOfSweep> rows = ReadStudyRows(store_, *request);
+  if (!rows.ok()) return ToGrpcStatus(rows.status());
+  ToProto(rows->sweep, response->mutable_sweep());
+  for (const auto& cell : rows->cells) ToProto(cell, response->add_cells());
+  for (const auto& reference : rows->references) ToProto(reference, response->add_references());
   return grpc::Status::OK;
 }
 
@@ -402,21 +417,16 @@ grpc::Status ControlServiceImpl::ExportStudyRows(
     grpc::ServerContext* context, const v1::ListStudyRowsRequest* request,
     grpc::ServerWriter<v1::ListStudyRowsResponse>* writer) {
   TG_AUTHORIZE(context);
-  absl::StatusOr<storage::SweepRecord> sweep = store_->GetSweep(request->sweep_name());
-  if (!sweep.ok()) return ToGrpcStatus(sweep.status());
-  std::vector<storage::StudyCellRecord> cells;
-  std::vector<storage::StudyReferenceRecord> references;
-  const absl::Status status =
-      store_->ListStudyRows(request->sweep_name(), request->all_attempts(), &cells, &references);
-  if (!status.ok()) return ToGrpcStatus(status);
+  const absl::StatusOr<StudyRowsOfSweep> rows = ReadStudyRows(store_, *request);
+  if (!rows.ok()) return ToGrpcStatus(rows.status());
   BatchWriter<v1::ListStudyRowsResponse> batches(writer);
-  ToProto(*sweep, batches.batch()->mutable_sweep());
-  for (const auto& cell : cells) {
+  ToProto(rows->sweep, batches.batch()->mutable_sweep());
+  for (const auto& cell : rows->cells) {
     v1::StudyCellRow* row = batches.batch()->add_cells();
     ToProto(cell, row);
     if (!batches.Added(*row)) return ClientWentAway();
   }
-  for (const auto& reference : references) {
+  for (const auto& reference : rows->references) {
     v1::StudyReferenceRow* row = batches.batch()->add_references();
     ToProto(reference, row);
     if (!batches.Added(*row)) return ClientWentAway();
