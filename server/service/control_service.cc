@@ -20,6 +20,23 @@ grpc::Status ClientWentAway() {
   return grpc::Status(grpc::StatusCode::CANCELLED, "the client went away during the stream");
 }
 
+// A sweep's completed trials as ListTrialResults and ExportTrialResults both
+// answer them.
+struct TrialResultsOfSweep {
+  storage::SweepRecord sweep;
+  std::vector<storage::TrialResultRecord> results;
+};
+
+absl::StatusOr<TrialResultsOfSweep> ReadTrialResults(storage::Store* store,
+                                                     const std::string& sweep_name) {
+  absl::StatusOr<storage::SweepRecord> sweep = store->GetSweep(sweep_name);
+  if (!sweep.ok()) return sweep.status();
+  absl::StatusOr<std::vector<storage::TrialResultRecord>> results =
+      store->ListTrialResults(sweep_name);
+  if (!results.ok()) return results.status();
+  return TrialResultsOfSweep{*std::move(sweep), *std::move(results)};
+}
+
 // A sweep's study rows as ListStudyRows and ExportStudyRows both answer them.
 struct StudyRowsOfSweep {
   storage::SweepRecord sweep;
@@ -349,13 +366,10 @@ grpc::Status ControlServiceImpl::ListTrialResults(grpc::ServerContext* context,
                                                   const v1::SweepRequest* request,
                                                   v1::ListTrialResultsResponse* response) {
   TG_AUTHORIZE(context);
-  absl::StatusOr<storage::SweepRecord> sweep = store_->GetSweep(request->name());
-  if (!sweep.ok()) return ToGrpcStatus(sweep.status());
-  absl::StatusOr<std::vector<storage::TrialResultRecord>> results =
-      store_->ListTrialResults(request->name());
-  if (!results.ok()) return ToGrpcStatus(results.status());
-  ToProto(*sweep, response->mutable_sweep());
-  for (const auto& result : *results) ToProto(result, response->add_results());
+  const absl::StatusOr<TrialResultsOfSweep> read = ReadTrialResults(store_, request->name());
+  if (!read.ok()) return ToGrpcStatus(read.status());
+  ToProto(read->sweep, response->mutable_sweep());
+  for (const auto& result : read->results) ToProto(result, response->add_results());
   return grpc::Status::OK;
 }
 
@@ -363,14 +377,11 @@ grpc::Status ControlServiceImpl::ExportTrialResults(
     grpc::ServerContext* context, const v1::SweepRequest* request,
     grpc::ServerWriter<v1::ListTrialResultsResponse>* writer) {
   TG_AUTHORIZE(context);
-  absl::StatusOr<storage::SweepRecord> sweep = store_->GetSweep(request->name());
-  if (!sweep.ok()) return ToGrpcStatus(sweep.status());
-  absl::StatusOr<std::vector<storage::TrialResultRecord>> results =
-      store_->ListTrialResults(request->name());
-  if (!results.ok()) return ToGrpcStatus(results.status());
+  const absl::StatusOr<TrialResultsOfSweep> read = ReadTrialResults(store_, request->name());
+  if (!read.ok()) return ToGrpcStatus(read.status());
   BatchWriter<v1::ListTrialResultsResponse> batches(writer);
-  ToProto(*sweep, batches.batch()->mutable_sweep());
-  for (const auto& result : *results) {
+  ToProto(read->sweep, batches.batch()->mutable_sweep());
+  for (const auto& result : read->results) {
     v1::TrialResult* row = batches.batch()->add_results();
     ToProto(result, row);
     if (!batches.Added(*row)) return ClientWentAway();
