@@ -6,6 +6,10 @@ function(totalgrad_core_library name)
   file(GLOB sources CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/${name}/*.cc)
   if(sources)
     add_library(totalgrad_core_${name} STATIC ${sources})
+    # The numerical kernels compile one file at a time, as they always have:
+    # their cost is code generation, not headers, and a trial's bits then
+    # never depend on which files a unity batch put together.
+    set_target_properties(totalgrad_core_${name} PROPERTIES UNITY_BUILD OFF)
     target_include_directories(totalgrad_core_${name} PUBLIC ${PROJECT_SOURCE_DIR})
     target_link_libraries(totalgrad_core_${name} PUBLIC ${ARG_DEPS})
   else()

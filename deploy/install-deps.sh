@@ -1,13 +1,18 @@
 #!/usr/bin/env bash
-# Installs every Debian 12 package totalgrad needs to build, test and run.
-# Idempotent: packages already present are skipped, so `make test` can call it
-# every time. Works as root or through sudo.
+# Installs the Debian 12 packages totalgrad needs.
+#   deploy/install-deps.sh          what building and running the three binaries
+#                                   needs (`make demo`, `make build`, containers)
+#   deploy/install-deps.sh --test   that plus what only the test suite uses
+#                                   (`make test`): browsers, PyTorch, SciPy, ...
+# Idempotent: packages already present are skipped, so every `make` target can
+# call it. Works as root or through sudo.
 set -euo pipefail
 
 PACKAGES=(
-  build-essential cmake pkg-config git
+  build-essential cmake ninja-build pkg-config git
   libeigen3-dev libopenblas-dev liblapack-dev
   libboost-dev liblbfgspp-dev libabsl-dev
+  # small, and the default configure builds the suites and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
   libcli11-dev libtomlplusplus-dev nlohmann-json3-dev libfmt-dev libspdlog-dev
   libgrpc++-dev libprotobuf-dev protobuf-compiler protobuf-compiler-grpc
@@ -15,16 +20,25 @@ PACKAGES=(
   libcpp-httplib-dev
   gnuplot-nox
   iproute2 openssl libssl-dev
+)
+
+TEST_PACKAGES=(
   # deploy/ file checks (tests/deploy): unit verification, YAML and shell linters
   systemd python3 python3-yaml yamllint shellcheck
   # bench/torch_rp_iteration.py, the PyTorch peer of bench iteration (tests/client/core_commands)
   python3-torch
-  # tests only: the comparison statistics against SciPy (tests/results/stats_scipy_test.py)
+  # the comparison statistics against SciPy (tests/results/stats_scipy_test.py)
   # and the dashboard in a real headless browser (tests/service/dashboard_browser_test.py)
   python3-scipy chromium chromium-driver python3-selenium
   # tests/service/pandas_view_test.py: the results recipe of docs/results_schema.md
   python3-pandas
 )
+
+case "${1:-}" in
+  --test) PACKAGES+=("${TEST_PACKAGES[@]}") ;;
+  "") ;;
+  *) echo "install-deps: unknown argument '$1' (expected nothing or --test)" >&2; exit 2 ;;
+esac
 
 missing=()
 for pkg in "${PACKAGES[@]}"; do

@@ -81,11 +81,6 @@ absl::StatusOr<std::unique_ptr<SceneBenchProblem>> MakeSceneBenchProblem(const s
   return out;
 }
 
-double Median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
-}
-
 
 struct Timing {
   double wall = 0;
@@ -253,8 +248,8 @@ int RunBenchIteration(const BenchState& state) {
     gemm_cpu.push_back(gemm_time.cpu);
     paired_ratio.push_back(it_time.cpu / gemm_time.cpu);
   }
-  const double iteration = Median(iteration_times), bound = Median(gemm_times);
-  const double iteration_cpu_s = Median(iteration_cpu), bound_cpu = Median(gemm_cpu);
+  const double iteration = BenchMedian(iteration_times), bound = BenchMedian(gemm_times);
+  const double iteration_cpu_s = BenchMedian(iteration_cpu), bound_cpu = BenchMedian(gemm_cpu);
   const double min_iteration_cpu = *std::min_element(iteration_cpu.begin(), iteration_cpu.end());
   const double min_bound_cpu = *std::min_element(gemm_cpu.begin(), gemm_cpu.end());
   std::vector<int> ranks, bound_ranks;
@@ -281,7 +276,7 @@ int RunBenchIteration(const BenchState& state) {
                       {"cpu_seconds_per_iteration", iteration_cpu_s},
                       {"gemm_bound_cpu_seconds", bound_cpu},
                       {"cpu_ratio", iteration_cpu_s / bound_cpu},
-                      {"paired_cpu_ratio_median", Median(paired_ratio)},
+                      {"paired_cpu_ratio_median", BenchMedian(paired_ratio)},
                       {"min_cpu_seconds_per_iteration", min_iteration_cpu},
                       {"min_gemm_bound_cpu_seconds", min_bound_cpu},
                       {"min_cpu_ratio", min_iteration_cpu / min_bound_cpu},

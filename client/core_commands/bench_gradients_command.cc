@@ -41,11 +41,6 @@ struct BenchGradientsState {
 
 constexpr uint64_t kReplicateStreamOffset = 1000;
 
-double Median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
-}
-
 }  // namespace
 
 void AddBenchGradientsCommand(CLI::App* bench, int* exit_code) {
@@ -152,7 +147,7 @@ void AddBenchGradientsCommand(CLI::App* bench, int* exit_code) {
                           {"gp_variance_tolerance", (*frozen)->model->options().variance_rank_tolerance},
                           {"variance_ranks", ranks},
                           {"variance_bound_ranks", bound_ranks},
-                          {"cpu_seconds_per_estimate_median", Median(cpu_seconds)},
+                          {"cpu_seconds_per_estimate_median", BenchMedian(cpu_seconds)},
                           {"gp_data", (*frozen)->model->num_data()},
                           {"non_finite", non_finite},
                           {"blas", BlasConfig()},

@@ -9,6 +9,9 @@
 
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
+#include <vector>
+
 namespace totalgrad::cli {
 
 void AddSimulateCommand(CLI::App* app, int* exit_code);  // simulate_command.cc
@@ -24,6 +27,13 @@ void AddPilcoCommand(CLI::App* app, int* exit_code);     // pilco_command.cc
 void AddStudyCommand(CLI::App* app, int* exit_code);     // study_command.cc
 void AddEvaluateCommand(CLI::App* app, int* exit_code);  // evaluate_command.cc
 void AddScenesCommand(CLI::App* app, int* exit_code);    // scenes_command.cc
+
+// The bench commands' median of timings: the upper middle element of an
+// even count, as every committed bench JSON was computed. `times` not empty.
+inline double BenchMedian(std::vector<double> times) {
+  std::sort(times.begin(), times.end());
+  return times[times.size() / 2];
+}
 
 }  // namespace totalgrad::cli
 

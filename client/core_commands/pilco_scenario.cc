@@ -467,4 +467,9 @@ absl::StatusOr<PilcoScenario> ParsePilcoScenario(const nlohmann::json& doc) {
   return s;
 }
 
+#undef TG_ASSIGN_OR_RETURN
+#undef TG_ASSIGN_OR_RETURN_IMPL
+#undef TG_CONCAT
+#undef TG_CONCAT_INNER
+
 }  // namespace totalgrad::cli

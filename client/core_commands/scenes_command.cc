@@ -21,7 +21,7 @@ std::string Join(const Vector& v) {
   return absl::StrJoin(ToStd(v), ", ", [](std::string* out, double x) { absl::StrAppend(out, absl::StrFormat("%g", x)); });
 }
 
-nlohmann::ordered_json MatrixJson(const Matrix& m) {
+nlohmann::ordered_json MatrixRows(const Matrix& m) {
   nlohmann::ordered_json rows = nlohmann::ordered_json::array();
   for (Eigen::Index r = 0; r < m.rows(); ++r) rows.push_back(ToStd(m.row(r).transpose()));
   return rows;
@@ -66,7 +66,7 @@ nlohmann::ordered_json ScenesToJson(const std::vector<tasks::SceneDefinition>& s
                {"model", absl::StrCat("full GP; FITC with ", s.inducing_inputs,
                                       " inducing inputs once N > ", s.inducing_inputs)},
                {"inducing_inputs", s.inducing_inputs}};
-    j["saturating_cost"] = {{"Q", MatrixJson(s.saturating_cost.q)},
+    j["saturating_cost"] = {{"Q", MatrixRows(s.saturating_cost.q)},
                             {"widths", s.saturating_cost.widths},
                             {"target_z", ToStd(tasks::AugmentState(s.target, s.angle_indices))}};
     j["angle_cost"] = {{"Q_diagonal", ToStd(s.angle_cost_q)}, {"target", ToStd(s.target)}};

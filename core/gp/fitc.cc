@@ -136,9 +136,6 @@ absl::StatusOr<FitcModel> FitcModel::Create(const RowMatrix& inputs, const RowMa
 
 namespace {
 
-// Predictive variances below this are round-off (as in gp.cc).
-constexpr double kVarianceFloor = 1e-12;
-
 // Scratch matrices of FitcModel::Predict, one set per thread (Predict is
 // const and thread-safe); no heap allocations once the shapes have been seen.
 struct FitcWorkspace {

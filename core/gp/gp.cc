@@ -16,8 +16,6 @@
 namespace totalgrad::gp {
 namespace {
 
-// Predictive variances below this are round-off (see gp.h).
-constexpr double kVarianceFloor = 1e-12;
 // Jitter ladder of Create, relative to sf_a^2: 1e-8, 1e-7, ..., 1e-2.
 constexpr int kFirstJitterExponent = -8;
 constexpr int kLastJitterExponent = -2;

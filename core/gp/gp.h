@@ -28,6 +28,10 @@
 
 namespace totalgrad::gp {
 
+// Predictive variances below this are round-off; GpModel::Predict and
+// FitcModel::Predict floor their variances here.
+inline constexpr double kVarianceFloor = 1e-12;
+
 // Hyperparameters of all outputs, in log space.
 struct GpHyperparameters {
   RowMatrix log_lengthscales;  // D x E: row a holds log l_{a,m}

@@ -588,17 +588,10 @@ grpc::Status ControlServiceImpl::ImportSweep(grpc::ServerContext* context,
   }
   absl::StatusOr<storage::SweepRecord> record = store_->GetSweep(archive->name);
   if (!record.ok()) return ToGrpcStatus(record.status());
-  ToProto(*record, response->mutable_sweep());
-  response->set_sweep_created(result->sweep_created);
-  response->set_jobs_imported(result->jobs_imported);
-  response->set_jobs_already_complete(result->jobs_already_complete);
-  response->set_jobs_not_completed(result->jobs_not_completed);
-  response->set_jobs_running_here(result->jobs_running_here);
-  response->set_jobs_unknown(result->jobs_unknown);
-  response->set_episodes_imported(result->episodes_imported);
-  response->set_study_rows_imported(result->study_rows_imported);
-  response->set_checkpoints_imported(result->checkpoints_imported);
+  ToProto(*record, *result, response);
   return grpc::Status::OK;
 }
+
+#undef TG_AUTHORIZE
 
 }  // namespace totalgrad::service

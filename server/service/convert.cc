@@ -320,4 +320,18 @@ void ToProto(const storage::Checkpoint& checkpoint, v1::TrialCheckpoint* out) {
   out->set_data(checkpoint.data);
 }
 
+void ToProto(const storage::SweepRecord& sweep, const storage::ImportResult& result,
+             v1::ImportSweepResponse* out) {
+  ToProto(sweep, out->mutable_sweep());
+  out->set_sweep_created(result.sweep_created);
+  out->set_jobs_imported(result.jobs_imported);
+  out->set_jobs_already_complete(result.jobs_already_complete);
+  out->set_jobs_not_completed(result.jobs_not_completed);
+  out->set_jobs_running_here(result.jobs_running_here);
+  out->set_jobs_unknown(result.jobs_unknown);
+  out->set_episodes_imported(result.episodes_imported);
+  out->set_study_rows_imported(result.study_rows_imported);
+  out->set_checkpoints_imported(result.checkpoints_imported);
+}
+
 }  // namespace totalgrad::service

@@ -72,6 +72,9 @@ void ToProto(const storage::StudyCell& cell, v1::StudyCellRow* out);
 void ToProto(const storage::StudyReference& reference, v1::StudyReferenceRow* out);
 void ToProto(const storage::StudyCellRecord& record, v1::StudyCellRow* out);
 void ToProto(const storage::StudyReferenceRecord& record, v1::StudyReferenceRow* out);
+// The imported sweep as it now stands here, and what the import took over.
+void ToProto(const storage::SweepRecord& sweep, const storage::ImportResult& result,
+             v1::ImportSweepResponse* out);
 v1::JobKind ToProto(storage::JobKind kind);
 storage::JobKind FromProto(v1::JobKind kind);  // unspecified: a trial
 v1::Directive ToProto(scheduler::Directive directive);

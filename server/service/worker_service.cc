@@ -102,4 +102,6 @@ grpc::Status WorkerServiceImpl::Release(grpc::ServerContext* context,
       scheduler_->Release(request->worker_id(), FromProto(request->lease()), request->reason()));
 }
 
+#undef TG_AUTHORIZE
+
 }  // namespace totalgrad::service
