@@ -251,6 +251,18 @@ int main(int argc, char** argv) {
       {{totalgrad::v1::JOB_KIND_TRIAL, trials}, {totalgrad::v1::JOB_KIND_STUDY, studies}});
   totalgrad::worker::Worker& worker = *worker_ptr;
   StartShutdownThreads(worker, flags);
+  // The first lease request waits for a connection up to --acquire-wait plus
+  // the call timeout (35 s by default) before it fails: say at once when
+  // nothing answers at the address, a typo or a coordinator not yet started.
+  std::thread([channel = *channel, target = connection.target,
+               max_unreachable = options.max_unreachable] {
+    if (!channel->WaitForConnected(std::chrono::system_clock::now() + std::chrono::seconds(5))) {
+      spdlog::warn("nothing answers at {} after 5 s: is the coordinator running there, and is the "
+                   "address (--coordinator) right? The worker keeps trying for --max-unreachable "
+                   "({})",
+                   target, absl::FormatDuration(max_unreachable));
+    }
+  }).detach();
   spdlog::info("worker {} ({} slots x {} threads per trial) -> {} [{}]", options.worker_id,
                options.slots, flags.threads_per_slot, connection.target, options.build);
   const totalgrad::worker::WorkerSummary summary = worker.Run();

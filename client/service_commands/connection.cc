@@ -1,5 +1,6 @@
 #include "client/service_commands/connection.h"
 
+#include <signal.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -151,13 +152,23 @@ absl::StatusOr<Connection> Connection::Open(const ServiceFlags& flags) {
   return connection;
 }
 
-CLI::App* AddCommand(CLI::App* parent, const std::string& name, const std::string& help,
-                     int* exit_code, std::function<int(Connection*)> body, bool with_format) {
+CLI::App* AddCommand(
+    CLI::App* parent, const std::string& name, const std::string& help, int* exit_code,
+    std::function<int(Connection*)> body, bool with_format,
+    std::function<std::optional<int>(const absl::Status& unreachable)> offline) {
   CLI::App* command = parent->add_subcommand(name, help);
   auto flags = std::make_shared<ServiceFlags>();
   AddConnectionFlags(command, flags.get(), with_format);
-  command->callback([flags, exit_code, body = std::move(body), name] {
+  command->callback([flags, exit_code, body = std::move(body), offline = std::move(offline), name] {
     absl::StatusOr<Connection> connection = Connection::Open(*flags);
+    const absl::StatusCode code = connection.status().code();
+    if (!connection.ok() && offline != nullptr &&
+        (code == absl::StatusCode::kUnavailable || code == absl::StatusCode::kDeadlineExceeded)) {
+      if (std::optional<int> done = offline(connection.status()); done.has_value()) {
+        *exit_code = *done;
+        return;
+      }
+    }
     if (!connection.ok()) {
       *exit_code = ReportError(connection.status(), name);
       return;
@@ -289,6 +300,27 @@ int WaitForSweep(Connection* connection, const std::string& sweep_name,
   }
   std::cerr << "\n";
   return 1;
+}
+
+namespace {
+std::atomic<bool> g_wait_interrupted{false};
+void OnWaitInterrupted(int) { g_wait_interrupted = true; }
+}  // namespace
+
+int WaitForSweepUntilInterrupted(Connection* connection, const std::string& sweep_name) {
+  g_wait_interrupted = false;
+  struct sigaction action = {}, previous = {};
+  action.sa_handler = OnWaitInterrupted;
+  sigaction(SIGINT, &action, &previous);
+  const int code = WaitForSweep(connection, sweep_name, &g_wait_interrupted);
+  sigaction(SIGINT, &previous, nullptr);
+  if (code == 130) {
+    std::cerr << "interrupted: only the wait stopped; sweep " << sweep_name
+              << " goes on at the coordinator (`totalgrad sweep status " << sweep_name
+              << " --wait` follows it again, `totalgrad sweep cancel " << sweep_name
+              << "` stops it)\n";
+  }
+  return code;
 }
 
 int PrintResultsTable(Connection* connection, const std::string& sweep_name, Format format) {

@@ -7,6 +7,7 @@
 #include <grpcpp/support/status.h>
 
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "absl/status/status.h"
@@ -78,10 +79,14 @@ class Connection {
 
 // Adds subcommand `name` to `parent` with the connection flags (and
 // -f/--format when `with_format`); its callback opens the connection and
-// stores body's exit code in *exit_code (a connection error is reported).
-CLI::App* AddCommand(CLI::App* parent, const std::string& name, const std::string& help,
-                     int* exit_code, std::function<int(Connection*)> body,
-                     bool with_format = true);
+// stores body's exit code in *exit_code. A connection error is reported,
+// except that when no coordinator answers (UNAVAILABLE, DEADLINE_EXCEEDED)
+// `offline` (may be null) is asked first: an exit code means it did the work
+// without one; nullopt, report the error.
+CLI::App* AddCommand(
+    CLI::App* parent, const std::string& name, const std::string& help, int* exit_code,
+    std::function<int(Connection*)> body, bool with_format = true,
+    std::function<std::optional<int>(const absl::Status& unreachable)> offline = nullptr);
 
 // `results export` and `results import` (archive_commands.cc).
 void AddArchiveCommands(CLI::App* results, int* exit_code);
@@ -118,6 +123,12 @@ std::string FormatTime(int64_t unix_ms);
 // error exit code. `stop` (may be null) ends the wait early (exit code 130).
 int WaitForSweep(Connection* connection, const std::string& sweep_name,
                  const std::atomic<bool>* stop = nullptr);
+
+// WaitForSweep for `sweep submit --wait` and `sweep status --wait`: Ctrl-C
+// (SIGINT) ends the wait, not the sweep, and says so on stderr with the
+// commands that follow or cancel it; exit code 130. The previous SIGINT
+// disposition is restored before returning.
+int WaitForSweepUntilInterrupted(Connection* connection, const std::string& sweep_name);
 
 // The results table of a sweep (the paper's Table 1 layout), printed.
 int PrintResultsTable(Connection* connection, const std::string& sweep_name, Format format);

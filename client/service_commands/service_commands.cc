@@ -6,6 +6,7 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <nlohmann/json.hpp>
 
 #include "absl/strings/str_cat.h"
@@ -53,7 +54,76 @@ void PrintSweeps(const std::vector<const v1::SweepInfo*>& infos, Format format) 
   Print(listing, format, std::cout);
 }
 
-// Adds a command whose callback receives an open connection.
+// `sweep submit --dry-run` when no coordinator answers: the jobs and
+// episodes the spec expands to, counted here.
+int PrintLocalDryRun(sweep::SweepSpec spec) {
+  const absl::Status canonical = sweep::CanonicalizeSpec(&spec);
+  absl::StatusOr<std::vector<sweep::ExpandedJob>> jobs =
+      canonical.ok() ? sweep::ExpandJobs(spec)
+                     : absl::StatusOr<std::vector<sweep::ExpandedJob>>(canonical);
+  if (!jobs.ok()) {
+    std::cerr << "error: " << jobs.status().message() << "\n";
+    return kExitBadInput;
+  }
+  int64_t episodes = 0;
+  for (const sweep::ExpandedJob& job : *jobs) episodes += job.episodes_expected;
+  std::cout << "dry run (no coordinator answered; counted here, so whether it would grow a "
+               "stored sweep is unknown): sweep "
+            << spec.name << " would have " << jobs->size() << " jobs (" << spec.studies.size()
+            << " studies) and " << episodes << " episodes (spec "
+            << sweep::SpecHash(spec).substr(0, 12) << ")\n";
+  return 0;
+}
+
+
+// `sweep submit FILE`: validates the file, prints the cost estimate, then
+// submits it (or, with dry_run, asks the coordinator what it would store).
+// `connection` null: no coordinator answered, which only a dry run survives
+// (PrintLocalDryRun).
+int SubmitSweepFile(Connection* connection, const std::string& file, bool wait, bool dry_run) {
+  std::string source;
+  absl::StatusOr<sweep::SweepSpec> spec = sweep::LoadSweepFile(file, &source);
+  if (!spec.ok()) {
+    std::cerr << "error: " << spec.status().message() << "\n";
+    return 2;
+  }
+  // The cost before anything is stored: a mistake of 100x shows here.
+  if (absl::StatusOr<sweep::SweepCostEstimate> cost = sweep::EstimateSweepCost(*spec); cost.ok()) {
+    std::cerr << "estimated cost: " << cost->Text() << "\n";
+  }
+  if (connection == nullptr) return PrintLocalDryRun(*spec);
+  v1::SubmitSweepRequest request;
+  sweep::SweepSpecToProto(*spec, request.mutable_spec());
+  request.set_source_name(file);
+  request.set_source_text(source);
+  request.set_dry_run(dry_run);
+  v1::SubmitSweepResponse response;
+  const grpc::Status status =
+      connection->Call(&v1::ControlService::Stub::SubmitSweep, request, &response);
+  if (!status.ok()) return ReportError(status, "sweep submit " + file);
+  const v1::SweepInfo& info = response.sweep();
+  if (dry_run) {
+    std::cout << "dry run: sweep " << info.name() << " would have " << info.jobs_total()
+              << " jobs (" << spec->studies.size() << " studies) and " << info.episodes_expected()
+              << " episodes (spec " << info.spec_hash().substr(0, 12) << ")\n";
+    return 0;
+  }
+  if (response.jobs_added() > 0) {
+    std::cout << "grew sweep " << info.name() << " by " << response.jobs_added() << " jobs (now "
+              << info.jobs_total() << " jobs, spec " << info.spec_hash().substr(0, 12) << ")";
+    if (info.state() == v1::SWEEP_STATE_CANCELLED) {
+      std::cout << "; the sweep is cancelled: `totalgrad sweep resume " << info.name()
+                << "` runs them";
+    }
+    std::cout << "\n";
+  } else {
+    std::cout << (response.created() ? "submitted" : "already submitted (no change)")
+              << ": sweep " << info.name() << ", " << info.jobs_total() << " jobs, spec "
+              << info.spec_hash().substr(0, 12) << "\n";
+  }
+  if (!wait) return 0;
+  return WaitForSweepUntilInterrupted(connection, info.name());
+}
 
 void AddSweepCommands(CLI::App* app, int* exit_code) {
   CLI::App* sweep_cmd = app->add_subcommand("sweep", "submit and control sweeps");
@@ -64,51 +134,15 @@ void AddSweepCommands(CLI::App* app, int* exit_code) {
   auto dry_run = std::make_shared<bool>(false);
   CLI::App* submit = AddCommand(
       sweep_cmd, "submit", "submit a sweep file (resubmitting the same file is a no-op)",
-      exit_code, [file, wait, dry_run](Connection* connection) {
-        std::string source;
-        absl::StatusOr<sweep::SweepSpec> spec = sweep::LoadSweepFile(*file, &source);
-        if (!spec.ok()) {
-          std::cerr << "error: " << spec.status().message() << "\n";
-          return 2;
-        }
-        // The cost before anything is stored: a mistake of 100x shows here.
-        if (absl::StatusOr<sweep::SweepCostEstimate> cost = sweep::EstimateSweepCost(*spec);
-            cost.ok()) {
-          std::cerr << "estimated cost: " << cost->Text() << "\n";
-        }
-        v1::SubmitSweepRequest request;
-        sweep::SweepSpecToProto(*spec, request.mutable_spec());
-        request.set_source_name(*file);
-        request.set_source_text(source);
-        request.set_dry_run(*dry_run);
-        v1::SubmitSweepResponse response;
-        const grpc::Status status =
-            connection->Call(&v1::ControlService::Stub::SubmitSweep, request, &response);
-        if (!status.ok()) return ReportError(status, "sweep submit " + *file);
-        const v1::SweepInfo& info = response.sweep();
-        if (*dry_run) {
-          std::cout << "dry run: sweep " << info.name() << " would have " << info.jobs_total()
-                    << " jobs (" << spec->studies.size() << " studies) and "
-                    << info.episodes_expected() << " episodes (spec "
-                    << info.spec_hash().substr(0, 12) << ")\n";
-          return 0;
-        }
-        if (response.jobs_added() > 0) {
-          std::cout << "grew sweep " << info.name() << " by " << response.jobs_added()
-                    << " jobs (now " << info.jobs_total() << " jobs, spec "
-                    << info.spec_hash().substr(0, 12) << ")";
-          if (info.state() == v1::SWEEP_STATE_CANCELLED) {
-            std::cout << "; the sweep is cancelled: `totalgrad sweep resume " << info.name()
-                      << "` runs them";
-          }
-          std::cout << "\n";
-        } else {
-          std::cout << (response.created() ? "submitted" : "already submitted (no change)")
-                    << ": sweep " << info.name() << ", " << info.jobs_total() << " jobs, spec "
-                    << info.spec_hash().substr(0, 12) << "\n";
-        }
-        if (!*wait) return 0;
-        return WaitForSweep(connection, info.name());
+      exit_code,
+      [file, wait, dry_run](Connection* connection) {
+        return SubmitSweepFile(connection, *file, *wait, *dry_run);
+      },
+      /*with_format=*/true,
+      // A dry run needs no coordinator: the jobs are then expanded here.
+      [file, dry_run](const absl::Status& unreachable) -> std::optional<int> {
+        if (!*dry_run) return std::nullopt;
+        return SubmitSweepFile(nullptr, *file, /*wait=*/false, /*dry_run=*/true);
       });
   submit->add_option("FILE", *file, "sweep file (TOML)")->required();
   submit->add_flag("--wait", *wait, "show progress until the sweep finishes; exit 1 if it failed");
@@ -132,7 +166,7 @@ void AddSweepCommands(CLI::App* app, int* exit_code) {
       sweep_cmd, "status", "show one sweep", exit_code,
       [status_name, status_wait](Connection* c) {
         if (*status_wait) {
-          const int code = WaitForSweep(c, *status_name);
+          const int code = WaitForSweepUntilInterrupted(c, *status_name);
           if (code != 0 && code != 1) return code;
         }
         v1::SweepRequest request;

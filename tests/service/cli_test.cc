@@ -1,6 +1,9 @@
 // The `totalgrad` CLI against a real coordinator: sweep files with errors,
 // submit --wait, results table/curves/export in every format, job and worker
 // listings, backups, and `totalgrad run` (the embedded default).
+#include <signal.h>
+#include <sys/wait.h>
+
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -550,6 +553,36 @@ TEST_F(CliTest, NoCoordinatorFailsFastWithWhatToDo) {
   EXPECT_NE(err.find("does not exist"), std::string::npos) << err;
 }
 
+// Issue 29: a dry run counts the jobs without a coordinator; with one it asks
+// it (growth of a stored sweep), and both count the same.
+TEST_F(CliTest, DryRunCountsTheJobsWithoutACoordinator) {
+  const std::string path = WriteSweep("cli.toml", kTinySweep);
+  std::string out, err;
+  ASSERT_EQ(Cli({"sweep", "submit", path, "--dry-run", "--coordinator", "127.0.0.1:9",
+                 "--insecure"},
+                &out, &err, false),
+            0)
+      << out << err;
+  EXPECT_NE(out.find("no coordinator answered"), std::string::npos) << out;
+  EXPECT_NE(out.find("sweep cli would have 3 jobs (0 studies) and 9 episodes"), std::string::npos)
+      << out;
+  const std::string local_hash = out.substr(out.rfind("(spec ") + 6, 12);
+  StartCoordinator();
+  ASSERT_EQ(Cli({"sweep", "submit", path, "--dry-run"}, &out, &err), 0) << out << err;
+  EXPECT_NE(out.find("sweep cli would have 3 jobs (0 studies) and 9 episodes (spec " +
+                     local_hash + ")"),
+            std::string::npos)
+      << out;
+  // A malformed spec still fails as bad input, coordinator or not.
+  const std::string bad = WriteSweep("bad.toml", "name = \"x\"\n[grid]\nseed = [1]\n");
+  EXPECT_EQ(Cli({"sweep", "submit", bad, "--dry-run", "--coordinator", "127.0.0.1:9",
+                 "--insecure"},
+                &out, &err, false),
+            2);
+  ASSERT_EQ(Cli({"sweep", "list", "-f", "json"}, &out, &err), 0) << err;
+  EXPECT_EQ(nlohmann::json::parse(out).size(), 0u);  // nothing stored
+}
+
 TEST_F(CliTest, PauseResumeAndCancelFromTheCli) {
   StartCoordinator();
   const std::string path = WriteSweep("cli.toml", kTinySweep);
@@ -573,6 +606,29 @@ TEST_F(CliTest, PauseResumeAndCancelFromTheCli) {
   ASSERT_EQ(Cli({"sweep", "resume", "cli", "-f", "json"}, &out, &err), 0) << err;
   EXPECT_EQ(nlohmann::json::parse(out)[0]["state"], "running");
   EXPECT_EQ(Sweep("cli").jobs_completed(), 3);
+}
+
+// Issue 29: Ctrl-C on `sweep submit --wait` stops the wait, not the sweep, and
+// says so (before: the default SIGINT action killed the CLI silently).
+TEST_F(CliTest, CtrlCOnSubmitWaitSaysTheSweepGoesOn) {
+  StartCoordinator();  // no worker: the sweep stays queued while the CLI waits
+  const std::string path = WriteSweep("cli.toml", kTinySweep);
+  Process cli({TOTALGRAD_CLI_BIN, "sweep", "submit", path, "--wait", "--coordinator",
+               absl::StrCat("127.0.0.1:", port_), "--insecure", "--token-file",
+               dir_ + "/user.token"},
+              dir_ + "/cli-wait.log");
+  ASSERT_TRUE(WaitFor([&] { return cli.Log().find("jobs 0/3") != std::string::npos; },
+                      seconds(20)))
+      << cli.Log();
+  cli.Signal(SIGINT);
+  const int status = cli.Wait(seconds(10));
+  ASSERT_TRUE(WIFEXITED(status)) << "status " << status << ": " << cli.Log();
+  EXPECT_EQ(WEXITSTATUS(status), 130);
+  EXPECT_NE(cli.Log().find("sweep cli goes on at the coordinator"), std::string::npos)
+      << cli.Log();
+  EXPECT_NE(cli.Log().find("totalgrad sweep cancel cli"), std::string::npos) << cli.Log();
+  EXPECT_EQ(Sweep("cli").state(), v1::SWEEP_STATE_RUNNING);
+  EXPECT_EQ(Sweep("cli").jobs_queued(), 3);
 }
 
 // Issue 12.7: `job artifacts` writes the final policy and GP model of a job

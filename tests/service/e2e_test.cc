@@ -1104,6 +1104,23 @@ TEST_F(EndToEndTest, WorkerWithoutACoordinatorGivesUpWithItsOwnCode) {
   EXPECT_NE(worker.Log().find("no answer from the coordinator"), std::string::npos) << worker.Log();
 }
 
+// Issue 29: a worker pointed at an address where nothing listens says so within
+// seconds (before: silent for the first lease request's 35 s, then "Deadline
+// Exceeded").
+TEST_F(EndToEndTest, WorkerSaysAtOnceThatNothingAnswersAtItsAddress) {
+  std::vector<std::string> argv = {TOTALGRAD_WORKER_BIN, "--coordinator", "127.0.0.1:9",
+                                   "--insecure", "--token-file", dir_ + "/worker.token",
+                                   "--worker-id", "lonely", "--state-dir", dir_ + "/lonely-state",
+                                   "--max-unreachable", "120"};
+  Process worker(argv, dir_ + "/worker-lonely.log");
+  EXPECT_TRUE(WaitFor([&] { return worker.Log().find("nothing answers at 127.0.0.1:9") !=
+                                   std::string::npos; },
+                      seconds(12)))
+      << worker.Log();
+  EXPECT_NE(worker.Log().find("--max-unreachable (2m)"), std::string::npos) << worker.Log();
+  EXPECT_TRUE(worker.Running());
+}
+
 // Issue 12.6: a token file that others may read is accepted with a warning
 // naming the file and the fix; a 0600 file gets none.
 TEST_F(EndToEndTest, TokenFilesReadableByOthersAreWarnedAbout) {
