@@ -20,7 +20,8 @@
 
 int main(int argc, char** argv) {
   totalgrad::SelectBlasKernels(argv);  // may re-execute this program (core/common/blas.h)
-  CLI::App app{"totalgrad: total stochastic gradient experiments on the cart-pole"};
+  CLI::App app{"totalgrad: total stochastic gradient experiments on the paper's cart-pole and "
+               "PILCO's scenes (`totalgrad scenes`)"};
   app.require_subcommand(1);
 #ifdef TOTALGRAD_WITH_SERVICE
   app.set_version_flag("--version", totalgrad::BuildId());

@@ -141,4 +141,20 @@ absl::StatusOr<ComparisonReport> CompareMethods(const std::vector<CompletedTrial
   return report;
 }
 
+namespace {
+std::string Verdict(double p_holm, double direction, const Comparison& c, double alpha) {
+  if (std::isnan(p_holm) || !(p_holm < alpha) || direction == 0) return "no evidence";
+  return (direction > 0 ? c.method : c.other) + " better";
+}
+}  // namespace
+
+std::string SuccessVerdict(const Comparison& c, double alpha) {
+  return Verdict(c.mcnemar_p_holm, c.success_difference, c, alpha);
+}
+
+// A negative rank-biserial correlation means the method's costs are lower.
+std::string CostVerdict(const Comparison& c, double alpha) {
+  return Verdict(c.wilcoxon_p_holm, -c.wilcoxon.rank_biserial, c, alpha);
+}
+
 }  // namespace totalgrad::results

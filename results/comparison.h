@@ -81,6 +81,13 @@ struct ComparisonReport {
 absl::StatusOr<ComparisonReport> CompareMethods(const std::vector<CompletedTrial>& trials,
                                                 const ComparisonOptions& options);
 
+// What each paired test says at level alpha after Holm: "<method> better"
+// for the method with more successes (McNemar) or lower final costs
+// (Wilcoxon), else "no evidence". The CLI's verdict columns and the
+// dashboard's comparison table both print these.
+std::string SuccessVerdict(const Comparison& c, double alpha);
+std::string CostVerdict(const Comparison& c, double alpha);
+
 }  // namespace totalgrad::results
 
 #endif  // TOTALGRAD_RESULTS_COMPARISON_H_

@@ -9,15 +9,12 @@
 
 #include <CLI/CLI.hpp>
 
+#include "core/common/closest_word.h"
+
 namespace totalgrad::cli {
 
-// Levenshtein distance (insert, delete, substitute: 1 each).
-int EditDistance(const std::string& a, const std::string& b);
-
-// The candidate closest to `word` if it is close enough to be a typo (edit
-// distance <= max(1, |word| / 3), or `word` is a prefix of exactly one
-// candidate), else "".
-std::string ClosestCandidate(const std::string& word, const std::vector<std::string>& candidates);
+using ::totalgrad::ClosestCandidate;  // core/common/closest_word.h
+using ::totalgrad::EditDistance;
 
 // A hint line ("did you mean 'sweep'?") for arguments `args` (argv without
 // the program) that `app` refused, or "" when there is nothing to suggest.

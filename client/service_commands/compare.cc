@@ -36,13 +36,6 @@ std::string Number(double value, Format format, int decimals) {
   return format == Format::kTable ? FormatFixed(value, decimals) : FormatNumber(value);
 }
 
-// Who the test favours at level alpha after Holm: the method with more
-// successes (success) or lower final costs (cost); "no evidence" otherwise.
-std::string Verdict(double p_holm, double direction, const Comparison& c, double alpha) {
-  if (std::isnan(p_holm) || !(p_holm < alpha) || direction == 0) return "no evidence";
-  return (direction > 0 ? c.method : c.other) + " better";
-}
-
 }  // namespace
 
 int PrintComparison(Connection* connection, const std::string& sweep_name,
@@ -62,9 +55,11 @@ int PrintComparison(Connection* connection, const std::string& sweep_name,
                        "rank_biserial", "wilcoxon_w_plus", "wilcoxon_exact", "wilcoxon_p",
                        "wilcoxon_p_holm", "wilcoxon_power", "method_trials",
                        "method_successes", "vs_trials", "vs_successes", "rate_difference",
-                       "odds_ratio", "fisher_p", "fisher_p_holm", "fisher_power", "alpha"};
+                       "odds_ratio", "fisher_p", "fisher_p_holm", "fisher_power", "alpha",
+                       "success_verdict", "cost_verdict"};
     for (const std::string& column : listing.columns) {
-      if (column != "variant" && column != "method" && column != "vs") {
+      if (column != "variant" && column != "method" && column != "vs" &&
+          column != "success_verdict" && column != "cost_verdict") {
         listing.numeric_columns.push_back(column);
       }
     }
@@ -83,7 +78,8 @@ int PrintComparison(Connection* connection, const std::string& sweep_name,
            std::to_string(c.other_trials), std::to_string(c.other_successes),
            FormatNumber(c.rate_difference), FormatNumber(c.odds_ratio),
            FormatNumber(c.fisher_p), FormatNumber(c.fisher_p_holm),
-           FormatNumber(c.fisher_power), FormatNumber(options.alpha)});
+           FormatNumber(c.fisher_power), FormatNumber(options.alpha),
+           results::SuccessVerdict(c, options.alpha), results::CostVerdict(c, options.alpha)});
     }
     Print(listing, format, std::cout);
     return 0;
@@ -125,14 +121,14 @@ int PrintComparison(Connection* connection, const std::string& sweep_name,
                       c.other_trials),
          std::isinf(c.odds_ratio) ? "inf" : Number(c.odds_ratio, Format::kTable, 2),
          PValue(c.fisher_p), PValue(c.fisher_p_holm), Number(c.fisher_power, Format::kTable, 2),
-         Verdict(c.mcnemar_p_holm, c.success_difference, c, options.alpha)});
+         results::SuccessVerdict(c, options.alpha)});
     cost.rows.push_back(
         {variant, c.method, c.other, std::to_string(c.cost_pairs),
          Signed(c.wilcoxon.hodges_lehmann, 3), Signed(c.wilcoxon.rank_biserial, 2),
          FormatNumber(c.wilcoxon.w_plus),
          PValue(c.wilcoxon.p) + (c.wilcoxon.n > 0 && !c.wilcoxon.exact ? " (normal)" : ""),
          PValue(c.wilcoxon_p_holm), Number(c.wilcoxon_power, Format::kTable, 2),
-         Verdict(c.wilcoxon_p_holm, -c.wilcoxon.rank_biserial, c, options.alpha)});
+         results::CostVerdict(c, options.alpha)});
   }
   std::cout << "\nsuccess: McNemar's exact test on the seeds both completed (diff = paired "
                "difference in success rate), Fisher's exact test on all completed trials\n";

@@ -33,6 +33,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "core/common/check.h"
+#include "core/common/closest_word.h"
 
 namespace totalgrad {
 
@@ -200,8 +201,13 @@ class OptionTable {
       *options = std::move(scratch);
       return absl::OkStatus();
     }
+    const std::vector<std::string> keys = Keys();
+    if (const std::string close = ClosestCandidate(std::string(key), keys); !close.empty()) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("unknown option '", key, "'; did you mean '", close, "'?"));
+    }
     return absl::InvalidArgumentError(
-        absl::StrCat("unknown option '", key, "'; known: ", absl::StrJoin(Keys(), ", ")));
+        absl::StrCat("unknown option '", key, "'; known: ", absl::StrJoin(keys, ", ")));
   }
   OptionPairs Pairs(const T& options) const {
     OptionPairs pairs;

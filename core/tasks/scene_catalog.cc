@@ -97,7 +97,7 @@ SceneDefinition CartPoleScene(bool balance) {
   s.learned_episodes = 15;
   s.line_searches = 150;
   s.evaluations_per_line_search = 30;
-  s.source = "the paper's cart-pole (docs/core.md, pilco-spec.md 1); PILCO a0b48b7 "
+  s.source = "the paper's cart-pole (docs/core.md, docs/scenes.md); PILCO a0b48b7 "
              "scenarios/cartPole for the constants, index sets and tip cost";
   return s;
 }

@@ -406,7 +406,9 @@ absl::StatusOr<json> DashboardData::Compare(const std::string& name, const std::
          {"odds_ratio", std::isinf(c.odds_ratio) ? json("inf") : Number(c.odds_ratio)},
          {"fisher_p", Number(c.fisher_p)},
          {"fisher_p_holm", Number(c.fisher_p_holm)},
-         {"fisher_power", Number(c.fisher_power)}});
+         {"fisher_power", Number(c.fisher_power)},
+         {"success_verdict", results::SuccessVerdict(c, options.alpha)},
+         {"cost_verdict", results::CostVerdict(c, options.alpha)}});
   }
   return out;
 }

@@ -437,8 +437,11 @@ absl::StatusOr<OptionList> ResolveOptions(const OptionList& pairs) {
 
 std::string SweepCostEstimate::Text() const {
   const double hours = cpu_seconds / 3600.0;
+  // A tiny sweep is seconds, not "about 0 CPU minutes".
   std::string text = hours >= 1.0 ? absl::StrFormat("about %.1f CPU hours", hours)
-                                  : absl::StrFormat("about %.0f CPU minutes", cpu_seconds / 60.0);
+                     : cpu_seconds >= 90.0
+                         ? absl::StrFormat("about %.0f CPU minutes", cpu_seconds / 60.0)
+                         : absl::StrFormat("about %.0f CPU seconds", cpu_seconds);
   absl::StrAppend(&text, " for ", trials, trials == 1 ? " trial" : " trials",
                   " (cost model of docs/results/cost-model.md; reference machine: ",
                   reference_machine, ")");

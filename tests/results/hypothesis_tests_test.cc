@@ -277,5 +277,31 @@ TEST(CompareMethodsTest, CountsDuplicateSeedsAndSkipsLoneMethods) {
   EXPECT_TRUE(report->comparisons.empty());
 }
 
+// The verdicts the CLI and the dashboard print (issue 29): which test, which
+// method, at alpha after Holm.
+TEST(CompareMethodsTest, VerdictsNameTheFavouredMethodOnlyWhenSignificant) {
+  Comparison c;
+  c.method = "RP";
+  c.other = "TP";
+  c.mcnemar_p_holm = 0.01;
+  c.success_difference = 0.3;  // RP succeeded more often
+  EXPECT_EQ(SuccessVerdict(c, 0.05), "RP better");
+  c.success_difference = -0.3;
+  EXPECT_EQ(SuccessVerdict(c, 0.05), "TP better");
+  EXPECT_EQ(SuccessVerdict(c, 0.01), "no evidence");  // p must be below alpha
+  c.mcnemar_p_holm = std::nan("");
+  EXPECT_EQ(SuccessVerdict(c, 0.05), "no evidence");
+  c.wilcoxon_p_holm = 0.02;
+  c.wilcoxon.rank_biserial = -0.8;  // RP's costs lower
+  EXPECT_EQ(CostVerdict(c, 0.05), "RP better");
+  c.wilcoxon.rank_biserial = 0.8;
+  EXPECT_EQ(CostVerdict(c, 0.05), "TP better");
+  c.wilcoxon.rank_biserial = 0;
+  EXPECT_EQ(CostVerdict(c, 0.05), "no evidence");
+  c.wilcoxon.rank_biserial = -0.8;
+  c.wilcoxon_p_holm = 0.2;
+  EXPECT_EQ(CostVerdict(c, 0.05), "no evidence");
+}
+
 }  // namespace
 }  // namespace totalgrad::results

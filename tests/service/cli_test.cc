@@ -70,7 +70,7 @@ TEST_F(CliTest, MalformedSweepFilesAreRefusedWithFileLineAndFieldBeforeAnythingI
       {"name = \"x\"\n[grid]\nmethod = [\"RP\"]\n[protocol]\nparticles = -5\n",
        ":5:13: protocol.particles:"},
       {"name = \"x\"\n[grid]\nmethod = [\"RP\"]\n[protocol]\nparticels = 5\n",
-       ":5:13: protocol.particels: unknown option 'particels'"},
+       ":5:13: protocol.particels: unknown option 'particels'; did you mean 'particles'?"},
       {"name = \"x\"\n[grid]\nmethod = [\"RP\"]\nseed = [1, 1]\n", ": grid.seed[1]: '1' repeats"},
       {"name = \"x\"\nmax_attempts = \"three\"\n[grid]\nmethod = [\"RP\"]\n",
        ":2:16: max_attempts: must be an integer"},

@@ -136,6 +136,11 @@ def cli_checks(args, work, connection, base):
                                                           "cost_shift_hl", "wilcoxon_power"))
                for r, a in zip(rows, api))
     check(same, "the CLI's and the dashboard's comparison numbers agree")
+    check(all(a.get("success_verdict") in ("no evidence", "RP better", "TP better")
+              and a.get("cost_verdict") in ("no evidence", "RP better", "TP better") for a in api)
+          and all(r["success_verdict"] == a["success_verdict"] and r["cost_verdict"] == a["cost_verdict"]
+                  for r, a in zip(rows, api)),
+          "the API and the CLI give the same verdicts (the results library's)")
     # One name per statistic: the sweep's success table and the paper's
     # Table 1 have the same keys and numbers in the CLI's JSON and the API's.
     listed = subprocess.run([args.cli, "results", "table", "browser", "-f", "json"] + connection,
@@ -422,6 +427,12 @@ def main():
         if check(compare, "the comparison table is there"):
             rows = compare.find_elements(By.CSS_SELECTOR, "tbody tr")
             check(len(rows) == 2, f"one comparison per variant ({len(rows)})")
+            # Issue 29: a green row says which test and which method.
+            headers = [h.text for h in compare.find_elements(By.CSS_SELECTOR, "thead th")]
+            verdicts = [c.text for c in compare.find_elements(By.CSS_SELECTOR, "tbody td.verdict")]
+            check(headers[-1:] == ["verdict"] and len(verdicts) == 2
+                  and all(v == "no evidence" or "better" in v for v in verdicts),
+                  f"a verdict column per comparison: {headers[-1:]} {verdicts}")
         job_link = find("#jobs a")
         if check(job_link, "the jobs are listed"):
             job_link.click()
@@ -430,6 +441,10 @@ def main():
                 check(len(episodes_table.find_elements(By.CSS_SELECTOR, "tbody tr")) == 6,
                       "all 6 episodes of the job are listed")
                 check(find("#attempts") and find("#events"), "and its attempts and events (logs)")
+                # Issue 29: absent parts (no error, no plot) left the text "null".
+                view_text = find("#view").text
+                check("null" not in view_text.split(), "the job page prints no literal null: "
+                      + view_text[:200].replace("\n", " | "))
             driver.back()
             wait_for(lambda: find("#table1"), 15)
         cli_checks(args, work, connection, base)

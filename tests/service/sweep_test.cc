@@ -67,6 +67,11 @@ TEST(SweepSpecTest, CostEstimateAddsUpOverTheJobs) {
   EXPECT_LT(estimate("[1]", 60).cpu_seconds, 0.2 * one.cpu_seconds);
   EXPECT_NE(one.Text().find("CPU minutes for 2 trials"), std::string::npos) << one.Text();
   EXPECT_NE(estimate("[1, 2, 3, 4, 5, 6]", 600).Text().find("CPU hours for 12 trials"), std::string::npos);
+  // Issue 29: a sweep of seconds said "about 0 CPU minutes".
+  const SweepCostEstimate tiny = estimate("[1]", 1);
+  ASSERT_LT(tiny.cpu_seconds, 90);
+  EXPECT_NE(tiny.Text().find("CPU seconds for 2 trials"), std::string::npos) << tiny.Text();
+  EXPECT_EQ(tiny.Text().find("about 0 "), std::string::npos) << tiny.Text();
 }
 
 TEST(SweepSpecTest, EqualSweepsWrittenDifferentlyHaveTheSameHash) {

@@ -118,6 +118,7 @@ class FakeStudyRunner final : public JobRunner {
     if (seed == 23) throw std::runtime_error("study boom");
     if (seed == 24) return absl::InvalidArgumentError("the inline snapshot has no episode 9");
     if (seed == 22) {
+      started = true;
       for (int waited = 0; waited < 60'000; waited += 5) {
         if (progress->ShouldCancel()) {
           stopped = true;
@@ -148,6 +149,7 @@ class FakeStudyRunner final : public JobRunner {
     }
     return outcome;
   }
+  std::atomic<bool> started{false};  // the seed-22 study is running in the runner
   std::atomic<bool> stopped{false};
 };
 
@@ -709,7 +711,11 @@ TEST_F(WorkerTest, DrainTimeoutStopsTheStudyAndRequeuesItWithoutBlame) {
   worker_clock_ = &clock_;
   const absl::Duration drain_timeout = absl::Minutes(10);
   StartWorker(1, drain_timeout);
-  ASSERT_TRUE(WaitFor([&] { return JobsBySeed("study-drain")["22"].state() == v1::JOB_STATE_RUNNING; },
+  // Running in the runner, not only leased: a drain deadline that passed
+  // before the worker registered the lease would find nothing to stop (a
+  // race this test lost once under load).
+  ASSERT_TRUE(WaitFor([&] { return JobsBySeed("study-drain")["22"].state() == v1::JOB_STATE_RUNNING &&
+                                   study_runner_.started.load(); },
                       seconds(30)));
   worker_->Drain();
   EXPECT_FALSE(study_runner_.stopped.load()) << "stopped before the drain deadline";

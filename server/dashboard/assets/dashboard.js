@@ -347,6 +347,14 @@ function curvePanel(panel) {
   return root;
 }
 
+// Which paired test found what, as the CLI's verdict columns say it.
+function verdictText(c) {
+  const parts = [];
+  if (c.success_verdict && c.success_verdict !== 'no evidence') parts.push('success (McNemar): ' + c.success_verdict);
+  if (c.cost_verdict && c.cost_verdict !== 'no evidence') parts.push('cost (Wilcoxon): ' + c.cost_verdict);
+  return parts.length ? parts.join('; ') : 'no evidence';
+}
+
 function compareTable(data) {
   if (!data.comparisons.length) {
     return el('p', {class: 'muted', text: 'Nothing to compare yet: no task variant has completed trials of two methods.'});
@@ -354,7 +362,7 @@ function compareTable(data) {
   const alpha = data.alpha;
   const head = ['variant', 'method', 'vs', 'pairs', 'only method / only vs', 'Δ success', 'McNemar p (Holm)',
                 'power', 'cost shift (HL)', 'rank-biserial', 'Wilcoxon p (Holm)', 'power', 'rates',
-                'Fisher p (Holm)', 'power'];
+                'Fisher p (Holm)', 'power', 'verdict'];
   return el('table', {id: 'compare'},
       el('thead', {}, el('tr', {}, ...head.map(t => el('th', {text: t})))),
       el('tbody', {}, ...data.comparisons.map(c => {
@@ -374,7 +382,8 @@ function compareTable(data) {
             el('td', {class: 'num', text: fixed(c.wilcoxon_power, 2)}),
             el('td', {class: 'num', text: `${c.method_successes}/${c.method_trials} vs ${c.vs_successes}/${c.vs_trials}`}),
             el('td', {class: 'num', text: `${pValue(c.fisher_p)} (${pValue(c.fisher_p_holm)})`}),
-            el('td', {class: 'num', text: fixed(c.fisher_power, 2)}));
+            el('td', {class: 'num', text: fixed(c.fisher_power, 2)}),
+            el('td', {class: 'verdict', text: verdictText(c)}));
       })));
 }
 
@@ -392,7 +401,16 @@ function jobsTable(jobs) {
           el('td', {text: j.state !== 'completed' ? '' : (j.success ? 'yes' : 'no')}),
           el('td', {class: 'num', title: 'fraction of the final policy\'s verdict rollouts held',
                     text: j.held_fraction === null || j.held_fraction === undefined ? '' : fixed(j.held_fraction, 2)}),
-          el('td', {class: 'error', text: j.last_error})))));
+          lastErrorCell(j)))));
+}
+
+// The last error of a job that then completed belongs to an earlier attempt
+// (a drain, a lost lease): shown muted, not as an alarm.
+function lastErrorCell(j) {
+  if (!j.last_error) return el('td', {});
+  return j.state === 'completed'
+      ? el('td', {class: 'muted', text: 'earlier attempt: ' + j.last_error})
+      : el('td', {class: 'error', text: j.last_error});
 }
 
 async function renderSweep(view, name) {
@@ -430,7 +448,7 @@ async function renderSweep(view, name) {
           'per-seed final costs (cost shift = Hodges–Lehmann median difference, method − vs; negative: method lower), ' +
           'Fisher\'s exact test on all completed trials; two-sided, Holm-corrected over each variant\'s ' +
           'comparisons; power of each test at this n for the observed effect. Green: significant after Holm at α = ' +
-          (compare.alpha || 0.05) + '.'}),
+          (compare.alpha || 0.05) + '; the verdict column names the test and the method it favours.'}),
       compare.error ? el('p', {class: 'error', text: compare.error}) : compareTable(compare),
       el('h3', {text: `Jobs (${jobs.jobs.length}${jobs.next_after ? '+' : ''})`}),
       jobsTable(jobs.jobs));
@@ -461,13 +479,16 @@ async function renderJob(view, id) {
   const data = await api('/api/job?id=' + encodeURIComponent(id));
   const j = data.job;
   const optionText = data.options.map(([k, v]) => `${k}=${v}`).join('\n');
-  view.replaceChildren(
+  // replaceChildren turns a null child into the text "null": drop them.
+  replacePresent(view,
       el('h2', {text: `Job ${j.job_id}: ${j.method}, seed ${j.seed}${j.variant ? ', ' + j.variant : ''}`}),
       el('p', {}, stateSpan(j.state), ` — ${j.episodes_stored}/${j.episodes_expected} episodes, ` +
          `${j.attempts} attempts, ${j.failures} failures, ${j.lost_leases} lost leases` +
          (j.state === 'completed' && j.final_eval_cost !== null ? `, final cost ${fixed(j.final_eval_cost, 3)} (${j.success ? 'success' : 'no success'})` : '') +
          (j.held_fraction !== null && j.held_fraction !== undefined ? `, rollouts held ${fixed(j.held_fraction, 2)} (${j.held_fraction >= 0.5 ? 'held' : 'not held'})` : '')),
-      j.last_error ? el('p', {class: 'error', text: j.last_error}) : null,
+      j.last_error ? el('p', {class: j.state === 'completed' ? 'muted' : 'error',
+                              text: (j.state === 'completed' ? 'earlier attempt: ' : '') + j.last_error})
+                   : null,
       el('details', {}, el('summary', {text: `options (${data.options.length})`}), el('pre', {text: optionText})),
       el('h3', {text: 'Episodes'}),
       episodePlot(data.episodes),
@@ -495,6 +516,11 @@ async function renderJob(view, id) {
       el('pre', {id: 'events', text: data.events.map(e =>
           `${when(e.ms)}  attempt ${e.attempt}  ${e.kind}  ${e.message}`).join('\n') || '(none)'}));
   setCrumbs([['#/', 'sweeps'], ['#/sweep/' + encodeURIComponent(data.sweep), data.sweep], [null, 'job ' + j.job_id]]);
+}
+
+// view.replaceChildren without the null and undefined children.
+function replacePresent(view, ...children) {
+  view.replaceChildren(...children.filter(child => child !== null && child !== undefined));
 }
 
 function setCrumbs(parts) {

@@ -157,6 +157,12 @@ TEST(TrialOptionTable, ErrorsNameTheKeyAndLeaveTheOptionsUnchanged) {
   EXPECT_NE(s.message().find("not a non-negative integer"), std::string::npos) << s;
   s = SetTrialOption("gp_penalty", "maybe", &o);
   EXPECT_NE(s.message().find("true/false"), std::string::npos) << s;
+  // Issue 29: a typo gets the one close key, not the whole list of keys.
+  s = SetTrialOption("particels", "5", &o);
+  EXPECT_EQ(s.message(), "unknown option 'particels'; did you mean 'particles'?") << s;
+  s = SetTrialOption("zzzzzz", "5", &o);
+  EXPECT_NE(s.message().find("unknown option 'zzzzzz'; known: "), std::string::npos) << s;
+  EXPECT_NE(s.message().find("particles"), std::string::npos) << s;
   EXPECT_TRUE(o == TrialOptions());
 }
 
