@@ -47,11 +47,13 @@
 
 namespace totalgrad::learner {
 
+// 4: each episode also holds its trajectories (trajectory.h; version 3 and
+// older read with none);
 // 3: each episode also lists the record's fields added since version 1 by
 // name and type (held_fraction, the optimisation diagnostics, lr_share);
 // 2: the same, doubles only, untyped (issue 25's first build); 1: the fixed
 // fields only (the others read as their defaults, NaN).
-inline constexpr int kCheckpointFormatVersion = 3;
+inline constexpr int kCheckpointFormatVersion = 4;
 inline constexpr int kOldestCheckpointFormatVersion = 1;
 
 struct TrialCheckpoint {

@@ -1,5 +1,7 @@
 #include "core/learner/evaluation.h"
 
+#include <utility>
+
 #include <algorithm>
 #include <cmath>
 #include <memory>
@@ -52,7 +54,8 @@ bool RolloutHeld(const tasks::Scene& scene, const tasks::Episode& rollout, doubl
 absl::StatusOr<RolloutClassification> ClassifyController(const tasks::Scene& scene,
                                                          const tasks::MultiController& controller,
                                                          uint64_t seed, int episode, int rollouts,
-                                                         double distance, int hold_steps) {
+                                                         double distance, int hold_steps,
+                                                         std::vector<tasks::Episode>* classified) {
   if (rollouts < 1) return absl::InvalidArgumentError("verdict rollouts must be >= 1");
   if (!(distance > 0) || !std::isfinite(distance))
     return absl::InvalidArgumentError("verdict distance must be finite and > 0");
@@ -67,6 +70,7 @@ absl::StatusOr<RolloutClassification> ClassifyController(const tasks::Scene& sce
   classification.rollouts = rollouts;
   for (const tasks::Episode& run : evaluation->rollouts)
     if (RolloutHeld(scene, run, distance, hold_steps)) ++classification.held;
+  if (classified != nullptr) *classified = std::move(evaluation->rollouts);
   return classification;
 }
 

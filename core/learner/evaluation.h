@@ -74,11 +74,13 @@ struct RolloutClassification {
 // episode `episode`'s (so the first eval_rollouts are that evaluation's own),
 // each classified by RolloutHeld. Errors: InvalidArgument for rollouts < 1,
 // distance not > 0 or hold_steps outside 1..horizon; Internal naming the
-// rollout when the plant fails.
+// rollout when the plant fails. `classified` (may be null) receives the
+// rollouts themselves, in order.
 absl::StatusOr<RolloutClassification> ClassifyController(const tasks::Scene& scene,
                                                          const tasks::MultiController& controller,
                                                          uint64_t seed, int episode, int rollouts,
-                                                         double distance, int hold_steps);
+                                                         double distance, int hold_steps,
+                                                         std::vector<tasks::Episode>* classified = nullptr);
 
 // A trial's policy classified as RunTrial classifies its final policy, by the
 // rule of `options` (verdict_rollouts, verdict_distance,

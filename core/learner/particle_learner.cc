@@ -26,6 +26,28 @@ uint64_t StepStreamIndex(int episode, int step) {
 }
 constexpr int kPredictedCostStep = 999999;
 
+// The particles' mean and sample standard deviation (divisor P - 1; 0 for
+// one particle) per time step t = 0..H and state dimension.
+void PredictedStates(const estimators::Rollout& rollout, EpisodeTrajectories* out) {
+  const int steps = static_cast<int>(rollout.steps.size());
+  if (steps == 0) return;
+  const int d = static_cast<int>(rollout.steps[0].state.cols());
+  out->predicted_mean.resize(steps + 1, d);
+  out->predicted_std.resize(steps + 1, d);
+  for (int t = 0; t <= steps; ++t) {
+    const RowMatrix& x = t < steps ? rollout.steps[t].state : rollout.steps[steps - 1].next_state;
+    const Eigen::RowVectorXd mean = x.colwise().mean();
+    out->predicted_mean.row(t) = mean;
+    const Eigen::Index p = x.rows();
+    if (p > 1) {
+      out->predicted_std.row(t) =
+          ((x.rowwise() - mean).colwise().squaredNorm() / static_cast<double>(p - 1)).cwiseSqrt();
+    } else {
+      out->predicted_std.row(t).setZero();
+    }
+  }
+}
+
 class ParticleLearner final : public PolicyLearner {
  public:
   ParticleLearner(const TrialOptions& options, const tasks::Scene& scene,
@@ -112,6 +134,7 @@ class ParticleLearner final : public PolicyLearner {
     if (!status.ok()) return status;
     clock->Lap(&timing.prediction_cpu, &timing.prediction_wall);
     result->predicted_cost = rollout.objective;
+    PredictedStates(rollout, &result->trajectories);
     result->policy_parameters = policy_.parameters();
     return absl::OkStatus();
   }

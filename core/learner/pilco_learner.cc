@@ -12,6 +12,19 @@
 namespace totalgrad::learner {
 namespace {
 
+// PILCO's moment-matched prediction of the state (its first d dimensions:
+// the propagated vector may carry more), t = 0..H.
+void PredictedStates(const pilco::Trajectory& prediction, int d, EpisodeTrajectories* out) {
+  const int steps = static_cast<int>(prediction.means.size());
+  out->predicted_mean.resize(steps, d);
+  out->predicted_std.resize(steps, d);
+  for (int t = 0; t < steps; ++t) {
+    out->predicted_mean.row(t) = prediction.means[t].head(d).transpose();
+    out->predicted_std.row(t) =
+        prediction.covs[t].diagonal().head(d).cwiseMax(0.0).cwiseSqrt().transpose();
+  }
+}
+
 class PilcoLearner final : public PolicyLearner {
  public:
   PilcoLearner(const TrialOptions& options, const tasks::Scene& scene, std::vector<int> angles,
@@ -62,6 +75,7 @@ class PilcoLearner final : public PolicyLearner {
     result->predicted_cost = optimised->prediction.total_cost;
     result->predicted_cost_mean_per_step = optimised->prediction.cost_mean;
     result->predicted_cost_std_per_step = optimised->prediction.cost_std;
+    PredictedStates(optimised->prediction, scene_.state_dim(), &result->trajectories);
     result->policy_parameters = params;
     return absl::OkStatus();
   }

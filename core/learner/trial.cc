@@ -45,6 +45,7 @@ absl::StatusOr<EpisodeResult> RandomEpisode(const tasks::Scene& scene, uint64_t 
   EpisodeResult result;
   result.episode = 0;
   result.real_cost = episode.total_cost;
+  result.trajectories.real = TrajectoryOfEpisode(episode);
   clock.Lap(&result.timing.real_episode_cpu, &result.timing.real_episode_wall);
   result.cpu_seconds = result.timing.total_cpu();
   return result;
@@ -67,6 +68,7 @@ absl::Status RealEpisodeAndEvaluation(const TrialOptions& options, const tasks::
     if (!status.ok()) return absl::InternalError(absl::StrCat("episode ", e, ": ", status.message()));
     data.Append(episode);
     result.real_cost = episode.total_cost;
+    result.trajectories.real = TrajectoryOfEpisode(episode);
   }
   clock.Lap(&result.timing.real_episode_cpu, &result.timing.real_episode_wall);
 
@@ -83,13 +85,17 @@ absl::Status RealEpisodeAndEvaluation(const TrialOptions& options, const tasks::
   //    (its own evaluation streams: the first eval_rollouts rollouts are
   //    the evaluation above, so no number above depends on it).
   if (e == options.episodes && options.verdict_rollouts > 0) {
+    std::vector<tasks::Episode> rollouts;
     absl::StatusOr<RolloutClassification> classification = ClassifyController(
         scene, policy_controller, seed, e, options.verdict_rollouts, options.verdict_distance,
-        VerdictHoldSteps(options, scene));
+        VerdictHoldSteps(options, scene), &rollouts);
     if (!classification.ok())
       return absl::InternalError(absl::StrCat("episode ", e, " rollout verdict: ",
                                               classification.status().message()));
     result.held_fraction = classification->held_fraction();
+    result.trajectories.verdict_rollouts.reserve(rollouts.size());
+    for (const tasks::Episode& rollout : rollouts)
+      result.trajectories.verdict_rollouts.push_back(TrajectoryOfEpisode(rollout));
   }
   clock.Lap(&result.timing.evaluation_cpu, &result.timing.evaluation_wall);
   return absl::OkStatus();

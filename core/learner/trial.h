@@ -30,6 +30,7 @@
 #include "absl/status/statusor.h"
 #include "core/gp/gp.h"
 #include "core/learner/episode_record.h"
+#include "core/learner/trajectory.h"
 #include "core/learner/trial_options.h"
 
 namespace totalgrad::learner {
@@ -82,6 +83,10 @@ struct EpisodeResult : EpisodeSummary {
   // PILCO only: the model's predicted cost mean and std per step t = 1..H.
   Vector predicted_cost_mean_per_step;
   Vector predicted_cost_std_per_step;
+  // The real episode, the model's prediction of it and, on the last
+  // episode, the rollout verdict's rollouts (trajectory.h). Stored apart
+  // from the record's fields, as EncodeEpisodeTrajectories bytes.
+  EpisodeTrajectories trajectories;
 };
 
 struct TrialSummary {

@@ -67,6 +67,8 @@ void ExpectSameResult(const EpisodeResult& x, const EpisodeResult& y) {
   EXPECT_TRUE(SameBits(x.predicted_cost_mean_per_step, y.predicted_cost_mean_per_step));
   EXPECT_EQ(x.flags.non_finite_gradients, y.flags.non_finite_gradients);
   EXPECT_EQ(x.flags.gp_jitter, y.flags.gp_jitter);
+  // The trajectories travel in the checkpoint (version 4), bit for bit.
+  EXPECT_EQ(EncodeEpisodeTrajectories(x.trajectories), EncodeEpisodeTrajectories(y.trajectories));
 }
 
 // Runs `options` once uninterrupted, then resumed from the checkpoint of
@@ -164,6 +166,35 @@ TEST(TrialCheckpoint, VersionTwoStillReads) {
   ExpectSameResult(again->episodes[1], decoded->episodes[1]);
 }
 
+// A version-3 checkpoint (the Table-1 workers' build d8a6c09: typed named
+// fields, no trajectories), taken from a real trial of the table1-tip-k001
+// sweep (LR seed 10, job 84 attempt 2, after learned episode 3), still
+// reads: its diagnostics as they were, its episodes without trajectories,
+// and it resumes the trial it belongs to.
+TEST(TrialCheckpoint, VersionThreeStillReads) {
+  std::ifstream in(std::string(TOTALGRAD_SOURCE_DIR) +
+                       "/tests/core/learner/testdata/checkpoint_v3_lr_episode3.bin",
+                   std::ios::binary);
+  ASSERT_TRUE(in);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  ASSERT_EQ(bytes[8], 3);  // the format version's low byte
+  auto decoded = DecodeCheckpoint(bytes);
+  ASSERT_TRUE(decoded.ok()) << decoded.status();
+  EXPECT_EQ(decoded->episode, 3);
+  ASSERT_EQ(decoded->episodes.size(), 4u);
+  // As the coordinator stored them (episodes rows of job 84 attempt 2).
+  EXPECT_EQ(decoded->episodes[3].real_cost, 26.103428788707355);
+  EXPECT_EQ(decoded->episodes[3].gradient_snr_mean, 0.9397306984496048);
+  for (const EpisodeResult& e : decoded->episodes) EXPECT_TRUE(e.trajectories.empty());
+  absl::StatusOr<TrialOptions> options = TrialOptionsFromStoredPairs(decoded->options);
+  ASSERT_TRUE(options.ok());
+  EXPECT_EQ(options->method, estimators::Method::kLr);
+  EXPECT_TRUE(CheckResumable(*decoded, *options).ok());
+  auto again = DecodeCheckpoint(EncodeCheckpoint(*decoded));
+  ASSERT_TRUE(again.ok()) << again.status();
+  ExpectSameResult(again->episodes[3], decoded->episodes[3]);
+}
+
 TEST(TrialCheckpoint, WhatCannotBeReadIsRefusedByName) {
   Collector collector;
   ASSERT_TRUE(RunTrial(Tiny({{"episodes", "1"}}), &collector).ok());
@@ -180,8 +211,8 @@ TEST(TrialCheckpoint, WhatCannotBeReadIsRefusedByName) {
   EXPECT_NE(message(DecodeCheckpoint(bytes.substr(0, bytes.size() - 100))).find("checksum"),
             std::string::npos);
   std::string newer = bytes;
-  newer[8] = 4;  // the format version's low byte
-  EXPECT_NE(message(DecodeCheckpoint(newer)).find("format version 4; this build reads versions 1 to 3"),
+  newer[8] = 5;  // the format version's low byte
+  EXPECT_NE(message(DecodeCheckpoint(newer)).find("format version 5; this build reads versions 1 to 4"),
             std::string::npos);
   // A checkpoint of another trial is not resumed.
   auto decoded = DecodeCheckpoint(bytes);
