@@ -11,9 +11,15 @@
 //                       attempt and build that wrote it, and the FITC
 //                       inducing inputs when the model was sparse (the
 //                       snapshot format has no field for them).
+// `totalgrad job trajectory JOB --episode E [--rollout R]`: one recorded
+// trajectory of the same checkpoint (core/learner/trajectory.h): the real
+// episode E with the model's prediction of it, or rollout R of the rollout
+// verdict's rollouts (the last episode's), as a table, CSV or JSON
+// (io/trajectory_json.h).
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <optional>
 
 #include <nlohmann/json.hpp>
 
@@ -21,25 +27,84 @@
 #include "absl/strings/str_cat.h"
 #include "client/service_commands/connection.h"
 #include "core/learner/checkpoint.h"
+#include "io/record_format.h"
 #include "io/snapshot_json.h"
+#include "io/trajectory_json.h"
 
 namespace totalgrad::cli {
+namespace {
+
+// The job's checkpoint, decoded; otherwise prints the error, sets
+// *exit_code (ReportError's for a refused call, 1 for one that does not
+// decode) and returns nullopt.
+std::optional<learner::TrialCheckpoint> FetchCheckpoint(Connection* connection, int64_t job_id,
+                                                        const std::string& what,
+                                                        v1::GetJobArtifactsResponse* response,
+                                                        int* exit_code) {
+  v1::JobRequest request;
+  request.set_job_id(job_id);
+  const grpc::Status status =
+      connection->Call(&v1::ControlService::Stub::GetJobArtifacts, request, response);
+  if (!status.ok()) {
+    *exit_code = ReportError(status, what);
+    return std::nullopt;
+  }
+  absl::StatusOr<learner::TrialCheckpoint> checkpoint =
+      learner::DecodeCheckpoint(response->checkpoint().data());
+  if (!checkpoint.ok()) {
+    std::cerr << "error: " << what << ": " << checkpoint.status().message()
+              << " (written by " << response->worker_build() << ")\n";
+    *exit_code = 1;
+    return std::nullopt;
+  }
+  return *std::move(checkpoint);
+}
+
+}  // namespace
+
+int PrintJobTrajectory(Connection* connection, int64_t job_id, int episode, int rollout) {
+  const std::string what = absl::StrCat("job trajectory ", job_id);
+  v1::GetJobArtifactsResponse response;
+  int exit_code = 0;
+  const std::optional<learner::TrialCheckpoint> checkpoint =
+      FetchCheckpoint(connection, job_id, what, &response, &exit_code);
+  if (!checkpoint) return exit_code;
+  absl::StatusOr<io::TrajectoryView> view = io::ViewTrajectory(*checkpoint, episode, rollout);
+  if (!view.ok()) {
+    std::cerr << "error: " << what << ": " << view.status().message() << " (attempt "
+              << response.attempt() << ", written by " << response.worker_build() << ")\n";
+    return 1;
+  }
+  if (connection->format() == Format::kJson) {
+    nlohmann::ordered_json out;
+    out["job"] = response.job().job_id();
+    out["method"] = response.job().method();
+    out["seed"] = response.job().seed();
+    out["attempt"] = response.attempt();
+    const nlohmann::ordered_json trajectory = io::TrajectoryToJson(*view);
+    for (const auto& [key, value] : trajectory.items()) out[key] = value;
+    std::cout << out.dump(2) << "\n";
+    return 0;
+  }
+  const io::TrajectoryTable table = io::TrajectoryRows(*view);
+  Listing listing;
+  listing.columns = table.columns;
+  for (const std::vector<double>& row : table.rows) {
+    std::vector<std::string>& cells = listing.rows.emplace_back();
+    for (double v : row) cells.push_back(io::RecordNumberText(v));
+  }
+  listing.numeric_columns = table.columns;
+  Print(listing, connection->format(), std::cout);
+  return 0;
+}
 
 int WriteJobArtifacts(Connection* connection, int64_t job_id, const std::string& dir) {
   const std::string what = absl::StrCat("job artifacts ", job_id);
-  v1::JobRequest request;
-  request.set_job_id(job_id);
   v1::GetJobArtifactsResponse response;
-  const grpc::Status status =
-      connection->Call(&v1::ControlService::Stub::GetJobArtifacts, request, &response);
-  if (!status.ok()) return ReportError(status, what);
-  absl::StatusOr<learner::TrialCheckpoint> checkpoint =
-      learner::DecodeCheckpoint(response.checkpoint().data());
-  if (!checkpoint.ok()) {
-    std::cerr << "error: " << what << ": " << checkpoint.status().message()
-              << " (written by " << response.worker_build() << ")\n";
-    return 1;
-  }
+  int exit_code = 0;
+  const std::optional<learner::TrialCheckpoint> checkpoint =
+      FetchCheckpoint(connection, job_id, what, &response, &exit_code);
+  if (!checkpoint) return exit_code;
   const int k = checkpoint->episode;
   if (k < 1 || !checkpoint->hyperparameters) {
     std::cerr << "error: " << what << ": the job's checkpoint holds only the random episode; "

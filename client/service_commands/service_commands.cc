@@ -24,6 +24,8 @@ namespace totalgrad::cli {
 void AddRunCommand(CLI::App* app, int* exit_code);  // run_command.cc
 int WriteJobArtifacts(Connection* connection, int64_t job_id,
                       const std::string& dir);  // artifacts.cc
+int PrintJobTrajectory(Connection* connection, int64_t job_id, int episode,
+                       int rollout);  // artifacts.cc
 void AddCompareCommand(CLI::App* results, int* exit_code);  // compare.cc
 void AddTable1Command(CLI::App* results, int* exit_code);   // table1_command.cc
 void AddPowerCommand(CLI::App* results, int* exit_code);    // table1_command.cc
@@ -331,6 +333,26 @@ void AddJobCommands(CLI::App* app, int* exit_code) {
       /*with_format=*/false);
   artifacts->add_option("JOB", *artifacts_id, "job id")->required();
   artifacts->add_option("--out", *artifacts_dir, "directory to write into")->required();
+
+  auto trajectory_id = std::make_shared<int64_t>(0);
+  auto trajectory_episode = std::make_shared<int>(0);
+  auto trajectory_rollout = std::make_shared<int>(-1);
+  CLI::App* trajectory = AddCommand(
+      job_cmd, "trajectory",
+      "a trial's recorded trajectory: the real episode E (true states, controls) beside the "
+      "model's prediction of it (mean, std per state), or with --rollout R one of the rollout "
+      "verdict's rollouts of the last episode; from the job's checkpoint",
+      exit_code,
+      [trajectory_id, trajectory_episode, trajectory_rollout](Connection* c) {
+        return PrintJobTrajectory(c, *trajectory_id, *trajectory_episode, *trajectory_rollout);
+      });
+  trajectory->add_option("JOB", *trajectory_id, "job id")->required();
+  trajectory->add_option("--episode", *trajectory_episode, "episode (0 = the random one)")
+      ->required()
+      ->check(CLI::NonNegativeNumber);
+  trajectory->add_option("--rollout", *trajectory_rollout,
+                         "a verdict rollout of that episode (0-based) instead of the episode")
+      ->check(CLI::NonNegativeNumber);
 
   auto log_id = std::make_shared<int64_t>(0);
   CLI::App* logs = AddCommand(job_cmd, "logs", "a job's attempts, errors and events", exit_code,

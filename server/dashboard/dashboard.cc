@@ -83,6 +83,7 @@ void Dashboard::Register(httplib::Server* server) {
   };
   server->Get("/", serve_file("index.html"));
   server->Get("/dashboard.js", serve_file("dashboard.js"));
+  server->Get("/trajectories.js", serve_file("trajectories.js"));
   server->Get("/dashboard.css", serve_file("dashboard.css"));
 
   // Every API route: authorise, build the document, answer.
@@ -153,6 +154,25 @@ void Dashboard::Register(httplib::Server* server) {
     absl::StatusOr<int64_t> id = IntegerParameter(request, "id", 0);
     if (!id.ok()) return id.status();
     return data_.Job(*id);
+  });
+  api("/api/trajectory", [this](const httplib::Request& request) -> absl::StatusOr<json> {
+    absl::StatusOr<std::string> id_text = RequiredParameter(request, "id");
+    if (!id_text.ok()) return id_text.status();
+    absl::StatusOr<int64_t> id = IntegerParameter(request, "id", 0);
+    if (!id.ok()) return id.status();
+    absl::StatusOr<int64_t> episode = IntegerParameter(request, "episode", 0);
+    if (!episode.ok()) return episode.status();
+    absl::StatusOr<int64_t> rollout = IntegerParameter(request, "rollout", -1);
+    if (!rollout.ok()) return rollout.status();
+    if (*episode < 0 || *episode > 100000 || *rollout < -1 || *rollout > 1000000) {
+      return absl::InvalidArgumentError("'episode' must be >= 0 and 'rollout' >= 0 (or absent)");
+    }
+    return data_.Trajectory(*id, static_cast<int>(*episode), static_cast<int>(*rollout));
+  });
+  api("/api/final_trajectories", [this](const httplib::Request& request) -> absl::StatusOr<json> {
+    absl::StatusOr<std::string> name = RequiredParameter(request, "name");
+    if (!name.ok()) return name.status();
+    return data_.FinalTrajectories(*name);
   });
 }
 

@@ -12,6 +12,7 @@
 
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -19,6 +20,7 @@
 #include "absl/base/thread_annotations.h"
 #include "absl/status/statusor.h"
 #include "absl/synchronization/mutex.h"
+#include "core/learner/checkpoint.h"
 #include "server/storage/store.h"
 
 namespace totalgrad::dashboard {
@@ -102,10 +104,24 @@ class DashboardData {
   absl::StatusOr<nlohmann::json> Jobs(const std::string& name, int64_t after, int limit);
   // One job: its options, attempts, events and every attempt's episodes.
   absl::StatusOr<nlohmann::json> Job(int64_t job_id);
+  // What a trial recorded of episode `episode` (or, rollout >= 0, of that
+  // verdict rollout of it), from its checkpoint: io/trajectory_json.h's
+  // document plus "job" and "episodes_recorded" (the episodes that hold
+  // trajectories). NotFound: no such job, no checkpoint yet, or the episode
+  // holds none (dashboard_trajectories.cc).
+  absl::StatusOr<nlohmann::json> Trajectory(int64_t job_id, int episode, int rollout);
+  // The final episode of every completed trial of the sweep that recorded
+  // trajectories: its goal distance per step with the verdict rule, its
+  // threshold verdict (success, final_eval_cost) and rollout verdict
+  // (held_fraction); "without" counts the completed trials that recorded none.
+  absl::StatusOr<nlohmann::json> FinalTrajectories(const std::string& sweep_name);
 
  private:
   absl::StatusOr<FinishEstimate> Estimate(const storage::SweepRecord& sweep, int64_t now_ms);
   absl::StatusOr<std::vector<storage::JobRecord>> AllJobs(const std::string& sweep_name);
+  // The job's checkpoint, decoded (dashboard_trajectories.cc); nullopt: none.
+  absl::StatusOr<std::optional<learner::TrialCheckpoint>> JobCheckpoint(
+      const storage::JobRecord& job);
 
   storage::Store* const store_;
   const DashboardOptions options_;

@@ -19,6 +19,7 @@ SECTIONS = {
     "sweep archive": "Sweep archive",
     "trial checkpoint": "Trial checkpoint",
     "worker spool file": "Worker spool file",
+    "episode trajectories": "Episode trajectories",
 }
 
 

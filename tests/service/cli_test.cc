@@ -13,6 +13,8 @@
 #include <sstream>
 
 #include "absl/strings/str_cat.h"
+#include "absl/strings/ascii.h"
+#include "absl/strings/match.h"
 #include "absl/strings/str_split.h"
 #include "tests/service/e2e_util.h"
 #include "tests/service/service_testutil.h"
@@ -676,6 +678,34 @@ TEST_F(CliTest, JobArtifactsAndEvaluateReproduceTheFinalEvaluation) {
             2);
   EXPECT_EQ(Cli({"job", "artifacts", "424242", "--out", artifacts}, &out, &err), 2);
   EXPECT_NE(err.find("no job with id 424242"), std::string::npos) << err;
+
+  // Issue 27: `job trajectory` prints what the trial recorded of an episode
+  // from the same checkpoint: rows t = 0..H with the prediction's columns,
+  // the real episode's cost, the verdict rollouts of the last episode.
+  const std::string id = std::to_string(job.job_id());
+  ASSERT_EQ(Cli({"job", "trajectory", id, "--episode", "2", "-f", "csv"}, &out, &err), 0) << err;
+  const std::vector<std::string> lines = absl::StrSplit(absl::StripTrailingAsciiWhitespace(out), '\n');
+  ASSERT_EQ(lines.size(), 12u) << out;  // the header and t = 0..10
+  EXPECT_EQ(lines[0],
+            "t,time,s,beta,s_dot,beta_dot,force,mean_s,mean_beta,mean_s_dot,mean_beta_dot,std_s,"
+            "std_beta,std_s_dot,std_beta_dot");
+  EXPECT_TRUE(absl::StartsWith(lines[11], "10,1,")) << lines[11];
+  ASSERT_EQ(Cli({"job", "trajectory", id, "--episode", "2", "-f", "json"}, &out, &err), 0) << err;
+  const nlohmann::json trajectory = nlohmann::json::parse(out);
+  EXPECT_EQ(trajectory["job"], job.job_id());
+  EXPECT_EQ(trajectory["states"].size(), 11u);
+  EXPECT_EQ(trajectory["verdict_rollouts"], 100);
+  ASSERT_EQ(Cli({"job", "trajectory", id, "--episode", "0", "-f", "json"}, &out, &err), 0) << err;
+  EXPECT_EQ(nlohmann::json::parse(out)["predicted_mean"].size(), 0u);  // the random episode
+  ASSERT_EQ(Cli({"job", "trajectory", id, "--episode", "2", "--rollout", "99"}, &out, &err), 0)
+      << err;
+  EXPECT_EQ(Cli({"job", "trajectory", id, "--episode", "2", "--rollout", "100"}, &out, &err), 1);
+  EXPECT_NE(err.find("holds 100 verdict rollouts (0..99); rollout 100 is not one of them"),
+            std::string::npos)
+      << err;
+  EXPECT_EQ(Cli({"job", "trajectory", id, "--episode", "3"}, &out, &err), 1);
+  EXPECT_NE(err.find("episode 3 is not recorded: the trial holds episodes 0..2"), std::string::npos)
+      << err;
 }
 
 TEST_F(CliTest, BackupsByRpcAndOneShotAreConsistentCopies) {

@@ -172,6 +172,20 @@ def cli_checks(args, work, connection, base):
                            capture_output=True, text=True)
     check(table.returncode == 2 and "'PILCO'" in table.stderr and "RP, TP" in table.stderr,
           "an unknown baseline is refused naming the methods: " + table.stderr.strip())
+    # Issue 27: one recorded trajectory, the same numbers from the CLI and the API.
+    shown = subprocess.run([args.cli, "job", "trajectory", "1", "--episode", "5", "-f", "json"] + connection,
+                           capture_output=True, text=True)
+    status, body = http_get(base + "/api/trajectory?id=1&episode=5", USER_TOKEN)
+    if check(shown.returncode == 0 and status == 200, "job trajectory -f json and /api/trajectory answer: "
+             + shown.stderr.strip()):
+        cli_view, api_view = json.loads(shown.stdout), json.loads(body)
+        check(all(cli_view[k] == api_view[k] for k in ("states", "controls", "predicted_mean", "predicted_std",
+                                                        "goal_distance", "real_cost"))
+              and len(cli_view["states"]) == 26,
+              "the CLI and the dashboard show the same trajectory (26 states)")
+    status, body = http_get(base + "/api/trajectory?id=1&episode=9", USER_TOKEN)
+    check(status == 404 and "episode 9 is not recorded" in json.loads(body)["error"],
+          f"an episode the trial does not hold is 404, named ({status})")
     plot = os.path.join(work, "plot", "curves.svg")
     os.makedirs(os.path.dirname(plot))
     drawn = subprocess.run([args.cli, "results", "curves", "browser", "--plot", plot] + connection,
@@ -180,6 +194,31 @@ def cli_checks(args, work, connection, base):
         script = open(plot + ".gp").read()
         check(script.count("set title ") == 2 and script.count('"success threshold 15"') == 2,
               "the plot has a panel per variant, each with the threshold line")
+
+
+def trajectory_checks(driver, find):
+    """Issue 27: the job page draws the last episode's real trajectory against
+    the model's prediction with its band, animates the scene (the drawn frame
+    changes) and plots the estimator statistics."""
+    from selenium.webdriver.common.by import By
+    plots = wait_for(lambda: driver.find_elements(By.CSS_SELECTOR, "#trajectory-plots svg.state-plot"), 15) or []
+    check(len(plots) == 5, f"a plot per state dimension and the goal distance ({len(plots)} of 5)")
+    states = [p for p in plots if p.get_attribute("data-state")]
+    check(len(states) == 4 and all(len(p.find_elements(By.CSS_SELECTOR, "polygon.band")) == 1 and
+                                   len(p.find_elements(By.CSS_SELECTOR, "polyline.series")) == 2 for p in states),
+          "each state's plot has the real trajectory, the predicted mean and its +-2 std band")
+    scene = find("#scene")
+    if check(scene is not None and scene.get_attribute("data-frame") == "0", "the scene is drawn at t = 0"):
+        first = find("#scene line.link").get_attribute("x2")
+        find("#scene-play").click()
+        frames = wait_for(lambda: (find("#scene") and int(find("#scene").get_attribute("data-frame")) >= 3
+                                   and find("#scene").get_attribute("data-frame")), 10)
+        later = find("#scene line.link").get_attribute("x2") if frames else first
+        check(frames and later != first, f"play animates the scene: frame {frames}, pole tip x {first} -> {later}")
+    statistics = driver.find_elements(By.CSS_SELECTOR, "#statistics svg.statistic-plot")
+    keys = [p.get_attribute("data-statistic") for p in statistics]
+    check("gradient_snr_mean" in keys and "gradient_norm_mean" in keys,
+          "the estimator statistics are plotted per episode: " + ", ".join(keys))
 
 
 def tls_checks(args, work, driver, processes):
@@ -433,6 +472,12 @@ def main():
             check(headers[-1:] == ["verdict"] and len(verdicts) == 2
                   and all(v == "no evidence" or "better" in v for v in verdicts),
                   f"a verdict column per comparison: {headers[-1:]} {verdicts}")
+        multiples = driver.find_elements(By.CSS_SELECTOR, "#final-trajectories svg.multiple")
+        check(len(multiples) == 12, f"one small plot of the final episode per trial ({len(multiples)} of 12)")
+        check(all(m.get_attribute("data-held") in ("true", "false") and
+                  len(m.find_elements(By.CSS_SELECTOR, "polyline.series")) == 1 and
+                  len(m.find_elements(By.CSS_SELECTOR, "line.threshold")) == 1 for m in multiples),
+              "each with its goal distance, the verdict distance and the rollout verdict")
         job_link = find("#jobs a")
         if check(job_link, "the jobs are listed"):
             job_link.click()
@@ -445,6 +490,7 @@ def main():
                 view_text = find("#view").text
                 check("null" not in view_text.split(), "the job page prints no literal null: "
                       + view_text[:200].replace("\n", " | "))
+                trajectory_checks(driver, find)
             driver.back()
             wait_for(lambda: find("#table1"), 15)
         cli_checks(args, work, connection, base)

@@ -1,7 +1,7 @@
 // The totalgrad dashboard: a read-only view of the coordinator's store.
 // Views (by URL fragment): #/ sweeps and workers; #/sweep/NAME progress,
-// success table, learning curves, comparisons, jobs; #/job/ID episodes and
-// logs; #/table1/NAME,NAME... the paper's Table 1 from those sweeps.
+// success table, learning curves, comparisons, final episodes, jobs;
+// #/job/ID episodes, trajectories (trajectories.js), statistics and logs; #/table1/NAME,NAME... the paper's Table 1 from those sweeps.
 // Data come from the coordinator's /api/* (server/dashboard/dashboard.h),
 // statistics named as in `totalgrad results ... -f json` (results/);
 // every text from the store is put in the page as text, never as markup.
@@ -415,11 +415,12 @@ function lastErrorCell(j) {
 
 async function renderSweep(view, name) {
   const q = encodeURIComponent(name);
-  const [sweepData, curves, compare, jobs] = await Promise.all([
+  const [sweepData, curves, compare, jobs, finals] = await Promise.all([
     api('/api/sweep?name=' + q),
     api(`/api/curves?name=${q}&running=${state.includeRunning ? 1 : 0}`),
     api(`/api/compare?name=${q}&baseline=${encodeURIComponent(state.baseline)}`).catch(e => ({error: e.message})),
     api(`/api/jobs?name=${q}&limit=2000`),
+    api('/api/final_trajectories?name=' + q).catch(e => ({error: e.message})),
   ]);
   const s = sweepData.sweep;
   const running = el('input', {type: 'checkbox', id: 'include-running', checked: state.includeRunning,
@@ -450,6 +451,8 @@ async function renderSweep(view, name) {
           'comparisons; power of each test at this n for the observed effect. Green: significant after Holm at α = ' +
           (compare.alpha || 0.05) + '; the verdict column names the test and the method it favours.'}),
       compare.error ? el('p', {class: 'error', text: compare.error}) : compareTable(compare),
+      el('h3', {text: 'Final episodes of the completed trials'}),
+      finals.error ? el('p', {class: 'error', text: finals.error}) : finalTrajectories(finals),
       el('h3', {text: `Jobs (${jobs.jobs.length}${jobs.next_after ? '+' : ''})`}),
       jobsTable(jobs.jobs));
   setCrumbs([['#/', 'sweeps'], [null, s.name]]);
@@ -478,6 +481,8 @@ function episodePlot(episodes) {
 async function renderJob(view, id) {
   const data = await api('/api/job?id=' + encodeURIComponent(id));
   const j = data.job;
+  const lastEpisode = Math.max(0, ...data.episodes.filter(e => e.final_attempt).map(e => e.episode));
+  const trajectory = await trajectorySection(j.job_id, lastEpisode);
   const optionText = data.options.map(([k, v]) => `${k}=${v}`).join('\n');
   // replaceChildren turns a null child into the text "null": drop them.
   replacePresent(view,
@@ -492,6 +497,10 @@ async function renderJob(view, id) {
       el('details', {}, el('summary', {text: `options (${data.options.length})`}), el('pre', {text: optionText})),
       el('h3', {text: 'Episodes'}),
       episodePlot(data.episodes),
+      el('h3', {text: 'Inside an episode: what happened against what the model predicted'}),
+      trajectory,
+      el('h3', {text: 'Estimator statistics per episode'}),
+      statisticsPlots(data.episodes) || el('p', {class: 'muted', text: 'none recorded (PILCO, or a build before them)'}),
       el('table', {id: 'episodes'},
           el('thead', {}, el('tr', {}, ...['attempt', 'episode', 'real cost', 'eval mean', 'eval std',
                                             'predicted', 'work s', 'stored'].map(t => el('th', {text: t})))),

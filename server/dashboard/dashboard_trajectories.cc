@@ -1,0 +1,98 @@
+// The dashboard's trajectory documents (DashboardData::Trajectory,
+// FinalTrajectories): what a trial recorded of its episodes, read from the
+// trial checkpoint the store keeps (core/learner/trajectory.h; checkpoint
+// version 4 and later hold them), in io/trajectory_json.h's layout.
+#include <cmath>
+#include <optional>
+
+#include "absl/strings/str_cat.h"
+#include "core/learner/checkpoint.h"
+#include "io/trajectory_json.h"
+#include "server/dashboard/dashboard_data.h"
+
+namespace totalgrad::dashboard {
+namespace {
+
+using nlohmann::json;
+
+json FiniteOrNull(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+
+}  // namespace
+
+// A completed job's checkpoint is its completed attempt's final state;
+// otherwise the latest of any attempt (as ControlService::GetJobArtifacts).
+absl::StatusOr<std::optional<learner::TrialCheckpoint>> DashboardData::JobCheckpoint(
+    const storage::JobRecord& job) {
+  absl::StatusOr<std::optional<storage::CheckpointRecord>> stored =
+      store_->GetCheckpoint(job.id, job.completed_attempt);
+  if (!stored.ok()) return stored.status();
+  if (!stored->has_value()) return std::optional<learner::TrialCheckpoint>();
+  absl::StatusOr<learner::TrialCheckpoint> decoded =
+      learner::DecodeCheckpoint((*stored)->checkpoint.data);
+  if (!decoded.ok()) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        "job ", job.id, ": its checkpoint (attempt ", (*stored)->key.attempt, ", build ",
+        (*stored)->worker_build, ") does not decode here: ", decoded.status().message()));
+  }
+  return std::optional<learner::TrialCheckpoint>(*std::move(decoded));
+}
+
+absl::StatusOr<json> DashboardData::Trajectory(int64_t job_id, int episode, int rollout) {
+  absl::StatusOr<storage::JobRecord> job = store_->GetJob(job_id);
+  if (!job.ok()) return job.status();
+  absl::StatusOr<std::optional<learner::TrialCheckpoint>> checkpoint = JobCheckpoint(*job);
+  if (!checkpoint.ok()) return checkpoint.status();
+  if (!checkpoint->has_value()) {
+    return absl::NotFoundError(absl::StrCat("job ", job_id, " has no trial checkpoint yet"));
+  }
+  absl::StatusOr<io::TrajectoryView> view = io::ViewTrajectory(**checkpoint, episode, rollout);
+  if (!view.ok()) return view.status();
+  json out = json::parse(io::TrajectoryToJson(*view).dump());
+  out["job"] = job_id;
+  // Which episodes can be shown (recorded with trajectories), for the picker.
+  json recorded = json::array();
+  for (const learner::EpisodeResult& e : (*checkpoint)->episodes)
+    if (!e.trajectories.real.empty()) recorded.push_back(e.episode);
+  out["episodes_recorded"] = std::move(recorded);
+  return out;
+}
+
+absl::StatusOr<json> DashboardData::FinalTrajectories(const std::string& sweep_name) {
+  absl::StatusOr<std::vector<storage::JobRecord>> jobs = AllJobs(sweep_name);
+  if (!jobs.ok()) return jobs.status();
+  json out = {{"sweep", sweep_name}, {"trials", json::array()}, {"without", 0}};
+  int without = 0;
+  for (const storage::JobRecord& job : *jobs) {
+    if (job.kind != storage::JobKind::kTrial || job.state != storage::JobState::kCompleted) continue;
+    absl::StatusOr<std::optional<learner::TrialCheckpoint>> checkpoint = JobCheckpoint(job);
+    if (!checkpoint.ok()) return checkpoint.status();
+    if (!checkpoint->has_value()) {
+      ++without;
+      continue;
+    }
+    const int last = (*checkpoint)->episode;
+    absl::StatusOr<io::TrajectoryView> view = io::ViewTrajectory(**checkpoint, last, -1);
+    if (!view.ok()) {  // recorded by a build before trajectories
+      ++without;
+      continue;
+    }
+    json distance = json::array();
+    for (double v : view->goal_distance) distance.push_back(FiniteOrNull(v));
+    out["trials"].push_back({{"job", job.id},
+                             {"method", job.method},
+                             {"seed", job.seed},
+                             {"variant", job.variant},
+                             {"episode", last},
+                             {"success", job.success},
+                             {"final_eval_cost", FiniteOrNull(job.final_eval_cost)},
+                             {"held_fraction", FiniteOrNull(job.held_fraction)},
+                             {"dt", FiniteOrNull(view->dt)},
+                             {"verdict_distance", FiniteOrNull(view->verdict_distance)},
+                             {"verdict_hold_steps", view->verdict_hold_steps},
+                             {"goal_distance", std::move(distance)}});
+  }
+  out["without"] = without;
+  return out;
+}
+
+}  // namespace totalgrad::dashboard
