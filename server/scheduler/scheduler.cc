@@ -120,7 +120,20 @@ absl::StatusOr<std::optional<Lease>> Scheduler::TryAcquireLocked(const WorkerIde
   RETURN_IF_ERROR(store_->TouchWorker(worker, now));
   last_touch_ms_[worker.worker_id] = now;
   ASSIGN_OR_RETURN(storage::WorkerRecord record, store_->GetWorker(worker.worker_id));
-  if (record.draining) return std::optional<Lease>();
+  if (record.draining) {
+    // Workers that send no instance (older builds) stay drained.
+    if (worker.instance.empty()) return std::optional<Lease>();
+    const auto drained = drained_instance_.find(worker.worker_id);
+    if (drained != drained_instance_.end() && drained->second.empty()) {
+      drained->second = worker.instance;  // drained before it was heard from
+    }
+    if (drained != drained_instance_.end() && drained->second == worker.instance) {
+      return std::optional<Lease>();
+    }
+    // A new process under a drained id: the drain was its predecessor's.
+    RETURN_IF_ERROR(store_->SetWorkerDraining(worker.worker_id, false, now));
+    if (drained != drained_instance_.end()) drained_instance_.erase(drained);
+  }
   ASSIGN_OR_RETURN(std::vector<storage::ClaimCandidate> candidates,
                    store_->ListClaimCandidates(options_.claim_scan_limit));
   for (const storage::ClaimCandidate& candidate : candidates) {
@@ -454,6 +467,8 @@ absl::StatusOr<JobRecord> Scheduler::SupersedeJob(int64_t job_id, int64_t by_job
 absl::StatusOr<storage::WorkerRecord> Scheduler::DrainWorker(const std::string& worker_id) {
   absl::MutexLock lock(&decision_mutex_);
   RETURN_IF_ERROR(store_->SetWorkerDraining(worker_id, true, clock_->NowMs()));
+  const auto known = instances_.find(worker_id);
+  drained_instance_[worker_id] = known != instances_.end() ? known->second.instance : "";
   return store_->GetWorker(worker_id);
 }
 

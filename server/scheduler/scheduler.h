@@ -238,6 +238,12 @@ class Scheduler {
     std::vector<std::string> replaced;  // earlier instances, newest last (at most 16)
   };
   std::map<std::string, WorkerInstance> instances_ ABSL_GUARDED_BY(decision_mutex_);
+  // The process a drain was meant for, by worker id: its instance when the
+  // drain was asked ("" when none had been heard from: then the next one to
+  // ask for work). A drain stops that process; another process with the id
+  // (the drained one exited, or this coordinator restarted since: a draining
+  // process never asks for work) is undrained when it asks (TryAcquireLocked).
+  std::map<std::string, std::string> drained_instance_ ABSL_GUARDED_BY(decision_mutex_);
   // Monotonic time at which the last ExpireLeases() (or Recover()) ended; -1
   // before the first.
   int64_t last_expiry_end_monotonic_ms_ ABSL_GUARDED_BY(decision_mutex_) = -1;

@@ -375,6 +375,40 @@ TEST_F(SchedulerTest, DrainingWorkerGetsDrainAndNoNewLeases) {
   EXPECT_EQ(scheduler_->DrainWorker("never-seen").status().code(), absl::StatusCode::kNotFound);
 }
 
+// A drain stops the process it was asked for; the next process with the
+// same id (started after the drained one exited) gets work again, and the
+// store records the undrain as an event.
+TEST_F(SchedulerTest, ADrainedIdServesItsNextProcess) {
+  Submit("s", 3, 2);
+  const auto process = [](const std::string& instance, bool takes_over = false) {
+    storage::WorkerIdentity worker = MakeWorker("w");
+    worker.instance = instance;
+    worker.host = "h";
+    worker.takes_over = takes_over;
+    return worker;
+  };
+  TG_ASSERT_OK_AND_ASSIGN(std::optional<Lease> first, scheduler_->TryAcquire(process("a")));
+  ASSERT_TRUE(first.has_value());
+  TG_ASSERT_OK(scheduler_->DrainWorker("w"));
+  TG_ASSERT_OK_AND_ASSIGN(std::optional<Lease> drained, scheduler_->TryAcquire(process("a")));
+  EXPECT_FALSE(drained.has_value());
+  TG_ASSERT_OK_AND_ASSIGN(storage::WorkerRecord record, store_->GetWorker("w"));
+  EXPECT_TRUE(record.draining);
+  // "a" exited; its successor on the host holds the id's lock.
+  TG_ASSERT_OK_AND_ASSIGN(std::optional<Lease> next, scheduler_->TryAcquire(process("b", true)));
+  EXPECT_TRUE(next.has_value());
+  TG_ASSERT_OK_AND_ASSIGN(record, store_->GetWorker("w"));
+  EXPECT_FALSE(record.draining);
+  // After a coordinator restart no process is known: a drain asked before
+  // any is heard from holds for the next one to ask.
+  scheduler_ = std::make_unique<Scheduler>(faulty_.get(), &clock_, options_);
+  TG_ASSERT_OK(scheduler_->DrainWorker("w"));
+  TG_ASSERT_OK_AND_ASSIGN(drained, scheduler_->TryAcquire(process("c", true)));
+  EXPECT_FALSE(drained.has_value());
+  TG_ASSERT_OK_AND_ASSIGN(drained, scheduler_->TryAcquire(process("c")));
+  EXPECT_FALSE(drained.has_value());
+}
+
 // Issue 12.6: two live processes with the same worker id are refused
 // (ALREADY_EXISTS) whatever host they run on; a process that holds the
 // host-local lock takes the id over from a dead predecessor on its host (and
