@@ -415,7 +415,11 @@ void AddWorkerCommands(CLI::App* app, int* exit_code) {
     return 0;
   });
   auto drain_id = std::make_shared<std::string>();
-  CLI::App* drain = AddCommand(worker_cmd, "drain", "stop giving a worker new jobs; it exits when idle",
+  CLI::App* drain = AddCommand(worker_cmd, "drain",
+                               "stop giving a worker new jobs: its running trials get the worker's "
+                               "--drain-timeout to finish (then they are released and resume from "
+                               "their checkpoints elsewhere), and it exits; a new process with the "
+                               "same id gets work again",
                                exit_code, [drain_id](Connection* c) {
     v1::DrainWorkerRequest request;
     request.set_worker_id(*drain_id);
