@@ -19,6 +19,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <memory>
 #include <optional>
 
 #include <nlohmann/json.hpp>
@@ -59,8 +60,6 @@ std::optional<learner::TrialCheckpoint> FetchCheckpoint(Connection* connection, 
   }
   return *std::move(checkpoint);
 }
-
-}  // namespace
 
 int PrintJobTrajectory(Connection* connection, int64_t job_id, int episode, int rollout) {
   const std::string what = absl::StrCat("job trajectory ", job_id);
@@ -180,6 +179,43 @@ int WriteJobArtifacts(Connection* connection, int64_t job_id, const std::string&
             << "), attempt " << response.attempt() << " after episode " << k << ": wrote "
             << snapshot_path << " and " << manifest_path << "\n";
   return 0;
+}
+
+}  // namespace
+
+void AddJobArtifactCommands(CLI::App* job_cmd, int* exit_code) {
+  auto artifacts_id = std::make_shared<int64_t>(0);
+  auto artifacts_dir = std::make_shared<std::string>();
+  CLI::App* artifacts = AddCommand(
+      job_cmd, "artifacts",
+      "write a trial job's final policy and GP model (trial snapshot JSON) into --out DIR",
+      exit_code,
+      [artifacts_id, artifacts_dir](Connection* c) {
+        return WriteJobArtifacts(c, *artifacts_id, *artifacts_dir);
+      },
+      /*with_format=*/false);
+  artifacts->add_option("JOB", *artifacts_id, "job id")->required();
+  artifacts->add_option("--out", *artifacts_dir, "directory to write into")->required();
+
+  auto trajectory_id = std::make_shared<int64_t>(0);
+  auto trajectory_episode = std::make_shared<int>(0);
+  auto trajectory_rollout = std::make_shared<int>(-1);
+  CLI::App* trajectory = AddCommand(
+      job_cmd, "trajectory",
+      "a trial's recorded trajectory: the real episode E (true states, controls) beside the "
+      "model's prediction of it (mean, std per state), or with --rollout R one of the rollout "
+      "verdict's rollouts of the last episode; from the job's checkpoint",
+      exit_code,
+      [trajectory_id, trajectory_episode, trajectory_rollout](Connection* c) {
+        return PrintJobTrajectory(c, *trajectory_id, *trajectory_episode, *trajectory_rollout);
+      });
+  trajectory->add_option("JOB", *trajectory_id, "job id")->required();
+  trajectory->add_option("--episode", *trajectory_episode, "episode (0 = the random one)")
+      ->required()
+      ->check(CLI::NonNegativeNumber);
+  trajectory->add_option("--rollout", *trajectory_rollout,
+                         "a verdict rollout of that episode (0-based) instead of the episode")
+      ->check(CLI::NonNegativeNumber);
 }
 
 }  // namespace totalgrad::cli

@@ -93,6 +93,8 @@ void AddArchiveCommands(CLI::App* results, int* exit_code);
 // `sweep delete`: archives the sweep to a file, then deletes it
 // (archive_commands.cc).
 void AddSweepDeleteCommand(CLI::App* sweep, int* exit_code);
+// `sweep size` and `sweep prune` (disk_commands.cc).
+void AddSweepDiskCommands(CLI::App* sweep, int* exit_code);
 
 // The service commands' exit codes (also in `totalgrad --help`, README and
 // docs/service.md).

@@ -17,16 +17,15 @@
 #include "server/service/convert.h"
 #include "server/storage/service_records.h"
 #include "server/sweep/sweep_proto.h"
+#include "server/sweep/prepared_sweep.h"
 #include "server/sweep/sweep_spec.h"
 
 namespace totalgrad::cli {
 
 void AddRunCommand(CLI::App* app, int* exit_code);  // run_command.cc
-int WriteJobArtifacts(Connection* connection, int64_t job_id,
-                      const std::string& dir);  // artifacts.cc
-int PrintJobTrajectory(Connection* connection, int64_t job_id, int episode,
-                       int rollout);  // artifacts.cc
+void AddJobArtifactCommands(CLI::App* job_cmd, int* exit_code);  // artifacts.cc
 void AddCompareCommand(CLI::App* results, int* exit_code);  // compare.cc
+void AddDiagnosticsCommand(CLI::App* results, int* exit_code);  // diagnostics_command.cc
 void AddTable1Command(CLI::App* results, int* exit_code);   // table1_command.cc
 void AddPowerCommand(CLI::App* results, int* exit_code);    // table1_command.cc
 
@@ -59,21 +58,16 @@ void PrintSweeps(const std::vector<const v1::SweepInfo*>& infos, Format format) 
 // `sweep submit --dry-run` when no coordinator answers: the jobs and
 // episodes the spec expands to, counted here.
 int PrintLocalDryRun(sweep::SweepSpec spec) {
-  const absl::Status canonical = sweep::CanonicalizeSpec(&spec);
-  absl::StatusOr<std::vector<sweep::ExpandedJob>> jobs =
-      canonical.ok() ? sweep::ExpandJobs(spec)
-                     : absl::StatusOr<std::vector<sweep::ExpandedJob>>(canonical);
-  if (!jobs.ok()) {
-    std::cerr << "error: " << jobs.status().message() << "\n";
+  const absl::StatusOr<sweep::PreparedSweep> prepared = sweep::PrepareSweep(std::move(spec));
+  if (!prepared.ok()) {
+    std::cerr << "error: " << prepared.status().message() << "\n";
     return kExitBadInput;
   }
-  int64_t episodes = 0;
-  for (const sweep::ExpandedJob& job : *jobs) episodes += job.episodes_expected;
   std::cout << "dry run (no coordinator answered; counted here, so whether it would grow a "
                "stored sweep is unknown): sweep "
-            << spec.name << " would have " << jobs->size() << " jobs (" << spec.studies.size()
-            << " studies) and " << episodes << " episodes (spec "
-            << sweep::SpecHash(spec).substr(0, 12) << ")\n";
+            << prepared->spec.name << " would have " << prepared->jobs.size() << " jobs ("
+            << prepared->spec.studies.size() << " studies) and " << prepared->episodes_expected()
+            << " episodes (spec " << prepared->spec_hash.substr(0, 12) << ")\n";
   return 0;
 }
 
@@ -208,6 +202,7 @@ void AddSweepCommands(CLI::App* app, int* exit_code) {
     command->add_option("SWEEP", *name, "sweep name")->required();
   }
   AddSweepDeleteCommand(sweep_cmd, exit_code);
+  AddSweepDiskCommands(sweep_cmd, exit_code);  // size, prune (disk_commands.cc)
 }
 
 // `job list`: the jobs of `sweep_name` ("" all) in `states` (comma-separated
@@ -321,38 +316,7 @@ void AddJobCommands(CLI::App* app, int* exit_code) {
   supersede->add_option("JOB", *superseded_id, "the completed trial to supersede")->required();
   supersede->add_option("--by", *by_id, "the completed re-run (a job of another sweep)")->required();
 
-  auto artifacts_id = std::make_shared<int64_t>(0);
-  auto artifacts_dir = std::make_shared<std::string>();
-  CLI::App* artifacts = AddCommand(
-      job_cmd, "artifacts",
-      "write a trial job's final policy and GP model (trial snapshot JSON) into --out DIR",
-      exit_code,
-      [artifacts_id, artifacts_dir](Connection* c) {
-        return WriteJobArtifacts(c, *artifacts_id, *artifacts_dir);
-      },
-      /*with_format=*/false);
-  artifacts->add_option("JOB", *artifacts_id, "job id")->required();
-  artifacts->add_option("--out", *artifacts_dir, "directory to write into")->required();
-
-  auto trajectory_id = std::make_shared<int64_t>(0);
-  auto trajectory_episode = std::make_shared<int>(0);
-  auto trajectory_rollout = std::make_shared<int>(-1);
-  CLI::App* trajectory = AddCommand(
-      job_cmd, "trajectory",
-      "a trial's recorded trajectory: the real episode E (true states, controls) beside the "
-      "model's prediction of it (mean, std per state), or with --rollout R one of the rollout "
-      "verdict's rollouts of the last episode; from the job's checkpoint",
-      exit_code,
-      [trajectory_id, trajectory_episode, trajectory_rollout](Connection* c) {
-        return PrintJobTrajectory(c, *trajectory_id, *trajectory_episode, *trajectory_rollout);
-      });
-  trajectory->add_option("JOB", *trajectory_id, "job id")->required();
-  trajectory->add_option("--episode", *trajectory_episode, "episode (0 = the random one)")
-      ->required()
-      ->check(CLI::NonNegativeNumber);
-  trajectory->add_option("--rollout", *trajectory_rollout,
-                         "a verdict rollout of that episode (0-based) instead of the episode")
-      ->check(CLI::NonNegativeNumber);
+  AddJobArtifactCommands(job_cmd, exit_code);  // artifacts, trajectory (artifacts.cc)
 
   auto log_id = std::make_shared<int64_t>(0);
   CLI::App* logs = AddCommand(job_cmd, "logs", "a job's attempts, errors and events", exit_code,
@@ -456,6 +420,7 @@ void AddResultsCommands(CLI::App* app, int* exit_code) {
 
   AddArchiveCommands(results, exit_code);  // export, import (archive_commands.cc)
   AddCompareCommand(results, exit_code);
+  AddDiagnosticsCommand(results, exit_code);
   AddTable1Command(results, exit_code);
   AddPowerCommand(results, exit_code);
 

@@ -83,7 +83,7 @@ void Dashboard::Register(httplib::Server* server) {
   };
   server->Get("/", serve_file("index.html"));
   server->Get("/dashboard.js", serve_file("dashboard.js"));
-  server->Get("/trajectories.js", serve_file("trajectories.js"));
+  server->Get("/inside_trials.js", serve_file("inside_trials.js"));
   server->Get("/dashboard.css", serve_file("dashboard.css"));
 
   // Every API route: authorise, build the document, answer.
@@ -168,6 +168,13 @@ void Dashboard::Register(httplib::Server* server) {
       return absl::InvalidArgumentError("'episode' must be >= 0 and 'rollout' >= 0 (or absent)");
     }
     return data_.Trajectory(*id, static_cast<int>(*episode), static_cast<int>(*rollout));
+  });
+  api("/api/diagnostics", [this](const httplib::Request& request) -> absl::StatusOr<json> {
+    absl::StatusOr<std::string> name = RequiredParameter(request, "name");
+    if (!name.ok()) return name.status();
+    absl::StatusOr<std::string> statistic = RequiredParameter(request, "statistic");
+    if (!statistic.ok()) return statistic.status();
+    return data_.Diagnostics(*name, *statistic);
   });
   api("/api/final_trajectories", [this](const httplib::Request& request) -> absl::StatusOr<json> {
     absl::StatusOr<std::string> name = RequiredParameter(request, "name");

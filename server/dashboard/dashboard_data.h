@@ -108,18 +108,24 @@ class DashboardData {
   // verdict rollout of it), from its checkpoint: io/trajectory_json.h's
   // document plus "job" and "episodes_recorded" (the episodes that hold
   // trajectories). NotFound: no such job, no checkpoint yet, or the episode
-  // holds none (dashboard_trajectories.cc).
+  // holds none (inside_trials.cc).
   absl::StatusOr<nlohmann::json> Trajectory(int64_t job_id, int episode, int rollout);
   // The final episode of every completed trial of the sweep that recorded
   // trajectories: its goal distance per step with the verdict rule, its
   // threshold verdict (success, final_eval_cost) and rollout verdict
   // (held_fraction); "without" counts the completed trials that recorded none.
   absl::StatusOr<nlohmann::json> FinalTrajectories(const std::string& sweep_name);
+  // The estimator statistic `statistic` (one of results::DiagnosticStatistics())
+  // of the sweep's completed trials per method and episode, as curve panels
+  // (one per variant, the layout of Curves, points with the keys of
+  // results::DiagnosticPointFields()). InvalidArgument for an unknown
+  // statistic, NotFound for an unknown sweep.
+  absl::StatusOr<nlohmann::json> Diagnostics(const std::string& name, const std::string& statistic);
 
  private:
   absl::StatusOr<FinishEstimate> Estimate(const storage::SweepRecord& sweep, int64_t now_ms);
   absl::StatusOr<std::vector<storage::JobRecord>> AllJobs(const std::string& sweep_name);
-  // The job's checkpoint, decoded (dashboard_trajectories.cc); nullopt: none.
+  // The job's checkpoint, decoded (inside_trials.cc); nullopt: none.
   absl::StatusOr<std::optional<learner::TrialCheckpoint>> JobCheckpoint(
       const storage::JobRecord& job);
 

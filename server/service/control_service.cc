@@ -64,52 +64,6 @@ absl::StatusOr<StudyRowsOfSweep> ReadStudyRows(storage::Store* store,
     if (!auth_status.ok()) return ToGrpcStatus(auth_status);                 \
   } while (0)
 
-absl::StatusOr<storage::NewSweep> PrepareSubmission(const v1::SubmitSweepRequest& request,
-                                                    const std::string& coordinator_build) {
-  if (request.source_text().size() > sweep::kMaxSourceBytes) {
-    return absl::InvalidArgumentError(absl::StrCat("source_text is ", request.source_text().size(),
-                                                   " bytes; at most ", sweep::kMaxSourceBytes));
-  }
-  if (request.source_name().size() > 4096) {
-    return absl::InvalidArgumentError("source_name: at most 4096 bytes");
-  }
-  sweep::SweepSpec spec = FromProto(request.spec());
-  std::vector<std::string> protocol_order;
-  for (const auto& [key, value] : spec.protocol) protocol_order.push_back(key);
-  absl::Status status = sweep::CanonicalizeSpec(&spec);
-  if (!status.ok()) return status;
-  absl::StatusOr<std::vector<sweep::ExpandedJob>> jobs = sweep::ExpandJobs(spec);
-  if (!jobs.ok()) return jobs.status();
-  storage::NewSweep sweep;
-  sweep.name = spec.name;
-  sweep.description = spec.description;
-  sweep.canonical_spec = sweep::CanonicalJson(spec);
-  sweep.spec_hash = sweep::SpecHash(spec);
-  // Sweeps stored by builds that kept [protocol] in file order.
-  const std::string legacy_hash = sweep::LegacySpecHash(spec, protocol_order);
-  if (legacy_hash != sweep.spec_hash) sweep.equivalent_spec_hashes.push_back(legacy_hash);
-  sweep.source_name = request.source_name();
-  sweep.source_text = request.source_text();
-  sweep.coordinator_build = coordinator_build;
-  sweep.max_attempts = spec.max_attempts;
-  sweep.max_lost_leases = spec.max_lost_leases;
-  sweep.max_concurrent = spec.max_concurrent;
-  for (sweep::ExpandedJob& job : *jobs) {
-    storage::NewJob stored;
-    stored.method = std::move(job.method);
-    stored.seed = std::move(job.seed);
-    stored.variant = std::move(job.variant);
-    stored.options = std::move(job.options);
-    stored.episodes_expected = job.episodes_expected;
-    if (job.kind == sweep::JobKind::kStudy) {
-      stored.kind = storage::JobKind::kStudy;
-      stored.payload = std::move(job.payload);
-    }
-    sweep.jobs.push_back(std::move(stored));
-  }
-  return sweep;
-}
-
 grpc::Status ControlServiceImpl::SubmitSweep(grpc::ServerContext* context,
                                              const v1::SubmitSweepRequest* request,
                                              v1::SubmitSweepResponse* response) {
@@ -239,6 +193,19 @@ grpc::Status ControlServiceImpl::DeleteSweep(grpc::ServerContext* context,
   out->set_attempts(deleted->attempts);
   out->set_episodes(deleted->episodes);
   out->set_study_rows(deleted->study_rows);
+  return grpc::Status::OK;
+}
+
+grpc::Status ControlServiceImpl::PruneSweep(grpc::ServerContext* context,
+                                            const v1::PruneSweepRequest* request,
+                                            v1::PruneSweepResponse* response) {
+  TG_AUTHORIZE(context);
+  const std::optional<storage::PruneScope> scope = FromProto(request->scope());
+  if (!scope) return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "scope: unknown value");
+  absl::StatusOr<storage::SweepDiskUse> use =
+      store_->PruneCheckpoints(request->name(), *scope, clock_->NowMs());
+  if (!use.ok()) return ToGrpcStatus(use.status());
+  ToProto(*use, response);
   return grpc::Status::OK;
 }
 

@@ -13,6 +13,7 @@
 #include "server/scheduler/clock.h"
 #include "server/scheduler/scheduler.h"
 #include "server/service/auth.h"
+#include "server/service/submission.h"
 #include "server/storage/store.h"
 #include "totalgrad/v1/control_service.grpc.pb.h"
 
@@ -23,11 +24,6 @@ struct ControlServiceOptions {
   std::string database;      // path of the SQLite file (shown by Health)
   std::string backup_dir;    // empty: Backup RPC refused
 };
-
-// Validates, canonicalizes and expands a submitted spec into what the store
-// keeps. InvalidArgument naming the field at fault.
-absl::StatusOr<storage::NewSweep> PrepareSubmission(const v1::SubmitSweepRequest& request,
-                                                    const std::string& coordinator_build);
 
 class ControlServiceImpl final : public v1::ControlService::Service {
  public:
@@ -59,6 +55,8 @@ class ControlServiceImpl final : public v1::ControlService::Service {
                            v1::SweepInfo* response) override;
   grpc::Status DeleteSweep(grpc::ServerContext* context, const v1::DeleteSweepRequest* request,
                            v1::DeleteSweepResponse* response) override;
+  grpc::Status PruneSweep(grpc::ServerContext* context, const v1::PruneSweepRequest* request,
+                          v1::PruneSweepResponse* response) override;
   grpc::Status ListJobs(grpc::ServerContext* context, const v1::ListJobsRequest* request,
                         v1::ListJobsResponse* response) override;
   grpc::Status RetryJob(grpc::ServerContext* context, const v1::JobRequest* request,

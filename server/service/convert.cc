@@ -130,6 +130,28 @@ std::vector<storage::Episode> FromProto(
 
 sweep::SweepSpec FromProto(const v1::SweepSpec& spec) { return sweep::SweepSpecFromProto(spec); }
 
+std::optional<storage::PruneScope> FromProto(v1::PruneScope scope) {
+  switch (scope) {
+    case v1::PRUNE_SCOPE_NONE: return storage::PruneScope::kNone;
+    case v1::PRUNE_SCOPE_STALE: return storage::PruneScope::kStale;
+    case v1::PRUNE_SCOPE_COMPLETED: return storage::PruneScope::kCompleted;
+    default: return std::nullopt;
+  }
+}
+
+void ToProto(const storage::SweepDiskUse& use, v1::PruneSweepResponse* out) {
+  out->set_episodes(use.episodes);
+  out->set_episode_details_bytes(use.episode_details_bytes);
+  const auto copy = [](const storage::CheckpointUse& from, v1::CheckpointUse* to) {
+    to->set_count(from.count);
+    to->set_bytes(from.bytes);
+  };
+  copy(use.completed, out->mutable_completed());
+  copy(use.stale, out->mutable_stale());
+  copy(use.unfinished, out->mutable_unfinished());
+  copy(use.removed, out->mutable_removed());
+}
+
 std::optional<storage::JobState> FromProto(v1::JobState state) {
   switch (state) {
     case v1::JOB_STATE_QUEUED: return storage::JobState::kQueued;

@@ -42,6 +42,9 @@ storage::JobResults ResultsFromProto(const v1::HeartbeatRequest& request);
 storage::JobCompletion CompletionFromProto(const v1::CompleteRequest& request);
 // Unspecified maps to nullopt.
 std::optional<storage::JobState> FromProto(v1::JobState state);
+// A value this build does not know maps to nullopt.
+std::optional<storage::PruneScope> FromProto(v1::PruneScope scope);
+void ToProto(const storage::SweepDiskUse& use, v1::PruneSweepResponse* out);
 // nullopt when the message carries no checkpoint (no data).
 std::optional<storage::Checkpoint> CheckpointFromProto(bool present,
                                                        const v1::TrialCheckpoint& checkpoint);

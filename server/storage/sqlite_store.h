@@ -109,6 +109,8 @@ class SqliteStore final : public Store {
   absl::StatusOr<SweepRecord> CreateSweep(const NewSweep& sweep, int64_t now_ms,
                                           bool* created) override;
   absl::Status SetSweepState(const std::string& name, SweepState state, int64_t now_ms) override;
+  absl::StatusOr<SweepDiskUse> PruneCheckpoints(const std::string& name, PruneScope scope,
+                                                int64_t now_ms) override;
   absl::StatusOr<SweepContents> DeleteSweep(const std::string& name,
                                             const SweepContents& expected,
                                             int64_t now_ms) override;

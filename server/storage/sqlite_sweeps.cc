@@ -63,6 +63,80 @@ WHERE sweep_id = ? AND state = 'cancelled')sql"));
 }
 
 
+namespace {
+
+// Each checkpoint of a sweep by what reads it: 0 a completed job's counting
+// attempt, 1 its other attempts, 2 a job not completed.
+constexpr char kCheckpointClass[] = R"sql(CASE WHEN j.state != 'completed' THEN 2
+     WHEN c.attempt = j.completed_attempt THEN 0 ELSE 1 END)sql";
+
+// What sweep `name` takes (SweepDiskUse but `removed`); its id into *sweep_id.
+absl::Status MeasureSweep(Db& db, const std::string& name, int64_t* sweep_id, SweepDiskUse* use) {
+  ASSIGN_OR_RETURN(Statement query, Statement::Prepare(db, "SELECT id FROM sweeps WHERE name = ?"));
+  query.Bind(1, name);
+  ASSIGN_OR_RETURN(bool found, query.Step());
+  if (!found) return absl::NotFoundError(absl::StrCat("no sweep named '", name, "'"));
+  *sweep_id = query.ColumnInt(0);
+  ASSIGN_OR_RETURN(Statement episodes, Statement::Prepare(db, R"sql(
+SELECT COUNT(*), COALESCE(SUM(LENGTH(e.details_json)), 0)
+FROM episodes e JOIN jobs j ON j.id = e.job_id WHERE j.sweep_id = ?)sql"));
+  episodes.Bind(1, *sweep_id);
+  ASSIGN_OR_RETURN(found, episodes.Step());
+  use->episodes = episodes.ColumnInt(0);
+  use->episode_details_bytes = episodes.ColumnInt(1);
+  ASSIGN_OR_RETURN(Statement checkpoints, Statement::Prepare(db, absl::StrCat(
+      "SELECT ", kCheckpointClass, " AS class, COUNT(*), COALESCE(SUM(LENGTH(c.data)), 0) "
+      "FROM checkpoints c JOIN jobs j ON j.id = c.job_id WHERE j.sweep_id = ? GROUP BY class")));
+  checkpoints.Bind(1, *sweep_id);
+  CheckpointUse* by_class[] = {&use->completed, &use->stale, &use->unfinished};
+  for (;;) {
+    ASSIGN_OR_RETURN(bool row, checkpoints.Step());
+    if (!row) break;
+    CheckpointUse* into = by_class[checkpoints.ColumnInt(0)];
+    into->count = static_cast<int>(checkpoints.ColumnInt(1));
+    into->bytes = checkpoints.ColumnInt(2);
+  }
+  return absl::OkStatus();
+}
+
+}  // namespace
+
+absl::StatusOr<SweepDiskUse> SqliteStore::PruneCheckpoints(const std::string& name,
+                                                          PruneScope scope, int64_t now_ms) {
+  SweepDiskUse use;
+  int64_t sweep_id = 0;
+  if (scope == PruneScope::kNone) {  // a report: a read, so a read-only store answers it too
+    absl::MutexLock lock(&read_mutex_);
+    RETURN_IF_ERROR(reader_.Exec("BEGIN"));  // one snapshot for every sum
+    const absl::Status measured = MeasureSweep(reader_, name, &sweep_id, &use);
+    RETURN_IF_ERROR(reader_.Exec("COMMIT"));
+    if (!measured.ok()) return measured;
+    return use;
+  }
+  RETURN_IF_ERROR(InWriteTransaction([&](Db& db) -> absl::Status {
+    use = SweepDiskUse();
+    RETURN_IF_ERROR(MeasureSweep(db, name, &sweep_id, &use));
+    use.removed = use.stale;
+    if (scope == PruneScope::kCompleted) {
+      use.removed.count += use.completed.count;
+      use.removed.bytes += use.completed.bytes;
+    }
+    // Classes removed: 1 (kStale), or 0 and 1 (kCompleted); never 2.
+    ASSIGN_OR_RETURN(Statement remove, Statement::Prepare(db, absl::StrCat(
+        "DELETE FROM checkpoints WHERE (job_id, attempt) IN (SELECT c.job_id, c.attempt "
+        "FROM checkpoints c JOIN jobs j ON j.id = c.job_id WHERE j.sweep_id = ? AND ",
+        kCheckpointClass, " BETWEEN ? AND 1)")));
+    remove.Bind(1, sweep_id).Bind(2, scope == PruneScope::kCompleted ? 0 : 1);
+    RETURN_IF_ERROR(remove.Run());
+    return AddEvent(db, now_ms, sweep_id, 0, 0, "checkpoints_pruned",
+                    absl::StrCat(use.removed.count, " checkpoints (", use.removed.bytes, " bytes) of ",
+                                 scope == PruneScope::kCompleted
+                                     ? "completed jobs, their final states included"
+                                     : "completed jobs' superseded attempts"));
+  }));
+  return use;
+}
+
 absl::StatusOr<SweepContents> SqliteStore::DeleteSweep(const std::string& name,
                                                       const SweepContents& expected,
                                                       int64_t now_ms) {

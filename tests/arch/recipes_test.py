@@ -84,7 +84,14 @@ RECIPES = [
         # (issue 27's, the newest, shown in no view): where such lists are
         # written by hand, a new column goes too.
         [r'ess_low_fraction\b', r'gradient_snr_mean\b'],
-        {}),
+        {
+            "client/service_commands/diagnostics_command.cc":
+                "names one statistic as an example in its help text; the "
+                "statistics are the record's fields (results/diagnostics.cc)",
+            "server/dashboard/assets/dashboard.js":
+                "the sweep page's first statistic shown; the picker lists "
+                "every statistic /api/diagnostics names",
+        }),
     Recipe(
         "A new job kind",
         # The study kind: its enumerators and its name on the wire, the

@@ -706,6 +706,27 @@ TEST_F(CliTest, JobArtifactsAndEvaluateReproduceTheFinalEvaluation) {
   EXPECT_EQ(Cli({"job", "trajectory", id, "--episode", "3"}, &out, &err), 1);
   EXPECT_NE(err.find("episode 3 is not recorded: the trial holds episodes 0..2"), std::string::npos)
       << err;
+
+  // `sweep size` and `sweep prune`: each of the three completed trials'
+  // final state is its checkpoint; a plain prune keeps them, --completed
+  // removes them (and the trajectories with them).
+  ASSERT_EQ(Cli({"sweep", "size", "cli", "-f", "json"}, &out, &err), 0) << err;
+  const nlohmann::json size = nlohmann::json::parse(out);
+  EXPECT_EQ(size["episodes"], 9);
+  EXPECT_EQ(size["checkpoints_completed"]["count"], 3);
+  EXPECT_GT(size["checkpoints_completed"]["bytes"].get<int64_t>(), 10000);  // with 100 rollouts
+  EXPECT_EQ(size["checkpoints_stale"]["count"], 0);
+  ASSERT_EQ(Cli({"sweep", "prune", "cli"}, &out, &err), 0) << err;
+  EXPECT_NE(out.find("removed 0 checkpoints"), std::string::npos) << out;
+  ASSERT_EQ(Cli({"sweep", "prune", "cli", "--completed", "--dry-run"}, &out, &err), 0) << err;
+  EXPECT_NE(out.find("would remove 3 checkpoints"), std::string::npos) << out;
+  ASSERT_EQ(Cli({"job", "trajectory", id, "--episode", "1"}, &out, &err), 0) << err;
+  ASSERT_EQ(Cli({"sweep", "prune", "cli", "--completed"}, &out, &err), 0) << err;
+  EXPECT_NE(out.find("removed 3 checkpoints"), std::string::npos) << out;
+  EXPECT_EQ(Cli({"job", "trajectory", id, "--episode", "1"}, &out, &err), 2);
+  EXPECT_NE(err.find("has no trial checkpoint"), std::string::npos) << err;
+  EXPECT_EQ(Cli({"sweep", "size", "nope"}, &out, &err), 2);
+  EXPECT_NE(err.find("no sweep named 'nope'"), std::string::npos) << err;
 }
 
 TEST_F(CliTest, BackupsByRpcAndOneShotAreConsistentCopies) {

@@ -183,6 +183,23 @@ def cli_checks(args, work, connection, base):
                                                         "goal_distance", "real_cost"))
               and len(cli_view["states"]) == 26,
               "the CLI and the dashboard show the same trajectory (26 states)")
+    # The estimator statistics per method and episode: one computation, the
+    # same points from `results diagnostics` and /api/diagnostics.
+    listed = subprocess.run([args.cli, "results", "diagnostics", "browser", "--statistic", "gradient_snr_mean",
+                             "-f", "json"] + connection, capture_output=True, text=True)
+    status, body = http_get(base + "/api/diagnostics?name=browser&statistic=gradient_snr_mean", USER_TOKEN)
+    if check(listed.returncode == 0 and status == 200, "results diagnostics -f json and /api/diagnostics answer: "
+             + listed.stderr.strip()):
+        cli_points = json.loads(listed.stdout)
+        api_points = [{k: v for k, v in p.items() if k != "n"}
+                      for panel in json.loads(body)["panels"] for m in panel["methods"] for p in m["points"]]
+        key = lambda p: (p["variant"], p["method"], p["episode"])
+        check(len(cli_points) == 2 * 2 * 5 and sorted(cli_points, key=key) == sorted(api_points, key=key),
+              f"the same {len(cli_points)} points (2 methods x 2 variants x 5 learned episodes) from the CLI and the API")
+    wrong = subprocess.run([args.cli, "results", "diagnostics", "browser", "--statistic", "gradient_snr_man"]
+                           + connection, capture_output=True, text=True)
+    check(wrong.returncode == 2 and "did you mean 'gradient_snr_mean'" in wrong.stderr,
+          "an unknown statistic is refused with the closest name: " + wrong.stderr.strip()[:120])
     status, body = http_get(base + "/api/trajectory?id=1&episode=9", USER_TOKEN)
     check(status == 404 and "episode 9 is not recorded" in json.loads(body)["error"],
           f"an episode the trial does not hold is 404, named ({status})")
@@ -472,6 +489,11 @@ def main():
             check(headers[-1:] == ["verdict"] and len(verdicts) == 2
                   and all(v == "no evidence" or "better" in v for v in verdicts),
                   f"a verdict column per comparison: {headers[-1:]} {verdicts}")
+        statistic_panels = driver.find_elements(By.CSS_SELECTOR, "#diagnostics svg.panel")
+        check(len(statistic_panels) == 2 and all(len(p.find_elements(By.CSS_SELECTOR, "polyline.curve")) == 2
+                                                 for p in statistic_panels),
+              f"the estimator statistic per method: a panel per variant with RP's and TP's curves "
+              f"({len(statistic_panels)} panels)")
         multiples = driver.find_elements(By.CSS_SELECTOR, "#final-trajectories svg.multiple")
         check(len(multiples) == 12, f"one small plot of the final episode per trial ({len(multiples)} of 12)")
         check(all(m.get_attribute("data-held") in ("true", "false") and

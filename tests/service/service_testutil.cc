@@ -97,6 +97,12 @@ absl::Status FaultyStore::SetSweepState(const std::string& name, storage::SweepS
                                         int64_t now_ms) {
   TG_FORWARD("SetSweepState", target_->SetSweepState(name, state, now_ms));
 }
+absl::StatusOr<storage::SweepDiskUse> FaultyStore::PruneCheckpoints(const std::string& name,
+                                                                    storage::PruneScope scope,
+                                                                    int64_t now_ms) {
+  TG_FORWARD("PruneCheckpoints", target_->PruneCheckpoints(name, scope, now_ms));
+}
+
 absl::StatusOr<storage::SweepContents> FaultyStore::DeleteSweep(
     const std::string& name, const storage::SweepContents& expected, int64_t now_ms) {
   TG_FORWARD("DeleteSweep", target_->DeleteSweep(name, expected, now_ms));

@@ -45,6 +45,9 @@ class FaultyStore final : public storage::Store {
                                                    bool* created) override;
   absl::Status SetSweepState(const std::string& name, storage::SweepState state,
                              int64_t now_ms) override;
+  absl::StatusOr<storage::SweepDiskUse> PruneCheckpoints(const std::string& name,
+                                                         storage::PruneScope scope,
+                                                         int64_t now_ms) override;
   absl::StatusOr<storage::SweepContents> DeleteSweep(const std::string& name,
                                                      const storage::SweepContents& expected,
                                                      int64_t now_ms) override;

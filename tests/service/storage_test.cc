@@ -345,6 +345,72 @@ TEST_F(StorageTest, CheckpointsAreFencedAndTheLatestIsFoundForResumption) {
   EXPECT_FALSE(none.has_value());
 }
 
+// Issue 27: what a sweep's rows take, by what reads its checkpoints, and the
+// removal of the checkpoints nothing reads (a completed job's superseded
+// attempts'), then of the completed attempts' own; an unfinished job's
+// resume point is never removed, and a report changes nothing.
+TEST_F(StorageTest, PruneRemovesOnlyWhatItSaysAndReportsTheSizes) {
+  const int64_t job = CreateAndLease("s", 2, 2);  // job 1 leased as attempt 1 by "w1"
+  TG_ASSERT_OK(store_->StoreCheckpoint({job, 1}, "w1", {0, 1, std::string(100, 'a')}, kNow));
+  TG_ASSERT_OK(LoseLease({job, 1}));
+  TG_ASSERT_OK(store_->StartAttempt({job, 2}, MakeWorker("w1"), kNow, kNow + 90'000));
+  TG_ASSERT_OK(store_->StoreCheckpoint({job, 2}, "w1", {1, 1, std::string(1000, 'b')}, kNow));
+  AttemptEnd end;
+  end.key = {job, 2};
+  end.worker_id = "w1";
+  end.attempt_state = AttemptState::kCompleted;
+  end.job_state = JobState::kCompleted;
+  end.totals.episodes = 2;
+  end.results.episodes = {MakeEpisode(0), MakeEpisode(1)};
+  end.final_eval_cost = 1;
+  end.now_ms = kNow;
+  TG_ASSERT_OK(store_->EndAttempt(end).status());
+  // The second job: running, with a resume point.
+  TG_ASSERT_OK(store_->StartAttempt({job + 1, 1}, MakeWorker("w2"), kNow, kNow + 90'000));
+  TG_ASSERT_OK(store_->StoreCheckpoint({job + 1, 1}, "w2", {0, 1, std::string(10, 'c')}, kNow));
+
+  TG_ASSERT_OK_AND_ASSIGN(SweepDiskUse use, store_->PruneCheckpoints("s", PruneScope::kNone, kNow));
+  EXPECT_EQ(use.episodes, 2);
+  EXPECT_GT(use.episode_details_bytes, 0);
+  EXPECT_EQ(use.completed.count, 1);
+  EXPECT_EQ(use.completed.bytes, 1000);
+  EXPECT_EQ(use.stale.count, 1);
+  EXPECT_EQ(use.stale.bytes, 100);
+  EXPECT_EQ(use.unfinished.count, 1);
+  EXPECT_EQ(use.unfinished.bytes, 10);
+  EXPECT_EQ(use.removed.count, 0);
+  TG_ASSERT_OK_AND_ASSIGN(use, store_->PruneCheckpoints("s", PruneScope::kNone, kNow));
+  EXPECT_EQ(use.stale.count, 1);  // a report removed nothing
+
+  TG_ASSERT_OK_AND_ASSIGN(use, store_->PruneCheckpoints("s", PruneScope::kStale, kNow));
+  EXPECT_EQ(use.removed.count, 1);
+  EXPECT_EQ(use.removed.bytes, 100);
+  TG_ASSERT_OK_AND_ASSIGN(auto final_state, store_->GetCheckpoint(job, 2));
+  EXPECT_TRUE(final_state.has_value());
+  TG_ASSERT_OK_AND_ASSIGN(auto superseded, store_->GetCheckpoint(job, 1));
+  EXPECT_FALSE(superseded.has_value());
+
+  TG_ASSERT_OK_AND_ASSIGN(use, store_->PruneCheckpoints("s", PruneScope::kCompleted, kNow));
+  EXPECT_EQ(use.removed.count, 1);
+  EXPECT_EQ(use.removed.bytes, 1000);
+  TG_ASSERT_OK_AND_ASSIGN(final_state, store_->GetCheckpoint(job, 2));
+  EXPECT_FALSE(final_state.has_value());
+  TG_ASSERT_OK_AND_ASSIGN(auto resume_point, store_->GetCheckpoint(job + 1, 0));
+  ASSERT_TRUE(resume_point.has_value());
+  EXPECT_EQ(resume_point->checkpoint.data, std::string(10, 'c'));
+  TG_ASSERT_OK_AND_ASSIGN(use, store_->PruneCheckpoints("s", PruneScope::kNone, kNow));
+  EXPECT_EQ(use.completed.count + use.stale.count, 0);
+  EXPECT_EQ(use.unfinished.count, 1);
+  EXPECT_EQ(store_->PruneCheckpoints("nope", PruneScope::kStale, kNow).status().code(),
+            absl::StatusCode::kNotFound);
+  // A read-only store answers the report.
+  TG_ASSERT_OK_AND_ASSIGN(auto read_only, SqliteStore::OpenReadOnly(path_));
+  TG_ASSERT_OK_AND_ASSIGN(use, read_only->PruneCheckpoints("s", PruneScope::kNone, kNow));
+  EXPECT_EQ(use.unfinished.count, 1);
+  EXPECT_EQ(read_only->PruneCheckpoints("s", PruneScope::kStale, kNow).status().code(),
+            absl::StatusCode::kFailedPrecondition);
+}
+
 // Issue 25: `job supersede` copies a re-run's completed attempt (episodes,
 // checkpoint, worker and build) into the superseded job as a new attempt
 // that counts from then on, names its origin, keeps the old attempts and

@@ -1,7 +1,9 @@
 // The totalgrad dashboard: a read-only view of the coordinator's store.
 // Views (by URL fragment): #/ sweeps and workers; #/sweep/NAME progress,
-// success table, learning curves, comparisons, final episodes, jobs;
-// #/job/ID episodes, trajectories (trajectories.js), statistics and logs; #/table1/NAME,NAME... the paper's Table 1 from those sweeps.
+// success table, learning curves, comparisons, estimator statistics, final
+// episodes, jobs; #/job/ID episodes, trajectories and statistics
+// (inside_trials.js), logs; #/table1/NAME,NAME... the paper's Table 1 from
+// those sweeps.
 // Data come from the coordinator's /api/* (server/dashboard/dashboard.h),
 // statistics named as in `totalgrad results ... -f json` (results/);
 // every text from the store is put in the page as text, never as markup.
@@ -14,6 +16,7 @@ const SVG_NS = 'http://www.w3.org/2000/svg';
 const state = {
   includeRunning: true,  // curves: running trials' episodes too
   baseline: '',          // comparisons: '' = every pair
+  statistic: 'gradient_snr_mean',  // the estimator statistic drawn per method
   table1Sweeps: new Set(),  // overview: the sweeps checked for the paper's Table 1
   timer: null,
   generation: 0,         // a render that finished after a newer one started is dropped
@@ -302,7 +305,7 @@ function curvePanel(panel) {
                            fill: 'none', stroke: '#90a4ae'}));
   axis.append(svg('text', {x: margin.left + plotW / 2, y: height - 6, 'text-anchor': 'middle', text: 'episode'}));
   axis.append(svg('text', {x: 12, y: margin.top + plotH / 2, 'text-anchor': 'middle',
-                           transform: `rotate(-90 12 ${margin.top + plotH / 2})`, text: 'evaluation cost'}));
+                           transform: `rotate(-90 12 ${margin.top + plotH / 2})`, text: panel.y_label || 'evaluation cost'}));
   root.append(axis);
 
   for (const m of panel.methods) {
@@ -415,12 +418,13 @@ function lastErrorCell(j) {
 
 async function renderSweep(view, name) {
   const q = encodeURIComponent(name);
-  const [sweepData, curves, compare, jobs, finals] = await Promise.all([
+  const [sweepData, curves, compare, jobs, finals, diagnostics] = await Promise.all([
     api('/api/sweep?name=' + q),
     api(`/api/curves?name=${q}&running=${state.includeRunning ? 1 : 0}`),
     api(`/api/compare?name=${q}&baseline=${encodeURIComponent(state.baseline)}`).catch(e => ({error: e.message})),
     api(`/api/jobs?name=${q}&limit=2000`),
     api('/api/final_trajectories?name=' + q).catch(e => ({error: e.message})),
+    api(`/api/diagnostics?name=${q}&statistic=${encodeURIComponent(state.statistic)}`).catch(e => ({error: e.message})),
   ]);
   const s = sweepData.sweep;
   const running = el('input', {type: 'checkbox', id: 'include-running', checked: state.includeRunning,
@@ -451,6 +455,8 @@ async function renderSweep(view, name) {
           'comparisons; power of each test at this n for the observed effect. Green: significant after Holm at α = ' +
           (compare.alpha || 0.05) + '; the verdict column names the test and the method it favours.'}),
       compare.error ? el('p', {class: 'error', text: compare.error}) : compareTable(compare),
+      el('h3', {text: 'Estimator statistics per method: median and quartiles over completed trials'}),
+      diagnostics.error ? el('p', {class: 'error', text: diagnostics.error}) : diagnosticsPanels(diagnostics),
       el('h3', {text: 'Final episodes of the completed trials'}),
       finals.error ? el('p', {class: 'error', text: finals.error}) : finalTrajectories(finals),
       el('h3', {text: `Jobs (${jobs.jobs.length}${jobs.next_after ? '+' : ''})`}),

@@ -1,13 +1,21 @@
-// The dashboard's trajectory documents (DashboardData::Trajectory,
-// FinalTrajectories): what a trial recorded of its episodes, read from the
-// trial checkpoint the store keeps (core/learner/trajectory.h; checkpoint
-// version 4 and later hold them), in io/trajectory_json.h's layout.
+// The dashboard's documents of what happened inside trials (issue 27):
+// Trajectory and FinalTrajectories, what a trial recorded of its episodes,
+// read from the trial checkpoint the store keeps (core/learner/trajectory.h;
+// checkpoint version 4 and later hold them) in io/trajectory_json.h's
+// layout; Diagnostics, the estimator statistics per method and episode
+// (results/diagnostics.h, as `totalgrad results diagnostics`).
+#include <algorithm>
 #include <cmath>
+#include <map>
+#include <utility>
 #include <optional>
 
 #include "absl/strings/str_cat.h"
 #include "core/learner/checkpoint.h"
+#include "io/record_format.h"
 #include "io/trajectory_json.h"
+#include "results/diagnostics.h"
+#include "results/plot_style.h"
 #include "server/dashboard/dashboard_data.h"
 
 namespace totalgrad::dashboard {
@@ -92,6 +100,57 @@ absl::StatusOr<json> DashboardData::FinalTrajectories(const std::string& sweep_n
                              {"goal_distance", std::move(distance)}});
   }
   out["without"] = without;
+  return out;
+}
+
+absl::StatusOr<json> DashboardData::Diagnostics(const std::string& name,
+                                                const std::string& statistic) {
+  const std::vector<std::string>& known = results::DiagnosticStatistics();
+  if (std::find(known.begin(), known.end(), statistic) == known.end()) {
+    return absl::InvalidArgumentError(absl::StrCat("unknown statistic '", statistic, "'"));
+  }
+  absl::StatusOr<storage::SweepRecord> sweep = store_->GetSweep(name);
+  if (!sweep.ok()) return sweep.status();
+  // The completed trials' counting attempts (ExportEpisodes' final attempts).
+  std::vector<results::EpisodeStatistics> rows;
+  const absl::Status exported = store_->ExportEpisodes(
+      name, /*all_attempts=*/false, /*batch_size=*/2000,
+      [&](std::vector<storage::EpisodeRowRecord> batch) {
+        for (storage::EpisodeRowRecord& row : batch) {
+          if (!row.final_attempt) continue;
+          rows.push_back({row.method, row.variant, std::move(row.episode)});
+        }
+        return absl::OkStatus();
+      });
+  if (!exported.ok()) return exported;
+  json out = {{"statistic", statistic}, {"statistics", known}, {"panels", json::array()}};
+  std::map<std::string, size_t> panel_of;
+  std::map<std::pair<std::string, std::string>, size_t> method_slot;
+  for (const results::DiagnosticPoint& p : results::DiagnosticCurves(rows, statistic)) {
+    auto [panel_slot, new_panel] = panel_of.emplace(p.variant, out["panels"].size());
+    if (new_panel) {
+      out["panels"].push_back({{"variant", p.variant},
+                               {"title", p.variant.empty() ? statistic : statistic + ", " + p.variant},
+                               {"threshold", nullptr},
+                               {"y_label", statistic},
+                               {"methods", json::array()}});
+    }
+    json& panel = out["panels"][panel_slot->second];
+    auto [slot, new_method] =
+        method_slot.emplace(std::pair{p.variant, p.method}, panel["methods"].size());
+    if (new_method) {
+      panel["methods"].push_back({{"method", p.method},
+                                  {"colour", results::MethodColour(p.method)},
+                                  {"trials", 0},
+                                  {"points", json::array()}});
+    }
+    json& method = panel["methods"][slot->second];
+    method["trials"] = std::max(method["trials"].get<int>(), p.trials);
+    json point = json::object();
+    io::AppendRecordJson(results::DiagnosticPointFields(), p, &point);
+    point["n"] = p.trials;
+    method["points"].push_back(std::move(point));
+  }
   return out;
 }
 

@@ -1,12 +1,13 @@
-// What a trial recorded inside its episodes, for dashboard.js's job and sweep
-// pages: the real trajectory of an episode against the model's prediction
-// (mean, +-2 std band) per state dimension, an animation of the scene
-// replaying it (drawn from the scene's geometry), the estimator statistics
-// per episode as small plots, and a sweep's final episodes as small
-// multiples marked with both verdicts. Data: /api/trajectory,
-// /api/final_trajectories (server/dashboard/dashboard_data.h), in
-// io/trajectory_json.h's layout. Uses el, svg, fixed, ticks and api of
-// dashboard.js (loaded after this file; called only once both are).
+// What happened inside trials, for dashboard.js's job and sweep pages: the
+// real trajectory of an episode against the model's prediction (mean, +-2
+// std band) per state dimension, an animation of the scene replaying it
+// (drawn from the scene's geometry), the estimator statistics per episode as
+// small plots, per method over a sweep's trials, and a sweep's final
+// episodes as small multiples marked with both verdicts. Data:
+// /api/trajectory, /api/final_trajectories (io/trajectory_json.h's layout)
+// and /api/diagnostics (server/dashboard/dashboard_data.h). Uses el, svg,
+// fixed, ticks, api, state, refresh and curvePanel of dashboard.js (loaded
+// after this file; called only once both are).
 'use strict';
 
 // The trajectory widget survives the page's refreshes (the animation keeps
@@ -238,4 +239,16 @@ function finalTrajectories(data) {
           'the rollout verdict\'s distance dashed. Frame green: final cost below the threshold; "held"/"fell": ' +
           'the rollout verdict.' + (data.without ? ` ${data.without} trials recorded no trajectories.` : '')}),
       el('div', {class: 'plots'}, ...multiples));
+}
+
+// The sweep page's estimator statistic per method and episode (one curve
+// panel per variant, /api/diagnostics), with a picker of the statistic.
+function diagnosticsPanels(data) {
+  const picker = el('select', {id: 'statistic', onchange: e => { state.statistic = e.target.value; refresh(); }},
+      ...data.statistics.map(name => el('option', {value: name, text: name, selected: name === data.statistic})));
+  return el('div', {id: 'diagnostics'},
+      el('div', {class: 'controls'}, el('label', {}, 'statistic ', picker),
+         el('span', {class: 'muted', text: 'formulas: docs/diagnostics.md'})),
+      data.panels.length ? el('div', {class: 'plots'}, ...data.panels.map(curvePanel))
+                         : el('p', {class: 'muted', text: `no completed trial recorded ${data.statistic}`}));
 }

@@ -1,0 +1,50 @@
+#include "server/service/submission.h"
+
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "server/service/convert.h"
+#include "server/sweep/prepared_sweep.h"
+
+namespace totalgrad::service {
+
+absl::StatusOr<storage::NewSweep> PrepareSubmission(const v1::SubmitSweepRequest& request,
+                                                    const std::string& coordinator_build) {
+  if (request.source_text().size() > sweep::kMaxSourceBytes) {
+    return absl::InvalidArgumentError(absl::StrCat("source_text is ", request.source_text().size(),
+                                                   " bytes; at most ", sweep::kMaxSourceBytes));
+  }
+  if (request.source_name().size() > 4096) {
+    return absl::InvalidArgumentError("source_name: at most 4096 bytes");
+  }
+  absl::StatusOr<sweep::PreparedSweep> prepared = sweep::PrepareSweep(FromProto(request.spec()));
+  if (!prepared.ok()) return prepared.status();
+  storage::NewSweep sweep;
+  sweep.name = prepared->spec.name;
+  sweep.description = prepared->spec.description;
+  sweep.canonical_spec = std::move(prepared->canonical_json);
+  sweep.spec_hash = std::move(prepared->spec_hash);
+  sweep.equivalent_spec_hashes = std::move(prepared->equivalent_spec_hashes);
+  sweep.source_name = request.source_name();
+  sweep.source_text = request.source_text();
+  sweep.coordinator_build = coordinator_build;
+  sweep.max_attempts = prepared->spec.max_attempts;
+  sweep.max_lost_leases = prepared->spec.max_lost_leases;
+  sweep.max_concurrent = prepared->spec.max_concurrent;
+  for (sweep::ExpandedJob& job : prepared->jobs) {
+    storage::NewJob stored;
+    stored.method = std::move(job.method);
+    stored.seed = std::move(job.seed);
+    stored.variant = std::move(job.variant);
+    stored.options = std::move(job.options);
+    stored.episodes_expected = job.episodes_expected;
+    if (job.kind == sweep::JobKind::kStudy) {
+      stored.kind = storage::JobKind::kStudy;
+      stored.payload = std::move(job.payload);
+    }
+    sweep.jobs.push_back(std::move(stored));
+  }
+  return sweep;
+}
+
+}  // namespace totalgrad::service
