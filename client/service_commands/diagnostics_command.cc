@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
 #include "client/service_commands/connection.h"
 #include "core/common/closest_word.h"
@@ -66,8 +67,8 @@ int PrintDiagnostics(Connection* connection, const std::string& sweep_name,
   listing.columns = {"statistic", "method", "variant", "episode", "trials", "q25", "median", "q75"};
   for (const results::DiagnosticPoint& p : points) {
     listing.rows.push_back({p.statistic, p.method, p.variant, std::to_string(p.episode),
-                            std::to_string(p.trials), FormatNumber(p.q25), FormatNumber(p.median),
-                            FormatNumber(p.q75)});
+                            std::to_string(p.trials), absl::StrFormat("%.4g", p.q25),
+                            absl::StrFormat("%.4g", p.median), absl::StrFormat("%.4g", p.q75)});
   }
   std::cout << "sweep " << sweep_name
             << ": estimator statistics of the completed trials, median and quartiles over "

@@ -112,6 +112,20 @@ absl::Status Scheduler::CheckInstanceLocked(const WorkerIdentity& worker) {
   return absl::OkStatus();
 }
 
+absl::StatusOr<std::optional<storage::CheckpointRecord>> Scheduler::ResumePoint(
+    int64_t job_id, const std::string& worker_build) {
+  ASSIGN_OR_RETURN(std::vector<storage::AttemptRecord> attempts, store_->ListAttempts(job_id));
+  const storage::AttemptRecord* best = nullptr;
+  for (const storage::AttemptRecord& a : attempts) {
+    if (a.checkpoint_episode < 0 || a.worker_build != worker_build) continue;
+    if (best == nullptr || a.checkpoint_episode >= best->checkpoint_episode) best = &a;
+  }
+  if (best != nullptr) return store_->GetCheckpoint(job_id, best->key.attempt);
+  // None of its build: the furthest of any, which the worker names in its
+  // log as it starts over.
+  return store_->GetCheckpoint(job_id, 0);
+}
+
 absl::StatusOr<std::optional<Lease>> Scheduler::TryAcquireLocked(const WorkerIdentity& worker) {
   RETURN_IF_ERROR(CheckInstanceLocked(worker));
   const int64_t now = clock_->NowMs();
@@ -147,7 +161,7 @@ absl::StatusOr<std::optional<Lease>> Scheduler::TryAcquireLocked(const WorkerIde
     ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(candidate.job_id));
     Lease lease;
     if (storage::KindInfo(job.kind).checkpoints && key.attempt > 1) {
-      ASSIGN_OR_RETURN(lease.resume_from, store_->GetCheckpoint(job.id, 0));
+      ASSIGN_OR_RETURN(lease.resume_from, ResumePoint(job.id, worker.build));
     }
     lease.job = std::move(job);
     lease.key = key;

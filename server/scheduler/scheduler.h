@@ -204,6 +204,14 @@ class Scheduler {
   // Writes the worker's last-seen time unless it was written recently.
   absl::Status MaybeTouchWorker(const storage::WorkerIdentity& worker, int64_t now_ms)
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(decision_mutex_);
+  // The checkpoint a new attempt of job `job_id` resumes from: the furthest
+  // (highest episode, then attempt) written by `worker_build`, since a worker
+  // resumes only its own build's (results stay one build's); when there is
+  // none of that build, the furthest of any (the worker says why it starts
+  // over). nullopt: the job has no checkpoint.
+  absl::StatusOr<std::optional<storage::CheckpointRecord>> ResumePoint(
+      int64_t job_id, const std::string& worker_build)
+      ABSL_EXCLUSIVE_LOCKS_REQUIRED(decision_mutex_);
   absl::StatusOr<std::optional<Lease>> TryAcquireLocked(const storage::WorkerIdentity& worker)
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(decision_mutex_);
   // Whether a released or lost lease counts against the job's max_lost_leases.

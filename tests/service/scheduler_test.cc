@@ -375,6 +375,40 @@ TEST_F(SchedulerTest, DrainingWorkerGetsDrainAndNoNewLeases) {
   EXPECT_EQ(scheduler_->DrainWorker("never-seen").status().code(), absl::StatusCode::kNotFound);
 }
 
+// A new attempt resumes from the furthest checkpoint its worker's own build
+// wrote (a worker resumes no other build's), and from the furthest of any
+// build only when its build wrote none (the worker then says why it starts
+// over).
+TEST_F(SchedulerTest, ANewAttemptResumesFromItsOwnBuildsFurthestCheckpoint) {
+  Submit("s", 1, 20);
+  const auto of_build = [](const std::string& id, const std::string& build) {
+    storage::WorkerIdentity worker = MakeWorker(id);
+    worker.build = build;
+    return worker;
+  };
+  const auto lease_for = [&](const storage::WorkerIdentity& worker) {
+    auto lease = scheduler_->TryAcquire(worker);
+    EXPECT_TRUE(lease.ok() && lease->has_value()) << lease.status();
+    return lease.ok() && lease->has_value() ? **lease : Lease{};
+  };
+  const Lease first = lease_for(of_build("a", "A"));
+  TG_ASSERT_OK(store_->StoreCheckpoint(first.key, "a", {9, 1, "A after 9"}, clock_.NowMs()));
+  TG_ASSERT_OK(scheduler_->Release("a", first.key, "drain"));
+  const Lease second = lease_for(of_build("b", "B"));
+  ASSERT_TRUE(second.resume_from.has_value());
+  EXPECT_EQ(second.resume_from->checkpoint.data, "A after 9");  // none of B's yet
+  TG_ASSERT_OK(store_->StoreCheckpoint(second.key, "b", {3, 1, "B after 3"}, clock_.NowMs()));
+  TG_ASSERT_OK(scheduler_->Release("b", second.key, "drain"));
+  const Lease third = lease_for(of_build("b", "B"));
+  ASSERT_TRUE(third.resume_from.has_value());
+  EXPECT_EQ(third.resume_from->checkpoint.data, "B after 3");  // B's own, though A's is further
+  EXPECT_EQ(third.resume_from->key.attempt, 2);
+  TG_ASSERT_OK(scheduler_->Release("b", third.key, "drain"));
+  const Lease fourth = lease_for(of_build("a", "A"));
+  ASSERT_TRUE(fourth.resume_from.has_value());
+  EXPECT_EQ(fourth.resume_from->checkpoint.data, "A after 9");
+}
+
 // A drain stops the process it was asked for; the next process with the
 // same id (started after the drained one exited) gets work again, and the
 // store records the undrain as an event.
