@@ -48,17 +48,16 @@ absl::StatusOr<double> ParseNumber(absl::string_view raw, absl::string_view what
 }
 
 struct SimulateFlags {
-  std::string scene = "cartpole";
+  std::string scene = "cartpole-swingup";
   std::string start;
   std::string forces;
   std::string dt;  // empty: the scene's
   bool json = false;
 };
 
-// The catalog entry of a --scene value ("cartpole": the cart-pole's).
+// The catalog entry of a --scene value (a catalog name, as `trial` takes).
 const tasks::SceneDefinition* SimulatedScene(absl::string_view scene) {
-  return tasks::FindSceneDefinition(scene == "cartpole" ? std::string("cartpole-swingup")
-                                                        : std::string(scene));
+  return tasks::FindSceneDefinition(std::string(scene));
 }
 
 int RunSimulateCommand(const SimulateFlags& flags) {
@@ -98,8 +97,8 @@ absl::StatusOr<SimulateRequest> ParseSimulateRequest(absl::string_view scene,
                                                      absl::string_view dt) {
   const tasks::SceneDefinition* definition = SimulatedScene(scene);
   if (definition == nullptr) {
-    return absl::InvalidArgumentError(absl::StrCat("--scene: unknown scene '", scene, "' (known: cartpole, ",
-                                                   absl::StrJoin(tasks::SceneNames(), ", "), ")"));
+    return absl::InvalidArgumentError(
+        absl::StrCat("--scene: ", tasks::UnknownSceneText(std::string(scene))));
   }
   SimulateRequest request;
   request.scene = definition->name;
@@ -226,7 +225,7 @@ void AddSimulateCommand(CLI::App* app, int* exit_code) {
   CLI::App* cmd = app->add_subcommand(
       "simulate", "Integrate a scene's noise-free plant under a given control sequence");
   cmd->add_option("--scene", flags->scene,
-                  "Scene whose plant to simulate (`totalgrad scenes`; 'cartpole' is the cart-pole)")
+                  "Scene whose plant to simulate (a name of `totalgrad scenes`, as `trial` takes)")
       ->capture_default_str();
   cmd->add_option("--start", flags->start,
                   "Start state, D values in the scene's state order (cart-pole: s,beta,s_dot,"

@@ -72,6 +72,49 @@ int PrintLocalDryRun(sweep::SweepSpec spec) {
 }
 
 
+// The estimated cost of what submitting `spec` would run, on stderr: of the
+// whole sweep, or, when the coordinator holds a sweep of that name with
+// another grid, of the jobs the submission would add (the union of the two
+// grids less the stored one, as the coordinator grows it).
+void PrintCostEstimate(Connection* connection, const sweep::SweepSpec& spec) {
+  absl::StatusOr<sweep::SweepCostEstimate> cost = sweep::EstimateSweepCost(spec);
+  if (!cost.ok()) return;  // the submission names the error
+  if (connection != nullptr) {
+    v1::SweepRequest request;
+    request.set_name(spec.name);
+    v1::SweepInfo stored;
+    if (connection->Call(&v1::ControlService::Stub::GetSweep, request, &stored).ok()) {
+      // As the coordinator grows a sweep: the union of the two canonical specs.
+      absl::StatusOr<sweep::SweepSpec> old = sweep::SpecFromCanonicalJson(stored.canonical_spec());
+      absl::StatusOr<sweep::PreparedSweep> submitted = sweep::PrepareSweep(spec);
+      absl::StatusOr<sweep::SweepSpec> grown =
+          !old.ok() ? old.status()
+          : !submitted.ok() ? submitted.status()
+                            : sweep::UnionOfSweeps(*old, submitted->spec);
+      absl::StatusOr<sweep::SweepCostEstimate> before =
+          old.ok() ? sweep::EstimateSweepCost(*old) : old.status();
+      absl::StatusOr<sweep::SweepCostEstimate> after =
+          grown.ok() ? sweep::EstimateSweepCost(*grown) : grown.status();
+      if (before.ok() && after.ok()) {
+        sweep::SweepCostEstimate added = *after;
+        added.trials -= before->trials;
+        added.studies -= before->studies;
+        added.cpu_seconds -= before->cpu_seconds;
+        if (added.trials == 0 && added.studies == 0) {
+          std::cerr << "estimated cost: nothing new to run (sweep " << spec.name
+                    << " is stored with these jobs)\n";
+        } else {
+          std::cerr << "estimated cost of the jobs this adds to sweep " << spec.name << ": "
+                    << added.Text() << "\n";
+        }
+        return;
+      }
+      // A grid the stored one cannot grow into: the coordinator refuses it, naming why.
+    }
+  }
+  std::cerr << "estimated cost: " << cost->Text() << "\n";
+}
+
 // `sweep submit FILE`: validates the file, prints the cost estimate, then
 // submits it (or, with dry_run, asks the coordinator what it would store).
 // `connection` null: no coordinator answered, which only a dry run survives
@@ -84,9 +127,7 @@ int SubmitSweepFile(Connection* connection, const std::string& file, bool wait, 
     return 2;
   }
   // The cost before anything is stored: a mistake of 100x shows here.
-  if (absl::StatusOr<sweep::SweepCostEstimate> cost = sweep::EstimateSweepCost(*spec); cost.ok()) {
-    std::cerr << "estimated cost: " << cost->Text() << "\n";
-  }
+  PrintCostEstimate(connection, *spec);
   if (connection == nullptr) return PrintLocalDryRun(*spec);
   v1::SubmitSweepRequest request;
   sweep::SweepSpecToProto(*spec, request.mutable_spec());

@@ -69,8 +69,7 @@ const OptionTable<SceneOptions>& SceneOptions::Table() {
 absl::StatusOr<Scene> MakeScene(const SceneOptions& options) {
   const SceneDefinition* definition = FindSceneDefinition(options.scene);
   if (definition == nullptr) {
-    return absl::InvalidArgumentError(absl::StrCat("scene: unknown scene '", options.scene,
-                                                   "' (known: ", absl::StrJoin(SceneNames(), ", "), ")"));
+    return absl::InvalidArgumentError(absl::StrCat("scene: ", UnknownSceneText(options.scene)));
   }
   if (!std::isfinite(options.noise_k) || !(options.noise_k >= 0)) {
     return absl::InvalidArgumentError(

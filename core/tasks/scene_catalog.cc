@@ -4,7 +4,10 @@
 #include <cmath>
 #include <numbers>
 
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
 #include "core/common/check.h"
+#include "core/common/closest_word.h"
 
 namespace totalgrad::tasks {
 namespace {
@@ -201,6 +204,21 @@ std::vector<std::string> SceneNames() {
   std::vector<std::string> names;
   for (const SceneDefinition& s : SceneCatalog()) names.push_back(s.name);
   return names;
+}
+
+std::string UnknownSceneText(const std::string& name) {
+  const std::vector<std::string> names = SceneNames();
+  std::vector<std::string> begun;
+  for (const std::string& known : names)
+    if (!name.empty() && known.rfind(name, 0) == 0) begun.push_back(known);
+  if (begun.empty()) {
+    const std::string closest = ClosestCandidate(name, names);
+    if (!closest.empty()) begun.push_back(closest);
+  }
+  std::string text = absl::StrCat("unknown scene '", name, "' (");
+  if (!begun.empty()) absl::StrAppend(&text, "did you mean ", absl::StrJoin(begun, " or "), "?; ");
+  absl::StrAppend(&text, "known: ", absl::StrJoin(names, ", "), ")");
+  return text;
 }
 
 std::unique_ptr<Plant> MakePlant(const SceneDefinition& d, const ode::IntegratorOptions& integrator) {

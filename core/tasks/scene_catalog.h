@@ -85,6 +85,12 @@ const std::vector<SceneDefinition>& SceneCatalog();
 const SceneDefinition* FindSceneDefinition(const std::string& name);
 // The names, in catalog order.
 std::vector<std::string> SceneNames();
+// What to say of a scene name the catalog does not list: "unknown scene
+// 'cartpole' (did you mean cartpole-swingup or cartpole-balance?; known:
+// ...)": the catalog names it begins, else the closest name, then every
+// name. Every reader of a scene name (trial options, `simulate`, study
+// files) says the same.
+std::string UnknownSceneText(const std::string& name);
 
 // The plant of a definition with its dt and `integrator`.
 std::unique_ptr<Plant> MakePlant(const SceneDefinition& definition,

@@ -374,6 +374,10 @@ TEST_F(CliTest, ResubmittingWithMoreValuesGrowsTheSweep) {
   ASSERT_EQ(Cli({"sweep", "submit", WriteSweep("more.toml", more), "--wait"}, &out, &err), 0)
       << out << err;
   EXPECT_NE(out.find("grew sweep cli by 2 jobs (now 5 jobs"), std::string::npos) << out;
+  // Issue 29: the estimate is of the two jobs it adds, not of all five.
+  EXPECT_NE(err.find("estimated cost of the jobs this adds to sweep cli: about "), std::string::npos)
+      << err;
+  EXPECT_NE(err.find(" for 2 trials"), std::string::npos) << err;
   std::vector<v1::JobInfo> jobs = Jobs("cli");
   ASSERT_EQ(jobs.size(), 5u);
   for (const v1::JobInfo& job : jobs) {
@@ -382,6 +386,7 @@ TEST_F(CliTest, ResubmittingWithMoreValuesGrowsTheSweep) {
   }
   ASSERT_EQ(Cli({"sweep", "submit", path}, &out, &err), 0) << err;
   EXPECT_NE(out.find("already submitted (no change): sweep cli, 5 jobs"), std::string::npos) << out;
+  EXPECT_NE(err.find("estimated cost: nothing new to run"), std::string::npos) << err;
   std::string methods = more;
   const std::string one_method = "method = [\"RP\"]";
   methods.replace(methods.find(one_method), one_method.size(), "method = [\"RP\", \"GR\"]");

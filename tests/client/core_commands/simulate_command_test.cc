@@ -46,7 +46,7 @@ TEST(ParseNumberListTest, ErrorsNameOptionAndEntry) {
 }
 
 TEST(ParseSimulateRequestTest, ValidatesEveryOption) {
-  absl::StatusOr<SimulateRequest> r = ParseSimulateRequest("cartpole", "0,3.1,0,0", "1,-2", "0.05");
+  absl::StatusOr<SimulateRequest> r = ParseSimulateRequest("cartpole-swingup", "0,3.1,0,0", "1,-2", "0.05");
   TG_ASSERT_OK(r.status());
   EXPECT_EQ(r->start(1), 3.1);
   EXPECT_EQ(r->forces, (std::vector<double>{1.0, -2.0}));
@@ -56,15 +56,18 @@ TEST(ParseSimulateRequestTest, ValidatesEveryOption) {
   };
   for (const Case& c : std::vector<Case>{
            {"acrobot", "0,0,0,0", "1", "0.1", "--scene"},
-           {"cartpole", "0,0,0", "1", "0.1", "expected 4 values"},
-           {"cartpole", "0,0,0,0,0", "1", "0.1", "got 5"},
-           {"cartpole", "0,0,x,0", "1", "0.1", "--start: value 3"},
-           {"cartpole", "0,0,0,0", "", "0.1", "--forces: expected at least one"},
-           {"cartpole", "0,0,0,0", "1,inf", "0.1", "--forces: value 2"},
-           {"cartpole", "0,0,0,0", "1", "0", "--dt: must be > 0"},
-           {"cartpole", "0,0,0,0", "1", "-0.1", "--dt"},
-           {"cartpole", "0,0,0,0", "1", "fast", "--dt: 'fast' is not a number"},
-           {"cartpole", "0,0,0,0", "1", "nan", "--dt: 'nan' is not finite"}}) {
+           // `trial` refuses "cartpole" too; both name the two cart-pole scenes.
+           {"cartpole", "0,0,0,0", "1", "0.1",
+            "--scene: unknown scene 'cartpole' (did you mean cartpole-swingup or cartpole-balance?"},
+           {"cartpole-swingup", "0,0,0", "1", "0.1", "expected 4 values"},
+           {"cartpole-swingup", "0,0,0,0,0", "1", "0.1", "got 5"},
+           {"cartpole-swingup", "0,0,x,0", "1", "0.1", "--start: value 3"},
+           {"cartpole-swingup", "0,0,0,0", "", "0.1", "--forces: expected at least one"},
+           {"cartpole-swingup", "0,0,0,0", "1,inf", "0.1", "--forces: value 2"},
+           {"cartpole-swingup", "0,0,0,0", "1", "0", "--dt: must be > 0"},
+           {"cartpole-swingup", "0,0,0,0", "1", "-0.1", "--dt"},
+           {"cartpole-swingup", "0,0,0,0", "1", "fast", "--dt: 'fast' is not a number"},
+           {"cartpole-swingup", "0,0,0,0", "1", "nan", "--dt: 'nan' is not finite"}}) {
     r = ParseSimulateRequest(c.scene, c.start, c.forces, c.dt);
     EXPECT_EQ(r.status().code(), absl::StatusCode::kInvalidArgument) << c.want;
     EXPECT_NE(r.status().message().find(c.want), std::string::npos)
@@ -180,7 +183,7 @@ using testing_support::RunCommand;
 
 TEST(SimulateCommandTest, PrintsJson) {
   const CommandRun run = RunCommand(
-      {"simulate", "--scene", "cartpole", "--start", "0,0,0,0", "--forces", "10,10", "--json"});
+      {"simulate", "--scene", "cartpole-swingup", "--start", "0,0,0,0", "--forces", "10,10", "--json"});
   EXPECT_EQ(run.exit_code, 0) << run.err;
   EXPECT_TRUE(run.err.empty()) << run.err;
   const nlohmann::json doc = nlohmann::json::parse(run.out);

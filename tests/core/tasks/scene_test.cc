@@ -117,6 +117,30 @@ absl::Status RunSeeded(const Scene& scene, uint64_t start_seed, uint64_t noise_s
   return RunEpisode(scene, controller, &start, &noise, episode);
 }
 
+// Issue 29: an unknown scene is named with the catalog names it begins, or
+// the closest one, so "cartpole" (which `simulate` once took) points at the
+// two cart-pole scenes.
+TEST(MakeSceneTest, AnUnknownSceneSaysWhichWasMeant) {
+  SceneOptions options;
+  options.scene = "cartpole";
+  absl::StatusOr<Scene> scene = MakeScene(options);
+  ASSERT_FALSE(scene.ok());
+  EXPECT_EQ(scene.status().message(),
+            "scene: unknown scene 'cartpole' (did you mean cartpole-swingup or cartpole-balance?; "
+            "known: pendulum, cartpole-swingup, cartpole-balance, cart-double-pendulum, "
+            "double-pendulum, pendubot)");
+  options.scene = "pendulm";
+  scene = MakeScene(options);
+  ASSERT_FALSE(scene.ok());
+  EXPECT_NE(scene.status().message().find("(did you mean pendulum?; known:"), std::string::npos)
+      << scene.status();
+  options.scene = "unicycle";
+  scene = MakeScene(options);
+  ASSERT_FALSE(scene.ok());
+  EXPECT_NE(scene.status().message().find("unknown scene 'unicycle' (known: "), std::string::npos)
+      << scene.status();
+}
+
 TEST(RunEpisodeTest, DeterministicForEqualSeedsDifferentOtherwise) {
   const Scene scene = MustMakeScene({});
   Episode a, b, other_start, other_noise;
