@@ -67,6 +67,20 @@ constexpr absl::string_view kPastTheJob = "past the job";
 
 }  // namespace
 
+json& MethodCurve(json& panel, const std::string& variant, const std::string& method,
+                  int trials, std::map<std::pair<std::string, std::string>, size_t>* slots) {
+  auto [slot, inserted] = slots->emplace(std::pair{variant, method}, panel["methods"].size());
+  if (inserted) {
+    panel["methods"].push_back({{"method", method},
+                                {"colour", results::MethodColour(method)},
+                                {"trials", 0},
+                                {"points", json::array()}});
+  }
+  json& curve = panel["methods"][slot->second];
+  curve["trials"] = std::max(curve["trials"].get<int>(), trials);
+  return curve;
+}
+
 double EpisodeWorkSeconds(const std::string& details_json, double fallback) {
   const json details = json::parse(details_json, nullptr, /*allow_exceptions=*/false);
   if (details.is_object()) {
@@ -340,16 +354,7 @@ absl::StatusOr<json> DashboardData::Curves(const std::string& name, bool include
       panel = {{"variant", p.variant}, {"title", described_panel.title},
                {"threshold", nullptr}, {"methods", json::array()}};
     }
-    auto [slot, inserted] = method_slot.emplace(std::pair{p.variant, p.method},
-                                                panel["methods"].size());
-    if (inserted) {
-      panel["methods"].push_back({{"method", p.method},
-                                  {"colour", results::MethodColour(p.method)},
-                                  {"trials", 0},
-                                  {"points", json::array()}});
-    }
-    json& method = panel["methods"][slot->second];
-    method["trials"] = std::max(method["trials"].get<int>(), p.trials);
+    json& method = MethodCurve(panel, p.variant, p.method, p.trials, &method_slot);
     method["points"].push_back({{"episode", p.episode},
                                 {"n", p.trials},
                                 {"q25", Number(p.q25)},

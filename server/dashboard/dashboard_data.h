@@ -64,6 +64,15 @@ FinishEstimate EstimateFinish(const std::vector<RemainingJob>& remaining,
 // the *_wall phases), else `fallback` (the optimisation seconds).
 double EpisodeWorkSeconds(const std::string& details_json, double fallback);
 
+// The curve of `method` in a curve panel ({"variant", "title", "threshold",
+// "methods": [{"method", "colour", "trials", "points"}]}, the layout of
+// /api/curves and /api/diagnostics), appended on first use with the method's
+// colour (results::MethodColour); `slots` keeps each (variant, method)'s
+// position across calls. Its "trials" becomes at least `trials`.
+nlohmann::json& MethodCurve(nlohmann::json& panel, const std::string& variant,
+                            const std::string& method, int trials,
+                            std::map<std::pair<std::string, std::string>, size_t>* slots);
+
 // ---- The documents ----
 
 struct DashboardOptions {

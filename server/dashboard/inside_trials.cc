@@ -15,7 +15,6 @@
 #include "io/record_format.h"
 #include "io/trajectory_json.h"
 #include "results/diagnostics.h"
-#include "results/plot_style.h"
 #include "server/dashboard/dashboard_data.h"
 
 namespace totalgrad::dashboard {
@@ -135,17 +134,8 @@ absl::StatusOr<json> DashboardData::Diagnostics(const std::string& name,
                                {"y_label", statistic},
                                {"methods", json::array()}});
     }
-    json& panel = out["panels"][panel_slot->second];
-    auto [slot, new_method] =
-        method_slot.emplace(std::pair{p.variant, p.method}, panel["methods"].size());
-    if (new_method) {
-      panel["methods"].push_back({{"method", p.method},
-                                  {"colour", results::MethodColour(p.method)},
-                                  {"trials", 0},
-                                  {"points", json::array()}});
-    }
-    json& method = panel["methods"][slot->second];
-    method["trials"] = std::max(method["trials"].get<int>(), p.trials);
+    json& method = MethodCurve(out["panels"][panel_slot->second], p.variant, p.method, p.trials,
+                               &method_slot);
     json point = json::object();
     io::AppendRecordJson(results::DiagnosticPointFields(), p, &point);
     point["n"] = p.trials;
