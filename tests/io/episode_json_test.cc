@@ -6,7 +6,7 @@
 #include <limits>
 
 namespace totalgrad::io {
-namespace {
+namespace episode_json_test {
 
 // PILCO episodes carry the model's predicted cost mean and std per step; the
 // JSON line prints them (NaN as null), and episodes without them print none.
@@ -50,5 +50,5 @@ TEST(EpisodeToJson, GpIsAnObjectOfArraysAsStored) {
   EXPECT_FALSE(EpisodeToJson(learner::EpisodeResult{}).contains("gp"));
 }
 
-}  // namespace
+}  // namespace episode_json_test
 }  // namespace totalgrad::io

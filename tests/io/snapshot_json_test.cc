@@ -12,7 +12,7 @@
 #include "tests/testutil/test_base.h"
 
 namespace totalgrad::io {
-namespace {
+namespace snapshot_json_test {
 
 template <typename M>
 bool SameBits(const M& a, const M& b) {
@@ -75,5 +75,5 @@ TEST(SnapshotJson, EveryOptionRoundTripsThroughAFile) {
   ExpectSameSnapshot(written, (*read)[1]);
 }
 
-}  // namespace
+}  // namespace snapshot_json_test
 }  // namespace totalgrad::io

@@ -16,7 +16,7 @@
 #include "core/tasks/scene.h"
 
 namespace totalgrad::io {
-namespace {
+namespace trajectory_json_test {
 
 learner::TrialCheckpoint TinyTrialCheckpoint() {
   learner::TrialOptions o;
@@ -105,5 +105,5 @@ TEST(TrajectoryJsonTest, RefusesWhatIsNotThere) {
   says(1, -1, "episode 1 was recorded without trajectories");
 }
 
-}  // namespace
+}  // namespace trajectory_json_test
 }  // namespace totalgrad::io

@@ -10,7 +10,7 @@
 #include <vector>
 
 namespace totalgrad::results {
-namespace {
+namespace diagnostics_test {
 
 EpisodeStatistics Row(const std::string& method, int episode, double snr,
                       std::vector<double> lr_share = {}) {
@@ -89,5 +89,5 @@ TEST(DiagnosticsTest, TheStatisticsAreTheRecordsDiagnostics) {
   }
 }
 
-}  // namespace
+}  // namespace diagnostics_test
 }  // namespace totalgrad::results

@@ -10,7 +10,7 @@
 #include "results/comparison.h"
 
 namespace totalgrad::results {
-namespace {
+namespace hypothesis_tests_test {
 
 // Probabilities come from lgamma: equal to the rational values to ~1e-15.
 TEST(BinomialTestTest, SymmetricCasesWorkedByHand) {
@@ -303,5 +303,5 @@ TEST(CompareMethodsTest, VerdictsNameTheFavouredMethodOnlyWhenSignificant) {
   EXPECT_EQ(CostVerdict(c, 0.05), "no evidence");
 }
 
-}  // namespace
+}  // namespace hypothesis_tests_test
 }  // namespace totalgrad::results

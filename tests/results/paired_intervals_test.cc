@@ -8,7 +8,7 @@
 #include <limits>
 
 namespace totalgrad::results {
-namespace {
+namespace paired_intervals_test {
 
 TEST(NewcombePairedIntervalTest, MatchesAHandWorkedTable) {
   // 10 pairs: both 5, first only 3, second only 1, neither 1.
@@ -107,5 +107,5 @@ TEST(HodgesLehmannIntervalTest, NoDifferenceIsNaN) {
   EXPECT_TRUE(std::isnan(interval.low));
 }
 
-}  // namespace
+}  // namespace paired_intervals_test
 }  // namespace totalgrad::results

@@ -10,7 +10,7 @@
 #include <string>
 
 namespace totalgrad::results {
-namespace {
+namespace plot_style_test {
 
 TEST(DescribePanelTest, NamesSceneCostNoiseAndOtherSweptKeys) {
   const CurvePanel panel = DescribePanel(
@@ -33,5 +33,5 @@ TEST(MethodColourTest, FixedAndDistinctForThePapersMethods) {
   EXPECT_EQ(MethodColour("my-new-method"), MethodColour("my-new-method"));
 }
 
-}  // namespace
+}  // namespace plot_style_test
 }  // namespace totalgrad::results

@@ -7,7 +7,7 @@
 #include <cmath>
 
 namespace totalgrad::results {
-namespace {
+namespace stats_test {
 
 TEST(WilsonIntervalTest, MatchesPublishedValues) {
   // Reference values as given by statsmodels' proportion_confint(method="wilson").
@@ -69,5 +69,5 @@ TEST(CurvesTest, MedianAndQuartilesPerEpisodeSkippingMissingValues) {
   EXPECT_EQ(curves[0].q75, 25);
 }
 
-}  // namespace
+}  // namespace stats_test
 }  // namespace totalgrad::results

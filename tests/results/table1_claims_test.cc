@@ -11,7 +11,7 @@
 #include "results/paired_intervals.h"
 
 namespace totalgrad::results {
-namespace {
+namespace table1_claims_test {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr size_t kTip001 = 2, kTip1 = 3;
@@ -181,5 +181,5 @@ TEST(PairedPowerTableTest, TenPairsNeedSixDiscordantPairsAllOneWay) {
   }
 }
 
-}  // namespace
+}  // namespace table1_claims_test
 }  // namespace totalgrad::results

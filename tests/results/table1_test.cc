@@ -13,7 +13,7 @@
 #include "results/stats.h"
 
 namespace totalgrad::results {
-namespace {
+namespace table1_test {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
@@ -282,5 +282,5 @@ TEST(Table1Test, ACellsFieldsAreNamedAsTheSweepTablesAndWrittenOnce) {
   }
 }
 
-}  // namespace
+}  // namespace table1_test
 }  // namespace totalgrad::results

@@ -3,7 +3,7 @@
 #include <gtest/gtest.h>
 
 namespace totalgrad::cli {
-namespace {
+namespace cli_suggest_test {
 
 TEST(EditDistance, CountsInsertionsDeletionsAndSubstitutions) {
   EXPECT_EQ(EditDistance("sweep", "sweep"), 0);
@@ -40,5 +40,5 @@ TEST(SuggestFor, NamesTheSubcommandOrFlagOfTheCommandBeingParsed) {
   EXPECT_EQ(SuggestFor(app, {"nothing-like-it"}), "");
 }
 
-}  // namespace
+}  // namespace cli_suggest_test
 }  // namespace totalgrad::cli

@@ -17,7 +17,7 @@
 #include "tests/testutil/testutil.h"
 
 namespace totalgrad::cli {
-namespace {
+namespace evaluate_command_test {
 
 using testing_support::CommandRun;
 using testing_support::RunCommand;
@@ -100,5 +100,5 @@ TEST(EvaluateCommand, UnwritableStatesFileIsNamed) {
   EXPECT_NE(run.err.find(states), std::string::npos) << run.err;
 }
 
-}  // namespace
+}  // namespace evaluate_command_test
 }  // namespace totalgrad::cli

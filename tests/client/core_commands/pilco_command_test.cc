@@ -17,7 +17,7 @@
 #include "tests/testutil/testutil.h"
 
 namespace totalgrad::cli {
-namespace {
+namespace pilco_command_test {
 
 std::string ExamplePath(const std::string& name) {
   // This file is tests/client/core_commands/pilco_command_test.cc.
@@ -209,7 +209,9 @@ TEST_P(PilcoGeneralExampleTest, RunsWithDocumentedShapeAndGradient) {
   // In the shape the file gave: C x F, or a C-vector.
   ASSERT_EQ((*out)[gkey].size(), static_cast<size_t>(c));
   EXPECT_EQ((*out)[gkey][0].is_array(), matrix_values);
-  if (matrix_values) EXPECT_EQ((*out)[gkey][0].size(), static_cast<size_t>(f));
+  if (matrix_values) {
+    EXPECT_EQ((*out)[gkey][0].size(), static_cast<size_t>(f));
+  }
   EXPECT_EQ(targets, out->contains("weights"));
 
   // Fourth-order central differences with step 1e-4: J carries round-off of
@@ -437,5 +439,5 @@ TEST(PilcoCommandTest, GeneralFormBadInputIsNamed) {
       << out.status();
 }
 
-}  // namespace
+}  // namespace pilco_command_test
 }  // namespace totalgrad::cli

@@ -16,7 +16,7 @@
 #include "tests/testutil/testutil.h"
 
 namespace totalgrad::cli {
-namespace {
+namespace simulate_command_test {
 
 TEST(ParseNumberListTest, ParsesCompleteFiniteNumbers) {
   absl::StatusOr<std::vector<double>> v = ParseNumberList(" 1, -2.5,+3e-1 ,0 ", "--x");
@@ -228,5 +228,5 @@ TEST(SimulateCommandTest, IntegrationFailureExitsOne) {
   EXPECT_TRUE(run.out.empty()) << run.out;
 }
 
-}  // namespace
+}  // namespace simulate_command_test
 }  // namespace totalgrad::cli

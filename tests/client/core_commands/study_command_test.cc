@@ -30,7 +30,7 @@
 #include "tests/testutil/testutil.h"
 
 namespace totalgrad::cli {
-namespace {
+namespace study_command_test {
 
 using ::testing::HasSubstr;
 // The study file parser and snapshot files live in core/study; the table and
@@ -465,5 +465,5 @@ TEST(SceneStudyProblems, AReferenceCheckWithoutPowerIsNamed) {
   }
 }
 
-}  // namespace
+}  // namespace study_command_test
 }  // namespace totalgrad::cli

@@ -8,7 +8,7 @@
 #include <gtest/gtest.h>
 
 namespace totalgrad {
-namespace {
+namespace thread_pool_test {
 
 TEST(ThreadPool, RunsEveryTaskExactlyOnce) {
   for (int threads : {1, 2, 3, 8}) {
@@ -64,5 +64,5 @@ TEST(ThreadPool, ManyBatchesInARow) {
   EXPECT_EQ(total, expected);
 }
 
-}  // namespace
+}  // namespace thread_pool_test
 }  // namespace totalgrad

@@ -10,7 +10,7 @@
 #include <vector>
 
 namespace totalgrad {
-namespace {
+namespace vector_exp_test {
 
 // The GP kernel's exp (core/common/vector_exp.h, used by gp/se_kernel.h):
 // accuracy, special values, and bitwise agreement of the SIMD paths.
@@ -116,5 +116,5 @@ TEST(VectorExpTest, FusedColumnEqualsSeparatePassesBitwise) {
   }
 }
 
-}  // namespace
+}  // namespace vector_exp_test
 }  // namespace totalgrad

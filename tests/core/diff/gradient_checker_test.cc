@@ -5,7 +5,7 @@
 #include <gtest/gtest.h>
 
 namespace totalgrad::diff {
-namespace {
+namespace gradient_checker_test {
 
 // f(x) = [x0^2 x1, sin(x1) + x0]
 bool F(const Vector& x, Vector* v) {
@@ -56,5 +56,5 @@ TEST(GradientChecker, ReportsFailingFunction) {
   EXPECT_FALSE(r.log.empty());
 }
 
-}  // namespace
+}  // namespace gradient_checker_test
 }  // namespace totalgrad::diff

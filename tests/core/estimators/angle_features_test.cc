@@ -19,7 +19,7 @@
 
 #include "tests/core/estimators/rollout_test_util.h"
 namespace totalgrad::estimators {
-namespace {
+namespace angle_features_test {
 
 constexpr int kS = 4;      // cart-pole state
 constexpr int kE = kS + 1;  // [x, u]
@@ -307,5 +307,5 @@ TEST(AngleFeatureProblem, EveryParticleMethodEstimates) {
   }
 }
 
-}  // namespace
+}  // namespace angle_features_test
 }  // namespace totalgrad::estimators

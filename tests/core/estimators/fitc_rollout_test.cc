@@ -16,7 +16,7 @@
 #include "tests/core/estimators/rollout_test_util.h"
 
 namespace totalgrad::estimators {
-namespace {
+namespace fitc_rollout_test {
 
 // The synthetic problem (N = 40 transitions) with its GP replaced by FITC on
 // M = 12 inducing inputs drawn from the data.
@@ -110,5 +110,5 @@ TEST(FitcRpGradientCheck, IgnoringTheVariancePathFails) {
           .ok);
 }
 
-}  // namespace
+}  // namespace fitc_rollout_test
 }  // namespace totalgrad::estimators

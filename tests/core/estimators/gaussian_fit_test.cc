@@ -13,7 +13,7 @@
 #include "core/estimators/total_propagation.h"
 
 namespace totalgrad::estimators {
-namespace {
+namespace gaussian_fit_test {
 
 RowMatrix RandomRows(int p, int s, uint64_t seed) {
   Rng rng(seed, Stream::kStudy);
@@ -225,5 +225,5 @@ TEST(GrEstimator, MatchesFiniteDifferencesWithFixedNoise) {
   EXPECT_TRUE(r.ok) << r.log;
 }
 
-}  // namespace
+}  // namespace gaussian_fit_test
 }  // namespace totalgrad::estimators

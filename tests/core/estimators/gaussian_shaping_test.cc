@@ -15,7 +15,7 @@
 #include "tests/core/estimators/linear_gaussian.h"
 
 namespace totalgrad::estimators {
-namespace {
+namespace gaussian_shaping_test {
 
 std::unique_ptr<SyntheticProblem> SmallProblem(const std::string& cost, int horizon = 6) {
   SyntheticProblemOptions o;
@@ -257,5 +257,5 @@ TEST(GaussianShapedPathwise, MatchesFiniteDifferencesWithFixedNoise) {
   }
 }
 
-}  // namespace
+}  // namespace gaussian_shaping_test
 }  // namespace totalgrad::estimators

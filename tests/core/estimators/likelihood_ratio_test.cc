@@ -11,7 +11,7 @@
 #include "core/estimators/synthetic_problem.h"
 
 namespace totalgrad::estimators {
-namespace {
+namespace likelihood_ratio_test {
 
 std::unique_ptr<SyntheticProblem> SmallProblem(int horizon) {
   SyntheticProblemOptions o;
@@ -200,5 +200,5 @@ TEST(LrOnTheGpModel, AgreesWithRp) {
   EXPECT_LT(budget, std::abs(m_rp) / 3) << "no power";
 }
 
-}  // namespace
+}  // namespace likelihood_ratio_test
 }  // namespace totalgrad::estimators

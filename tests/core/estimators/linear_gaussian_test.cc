@@ -24,7 +24,7 @@
 #include "tests/core/estimators/linear_gaussian.h"
 
 namespace totalgrad::estimators {
-namespace {
+namespace linear_gaussian_test {
 
 using testing::LinearGaussian;
 using testing::MakeOscillator;
@@ -417,5 +417,5 @@ TEST(DensityEstimationLr, WorksWithoutInjectedNoise) {
   EXPECT_FALSE(e.finite);
 }
 
-}  // namespace
+}  // namespace linear_gaussian_test
 }  // namespace totalgrad::estimators

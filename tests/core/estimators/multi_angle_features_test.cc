@@ -15,7 +15,7 @@
 #include "core/pilco/angle_features.h"
 
 namespace totalgrad::estimators {
-namespace {
+namespace multi_angle_features_test {
 
 constexpr int kS = 4;                          // raw state dims
 const std::vector<int> kAngles = {1, 3};       // two angles
@@ -146,5 +146,5 @@ TEST(MultiAngleFeatures, PolicyStateAdjointMatchesFiniteDifferences) {
   EXPECT_GT(state_bar.col(3).cwiseAbs().maxCoeff(), 1e-4);
 }
 
-}  // namespace
+}  // namespace multi_angle_features_test
 }  // namespace totalgrad::estimators

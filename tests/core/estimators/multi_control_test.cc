@@ -35,7 +35,7 @@
 #include "tests/core/estimators/linear_gaussian.h"
 
 namespace totalgrad::estimators {
-namespace {
+namespace multi_control_test {
 
 constexpr int kS = 4;                     // [dtheta1, dtheta2, theta1, theta2]
 const std::vector<int> kAngles = {2, 3};  // the double pendulum's
@@ -389,5 +389,5 @@ TEST(TwoControls, AdaptiveTpWithAnInertControlIsTheOneControlPass) {
   }
 }
 
-}  // namespace
+}  // namespace multi_control_test
 }  // namespace totalgrad::estimators

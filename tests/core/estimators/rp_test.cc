@@ -10,7 +10,7 @@
 #include "tests/core/estimators/rollout_test_util.h"
 
 namespace totalgrad::estimators {
-namespace {
+namespace rp_test {
 
 std::unique_ptr<SyntheticProblem> SmallProblem(const std::string& cost) {
   return ::totalgrad::estimators::testing::SmallSyntheticProblem(cost);
@@ -95,5 +95,5 @@ TEST(MakeEstimator, UnknownMethodIsNamed) {
   EXPECT_NE(e.status().message().find("XYZ"), std::string::npos);
 }
 
-}  // namespace
+}  // namespace rp_test
 }  // namespace totalgrad::estimators

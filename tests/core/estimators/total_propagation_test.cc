@@ -14,7 +14,7 @@
 #include "tests/core/estimators/linear_gaussian.h"
 
 namespace totalgrad::estimators {
-namespace {
+namespace total_propagation_test {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 const double kNaN = std::nan("");
@@ -276,5 +276,5 @@ TEST(Registry, EveryMethodByName) {
   EXPECT_EQ(LrWeightsName(w), "plain");
 }
 
-}  // namespace
+}  // namespace total_propagation_test
 }  // namespace totalgrad::estimators

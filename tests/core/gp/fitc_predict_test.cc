@@ -17,7 +17,7 @@
 #include "tests/testutil/testutil.h"
 
 namespace totalgrad::gp {
-namespace {
+namespace fitc_predict_test {
 
 using totalgrad::testing::MatricesNear;
 
@@ -207,5 +207,5 @@ TEST(FitcFitTest, FitsFromARandomSubsetThenWarmStarts) {
           .ok());
 }
 
-}  // namespace
+}  // namespace fitc_predict_test
 }  // namespace totalgrad::gp

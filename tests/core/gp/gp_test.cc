@@ -19,7 +19,7 @@
 #include "tests/testutil/testutil.h"
 
 namespace totalgrad::gp {
-namespace {
+namespace gp_test {
 
 using ::testing::HasSubstr;
 using totalgrad::testing::MatricesNear;
@@ -383,5 +383,5 @@ TEST(GpHyperparametersTest, PackedRoundTrip) {
   EXPECT_EQ(hyp.Packed(0), MakeProblem(5, 14).hyp.Packed(0));  // other output untouched
 }
 
-}  // namespace
+}  // namespace gp_test
 }  // namespace totalgrad::gp

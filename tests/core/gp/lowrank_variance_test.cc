@@ -22,7 +22,7 @@
 #include "tests/testutil/testutil.h"
 
 namespace totalgrad::gp {
-namespace {
+namespace lowrank_variance_test {
 
 using ::testing::HasSubstr;
 using ::totalgrad::gp::testing::BlockJacobian;
@@ -222,5 +222,5 @@ TEST(LowRankVariance, BadTolerancesAreRefusedByName) {
   }
 }
 
-}  // namespace
+}  // namespace lowrank_variance_test
 }  // namespace totalgrad::gp

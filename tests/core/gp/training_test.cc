@@ -14,7 +14,7 @@
 #include "tests/testutil/testutil.h"
 
 namespace totalgrad::gp {
-namespace {
+namespace training_test {
 
 using ::testing::HasSubstr;
 
@@ -463,5 +463,5 @@ TEST(MinimizeLbfgsTest, ZeroIterationsAndFailingStart) {
   EXPECT_EQ(result.non_finite_evaluations, 1);
 }
 
-}  // namespace
+}  // namespace training_test
 }  // namespace totalgrad::gp

@@ -17,7 +17,7 @@
 #include <vector>
 
 namespace totalgrad::learner {
-namespace {
+namespace checkpoint_test {
 
 TrialOptions Tiny(const std::vector<std::pair<std::string, std::string>>& extra = {}) {
   TrialOptions o;
@@ -305,5 +305,5 @@ TEST(TrialCheckpoint, EvaluatePolicyReproducesTheTrialsEvaluation) {
   }
 }
 
-}  // namespace
+}  // namespace checkpoint_test
 }  // namespace totalgrad::learner

@@ -3,7 +3,7 @@
 #include <gtest/gtest.h>
 
 namespace totalgrad::learner {
-namespace {
+namespace cost_model_test {
 
 TrialOptions With(const std::string& key, const std::string& value, TrialOptions o = {}) {
   EXPECT_TRUE(SetTrialOption(key, value, &o).ok()) << key;
@@ -48,5 +48,5 @@ TEST(CostModel, ScalesWithTheProtocol) {
   EXPECT_GT(base.other_cpu, 0);
 }
 
-}  // namespace
+}  // namespace cost_model_test
 }  // namespace totalgrad::learner

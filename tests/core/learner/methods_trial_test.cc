@@ -12,7 +12,7 @@
 #include "core/learner/trial.h"
 
 namespace totalgrad::learner {
-namespace {
+namespace methods_trial_test {
 
 class Watcher final : public TrialObserver {
  public:
@@ -119,5 +119,5 @@ TEST(MethodTrial, OptionKeysRoundTrip) {
   EXPECT_EQ(RunTrial(bad, nullptr).status().code(), absl::StatusCode::kInvalidArgument);
 }
 
-}  // namespace
+}  // namespace methods_trial_test
 }  // namespace totalgrad::learner

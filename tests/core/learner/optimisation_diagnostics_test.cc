@@ -17,7 +17,7 @@
 #include "core/learner/trial_options.h"
 
 namespace totalgrad::learner {
-namespace {
+namespace optimisation_diagnostics_test {
 
 Vector Values(std::initializer_list<double> values) {
   Vector v(static_cast<Eigen::Index>(values.size()));
@@ -161,5 +161,5 @@ TEST(TrialDiagnostics, EachMethodRecordsWhatItHas) {
   }
 }
 
-}  // namespace
+}  // namespace optimisation_diagnostics_test
 }  // namespace totalgrad::learner

@@ -5,7 +5,7 @@
 #include <gtest/gtest.h>
 
 namespace totalgrad::learner {
-namespace {
+namespace optimizer_test {
 
 TEST(RmspropLike, FirstStepIsNormalisedByParticleStd) {
   OptimizerOptions o;
@@ -63,5 +63,5 @@ TEST(RmspropLike, ResetForgetsState) {
   EXPECT_DOUBLE_EQ(t2(0), -o.learning_rate * 1.0 / (1.0 + o.epsilon));
 }
 
-}  // namespace
+}  // namespace optimizer_test
 }  // namespace totalgrad::learner

@@ -14,7 +14,7 @@
 #include "tests/testutil/test_base.h"
 
 namespace totalgrad::learner {
-namespace {
+namespace pilco_pendulum_test {
 
 TEST(PilcoPendulum, OneLearnedEpisodeSwingsThePendulum) {
   TrialOptions o;
@@ -32,5 +32,5 @@ TEST(PilcoPendulum, OneLearnedEpisodeSwingsThePendulum) {
   EXPECT_LT(summary.final_eval_cost, 30.0);
 }
 
-}  // namespace
+}  // namespace pilco_pendulum_test
 }  // namespace totalgrad::learner

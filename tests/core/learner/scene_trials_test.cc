@@ -13,7 +13,7 @@
 #include "tests/testutil/test_base.h"
 
 namespace totalgrad::learner {
-namespace {
+namespace scene_trials_test {
 
 TrialOptions Short(const std::string& scene, const std::string& method) {
   TrialOptions o;
@@ -137,5 +137,5 @@ TEST(SceneTrials, CartPoleOptionsAreRefusedOnOtherScenes) {
   EXPECT_NE(o.Validate().message().find("cart-pole"), std::string::npos) << o.Validate();
 }
 
-}  // namespace
+}  // namespace scene_trials_test
 }  // namespace totalgrad::learner

@@ -19,7 +19,7 @@
 #include "core/learner/trial.h"
 
 namespace totalgrad::learner {
-namespace {
+namespace trajectory_test {
 
 TrialOptions Tiny(const std::string& method) {
   TrialOptions o;
@@ -194,5 +194,5 @@ TEST(TrajectoryTest, TheCheckpointCarriesThem) {
   EXPECT_EQ(decoded->episodes.back().trajectories.verdict_rollouts.size(), 5u);
 }
 
-}  // namespace
+}  // namespace trajectory_test
 }  // namespace totalgrad::learner

@@ -15,7 +15,7 @@
 #include "tests/testutil/test_base.h"
 
 namespace totalgrad::learner {
-namespace {
+namespace trial_options_test {
 
 using ::totalgrad::testing::EveryOptionChanged;
 using ::totalgrad::testing::KeysAtDefault;
@@ -233,5 +233,5 @@ TEST(TrialOptionTable, PilcoBudgetIsTheScenesProtocolUnlessSet) {
   EXPECT_EQ(PilcoEvaluationsPerLineSearch(o), 9);
 }
 
-}  // namespace
+}  // namespace trial_options_test
 }  // namespace totalgrad::learner

@@ -6,7 +6,7 @@
 #include <gtest/gtest.h>
 
 namespace totalgrad::learner {
-namespace {
+namespace trial_test {
 
 TrialOptions Tiny() {
   TrialOptions o;
@@ -235,11 +235,11 @@ TEST(TrialOptions, GpInducingValues) {
   EXPECT_FALSE(SetTrialOption("gp_inducing", "many", &o).ok());
 }
 
-}  // namespace
+}  // namespace trial_test
 }  // namespace totalgrad::learner
 
 namespace totalgrad::learner {
-namespace {
+namespace trial_test {
 
 TEST(PilcoTrial, RunsDeterministicallyAndRecordsPerStepPredictions) {
   TrialOptions o = Tiny();
@@ -468,5 +468,5 @@ TEST(ParticleTrialSinCosFitc, RunsFiniteAndUsesFitc) {
   EXPECT_NE(full->episodes[2].predicted_cost, a->episodes[2].predicted_cost);
 }
 
-}  // namespace
+}  // namespace trial_test
 }  // namespace totalgrad::learner

@@ -20,7 +20,7 @@
 #include "core/tasks/scene.h"
 
 namespace totalgrad::learner {
-namespace {
+namespace verdict_test {
 
 constexpr double kPi = std::numbers::pi;
 
@@ -263,12 +263,14 @@ TEST(TrialVerdict, ChangesNoOtherNumberOfTheTrial) {
   ASSERT_EQ(a->episodes.size(), b->episodes.size());
   for (size_t e = 0; e < a->episodes.size(); ++e) {
     EXPECT_EQ(a->episodes[e].real_cost, b->episodes[e].real_cost);
-    if (e > 0) EXPECT_EQ(a->episodes[e].eval_cost_mean, b->episodes[e].eval_cost_mean);
+    if (e > 0) {
+      EXPECT_EQ(a->episodes[e].eval_cost_mean, b->episodes[e].eval_cost_mean);
+    }
     EXPECT_EQ(a->episodes[e].policy_parameters, b->episodes[e].policy_parameters);
   }
   EXPECT_TRUE(std::isnan(b->episodes.back().held_fraction));
   EXPECT_FALSE(std::isnan(a->episodes.back().held_fraction));
 }
 
-}  // namespace
+}  // namespace verdict_test
 }  // namespace totalgrad::learner

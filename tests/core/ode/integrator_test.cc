@@ -8,7 +8,7 @@
 #include "tests/testutil/testutil.h"
 
 namespace totalgrad::ode {
-namespace {
+namespace integrator_test {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
@@ -207,5 +207,5 @@ TEST(IntegrateAdaptiveTest, BadDurationOrOptionsAreInvalidArgument) {
   EXPECT_EQ(x, Vec2(1.0, 0.0));
 }
 
-}  // namespace
+}  // namespace integrator_test
 }  // namespace totalgrad::ode

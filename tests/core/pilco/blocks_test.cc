@@ -19,7 +19,7 @@
 #include "tests/core/pilco/pilco_test_util.h"
 
 namespace totalgrad::pilco {
-namespace {
+namespace blocks_test {
 
 using testing::BlockBackward;
 using testing::BlockForward;
@@ -970,5 +970,5 @@ TEST(StepAnglesTest, BadAngleListsAreRefusedByName) {
   EXPECT_NE(Propagator::Validate(gp, options).message().find("(sin, cos) per angle"), std::string::npos);
 }
 
-}  // namespace
+}  // namespace blocks_test
 }  // namespace totalgrad::pilco

@@ -18,7 +18,7 @@
 #include "tests/testutil/testutil.h"
 
 namespace totalgrad::pilco {
-namespace {
+namespace fitc_test {
 
 struct Data {
   RowMatrix x, y;
@@ -255,5 +255,5 @@ TEST(FitcTest, ChainedGradientWithFitcMatchesFiniteDifferences) {
   EXPECT_TRUE(r.ok) << r.log;
 }
 
-}  // namespace
+}  // namespace fitc_test
 }  // namespace totalgrad::pilco

@@ -22,7 +22,7 @@
 #include "tests/core/pilco/pilco_test_util.h"
 
 namespace totalgrad::pilco {
-namespace {
+namespace monte_carlo_test {
 
 using testing::GaussianSampler;
 using testing::MomentAccumulator;
@@ -34,7 +34,7 @@ constexpr double kSigmas = 5.0;
 
 // Posterior mean (B x D) and latent variance (B x D) of a full GP at rows z.
 void PosteriorAt(const GaussianInputGp& gp, const RowMatrix& z, RowMatrix* mean, RowMatrix* var) {
-  const int b = static_cast<int>(z.rows()), n = gp.num_points(), d = gp.num_outputs();
+  const int b = static_cast<int>(z.rows()), d = gp.num_outputs();
   mean->resize(b, d);
   var->resize(b, d);
   for (int a = 0; a < d; ++a) {
@@ -544,5 +544,5 @@ TEST_P(StepAssemblySeparate, GivenTheJointGaussian) {
 
 INSTANTIATE_TEST_SUITE_P(Controls, StepAssemblySeparate, ::testing::Values(1, 2));
 
-}  // namespace
+}  // namespace monte_carlo_test
 }  // namespace totalgrad::pilco

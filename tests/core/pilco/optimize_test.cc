@@ -14,7 +14,7 @@
 #include "tests/testutil/testutil.h"
 
 namespace totalgrad::pilco {
-namespace {
+namespace optimize_test {
 
 bool Rosenbrock(const Vector& x, double* f, Vector* g) {
   const int n = static_cast<int>(x.size());
@@ -278,5 +278,5 @@ TEST(AngleFeaturesTest, MapAndChainRule) {
   EXPECT_TRUE(f.isApprox(states));
 }
 
-}  // namespace
+}  // namespace optimize_test
 }  // namespace totalgrad::pilco

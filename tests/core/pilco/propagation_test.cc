@@ -21,7 +21,7 @@
 #include "tests/testutil/testutil.h"
 
 namespace totalgrad::pilco {
-namespace {
+namespace propagation_test {
 
 // A GP on real cart-pole transitions (state [s, beta, s_dot, beta_dot]) with
 // PILCO's initial hyperparameters (log l = log std(inputs), sf = std(targets),
@@ -659,5 +659,5 @@ TEST(GpFromDataTest, FailedFactorisationIsAClearError) {
   EXPECT_NE(gp.status().message().find("output 0"), std::string::npos) << gp.status();
 }
 
-}  // namespace
+}  // namespace propagation_test
 }  // namespace totalgrad::pilco

@@ -10,7 +10,7 @@
 #include "core/diff/gradient_checker.h"
 
 namespace totalgrad::policy {
-namespace {
+namespace rbf_policy_test {
 
 RbfPolicy MakePolicy(uint64_t seed) {
   RbfPolicy policy(7, 4, 10.0);
@@ -398,5 +398,5 @@ TEST(RbfPolicyOutputs, WrongSecondOutputGradientIsCaught) {
   EXPECT_FALSE(diff::CheckJacobian(f, policy.parameters(), wrong).ok);
 }
 
-}  // namespace
+}  // namespace rbf_policy_test
 }  // namespace totalgrad::policy

@@ -28,7 +28,7 @@
 #include "tests/testutil/testutil.h"
 
 namespace totalgrad::estimators {
-namespace {
+namespace estimator_test {
 
 // Methods on the plain particle objective (no resampling, no shaping, no
 // fitted density): their gradient of a saturated cost is exactly 0.
@@ -458,5 +458,5 @@ TEST(EstimatorExtremes, SaturatedCostIsFlaggedInTheTrialRecord) {
   }
 }
 
-}  // namespace
+}  // namespace estimator_test
 }  // namespace totalgrad::estimators

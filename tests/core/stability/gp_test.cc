@@ -17,7 +17,7 @@
 #include "tests/testutil/testutil.h"
 
 namespace totalgrad::gp {
-namespace {
+namespace gp_test {
 
 using ::testing::HasSubstr;
 
@@ -287,5 +287,5 @@ TEST(GpExtremes, NlmlOptimiserSurvivesLineSearchFailures) {
   EXPECT_LT((p.mean - d.y).cwiseAbs().maxCoeff(), 1e-2);
 }
 
-}  // namespace
+}  // namespace gp_test
 }  // namespace totalgrad::gp

@@ -22,7 +22,7 @@
 #include "tests/testutil/testutil.h"
 
 namespace totalgrad::pilco {
-namespace {
+namespace pilco_test {
 
 constexpr int kBasis = 8;
 constexpr int kHorizon = 6;
@@ -229,5 +229,5 @@ INSTANTIATE_TEST_SUITE_P(RawAndSinCos, PilcoExtremes, ::testing::Values(-1, 1),
                                                  : std::string("SinCos");
                          });
 
-}  // namespace
+}  // namespace pilco_test
 }  // namespace totalgrad::pilco

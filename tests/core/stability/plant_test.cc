@@ -18,7 +18,7 @@
 #include "tests/testutil/testutil.h"
 
 namespace totalgrad::tasks {
-namespace {
+namespace plant_test {
 
 State MakeState(double s, double beta, double s_dot, double beta_dot) {
   State x;
@@ -183,5 +183,5 @@ TEST(StiffPlant, EpisodeOnInfeasiblePlantNamesTheStepAndTheBudget) {
   EXPECT_NE(st.message().find("step 0"), std::string::npos) << st;
 }
 
-}  // namespace
+}  // namespace plant_test
 }  // namespace totalgrad::tasks

@@ -36,7 +36,7 @@
 #include "tests/testutil/testutil.h"
 
 namespace totalgrad {
-namespace {
+namespace scenes_test {
 
 const tasks::SceneDefinition& Definition(const std::string& name) {
   const tasks::SceneDefinition* d = tasks::FindSceneDefinition(name);
@@ -445,5 +445,5 @@ TEST(SceneFeatureExtremes, SceneWithNoAngle) {
               check.absolute_tolerance);
 }
 
-}  // namespace
+}  // namespace scenes_test
 }  // namespace totalgrad

@@ -9,7 +9,7 @@
 #include <cmath>
 
 namespace totalgrad::study {
-namespace {
+namespace equal_time_test {
 
 constexpr double kNaN = CellResult::kNaN;
 
@@ -205,5 +205,5 @@ TEST(CompareAtEqualTime, MarksRowsWhoseReferenceCheckHadNoPower) {
   EXPECT_EQ(row.winner, "A");
 }
 
-}  // namespace
+}  // namespace equal_time_test
 }  // namespace totalgrad::study

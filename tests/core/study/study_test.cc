@@ -19,7 +19,7 @@
 #include "tests/testutil/testutil.h"
 
 namespace totalgrad::study {
-namespace {
+namespace study_test {
 
 using ::testing::HasSubstr;
 
@@ -582,5 +582,5 @@ TEST(SceneSynthetic, SceneWithoutAnglesBuildsNoTrigAdapter) {
   }
 }
 
-}  // namespace
+}  // namespace study_test
 }  // namespace totalgrad::study

@@ -12,7 +12,7 @@
 #include "tests/testutil/testutil.h"
 
 namespace totalgrad::tasks {
-namespace {
+namespace cartpole_test {
 
 constexpr double kPi = std::numbers::pi;
 
@@ -193,5 +193,5 @@ TEST(CartPoleTest, StepReportsIntegratorFailure) {
   EXPECT_EQ(report.accepted_steps + report.rejected_steps, 2);
 }
 
-}  // namespace
+}  // namespace cartpole_test
 }  // namespace totalgrad::tasks

@@ -18,7 +18,7 @@
 #include "tests/testutil/testutil.h"
 
 namespace totalgrad::tasks {
-namespace {
+namespace cost_test {
 
 constexpr double kPi = std::numbers::pi;
 
@@ -194,11 +194,11 @@ TEST(MakeCostTest, DefaultParameters) {
   EXPECT_EQ(t->width(), 0.25);
 }
 
-}  // namespace
+}  // namespace cost_test
 }  // namespace totalgrad::tasks
 
 namespace totalgrad::tasks {
-namespace {
+namespace cost_test {
 
 // PILCO's saturating cost on z, on every scene of the catalog: gradients
 // against finite differences (two angles, two widths included); the cart-pole's
@@ -443,5 +443,5 @@ TEST(SaturatingCostTest, CartPolesEqualsTheTipCost) {
   EXPECT_TRUE(testing::MatricesNear(a, b, 1e-14, 1e-12));
 }
 
-}  // namespace
+}  // namespace cost_test
 }  // namespace totalgrad::tasks

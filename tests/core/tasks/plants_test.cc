@@ -15,7 +15,7 @@
 #include "tests/testutil/testutil.h"
 
 namespace totalgrad::tasks {
-namespace {
+namespace plants_test {
 
 constexpr double kPi = std::numbers::pi;
 
@@ -229,5 +229,5 @@ TEST(PlantStepTest, CartPoleThroughThePlantInterfaceIsTheSame) {
   EXPECT_EQ(Vector(next), generic);
 }
 
-}  // namespace
+}  // namespace plants_test
 }  // namespace totalgrad::tasks

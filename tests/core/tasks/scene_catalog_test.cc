@@ -12,7 +12,7 @@
 #include <set>
 
 namespace totalgrad::tasks {
-namespace {
+namespace scene_catalog_test {
 
 bool StrictlyIncreasingBelow(const std::vector<int>& v, int bound) {
   for (size_t i = 0; i < v.size(); ++i) {
@@ -101,5 +101,5 @@ TEST(SceneCatalogTest, AugmentStateAppendsSinAndCosInAngleOrder) {
   EXPECT_EQ(z(7), std::cos(-0.25));
 }
 
-}  // namespace
+}  // namespace scene_catalog_test
 }  // namespace totalgrad::tasks

@@ -12,7 +12,7 @@
 #include "tests/testutil/testutil.h"
 
 namespace totalgrad::tasks {
-namespace {
+namespace scene_test {
 
 constexpr double kPi = std::numbers::pi;
 constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
@@ -357,5 +357,5 @@ TEST(RunEpisodeTest, WrongControlsFailNamingTheStep) {
   EXPECT_NE(nan.message().find("for control 1"), std::string::npos) << nan;
 }
 
-}  // namespace
+}  // namespace scene_test
 }  // namespace totalgrad::tasks
