@@ -20,7 +20,7 @@
 #include "tests/service/service_testutil.h"
 
 namespace totalgrad::testing {
-namespace {
+namespace cli_test {
 
 using std::chrono::seconds;
 
@@ -522,7 +522,9 @@ TEST_F(CliTest, Table1LaysSweepsOutInThePapersGridAndRefusesASeedCountedTwice) {
   ASSERT_EQ(claims.size(), 6u);
   nlohmann::json tp_gtp;
   for (const auto& claim : claims) {
-    if (claim["noise_k"] == 0.01) EXPECT_EQ(claim["pairs"], 0) << claim;  // not in this sweep
+    if (claim["noise_k"] == 0.01) {
+      EXPECT_EQ(claim["pairs"], 0) << claim;  // not in this sweep
+    }
     if (claim["noise_k"] == 1 && claim["method"] == "TP") tp_gtp = claim;
   }
   ASSERT_FALSE(tp_gtp.is_null()) << out;
@@ -839,5 +841,5 @@ TEST_F(CliTest, TlsWithDevCertificatesAndTokens) {
   EXPECT_NE(err.find("--insecure is only allowed for a loopback"), std::string::npos) << err;
 }
 
-}  // namespace
+}  // namespace cli_test
 }  // namespace totalgrad::testing

@@ -16,7 +16,7 @@
 #include "absl/synchronization/mutex.h"
 
 namespace totalgrad {
-namespace {
+namespace clock_test {
 
 struct Flag {
   absl::Mutex mu;
@@ -120,5 +120,5 @@ TEST(FakeClockTest, AwaitUntilReturnsTrueWhenTheConditionIsSet) {
   setter.join();
 }
 
-}  // namespace
+}  // namespace clock_test
 }  // namespace totalgrad

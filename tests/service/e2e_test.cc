@@ -25,7 +25,7 @@
 #include "tests/service/service_testutil.h"
 
 namespace totalgrad::testing {
-namespace {
+namespace e2e_test {
 
 using std::chrono::seconds;
 
@@ -1195,5 +1195,5 @@ TEST_F(EndToEndTest, WorkerDrainsOnSigtermAndTheJobIsRequeuedWithoutBlame) {
   ExpectRowsEqualReference("drain", SlowProtocol());
 }
 
-}  // namespace
+}  // namespace e2e_test
 }  // namespace totalgrad::testing

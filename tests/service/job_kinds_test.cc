@@ -16,7 +16,7 @@
 #include "tests/service/service_testutil.h"
 
 namespace totalgrad::storage {
-namespace {
+namespace job_kinds_test {
 
 using ::totalgrad::testing::MakeEpisode;
 using ::totalgrad::testing::MakeStudyJob;
@@ -342,5 +342,5 @@ TEST_F(JobKindsStoreTest, ImportOfACompletedStudyChecksEveryTableAsCompleteDoes)
   EXPECT_EQ(result.study_rows_imported, 4);
 }
 
-}  // namespace
+}  // namespace job_kinds_test
 }  // namespace totalgrad::storage

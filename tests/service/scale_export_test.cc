@@ -20,7 +20,7 @@
 #include "tests/service/service_testutil.h"
 
 namespace totalgrad::testing {
-namespace {
+namespace scale_export_test {
 
 constexpr int kJobs = 4000;
 
@@ -232,5 +232,5 @@ TEST_F(ScaleExportTest, AFailedExportLeavesNoFileUnderItsName) {
   EXPECT_NE(err.find(dir_ + "/no/such/dir/x.csv"), std::string::npos) << err;
 }
 
-}  // namespace
+}  // namespace scale_export_test
 }  // namespace totalgrad::testing

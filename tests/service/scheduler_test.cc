@@ -17,7 +17,7 @@
 #include "tests/service/service_testutil.h"
 
 namespace totalgrad::scheduler {
-namespace {
+namespace scheduler_test {
 
 using storage::AttemptState;
 using storage::Episode;
@@ -944,5 +944,5 @@ TEST_F(SchedulerTest, ImportRefusesWhatCompleteRefuses) {
   EXPECT_EQ(result.jobs_imported, 1);
 }
 
-}  // namespace
+}  // namespace scheduler_test
 }  // namespace totalgrad::scheduler

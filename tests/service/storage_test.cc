@@ -20,7 +20,7 @@
 #include "tests/service/service_testutil.h"
 
 namespace totalgrad::storage {
-namespace {
+namespace storage_test {
 
 using ::totalgrad::testing::MakeEpisode;
 using ::totalgrad::testing::MakeSweep;
@@ -1235,5 +1235,5 @@ TEST_F(StorageTest, DeleteSweepRemovesEveryRowOnlyWhenIdleAndAsArchived) {
   EXPECT_FALSE(row);
 }
 
-}  // namespace
+}  // namespace storage_test
 }  // namespace totalgrad::storage

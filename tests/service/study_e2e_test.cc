@@ -18,7 +18,7 @@
 #include "tests/service/service_testutil.h"
 
 namespace totalgrad::testing {
-namespace {
+namespace study_e2e_test {
 
 using std::chrono::seconds;
 
@@ -281,5 +281,5 @@ TEST_F(StudyEndToEndTest, RunAndResultsStudyWithTheShippedStudySweep) {
   EXPECT_TRUE(refs[0]["norm"].is_number()) << out;
 }
 
-}  // namespace
+}  // namespace study_e2e_test
 }  // namespace totalgrad::testing

@@ -29,7 +29,7 @@
 #include "worker/learner_runner.h"
 
 namespace totalgrad::worker {
-namespace {
+namespace worker_test {
 
 using std::chrono::seconds;
 using ::totalgrad::testing::MakeTempDir;
@@ -770,5 +770,5 @@ TEST(EpisodeDetailsJsonTest, PilcoPerStepPredictionsAreStored) {
   EXPECT_FALSE(particle.contains("predicted_cost_std_per_step"));
 }
 
-}  // namespace
+}  // namespace worker_test
 }  // namespace totalgrad::worker
