@@ -5,19 +5,31 @@
 // reports per second and checks that every row is stored exactly once.
 //
 //   service_load_bench [--workers 64] [--jobs 512] [--episodes 16] [--dir /tmp]
+//                      [--queued Q] [--max-seconds S]
+//
+// With --queued Q the store holds Q queued jobs (sweeps of at most 100,000,
+// the per-sweep limit) and the workers run --jobs of them, so the cost of a
+// lease and a completion can be measured against the queue's length
+// (issue 28 item 2). The coordinator runs in this process; its CPU time is
+// the process's less the fake workers' own threads'.
 //
 // Prints one JSON object.
 #include <grpcpp/create_channel.h>
+#include <sys/resource.h>
+#include <unistd.h>
+#include <time.h>
 
 #include <CLI/CLI.hpp>
 #include <atomic>
 #include <chrono>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <set>
 #include <thread>
 
 #include "absl/strings/str_cat.h"
+#include "absl/synchronization/mutex.h"
 #include "server/service/coordinator.h"
 #include "totalgrad/v1/control_service.grpc.pb.h"
 #include "totalgrad/v1/worker_service.grpc.pb.h"
@@ -30,16 +42,49 @@ std::unique_ptr<grpc::ClientContext> Context(int timeout_ms = 30000) {
   return context;
 }
 
+double ProcessCpuSeconds() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return usage.ru_utime.tv_sec + usage.ru_stime.tv_sec +
+         1e-6 * (usage.ru_utime.tv_usec + usage.ru_stime.tv_usec);
+}
+
+// Resident set of this process now, and its peak (MB).
+double ResidentMb() {
+  std::ifstream statm("/proc/self/statm");
+  long pages_total = 0, pages_resident = 0;
+  statm >> pages_total >> pages_resident;
+  return pages_resident * (sysconf(_SC_PAGESIZE) / 1048576.0);
+}
+
+double PeakResidentMb() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return usage.ru_maxrss / 1024.0;
+}
+
+double ThreadCpuSeconds() {
+  timespec t{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return t.tv_sec + 1e-9 * t.tv_nsec;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"coordinator load benchmark"};
   int workers = 64, jobs = 512, episodes = 16;
+  int64_t queued = 0;
+  double max_seconds = 600;
   std::string dir = std::filesystem::temp_directory_path().string();
   app.add_option("--workers", workers, "concurrent worker connections")->capture_default_str();
   app.add_option("--jobs", jobs, "jobs in the sweep")->capture_default_str();
   app.add_option("--episodes", episodes, "episodes per job")->capture_default_str();
   app.add_option("--dir", dir, "where the database goes")->capture_default_str();
+  app.add_option("--queued", queued, "jobs in the store (default: --jobs); the workers run --jobs of them")
+      ->check(CLI::Range(int64_t{0}, int64_t{10'000'000}));
+  app.add_option("--max-seconds", max_seconds, "stop the workers after this long")
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 
   const std::string db = absl::StrCat(dir, "/totalgrad_load_bench_", getpid(), ".db");
@@ -56,27 +101,43 @@ int main(int argc, char** argv) {
   auto control = totalgrad::v1::ControlService::NewStub(
       grpc::CreateChannel(address, grpc::InsecureChannelCredentials()));
 
-  totalgrad::v1::SubmitSweepRequest submit;
-  auto* spec = submit.mutable_spec();
-  spec->set_name("load");
-  auto* method = spec->add_grid();
-  method->set_key("method");
-  method->add_values("RP");
-  auto* seed = spec->add_grid();
-  seed->set_key("seed");
-  for (int s = 0; s < jobs; ++s) seed->add_values(std::to_string(s));
-  auto* protocol = spec->add_protocol();
-  protocol->set_key("episodes");
-  protocol->set_value(std::to_string(episodes - 1));
-  totalgrad::v1::SubmitSweepResponse submitted;
-  grpc::Status status = control->SubmitSweep(Context().get(), submit, &submitted);
-  if (!status.ok()) {
-    std::cerr << "submit: " << status.error_message() << "\n";
-    return 1;
+  // The sweeps: "load-0" holds the jobs the workers run first (ordinals in
+  // order), the rest stay queued behind them.
+  queued = std::max<int64_t>(queued, jobs);
+  constexpr int64_t kPerSweep = 100'000;
+  const auto submit_start = std::chrono::steady_clock::now();
+  for (int64_t first = 0, index = 0; first < queued; first += kPerSweep, ++index) {
+    totalgrad::v1::SubmitSweepRequest submit;
+    auto* spec = submit.mutable_spec();
+    spec->set_name(absl::StrCat("load-", index));
+    auto* method = spec->add_grid();
+    method->set_key("method");
+    method->add_values("RP");
+    auto* seed = spec->add_grid();
+    seed->set_key("seed");
+    for (int64_t s = first; s < std::min(queued, first + kPerSweep); ++s) {
+      seed->add_values(std::to_string(s));
+    }
+    auto* protocol = spec->add_protocol();
+    protocol->set_key("episodes");
+    protocol->set_value(std::to_string(episodes - 1));
+    totalgrad::v1::SubmitSweepResponse submitted;
+    grpc::Status status = control->SubmitSweep(Context(600000).get(), submit, &submitted);
+    if (!status.ok()) {
+      std::cerr << "submit: " << status.error_message() << "\n";
+      return 1;
+    }
   }
+  const double submit_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - submit_start).count();
+  const double resident_after_submit_mb = ResidentMb();
 
-  std::atomic<int64_t> reports{0}, errors{0};
+  std::atomic<int64_t> reports{0}, errors{0}, leased{0}, completed{0};
+  absl::Mutex cpu_mutex;
+  double workers_cpu_seconds = 0;
+  const double cpu_before = ProcessCpuSeconds();
   const auto start = std::chrono::steady_clock::now();
+  const auto deadline = start + std::chrono::duration<double>(max_seconds);
   std::vector<std::thread> threads;
   for (int w = 0; w < workers; ++w) {
     threads.emplace_back([&, w] {
@@ -87,7 +148,15 @@ int main(int argc, char** argv) {
       auto stub = totalgrad::v1::WorkerService::NewStub(grpc::CreateCustomChannel(
           address, grpc::InsecureChannelCredentials(), arguments));
       const std::string id = absl::StrCat("bench-", w);
+      const auto account = [&] {
+        absl::MutexLock lock(&cpu_mutex);
+        workers_cpu_seconds += ThreadCpuSeconds();
+      };
       while (true) {
+        if (leased.fetch_add(1) >= jobs || std::chrono::steady_clock::now() > deadline) {
+          account();
+          return;
+        }
         totalgrad::v1::AcquireLeaseRequest acquire;
         acquire.mutable_worker()->set_worker_id(id);
         acquire.mutable_worker()->set_slots(1);
@@ -97,7 +166,10 @@ int main(int argc, char** argv) {
           ++errors;
           continue;
         }
-        if (!lease.granted()) return;
+        if (!lease.granted()) {
+          account();
+          return;
+        }
         for (int e = 0; e < episodes; ++e) {
           totalgrad::v1::HeartbeatRequest beat;
           beat.set_worker_id(id);
@@ -123,16 +195,18 @@ int main(int argc, char** argv) {
         complete.set_final_eval_cost(1);
         totalgrad::v1::CompleteResponse done;
         while (!stub->Complete(Context().get(), complete, &done).ok()) ++errors;
+        ++completed;
       }
     });
   }
   for (auto& t : threads) t.join();
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double coordinator_cpu_seconds = ProcessCpuSeconds() - cpu_before - workers_cpu_seconds;
 
   // Every row stored once: export and count distinct (job, episode).
   totalgrad::v1::ExportEpisodesRequest export_request;
-  export_request.set_sweep_name("load");
+  export_request.set_sweep_name("load-0");
   export_request.set_all_attempts(true);
   auto context = Context(300000);
   auto reader = control->ExportEpisodes(context.get(), export_request);
@@ -145,15 +219,26 @@ int main(int argc, char** argv) {
       distinct.insert({row.job_id(), row.report().episode()});
     }
   }
-  status = reader->Finish();
+  const grpc::Status status = reader->Finish();
   totalgrad::v1::SweepRequest sweep_request;
-  sweep_request.set_name("load");
+  sweep_request.set_name("load-0");
   totalgrad::v1::SweepInfo sweep;
   control->GetSweep(Context().get(), sweep_request, &sweep);
-  const bool every_row_once = status.ok() && rows == static_cast<int64_t>(jobs) * episodes &&
+  const int64_t jobs_done = completed.load();
+  const bool every_row_once = status.ok() && rows == jobs_done * episodes &&
                               static_cast<int64_t>(distinct.size()) == rows &&
-                              sweep.jobs_completed() == jobs;
-  std::cout << "{\"workers\": " << workers << ", \"jobs\": " << jobs << ", \"episodes_per_job\": "
+                              sweep.jobs_completed() == jobs_done;
+  std::cout << "{\"workers\": " << workers << ", \"jobs_queued\": " << queued
+            << ", \"submit_seconds\": " << submit_seconds << ", \"jobs\": " << jobs
+            << ", \"jobs_completed_by_workers\": " << jobs_done
+            << ", \"lease_complete_per_second\": " << jobs_done / seconds
+            << ", \"coordinator_cpu_seconds\": " << coordinator_cpu_seconds
+            << ", \"coordinator_cpu_ms_per_job\": " << 1000 * coordinator_cpu_seconds / std::max<int64_t>(jobs_done, 1)
+            << ", \"resident_mb_after_submit\": " << resident_after_submit_mb
+            << ", \"resident_mb_at_end\": " << ResidentMb()
+            << ", \"peak_resident_mb\": " << PeakResidentMb()
+            << ", \"database_bytes\": " << std::filesystem::file_size(db)
+            << ", \"episodes_per_job\": "
             << episodes << ", \"episode_reports\": " << reports << ", \"errors\": " << errors
             << ", \"seconds\": " << seconds << ", \"reports_per_second\": " << reports / seconds
             << ", \"rows_stored\": " << rows << ", \"distinct_rows\": " << distinct.size()

@@ -30,6 +30,11 @@ std::vector<double> DoublesFromJson(const std::string& text);
 std::string OptionsToJson(const OptionList& options);
 OptionList OptionsFromJson(const std::string& text);
 
+// The query behind SqliteStore::ListClaimCandidates (one parameter: the
+// limit). Its plan reads only the rows it returns, whatever the queue's
+// length (storage_test checks the plan).
+const char* ClaimCandidatesSql();
+
 // One row of `episodes`: the key, the episode's record (its columns from
 // learner::EpisodeFields(), sqlite_records.h), details_json and
 // reported_ms; a stored (job, attempt, episode) is kept (ON CONFLICT DO

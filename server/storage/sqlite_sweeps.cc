@@ -406,14 +406,26 @@ ORDER BY j.id LIMIT ?)sql")));
 }
 
 
-absl::StatusOr<std::vector<ClaimCandidate>> SqliteStore::ListClaimCandidates(int limit) {
-  absl::MutexLock lock(&read_mutex_);
-  ASSIGN_OR_RETURN(Statement query, Statement::Prepare(reader_, R"sql(
+namespace internal {
+// Sweeps first (CROSS JOIN keeps SQLite from reordering the loop), then each
+// running sweep's queued jobs straight from the jobs_by_state index, already
+// in (sweep, ordinal) order: the first `limit` rows cost the same with 1,000
+// or 1,000,000 jobs queued, and a paused sweep's queue is never read. (Joined
+// the other way round SQLite read every queued job and sorted them for each
+// lease: 36 ms of coordinator CPU per job with 100,000 queued, 6 with 1,000.)
+const char* ClaimCandidatesSql() {
+  return R"sql(
 SELECT j.id, j.attempts, s.id, s.max_concurrent,
        (SELECT COUNT(*) FROM jobs r WHERE r.sweep_id = s.id AND r.state = 'running'), j.kind
-FROM jobs j JOIN sweeps s ON s.id = j.sweep_id
-WHERE j.state = 'queued' AND s.state = 'running'
-ORDER BY s.id, j.ordinal LIMIT ?)sql"));
+FROM sweeps s CROSS JOIN jobs j ON j.sweep_id = s.id AND j.state = 'queued'
+WHERE s.state = 'running'
+ORDER BY s.id, j.ordinal LIMIT ?)sql";
+}
+}  // namespace internal
+
+absl::StatusOr<std::vector<ClaimCandidate>> SqliteStore::ListClaimCandidates(int limit) {
+  absl::MutexLock lock(&read_mutex_);
+  ASSIGN_OR_RETURN(Statement query, Statement::Prepare(reader_, internal::ClaimCandidatesSql()));
   query.Bind(1, limit);
   std::vector<ClaimCandidate> candidates;
   while (true) {

@@ -15,6 +15,8 @@
 #include <thread>
 
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+#include "server/storage/sqlite_internal.h"
 #include "tests/service/process_util.h"
 #include "tests/service/schema_downgrade.h"
 #include "tests/service/service_testutil.h"
@@ -278,6 +280,43 @@ TEST_F(StorageTest, CancelSweepCancelsQueuedAndRunningJobs) {
   EXPECT_TRUE(candidates.empty());
   EXPECT_EQ(store_->SetSweepState("nope", SweepState::kPaused, kNow).code(),
             absl::StatusCode::kNotFound);
+}
+
+// Issue 28 item 2: the next job is read from an index, not found by a scan.
+// Candidates come sweep by sweep in ordinal order, a paused sweep's queue is
+// skipped, and SQLite's plan for the query reads the jobs table only through
+// jobs_by_state without sorting (before: every queued job read and sorted
+// for each lease, "USE TEMP B-TREE FOR ORDER BY").
+TEST_F(StorageTest, ClaimCandidatesComeFromTheIndexInOrderWithoutASort) {
+  bool created = false;
+  TG_ASSERT_OK(store_->CreateSweep(MakeSweep("paused", 3, 1), kNow, &created).status());
+  TG_ASSERT_OK(store_->CreateSweep(MakeSweep("second", 4, 1), kNow, &created).status());
+  TG_ASSERT_OK(store_->SetSweepState("paused", SweepState::kPaused, kNow));
+  TG_ASSERT_OK_AND_ASSIGN(auto second, store_->ListJobs({"second", {}, 0, 1000}));
+  TG_ASSERT_OK_AND_ASSIGN(auto candidates, store_->ListClaimCandidates(3));
+  ASSERT_EQ(candidates.size(), 3u);
+  for (size_t i = 0; i < candidates.size(); ++i) {
+    EXPECT_EQ(candidates[i].job_id, second[i].id) << i;
+  }
+
+  TG_ASSERT_OK_AND_ASSIGN(internal::Db db, internal::Db::Open(path_, false, 0));
+  TG_ASSERT_OK_AND_ASSIGN(
+      internal::Statement plan,
+      internal::Statement::Prepare(db, absl::StrCat("EXPLAIN QUERY PLAN ",
+                                                    internal::ClaimCandidatesSql())));
+  plan.Bind(1, 8);
+  std::vector<std::string> steps;
+  while (true) {
+    TG_ASSERT_OK_AND_ASSIGN(bool row, plan.Step());
+    if (!row) break;
+    steps.push_back(plan.ColumnText(3));
+  }
+  const std::string all = absl::StrJoin(steps, " | ");
+  EXPECT_EQ(all.find("TEMP B-TREE"), std::string::npos) << all;
+  EXPECT_EQ(all.find("SCAN j"), std::string::npos) << all;
+  EXPECT_NE(all.find("SEARCH j USING INDEX jobs_by_state (state=? AND sweep_id=?)"),
+            std::string::npos)
+      << all;
 }
 
 TEST_F(StorageTest, RetryOnlyFailedOrCancelledJobs) {
