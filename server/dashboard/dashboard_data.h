@@ -10,9 +10,11 @@
 #ifndef TOTALGRAD_SERVER_DASHBOARD_DASHBOARD_DATA_H_
 #define TOTALGRAD_SERVER_DASHBOARD_DASHBOARD_DATA_H_
 
+#include <chrono>
 #include <cstdint>
 #include <map>
 #include <optional>
+#include <utility>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -137,6 +139,13 @@ class DashboardData {
   // The job's checkpoint, decoded (inside_trials.cc); nullopt: none.
   absl::StatusOr<std::optional<learner::TrialCheckpoint>> JobCheckpoint(
       const storage::JobRecord& job);
+  // A completed trial's entry of FinalTrajectories (nullopt: it recorded no
+  // trajectories), decoded from its final checkpoint at most once a minute:
+  // the sweep page asks every few seconds, a completed attempt's checkpoint
+  // never changes, and `sweep prune --completed` (which removes it) shows
+  // within the minute.
+  absl::StatusOr<std::optional<nlohmann::json>> FinalTrajectorySummary(
+      const storage::JobRecord& job);
 
   storage::Store* const store_;
   const DashboardOptions options_;
@@ -150,6 +159,14 @@ class DashboardData {
   };
   absl::Mutex cache_mutex_;
   std::map<int64_t, CachedEstimate> eta_cache_ ABSL_GUARDED_BY(cache_mutex_);  // by sweep id
+  static constexpr std::chrono::seconds kFinalTrajectoryCacheLife{60};
+  struct CachedFinalTrajectory {
+    std::chrono::steady_clock::time_point computed;
+    std::optional<nlohmann::json> summary;
+  };
+  // By (job id, completed attempt).
+  std::map<std::pair<int64_t, int>, CachedFinalTrajectory> final_trajectory_cache_
+      ABSL_GUARDED_BY(cache_mutex_);
 };
 
 }  // namespace totalgrad::dashboard

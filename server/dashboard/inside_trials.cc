@@ -5,6 +5,7 @@
 // layout; Diagnostics, the estimator statistics per method and episode
 // (results/diagnostics.h, as `totalgrad results diagnostics`).
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <map>
 #include <utility>
@@ -54,7 +55,7 @@ absl::StatusOr<json> DashboardData::Trajectory(int64_t job_id, int episode, int 
   }
   absl::StatusOr<io::TrajectoryView> view = io::ViewTrajectory(**checkpoint, episode, rollout);
   if (!view.ok()) return view.status();
-  json out = json::parse(io::TrajectoryToJson(*view).dump());
+  json out(io::TrajectoryToJson(*view));  // ordered_json -> json, no text in between
   out["job"] = job_id;
   // Which episodes can be shown (recorded with trajectories), for the picker.
   json recorded = json::array();
@@ -64,6 +65,46 @@ absl::StatusOr<json> DashboardData::Trajectory(int64_t job_id, int episode, int 
   return out;
 }
 
+absl::StatusOr<std::optional<json>> DashboardData::FinalTrajectorySummary(
+    const storage::JobRecord& job) {
+  const auto now = std::chrono::steady_clock::now();
+  const std::pair<int64_t, int> key{job.id, job.completed_attempt};
+  {
+    absl::MutexLock lock(&cache_mutex_);
+    const auto cached = final_trajectory_cache_.find(key);
+    if (cached != final_trajectory_cache_.end() &&
+        now - cached->second.computed < kFinalTrajectoryCacheLife) {
+      return cached->second.summary;
+    }
+  }
+  absl::StatusOr<std::optional<learner::TrialCheckpoint>> checkpoint = JobCheckpoint(job);
+  if (!checkpoint.ok()) return checkpoint.status();
+  std::optional<json> summary;
+  if (checkpoint->has_value()) {
+    const int last = (*checkpoint)->episode;
+    absl::StatusOr<io::TrajectoryView> view = io::ViewTrajectory(**checkpoint, last, -1);
+    if (view.ok()) {  // else recorded by a build before trajectories
+      json distance = json::array();
+      for (double v : view->goal_distance) distance.push_back(FiniteOrNull(v));
+      summary = json{{"job", job.id},
+                     {"method", job.method},
+                     {"seed", job.seed},
+                     {"variant", job.variant},
+                     {"episode", last},
+                     {"success", job.success},
+                     {"final_eval_cost", FiniteOrNull(job.final_eval_cost)},
+                     {"held_fraction", FiniteOrNull(job.held_fraction)},
+                     {"dt", FiniteOrNull(view->dt)},
+                     {"verdict_distance", FiniteOrNull(view->verdict_distance)},
+                     {"verdict_hold_steps", view->verdict_hold_steps},
+                     {"goal_distance", std::move(distance)}};
+    }
+  }
+  absl::MutexLock lock(&cache_mutex_);
+  final_trajectory_cache_[key] = {now, summary};
+  return summary;
+}
+
 absl::StatusOr<json> DashboardData::FinalTrajectories(const std::string& sweep_name) {
   absl::StatusOr<std::vector<storage::JobRecord>> jobs = AllJobs(sweep_name);
   if (!jobs.ok()) return jobs.status();
@@ -71,32 +112,13 @@ absl::StatusOr<json> DashboardData::FinalTrajectories(const std::string& sweep_n
   int without = 0;
   for (const storage::JobRecord& job : *jobs) {
     if (job.kind != storage::JobKind::kTrial || job.state != storage::JobState::kCompleted) continue;
-    absl::StatusOr<std::optional<learner::TrialCheckpoint>> checkpoint = JobCheckpoint(job);
-    if (!checkpoint.ok()) return checkpoint.status();
-    if (!checkpoint->has_value()) {
+    absl::StatusOr<std::optional<json>> summary = FinalTrajectorySummary(job);
+    if (!summary.ok()) return summary.status();
+    if (!summary->has_value()) {
       ++without;
       continue;
     }
-    const int last = (*checkpoint)->episode;
-    absl::StatusOr<io::TrajectoryView> view = io::ViewTrajectory(**checkpoint, last, -1);
-    if (!view.ok()) {  // recorded by a build before trajectories
-      ++without;
-      continue;
-    }
-    json distance = json::array();
-    for (double v : view->goal_distance) distance.push_back(FiniteOrNull(v));
-    out["trials"].push_back({{"job", job.id},
-                             {"method", job.method},
-                             {"seed", job.seed},
-                             {"variant", job.variant},
-                             {"episode", last},
-                             {"success", job.success},
-                             {"final_eval_cost", FiniteOrNull(job.final_eval_cost)},
-                             {"held_fraction", FiniteOrNull(job.held_fraction)},
-                             {"dt", FiniteOrNull(view->dt)},
-                             {"verdict_distance", FiniteOrNull(view->verdict_distance)},
-                             {"verdict_hold_steps", view->verdict_hold_steps},
-                             {"goal_distance", std::move(distance)}});
+    out["trials"].push_back(**std::move(summary));
   }
   out["without"] = without;
   return out;

@@ -8,6 +8,8 @@
 #include <filesystem>
 #include <set>
 
+#include "core/learner/checkpoint.h"
+#include "core/learner/trial.h"
 #include "results/stats.h"
 #include "results/table1.h"
 #include "server/storage/sqlite_store.h"
@@ -139,6 +141,73 @@ TEST_F(DashboardStoreTest, TheSuccessTableIsNamedAsTheClisTable) {
   EXPECT_EQ(cells[0]["successes"], 2);
   EXPECT_NEAR(cells[0]["wilson95_low"].get<double>(), results::WilsonInterval(2, 3).first, 1e-15);
   EXPECT_FALSE(cells[0].contains("wilson_low"));
+}
+
+// Keeps the last checkpoint a trial gives.
+class LastCheckpoint : public learner::TrialObserver {
+ public:
+  void OnEpisode(const learner::EpisodeResult&) override {}
+  bool WantsCheckpoints() override { return true; }
+  void OnCheckpoint(const learner::TrialCheckpoint& checkpoint) override { last = checkpoint; }
+  learner::TrialCheckpoint last;
+};
+
+// The sweep page's final trajectories decode a completed trial's final
+// checkpoint once, not on every refresh: after `sweep prune --completed`
+// removed it, the same DashboardData still answers from what it decoded
+// (within the cache's minute), while a fresh one finds nothing to show.
+TEST_F(DashboardStoreTest, FinalTrajectoriesDecodeEachCompletedCheckpointOnce) {
+  learner::TrialOptions options;
+  for (const auto& [key, value] : std::vector<std::pair<std::string, std::string>>{
+           {"method", "RP"}, {"episodes", "1"}, {"policy_steps", "2"}, {"particles", "8"},
+           {"eval_rollouts", "3"}, {"horizon", "10"}, {"basis_functions", "8"},
+           {"gp_iterations", "10"}, {"predicted_cost_particles", "10"}, {"seed", "3"},
+           {"verdict_rollouts", "3"}, {"verdict_hold_seconds", "0.2"}}) {
+    ASSERT_TRUE(learner::SetTrialOption(key, value, &options).ok()) << key;
+  }
+  LastCheckpoint observer;
+  absl::StatusOr<learner::TrialSummary> trial = learner::RunTrial(options, &observer);
+  ASSERT_TRUE(trial.ok()) << trial.status();
+
+  bool created = false;
+  ASSERT_TRUE(store_->CreateSweep(testing::MakeSweep("s", 1, 2), kNow, &created).ok());
+  absl::StatusOr<std::vector<storage::JobRecord>> jobs = store_->ListJobs({"s", {}, 0, 10});
+  ASSERT_TRUE(jobs.ok()) << jobs.status();
+  const int64_t id = jobs->front().id;
+  ASSERT_TRUE(store_->StartAttempt({id, 1}, testing::MakeWorker("w1"), kNow, kNow + 90'000).ok());
+  ASSERT_TRUE(store_
+                  ->StoreCheckpoint({id, 1}, "w1",
+                                    {observer.last.episode, learner::kCheckpointFormatVersion,
+                                     learner::EncodeCheckpoint(observer.last)},
+                                    kNow)
+                  .ok());
+  storage::AttemptEnd end;
+  end.key = {id, 1};
+  end.worker_id = "w1";
+  end.attempt_state = storage::AttemptState::kCompleted;
+  end.job_state = storage::JobState::kCompleted;
+  end.results.episodes = {testing::MakeEpisode(0), testing::MakeEpisode(1)};
+  end.totals.episodes = 2;
+  end.final_eval_cost = 5;
+  end.now_ms = kNow;
+  ASSERT_TRUE(store_->EndAttempt(end).ok());
+
+  DashboardData data(store_.get(), {});
+  absl::StatusOr<nlohmann::json> first = data.FinalTrajectories("s");
+  ASSERT_TRUE(first.ok()) << first.status();
+  ASSERT_EQ((*first)["trials"].size(), 1u) << first->dump();
+  EXPECT_EQ((*first)["trials"][0]["goal_distance"].size(), 11u);  // H = 10 steps and the start
+  EXPECT_EQ((*first)["without"], 0);
+
+  ASSERT_TRUE(store_->PruneCheckpoints("s", storage::PruneScope::kCompleted, kNow).ok());
+  absl::StatusOr<nlohmann::json> again = data.FinalTrajectories("s");
+  ASSERT_TRUE(again.ok()) << again.status();
+  EXPECT_EQ(*again, *first);
+  DashboardData fresh(store_.get(), {});
+  absl::StatusOr<nlohmann::json> pruned = fresh.FinalTrajectories("s");
+  ASSERT_TRUE(pruned.ok()) << pruned.status();
+  EXPECT_TRUE((*pruned)["trials"].empty());
+  EXPECT_EQ((*pruned)["without"], 1);
 }
 
 TEST_F(DashboardStoreTest, Table1PoolsSweepsMarksTheProtocolAndRefusesASeedTwice) {
