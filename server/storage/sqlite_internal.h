@@ -30,10 +30,12 @@ std::vector<double> DoublesFromJson(const std::string& text);
 std::string OptionsToJson(const OptionList& options);
 OptionList OptionsFromJson(const std::string& text);
 
-// The query behind SqliteStore::ListClaimCandidates (one parameter: the
-// limit). Its plan reads only the rows it returns, whatever the queue's
-// length (storage_test checks the plan).
-const char* ClaimCandidatesSql();
+// The queries behind SqliteStore::ListClaimCandidates: the running sweeps
+// with their running counts (no parameter), then one sweep's first queued
+// jobs (parameters: sweep id, limit). Their plans read only the rows they
+// return, whatever the queue's length (storage_test checks the plans).
+const char* ClaimSweepsSql();
+const char* ClaimJobsSql();
 
 // One row of `episodes`: the key, the episode's record (its columns from
 // learner::EpisodeFields(), sqlite_records.h), details_json and

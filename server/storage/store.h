@@ -177,7 +177,8 @@ class Store {
   // nullopt if there is none.
   virtual absl::StatusOr<std::optional<CheckpointRecord>> GetCheckpoint(int64_t job_id,
                                                                         int attempt) = 0;
-  // Queued jobs of running sweeps, oldest sweep first then ordinal; at most `limit`.
+  // Queued jobs of running sweeps, oldest sweep first then ordinal; at most
+  // `limit`. A sweep already running max_concurrent jobs contributes none.
   virtual absl::StatusOr<std::vector<ClaimCandidate>> ListClaimCandidates(int limit) = 0;
   // Open attempts whose lease expired before `now_ms`.
   virtual absl::StatusOr<std::vector<LeaseKey>> ListExpiredLeases(int64_t now_ms) = 0;

@@ -284,39 +284,71 @@ TEST_F(StorageTest, CancelSweepCancelsQueuedAndRunningJobs) {
 
 // Issue 28 item 2: the next job is read from an index, not found by a scan.
 // Candidates come sweep by sweep in ordinal order, a paused sweep's queue is
-// skipped, and SQLite's plan for the query reads the jobs table only through
-// jobs_by_state without sorting (before: every queued job read and sorted
-// for each lease, "USE TEMP B-TREE FOR ORDER BY").
+// skipped, and SQLite's plans read the jobs table only through
+// jobs_by_state, without sorting (before: one query read and sorted every
+// queued job for each lease, "USE TEMP B-TREE FOR ORDER BY").
 TEST_F(StorageTest, ClaimCandidatesComeFromTheIndexInOrderWithoutASort) {
   bool created = false;
   TG_ASSERT_OK(store_->CreateSweep(MakeSweep("paused", 3, 1), kNow, &created).status());
   TG_ASSERT_OK(store_->CreateSweep(MakeSweep("second", 4, 1), kNow, &created).status());
+  TG_ASSERT_OK(store_->CreateSweep(MakeSweep("third", 2, 1), kNow, &created).status());
   TG_ASSERT_OK(store_->SetSweepState("paused", SweepState::kPaused, kNow));
   TG_ASSERT_OK_AND_ASSIGN(auto second, store_->ListJobs({"second", {}, 0, 1000}));
+  TG_ASSERT_OK_AND_ASSIGN(auto third, store_->ListJobs({"third", {}, 0, 1000}));
   TG_ASSERT_OK_AND_ASSIGN(auto candidates, store_->ListClaimCandidates(3));
   ASSERT_EQ(candidates.size(), 3u);
   for (size_t i = 0; i < candidates.size(); ++i) {
     EXPECT_EQ(candidates[i].job_id, second[i].id) << i;
   }
+  TG_ASSERT_OK_AND_ASSIGN(candidates, store_->ListClaimCandidates(6));
+  ASSERT_EQ(candidates.size(), 6u);
+  EXPECT_EQ(candidates[3].job_id, second[3].id);
+  EXPECT_EQ(candidates[4].job_id, third[0].id);
+  EXPECT_EQ(candidates[5].job_id, third[1].id);
 
   TG_ASSERT_OK_AND_ASSIGN(internal::Db db, internal::Db::Open(path_, false, 0));
-  TG_ASSERT_OK_AND_ASSIGN(
-      internal::Statement plan,
-      internal::Statement::Prepare(db, absl::StrCat("EXPLAIN QUERY PLAN ",
-                                                    internal::ClaimCandidatesSql())));
-  plan.Bind(1, 8);
-  std::vector<std::string> steps;
-  while (true) {
-    TG_ASSERT_OK_AND_ASSIGN(bool row, plan.Step());
-    if (!row) break;
-    steps.push_back(plan.ColumnText(3));
-  }
-  const std::string all = absl::StrJoin(steps, " | ");
-  EXPECT_EQ(all.find("TEMP B-TREE"), std::string::npos) << all;
-  EXPECT_EQ(all.find("SCAN j"), std::string::npos) << all;
-  EXPECT_NE(all.find("SEARCH j USING INDEX jobs_by_state (state=? AND sweep_id=?)"),
+  const auto plan_of = [&](const char* sql, int parameters) -> std::string {
+    absl::StatusOr<internal::Statement> plan =
+        internal::Statement::Prepare(db, absl::StrCat("EXPLAIN QUERY PLAN ", sql));
+    EXPECT_TRUE(plan.ok()) << plan.status();
+    if (!plan.ok()) return "";
+    for (int p = 1; p <= parameters; ++p) plan->Bind(p, 8);
+    std::vector<std::string> steps;
+    while (true) {
+      absl::StatusOr<bool> row = plan->Step();
+      EXPECT_TRUE(row.ok()) << row.status();
+      if (!row.ok() || !*row) break;
+      steps.push_back(plan->ColumnText(3));
+    }
+    return absl::StrJoin(steps, " | ");
+  };
+  const std::string sweeps = plan_of(internal::ClaimSweepsSql(), 0);
+  EXPECT_EQ(sweeps.find("TEMP B-TREE"), std::string::npos) << sweeps;
+  EXPECT_NE(sweeps.find("USING COVERING INDEX jobs_by_state (state=? AND sweep_id=?)"),
             std::string::npos)
-      << all;
+      << sweeps;
+  const std::string jobs = plan_of(internal::ClaimJobsSql(), 2);
+  EXPECT_EQ(jobs.find("TEMP B-TREE"), std::string::npos) << jobs;
+  EXPECT_NE(jobs.find("SEARCH jobs USING INDEX jobs_by_state (state=? AND sweep_id=?)"),
+            std::string::npos)
+      << jobs;
+}
+
+// A sweep at its max_concurrent offers no candidates: its long queue would
+// otherwise fill the scan and the next sweep's jobs would never be leased.
+TEST_F(StorageTest, ASweepAtItsConcurrencyLimitDoesNotHideTheNextSweep) {
+  bool created = false;
+  NewSweep limited = MakeSweep("limited", 300, 1);
+  limited.max_concurrent = 1;
+  TG_ASSERT_OK(store_->CreateSweep(limited, kNow, &created).status());
+  TG_ASSERT_OK(store_->CreateSweep(MakeSweep("next", 2, 1), kNow, &created).status());
+  TG_ASSERT_OK_AND_ASSIGN(auto first, store_->ListJobs({"limited", {}, 0, 1}));
+  TG_ASSERT_OK(store_->StartAttempt({first[0].id, 1}, MakeWorker("w1"), kNow, kNow + 90'000));
+  TG_ASSERT_OK_AND_ASSIGN(auto next, store_->ListJobs({"next", {}, 0, 1000}));
+  TG_ASSERT_OK_AND_ASSIGN(auto candidates, store_->ListClaimCandidates(256));
+  ASSERT_EQ(candidates.size(), 2u);
+  EXPECT_EQ(candidates[0].job_id, next[0].id);
+  EXPECT_EQ(candidates[1].job_id, next[1].id);
 }
 
 TEST_F(StorageTest, RetryOnlyFailedOrCancelledJobs) {
