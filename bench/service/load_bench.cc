@@ -75,7 +75,7 @@ int main(int argc, char** argv) {
   CLI::App app{"coordinator load benchmark"};
   int workers = 64, jobs = 512, episodes = 16;
   int64_t queued = 0;
-  double max_seconds = 600;
+  double max_seconds = 600, settle_seconds = 0;
   std::string dir = std::filesystem::temp_directory_path().string();
   app.add_option("--workers", workers, "concurrent worker connections")->capture_default_str();
   app.add_option("--jobs", jobs, "jobs in the sweep")->capture_default_str();
@@ -84,6 +84,9 @@ int main(int argc, char** argv) {
   app.add_option("--queued", queued, "jobs in the store (default: --jobs); the workers run --jobs of them")
       ->check(CLI::Range(int64_t{0}, int64_t{10'000'000}));
   app.add_option("--max-seconds", max_seconds, "stop the workers after this long")
+      ->capture_default_str();
+  app.add_option("--settle-seconds", settle_seconds,
+                 "wait this long after submitting and report the resident memory then")
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 
@@ -131,6 +134,8 @@ int main(int argc, char** argv) {
   const double submit_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - submit_start).count();
   const double resident_after_submit_mb = ResidentMb();
+  std::this_thread::sleep_for(std::chrono::duration<double>(settle_seconds));
+  const double resident_after_settle_mb = ResidentMb();
 
   std::atomic<int64_t> reports{0}, errors{0}, leased{0}, completed{0};
   absl::Mutex cpu_mutex;
@@ -235,6 +240,8 @@ int main(int argc, char** argv) {
             << ", \"coordinator_cpu_seconds\": " << coordinator_cpu_seconds
             << ", \"coordinator_cpu_ms_per_job\": " << 1000 * coordinator_cpu_seconds / std::max<int64_t>(jobs_done, 1)
             << ", \"resident_mb_after_submit\": " << resident_after_submit_mb
+            << ", \"settle_seconds\": " << settle_seconds
+            << ", \"resident_mb_after_settle\": " << resident_after_settle_mb
             << ", \"resident_mb_at_end\": " << ResidentMb()
             << ", \"peak_resident_mb\": " << PeakResidentMb()
             << ", \"database_bytes\": " << std::filesystem::file_size(db)

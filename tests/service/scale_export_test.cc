@@ -9,8 +9,11 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <chrono>
 #include <filesystem>
+#include <fstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "absl/strings/str_cat.h"
@@ -205,6 +208,40 @@ TEST_F(ScaleExportTest, FourThousandJobsExportDeleteAndImportBackThroughCoordina
   EXPECT_NE(out.find("4000 already complete here"), std::string::npos) << out;
   EXPECT_TRUE(FilesStartingWith("s4000.deleted.json.partial").empty());
   EXPECT_TRUE(FilesStartingWith("rows.csv.partial").empty());
+}
+
+// Issue 28 item 3: the memory a big request needed goes back to the system
+// within seconds. Submitting 20,000 jobs takes the coordinator's resident
+// memory well above 80 MB (the premise); glibc kept it (480 MB after one
+// submission of 100,000 jobs, never returned) until the coordinator gave
+// freed memory back every 5 s. Resident memory is read from /proc.
+double ResidentMb(pid_t pid, const std::string& field) {
+  std::ifstream status(absl::StrCat("/proc/", pid, "/status"));
+  std::string line;
+  while (std::getline(status, line)) {
+    if (line.rfind(field + ":", 0) == 0) return std::stod(line.substr(field.size() + 1)) / 1024;
+  }
+  return -1;
+}
+
+TEST_F(ScaleExportTest, MemoryOfABigSubmissionIsReturnedWithinTenSeconds) {
+  StartCoordinator();
+  std::string big = kBigSweep;
+  big.replace(big.find("name = \"s4000\""), 14, "name = \"s20k\"");
+  big.replace(big.find("count = 4000"), 12, "count = 20000");
+  WriteFile(dir_ + "/s20k.toml", big);
+  std::string out, err;
+  ASSERT_EQ(Cli({"sweep", "submit", dir_ + "/s20k.toml"}, &out, &err), 0) << out << err;
+  ASSERT_NE(out.find("20000 jobs"), std::string::npos) << out;
+  const pid_t pid = coordinator_->pid();
+  const double peak = ResidentMb(pid, "VmHWM");
+  EXPECT_GT(peak, 80) << "the premise: the submission needed the memory";
+  double resident = ResidentMb(pid, "VmRSS");
+  for (int i = 0; i < 20 && resident >= 80; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+    resident = ResidentMb(pid, "VmRSS");
+  }
+  EXPECT_LT(resident, 80) << "peak " << peak << " MB";
 }
 
 TEST_F(ScaleExportTest, AFailedExportLeavesNoFileUnderItsName) {
