@@ -32,6 +32,8 @@ TEST_PACKAGES=(
   python3-scipy chromium chromium-driver python3-selenium
   # tests/service/pandas_view_test.py: the results recipe of docs/results_schema.md
   python3-pandas
+  # tests/deploy/slurm_cluster_test.sh: the sbatch pool on a real one-node Slurm cluster
+  slurm-wlm munge
 )
 
 case "${1:-}" in

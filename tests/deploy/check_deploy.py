@@ -703,7 +703,10 @@ def check_sbatch(args):
     if "trap drain TERM" not in text:
         problem("SIGTERM is not trapped and passed to the workers")
     # The worker flags the script passes.
-    words = re.findall(r"(--[a-z][a-z0-9-]*)", text[text.index("worker_args=("):])
+    # (The drain function's squeue and scancel flags are Slurm's, not the worker's.)
+    passed = text[text.index("worker_args=("):]
+    passed = re.sub(r"\ndrain\(\) \{.*?\n\}\n", "\n", passed, flags=re.S)
+    words = re.findall(r"(--[a-z][a-z0-9-]*)", passed)
     srun_flags = {"--kill-on-bad-exit", "--ntasks-per-node", "--cpus-per-task"}
     check_flags("sbatch worker_args", [args.worker], [w for w in words if w not in srun_flags])
     for required in ("--walltime", "--trial-time", "--drain-timeout"):

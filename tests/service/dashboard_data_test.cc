@@ -106,19 +106,23 @@ class DashboardStoreTest : public ::testing::Test {
     for (size_t i = 0; i < jobs->size(); ++i) {
       const int64_t id = (*jobs)[i].id;
       ASSERT_TRUE(store_->StartAttempt({id, 1}, testing::MakeWorker("w1"), kNow, kNow + 90'000).ok());
-      storage::AttemptEnd end;
-      end.key = {id, 1};
-      end.worker_id = "w1";
-      end.attempt_state = storage::AttemptState::kCompleted;
-      end.job_state = storage::JobState::kCompleted;
-      end.results.episodes = {testing::MakeEpisode(0), testing::MakeEpisode(1)};
-      end.totals.episodes = 2;
-      end.success = successes[i];
-      end.final_eval_cost = successes[i] ? 5 : 30;
-      end.now_ms = kNow;
-      absl::StatusOr<storage::EndOutcome> ended = store_->EndAttempt(end);
-      ASSERT_TRUE(ended.ok()) << ended.status();
+      CompleteAttempt(id, successes[i], successes[i] ? 5 : 30);
     }
+  }
+  // Ends attempt 1 of job `id` (leased to "w1") completed, with episodes 0 and 1.
+  void CompleteAttempt(int64_t id, bool success, double final_eval_cost) {
+    storage::AttemptEnd end;
+    end.key = {id, 1};
+    end.worker_id = "w1";
+    end.attempt_state = storage::AttemptState::kCompleted;
+    end.job_state = storage::JobState::kCompleted;
+    end.results.episodes = {testing::MakeEpisode(0), testing::MakeEpisode(1)};
+    end.totals.episodes = 2;
+    end.success = success;
+    end.final_eval_cost = final_eval_cost;
+    end.now_ms = kNow;
+    absl::StatusOr<storage::EndOutcome> ended = store_->EndAttempt(end);
+    ASSERT_TRUE(ended.ok()) << ended.status();
   }
 
   std::string dir_;
@@ -181,16 +185,7 @@ TEST_F(DashboardStoreTest, FinalTrajectoriesDecodeEachCompletedCheckpointOnce) {
                                      learner::EncodeCheckpoint(observer.last)},
                                     kNow)
                   .ok());
-  storage::AttemptEnd end;
-  end.key = {id, 1};
-  end.worker_id = "w1";
-  end.attempt_state = storage::AttemptState::kCompleted;
-  end.job_state = storage::JobState::kCompleted;
-  end.results.episodes = {testing::MakeEpisode(0), testing::MakeEpisode(1)};
-  end.totals.episodes = 2;
-  end.final_eval_cost = 5;
-  end.now_ms = kNow;
-  ASSERT_TRUE(store_->EndAttempt(end).ok());
+  CompleteAttempt(id, false, 5);
 
   DashboardData data(store_.get(), {});
   absl::StatusOr<nlohmann::json> first = data.FinalTrajectories("s");
