@@ -160,6 +160,7 @@ class DashboardData {
   absl::Mutex cache_mutex_;
   std::map<int64_t, CachedEstimate> eta_cache_ ABSL_GUARDED_BY(cache_mutex_);  // by sweep id
   static constexpr std::chrono::seconds kFinalTrajectoryCacheLife{60};
+  static constexpr size_t kFinalTrajectoryCacheEntries = 20000;  // then expired ones go
   struct CachedFinalTrajectory {
     std::chrono::steady_clock::time_point computed;
     std::optional<nlohmann::json> summary;

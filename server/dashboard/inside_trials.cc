@@ -101,6 +101,13 @@ absl::StatusOr<std::optional<json>> DashboardData::FinalTrajectorySummary(
     }
   }
   absl::MutexLock lock(&cache_mutex_);
+  // Entries of deleted sweeps or pruned checkpoints are never asked for
+  // again: drop the expired ones whenever the cache has grown large.
+  if (final_trajectory_cache_.size() >= kFinalTrajectoryCacheEntries) {
+    std::erase_if(final_trajectory_cache_, [&](const auto& entry) {
+      return now - entry.second.computed >= kFinalTrajectoryCacheLife;
+    });
+  }
   final_trajectory_cache_[key] = {now, summary};
   return summary;
 }

@@ -213,6 +213,20 @@ def cli_checks(args, work, connection, base):
               "the plot has a panel per variant, each with the threshold line")
 
 
+def attribute_of(find, css, name):
+    """Attribute `name` of the element at `css`, found again if the page
+    redrew it between finding and reading (the playing animation redraws the
+    scene every frame: StaleElementReferenceException); None if absent."""
+    from selenium.common.exceptions import StaleElementReferenceException
+    for _ in range(50):
+        try:
+            element = find(css)
+            return element.get_attribute(name) if element is not None else None
+        except StaleElementReferenceException:
+            time.sleep(0.02)
+    return None
+
+
 def trajectory_checks(driver, find):
     """Issue 27: the job page draws the last episode's real trajectory against
     the model's prediction with its band, animates the scene (the drawn frame
@@ -226,11 +240,14 @@ def trajectory_checks(driver, find):
           "each state's plot has the real trajectory, the predicted mean and its +-2 std band")
     scene = find("#scene")
     if check(scene is not None and scene.get_attribute("data-frame") == "0", "the scene is drawn at t = 0"):
-        first = find("#scene line.link").get_attribute("x2")
+        first = attribute_of(find, "#scene line.link", "x2")
         find("#scene-play").click()
-        frames = wait_for(lambda: (find("#scene") and int(find("#scene").get_attribute("data-frame")) >= 3
-                                   and find("#scene").get_attribute("data-frame")), 10)
-        later = find("#scene line.link").get_attribute("x2") if frames else first
+
+        def frame_at_least_3():
+            frame = attribute_of(find, "#scene", "data-frame")
+            return frame if frame is not None and int(frame) >= 3 else None
+        frames = wait_for(frame_at_least_3, 10)
+        later = attribute_of(find, "#scene line.link", "x2") if frames else first
         check(frames and later != first, f"play animates the scene: frame {frames}, pole tip x {first} -> {later}")
     statistics = driver.find_elements(By.CSS_SELECTOR, "#statistics svg.statistic-plot")
     keys = [p.get_attribute("data-statistic") for p in statistics]
