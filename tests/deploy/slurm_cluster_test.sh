@@ -38,12 +38,8 @@ if [ "$(id -u)" -ne 0 ]; then
   exit 77
 fi
 
-fail() { echo "FAIL: $*"; exit 1; }
-start_ns=$(date +%s%N)
-log() {
-  local ms=$(( ($(date +%s%N) - start_ns) / 1000000 ))
-  printf '[%3d.%d s] %s\n' $(( ms / 1000 )) $(( ms % 1000 / 100 )) "$*"
-}
+# shellcheck source=tests/deploy/test_helpers.sh
+source "$(dirname "${BASH_SOURCE[0]}")/test_helpers.sh"
 
 work=$(mktemp -d /tmp/totalgrad-slurm-cluster.XXXXXX)
 chmod 0755 "$work"
@@ -57,26 +53,13 @@ cleanup() {
   for pid in "${pids[@]}"; do kill -KILL "$pid" 2>/dev/null || true; done
   for pid in "${pids[@]}"; do wait "$pid" 2>/dev/null || true; done
   if [ "$status" -ne 0 ]; then
-    for file in "$work"/*.log "$work"/*.out "$work"/log/*; do
-      [ -f "$file" ] || continue
-      echo "---- $file (last 40 lines)"
-      tail -n 40 "$file"
-    done
+    show_logs "$work" "$work/log"
   fi
   rm -rf "$work"
   exit "$status"
 }
 trap cleanup EXIT
 
-wait_for() {  # wait_for SECONDS DESCRIPTION COMMAND...
-  local limit=$1 what=$2 deadline
-  shift 2
-  deadline=$(( $(date +%s) + limit ))
-  until "$@"; do
-    [ "$(date +%s)" -lt "$deadline" ] || fail "timed out after $limit s waiting for: $what"
-    sleep 0.3
-  done
-}
 
 free_ports() {  # free_ports N: N loopback ports nothing listens on now
   python3 - "$1" <<'EOF'
@@ -137,16 +120,7 @@ wait_for 60 "the Slurm node to be idle" node_idle
 log "Slurm $(sinfo --version | awk '{print $2}'): one node ($node, $(nproc) CPUs), munge on a private socket"
 
 # ---- coordinator ---------------------------------------------------------------------------
-bash "$source_dir/deploy/make-dev-certs.sh" "$work/certs" >/dev/null
-"$coordinator_bin" --db "$work/coordinator.db" --listen 127.0.0.1:0 \
-  --tls-cert "$work/certs/server.pem" --tls-key "$work/certs/server.key" \
-  --worker-token-file "$work/certs/worker.token" --user-token-file "$work/certs/user.token" \
-  --heartbeat-interval 0.2 --lease-timeout 5 --port-file "$work/port" >"$work/coordinator.log" 2>&1 &
-pids+=("$!")
-wait_for 30 "the coordinator to listen" test -s "$work/port"
-coordinator_port=$(cat "$work/port")
-export TOTALGRAD_COORDINATOR="127.0.0.1:$coordinator_port"
-export TOTALGRAD_CA_CERT="$work/certs/ca.pem"
+start_tls_coordinator "$coordinator_bin" "$source_dir" "$work"
 export TOTALGRAD_WORKER_TOKEN_FILE="$work/certs/worker.token"
 export TOTALGRAD_WORKER_BIN="$worker_bin"
 cli() { TOTALGRAD_TOKEN_FILE="$work/certs/user.token" "$cli_bin" "$@"; }

@@ -23,12 +23,8 @@ fi
 coordinator_bin=$1 worker_bin=$2 cli_bin=$3 source_dir=$4
 sbatch_script="$source_dir/deploy/slurm/totalgrad-workers.sbatch"
 
-fail() { echo "FAIL: $*"; exit 1; }
-start_ns=$(date +%s%N)
-log() {
-  local ms=$(( ($(date +%s%N) - start_ns) / 1000000 ))
-  printf '[%3d.%d s] %s\n' $(( ms / 1000 )) $(( ms % 1000 / 100 )) "$*"
-}
+# shellcheck source=tests/deploy/test_helpers.sh
+source "$(dirname "${BASH_SOURCE[0]}")/test_helpers.sh"
 
 work=$(mktemp -d /tmp/totalgrad-slurm.XXXXXX)
 pids=()
@@ -38,29 +34,13 @@ cleanup() {
   for pid in "${pids[@]}"; do kill -KILL "$pid" 2>/dev/null || true; done
   for pid in "${pids[@]}"; do wait "$pid" 2>/dev/null || true; done
   if [ "$status" -ne 0 ]; then
-    for file in "$work"/*.log "$work"/*.out; do
-      [ -f "$file" ] || continue
-      echo "---- $file (last 40 lines)"
-      tail -n 40 "$file"
-    done
+    show_logs "$work"
   fi
   rm -rf "$work"
   exit "$status"
 }
 trap cleanup EXIT
 
-wait_for() {  # wait_for SECONDS DESCRIPTION COMMAND...
-  local limit=$1 what=$2 deadline
-  shift 2
-  deadline=$(( $(date +%s) + limit ))
-  until "$@"; do
-    [ "$(date +%s)" -lt "$deadline" ] || fail "timed out after $limit s waiting for: $what"
-    sleep 0.2
-  done
-}
-exited() {  # gone, or a zombie waiting to be reaped
-  [ ! -e "/proc/$1/stat" ] || [ "$(sed -E 's/.*\) ([A-Za-z]).*/\1/' "/proc/$1/stat" 2>/dev/null)" = Z ]
-}
 
 # ---- the duration parser ---------------------------------------------------------------
 # shellcheck source=/dev/null
@@ -76,15 +56,7 @@ exited() {  # gone, or a zombie waiting to be reaped
 log "duration parser: 12 Slurm time formats"
 
 # ---- coordinator ---------------------------------------------------------------------------
-bash "$source_dir/deploy/make-dev-certs.sh" "$work/certs" >/dev/null
-"$coordinator_bin" --db "$work/coordinator.db" --listen 127.0.0.1:0 \
-  --tls-cert "$work/certs/server.pem" --tls-key "$work/certs/server.key" \
-  --worker-token-file "$work/certs/worker.token" --user-token-file "$work/certs/user.token" \
-  --heartbeat-interval 0.2 --lease-timeout 5 --port-file "$work/port" >"$work/coordinator.log" 2>&1 &
-pids+=("$!")
-wait_for 30 "the coordinator to listen" test -s "$work/port"
-port=$(cat "$work/port")
-export TOTALGRAD_COORDINATOR="127.0.0.1:$port" TOTALGRAD_CA_CERT="$work/certs/ca.pem"
+start_tls_coordinator "$coordinator_bin" "$source_dir" "$work"
 cli() { TOTALGRAD_TOKEN_FILE="$work/certs/user.token" "$cli_bin" "$@"; }
 
 cat >"$work/pool.toml" <<'EOF'
