@@ -151,9 +151,6 @@ absl::StatusOr<std::optional<Lease>> Scheduler::TryAcquireLocked(const WorkerIde
   ASSIGN_OR_RETURN(std::vector<storage::ClaimCandidate> candidates,
                    store_->ListClaimCandidates(options_.claim_scan_limit));
   for (const storage::ClaimCandidate& candidate : candidates) {
-    if (candidate.max_concurrent > 0 && candidate.sweep_running >= candidate.max_concurrent) {
-      continue;
-    }
     // A worker that did not say it runs studies (an older build) gets trials only.
     if (candidate.kind == storage::JobKind::kStudy && !worker.study_jobs) continue;
     const LeaseKey key{candidate.job_id, candidate.attempts + 1};

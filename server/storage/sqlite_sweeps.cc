@@ -461,8 +461,6 @@ absl::StatusOr<std::vector<ClaimCandidate>> SqliteStore::ListClaimCandidates(int
       c.attempts = static_cast<int>(jobs.ColumnInt(1));
       c.kind = ParseJobKind(jobs.ColumnText(2)).value_or(JobKind::kTrial);
       c.sweep_id = sweep.id;
-      c.max_concurrent = sweep.max_concurrent;
-      c.sweep_running = sweep.running;
       candidates.push_back(c);
     }
   }

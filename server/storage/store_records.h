@@ -333,15 +333,13 @@ struct EpisodeRowRecord {
   bool final_attempt = false;
 };
 
-// A queued job that could be leased now, with what the scheduler needs to
-// decide (the sweep's concurrency limit and how many of its jobs run).
+// A queued job that could be leased now (its sweep is below its concurrency
+// limit: Store::ListClaimCandidates leaves out sweeps at theirs).
 struct ClaimCandidate {
   int64_t job_id = 0;
   JobKind kind = JobKind::kTrial;
   int attempts = 0;
   int64_t sweep_id = 0;
-  int max_concurrent = 0;
-  int sweep_running = 0;
 };
 
 struct JobFilter {
