@@ -23,7 +23,6 @@
 #include <atomic>
 #include <chrono>
 #include <filesystem>
-#include <fstream>
 #include <iostream>
 #include <set>
 #include <thread>
@@ -31,6 +30,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/synchronization/mutex.h"
 #include "server/service/coordinator.h"
+#include "tests/testutil/proc_memory.h"
 #include "totalgrad/v1/control_service.grpc.pb.h"
 #include "totalgrad/v1/worker_service.grpc.pb.h"
 
@@ -51,10 +51,7 @@ double ProcessCpuSeconds() {
 
 // Resident set of this process now, and its peak (MB).
 double ResidentMb() {
-  std::ifstream statm("/proc/self/statm");
-  long pages_total = 0, pages_resident = 0;
-  statm >> pages_total >> pages_resident;
-  return pages_resident * (sysconf(_SC_PAGESIZE) / 1048576.0);
+  return totalgrad::testing::ProcStatusMb(totalgrad::testing::kThisProcess, "VmRSS");
 }
 
 double PeakResidentMb() {

@@ -11,7 +11,6 @@
 #include <algorithm>
 #include <chrono>
 #include <filesystem>
-#include <fstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -21,6 +20,7 @@
 #include "server/service/sweep_archive.h"
 #include "tests/service/e2e_util.h"
 #include "tests/service/service_testutil.h"
+#include "tests/testutil/proc_memory.h"
 
 namespace totalgrad::testing {
 namespace scale_export_test {
@@ -214,16 +214,8 @@ TEST_F(ScaleExportTest, FourThousandJobsExportDeleteAndImportBackThroughCoordina
 // within seconds. Submitting 20,000 jobs takes the coordinator's resident
 // memory well above 80 MB (the premise); glibc kept it (480 MB after one
 // submission of 100,000 jobs, never returned) until the coordinator gave
-// freed memory back every 5 s. Resident memory is read from /proc.
-double ResidentMb(pid_t pid, const std::string& field) {
-  std::ifstream status(absl::StrCat("/proc/", pid, "/status"));
-  std::string line;
-  while (std::getline(status, line)) {
-    if (line.rfind(field + ":", 0) == 0) return std::stod(line.substr(field.size() + 1)) / 1024;
-  }
-  return -1;
-}
-
+// freed memory back every 5 s. Resident memory is read from /proc
+// (ProcStatusMb).
 TEST_F(ScaleExportTest, MemoryOfABigSubmissionIsReturnedWithinTenSeconds) {
   StartCoordinator();
   std::string big = kBigSweep;
@@ -234,12 +226,12 @@ TEST_F(ScaleExportTest, MemoryOfABigSubmissionIsReturnedWithinTenSeconds) {
   ASSERT_EQ(Cli({"sweep", "submit", dir_ + "/s20k.toml"}, &out, &err), 0) << out << err;
   ASSERT_NE(out.find("20000 jobs"), std::string::npos) << out;
   const pid_t pid = coordinator_->pid();
-  const double peak = ResidentMb(pid, "VmHWM");
+  const double peak = ProcStatusMb(pid, "VmHWM");
   EXPECT_GT(peak, 80) << "the premise: the submission needed the memory";
-  double resident = ResidentMb(pid, "VmRSS");
+  double resident = ProcStatusMb(pid, "VmRSS");
   for (int i = 0; i < 20 && resident >= 80; ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(500));
-    resident = ResidentMb(pid, "VmRSS");
+    resident = ProcStatusMb(pid, "VmRSS");
   }
   EXPECT_LT(resident, 80) << "peak " << peak << " MB";
 }
