@@ -28,13 +28,10 @@ fi
 coordinator_bin=$1 worker_bin=$2 cli_bin=$3 source_dir=$4
 here=$(cd "$(dirname "$0")" && pwd)
 
+# fail, log, wait_for, exited.
+# shellcheck source=tests/deploy/test_helpers.sh
+source "$here/test_helpers.sh"
 skip() { echo "SKIP: $*"; exit 77; }
-fail() { echo "FAIL: $*"; exit 1; }
-start_ns=$(date +%s%N)
-log() {
-  local ms=$(( ($(date +%s%N) - start_ns) / 1000000 ))
-  printf '[%3d.%d s] %s\n' $(( ms / 1000 )) $(( ms % 1000 / 100 )) "$*"
-}
 
 [ "$(id -u)" -eq 0 ] || skip "the multi-host test needs root to create network namespaces (ip netns); it runs in CI, which is root"
 command -v ip >/dev/null || skip "ip (iproute2) is not installed"
@@ -130,15 +127,6 @@ ip netns exec "$ns_coord" "$coordinator_bin" --db "$work/coordinator.db" \
 coordinator_pid=$!
 pids+=("$coordinator_pid")
 
-wait_for() {  # wait_for SECONDS DESCRIPTION COMMAND...: polls every 0.2 s
-  local limit=$1 what=$2 deadline
-  shift 2
-  deadline=$(( $(date +%s) + limit ))
-  until "$@"; do
-    [ "$(date +%s)" -lt "$deadline" ] || fail "timed out after $limit s waiting for: $what"
-    sleep 0.2
-  done
-}
 wait_for 30 "the coordinator to listen" test -s "$work/port"
 
 # The CLI runs on the coordinator's host, over TLS with the user token.
@@ -237,9 +225,6 @@ cat "$work/jobs.txt"
 
 # ---- stop everything the way the deployments do (SIGTERM) ----------------------------------
 kill -TERM "$w1_pid" "$w2_pid"
-exited() {  # exited PID: gone, or a zombie waiting to be reaped
-  [ ! -e "/proc/$1/stat" ] || [ "$(sed -E 's/.*\) ([A-Za-z]).*/\1/' "/proc/$1/stat" 2>/dev/null)" = Z ]
-}
 wait_exit() {  # wait_exit PID NAME: bounded wait, then the exit status must be 0
   local pid=$1 name=$2 status=0
   wait_for 30 "$name to exit after SIGTERM" exited "$pid"
