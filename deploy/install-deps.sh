@@ -32,6 +32,10 @@ TEST_PACKAGES=(
   python3-scipy chromium chromium-driver python3-selenium
   # tests/service/pandas_view_test.py: the results recipe of docs/results_schema.md
   python3-pandas
+  # python/ (`import totalgrad`) and its tests: pybind11, pytest, and the
+  # notebook executed by the suite (docs/python-tour.ipynb)
+  pybind11-dev python3-dev python3-numpy python3-pytest python3-nbclient python3-nbformat
+  python3-ipykernel python3-matplotlib
   # tests/deploy/slurm_cluster_test.sh: the sbatch pool on a real one-node Slurm cluster
   slurm-wlm munge
 )

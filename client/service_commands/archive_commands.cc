@@ -28,12 +28,6 @@ namespace {
 
 constexpr size_t kImportChunkBytes = 1 << 20;
 
-// The seed as a JSON number when it is one (seeds are integers below 2^53).
-nlohmann::json SeedJson(const std::string& seed) {
-  int64_t value;
-  return absl::SimpleAtoi(seed, &value) ? nlohmann::json(value) : nlohmann::json(seed);
-}
-
 // One row per episode: the row's coordinates, the episode's record (its CSV
 // columns or JSON keys, io/record_format.h over learner::EpisodeFields()),
 // when it was reported, and the details.
@@ -49,28 +43,21 @@ int ExportRows(Connection* c, const std::string& sweep, bool all_attempts, bool 
     out << io::CsvLine(columns) << "\n";
   }
   const grpc::Status status = ForEachEpisodeRow(c, sweep, all_attempts, [&](const v1::EpisodeRow& r) {
-    const auto& e = r.report();
     ++*rows;
-    learner::EpisodeSummary episode;
-    record_proto::RecordFromProto(table, e, &episode);
-    if (csv) {
-      std::vector<std::string> cells = {std::to_string(r.job_id()), std::to_string(r.attempt()),
-                                        r.final_attempt() ? "1" : "0", r.method(), r.seed(),
-                                        r.variant()};
-      for (std::string& cell : io::RecordCsvCells(table, episode)) cells.push_back(std::move(cell));
-      cells.push_back(std::to_string(r.reported_unix_ms()));
-      cells.push_back(e.details_json());
-      out << io::CsvLine(cells) << "\n";
+    if (!csv) {
+      out << EpisodeRowJson(r).dump() << "\n";
       return;
     }
-    nlohmann::json object = {{"job_id", r.job_id()}, {"attempt", r.attempt()},
-                             {"final_attempt", r.final_attempt()}, {"method", r.method()},
-                             {"seed", SeedJson(r.seed())}, {"variant", r.variant()}};
-    io::AppendRecordJson(table, episode, &object);
-    object["reported_unix_ms"] = r.reported_unix_ms();
-    object["details"] = nlohmann::json::parse(e.details_json(), nullptr, false);
-    if (object["details"].is_discarded()) object["details"] = e.details_json();
-    out << object.dump() << "\n";
+    const auto& e = r.report();
+    learner::EpisodeSummary episode;
+    record_proto::RecordFromProto(table, e, &episode);
+    std::vector<std::string> cells = {std::to_string(r.job_id()), std::to_string(r.attempt()),
+                                      r.final_attempt() ? "1" : "0", r.method(), r.seed(),
+                                      r.variant()};
+    for (std::string& cell : io::RecordCsvCells(table, episode)) cells.push_back(std::move(cell));
+    cells.push_back(std::to_string(r.reported_unix_ms()));
+    cells.push_back(e.details_json());
+    out << io::CsvLine(cells) << "\n";
   });
   if (!status.ok()) return ReportError(status, "results export " + sweep);
   return 0;
@@ -87,6 +74,40 @@ std::string DefaultDeleteArchivePath(const std::string& sweep) {
 }
 
 }  // namespace
+
+grpc::Status ImportArchive(Connection* c, const std::string& archive,
+                           v1::ImportSweepResponse* response) {
+  std::ifstream in(archive, std::ios::binary);
+  if (!in) return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "cannot read " + archive);
+  grpc::ClientContext context;
+  rpc::PrepareContext(&context, c->token(), absl::Minutes(30), /*wait_for_ready=*/false);
+  auto writer = c->control()->ImportSweep(&context, response);
+  std::string buffer(kImportChunkBytes, '\0');
+  bool first = true;
+  while (in) {
+    in.read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+    const std::streamsize got = in.gcount();
+    if (got <= 0) break;
+    v1::ImportSweepChunk chunk;
+    chunk.set_data(buffer.data(), static_cast<size_t>(got));
+    if (first) chunk.set_source_name(archive);
+    first = false;
+    if (!writer->Write(chunk)) break;  // the coordinator ended the call: Finish says why
+  }
+  writer->WritesDone();
+  return writer->Finish();
+}
+
+std::string ImportSummary(const v1::ImportSweepResponse& response) {
+  return absl::StrCat(
+      response.sweep_created() ? "created" : "into existing", " sweep ", response.sweep().name(),
+      ": ", response.jobs_imported(), " jobs taken over (", response.episodes_imported(),
+      " episodes, ", response.study_rows_imported(), " study rows, ",
+      response.checkpoints_imported(), " checkpoints); ", response.jobs_already_complete(),
+      " already complete here, ", response.jobs_not_completed(), " not completed in the archive, ",
+      response.jobs_running_here(), " running here, ", response.jobs_unknown(),
+      " not in this sweep");
+}
 
 void AddSweepDeleteCommand(CLI::App* sweep_cmd, int* exit_code) {
   auto name = std::make_shared<std::string>();
@@ -206,45 +227,18 @@ void AddArchiveCommands(CLI::App* results, int* exit_code) {
       results, "import",
       "take over the completed jobs of a sweep archive (`results export SWEEP -f json` of another "
       "coordinator): creates the sweep if this coordinator has none of that name; jobs completed "
-      "here are kept; then resubmit the sweep file and only the missing jobs run",
+      "here are kept; then resubmit the sweep file and only the missing jobs run. With --db "
+      "DB it imports into that database file instead (created when missing; refused while a "
+      "coordinator holds it), e.g. to read an archive with `results ... --db DB`",
       exit_code,
       [archive](Connection* c) {
-        std::ifstream in(*archive, std::ios::binary);
-        if (!in) {
-          std::cerr << "error: results import: cannot read " << *archive << "\n";
-          return 2;
-        }
-        grpc::ClientContext context;
-        rpc::PrepareContext(&context, c->token(), absl::Minutes(30), /*wait_for_ready=*/false);
         v1::ImportSweepResponse response;
-        auto writer = c->control()->ImportSweep(&context, &response);
-        std::string buffer(kImportChunkBytes, '\0');
-        bool first = true;
-        while (in) {
-          in.read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
-          const std::streamsize got = in.gcount();
-          if (got <= 0) break;
-          v1::ImportSweepChunk chunk;
-          chunk.set_data(buffer.data(), static_cast<size_t>(got));
-          if (first) chunk.set_source_name(*archive);
-          first = false;
-          if (!writer->Write(chunk)) break;  // the coordinator ended the call: Finish says why
-        }
-        writer->WritesDone();
-        const grpc::Status status = writer->Finish();
+        const grpc::Status status = ImportArchive(c, *archive, &response);
         if (!status.ok()) return ReportError(status, "results import " + *archive);
-        std::cout << (response.sweep_created() ? "created" : "into existing") << " sweep "
-                  << response.sweep().name() << ": " << response.jobs_imported()
-                  << " jobs taken over (" << response.episodes_imported() << " episodes, "
-                  << response.study_rows_imported() << " study rows, "
-                  << response.checkpoints_imported() << " checkpoints); "
-                  << response.jobs_already_complete() << " already complete here, "
-                  << response.jobs_not_completed() << " not completed in the archive, "
-                  << response.jobs_running_here() << " running here, " << response.jobs_unknown()
-                  << " not in this sweep\n";
+        std::cout << ImportSummary(response) << "\n";
         return 0;
       },
-      /*with_format=*/false);
+      /*with_format=*/false, /*offline=*/nullptr, /*db_writable=*/true);
   import_cmd->add_option("FILE", *archive, "archive written by results export -f json")
       ->required();
 }

@@ -38,6 +38,43 @@ std::string Number(double value, Format format, int decimals) {
 
 }  // namespace
 
+Listing ComparisonListing(const ComparisonReport& report, double alpha) {
+  Listing listing;
+  listing.columns = {"variant", "method", "vs", "pairs", "both_succeeded", "method_only",
+                     "vs_only", "neither", "success_difference", "mcnemar_p",
+                     "mcnemar_p_holm", "mcnemar_power", "cost_pairs", "cost_shift_hl",
+                     "rank_biserial", "wilcoxon_w_plus", "wilcoxon_exact", "wilcoxon_p",
+                     "wilcoxon_p_holm", "wilcoxon_power", "method_trials",
+                     "method_successes", "vs_trials", "vs_successes", "rate_difference",
+                     "odds_ratio", "fisher_p", "fisher_p_holm", "fisher_power", "alpha",
+                     "success_verdict", "cost_verdict"};
+  for (const std::string& column : listing.columns) {
+    if (column != "variant" && column != "method" && column != "vs" &&
+        column != "success_verdict" && column != "cost_verdict") {
+      listing.numeric_columns.push_back(column);
+    }
+  }
+  for (const Comparison& c : report.comparisons) {
+    listing.rows.push_back(
+        {c.variant, c.method, c.other, std::to_string(c.pairs),
+         std::to_string(c.both_succeeded), std::to_string(c.method_only),
+         std::to_string(c.other_only), std::to_string(c.neither),
+         FormatNumber(c.success_difference), FormatNumber(c.mcnemar_p),
+         FormatNumber(c.mcnemar_p_holm), FormatNumber(c.mcnemar_power),
+         std::to_string(c.cost_pairs), FormatNumber(c.wilcoxon.hodges_lehmann),
+         FormatNumber(c.wilcoxon.rank_biserial), FormatNumber(c.wilcoxon.w_plus),
+         c.wilcoxon.exact ? "1" : "0", FormatNumber(c.wilcoxon.p),
+         FormatNumber(c.wilcoxon_p_holm), FormatNumber(c.wilcoxon_power),
+         std::to_string(c.method_trials), std::to_string(c.method_successes),
+         std::to_string(c.other_trials), std::to_string(c.other_successes),
+         FormatNumber(c.rate_difference), FormatNumber(c.odds_ratio),
+         FormatNumber(c.fisher_p), FormatNumber(c.fisher_p_holm),
+         FormatNumber(c.fisher_power), FormatNumber(alpha),
+         results::SuccessVerdict(c, alpha), results::CostVerdict(c, alpha)});
+  }
+  return listing;
+}
+
 int PrintComparison(Connection* connection, const std::string& sweep_name,
                     const ComparisonOptions& options, Format format) {
   RpcResultsReader reader(connection);
@@ -48,40 +85,7 @@ int PrintComparison(Connection* connection, const std::string& sweep_name,
   if (!report.ok()) return ReportError(report.status(), "results compare " + sweep_name);
 
   if (format != Format::kTable) {
-    Listing listing;
-    listing.columns = {"variant", "method", "vs", "pairs", "both_succeeded", "method_only",
-                       "vs_only", "neither", "success_difference", "mcnemar_p",
-                       "mcnemar_p_holm", "mcnemar_power", "cost_pairs", "cost_shift_hl",
-                       "rank_biserial", "wilcoxon_w_plus", "wilcoxon_exact", "wilcoxon_p",
-                       "wilcoxon_p_holm", "wilcoxon_power", "method_trials",
-                       "method_successes", "vs_trials", "vs_successes", "rate_difference",
-                       "odds_ratio", "fisher_p", "fisher_p_holm", "fisher_power", "alpha",
-                       "success_verdict", "cost_verdict"};
-    for (const std::string& column : listing.columns) {
-      if (column != "variant" && column != "method" && column != "vs" &&
-          column != "success_verdict" && column != "cost_verdict") {
-        listing.numeric_columns.push_back(column);
-      }
-    }
-    for (const Comparison& c : report->comparisons) {
-      listing.rows.push_back(
-          {c.variant, c.method, c.other, std::to_string(c.pairs),
-           std::to_string(c.both_succeeded), std::to_string(c.method_only),
-           std::to_string(c.other_only), std::to_string(c.neither),
-           FormatNumber(c.success_difference), FormatNumber(c.mcnemar_p),
-           FormatNumber(c.mcnemar_p_holm), FormatNumber(c.mcnemar_power),
-           std::to_string(c.cost_pairs), FormatNumber(c.wilcoxon.hodges_lehmann),
-           FormatNumber(c.wilcoxon.rank_biserial), FormatNumber(c.wilcoxon.w_plus),
-           c.wilcoxon.exact ? "1" : "0", FormatNumber(c.wilcoxon.p),
-           FormatNumber(c.wilcoxon_p_holm), FormatNumber(c.wilcoxon_power),
-           std::to_string(c.method_trials), std::to_string(c.method_successes),
-           std::to_string(c.other_trials), std::to_string(c.other_successes),
-           FormatNumber(c.rate_difference), FormatNumber(c.odds_ratio),
-           FormatNumber(c.fisher_p), FormatNumber(c.fisher_p_holm),
-           FormatNumber(c.fisher_power), FormatNumber(options.alpha),
-           results::SuccessVerdict(c, options.alpha), results::CostVerdict(c, options.alpha)});
-    }
-    Print(listing, format, std::cout);
+    Print(ComparisonListing(*report, options.alpha), format, std::cout);
     return 0;
   }
 

@@ -63,11 +63,23 @@ const char* CodeName(grpc::StatusCode code) {
 
 }  // namespace
 
+ServiceFlags ServiceFlagsFromEnvironment() {
+  ServiceFlags flags;
+  flags.coordinator = Env("TOTALGRAD_COORDINATOR", "127.0.0.1:7070");
+  flags.token_file = Env("TOTALGRAD_TOKEN_FILE", "");
+  flags.ca_cert = Env("TOTALGRAD_CA_CERT", "");
+  flags.insecure = Env("TOTALGRAD_INSECURE", "") == "1";
+  flags.db = Env("TOTALGRAD_DB", "");
+  return flags;
+}
+
 void AddConnectionFlags(CLI::App* command, ServiceFlags* flags, bool with_format) {
-  flags->coordinator = Env("TOTALGRAD_COORDINATOR", "127.0.0.1:7070");
-  flags->token_file = Env("TOTALGRAD_TOKEN_FILE", "");
-  flags->ca_cert = Env("TOTALGRAD_CA_CERT", "");
-  flags->insecure = Env("TOTALGRAD_INSECURE", "") == "1";
+  const ServiceFlags environment = ServiceFlagsFromEnvironment();
+  flags->coordinator = environment.coordinator;
+  flags->token_file = environment.token_file;
+  flags->ca_cert = environment.ca_cert;
+  flags->insecure = environment.insecure;
+  flags->db = environment.db;
   command->add_option("--coordinator", flags->coordinator,
                       "coordinator host:port [env TOTALGRAD_COORDINATOR]")
       ->capture_default_str();
@@ -86,7 +98,6 @@ void AddConnectionFlags(CLI::App* command, ServiceFlags* flags, bool with_format
   command->add_option("--connect-timeout", flags->connect_timeout_seconds,
                       "seconds to wait for the coordinator to answer before giving up")
       ->capture_default_str();
-  flags->db = Env("TOTALGRAD_DB", "");
   command->add_option("--db", flags->db,
                       "read this coordinator database file directly instead of asking a "
                       "coordinator (read-only; safe while a coordinator writes it) [env TOTALGRAD_DB]");
@@ -108,7 +119,7 @@ absl::StatusOr<Connection> Connection::Open(const ServiceFlags& flags) {
   connection.policy_.wait_for_ready = false;
   connection.policy_.retry_coordinator_answers = false;  // a refusal is reported at once
   if (!flags.db.empty()) {
-    absl::StatusOr<std::shared_ptr<LocalCoordinator>> local = LocalCoordinator::Open(flags.db);
+    absl::StatusOr<std::shared_ptr<LocalCoordinator>> local = LocalCoordinator::Open(flags.db, flags.db_writable);
     if (!local.ok()) return local.status();
     connection.local_ = *std::move(local);
     connection.stub_ = v1::ControlService::NewStub(connection.local_->channel());
@@ -155,10 +166,14 @@ absl::StatusOr<Connection> Connection::Open(const ServiceFlags& flags) {
 CLI::App* AddCommand(
     CLI::App* parent, const std::string& name, const std::string& help, int* exit_code,
     std::function<int(Connection*)> body, bool with_format,
-    std::function<std::optional<int>(const absl::Status& unreachable)> offline) {
+    std::function<std::optional<int>(const absl::Status& unreachable)> offline,
+    bool db_writable) {
   CLI::App* command = parent->add_subcommand(name, help);
   auto flags = std::make_shared<ServiceFlags>();
   AddConnectionFlags(command, flags.get(), with_format);
+  // Writing takes an explicit --db: TOTALGRAD_DB names a file to read.
+  if (db_writable) flags->db.clear();
+  flags->db_writable = db_writable;
   command->callback([flags, exit_code, body = std::move(body), offline = std::move(offline), name] {
     absl::StatusOr<Connection> connection = Connection::Open(*flags);
     const absl::StatusCode code = connection.status().code();

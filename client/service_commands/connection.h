@@ -26,6 +26,9 @@ struct ServiceFlags {
   // A coordinator database to read directly instead of a coordinator
   // (local_store.h): reads work, writes are refused.
   std::string db;
+  // Open `db` for writing (created when missing, locked as a coordinator
+  // locks it): `results import --db` only; every other command reads.
+  bool db_writable = false;
   std::string coordinator;
   std::string token_file;
   std::string ca_cert;
@@ -39,6 +42,10 @@ struct ServiceFlags {
   // with a hint (no coordinator there, or TLS against plaintext).
   double connect_timeout_seconds = 5;
 };
+
+// The defaults above read from the environment (the CLI's flags and the
+// Python module's connections start from them).
+ServiceFlags ServiceFlagsFromEnvironment();
 
 // Adds the connection flags (and -f/--format when `with_format`) to `command`.
 void AddConnectionFlags(CLI::App* command, ServiceFlags* flags, bool with_format = true);
@@ -86,10 +93,17 @@ class Connection {
 CLI::App* AddCommand(
     CLI::App* parent, const std::string& name, const std::string& help, int* exit_code,
     std::function<int(Connection*)> body, bool with_format = true,
-    std::function<std::optional<int>(const absl::Status& unreachable)> offline = nullptr);
+    std::function<std::optional<int>(const absl::Status& unreachable)> offline = nullptr,
+    bool db_writable = false);
 
 // `results export` and `results import` (archive_commands.cc).
 void AddArchiveCommands(CLI::App* results, int* exit_code);
+// Sends the archive file to the connection's ImportSweep (`results import`).
+// INVALID_ARGUMENT naming the file when it cannot be read; else the call's status.
+grpc::Status ImportArchive(Connection* connection, const std::string& archive,
+                           v1::ImportSweepResponse* response);
+// "created sweep NAME: 12 jobs taken over (...)": what `results import` prints.
+std::string ImportSummary(const v1::ImportSweepResponse& response);
 // `sweep delete`: archives the sweep to a file, then deletes it
 // (archive_commands.cc).
 void AddSweepDeleteCommand(CLI::App* sweep, int* exit_code);
@@ -143,6 +157,9 @@ int PrintStudyResults(Connection* connection, const std::string& sweep_name, For
 // The paired comparisons of the sweep's methods (compare.cc; `results compare`).
 int PrintComparison(Connection* connection, const std::string& sweep_name,
                     const results::ComparisonOptions& options, Format format);
+// Its -f json/csv rows: one per comparison, the verdicts at `alpha` last
+// (the Python module's `compare` reads the same rows).
+Listing ComparisonListing(const results::ComparisonReport& report, double alpha);
 // Per-method curves; optionally a gnuplot picture at `plot_path` (.svg/.png).
 int PrintCurves(Connection* connection, const std::string& sweep_name, Format format,
                 const std::string& plot_path, bool print_table);

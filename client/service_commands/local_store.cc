@@ -33,9 +33,10 @@ LocalCoordinator::~LocalCoordinator() {
 }
 
 absl::StatusOr<std::shared_ptr<LocalCoordinator>> LocalCoordinator::Open(
-    const std::string& database) {
+    const std::string& database, bool writable) {
   auto parts = std::make_unique<Parts>();
-  absl::StatusOr<std::unique_ptr<storage::Store>> store = storage::OpenStoreReadOnly(database);
+  absl::StatusOr<std::unique_ptr<storage::Store>> store =
+      writable ? storage::OpenStoreForWriting(database) : storage::OpenStoreReadOnly(database);
   if (!store.ok()) return store.status();
   parts->store = *std::move(store);
   parts->scheduler = std::make_unique<scheduler::Scheduler>(parts->store.get(), &parts->clock,

@@ -19,8 +19,12 @@ namespace totalgrad::cli {
 
 class LocalCoordinator {
  public:
-  // FailedPrecondition / DataLoss as SqliteStore::OpenReadOnly.
-  static absl::StatusOr<std::shared_ptr<LocalCoordinator>> Open(const std::string& database);
+  // FailedPrecondition / DataLoss as SqliteStore::OpenReadOnly; with
+  // `writable`, the database is opened (or created) for writing and locked
+  // as a coordinator locks it (storage::OpenStoreForWriting): for `results
+  // import --db` only.
+  static absl::StatusOr<std::shared_ptr<LocalCoordinator>> Open(const std::string& database,
+                                                                bool writable = false);
   ~LocalCoordinator();
   LocalCoordinator(const LocalCoordinator&) = delete;
   LocalCoordinator& operator=(const LocalCoordinator&) = delete;

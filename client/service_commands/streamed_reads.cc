@@ -2,6 +2,10 @@
 
 #include <utility>
 
+#include "absl/strings/numbers.h"
+#include "core/learner/episode_record.h"
+#include "io/record_format.h"
+#include "server/common/record_proto.h"
 #include "server/common/rpc_client.h"
 
 namespace totalgrad::cli {
@@ -40,7 +44,27 @@ grpc::Status ReadBatches(
   return status;
 }
 
+// The seed as a JSON number when it is one (seeds are integers below 2^53).
+nlohmann::json SeedJson(const std::string& seed) {
+  int64_t value;
+  return absl::SimpleAtoi(seed, &value) ? nlohmann::json(value) : nlohmann::json(seed);
+}
+
 }  // namespace
+
+nlohmann::json EpisodeRowJson(const v1::EpisodeRow& row) {
+  const auto& table = learner::EpisodeFields();
+  learner::EpisodeSummary episode;
+  record_proto::RecordFromProto(table, row.report(), &episode);
+  nlohmann::json object = {{"job_id", row.job_id()}, {"attempt", row.attempt()},
+                           {"final_attempt", row.final_attempt()}, {"method", row.method()},
+                           {"seed", SeedJson(row.seed())}, {"variant", row.variant()}};
+  io::AppendRecordJson(table, episode, &object);
+  object["reported_unix_ms"] = row.reported_unix_ms();
+  object["details"] = nlohmann::json::parse(row.report().details_json(), nullptr, false);
+  if (object["details"].is_discarded()) object["details"] = row.report().details_json();
+  return object;
+}
 
 grpc::Status ForEachJobPage(Connection* connection, v1::ListJobsRequest request,
                             const std::function<grpc::Status(const v1::ListJobsResponse&)>& page) {

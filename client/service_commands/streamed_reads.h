@@ -14,6 +14,8 @@
 #include <memory>
 #include <string>
 
+#include <nlohmann/json.hpp>
+
 #include "absl/time/time.h"
 #include "client/service_commands/connection.h"
 #include "totalgrad/v1/control_service.grpc.pb.h"
@@ -30,6 +32,12 @@ grpc::Status ForEachJobPage(Connection* connection, v1::ListJobsRequest request,
 grpc::Status ForEachEpisodeRow(Connection* connection, const std::string& sweep,
                                bool all_attempts,
                                const std::function<void(const v1::EpisodeRow&)>& sink);
+
+// One episode row as `results export -f jsonl` writes it and the Python
+// module reads it: job_id, attempt, final_attempt, method, seed (a number
+// when it is one), variant, the episode's record (learner::EpisodeFields(),
+// io/record_format.h), reported_unix_ms and the parsed details.
+nlohmann::json EpisodeRowJson(const v1::EpisodeRow& row);
 
 // The ExportEpisodes stream read one row at a time, for a reader that walks
 // it beside another sequence in job id order (the archive's jobs).

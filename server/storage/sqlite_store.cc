@@ -543,6 +543,12 @@ absl::StatusOr<int64_t> SqliteStore::Backup(const std::string& path) {
   return CopyDatabase(source, path, options_.busy_timeout_ms);
 }
 
+absl::StatusOr<std::unique_ptr<Store>> OpenStoreForWriting(const std::string& path) {
+  absl::StatusOr<std::unique_ptr<SqliteStore>> store = SqliteStore::Open(path);
+  if (!store.ok()) return store.status();
+  return std::unique_ptr<Store>(*std::move(store));
+}
+
 absl::StatusOr<std::unique_ptr<Store>> OpenStoreReadOnly(const std::string& path) {
   absl::StatusOr<std::unique_ptr<SqliteStore>> store = SqliteStore::OpenReadOnly(path);
   if (!store.ok()) return store.status();

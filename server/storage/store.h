@@ -212,6 +212,12 @@ class Store {
 // returns FailedPrecondition), so that readers such as `results --db`
 // include no storage implementation.
 absl::StatusOr<std::unique_ptr<Store>> OpenStoreReadOnly(const std::string& path);
+// Opens a coordinator database for writing without a coordinator (`results
+// import FILE --db DB`): creates it when missing, takes its lock as a
+// coordinator does, so it is refused (FailedPrecondition naming the holder)
+// while a coordinator or another writer has the file; otherwise
+// SqliteStore::Open's refusals.
+absl::StatusOr<std::unique_ptr<Store>> OpenStoreForWriting(const std::string& path);
 
 }  // namespace totalgrad::storage
 

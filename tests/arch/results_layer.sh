@@ -7,9 +7,10 @@
 #     SQLite, server/ or client/ header, and its CMake target links none of
 #     them: pure C++ over plain records, callable by the CLI, the dashboard
 #     and any later reader;
-#   * client/ includes no storage implementation (server/storage/sqlite_*):
-#     the CLI reads results through the results library's read interface,
-#     and a database file (--db) through storage::OpenStoreReadOnly.
+#   * client/ and python/ include no storage implementation
+#     (server/storage/sqlite_*): the CLI and the Python module read results
+#     through the results library's read interface, and a database file
+#     (--db) through storage::OpenStoreReadOnly.
 # Usage: results_layer.sh SOURCE_DIR
 set -euo pipefail
 source_dir="$1"
@@ -36,10 +37,10 @@ if hits=$(grep -En 'gRPC|grpc|protobuf|SQLite|sqlite|totalgrad_proto|totalgrad_s
 fi
 
 if hits=$(grep -rEn --include='*.h' --include='*.cc' --include='*.inc' \
-            "${include}server/storage/sqlite_" "$source_dir/client"); then
-  echo "FAIL: client/ includes a storage implementation (use server/storage/store.h):"
+            "${include}server/storage/sqlite_" "$source_dir/client" "$source_dir/python"); then
+  echo "FAIL: client/ or python/ includes a storage implementation (use server/storage/store.h):"
   echo "$hits"; failed=1
 fi
 
 if [ "$failed" -ne 0 ]; then exit 1; fi
-echo "ok: server/ and worker/ include no client/ header; results/ includes and links no gRPC, protobuf, SQLite, server/ or client/; client/ includes no storage implementation"
+echo "ok: server/ and worker/ include no client/ header; results/ includes and links no gRPC, protobuf, SQLite, server/ or client/; client/ and python/ include no storage implementation"

@@ -297,6 +297,18 @@ TEST_F(CliTest, ExportImportMovesASweepAndDatabasesReadWithoutACoordinator) {
   WriteFile(dir_ + "/broken.json", "{\"format\": \"totalgrad-sweep-archive\", \"version\": 7}");
   EXPECT_EQ(Cli({"results", "import", dir_ + "/broken.json"}, &out, &err), 2);
   EXPECT_NE(err.find("version 7"), std::string::npos) << err;
+  // Into a database file without a coordinator: a new file reads as the
+  // sweep did; the file a coordinator holds is refused, naming the holder.
+  const std::string third = dir_ + "/third.db";
+  ASSERT_EQ(Cli({"results", "import", archive, "--db", third}, &out, &err, false), 0) << err;
+  EXPECT_NE(out.find("created sweep cli: 3 jobs taken over (9 episodes, 0 study rows, 3 checkpoints)"),
+            std::string::npos)
+      << out;
+  ASSERT_EQ(Cli({"results", "export", "cli", "-f", "csv", "--db", third}, &out, &err, false), 0)
+      << err;
+  EXPECT_EQ(out, rows_a);
+  EXPECT_EQ(Cli({"results", "import", archive, "--db", db_}, &out, &err, false), 1) << out;
+  EXPECT_NE(err.find("pid"), std::string::npos) << err;
 }
 
 // Issue 15: `sweep delete` writes the sweep's archive first (never over an
