@@ -101,12 +101,18 @@ void ToProto(const storage::StudyReferenceRecord& record, v1::StudyReferenceRow*
   out->set_study(record.study);
 }
 
-v1::JobKind ToProto(storage::JobKind kind) {
-  return kind == storage::JobKind::kStudy ? v1::JOB_KIND_STUDY : v1::JOB_KIND_TRIAL;
+// Exhaustive (no default): a kind without its wire value does not compile.
+v1::JobKind ToProto(JobKind kind) {
+  switch (kind) {
+    case JobKind::kTrial: return v1::JOB_KIND_TRIAL;
+    case JobKind::kStudy: return v1::JOB_KIND_STUDY;
+  }
+  return v1::JOB_KIND_UNSPECIFIED;
 }
 
-storage::JobKind FromProto(v1::JobKind kind) {
-  return kind == v1::JOB_KIND_STUDY ? storage::JobKind::kStudy : storage::JobKind::kTrial;
+// JOB_KIND_UNSPECIFIED is a trial: jobs of coordinators older than the field.
+JobKind FromProto(v1::JobKind kind) {
+  return kind == v1::JOB_KIND_STUDY ? JobKind::kStudy : JobKind::kTrial;
 }
 
 storage::LeaseKey FromProto(const v1::LeaseKey& key) { return {key.job_id(), key.attempt()}; }

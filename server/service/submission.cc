@@ -38,10 +38,8 @@ absl::StatusOr<storage::NewSweep> PrepareSubmission(const v1::SubmitSweepRequest
     stored.variant = std::move(job.variant);
     stored.options = std::move(job.options);
     stored.episodes_expected = job.episodes_expected;
-    if (job.kind == sweep::JobKind::kStudy) {
-      stored.kind = storage::JobKind::kStudy;
-      stored.payload = std::move(job.payload);
-    }
+    stored.kind = job.kind;
+    stored.payload = std::move(job.payload);
     sweep.jobs.push_back(std::move(stored));
   }
   return sweep;

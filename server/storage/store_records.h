@@ -17,6 +17,7 @@
 #include "absl/strings/string_view.h"
 #include "core/learner/episode_record.h"
 #include "core/study/study.h"
+#include "server/common/job_kind.h"
 
 namespace totalgrad::storage {
 
@@ -33,10 +34,9 @@ struct SweepContents {
 };
 enum class JobState { kQueued, kRunning, kCompleted, kFailed, kCancelled };
 enum class AttemptState { kRunning, kCompleted, kFailed, kLeaseLost, kReleased, kCancelled };
-// What a job runs and reports. Everything that differs between kinds (its
-// result tables, its completion check, checkpoints, its verdict) is data in
-// job_kinds.h; this enum only names them.
-enum class JobKind { kTrial, kStudy };
+// What a job runs and reports (server/common/job_kind.h, the one
+// definition); what differs between kinds is data in job_kinds.h.
+using ::totalgrad::JobKind;
 
 // Names as stored in the database ("running", "lease_lost", ...).
 absl::string_view ToString(SweepState state);

@@ -44,6 +44,7 @@
 
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
+#include "server/common/job_kind.h"
 
 namespace totalgrad::sweep {
 
@@ -90,7 +91,8 @@ inline constexpr size_t kMaxSourceBytes = 1 << 20;
 inline constexpr size_t kMaxStudySpecBytes = 2 << 20;
 inline constexpr int kMaxStudiesPerSweep = 1000;
 
-enum class JobKind { kTrial, kStudy };
+// A trial or a study job (server/common/job_kind.h, the one definition).
+using ::totalgrad::JobKind;
 
 // One job of an expanded sweep.
 struct ExpandedJob {
