@@ -31,6 +31,7 @@
 #include "core/tasks/scene_catalog.h"
 #include "io/episode_json.h"
 #include "python/bindings.h"
+#include "results/plot_style.h"
 
 namespace py = pybind11;
 
@@ -193,6 +194,8 @@ void AddTrialBindings(py::module_& module) {
              "every trial option as (key, default text), in the option table's order");
   module.def("_simulate_json", &SimulateJson, py::arg("scene"), py::arg("start"),
              py::arg("forces"), py::arg("dt"));
+  module.def("_method_colour", &results::MethodColour, py::arg("method"),
+             "the method's plot colour (results/plot_style.h)");
   module.def("_blas", [] {
     return py::make_tuple(BlasCoreName(), WantedBlasCore(std::getenv("TOTALGRAD_BLAS_CORE")));
   }, "(the OpenBLAS kernels loaded, the kernels the totalgrad binaries would choose or '')");
