@@ -134,11 +134,12 @@ std::string Episodes(PyConnection& self, const std::string& sweep, bool all_atte
   grpc::Status status;
   {
     py::gil_scoped_release release;
-    status = cli::ForEachEpisodeRow(&self.connection(), sweep, all_attempts,
-                                    [&](const v1::EpisodeRow& row) {
-                                      lines += cli::EpisodeRowJson(row).dump();
-                                      lines += '\n';
-                                    });
+    status = cli::ForEachEpisodeRowWithJob(
+        &self.connection(), sweep, all_attempts,
+        [&](const v1::EpisodeRow& row, const v1::JobInfo& job) {
+          lines += cli::EpisodeRowJson(row, &job).dump();
+          lines += '\n';
+        });
   }
   if (!status.ok()) Raise(status, "episodes " + sweep);
   return lines;

@@ -8,6 +8,7 @@
 #include "absl/strings/numbers.h"
 
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
 #include "absl/strings/str_replace.h"
 
 namespace totalgrad::cli {
@@ -32,8 +33,19 @@ void AddTrialOptionFlags(CLI::App* cmd, const learner::TrialOptions& defaults,
   for (const auto& [key, value] : learner::TrialOptionPairs(defaults)) {
     if (std::find(skip.begin(), skip.end(), key) != skip.end()) continue;
     const std::string flag = "--" + absl::StrReplaceAll(key, {{"_", "-"}});
-    cmd->add_option(flag, values->values[key],
-                    "trial option '" + key + "' (default " + DisplayValue(value) + ")");
+    CLI::Option* option = cmd->add_option(
+        flag, values->values[key], "trial option '" + key + "' (default " + DisplayValue(value) + ")");
+    // The value's type in the help (the option table's; the value itself is
+    // parsed and checked by the table, so its messages stay the same).
+    if (const auto* field = learner::TrialOptions::Table().Find(key); field != nullptr) {
+      switch (field->type) {
+        case OptionType::kNumber: option->type_name("NUMBER"); break;
+        case OptionType::kInteger: option->type_name("INT"); break;
+        case OptionType::kBool: option->type_name("true|false"); break;
+        case OptionType::kChoice: option->type_name(absl::StrJoin(field->choices, "|")); break;
+        case OptionType::kText: option->type_name("TEXT"); break;
+      }
+    }
   }
   cmd->add_option("--set", values->sets, "KEY=VALUE for any trial option (repeatable)");
 }

@@ -6,6 +6,7 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -28,37 +29,74 @@ namespace {
 
 constexpr size_t kImportChunkBytes = 1 << 20;
 
-// One row per episode: the row's coordinates, the episode's record (its CSV
-// columns or JSON keys, io/record_format.h over learner::EpisodeFields()),
-// when it was reported, and the details.
+// One row per episode: the row's coordinates, its job's columns (state,
+// verdict, final cost, options: streamed_reads.h, AppendEpisodeJobColumns),
+// the episode's record (its CSV columns or JSON keys, io/record_format.h over
+// learner::EpisodeFields()), when it was reported, and the details. The CSV
+// header's option columns are the union over the sweep's jobs (a first pass
+// over the job pages), in first-seen order.
 int ExportRows(Connection* c, const std::string& sweep, bool all_attempts, bool csv,
                std::ostream& out, int64_t* rows) {
   const auto& table = learner::EpisodeFields();
+  std::vector<std::string> option_keys;
   if (csv) {
+    std::set<std::string> seen;
+    v1::ListJobsRequest request;
+    request.set_sweep_name(sweep);
+    const grpc::Status listed = ForEachJobPage(c, request, [&](const v1::ListJobsResponse& page) {
+      for (const v1::JobInfo& job : page.jobs()) {
+        for (const std::string& name : EpisodeJobColumnNames(job)) {
+          if (seen.insert(name).second) option_keys.push_back(name);
+        }
+      }
+      return grpc::Status::OK;
+    });
+    if (!listed.ok()) return ReportError(listed, "results export " + sweep);
     std::vector<std::string> columns = {"job_id", "attempt", "final_attempt", "method", "seed",
                                         "variant"};
+    if (option_keys.empty()) option_keys = {"job_state", "success", "final_eval_cost"};
+    columns.insert(columns.end(), option_keys.begin(), option_keys.end());
     for (const std::string& column : io::RecordCsvColumns(table)) columns.push_back(column);
     columns.push_back("reported_unix_ms");
     columns.push_back("details_json");
     out << io::CsvLine(columns) << "\n";
   }
-  const grpc::Status status = ForEachEpisodeRow(c, sweep, all_attempts, [&](const v1::EpisodeRow& r) {
-    ++*rows;
-    if (!csv) {
-      out << EpisodeRowJson(r).dump() << "\n";
-      return;
-    }
-    const auto& e = r.report();
-    learner::EpisodeSummary episode;
-    record_proto::RecordFromProto(table, e, &episode);
-    std::vector<std::string> cells = {std::to_string(r.job_id()), std::to_string(r.attempt()),
-                                      r.final_attempt() ? "1" : "0", r.method(), r.seed(),
-                                      r.variant()};
-    for (std::string& cell : io::RecordCsvCells(table, episode)) cells.push_back(std::move(cell));
-    cells.push_back(std::to_string(r.reported_unix_ms()));
-    cells.push_back(e.details_json());
-    out << io::CsvLine(cells) << "\n";
-  });
+  const grpc::Status status = ForEachEpisodeRowWithJob(
+      c, sweep, all_attempts, [&](const v1::EpisodeRow& r, const v1::JobInfo& job) {
+        ++*rows;
+        if (!csv) {
+          out << EpisodeRowJson(r, &job).dump() << "\n";
+          return;
+        }
+        const auto& e = r.report();
+        learner::EpisodeSummary episode;
+        record_proto::RecordFromProto(table, e, &episode);
+        std::vector<std::string> cells = {std::to_string(r.job_id()), std::to_string(r.attempt()),
+                                          r.final_attempt() ? "1" : "0", r.method(), r.seed(),
+                                          r.variant()};
+        // The job's columns as text: the JSON's typed values written back
+        // (numbers in their shortest round-trip form, booleans 1/0, null empty).
+        nlohmann::json job_columns = nlohmann::json::object();
+        AppendEpisodeJobColumns(job, &job_columns);
+        for (const std::string& key : option_keys) {
+          const auto it = job_columns.find(key);
+          if (it == job_columns.end() || it->is_null()) {
+            cells.emplace_back();
+          } else if (it->is_boolean()) {
+            cells.push_back(it->get<bool>() ? "1" : "0");
+          } else if (it->is_number_float()) {
+            cells.push_back(io::RecordNumberText(it->get<double>()));
+          } else if (it->is_string()) {
+            cells.push_back(it->get<std::string>());
+          } else {
+            cells.push_back(it->dump());
+          }
+        }
+        for (std::string& cell : io::RecordCsvCells(table, episode)) cells.push_back(std::move(cell));
+        cells.push_back(std::to_string(r.reported_unix_ms()));
+        cells.push_back(e.details_json());
+        out << io::CsvLine(cells) << "\n";
+      });
   if (!status.ok()) return ReportError(status, "results export " + sweep);
   return 0;
 }

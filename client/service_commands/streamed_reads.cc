@@ -1,9 +1,12 @@
 #include "client/service_commands/streamed_reads.h"
 
+#include <cmath>
 #include <utility>
 
 #include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
 #include "core/learner/episode_record.h"
+#include "core/learner/trial_options.h"
 #include "io/record_format.h"
 #include "server/common/record_proto.h"
 #include "server/common/rpc_client.h"
@@ -50,15 +53,55 @@ nlohmann::json SeedJson(const std::string& seed) {
   return absl::SimpleAtoi(seed, &value) ? nlohmann::json(value) : nlohmann::json(seed);
 }
 
+// An option's canonical text as JSON, typed by its field in the trial's
+// option table (TrialOptions::Table()): numbers (1 included, as 1.0) and
+// integers as numbers, booleans as booleans, names and unknown keys as text.
+nlohmann::json TypedOption(const std::string& key, const std::string& text) {
+  const auto* field = learner::TrialOptions::Table().Find(key);
+  const OptionType type = field == nullptr ? OptionType::kText : field->type;
+  if (type == OptionType::kBool && (text == "true" || text == "false")) return text == "true";
+  int64_t integer;
+  if (type == OptionType::kInteger && absl::SimpleAtoi(text, &integer)) return integer;
+  double number;
+  if (type == OptionType::kNumber && absl::SimpleAtod(text, &number) && std::isfinite(number)) {
+    return number;
+  }
+  return text;
+}
+
+bool IsRowCoordinate(const std::string& key) { return key == "method" || key == "seed"; }
+
 }  // namespace
 
-nlohmann::json EpisodeRowJson(const v1::EpisodeRow& row) {
+std::vector<std::string> EpisodeJobColumnNames(const v1::JobInfo& job) {
+  std::vector<std::string> names = {"job_state", "success", "final_eval_cost"};
+  for (const v1::TrialOption& option : job.options()) {
+    if (!IsRowCoordinate(option.key())) names.push_back(option.key());
+  }
+  return names;
+}
+
+void AppendEpisodeJobColumns(const v1::JobInfo& job, nlohmann::json* row) {
+  (*row)["job_state"] = StateName(job.state());
+  // Only a completed trial has a verdict (study jobs have none).
+  const bool has_result = job.state() == v1::JOB_STATE_COMPLETED && job.kind() != v1::JOB_KIND_STUDY;
+  (*row)["success"] = has_result ? nlohmann::json(job.success()) : nlohmann::json(nullptr);
+  (*row)["final_eval_cost"] = has_result && std::isfinite(job.final_eval_cost())
+                                  ? nlohmann::json(job.final_eval_cost())
+                                  : nlohmann::json(nullptr);
+  for (const v1::TrialOption& option : job.options()) {
+    if (!IsRowCoordinate(option.key())) (*row)[option.key()] = TypedOption(option.key(), option.value());
+  }
+}
+
+nlohmann::json EpisodeRowJson(const v1::EpisodeRow& row, const v1::JobInfo* job) {
   const auto& table = learner::EpisodeFields();
   learner::EpisodeSummary episode;
   record_proto::RecordFromProto(table, row.report(), &episode);
   nlohmann::json object = {{"job_id", row.job_id()}, {"attempt", row.attempt()},
                            {"final_attempt", row.final_attempt()}, {"method", row.method()},
                            {"seed", SeedJson(row.seed())}, {"variant", row.variant()}};
+  if (job != nullptr) AppendEpisodeJobColumns(*job, &object);
   io::AppendRecordJson(table, episode, &object);
   object["reported_unix_ms"] = row.reported_unix_ms();
   object["details"] = nlohmann::json::parse(row.report().details_json(), nullptr, false);
@@ -79,6 +122,33 @@ grpc::Status ForEachJobPage(Connection* connection, v1::ListJobsRequest request,
     if (response.next_after_job_id() == 0) return grpc::Status::OK;
     request.set_after_job_id(response.next_after_job_id());
   }
+}
+
+grpc::Status ForEachEpisodeRowWithJob(
+    Connection* connection, const std::string& sweep, bool all_attempts,
+    const std::function<void(const v1::EpisodeRow&, const v1::JobInfo&)>& sink) {
+  EpisodeRowCursor rows(connection, sweep, all_attempts, kListingStreamTimeout);
+  const auto no_job = [](const v1::EpisodeRow& row) {
+    return grpc::Status(grpc::StatusCode::INTERNAL,
+                        absl::StrCat("episode row of job ", row.job_id(), " attempt ",
+                                     row.attempt(), " whose job is not listed"));
+  };
+  v1::ListJobsRequest request;
+  request.set_sweep_name(sweep);
+  grpc::Status status = ForEachJobPage(connection, request, [&](const v1::ListJobsResponse& page) {
+    for (const v1::JobInfo& job : page.jobs()) {
+      for (const v1::EpisodeRow* row = rows.Peek(); row != nullptr && row->job_id() <= job.job_id();
+           row = rows.Peek()) {
+        if (row->job_id() < job.job_id()) return no_job(*row);
+        sink(*row, job);
+        rows.Pop();
+      }
+    }
+    return grpc::Status::OK;
+  });
+  if (status.ok() && rows.Peek() != nullptr) status = no_job(*rows.Peek());
+  const grpc::Status stream = rows.Finish();
+  return status.ok() ? stream : status;
 }
 
 grpc::Status ForEachEpisodeRow(Connection* connection, const std::string& sweep,

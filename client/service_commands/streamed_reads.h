@@ -13,6 +13,7 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -33,11 +34,31 @@ grpc::Status ForEachEpisodeRow(Connection* connection, const std::string& sweep,
                                bool all_attempts,
                                const std::function<void(const v1::EpisodeRow&)>& sink);
 
+// Every episode row of the sweep with its job, in order: the job pages
+// (ListJobs) walked beside the rows, both in job id order, so memory is one
+// page of jobs and one batch of rows. INTERNAL naming the row when a row's
+// job is not listed.
+grpc::Status ForEachEpisodeRowWithJob(
+    Connection* connection, const std::string& sweep, bool all_attempts,
+    const std::function<void(const v1::EpisodeRow&, const v1::JobInfo&)>& sink);
+
+// The job's columns of an episode row, after its coordinates: the job's
+// state ("completed", ...), its verdict and final evaluation cost (the
+// counting attempt's; null while it has none), then every option of the job
+// but method and seed (already columns) by its key, typed by the option
+// table (learner::TrialOptions::Table(), OptionType): numbers as JSON
+// numbers (noise_k 1 as 1.0), integers as integers, bools as booleans, names
+// as text.
+// EpisodeJobColumnNames is the same keys in order (for a CSV header).
+void AppendEpisodeJobColumns(const v1::JobInfo& job, nlohmann::json* row);
+std::vector<std::string> EpisodeJobColumnNames(const v1::JobInfo& job);
+
 // One episode row as `results export -f jsonl` writes it and the Python
 // module reads it: job_id, attempt, final_attempt, method, seed (a number
-// when it is one), variant, the episode's record (learner::EpisodeFields(),
+// when it is one), variant, with `job` its job's columns
+// (AppendEpisodeJobColumns), the episode's record (learner::EpisodeFields(),
 // io/record_format.h), reported_unix_ms and the parsed details.
-nlohmann::json EpisodeRowJson(const v1::EpisodeRow& row);
+nlohmann::json EpisodeRowJson(const v1::EpisodeRow& row, const v1::JobInfo* job = nullptr);
 
 // The ExportEpisodes stream read one row at a time, for a reader that walks
 // it beside another sequence in job id order (the archive's jobs).

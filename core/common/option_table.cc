@@ -49,6 +49,17 @@ absl::Status ParseOptionUint64(absl::string_view key, absl::string_view text, ui
   return absl::OkStatus();
 }
 
+const char* OptionTypeName(OptionType type) {
+  switch (type) {
+    case OptionType::kNumber: return "number";
+    case OptionType::kInteger: return "integer";
+    case OptionType::kBool: return "bool";
+    case OptionType::kChoice: return "choice";
+    case OptionType::kText: return "text";
+  }
+  return "text";
+}
+
 absl::Status ParseOptionBool(absl::string_view key, absl::string_view text, bool* out) {
   if (text == "true" || text == "1") {
     *out = true;

@@ -101,6 +101,13 @@ absl::Status ParseEnum(absl::string_view key, absl::string_view text, const Enum
                                                  "' is not one of ", absl::StrJoin(known, ", ")));
 }
 
+// What kind of value an option holds, for readers that type its canonical
+// text (CLI help, typed export columns, the Python module): a number (a
+// double, "1" included), an integer, true/false, one of `choices`, or text.
+enum class OptionType { kNumber, kInteger, kBool, kChoice, kText };
+// "number", "integer", "bool", "choice", "text".
+const char* OptionTypeName(OptionType type);
+
 template <typename T>
 class OptionTable {
  public:
@@ -108,19 +115,22 @@ class OptionTable {
     std::string key;
     std::function<absl::Status(absl::string_view text, T* options)> set;
     std::function<std::string(const T& options)> get;
+    OptionType type = OptionType::kText;
+    std::vector<std::string> choices;  // kChoice: the accepted names
   };
 
   // Builders, in the order the fields are listed by Pairs() and Keys().
   OptionTable& Custom(std::string key, std::function<absl::Status(absl::string_view, T*)> set,
-                      std::function<std::string(const T&)> get) {
+                      std::function<std::string(const T&)> get,
+                      OptionType type = OptionType::kText, std::vector<std::string> choices = {}) {
     for (const Field& f : fields_) TG_CHECK(f.key != key);
-    fields_.push_back({std::move(key), std::move(set), std::move(get)});
+    fields_.push_back({std::move(key), std::move(set), std::move(get), type, std::move(choices)});
     return *this;
   }
   OptionTable& Double(const std::string& key, double T::*member) {
     return Custom(
         key, [key, member](absl::string_view text, T* o) { return ParseOptionDouble(key, text, &(o->*member)); },
-        [member](const T& o) { return FormatOptionDouble(o.*member); });
+        [member](const T& o) { return FormatOptionDouble(o.*member); }, OptionType::kNumber);
   }
   // A double that must lie in `range` (CheckOptionRange).
   OptionTable& Double(const std::string& key, double T::*member, OptionRange range) {
@@ -133,7 +143,7 @@ class OptionTable {
           o->*member = value;
           return absl::OkStatus();
         },
-        [member](const T& o) { return FormatOptionDouble(o.*member); });
+        [member](const T& o) { return FormatOptionDouble(o.*member); }, OptionType::kNumber);
   }
   // An int that must lie in `range` (CheckOptionRange).
   OptionTable& Int(const std::string& key, int T::*member, OptionRange range) {
@@ -146,22 +156,23 @@ class OptionTable {
           o->*member = value;
           return absl::OkStatus();
         },
-        [member](const T& o) { return std::to_string(o.*member); });
+        [member](const T& o) { return std::to_string(o.*member); }, OptionType::kInteger);
   }
   OptionTable& Int(const std::string& key, int T::*member) {
     return Custom(
         key, [key, member](absl::string_view text, T* o) { return ParseOptionInt(key, text, &(o->*member)); },
-        [member](const T& o) { return std::to_string(o.*member); });
+        [member](const T& o) { return std::to_string(o.*member); }, OptionType::kInteger);
   }
   OptionTable& Uint64(const std::string& key, uint64_t T::*member) {
     return Custom(
         key, [key, member](absl::string_view text, T* o) { return ParseOptionUint64(key, text, &(o->*member)); },
-        [member](const T& o) { return std::to_string(o.*member); });
+        [member](const T& o) { return std::to_string(o.*member); }, OptionType::kInteger);
   }
   OptionTable& Bool(const std::string& key, bool T::*member) {
     return Custom(
         key, [key, member](absl::string_view text, T* o) { return ParseOptionBool(key, text, &(o->*member)); },
-        [member](const T& o) { return std::string(o.*member ? "true" : "false"); });
+        [member](const T& o) { return std::string(o.*member ? "true" : "false"); },
+        OptionType::kBool);
   }
   OptionTable& String(const std::string& key, std::string T::*member) {
     return Custom(
@@ -175,9 +186,12 @@ class OptionTable {
   // `names` is copied into the field.
   template <typename E>
   OptionTable& Enum(const std::string& key, E T::*member, const EnumNames<E>& names) {
+    std::vector<std::string> choices;
+    for (const auto& entry : names) choices.push_back(entry.second);
     return Custom(
         key, [key, member, names](absl::string_view text, T* o) { return ParseEnum(key, text, names, &(o->*member)); },
-        [member, names](const T& o) { return EnumName(names, o.*member); });
+        [member, names](const T& o) { return EnumName(names, o.*member); }, OptionType::kChoice,
+        std::move(choices));
   }
   // Every field of `inner` (keys unchanged), reading and writing o.*member.
   template <typename S>
@@ -187,7 +201,7 @@ class OptionTable {
       auto get = f.get;
       Custom(
           f.key, [set, member](absl::string_view text, T* o) { return set(text, &(o->*member)); },
-          [get, member](const T& o) { return get(o.*member); });
+          [get, member](const T& o) { return get(o.*member); }, f.type, f.choices);
     }
     return *this;
   }
@@ -220,6 +234,12 @@ class OptionTable {
     keys.reserve(fields_.size());
     for (const Field& f : fields_) keys.push_back(f.key);
     return keys;
+  }
+  // The field named `key`, or null.
+  const Field* Find(absl::string_view key) const {
+    for (const Field& f : fields_)
+      if (f.key == key) return &f;
+    return nullptr;
   }
   bool Has(absl::string_view key) const {
     for (const Field& f : fields_)

@@ -28,7 +28,12 @@ const OptionTable<TrialOptions>& TrialOptions::Table() {
               o->method = *method;
               return absl::OkStatus();
             },
-            [](const O& o) { return estimators::MethodName(o.method); })
+            [](const O& o) { return estimators::MethodName(o.method); }, OptionType::kChoice,
+            [] {
+              std::vector<std::string> names;
+              for (const auto& entry : estimators::MethodNames()) names.push_back(entry.second);
+              return names;
+            }())
         .Uint64("seed", &O::seed)
         .Int("episodes", &O::episodes)
         .Int("policy_steps", &O::policy_steps)

@@ -351,12 +351,19 @@ class Results:
         """`totalgrad job list --sweep SWEEP -f json`."""
         return self._frame(self._connection.jobs(sweep))
 
-    def episodes(self, sweep, all_attempts=False):
+    def episodes(self, sweep, all_attempts=False, completed=False):
         """`totalgrad results export SWEEP -f jsonl`: one row per episode of
-        each job's counting attempt (every attempt with all_attempts)."""
+        each job's counting attempt (every attempt with all_attempts), with
+        its job's columns: job_state, success, final_eval_cost and every
+        option by its key, typed (numbers as numbers). `completed`: only the
+        rows of completed jobs (what a learning curve of finished trials
+        wants; running and cancelled jobs' rows are otherwise included)."""
         import pandas
         lines = self._connection.episodes(sweep, all_attempts).splitlines()
-        return pandas.DataFrame([json.loads(line) for line in lines])
+        frame = pandas.DataFrame([json.loads(line) for line in lines])
+        if completed and len(frame):
+            frame = frame[frame["job_state"] == "completed"].reset_index(drop=True)
+        return frame
 
     def trials(self, sweeps):
         """The completed trials (one per completed trial job, superseded ones

@@ -199,6 +199,27 @@ def test_episodes_are_the_clis_export(database):
     assert len(frame) == 6 * 3
     assert records(frame) == theirs
     assert set(frame["method"]) == {"RP", "TP"}
+    # The job's columns: state, verdict, final cost and every option, typed.
+    assert set(frame["job_state"]) == {"completed"}
+    assert frame["success"].all()
+    assert str(frame["particles"].dtype).startswith("int") and set(frame["particles"]) == {8}
+    assert str(frame["noise_k"].dtype).startswith("float")
+    assert set(frame["scene"]) == {"cartpole-swingup"}
+    last = frame[frame["episode"] == 2]
+    assert (last["final_eval_cost"] == last["eval_cost_mean"]).all()
+    assert len(results.episodes("py", completed=True)) == len(frame)
+    # The CSV export has the same columns, the same values as text.
+    csv_run = subprocess.run([BIN, "results", "export", "py", "--db", database, "-f", "csv"],
+                             capture_output=True, text=True, check=True)
+    import csv
+    import io
+    rows = list(csv.DictReader(io.StringIO(csv_run.stdout)))
+    assert len(rows) == len(frame)
+    for column in ("job_state", "success", "final_eval_cost", "particles", "noise_k", "scene"):
+        assert column in rows[0], column
+    assert rows[0]["job_state"] == "completed" and rows[0]["success"] == "1"
+    assert float(rows[-1]["final_eval_cost"]) == frame["final_eval_cost"].iloc[-1]
+    assert float(rows[0]["noise_k"]) == frame["noise_k"].iloc[0] == 1.0
 
 
 def test_trials_count_each_completed_job_once(database):
@@ -357,3 +378,13 @@ def test_the_sweep_toml_of_a_dict_is_what_the_file_would_say():
                                  "protocol": {"episodes": 3, "cost": "tip"}})
     assert text == ('name = "x"\n\n[grid]\n"method" = ["RP"]\n"noise_k" = [0.01, 1.0]\n\n'
                     '[protocol]\n"episodes" = 3\n"cost" = "tip"\n')
+
+
+def test_trial_help_types_every_option_from_the_option_table():
+    run = subprocess.run([BIN, "trial", "--help"], capture_output=True, text=True, check=True)
+    lines = {line.split()[0]: line for line in run.stdout.splitlines() if line.strip().startswith("--")}
+    assert "NUMBER" in lines["--noise-k"]
+    assert "INT" in lines["--particles"]
+    assert "true|false" in lines["--gp-penalty"]
+    assert "RP|GR|LR|TP" in lines["--method"]
+    assert "TEXT" not in lines["--horizon"]

@@ -10,6 +10,7 @@
 #include <set>
 #include <string>
 
+#include "absl/strings/numbers.h"
 #include "core/learner/checkpoint.h"
 #include "tests/testutil/every_option.h"
 #include "tests/testutil/test_base.h"
@@ -61,6 +62,50 @@ TEST(TrialOptionTable, ExistingKeysAndDefaultTextsAreUnchanged) {
   for (const auto& expected : stored)
     EXPECT_NE(std::find(pairs.begin(), pairs.end(), expected), pairs.end())
         << expected.first << "=" << expected.second;
+}
+
+// Every option says what it holds (CLI help, typed export columns, Python),
+// and its default text parses as that type.
+TEST(TrialOptionTable, EveryFieldHasATypeItsDefaultParsesAs) {
+  const auto& table = TrialOptions::Table();
+  EXPECT_EQ(table.Find("noise_k")->type, OptionType::kNumber);
+  EXPECT_EQ(table.Find("threshold")->type, OptionType::kNumber);
+  EXPECT_EQ(table.Find("particles")->type, OptionType::kInteger);
+  EXPECT_EQ(table.Find("seed")->type, OptionType::kInteger);
+  EXPECT_EQ(table.Find("gp_penalty")->type, OptionType::kBool);
+  EXPECT_EQ(table.Find("method")->type, OptionType::kChoice);
+  EXPECT_EQ(table.Find("method")->choices.front(), "RP");
+  EXPECT_NE(std::find(table.Find("method")->choices.begin(), table.Find("method")->choices.end(),
+                      "GTP+sn"),
+            table.Find("method")->choices.end());
+  EXPECT_EQ(table.Find("normalisation")->type, OptionType::kChoice);
+  EXPECT_EQ(table.Find("no_such_key"), nullptr);
+  for (const auto& [key, text] : TrialOptionPairs(TrialOptions())) {
+    const auto* field = table.Find(key);
+    ASSERT_NE(field, nullptr) << key;
+    switch (field->type) {
+      case OptionType::kNumber: {
+        double value;
+        EXPECT_TRUE(ParseOptionDouble(key, text, &value).ok()) << key << "=" << text;
+        break;
+      }
+      case OptionType::kInteger: {
+        int64_t value;
+        EXPECT_TRUE(absl::SimpleAtoi(text, &value)) << key << "=" << text;
+        break;
+      }
+      case OptionType::kBool:
+        EXPECT_TRUE(text == "true" || text == "false") << key << "=" << text;
+        break;
+      case OptionType::kChoice:
+        EXPECT_NE(std::find(field->choices.begin(), field->choices.end(), text),
+                  field->choices.end())
+            << key << "=" << text;
+        break;
+      case OptionType::kText:
+        break;
+    }
+  }
 }
 
 TEST(TrialOptionTable, EveryFieldRoundTripsThroughPairs) {
