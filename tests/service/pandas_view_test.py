@@ -59,7 +59,11 @@ def main():
     check(sorted(frame["seed"].unique().tolist()) == [3, 4], "seed values")
     check((frame["cpu_seconds"] > 0).all(), "every episode has its CPU seconds")
     # What a researcher does next: the final evaluation cost per method and noise level.
-    last = frame[(frame["episode"] == 2) & (frame["final_attempt"] == 1)]
+    # The recipe's filter: the counting attempt of finished trials only.
+    check("job_state" in frame.columns, "column job_state missing")
+    done = frame[(frame["final_attempt"] == 1) & (frame["job_state"] == "completed")]
+    check(len(done) == 8 * 3, f"24 rows of completed trials expected, got {len(done)}")
+    last = done[done["episode"] == 2]
     table = last.groupby(["method", "noise_k"])["eval_cost_mean"].median()
     check(len(table) == 4, f"4 (method, noise_k) groups expected, got {len(table)}")
     print(table.to_string())
