@@ -101,30 +101,27 @@ void ExportArchiveFile(PyConnection& self, const std::string& sweep_name, const 
 }  // namespace
 
 void AddSweepMethods(py::class_<PyConnection>& connection) {
-  connection
-      .def("submit", &Submit, py::arg("toml_text"), py::arg("source_name"), py::arg("dry_run"))
-      .def("sweep",
-           [](PyConnection& self, const std::string& name) {
-             return CallOnSweep(self, name, &v1::ControlService::Stub::GetSweep, "sweep");
-           },
-           py::arg("name"))
-      .def("cancel",
-           [](PyConnection& self, const std::string& name) {
-             return CallOnSweep(self, name, &v1::ControlService::Stub::CancelSweep, "cancel");
-           },
-           py::arg("name"))
-      .def("pause",
-           [](PyConnection& self, const std::string& name) {
-             return CallOnSweep(self, name, &v1::ControlService::Stub::PauseSweep, "pause");
-           },
-           py::arg("name"))
-      .def("resume",
-           [](PyConnection& self, const std::string& name) {
-             return CallOnSweep(self, name, &v1::ControlService::Stub::ResumeSweep, "resume");
-           },
-           py::arg("name"))
-      .def("export_archive", &ExportArchiveFile, py::arg("sweep"), py::arg("path"),
-           py::arg("checkpoints"));
+  connection.def("submit", &Submit, py::arg("toml_text"), py::arg("source_name"),
+                 py::arg("dry_run"));
+  // Calls on one sweep by name, each returning the sweep's record.
+  struct SweepControl {
+    const char* name;
+    SweepCall method;
+  };
+  for (const SweepControl& control :
+       {SweepControl{"sweep", &v1::ControlService::Stub::GetSweep},
+        SweepControl{"cancel", &v1::ControlService::Stub::CancelSweep},
+        SweepControl{"pause", &v1::ControlService::Stub::PauseSweep},
+        SweepControl{"resume", &v1::ControlService::Stub::ResumeSweep}}) {
+    connection.def(
+        control.name,
+        [control](PyConnection& self, const std::string& name) {
+          return CallOnSweep(self, name, control.method, control.name);
+        },
+        py::arg("name"));
+  }
+  connection.def("export_archive", &ExportArchiveFile, py::arg("sweep"), py::arg("path"),
+                 py::arg("checkpoints"));
 }
 
 }  // namespace totalgrad::python
