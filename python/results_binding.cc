@@ -21,6 +21,7 @@
 #include "python/connection_binding.h"
 #include "results/comparison.h"
 #include "results/completed_trial.h"
+#include "results/diagnostics.h"
 #include "results/stats.h"
 #include "results/table1.h"
 #include "results/table1_claims.h"
@@ -179,6 +180,17 @@ std::string Table1(PyConnection& self, const std::vector<std::string>& sweeps,
                         "' is not one of grid, sensitivity, comparisons");
 }
 
+// `results diagnostics SWEEP [--statistic S] -f json`.
+std::string Diagnostics(PyConnection& self, const std::string& sweep, const std::string& statistic) {
+  absl::StatusOr<std::vector<results::DiagnosticPoint>> points;
+  {
+    py::gil_scoped_release release;
+    points = cli::ReadDiagnostics(&self.connection(), sweep, statistic);
+  }
+  if (!points.ok()) Raise(points.status(), "diagnostics " + sweep);
+  return RecordsJson(results::DiagnosticPointFields(), *points);
+}
+
 // `totalgrad results import ARCHIVE --db DB`: the summary line it prints.
 std::string ImportArchiveIntoFile(const std::string& archive, const std::string& db) {
   cli::ServiceFlags flags;
@@ -224,6 +236,7 @@ void AddResultsBindings(py::module_& module) {
            },
            py::arg("sweeps"))
       .def("compare", &Compare, py::arg("sweeps"), py::arg("baseline"), py::arg("alpha"))
+      .def("diagnostics", &Diagnostics, py::arg("sweep"), py::arg("statistic"))
       .def("table1", &Table1, py::arg("sweeps"), py::arg("view"), py::arg("thresholds"));
   AddSweepMethods(connection);
   module.def("_import_archive", &ImportArchiveIntoFile, py::arg("archive"), py::arg("db"));

@@ -14,6 +14,7 @@
 #include "absl/status/statusor.h"
 #include "client/service_commands/format.h"
 #include "results/comparison.h"
+#include "results/diagnostics.h"
 #include "server/common/rpc_client.h"
 #include "totalgrad/v1/control_service.grpc.pb.h"
 
@@ -157,6 +158,12 @@ int PrintStudyResults(Connection* connection, const std::string& sweep_name, For
 // The paired comparisons of the sweep's methods (compare.cc; `results compare`).
 int PrintComparison(Connection* connection, const std::string& sweep_name,
                     const results::ComparisonOptions& options, Format format);
+// The estimator statistics of a sweep's trials per method, variant and
+// episode (`results diagnostics`, results/diagnostics.h): every statistic,
+// or `statistic` alone; InvalidArgument naming the closest statistic for an
+// unknown one, else the call's status.
+absl::StatusOr<std::vector<results::DiagnosticPoint>> ReadDiagnostics(
+    Connection* connection, const std::string& sweep_name, const std::string& statistic);
 // Its -f json/csv rows: one per comparison, the verdicts at `alpha` last
 // (the Python module's `compare` reads the same rows).
 Listing ComparisonListing(const results::ComparisonReport& report, double alpha);

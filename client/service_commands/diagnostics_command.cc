@@ -17,18 +17,16 @@
 #include "server/common/record_proto.h"
 
 namespace totalgrad::cli {
-namespace {
 
-int PrintDiagnostics(Connection* connection, const std::string& sweep_name,
-                     const std::string& statistic) {
-  const std::string what = "results diagnostics " + sweep_name;
+absl::StatusOr<std::vector<results::DiagnosticPoint>> ReadDiagnostics(
+    Connection* connection, const std::string& sweep_name, const std::string& statistic) {
   const std::vector<std::string>& known = results::DiagnosticStatistics();
   if (!statistic.empty() && std::find(known.begin(), known.end(), statistic) == known.end()) {
     const std::string closest = ClosestCandidate(statistic, known);
-    std::cerr << "error: " << what << ": unknown statistic '" << statistic << "'"
-              << (closest.empty() ? "" : absl::StrCat(" (did you mean '", closest, "'?)"))
-              << "; the statistics are " << absl::StrJoin(known, ", ") << "\n";
-    return 2;
+    return absl::InvalidArgumentError(absl::StrCat(
+        "unknown statistic '", statistic, "'",
+        closest.empty() ? "" : absl::StrCat(" (did you mean '", closest, "'?)"),
+        "; the statistics are ", absl::StrJoin(known, ", ")));
   }
   v1::ExportEpisodesRequest request;
   request.set_sweep_name(sweep_name);
@@ -40,7 +38,7 @@ int PrintDiagnostics(Connection* connection, const std::string& sweep_name,
         v1::ExportEpisodesResponse batch;
         while (reader->Read(&batch)) {
           for (const auto& row : batch.rows()) {
-            if (!row.final_attempt()) continue;  // completed trials' counting attempts only
+            if (!row.final_attempt()) continue;  // each job's counting attempt only
             results::EpisodeStatistics& out = rows.emplace_back();
             out.method = row.method();
             out.variant = row.variant();
@@ -50,8 +48,21 @@ int PrintDiagnostics(Connection* connection, const std::string& sweep_name,
         }
         return reader->Finish();
       });
-  if (!status.ok()) return ReportError(status, what);
-  const std::vector<results::DiagnosticPoint> points = results::DiagnosticCurves(rows, statistic);
+  if (!status.ok()) {
+    return absl::Status(static_cast<absl::StatusCode>(status.error_code()), status.error_message());
+  }
+  return results::DiagnosticCurves(rows, statistic);
+}
+
+namespace {
+
+int PrintDiagnostics(Connection* connection, const std::string& sweep_name,
+                     const std::string& statistic) {
+  const std::string what = "results diagnostics " + sweep_name;
+  const absl::StatusOr<std::vector<results::DiagnosticPoint>> read =
+      ReadDiagnostics(connection, sweep_name, statistic);
+  if (!read.ok()) return ReportError(read.status(), what);
+  const std::vector<results::DiagnosticPoint>& points = *read;
   const Format format = connection->format();
   if (format != Format::kTable) {
     PrintRecords(results::DiagnosticPointFields(), points, format, std::cout);

@@ -379,6 +379,13 @@ class Results:
         """`totalgrad results compare SWEEP -f json`: paired comparisons by seed."""
         return self._frame(self._connection.compare(_names(sweeps), baseline, float(alpha)))
 
+    def diagnostics(self, sweep, statistic=""):
+        """`totalgrad results diagnostics SWEEP -f json [--statistic S]`: what the
+        estimators did (gradient norms and SNR, step norms, ESS, ...), the
+        median and quartiles over trials per method, variant and episode
+        (docs/diagnostics.md)."""
+        return self._frame(self._connection.diagnostics(sweep, statistic))
+
     def table1(self, sweeps, view="grid", thresholds=()):
         """`totalgrad results table1 SWEEP... -f json --view VIEW`: the paper's
         Table 1 (grid), its threshold sensitivity, or its claims compared."""

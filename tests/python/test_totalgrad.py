@@ -190,6 +190,13 @@ def test_results_of_a_database_file_are_the_clis(database):
     assert records(results.jobs("py")) == cli_json("job", "list", "--sweep", "py", *db)
     sweeps = results.sweeps()
     assert list(sweeps["name"]) == ["py"]
+    diagnostics = results.diagnostics("py")
+    assert records(diagnostics) == cli_json("results", "diagnostics", "py", *db)
+    assert len(diagnostics) > 0
+    snr = results.diagnostics("py", statistic="gradient_snr_mean")
+    assert set(snr["statistic"]) == {"gradient_snr_mean"} and set(snr["method"]) == {"RP", "TP"}
+    with pytest.raises(ValueError, match="did you mean 'gradient_snr_mean'"):
+        results.diagnostics("py", statistic="gradient_snr_man")
 
 
 def test_episodes_are_the_clis_export(database):
