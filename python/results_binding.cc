@@ -191,6 +191,23 @@ std::string Diagnostics(PyConnection& self, const std::string& sweep, const std:
   return RecordsJson(results::DiagnosticPointFields(), *points);
 }
 
+// `results curves SWEEP -f json`; with `top` > 0 the curves of each method's
+// and variant's `top` best runs (results::BestRuns, Figure 3's last panel).
+std::string Curves(PyConnection& self, const std::string& sweep, int top) {
+  if (top < 0) throw py::value_error("curves: top must be >= 1 (or None for every run)");
+  absl::StatusOr<std::vector<results::EpisodeValue>> values;
+  {
+    py::gil_scoped_release release;
+    values = cli::ReadEvaluationCosts(&self.connection(), sweep);
+  }
+  if (!values.ok()) Raise(values.status(), "curves " + sweep);
+  const std::vector<results::CurvePoint> curves =
+      results::Curves(top > 0 ? results::BestRuns(*values, top) : *values);
+  std::ostringstream out;
+  cli::Print(cli::CurvesListing(curves, cli::Format::kJson), cli::Format::kJson, out);
+  return out.str();
+}
+
 // `totalgrad results import ARCHIVE --db DB`: the summary line it prints.
 std::string ImportArchiveIntoFile(const std::string& archive, const std::string& db) {
   cli::ServiceFlags flags;
@@ -237,6 +254,7 @@ void AddResultsBindings(py::module_& module) {
            py::arg("sweeps"))
       .def("compare", &Compare, py::arg("sweeps"), py::arg("baseline"), py::arg("alpha"))
       .def("diagnostics", &Diagnostics, py::arg("sweep"), py::arg("statistic"))
+      .def("curves", &Curves, py::arg("sweep"), py::arg("top"))
       .def("table1", &Table1, py::arg("sweeps"), py::arg("view"), py::arg("thresholds"));
   AddSweepMethods(connection);
   module.def("_import_archive", &ImportArchiveIntoFile, py::arg("archive"), py::arg("db"));

@@ -40,14 +40,13 @@ namespace {
 
 using OptionPairs = std::vector<std::pair<std::string, std::string>>;
 
-// Default options with `pairs` applied, then validated; ValueError naming
-// the first bad option (the CLI's messages, "did you mean" included).
+// Default options (the scene's horizon and threshold where not given) with
+// `pairs` applied, then validated, as the CLI's flags; ValueError naming the
+// first bad option (the CLI's messages, "did you mean" included).
 learner::TrialOptions ParseTrialOptions(const OptionPairs& pairs) {
-  learner::TrialOptions options;
-  for (const auto& [key, value] : pairs) {
-    const absl::Status set = learner::SetTrialOption(key, value, &options);
-    if (!set.ok()) throw py::value_error(std::string(set.message()));
-  }
+  absl::StatusOr<learner::TrialOptions> parsed = learner::TrialOptionsFromPairs(pairs);
+  if (!parsed.ok()) throw py::value_error(std::string(parsed.status().message()));
+  learner::TrialOptions options = *std::move(parsed);
   const absl::Status valid = options.Validate();
   if (!valid.ok()) throw py::value_error(std::string(valid.message()));
   return options;

@@ -111,9 +111,49 @@ std::vector<CurvePoint> Curves(const std::vector<EpisodeValue>& values) {
     point.q25 = Quantile(entry.second, 0.25);
     point.median = Quantile(entry.second, 0.5);
     point.q75 = Quantile(entry.second, 0.75);
+    const double n = static_cast<double>(entry.second.size());
+    double sum = 0;
+    for (double v : entry.second) sum += v;
+    point.mean = sum / n;
+    if (entry.second.size() >= 2) {
+      double squares = 0;
+      for (double v : entry.second) squares += (v - point.mean) * (v - point.mean);
+      point.standard_error = std::sqrt(squares / (n - 1) / n);
+    }
     curves.push_back(point);
   }
   return curves;
+}
+
+std::vector<EpisodeValue> BestRuns(const std::vector<EpisodeValue>& values, int k) {
+  // Each run's final value: the value of its last episode with one.
+  std::map<int64_t, std::pair<int, double>> final_of;  // trial -> (episode, value)
+  for (const EpisodeValue& v : values) {
+    if (std::isnan(v.value)) continue;
+    auto [it, inserted] = final_of.emplace(v.trial, std::pair{v.episode, v.value});
+    if (!inserted && v.episode >= it->second.first) it->second = {v.episode, v.value};
+  }
+  // Runs per (method, variant), best first.
+  std::map<std::pair<std::string, std::string>, std::vector<std::pair<double, int64_t>>> runs;
+  std::map<int64_t, bool> seen;
+  for (const EpisodeValue& v : values) {
+    const auto final = final_of.find(v.trial);
+    if (final == final_of.end() || seen[v.trial]) continue;
+    seen[v.trial] = true;
+    runs[{v.method, v.variant}].push_back({final->second.second, v.trial});
+  }
+  std::map<int64_t, bool> kept;
+  for (auto& [key, list] : runs) {
+    std::sort(list.begin(), list.end());
+    for (size_t i = 0; i < list.size() && i < static_cast<size_t>(std::max(k, 0)); ++i) {
+      kept[list[i].second] = true;
+    }
+  }
+  std::vector<EpisodeValue> best;
+  for (const EpisodeValue& v : values) {
+    if (kept.count(v.trial) > 0) best.push_back(v);
+  }
+  return best;
 }
 
 }  // namespace totalgrad::results

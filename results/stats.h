@@ -5,6 +5,7 @@
 #ifndef TOTALGRAD_RESULTS_STATS_H_
 #define TOTALGRAD_RESULTS_STATS_H_
 
+#include <cstdint>
 #include <limits>
 #include <string>
 #include <utility>
@@ -58,6 +59,7 @@ struct EpisodeValue {
   std::string variant;
   int episode = 0;
   double value = 0;  // evaluation cost mean (NaN values are skipped)
+  int64_t trial = 0; // the trial (its job id): which values are one run, for BestRuns
 };
 
 struct CurvePoint {
@@ -68,10 +70,21 @@ struct CurvePoint {
   double q25 = 0;
   double median = 0;
   double q75 = 0;
+  double mean = 0;
+  // The sample standard deviation over sqrt(trials); NaN for one trial.
+  double standard_error = std::numeric_limits<double>::quiet_NaN();
 };
 
-// Median and quartiles over trials, per (method, variant, episode).
+// Median, quartiles, mean and its standard error over trials, per (method,
+// variant, episode).
 std::vector<CurvePoint> Curves(const std::vector<EpisodeValue>& values);
+
+// The values of the k best runs of each (method, variant): the paper's
+// Figure 3 "top runs" panel. A run (EpisodeValue::trial) is ranked by its
+// final value, the value of its last episode that has one; lower is better;
+// ties by trial id. Values keep their order; runs without a value are
+// dropped. k >= 1.
+std::vector<EpisodeValue> BestRuns(const std::vector<EpisodeValue>& values, int k);
 
 }  // namespace totalgrad::results
 

@@ -54,6 +54,7 @@ nlohmann::ordered_json ScenesToJson(const std::vector<tasks::SceneDefinition>& s
     j["max_control"] = ToStd(s.max_control);
     j["dt"] = s.dt;
     j["horizon"] = s.horizon;
+    j["success_threshold"] = s.success_threshold;
     j["mu0"] = ToStd(s.mu0);
     j["start_std"] = ToStd(s.start_std);
     j["measurement_noise_std"] = ToStd(s.measurement_noise_std);
@@ -88,6 +89,8 @@ std::string ScenesText(const std::vector<tasks::SceneDefinition>& scenes) {
     absl::StrAppend(&out, "  D = ", s.state_dim(), " [", absl::StrJoin(s.state_names, ", "), "], F = ",
                     s.control_dim(), " [", absl::StrJoin(s.control_names, ", "), "] |u| <= [",
                     Join(s.max_control), "], dt = ", s.dt, " s, H = ", s.horizon, "\n");
+    absl::StrAppend(&out, "  trial defaults: horizon ", s.horizon, ", threshold ", s.success_threshold,
+                    " (success: the last evaluation's mean episode cost below it)\n");
     absl::StrAppend(&out, "  angles ", absl::StrJoin(s.angle_indices, ","), "; GP inputs z[",
                     absl::StrJoin(s.dynamics_inputs, ","), "] + u, policy inputs z[",
                     absl::StrJoin(s.policy_inputs, ","), "]; FITC M = ", s.inducing_inputs,

@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "absl/strings/str_cat.h"
+#include "client/core_commands/gnuplot.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
 #include "client/core_commands/study_format.h"
@@ -46,6 +47,18 @@ constexpr char kLineStyles[] =
 // A data file of estimator e (wp_<e>.dat, sweep_<e>.dat) as a gnuplot string.
 std::string DataFile(const std::string& dir, const std::string& stem, size_t e) {
   return Quote((std::filesystem::path(dir) / absl::StrCat(stem, "_", e, ".dat")).string());
+}
+
+// The lines that pick the picture's type: PNG unless gnuplot is run with
+// `format = "pdf"` first (RunGnuplots draws both), so `gnuplot NAME.gp`
+// alone redraws the PNG.
+std::string TerminalChoice(const std::string& dir, const std::string& stem, int width, int height) {
+  namespace fs = std::filesystem;
+  const std::string base = (fs::path(dir) / stem).string();
+  return absl::StrCat("if (!exists('format')) format = 'png'\n", "if (format eq 'pdf') {\n  ",
+                      GnuplotTerminal(".pdf", width, height), "  set output ", Quote(base + ".pdf"),
+                      "\n} else {\n  ", GnuplotTerminal(".png", width, height), "  set output ",
+                      Quote(base + ".png"), "\n}\n");
 }
 
 // The estimators in the order of their first cell.
@@ -142,15 +155,12 @@ absl::Status WriteWorkPrecisionScript(const study::StudyResult& r, const std::ve
   std::ostringstream gp;
   gp << "# Work-precision diagram of a gradient study (totalgrad study).\n"
      << "# Problem: " << r.source << "\n"
-     << "set terminal pngcairo noenhanced size " << 620 * cols << "," << 470 * rows
-     << " font ',9'\n"
-     << "set output " << Quote((fs::path(dir) / "work_precision.png").string()) << "\n"
-     << kLineStyles << "set logscale xy\nset format x '%.0e'\nset format y '%g'\n"
+     << TerminalChoice(dir, "work_precision", 620 * cols, 470 * rows) << kLineStyles << "set logscale xy\nset format x '%.0e'\nset format y '%g'\n"
      << "set xlabel 'seconds per gradient (min of single-threaded runs)'\n"
      << "set ylabel 'relative RMSE vs reference'\nset grid\nset key outside right top\n"
      << "set multiplot layout " << rows << "," << cols
      << " title '" << (r.scene.empty() ? std::string() : r.scene + ": ")
-     << "error against run time, one curve per estimator (points: P); dashed: reference noise floor'\n";
+     << "error against run time, one curve per estimator (labels: P); dashed: reference noise floor'\n";
   for (int hi = 0; hi < n; ++hi) {
     const study::ReferenceGradient* ref = ReferenceFor(r, horizons[hi]);
     gp << "set title 'H = " << horizons[hi] << (ref != nullptr && !ref->agree ? " (reference estimators disagree)" : "")
@@ -167,7 +177,11 @@ absl::Status WriteWorkPrecisionScript(const study::StudyResult& r, const std::ve
     gp << "plot ";
     for (size_t e = 0; e < labels.size(); ++e) {
       gp << DataFile(dir, "wp", e) << " index " << hi << " using 2:3 with linespoints ls "
-         << (e % 12) + 1 << " title " << Quote(labels[e]) << ", \\\n     ";
+         << (e % 12) + 1 << " title " << Quote(labels[e]) << ", \\\n     "
+         // Each point's P beside it (PILCO's single point has none).
+         << DataFile(dir, "wp", e) << " index " << hi
+         << " using 2:3:($1 > 0 ? sprintf('%d', $1) : '') with labels offset char 0.9,0.6"
+         << " font ',7' tc ls " << (e % 12) + 1 << " notitle, \\\n     ";
     }
     const double floor = ref != nullptr ? ref->floor : 0.0;
     if (floor > 0) {
@@ -191,9 +205,7 @@ absl::Status WriteHorizonSweepScript(const study::StudyResult& r,
   std::ostringstream gp;
   gp << "# Horizon sweep at P = " << sweep_p << " (PILCO: its single value per H).\n"
      << "# Problem: " << r.source << "\n"
-     << "set terminal pngcairo noenhanced size 1240,470 font ',9'\n"
-     << "set output " << Quote((fs::path(dir) / "horizon_sweep.png").string()) << "\n"
-     << kLineStyles << "set grid\nset key outside right top\nset xlabel 'horizon H (steps)'\n"
+     << TerminalChoice(dir, "horizon_sweep", 1240, 470) << kLineStyles << "set grid\nset key outside right top\nset xlabel 'horizon H (steps)'\n"
      << "set multiplot layout 1,2 title '" << (r.scene.empty() ? std::string() : r.scene + ": ")
      << "horizon sweep at P = " << sweep_p << "'\n";
   bool any = false;
@@ -224,23 +236,17 @@ absl::Status WriteHorizonSweepScript(const study::StudyResult& r,
   return absl::OkStatus();
 }
 
-// Runs gnuplot on both scripts; the PNGs are added to `written`.
-absl::Status RunGnuplot(const std::string& dir, std::vector<std::string>& written) {
+// Runs gnuplot on both scripts, once per picture type; the PNGs and PDFs
+// are added to `written`.
+absl::Status RunGnuplots(const std::string& dir, std::vector<std::string>& written) {
   namespace fs = std::filesystem;
   for (const char* script : {"work_precision", "horizon_sweep"}) {
     const std::string gp = (fs::path(dir) / absl::StrCat(script, ".gp")).string();
-    const std::string command = absl::StrCat("gnuplot ", Quote(gp), " 2>&1");
-    FILE* pipe = popen(command.c_str(), "r");
-    if (pipe == nullptr) return absl::UnavailableError("cannot run gnuplot");
-    std::string output;
-    char buffer[256];
-    while (fgets(buffer, sizeof(buffer), pipe) != nullptr) output += buffer;
-    const int rc = pclose(pipe);
-    if (rc != 0) {
-      return absl::InternalError(absl::StrCat("gnuplot failed on '", gp, "' (status ", rc,
-                                              "): ", output));
+    for (const char* format : {"png", "pdf"}) {
+      const std::string problem = RunGnuplot(gp, absl::StrCat("format = '", format, "'"));
+      if (!problem.empty()) return absl::InternalError(problem);
+      written.push_back((fs::path(dir) / absl::StrCat(script, ".", format)).string());
     }
-    written.push_back((fs::path(dir) / absl::StrCat(script, ".png")).string());
   }
   return absl::OkStatus();
 }
@@ -268,7 +274,7 @@ absl::StatusOr<std::vector<std::string>> WriteStudyPlots(const study::StudyResul
     return st;
   }
   if (run_gnuplot) {
-    if (absl::Status st = RunGnuplot(dir, written); !st.ok()) return st;
+    if (absl::Status st = RunGnuplots(dir, written); !st.ok()) return st;
   }
   return written;
 }

@@ -17,7 +17,8 @@ namespace totalgrad::cli {
 // curve per estimator over P, PILCO as a point, the reference's noise floor
 // as a dashed line) and of the horizon sweep at spec.sweep_particles (or the
 // nearest P of the study), into `dir`. When run_gnuplot, runs gnuplot on the
-// scripts to make PNGs. Returns the files written. Cells that are omitted or
+// scripts to make PNGs and PDFs (each script draws the PNG unless gnuplot
+// runs it after `format = 'pdf'`), labelling each point with its P. Returns the files written. Cells that are omitted or
 // whose horizon's reference estimators disagree are not drawn (they are
 // listed in the table's omissions).
 absl::StatusOr<std::vector<std::string>> WriteStudyPlots(const study::StudyResult& result,

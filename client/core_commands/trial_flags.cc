@@ -33,8 +33,15 @@ void AddTrialOptionFlags(CLI::App* cmd, const learner::TrialOptions& defaults,
   for (const auto& [key, value] : learner::TrialOptionPairs(defaults)) {
     if (std::find(skip.begin(), skip.end(), key) != skip.end()) continue;
     const std::string flag = "--" + absl::StrReplaceAll(key, {{"_", "-"}});
-    CLI::Option* option = cmd->add_option(
-        flag, values->values[key], "trial option '" + key + "' (default " + DisplayValue(value) + ")");
+    const bool scene_default = std::find(learner::SceneDefaultedKeys().begin(),
+                                         learner::SceneDefaultedKeys().end(),
+                                         key) != learner::SceneDefaultedKeys().end();
+    const std::string default_text =
+        scene_default ? absl::StrCat("default: the scene's (`totalgrad scenes`), ", DisplayValue(value),
+                                     " on ", defaults.scene.scene)
+                      : absl::StrCat("default ", DisplayValue(value));
+    CLI::Option* option =
+        cmd->add_option(flag, values->values[key], "trial option '" + key + "' (" + default_text + ")");
     // The value's type in the help (the option table's; the value itself is
     // parsed and checked by the table, so its messages stay the same).
     if (const auto* field = learner::TrialOptions::Table().Find(key); field != nullptr) {
@@ -51,12 +58,12 @@ void AddTrialOptionFlags(CLI::App* cmd, const learner::TrialOptions& defaults,
 }
 
 absl::Status ApplyTrialOptionFlags(const TrialFlagValues& values, learner::TrialOptions* options) {
+  std::vector<std::pair<std::string, std::string>> pairs;
   std::set<std::string> given;
   for (const auto& [key, value] : values.values) {
     if (value.empty()) continue;
     given.insert(key);
-    const absl::Status s = learner::SetTrialOption(key, value, options);
-    if (!s.ok()) return s;
+    pairs.emplace_back(key, value);
   }
   for (const std::string& kv : values.sets) {
     const size_t eq = kv.find('=');
@@ -69,9 +76,12 @@ absl::Status ApplyTrialOptionFlags(const TrialFlagValues& values, learner::Trial
           " and as --set ", key, "=...): give it once"));
     }
     given.insert(key);
-    const absl::Status s = learner::SetTrialOption(key, kv.substr(eq + 1), options);
-    if (!s.ok()) return s;
+    pairs.emplace_back(key, kv.substr(eq + 1));
   }
+  // The scene's defaults (horizon, threshold) for what was not given.
+  absl::StatusOr<learner::TrialOptions> parsed = learner::TrialOptionsFromPairs(pairs);
+  if (!parsed.ok()) return parsed.status();
+  *options = *std::move(parsed);
   return options->Validate();
 }
 

@@ -27,8 +27,9 @@ struct TrialFlagValues {
 void AddTrialOptionFlags(CLI::App* cmd, const learner::TrialOptions& defaults,
                          TrialFlagValues* values, const std::vector<std::string>& skip = {});
 
-// Applies the collected flags to *options (which holds the command's
-// defaults), then validates the result. InvalidArgument names the flag or key
+// Sets *options to the collected flags over the defaults, the scene's for
+// the keys of learner::SceneDefaultedKeys() (learner::TrialOptionsFromPairs),
+// then validates the result. InvalidArgument names the flag or key
 // that is wrong, including a key given both as a flag and by --set (which one
 // should win would be a guess).
 absl::Status ApplyTrialOptionFlags(const TrialFlagValues& values, learner::TrialOptions* options);

@@ -21,6 +21,7 @@
 #include "server/common/token_file.h"
 #include "absl/time/time.h"
 #include "client/service_commands/curves_plot.h"
+#include "client/service_commands/success_plot.h"
 #include "client/service_commands/local_store.h"
 #include "client/service_commands/rpc_results_reader.h"
 #include "results/stats.h"
@@ -338,7 +339,44 @@ int WaitForSweepUntilInterrupted(Connection* connection, const std::string& swee
   return code;
 }
 
-int PrintResultsTable(Connection* connection, const std::string& sweep_name, Format format) {
+namespace {
+
+// The success-rate picture of a sweep's table (`results table --plot`).
+int PlotResultsTable(Connection* connection, const std::string& sweep_name,
+                     const std::vector<TableCell>& cells, const std::string& plot_path) {
+  SuccessPlotInput plot;
+  plot.title = absl::StrCat("sweep ", sweep_name,
+                            ": success rate per method with its 95% Wilson interval (successes/trials)");
+  for (const TableCell& c : cells) {
+    SuccessPoint point;
+    point.variant = c.variant;
+    point.method = c.method;
+    point.trials = c.trials;
+    point.successes = c.successes;
+    point.rate = c.rate;
+    point.low = c.low;
+    point.high = c.high;
+    plot.points.push_back(point);
+  }
+  std::vector<results::CurvePanel> panels;
+  std::string problem = FetchCurvePanels(connection, sweep_name, &panels);
+  for (const results::CurvePanel& panel : panels) {
+    plot.panel_variants.push_back(panel.variant);
+    plot.panel_titles.push_back(panel.title);
+  }
+  if (problem.empty()) problem = WriteSuccessPlot(plot, plot_path);
+  if (!problem.empty()) {
+    std::cerr << "error: results table --plot: " << problem << "\n";
+    return 1;
+  }
+  std::cerr << "plot written to " << plot_path << "\n";
+  return 0;
+}
+
+}  // namespace
+
+int PrintResultsTable(Connection* connection, const std::string& sweep_name, Format format,
+                      const std::string& plot_path) {
   RpcResultsReader reader(connection);
   const absl::StatusOr<std::vector<results::CompletedTrial>> trials =
       reader.CompletedTrials(sweep_name);
@@ -347,7 +385,7 @@ int PrintResultsTable(Connection* connection, const std::string& sweep_name, For
   if (format != Format::kTable) {
     // The cells' record, named as the dashboard's /api/sweep names them.
     PrintRecords(results::TableCellFields(), cells, format, std::cout);
-    return 0;
+    return plot_path.empty() ? 0 : PlotResultsTable(connection, sweep_name, cells, plot_path);
   }
   // Table 1 layout: one row per method, one column per task variant; each
   // cell is the success rate, its 95% Wilson interval and the trial count.
@@ -382,11 +420,11 @@ int PrintResultsTable(Connection* connection, const std::string& sweep_name, For
             << " jobs completed); held k/n: trials whose final policy held in at least half "
                "of its verdict rollouts, of those classified\n";
   Print(listing, Format::kTable, std::cout);
-  return 0;
+  return plot_path.empty() ? 0 : PlotResultsTable(connection, sweep_name, cells, plot_path);
 }
 
-int PrintCurves(Connection* connection, const std::string& sweep_name, Format format,
-                const std::string& plot_path, bool print_table) {
+absl::StatusOr<std::vector<EpisodeValue>> ReadEvaluationCosts(Connection* connection,
+                                                               const std::string& sweep_name) {
   v1::ExportEpisodesRequest request;
   request.set_sweep_name(sweep_name);
   std::vector<EpisodeValue> values;
@@ -400,26 +438,40 @@ int PrintCurves(Connection* connection, const std::string& sweep_name, Format fo
             // Only completed trials: a curve mixes no partial attempts.
             if (!row.final_attempt()) continue;
             values.push_back({row.method(), row.variant(), row.report().episode(),
-                              row.report().eval_cost_mean()});
+                              row.report().eval_cost_mean(), row.job_id()});
           }
         }
         return reader->Finish();
       });
-  if (!status.ok()) return ReportError(status, "results curves " + sweep_name);
-  const std::vector<CurvePoint> curves = results::Curves(values);
-  if (print_table) {
-    Listing listing;
-    listing.columns = {"method", "variant", "episode", "trials", "q25", "median", "q75"};
-    listing.numeric_columns = {"episode", "trials", "q25", "median", "q75"};
-    for (const CurvePoint& p : curves) {
-      listing.rows.push_back({p.method, p.variant, std::to_string(p.episode),
-                              std::to_string(p.trials),
-                              format == Format::kTable ? FormatFixed(p.q25, 2) : FormatNumber(p.q25),
-                              format == Format::kTable ? FormatFixed(p.median, 2) : FormatNumber(p.median),
-                              format == Format::kTable ? FormatFixed(p.q75, 2) : FormatNumber(p.q75)});
-    }
-    Print(listing, format, std::cout);
+  if (!status.ok()) {
+    return absl::Status(static_cast<absl::StatusCode>(status.error_code()), status.error_message());
   }
+  return values;
+}
+
+Listing CurvesListing(const std::vector<CurvePoint>& curves, Format format) {
+  Listing listing;
+  listing.columns = {"method", "variant", "episode", "trials", "q25", "median", "q75",
+                     "mean", "standard_error"};
+  listing.numeric_columns = {"episode", "trials", "q25", "median", "q75", "mean",
+                             "standard_error"};
+  const auto number = [format](double value) {
+    return format == Format::kTable ? FormatFixed(value, 2) : FormatNumber(value);
+  };
+  for (const CurvePoint& p : curves) {
+    listing.rows.push_back({p.method, p.variant, std::to_string(p.episode),
+                            std::to_string(p.trials), number(p.q25), number(p.median),
+                            number(p.q75), number(p.mean), number(p.standard_error)});
+  }
+  return listing;
+}
+
+int PrintCurves(Connection* connection, const std::string& sweep_name, Format format,
+                const std::string& plot_path, bool print_table, int top) {
+  const absl::StatusOr<std::vector<EpisodeValue>> values = ReadEvaluationCosts(connection, sweep_name);
+  if (!values.ok()) return ReportError(values.status(), "results curves " + sweep_name);
+  const std::vector<CurvePoint> curves = results::Curves(*values);
+  if (print_table) Print(CurvesListing(curves, format), format, std::cout);
   if (!plot_path.empty()) {
     if (curves.empty()) {
       std::cerr << "error: results curves " << sweep_name
@@ -427,6 +479,10 @@ int PrintCurves(Connection* connection, const std::string& sweep_name, Format fo
       return 1;
     }
     CurvesPlotInput plot{sweep_name, curves, {}};
+    if (top > 0) {
+      plot.top = top;
+      plot.best_curves = results::Curves(results::BestRuns(*values, top));
+    }
     std::string problem = FetchCurvePanels(connection, sweep_name, &plot.panels);
     if (problem.empty()) problem = WriteCurvesPlot(plot, plot_path);
     if (!problem.empty()) {

@@ -15,6 +15,7 @@
 #include "client/service_commands/format.h"
 #include "results/comparison.h"
 #include "results/diagnostics.h"
+#include "results/stats.h"
 #include "server/common/rpc_client.h"
 #include "totalgrad/v1/control_service.grpc.pb.h"
 
@@ -147,14 +148,19 @@ int WaitForSweep(Connection* connection, const std::string& sweep_name,
 // disposition is restored before returning.
 int WaitForSweepUntilInterrupted(Connection* connection, const std::string& sweep_name);
 
-// The results table of a sweep (the paper's Table 1 layout), printed.
-int PrintResultsTable(Connection* connection, const std::string& sweep_name, Format format);
+// The results table of a sweep (the paper's Table 1 layout), printed; with
+// a `plot_path`, also drawn there (success_plot.h; .svg, .pdf or .png).
+int PrintResultsTable(Connection* connection, const std::string& sweep_name, Format format,
+                      const std::string& plot_path = "");
 // The rows of a sweep's study jobs (study_results.cc): table format prints
 // the reference gradients then the cells (only the references with
 // `references`); csv/json print the cells, or with `references` the
 // reference gradients, with every stored column.
+// With a `plot_dir`, also draws each study's work-precision and horizon-sweep
+// plots (PNG and PDF, `totalgrad study`'s) into plot_dir/<study>/.
 int PrintStudyResults(Connection* connection, const std::string& sweep_name, Format format,
-                      bool references, bool all_attempts, std::ostream& out);
+                      bool references, bool all_attempts, std::ostream& out,
+                      const std::string& plot_dir = "");
 // The paired comparisons of the sweep's methods (compare.cc; `results compare`).
 int PrintComparison(Connection* connection, const std::string& sweep_name,
                     const results::ComparisonOptions& options, Format format);
@@ -167,9 +173,20 @@ absl::StatusOr<std::vector<results::DiagnosticPoint>> ReadDiagnostics(
 // Its -f json/csv rows: one per comparison, the verdicts at `alpha` last
 // (the Python module's `compare` reads the same rows).
 Listing ComparisonListing(const results::ComparisonReport& report, double alpha);
-// Per-method curves; optionally a gnuplot picture at `plot_path` (.svg/.png).
+// The evaluation cost of every episode of the sweep's completed trials (each
+// job's counting attempt), in export order, with its job id as the run.
+absl::StatusOr<std::vector<results::EpisodeValue>> ReadEvaluationCosts(Connection* connection,
+                                                                       const std::string& sweep_name);
+// `results curves`' rows: method, variant, episode, trials, q25, median,
+// q75, mean, standard_error (numbers to 2 decimals in the table format).
+Listing CurvesListing(const std::vector<results::CurvePoint>& curves, Format format);
+// Per-method curves (median, quartiles, mean and its standard error over
+// the completed trials); optionally a gnuplot picture at `plot_path` (.svg,
+// .pdf or .png; curves_plot.h). With `top` > 0 the picture is the paper's
+// Figure 3: per variant, all runs' median and quartiles, their mean and
+// standard error, and the median and quartiles of the `top` best runs.
 int PrintCurves(Connection* connection, const std::string& sweep_name, Format format,
-                const std::string& plot_path, bool print_table);
+                const std::string& plot_path, bool print_table, int top = 0);
 
 }  // namespace totalgrad::cli
 

@@ -9,6 +9,7 @@
 #include <set>
 
 #include "absl/strings/str_cat.h"
+#include "client/core_commands/gnuplot.h"
 #include "client/service_commands/connection.h"
 #include "client/service_commands/format.h"
 
@@ -21,25 +22,59 @@ using results::MethodColour;
 
 namespace {
 
-std::string Quote(const std::string& text) {
-  std::string out = "\"";
-  for (char c : text) {
-    if (c == '"' || c == '\\') out += '\\';
-    out += c;
-  }
-  return out + "\"";
-}
-
 // Panels per row: 1, 2 up to four panels, then 3.
 int Columns(size_t panels) { return panels <= 1 ? 1 : panels <= 4 ? 2 : 3; }
+
+using Key = std::pair<std::string, std::string>;  // (variant, method)
+
+// The data file: one block (gnuplot "index") per (variant, method) of all
+// runs, then with top > 0 one per (variant, method) of the best runs, each
+// row "episode q25 median q75 trials mean standard_error". Returns "" or
+// what went wrong.
+std::string WriteCurveBlocks(const std::string& data_path, const std::vector<std::string>& variants,
+                             std::map<std::string, std::vector<std::string>>& methods,
+                             std::map<Key, std::vector<const CurvePoint*>>& points,
+                             std::map<Key, std::vector<const CurvePoint*>>& best_points, int top,
+                             std::map<Key, int>* block, std::map<Key, int>* best_block) {
+  std::ofstream data(data_path);
+  if (!data) return "cannot write " + data_path;
+  int index = 0;
+  const auto write = [&](const std::string& what, const std::vector<const CurvePoint*>& rows,
+                         const std::string& method, const std::string& variant) {
+    data << "# " << method << " | " << variant << what
+         << "\n# episode q25 median q75 trials mean standard_error\n";
+    for (const CurvePoint* p : rows) {
+      data << p->episode << " " << FormatNumber(p->q25) << " " << FormatNumber(p->median) << " "
+           << FormatNumber(p->q75) << " " << p->trials << " " << FormatNumber(p->mean) << " "
+           << (std::isnan(p->standard_error) ? std::string("0") : FormatNumber(p->standard_error))
+           << "\n";
+    }
+    if (rows.empty()) data << "NaN NaN NaN NaN 0 NaN NaN\n";
+    data << "\n\n";
+    return index++;
+  };
+  for (const std::string& variant : variants) {
+    for (const std::string& method : methods[variant]) {
+      (*block)[{variant, method}] = write("", points[{variant, method}], method, variant);
+    }
+  }
+  if (top > 0) {
+    for (const std::string& variant : variants) {
+      for (const std::string& method : methods[variant]) {
+        (*best_block)[{variant, method}] = write(absl::StrCat(" | the ", top, " best runs"),
+                                                 best_points[{variant, method}], method, variant);
+      }
+    }
+  }
+  if (!data) return "cannot write " + data_path;
+  return "";
+}
 
 }  // namespace
 
 std::string WriteCurvesPlot(const CurvesPlotInput& input, const std::string& path) {
   const std::string extension = std::filesystem::path(path).extension().string();
-  if (extension != ".svg" && extension != ".png") {
-    return "--plot: the file must end in .svg or .png";
-  }
+  if (!IsPlotExtension(extension)) return "--plot: " + PlotExtensionHint();
   if (input.curves.empty()) return "no curve has a point yet; nothing to plot";
   std::error_code error;
   const std::string output = std::filesystem::absolute(path, error).lexically_normal().string();
@@ -48,7 +83,7 @@ std::string WriteCurvesPlot(const CurvesPlotInput& input, const std::string& pat
   // Variants and, per variant, methods in first-appearance order.
   std::vector<std::string> variants;
   std::map<std::string, std::vector<std::string>> methods;
-  std::map<std::pair<std::string, std::string>, std::vector<const CurvePoint*>> points;
+  std::map<Key, std::vector<const CurvePoint*>> points, best_points;
   int last_episode = 0;
   for (const CurvePoint& p : input.curves) {
     if (!methods.count(p.variant)) variants.push_back(p.variant);
@@ -57,44 +92,28 @@ std::string WriteCurvesPlot(const CurvesPlotInput& input, const std::string& pat
     points[{p.variant, p.method}].push_back(&p);
     last_episode = std::max(last_episode, p.episode);
   }
+  const bool figure3 = input.top > 0;
+  for (const CurvePoint& p : input.best_curves) best_points[{p.variant, p.method}].push_back(&p);
   std::map<std::string, CurvePanel> panel_of;
   for (const CurvePanel& panel : input.panels) panel_of.emplace(panel.variant, panel);
 
   const std::string data_path = output + ".dat";
-  std::map<std::pair<std::string, std::string>, int> block;  // gnuplot "index"
-  {
-    std::ofstream data(data_path);
-    if (!data) return "cannot write " + data_path;
-    int index = 0;
-    for (const std::string& variant : variants) {
-      for (const std::string& method : methods[variant]) {
-        data << "# " << method << " | " << variant << "\n# episode q25 median q75 trials\n";
-        for (const CurvePoint* p : points[{variant, method}]) {
-          data << p->episode << " " << FormatNumber(p->q25) << " " << FormatNumber(p->median)
-               << " " << FormatNumber(p->q75) << " " << p->trials << "\n";
-        }
-        data << "\n\n";
-        block[{variant, method}] = index++;
-      }
-    }
-    if (!data) return "cannot write " + data_path;
-  }
+  std::map<Key, int> block, best_block;
+  const std::string problem = WriteCurveBlocks(data_path, variants, methods, points, best_points,
+                                               input.top, &block, &best_block);
+  if (!problem.empty()) return problem;
 
-  const int columns = Columns(variants.size());
-  const int rows = static_cast<int>((variants.size() + columns - 1) / columns);
-  const int width = 760 * columns, height = 440 * rows + 40;
+  // Figure 3: a row of three panels per variant; else the variants in a grid.
+  const int columns = figure3 ? 3 : Columns(variants.size());
+  const int rows = figure3 ? static_cast<int>(variants.size())
+                           : static_cast<int>((variants.size() + columns - 1) / columns);
+  const int width = (figure3 ? 620 : 760) * columns, height = (figure3 ? 380 : 440) * rows + 40;
   const std::string script_path = output + ".gp";
   {
     std::ofstream script(script_path);
     if (!script) return "cannot write " + script_path;
-    script << "# " << input.sweep_name << ": redraw with `gnuplot " << script_path << "`\n";
-    if (extension == ".svg") {
-      script << "set terminal svg size " << width << "," << height << " dynamic font \"sans,11\"\n";
-    } else {
-      script << "set terminal pngcairo size " << width << "," << height << " font \"sans,10\"\n";
-    }
-    script << "set output " << Quote(output) << "\n"
-           << "set termoption noenhanced\n"  // option names hold underscores
+    script << "# " << input.sweep_name << ": redraw with `gnuplot " << script_path << "`\n"
+           << GnuplotTerminal(extension, width, height) << "set output " << GnuplotQuote(output) << "\n"
            << "set style fill transparent solid 0.18 noborder\n"
            << "set grid\nset xlabel \"episode\"\nset ylabel \"evaluation cost\"\n"
            << (last_episode <= 20 ? "set xtics 1\n" : "")
@@ -102,47 +121,64 @@ std::string WriteCurvesPlot(const CurvesPlotInput& input, const std::string& pat
            // left and fall, so any inside corner hides some curve.
            << "set key outside right top vertical box font \",9\" samplen 2 spacing 0.9\n"
            << "set multiplot layout " << rows << "," << columns << " title "
-           << Quote("sweep " + input.sweep_name +
-                    ": evaluation cost per episode, median and quartiles over trials "
-                    "(n = trials)")
+           << GnuplotQuote(figure3 ? absl::StrCat("sweep ", input.sweep_name,
+                                                  ": evaluation cost per episode (the paper's "
+                                                  "Figure 3): all runs, median and quartiles; all "
+                                                  "runs, mean +- standard error; the ",
+                                                  input.top, " best runs by final cost")
+                                   : "sweep " + input.sweep_name +
+                                         ": evaluation cost per episode, median and quartiles "
+                                         "over trials (n = trials)")
            << "\n";
-    for (const std::string& variant : variants) {
-      auto found = panel_of.find(variant);
-      const CurvePanel panel =
-          found != panel_of.end() ? found->second : DescribePanel(variant, {});
-      script << "set title " << Quote(panel.title) << "\nplot ";
+    // One panel: per method a band (columns low:high) and a line (column y)
+    // of block `index_of`, n from `trials_of`.
+    const auto panel = [&](const std::string& title, const std::string& variant,
+                           const std::map<Key, int>& index_of,
+                           const std::map<Key, std::vector<const CurvePoint*>>& rows_of,
+                           const std::string& band, const std::string& line, double threshold) {
+      script << "set title " << GnuplotQuote(title) << "\nplot ";
       bool first = true;
       for (const std::string& method : methods[variant]) {
         int trials = 0;
-        for (const CurvePoint* p : points[{variant, method}]) trials = std::max(trials, p->trials);
-        const std::string colour = "lc rgb " + Quote(MethodColour(method));
-        const int index = block[{variant, method}];
-        script << (first ? "" : ", \\\n     ") << Quote(data_path) << " index " << index
-               << " using 1:2:4 with filledcurves " << colour << " notitle, \\\n     "
-               << Quote(data_path) << " index " << index << " using 1:3 with linespoints "
-               << colour << " lw 2 pt 7 ps 0.5 title "
-               << Quote(absl::StrCat(method, " (n=", trials, ")"));
+        const auto rows_found = rows_of.find({variant, method});
+        if (rows_found != rows_of.end()) {
+          for (const CurvePoint* p : rows_found->second) trials = std::max(trials, p->trials);
+        }
+        const std::string colour = "lc rgb " + GnuplotQuote(MethodColour(method));
+        const std::string source = GnuplotQuote(data_path) + " index " +
+                                   std::to_string(index_of.at({variant, method}));
+        script << (first ? "" : ", \\\n     ") << source << " using " << band
+               << " with filledcurves " << colour << " notitle, \\\n     " << source << " using "
+               << line << " with linespoints " << colour << " lw 2 pt 7 ps 0.5 title "
+               << GnuplotQuote(absl::StrCat(method, " (n=", trials, ")"));
         first = false;
       }
-      if (std::isfinite(panel.threshold)) {
-        script << ", \\\n     " << FormatNumber(panel.threshold)
+      if (std::isfinite(threshold)) {
+        script << ", \\\n     " << FormatNumber(threshold)
                << " with lines dt 2 lw 1.5 lc rgb \"#555555\" title "
-               << Quote("success threshold " + FormatNumber(panel.threshold));
+               << GnuplotQuote("success threshold " + FormatNumber(threshold));
       }
       script << "\n";
+    };
+    for (const std::string& variant : variants) {
+      auto found = panel_of.find(variant);
+      const CurvePanel described =
+          found != panel_of.end() ? found->second : DescribePanel(variant, {});
+      if (!figure3) {
+        panel(described.title, variant, block, points, "1:2:4", "1:3", described.threshold);
+        continue;
+      }
+      panel(described.title + ": all runs, median and quartiles", variant, block, points, "1:2:4",
+            "1:3", described.threshold);
+      panel(described.title + ": all runs, mean +- standard error", variant, block, points,
+            "1:($6-$7):($6+$7)", "1:6", described.threshold);
+      panel(absl::StrCat(described.title, ": the ", input.top, " best runs, median and quartiles"),
+            variant, best_block, best_points, "1:2:4", "1:3", described.threshold);
     }
     script << "unset multiplot\n";
     if (!script) return "cannot write " + script_path;
   }
-  const std::string command = "gnuplot " + Quote(script_path) + " 2>&1";
-  FILE* pipe = popen(command.c_str(), "r");
-  if (pipe == nullptr) return "cannot run gnuplot (install gnuplot-nox)";
-  std::string messages;
-  char buffer[256];
-  while (fgets(buffer, sizeof(buffer), pipe) != nullptr) messages += buffer;
-  const int rc = pclose(pipe);
-  if (rc != 0) return "gnuplot failed (is gnuplot-nox installed?): " + messages;
-  return "";
+  return RunGnuplot(script_path);
 }
 
 std::string FetchCurvePanels(Connection* connection, const std::string& sweep_name,

@@ -24,9 +24,14 @@ struct CurvesPlotInput {
   // The panels' titles and thresholds by variant; a variant of `curves`
   // without one gets results::DescribePanel(variant, {}) (its name, no threshold).
   std::vector<results::CurvePanel> panels;
+  // The paper's Figure 3 when top > 0: per variant a row of three panels,
+  // all runs' median and quartiles, all runs' mean +- standard error, and
+  // `best_curves` (results::Curves of results::BestRuns(values, top)).
+  int top = 0;
+  std::vector<results::CurvePoint> best_curves;
 };
 
-// Writes `path` (.svg or .png), `path`.dat and `path`.gp and runs gnuplot on
+// Writes `path` (.svg, .pdf or .png), `path`.dat and `path`.gp and runs gnuplot on
 // the script. Returns "" on success, else what went wrong (bad extension,
 // unwritable file, gnuplot missing or failing, nothing to plot).
 std::string WriteCurvesPlot(const CurvesPlotInput& input, const std::string& path);

@@ -442,22 +442,36 @@ void AddResultsCommands(CLI::App* app, int* exit_code) {
   CLI::App* results = app->add_subcommand("results", "query results");
   results->require_subcommand(1);
   auto table_sweep = std::make_shared<std::string>();
+  auto table_plot = std::make_shared<std::string>();
   CLI::App* table = AddCommand(results, "table",
                                "success rate per method and task variant, 95% Wilson interval, n",
-                               exit_code, [table_sweep](Connection* c) {
-    return PrintResultsTable(c, *table_sweep, c->format());
+                               exit_code, [table_sweep, table_plot](Connection* c) {
+    return PrintResultsTable(c, *table_sweep, c->format(), *table_plot);
   });
   table->add_option("SWEEP", *table_sweep, "sweep name")->required();
+  table->add_option("--plot", *table_plot,
+                    "also draw the success rates with their Wilson intervals into FILE.svg, "
+                    "FILE.pdf or FILE.png (gnuplot)");
 
   auto curves_sweep = std::make_shared<std::string>();
   auto plot = std::make_shared<std::string>();
+  auto top = std::make_shared<int>(0);
   CLI::App* curves = AddCommand(results, "curves",
-                                "median and quartiles of the evaluation cost per episode",
-                                exit_code, [curves_sweep, plot](Connection* c) {
-    return PrintCurves(c, *curves_sweep, c->format(), *plot, /*print_table=*/true);
+                                "median, quartiles, mean and standard error of the evaluation "
+                                "cost per episode over completed trials",
+                                exit_code, [curves_sweep, plot, top](Connection* c) {
+    if (*top > 0 && plot->empty()) {
+      std::cerr << "error: results curves: --top K draws the paper's Figure 3; give --plot FILE\n";
+      return 2;
+    }
+    return PrintCurves(c, *curves_sweep, c->format(), *plot, /*print_table=*/true, *top);
   });
   curves->add_option("SWEEP", *curves_sweep, "sweep name")->required();
-  curves->add_option("--plot", *plot, "also draw the curves into FILE.svg or FILE.png (gnuplot)");
+  curves->add_option("--plot", *plot, "also draw the curves into FILE.svg, FILE.pdf or FILE.png (gnuplot)");
+  curves->add_option("--top", *top,
+                     "draw the paper's Figure 3: per variant all runs (median and quartiles; mean "
+                     "+- standard error) beside the K runs of lowest final cost")
+      ->check(CLI::Range(1, 100000));
 
   AddArchiveCommands(results, exit_code);  // export, import (archive_commands.cc)
   AddCompareCommand(results, exit_code);
@@ -469,11 +483,12 @@ void AddResultsCommands(CLI::App* app, int* exit_code) {
   auto study_references = std::make_shared<bool>(false);
   auto study_all = std::make_shared<bool>(false);
   auto study_output = std::make_shared<std::string>();
+  auto study_plot = std::make_shared<std::string>();
   CLI::App* study_cmd = AddCommand(
       results, "study",
       "the rows of the sweep's study jobs: one per study cell (the columns of a study's "
       "table.csv), or per reference gradient",
-      exit_code, [study_sweep, study_references, study_all, study_output](Connection* c) {
+      exit_code, [study_sweep, study_references, study_all, study_output, study_plot](Connection* c) {
         std::ofstream file;
         if (!study_output->empty()) {
           file.open(*study_output);
@@ -483,13 +498,16 @@ void AddResultsCommands(CLI::App* app, int* exit_code) {
           }
         }
         return PrintStudyResults(c, *study_sweep, c->format(), *study_references, *study_all,
-                                 study_output->empty() ? std::cout : file);
+                                 study_output->empty() ? std::cout : file, *study_plot);
       });
   study_cmd->add_option("SWEEP", *study_sweep, "sweep name")->required();
   study_cmd->add_flag("--references", *study_references,
                       "the reference gradients (references.csv columns) instead of the cells");
   study_cmd->add_flag("--all-attempts", *study_all, "include failed and lost attempts");
   study_cmd->add_option("-o,--output", *study_output, "write to FILE instead of stdout");
+  study_cmd->add_option("--plot", *study_plot,
+                        "also draw each study's work-precision plot (points labelled with P) and "
+                        "horizon sweep, PNG and PDF, into DIR/<study>/ (gnuplot)");
 }
 
 void AddAdminCommands(CLI::App* app, int* exit_code) {

@@ -4,6 +4,7 @@
 // study::CellFields() / ReferenceFields(): the columns of the study's
 // table.csv and references.csv, the objects of its results.json), with the
 // row's key (study, job_id, attempt, index) in front.
+#include <filesystem>
 #include <iostream>
 
 #include <nlohmann/json.hpp>
@@ -11,12 +12,14 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
+#include "client/core_commands/study_plots.h"
 #include "client/service_commands/connection.h"
 #include "client/service_commands/streamed_reads.h"
 #include "client/service_commands/format.h"
 #include "core/study/study.h"
 #include "io/record_format.h"
 #include "server/common/record_proto.h"
+#include "server/sweep/sweep_spec.h"
 
 namespace totalgrad::cli {
 namespace {
@@ -112,13 +115,71 @@ Listing ReferenceTable(const v1::ListStudyRowsResponse& response) {
   return listing;
 }
 
+// `results study --plot DIR`: each study's work-precision and horizon-sweep
+// pictures, as `totalgrad study --output-dir` draws them (study_plots.h),
+// into DIR/<study>/ from the stored rows and the sweep's study specs.
+int PlotStudies(Connection* connection, const std::string& sweep_name,
+                const v1::ListStudyRowsResponse& response, const std::string& dir) {
+  v1::SweepRequest request;
+  request.set_name(sweep_name);
+  v1::SweepInfo sweep;
+  const grpc::Status status = connection->Call(&v1::ControlService::Stub::GetSweep, request, &sweep);
+  if (!status.ok()) return ReportError(status, "results study --plot " + sweep_name);
+  const absl::StatusOr<sweep::SweepSpec> spec = sweep::SpecFromCanonicalJson(sweep.canonical_spec());
+  if (!spec.ok()) return ReportError(spec.status(), "results study --plot " + sweep_name);
+  int drawn = 0;
+  for (const sweep::StudyEntry& entry : spec->studies) {
+    study::StudyResult result;
+    for (const auto& row : response.cells()) {
+      if (row.study() != entry.name) continue;
+      record_proto::RecordFromProto(study::CellFields(), row, &result.cells.emplace_back());
+    }
+    for (const auto& row : response.references()) {
+      if (row.study() != entry.name) continue;
+      record_proto::RecordFromProto(study::ReferenceFields(), row, &result.references.emplace_back());
+    }
+    if (result.cells.empty()) {
+      std::cerr << "note: study " << entry.name << " has no stored cells yet; not drawn\n";
+      continue;
+    }
+    const nlohmann::json doc = nlohmann::json::parse(entry.spec_json, nullptr, false);
+    const absl::StatusOr<io::StudySpec> study_spec =
+        doc.is_discarded() ? absl::InvalidArgumentError("the stored study spec is not JSON")
+                           : io::ParseStudySpec(doc, /*base_dir=*/"");
+    if (!study_spec.ok()) {
+      return ReportError(study_spec.status(), "results study --plot: study " + entry.name);
+    }
+    result.scene = entry.name;
+    const std::string out = (std::filesystem::path(dir) / entry.name).string();
+    const absl::StatusOr<std::vector<std::string>> written =
+        WriteStudyPlots(result, *study_spec, out, /*run_gnuplot=*/true);
+    if (!written.ok()) return ReportError(written.status(), "results study --plot " + out);
+    std::cerr << "plots of study " << entry.name << " written to " << out << "/\n";
+    ++drawn;
+  }
+  if (drawn == 0) {
+    std::cerr << "error: results study --plot: sweep " << sweep_name
+              << " has no study with stored cells; nothing to plot\n";
+    return 1;
+  }
+  return 0;
+}
+
 }  // namespace
 
 int PrintStudyResults(Connection* connection, const std::string& sweep_name, Format format,
-                      bool references, bool all_attempts, std::ostream& out) {
+                      bool references, bool all_attempts, std::ostream& out,
+                      const std::string& plot_dir) {
   v1::ListStudyRowsResponse response;
   const grpc::Status status = FetchStudyRows(connection, sweep_name, all_attempts, &response);
   if (!status.ok()) return ReportError(status, "results study " + sweep_name);
+  if (!plot_dir.empty()) {
+    if (all_attempts) {
+      std::cerr << "error: results study: --plot draws the final attempts; drop --all-attempts\n";
+      return 2;
+    }
+    if (const int code = PlotStudies(connection, sweep_name, response, plot_dir); code != 0) return code;
+  }
   if (format != Format::kTable) {
     if (references) {
       PrintRecords(study::ReferenceFields(), response.references(), format, out);

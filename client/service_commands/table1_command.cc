@@ -12,6 +12,7 @@
 #include "client/service_commands/connection.h"
 #include "client/service_commands/format.h"
 #include "client/service_commands/rpc_results_reader.h"
+#include "client/service_commands/success_plot.h"
 #include "results/table1.h"
 #include "results/table1_claims.h"
 
@@ -187,12 +188,56 @@ void PrintPower(const std::vector<results::PowerEntry>& entries, std::ostream& o
 struct Table1View {
   std::string view = "grid";
   std::vector<double> thresholds = results::DefaultSensitivityThresholds();
+  std::string plot;  // the grid's picture (success_plot.h), "" for none
 };
+
+// The grid as a picture: one panel per task with a completed trial, every
+// method of the paper in its place, the paper's rate as a marker.
+int PlotTable1(const results::Table1& table, const std::vector<std::string>& sweeps,
+               const std::string& path) {
+  const std::vector<std::string>& methods = results::Table1Methods();
+  const std::vector<results::Table1Row>& rows = results::Table1Rows();
+  SuccessPlotInput plot;
+  plot.title = absl::StrCat("Table 1 (Parmas et al. 2018) from ", absl::StrJoin(sweeps, ", "),
+                            ": success rate, 95% Wilson interval, successes/trials; diamond: the paper");
+  for (size_t r = 0; r < rows.size(); ++r) {
+    int trials = 0;
+    for (size_t m = 0; m < methods.size(); ++m) trials += table.cells[r * methods.size() + m].trials;
+    if (trials == 0) continue;
+    for (size_t m = 0; m < methods.size(); ++m) {
+      const Table1Cell& cell = table.cells[r * methods.size() + m];
+      SuccessPoint point;
+      point.variant = rows[r].Label();
+      point.method = cell.method;
+      point.trials = cell.trials;
+      point.successes = cell.successes;
+      point.rate = cell.success_rate;
+      point.low = cell.wilson95_low;
+      point.high = cell.wilson95_high;
+      point.paper_rate = cell.paper_success_rate;
+      plot.points.push_back(point);
+    }
+    plot.panel_variants.push_back(rows[r].Label());
+    plot.panel_titles.push_back(absl::StrCat("cart-pole swing-up, ", rows[r].Label()));
+  }
+  const std::string problem = WriteSuccessPlot(plot, path);
+  if (!problem.empty()) {
+    std::cerr << "error: results table1 --plot: " << problem << "\n";
+    return 1;
+  }
+  std::cerr << "plot written to " << path << "\n";
+  return 0;
+}
 
 int PrintTable1(Connection* connection, const std::vector<std::string>& sweeps,
                 const Table1View& view, Format format) {
   if (sweeps.empty()) {
     std::cerr << "error: results table1: name at least one sweep\n";
+    return 2;
+  }
+  if (!view.plot.empty() && view.view != "grid") {
+    std::cerr << "error: results table1: --plot draws the grid view, not --view " << view.view
+              << "\n";
     return 2;
   }
   RpcResultsReader reader(connection);
@@ -222,13 +267,13 @@ int PrintTable1(Connection* connection, const std::vector<std::string>& sweeps,
   }
   if (format == Format::kTable) {
     PrintGrid(*table, sweeps, std::cout);
-    return 0;
+  } else {
+    PrintRecords(results::Table1CellFields(), table->cells, format, std::cout);
+    if (!table->outside.empty()) {
+      std::cerr << "note: not in the grid: " << absl::StrJoin(table->outside, "; ") << "\n";
+    }
   }
-  PrintRecords(results::Table1CellFields(), table->cells, format, std::cout);
-  if (!table->outside.empty()) {
-    std::cerr << "note: not in the grid: " << absl::StrJoin(table->outside, "; ") << "\n";
-  }
-  return 0;
+  return view.plot.empty() ? 0 : PlotTable1(*table, sweeps, view.plot);
 }
 
 }  // namespace
@@ -254,6 +299,9 @@ void AddTable1Command(CLI::App* results, int* exit_code) {
                       "(default 13,14,15,16,17)")
       ->delimiter(',')
       ->check(CLI::Range(0.0, 1e6));
+  command->add_option("--plot", view->plot,
+                      "also draw the grid's success rates, their Wilson intervals and the paper's "
+                      "rates into FILE.svg, FILE.pdf or FILE.png (gnuplot; the grid view)");
 }
 
 void AddPowerCommand(CLI::App* results, int* exit_code) {

@@ -188,9 +188,23 @@ absl::StatusOr<TrialOptions> ApplyPairs(TrialOptions base,
 
 }  // namespace
 
+const std::vector<std::string>& SceneDefaultedKeys() {
+  static const std::vector<std::string>* keys = new std::vector<std::string>{"horizon", "threshold"};
+  return *keys;
+}
+
 absl::StatusOr<TrialOptions> TrialOptionsFromPairs(
     const std::vector<std::pair<std::string, std::string>>& pairs) {
-  return ApplyPairs(TrialOptions{}, pairs);
+  absl::StatusOr<TrialOptions> options = ApplyPairs(TrialOptions{}, pairs);
+  if (!options.ok()) return options;
+  const tasks::SceneDefinition* scene = tasks::FindSceneDefinition(options->scene.scene);
+  if (scene == nullptr) return options;
+  const auto given = [&pairs](const std::string& key) {
+    return std::any_of(pairs.begin(), pairs.end(), [&key](const auto& pair) { return pair.first == key; });
+  };
+  if (!given("horizon")) options->scene.horizon = scene->horizon;
+  if (!given("threshold")) options->success_threshold = scene->success_threshold;
+  return options;
 }
 
 absl::StatusOr<TrialOptions> TrialOptionsFromStoredPairs(

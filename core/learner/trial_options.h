@@ -162,14 +162,24 @@ int PilcoEvaluationsPerLineSearch(const TrialOptions& options);
 absl::Status SetTrialOption(const std::string& key, const std::string& value, TrialOptions* options);
 std::vector<std::pair<std::string, std::string>> TrialOptionPairs(const TrialOptions& options);
 std::vector<std::string> TrialOptionKeys();
-// Default options with `pairs` applied in order (InvalidArgument from the
-// first pair that fails; no Validate()).
+// The keys whose default is the scene's (tasks::SceneDefinition): "horizon"
+// (its H) and "threshold" (its success_threshold). TrialOptions{} holds the
+// cart-pole's values (30 and 15).
+const std::vector<std::string>& SceneDefaultedKeys();
+// Options as a user gives them: default options with `pairs` applied in
+// order, then each of SceneDefaultedKeys() that `pairs` lacks set to the
+// scene's value (an unknown scene keeps the defaults; Validate() names it).
+// InvalidArgument from the first pair that fails; no Validate(). Every
+// reader of new options goes through this (the CLI's flags, a sweep's
+// grid points, Python), so `trial --scene pendulum` runs PILCO's H = 40 and a
+// sweep stores the resolved value in each job.
 absl::StatusOr<TrialOptions> TrialOptionsFromPairs(
     const std::vector<std::pair<std::string, std::string>>& pairs);
 // The same for pairs that were stored (a job's options, a checkpoint, a trial
 // snapshot): a key whose default changed after files without it were written
 // starts from the value those files were computed with, so that such a file
 // still describes (and resumes, and rebuilds) the computation it came from.
+// No scene defaults: stored pairs list every key they were run with.
 // Today: gp_variance_tolerance (absent = 0, the exact variance) and
 // verdict_rollouts (absent = 0, no rollout verdict). Pairs
 // written by this build list every key, so for them both functions agree.

@@ -42,6 +42,7 @@ SceneDefinition PendulumScene() {
   s.control_names = {"torque"};
   s.max_control = Values({2.5});
   s.horizon = 40;
+  s.success_threshold = 0.5 * s.horizon;
   s.mu0 = Values({0.0, 0.0});
   s.start_std = Values({0.1, 0.1});
   s.measurement_noise_std = Values({0.1, 0.01});
@@ -76,6 +77,7 @@ SceneDefinition CartPoleScene(bool balance) {
   s.control_names = {"force"};
   s.max_control = Values({10.0});
   s.horizon = 30;
+  s.success_threshold = 15.0;  // the paper's
   s.target = Values({0.0, kPi, 0.0, 0.0});
   s.mu0 = balance ? s.target : Values({0.0, 0.0, 0.0, 0.0});
   s.start_std = Values({0.1, 0.1, 0.1, 0.1});
@@ -117,6 +119,7 @@ SceneDefinition CartDoublePendulumScene() {
   s.control_names = {"force"};
   s.max_control = Values({20.0});
   s.horizon = 100;
+  s.success_threshold = 0.5 * s.horizon;
   s.mu0 = Values({0, 0, 0, 0, kPi, kPi});
   s.start_std = Values({0.1, 0.1, 0.1, 0.1, 0.01, 0.01});
   s.measurement_noise_std = Vector::Constant(6, 0.01);
@@ -159,6 +162,7 @@ SceneDefinition DoublePendulumScene(bool pendubot) {
                              : std::vector<std::string>{"torque1", "torque2"};
   s.max_control = pendubot ? Values({3.5}) : Values({2.0, 2.0});
   s.horizon = pendubot ? 60 : 30;
+  s.success_threshold = 0.5 * s.horizon;
   s.mu0 = Values({0, 0, kPi, kPi});
   s.start_std = Values({0.1, 0.1, 0.01, 0.01});
   s.measurement_noise_std = Vector::Constant(4, 0.01);

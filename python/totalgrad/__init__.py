@@ -386,6 +386,14 @@ class Results:
         (docs/diagnostics.md)."""
         return self._frame(self._connection.diagnostics(sweep, statistic))
 
+    def curves(self, sweep, top=None):
+        """`totalgrad results curves SWEEP -f json`: per method, variant and
+        episode the median, quartiles, mean and standard error of the
+        evaluation cost over the completed trials; with `top` = k over each
+        method's and variant's k runs of lowest final cost (the paper's
+        Figure 3 "top runs"; `results curves --top k` draws them)."""
+        return self._frame(self._connection.curves(sweep, 0 if top is None else int(top)))
+
     def table1(self, sweeps, view="grid", thresholds=()):
         """`totalgrad results table1 SWEEP... -f json --view VIEW`: the paper's
         Table 1 (grid), its threshold sensitivity, or its claims compared."""

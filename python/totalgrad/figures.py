@@ -6,12 +6,11 @@ given, and returns the figure; save it as SVG or PDF with
     import totalgrad, totalgrad.figures as tf
     results = totalgrad.connect(db="t1.db")
     tf.success_rates(results.table1(["table1-tip-k1", "table1-tip-k001"]))
-    tf.learning_curves(results.episodes("table1-tip-k1"), top=5)
+    tf.learning_curves(results.curves("table1-tip-k1"), results.curves("table1-tip-k1", top=5))
     tf.work_precision(totalgrad.study("docs/error-vs-time/study.json")["cells"])
 
 The numbers drawn are the tables' own (the CLI's, computed by the results
-library); nothing is recomputed here but medians, quartiles and means of the
-episode rows for the curves.
+library); nothing is recomputed here.
 """
 import math
 
@@ -102,47 +101,48 @@ def success_rates(cells, ax=None, title=None):
     return fig
 
 
-def learning_curves(episodes, value="eval_cost_mean", top=None, by="variant", axes=None):
-    """The paper's Figure 3 panels from `Results.episodes(...)`: per method,
-    the median over runs of `value` per episode with the quartiles shaded
-    (all runs), the mean with +- one standard error (all runs), and with
-    `top` = k the median of the k runs of lowest final `value`. One row of
-    panels per task variant (`by`)."""
+def learning_curves(curves, best=None, axes=None):
+    """The paper's Figure 3 panels from `Results.curves(sweep)`: per task
+    variant, each method's median over runs per episode with the quartiles
+    shaded, and its mean with +- one standard error; with `best` =
+    `Results.curves(sweep, top=k)` a third panel, the median and quartiles of
+    the k runs of lowest final cost. The numbers are the results library's
+    (`results curves`); only the drawing is here."""
     plt = _pyplot()
-    data = episodes[episodes["final_attempt"]] if "final_attempt" in episodes else episodes
-    groups = list(dict.fromkeys(data[by])) if by in data else [None]
-    columns = 3 if top else 2
+    groups = list(dict.fromkeys(curves["variant"])) if len(curves) else [""]
+    columns = 3 if best is not None else 2
     if axes is None:
         fig, axes = plt.subplots(len(groups), columns, figsize=(4 * columns, 3 * len(groups)),
                                  squeeze=False)
     else:
         fig = axes[0][0].figure
+
+    def band(ax, rows, method):
+        rows = rows.sort_values("episode")
+        colour = method_colour(method)
+        ax.plot(rows["episode"], rows["median"], color=colour, label=method)
+        ax.fill_between(rows["episode"], rows["q25"], rows["q75"], color=colour, alpha=0.15)
+
     for r, group in enumerate(groups):
-        rows = data if group is None else data[data[by] == group]
-        label = "" if not group else f" ({group})"
+        rows = curves[curves["variant"] == group]
+        label = f" ({group})" if group else ""
         for method in _methods(rows["method"]):
-            runs = rows[rows["method"] == method].pivot_table(
-                index="episode", columns="job_id", values=value)
-            colour = method_colour(method)
-            median = runs.median(axis=1)
-            axes[r][0].plot(median.index, median, color=colour, label=method)
-            axes[r][0].fill_between(median.index, runs.quantile(0.25, axis=1),
-                                    runs.quantile(0.75, axis=1), color=colour, alpha=0.15)
-            mean = runs.mean(axis=1)
-            error = runs.std(axis=1, ddof=1) / runs.count(axis=1).pow(0.5)
-            axes[r][1].errorbar(mean.index, mean, yerr=error, color=colour, capsize=2,
-                                label=method)
-            if top:
-                final = runs.ffill().iloc[-1].sort_values()
-                best = runs[final.index[:top]]
-                axes[r][2].plot(best.index, best.median(axis=1), color=colour, label=method)
-        axes[r][0].set_title("median, quartiles" + label)
-        axes[r][1].set_title("mean +- standard error" + label)
-        if top:
-            axes[r][2].set_title(f"median of the {top} best runs" + label)
+            mine = rows[rows["method"] == method].sort_values("episode")
+            band(axes[r][0], mine, method)
+            axes[r][1].errorbar(mine["episode"], mine["mean"], yerr=mine["standard_error"].fillna(0),
+                                color=method_colour(method), capsize=2, label=method)
+            if best is not None:
+                top = best[(best["variant"] == group) & (best["method"] == method)]
+                if len(top):
+                    band(axes[r][2], top, method)
+        axes[r][0].set_title("all runs: median, quartiles" + label)
+        axes[r][1].set_title("all runs: mean +- standard error" + label)
+        if best is not None:
+            runs = int(best["trials"].max()) if len(best) else 0
+            axes[r][2].set_title(f"the {runs} best runs: median, quartiles" + label)
         for ax in axes[r]:
             ax.set_xlabel("episode")
-            ax.set_ylabel(value)
+            ax.set_ylabel("evaluation cost")
         axes[r][0].legend(fontsize="small")
     fig.tight_layout()
     return fig

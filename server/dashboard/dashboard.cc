@@ -84,6 +84,7 @@ void Dashboard::Register(httplib::Server* server) {
   server->Get("/", serve_file("index.html"));
   server->Get("/dashboard.js", serve_file("dashboard.js"));
   server->Get("/inside_trials.js", serve_file("inside_trials.js"));
+  server->Get("/figures.js", serve_file("figures.js"));
   server->Get("/dashboard.css", serve_file("dashboard.css"));
 
   // Every API route: authorise, build the document, answer.

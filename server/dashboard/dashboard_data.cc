@@ -295,6 +295,11 @@ absl::StatusOr<json> DashboardData::Sweep(const std::string& name, int64_t now_m
     io::AppendRecordJson(results::TableCellFields(), cell, &record);
     table["cells"].push_back(std::move(record));
   }
+  // Each method's colour in every plot (results/plot_style.h).
+  table["colours"] = json::object();
+  for (const json& method : table["methods"]) {
+    table["colours"][method.get<std::string>()] = results::MethodColour(method.get<std::string>());
+  }
   out["table"] = std::move(table);
   return out;
 }
@@ -437,6 +442,10 @@ absl::StatusOr<json> DashboardData::Table1(const std::vector<std::string>& names
     out["rows"].push_back({{"cost", row.cost}, {"noise_k", row.noise_k}, {"label", row.Label()}});
   }
   for (const auto& [key, value] : results::PaperProtocol()) out["protocol"].push_back({key, value});
+  out["colours"] = json::object();
+  for (const std::string& method : results::Table1Methods()) {
+    out["colours"][method] = results::MethodColour(method);
+  }
   for (const results::Table1Cell& cell : table->cells) {
     json record = json::object();
     io::AppendRecordJson(results::Table1CellFields(), cell, &record);

@@ -211,6 +211,29 @@ WHERE id = ?)sql"));
   return result;
 }
 
+namespace {
+
+// FailedPrecondition naming the first option whose stored text differs from
+// `job`'s. Keys one side lacks are not compared: a key added after the job
+// was stored defaults to the computation it ran (TrialOptionsFromStoredPairs).
+absl::Status SameStoredOptions(const std::string& sweep, const NewJob& job, const OptionList& stored) {
+  for (const auto& [key, value] : job.options) {
+    const auto found = std::find_if(stored.begin(), stored.end(),
+                                    [&key](const auto& pair) { return pair.first == key; });
+    if (found == stored.end() || found->second == value) continue;
+    return absl::FailedPreconditionError(absl::StrCat(
+        "sweep '", sweep, "' cannot grow: its job ", job.method, " seed ", job.seed,
+        job.variant.empty() ? "" : " (" + job.variant + ")", " is stored with ", key, " = ",
+        found->second, ", and this coordinator resolves the same job to ", key, " = ", value,
+        " (a default changed between builds); set ", key, " = ", found->second,
+        " in the sweep file's [protocol] to grow it with the computation it ran, or submit it "
+        "under a new name"));
+  }
+  return absl::OkStatus();
+}
+
+}  // namespace
+
 absl::StatusOr<int> SqliteStore::GrowSweep(const NewSweep& grown, int64_t now_ms) {
   int added = 0;
   const absl::Status status = InWriteTransaction([&](Db& db) -> absl::Status {
@@ -223,7 +246,8 @@ absl::StatusOr<int> SqliteStore::GrowSweep(const NewSweep& grown, int64_t now_ms
     const int64_t sweep_id = sweep_query.ColumnInt(0);
     const std::string previous_hash = sweep_query.ColumnText(1);
     ASSIGN_OR_RETURN(Statement exists, Statement::Prepare(db, R"sql(
-SELECT 1 FROM jobs WHERE sweep_id = ? AND kind = ? AND method = ? AND seed = ? AND variant = ?)sql"));
+SELECT options_json FROM jobs
+WHERE sweep_id = ? AND kind = ? AND method = ? AND seed = ? AND variant = ?)sql"));
     ASSIGN_OR_RETURN(Statement last, Statement::Prepare(
         db, "SELECT COALESCE(MAX(ordinal), -1) FROM jobs WHERE sweep_id = ?"));
     last.Bind(1, sweep_id);
@@ -237,8 +261,15 @@ VALUES(?, ?, ?, ?, ?, ?, ?, 'queued', ?, ?))sql"));
       exists.Bind(1, sweep_id).Bind(2, ToString(job.kind)).Bind(3, job.method);
       exists.Bind(4, job.seed).Bind(5, job.variant);
       ASSIGN_OR_RETURN(bool present, exists.Step());
+      const std::string stored_options = present ? exists.ColumnText(0) : std::string();
       exists.Reset();
-      if (present) continue;
+      if (present) {
+        // The stored job must be the job this build would run: a default
+        // that changed between builds (e.g. a scene's own horizon) would
+        // otherwise give the new jobs another computation than the old.
+        RETURN_IF_ERROR(SameStoredOptions(grown.name, job, OptionsFromJson(stored_options)));
+        continue;
+      }
       job_insert.Bind(1, sweep_id).Bind(2, ++ordinal).Bind(3, job.method).Bind(4, job.seed);
       job_insert.Bind(5, job.variant).Bind(6, OptionsToJson(job.options));
       job_insert.Bind(7, EpisodesExpectedColumn(KindInfo(job.kind), job.episodes_expected));

@@ -114,7 +114,10 @@ class Store {
   // resubmission, sweep::UnionOfSweeps): stores its jobs that the sweep lacks
   // (identity (kind, method, seed, variant); ordinals after the last), and
   // the new canonical spec, hash, description and source. Returns how many
-  // jobs were added. NotFound if there is no sweep of that name.
+  // jobs were added. NotFound if there is no sweep of that name;
+  // FailedPrecondition (nothing changes) if a stored job's options differ
+  // from the same job's in `grown` for a key both list (a default changed
+  // between the builds: the sweep would mix two computations).
   virtual absl::StatusOr<int> GrowSweep(const NewSweep& grown, int64_t now_ms) = 0;
 
   // Takes over the completed jobs of a sweep archive, in one transaction.

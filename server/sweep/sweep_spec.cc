@@ -34,18 +34,16 @@ absl::StatusOr<std::string> CanonicalValue(const std::string& key, const std::st
   return value;
 }
 
-// Options for one grid point: defaults, then protocol, then the point's values.
+// Options for one grid point: defaults (the scene's where the point's scene
+// has its own, learner::TrialOptionsFromPairs), then protocol, then the
+// point's values.
 absl::StatusOr<learner::TrialOptions> OptionsAt(const SweepSpec& spec,
                                                 const std::vector<size_t>& index) {
-  learner::TrialOptions options;
-  for (const auto& [key, value] : spec.protocol) {
-    RETURN_IF_ERROR(learner::SetTrialOption(key, value, &options));
-  }
+  OptionList pairs(spec.protocol.begin(), spec.protocol.end());
   for (size_t a = 0; a < spec.grid.size(); ++a) {
-    RETURN_IF_ERROR(
-        learner::SetTrialOption(spec.grid[a].key, spec.grid[a].values[index[a]], &options));
+    pairs.emplace_back(spec.grid[a].key, spec.grid[a].values[index[a]]);
   }
-  return options;
+  return learner::TrialOptionsFromPairs(pairs);
 }
 
 }  // namespace
@@ -427,10 +425,7 @@ absl::StatusOr<std::vector<ExpandedJob>> ExpandJobs(const SweepSpec& spec) {
 }
 
 absl::StatusOr<OptionList> ResolveOptions(const OptionList& pairs) {
-  learner::TrialOptions options;
-  for (const auto& [key, value] : pairs) {
-    RETURN_IF_ERROR(learner::SetTrialOption(key, value, &options));
-  }
+  ASSIGN_OR_RETURN(learner::TrialOptions options, learner::TrialOptionsFromPairs(pairs));
   RETURN_IF_ERROR(options.Validate());
   return learner::TrialOptionPairs(options);
 }

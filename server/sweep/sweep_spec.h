@@ -182,7 +182,8 @@ struct SweepCostEstimate {
 // InvalidArgument as ExpandJobs (the spec is canonicalized on a copy first).
 absl::StatusOr<SweepCostEstimate> EstimateSweepCost(const SweepSpec& spec);
 
-// Applies option pairs to default trial options and returns the full
+// Applies option pairs to default trial options (the scene's horizon and
+// threshold where not given: learner::TrialOptionsFromPairs) and returns the full
 // canonical list (what a worker is given). InvalidArgument naming the key.
 absl::StatusOr<OptionList> ResolveOptions(const OptionList& pairs);
 

@@ -2,9 +2,11 @@
 and Wilson bars are the Table-1 cells, the curve panels the medians, means
 and standard errors of the episode rows, the work-precision points the study
 cells; and every figure saves as SVG and PDF."""
+import json
 import math
 import os
 import statistics
+import subprocess
 
 import matplotlib
 
@@ -20,9 +22,14 @@ ARCHIVE = os.path.join(os.path.dirname(__file__), "..", "..", "docs", "results",
 
 
 @pytest.fixture(scope="module")
-def results(tmp_path_factory):
-    db = str(tmp_path_factory.mktemp("figures") / "t1.db")
-    totalgrad.import_archive(ARCHIVE, db)
+def db(tmp_path_factory):
+    path = str(tmp_path_factory.mktemp("figures") / "t1.db")
+    totalgrad.import_archive(ARCHIVE, path)
+    return path
+
+
+@pytest.fixture(scope="module")
+def results(db):
     return totalgrad.connect(db=db)
 
 
@@ -50,7 +57,7 @@ def test_success_rates_draw_each_cell_with_its_interval_and_the_papers_rate(resu
 
 def test_the_curve_panels_are_the_runs_median_mean_and_best(results):
     episodes = results.episodes("table1-tip-k1")
-    fig = tf.learning_curves(episodes, top=3)
+    fig = tf.learning_curves(results.curves("table1-tip-k1"), results.curves("table1-tip-k1", top=3))
     all_runs, mean_panel, best_panel = fig.axes[:3]
     tp = episodes[(episodes["method"] == "TP") & episodes["final_attempt"]]
     at_5 = tp[tp["episode"] == 5]["eval_cost_mean"].tolist()
@@ -61,14 +68,30 @@ def test_the_curve_panels_are_the_runs_median_mean_and_best(results):
     mean_line = mean_bars[0]
     assert mean_line.get_ydata()[list(mean_line.get_xdata()).index(5)] == \
         pytest.approx(statistics.mean(at_5), rel=1e-12)
-    # The best 3 runs by final cost.
-    last = tp[tp["episode"] == tp["episode"].max()].sort_values("eval_cost_mean")
+    # The best 3 runs by final cost (each run's last evaluated episode).
+    last = tp[tp["episode"] == tp["episode"].max()].sort_values(["eval_cost_mean", "job_id"])
     best_jobs = last["job_id"].tolist()[:3]
     best_at_5 = tp[(tp["episode"] == 5) & tp["job_id"].isin(best_jobs)]["eval_cost_mean"]
     best_line = next(l for l in best_panel.lines if l.get_label() == "TP")
     assert best_line.get_ydata()[list(best_line.get_xdata()).index(5)] == \
         pytest.approx(statistics.median(best_at_5), rel=1e-12)
     assert best_line.get_color() == tf.method_colour("TP") == "#4e79a7"
+    assert best_panel.get_title().startswith("the 3 best runs")
+
+
+def test_curves_are_the_clis(results, db):
+    """`Results.curves` is `results curves -f json`, row for row."""
+    frame = results.curves("table1-tip-k1")
+    run = subprocess.run([os.environ["TOTALGRAD_BIN"], "results", "curves", "table1-tip-k1",
+                          "--db", db, "-f", "json"], capture_output=True, text=True, check=False)
+    assert run.returncode == 0, run.stderr
+    rows = json.loads(run.stdout)
+    assert len(frame) == len(rows)
+    for column in ("median", "q25", "q75", "mean", "standard_error"):
+        assert [r[column] for r in rows] == pytest.approx(frame[column].tolist(), rel=0, abs=0,
+                                                          nan_ok=True)
+    best = results.curves("table1-tip-k1", top=3)
+    assert best["trials"].max() == 3
 
 
 def test_work_precision_has_a_labelled_point_per_particle_count():

@@ -67,6 +67,42 @@ TEST(CurvesTest, MedianAndQuartilesPerEpisodeSkippingMissingValues) {
   EXPECT_EQ(curves[0].q25, 15);
   EXPECT_EQ(curves[0].median, 20);
   EXPECT_EQ(curves[0].q75, 25);
+  // Mean 20; sample variance ((-10)^2 + 0 + 10^2) / 2 = 100; SE sqrt(100 / 3).
+  EXPECT_EQ(curves[0].mean, 20);
+  EXPECT_DOUBLE_EQ(curves[0].standard_error, std::sqrt(100.0 / 3.0));
+  // One trial: a mean, no standard error.
+  EXPECT_EQ(curves[1].mean, 5);
+  EXPECT_TRUE(std::isnan(curves[1].standard_error));
+}
+
+// The paper's Figure 3 "top runs": per method and variant, the k runs with
+// the lowest final value (a run's last episode with a value), ties by id.
+TEST(CurvesTest, BestRunsKeepsTheKRunsOfLowestFinalValuePerMethodAndVariant) {
+  const double nan = std::nan("");
+  std::vector<EpisodeValue> values;
+  const auto run = [&](const std::string& method, const std::string& variant, int64_t trial,
+                       std::vector<double> costs) {
+    for (size_t e = 0; e < costs.size(); ++e)
+      values.push_back({method, variant, static_cast<int>(e + 1), costs[e], trial});
+  };
+  run("RP", "k=1", 1, {30, 12});        // final 12
+  run("RP", "k=1", 2, {10, 25});        // final 25 (its early 10 does not count)
+  run("RP", "k=1", 3, {28, 9, nan});    // final 9 (episode 3 has no value)
+  run("RP", "k=1", 4, {20, 12});        // final 12, ties with run 1: id decides
+  run("TP", "k=1", 5, {40, 40});        // alone in its cell
+  run("RP", "k=0.01", 6, {50, 50});     // another variant
+  run("RP", "k=1", 7, {nan, nan});      // no value: dropped
+  const std::vector<EpisodeValue> best = BestRuns(values, 2);
+  std::vector<int64_t> trials;
+  for (const EpisodeValue& v : best)
+    if (trials.empty() || trials.back() != v.trial) trials.push_back(v.trial);
+  EXPECT_EQ(trials, (std::vector<int64_t>{1, 3, 5, 6}));
+  EXPECT_EQ(best.size(), 2u + 3u + 2u + 2u);  // the kept runs' values, in order
+  const std::vector<CurvePoint> curves = Curves(best);
+  // RP k=1 episode 2 over runs 1 and 3: median of {12, 9}.
+  for (const CurvePoint& p : curves)
+    if (p.method == "RP" && p.variant == "k=1" && p.episode == 2) EXPECT_EQ(p.median, 10.5);
+  EXPECT_EQ(BestRuns(values, 10).size(), values.size() - 2);  // all but run 7's two NaNs
 }
 
 }  // namespace stats_test

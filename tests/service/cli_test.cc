@@ -16,6 +16,7 @@
 #include "absl/strings/ascii.h"
 #include "absl/strings/match.h"
 #include "absl/strings/str_split.h"
+#include "results/plot_style.h"
 #include "tests/service/e2e_util.h"
 #include "tests/service/service_testutil.h"
 
@@ -120,6 +121,16 @@ TEST_F(CliTest, SubmitWaitAndQueryResultsInEveryFormat) {
   EXPECT_EQ(table[0]["trials"], 3);
   EXPECT_EQ(table[0]["successes"], 3);
 
+  // Issue 29: the success rates as a figure, one colour per method.
+  const std::string rates = dir_ + "/rates.svg";
+  ASSERT_EQ(Cli({"results", "table", "cli", "--plot", rates}, &out, &err), 0) << err;
+  EXPECT_NE(err.find("plot written to " + rates), std::string::npos) << err;
+  const std::string rates_svg = ReadFile(rates);
+  EXPECT_NE(rates_svg.find("<svg"), std::string::npos);
+  EXPECT_NE(rates_svg.find("3/3"), std::string::npos);
+  EXPECT_NE(ReadFile(rates + ".gp").find("with yerrorbars lc rgb \"" + results::MethodColour("RP")),
+            std::string::npos);
+
   const std::string plot = dir_ + "/curves.svg";
   ASSERT_EQ(Cli({"results", "curves", "cli", "-f", "json", "--plot", plot}, &out, &err), 0) << err;
   const nlohmann::json curves = nlohmann::json::parse(out);
@@ -127,6 +138,15 @@ TEST_F(CliTest, SubmitWaitAndQueryResultsInEveryFormat) {
   EXPECT_EQ(curves[0]["trials"], 3);
   EXPECT_TRUE(std::filesystem::file_size(plot) > 1000) << err;
   EXPECT_NE(ReadFile(plot).find("<svg"), std::string::npos);
+  // Mean and standard error beside the quartiles; Figure 3 with --top.
+  EXPECT_TRUE(curves[0]["mean"].is_number()) << curves[0];
+  EXPECT_TRUE(curves[0]["standard_error"].is_number()) << curves[0];
+  const std::string figure3 = dir_ + "/figure3.pdf";
+  ASSERT_EQ(Cli({"results", "curves", "cli", "--top", "2", "--plot", figure3}, &out, &err), 0) << err;
+  EXPECT_EQ(ReadFile(figure3).substr(0, 4), "%PDF");
+  EXPECT_NE(ReadFile(figure3 + ".gp").find("the 2 best runs, median and quartiles"), std::string::npos);
+  EXPECT_EQ(Cli({"results", "curves", "cli", "--top", "2"}, &out, &err), 2);
+  EXPECT_NE(err.find("give --plot FILE"), std::string::npos) << err;
 
   ASSERT_EQ(Cli({"results", "export", "cli", "-f", "csv"}, &out, &err), 0) << err;
   std::vector<std::string> lines = absl::StrSplit(out, '\n', absl::SkipEmpty());
@@ -496,6 +516,28 @@ TEST_F(CliTest, Table1LaysSweepsOutInThePapersGridAndRefusesASeedCountedTwice) {
                 false),
             0) << err;
   EXPECT_EQ(out, text);
+  // Issue 29: the grid as a figure: a panel per task with trials, the
+  // Wilson bars, successes/trials and the paper's rate as a marker.
+  const std::string grid_pdf = dir_ + "/table1.pdf";
+  ASSERT_EQ(Cli({"results", "table1", "table1-tip-k1", "balance-del", "--plot", grid_pdf}, &out,
+                &err),
+            0) << err;
+  EXPECT_EQ(ReadFile(grid_pdf).substr(0, 4), "%PDF");
+  const std::string grid_script = ReadFile(grid_pdf + ".gp");
+  EXPECT_NE(grid_script.find("set multiplot layout 1,2"), std::string::npos) << grid_script;
+  EXPECT_NE(grid_script.find("cart-pole swing-up, tip, k = 1"), std::string::npos) << grid_script;
+  EXPECT_NE(grid_script.find("title \"paper\""), std::string::npos) << grid_script;
+  const std::string grid_data = ReadFile(grid_pdf + ".dat");
+  // tip, k = 1, PILCO: 8 of 10, Wilson [0.490162, 0.943318], paper 0.73.
+  EXPECT_NE(grid_data.find("# PILCO | tip, k = 1\n# x rate wilson95_low wilson95_high successes "
+                           "trials paper_rate\n0 0.8 0.490162"),
+            std::string::npos) << grid_data;
+  EXPECT_NE(grid_data.find(" 8 10 0.73\n"), std::string::npos) << grid_data;
+  EXPECT_EQ(Cli({"results", "table1", "table1-tip-k1", "--view", "sensitivity", "--plot",
+                 grid_pdf}, &out, &err), 2);
+  EXPECT_NE(err.find("--plot draws the grid view"), std::string::npos) << err;
+  EXPECT_EQ(Cli({"results", "table1", "table1-tip-k1", "--plot", dir_ + "/grid.jpg"}, &out, &err), 1);
+  EXPECT_NE(err.find("the file must end in .svg, .pdf or .png"), std::string::npos) << err;
 
   // PILCO seeds 10 and 11 of (tip, k = 1) are in both: refused, naming both.
   EXPECT_EQ(Cli({"results", "table1", "table1-tip-k1", "table1-tip-k1-pilco-rerun"}, &out, &err), 2);

@@ -3,9 +3,11 @@
 // panels, n in the legend, the threshold line, and a script that redraws
 // from any directory.
 #include "client/service_commands/curves_plot.h"
+#include "client/service_commands/success_plot.h"
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 
 #include "tests/service/process_util.h"
@@ -13,6 +15,7 @@
 
 namespace totalgrad::cli {
 
+using results::CurvePoint;
 using results::DescribePanel;
 using results::MethodColour;
 
@@ -87,9 +90,107 @@ TEST(CurvesPlotTest, ScriptUsesAbsolutePathsAndRedrawsFromAnotherDirectory) {
 }
 
 TEST(CurvesPlotTest, RefusesBadExtensionsAndEmptyCurves) {
-  EXPECT_NE(WriteCurvesPlot(TwoVariants(), "/tmp/x.pdf").find(".svg or .png"), std::string::npos);
+  EXPECT_NE(WriteCurvesPlot(TwoVariants(), "/tmp/x.jpg").find(".svg, .pdf or .png"),
+            std::string::npos);
   CurvesPlotInput empty;
   EXPECT_NE(WriteCurvesPlot(empty, "/tmp/x.svg").find("nothing to plot"), std::string::npos);
+}
+
+TEST(CurvesPlotTest, WritesAPdf) {
+  const std::string dir = testing::MakeTempDir();
+  ASSERT_EQ(WriteCurvesPlot(TwoVariants(), dir + "/curves.pdf"), "");
+  EXPECT_EQ(testing::ReadFile(dir + "/curves.pdf").substr(0, 4), "%PDF");
+  EXPECT_NE(testing::ReadFile(dir + "/curves.pdf.gp").find("set terminal pdfcairo"), std::string::npos);
+  std::filesystem::remove_all(dir);
+}
+
+// `results curves --top K --plot`: the paper's Figure 3, a row of three
+// panels per variant (all runs' median and quartiles; their mean +- SE;
+// the K best runs), the best runs' own blocks and n.
+TEST(CurvesPlotTest, FigureThreeHasThreePanelsPerVariant) {
+  CurvesPlotInput input = TwoVariants();
+  for (CurvePoint& p : input.curves) {
+    p.mean = p.median + 1;
+    p.standard_error = 0.5;
+  }
+  input.top = 2;
+  for (const CurvePoint& p : input.curves) {
+    CurvePoint best = p;
+    best.trials = 2;
+    best.median = p.median - 3;
+    input.best_curves.push_back(best);
+  }
+  const std::string dir = testing::MakeTempDir();
+  const std::string path = dir + "/figure3.svg";
+  ASSERT_EQ(WriteCurvesPlot(input, path), "");
+  const std::string script = testing::ReadFile(path + ".gp");
+  EXPECT_NE(script.find("set multiplot layout 2,3"), std::string::npos) << script;
+  EXPECT_EQ(Count(script, ": all runs, median and quartiles\""), 2u) << script;
+  EXPECT_EQ(Count(script, ": all runs, mean +- standard error\""), 2u) << script;
+  EXPECT_EQ(Count(script, ": the 2 best runs, median and quartiles\""), 2u) << script;
+  EXPECT_EQ(Count(script, "using 1:($6-$7):($6+$7) with filledcurves"), 4u) << script;
+  EXPECT_EQ(Count(script, "title \"RP (n=2)\""), 2u) << script;  // the best runs' n
+  EXPECT_EQ(Count(script, "title \"RP (n=3)\""), 4u) << script;  // all runs, twice per variant
+  const std::string data = testing::ReadFile(path + ".dat");
+  EXPECT_NE(data.find("# RP | noise_k=0.01 | the 2 best runs"), std::string::npos) << data;
+  // RP, episode 1: all runs median 30, mean 31 +- 0.5; best runs median 27.
+  EXPECT_NE(data.find("1 28 30 32 3 31 0.5\n"), std::string::npos) << data;
+  EXPECT_NE(data.find("1 28 27 32 2 31 0.5\n"), std::string::npos) << data;
+  EXPECT_NE(testing::ReadFile(path).find("the 2 best runs"), std::string::npos);
+  std::filesystem::remove_all(dir);
+}
+
+// `results table --plot` and `results table1 --plot` (success_plot.h).
+SuccessPlotInput TwoTasks() {
+  SuccessPlotInput input;
+  input.title = "two tasks";
+  const auto point = [](const std::string& variant, const std::string& method, int successes,
+                        int trials, double paper) {
+    SuccessPoint p;
+    p.variant = variant;
+    p.method = method;
+    p.trials = trials;
+    p.successes = successes;
+    p.rate = trials > 0 ? static_cast<double>(successes) / trials : std::nan("");
+    p.low = trials > 0 ? p.rate / 2 : std::nan("");
+    p.high = trials > 0 ? (1 + p.rate) / 2 : std::nan("");
+    p.paper_rate = paper;
+    return p;
+  };
+  input.points = {point("tip, k = 1", "PILCO", 8, 10, 0.73), point("tip, k = 1", "RP", 0, 10, 0.15),
+                  point("tip, k = 0.01", "PILCO", 2, 3, 0.6), point("tip, k = 0.01", "RP", 0, 0, 0.2)};
+  input.panel_variants = {"tip, k = 1"};
+  input.panel_titles = {"cart-pole, tip, k = 1"};
+  return input;
+}
+
+TEST(SuccessPlotTest, OnePanelPerTaskWilsonBarsCountsAndThePapersRate) {
+  const std::string dir = testing::MakeTempDir();
+  const std::string path = dir + "/rates.svg";
+  ASSERT_EQ(WriteSuccessPlot(TwoTasks(), path), "");
+  const std::string script = testing::ReadFile(path + ".gp");
+  EXPECT_NE(script.find("set multiplot layout 1,2"), std::string::npos) << script;
+  EXPECT_NE(script.find("set title \"cart-pole, tip, k = 1\""), std::string::npos) << script;
+  EXPECT_NE(script.find("set title \"tip, k = 0.01\""), std::string::npos) << script;  // untitled
+  EXPECT_NE(script.find("set xtics (\"PILCO\" 0, \"RP\" 1)"), std::string::npos) << script;
+  EXPECT_EQ(Count(script, "with yerrorbars lc rgb \"" + MethodColour("PILCO") + "\""), 2u);
+  EXPECT_EQ(Count(script, "title \"paper\""), 2u);  // once per panel
+  EXPECT_EQ(Count(script, "using 1:7 with points"), 4u);  // every point has a paper rate
+  const std::string data = testing::ReadFile(path + ".dat");
+  EXPECT_NE(data.find("\n0 0.8 0.4 0.9 8 10 0.73\n"), std::string::npos) << data;
+  EXPECT_NE(data.find("\n1 NaN NaN NaN 0 0 0.2\n"), std::string::npos) << data;  // no trial
+  const std::string svg = testing::ReadFile(path);
+  EXPECT_NE(svg.find("8/10"), std::string::npos);
+  EXPECT_NE(svg.find("0/0"), std::string::npos);
+  EXPECT_NE(svg.find("paper"), std::string::npos);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(SuccessPlotTest, RefusesBadExtensionsAndATableWithoutTrials) {
+  EXPECT_NE(WriteSuccessPlot(TwoTasks(), "/tmp/x.gif").find(".svg, .pdf or .png"), std::string::npos);
+  SuccessPlotInput none = TwoTasks();
+  for (SuccessPoint& p : none.points) p.trials = 0;
+  EXPECT_NE(WriteSuccessPlot(none, "/tmp/x.svg").find("no completed trial"), std::string::npos);
 }
 
 }  // namespace

@@ -488,8 +488,22 @@ def main():
                       "the 4 cells with trials have n=3 and the protocol mark: " + " | ".join(marked))
                 check("particles = 50 (paper 300)" in protocol,
                       "the view says which option differs from the paper's protocol")
+                # The grid as a figure: a panel per task with trials, every
+                # method in its place, a Wilson bar where there are trials and
+                # the paper's rate as a diamond.
+                panels = driver.find_elements(By.CSS_SELECTOR, "#success-chart svg.success-panel")
+                bars = driver.find_elements(By.CSS_SELECTOR, "#success-chart g.rate")
+                counts = driver.find_elements(By.CSS_SELECTOR, "#success-chart text.count")
+                diamonds = driver.find_elements(By.CSS_SELECTOR, "#success-chart polygon.paper")
+                check(len(panels) == 2 and len(bars) == 4 and len(counts) == 16 and len(diamonds) >= 14,
+                      f"Table 1's figure: 2 task panels, 4 Wilson bars, 16 counts, the paper's rates "
+                      f"({len(panels)}, {len(bars)}, {len(counts)}, {len(diamonds)})")
             driver.back()
             table = wait_for(lambda: find("#table1"), 15)
+        rates = driver.find_elements(By.CSS_SELECTOR, "#success-chart svg.success-panel")
+        counts = [t.text for t in driver.find_elements(By.CSS_SELECTOR, "#success-chart text.count")]
+        check(len(rates) == 2 and len(counts) == 4 and all(c.endswith("/3") for c in counts),
+              f"the success-rate figure: a panel per task variant, k/3 per method ({len(rates)}, {counts})")
         panels = driver.find_elements(By.CSS_SELECTOR, "#curves svg.panel")
         check(len(panels) == 2, f"one curve panel per task variant ({len(panels)})")
         curves = driver.find_elements(By.CSS_SELECTOR, "#curves svg.panel polyline.curve")

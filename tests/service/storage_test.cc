@@ -126,6 +126,40 @@ TEST_F(StorageTest, CreateSweepRefusesADifferentSpecUnderATakenName) {
   EXPECT_EQ(same.spec_hash, "hash-a");
 }
 
+// Issue 29: a sweep grown by a build whose defaults differ (a scene's own
+// horizon) is refused, naming the job, the key and both values, and nothing
+// is added; a key the stored jobs lack (added after they ran) is no change.
+TEST_F(StorageTest, GrowSweepRefusesAStoredJobWhoseOptionsResolveDifferently) {
+  bool created = false;
+  NewSweep first = MakeSweep("grown", 2, 3, "hash-a");
+  for (storage::NewJob& job : first.jobs) job.options.emplace_back("horizon", "30");
+  TG_ASSERT_OK(store_->CreateSweep(first, kNow, &created));
+
+  NewSweep changed = MakeSweep("grown", 3, 3, "hash-b");
+  for (storage::NewJob& job : changed.jobs) job.options.emplace_back("horizon", "40");
+  const absl::StatusOr<int> refused = store_->GrowSweep(changed, kNow + 1);
+  ASSERT_EQ(refused.status().code(), absl::StatusCode::kFailedPrecondition) << refused.status();
+  const std::string message(refused.status().message());
+  EXPECT_NE(message.find("job RP seed 1 (noise_k=1) is stored with horizon = 30"), std::string::npos)
+      << message;
+  EXPECT_NE(message.find("resolves the same job to horizon = 40"), std::string::npos) << message;
+  EXPECT_NE(message.find("set horizon = 30 in the sweep file's [protocol]"), std::string::npos)
+      << message;
+  TG_ASSERT_OK_AND_ASSIGN(SweepRecord kept, store_->GetSweep("grown"));
+  EXPECT_EQ(kept.jobs_total, 2);
+  EXPECT_EQ(kept.spec_hash, "hash-a");
+
+  NewSweep same = MakeSweep("grown", 3, 3, "hash-c");
+  for (storage::NewJob& job : same.jobs) {
+    job.options.emplace_back("horizon", "30");
+    job.options.emplace_back("a_key_added_later", "1");
+  }
+  TG_ASSERT_OK_AND_ASSIGN(int added, store_->GrowSweep(same, kNow + 2));
+  EXPECT_EQ(added, 1);
+  TG_ASSERT_OK_AND_ASSIGN(SweepRecord grown, store_->GetSweep("grown"));
+  EXPECT_EQ(grown.jobs_total, 3);
+}
+
 // Issue 12.6: a value that breaks a CHECK constraint (the service should
 // have refused it first) is an internal error saying so, not ALREADY_EXISTS
 // as if the sweep existed; nothing is stored.

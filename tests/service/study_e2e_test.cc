@@ -279,6 +279,29 @@ TEST_F(StudyEndToEndTest, RunAndResultsStudyWithTheShippedStudySweep) {
   ASSERT_TRUE(refs.is_array()) << out;
   EXPECT_EQ(refs.size(), 3u);  // H = 5, 10 and H = 5
   EXPECT_TRUE(refs[0]["norm"].is_number()) << out;
+  // Issue 29: `results study --plot DIR` draws each study as `totalgrad
+  // study` does, from the stored rows: PNG and PDF, points labelled with P.
+  const std::string plots = dir_ + "/plots";
+  ASSERT_EQ(RunCommand({TOTALGRAD_CLI_BIN, "results", "study", "study-demo", "--plot", plots,
+                        "--coordinator", absl::StrCat("127.0.0.1:", port_), "--insecure",
+                        "--token-file", dir_ + "/user.token"},
+                       &out, &err),
+            0)
+      << err;
+  for (const char* study : {"synthetic-h10", "swingup-ep3"}) {
+    for (const char* file : {"work_precision.png", "work_precision.pdf", "horizon_sweep.png",
+                             "horizon_sweep.pdf"}) {
+      const std::string path = absl::StrCat(plots, "/", study, "/", file);
+      ASSERT_TRUE(std::filesystem::exists(path)) << path << "\n" << err;
+      EXPECT_GT(std::filesystem::file_size(path), 1000u) << path;
+    }
+  }
+  // The synthetic study's data: RP at P = 10 and 30.
+  const std::string wp = ReadFile(plots + "/synthetic-h10/wp_0.dat");
+  EXPECT_NE(wp.find("\n10 "), std::string::npos) << wp;
+  EXPECT_NE(wp.find("\n30 "), std::string::npos) << wp;
+  EXPECT_NE(ReadFile(plots + "/synthetic-h10/work_precision.gp").find("with labels"),
+            std::string::npos);
 }
 
 }  // namespace study_e2e_test

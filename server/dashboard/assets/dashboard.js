@@ -207,43 +207,6 @@ function table1(data) {
           })))));
 }
 
-// The paper's Table 1 from several sweeps (/api/table1): one row per task
-// (cost, k), one column per method; each cell our success rate with its
-// Wilson interval and n, the rollout verdict's rate, and the paper's number,
-// inside or outside our interval. '*' marks a cell whose trials left the
-// paper's protocol; the list below the grid says which option differs.
-function paperTable1(data) {
-  const {methods, rows, cells} = data;
-  const cellOf = (r, m) => cells[r * methods.length + m];
-  const marked = [];
-  const grid = el('table', {id: 'table1-grid'},
-      el('thead', {}, el('tr', {}, el('th', {text: 'task'}), ...methods.map(m => el('th', {text: m})))),
-      el('tbody', {}, ...rows.map((row, r) => el('tr', {'data-task': row.label}, el('th', {text: row.label}),
-          ...methods.map((m, i) => {
-            const c = cellOf(r, i);
-            const off = c.off_protocol_trials > 0;
-            if (off) marked.push(`${row.label}, ${m}: ${c.off_protocol_trials} of ${c.trials} trials: ${c.protocol_differences}`);
-            const paper = c.paper_success_rate === null ? 'paper: none'
-                : `paper ${fixed(c.paper_success_rate, 2)}` +
-                  (c.paper_in_interval === 'yes' ? ' in' : c.paper_in_interval === 'no' ? ' OUT' : '');
-            return el('td', {'data-method': m, class: off ? 'off-protocol' : null,
-                             title: c.sweeps.length ? 'sweeps: ' + c.sweeps.join(', ') : null},
-                el('div', {class: 'cell-rate', text: c.trials === 0 ? '–'
-                    : `${fixed(c.success_rate, 2)} [${fixed(c.wilson95_low, 2)}, ${fixed(c.wilson95_high, 2)}] n=${c.trials}` +
-                      (off ? '*' : '')}),
-                c.classified > 0 ? el('div', {class: 'cell-sub cell-held',
-                    text: `held ${c.held}/${c.classified} [${fixed(c.held_wilson95_low, 2)}, ${fixed(c.held_wilson95_high, 2)}]`}) : null,
-                el('div', {class: 'cell-sub cell-paper' + (c.paper_in_interval === 'no' ? ' outside' : ''), text: paper}));
-          })))));
-  const protocol = data.protocol.map(([k, v]) => `${k} ${v}`).join(', ');
-  return [grid,
-          marked.length ? el('div', {id: 'table1-protocol'},
-              el('p', {class: 'muted', text: `* not the paper's protocol (${protocol}):`}),
-              el('ul', {}, ...marked.map(t => el('li', {text: t})))) : null,
-          data.outside.length ? el('p', {class: 'muted', id: 'table1-outside',
-                                         text: 'not in the grid: ' + data.outside.join('; ')}) : null];
-}
-
 async function renderTable1(view, names) {
   const data = await api('/api/table1?' + names.map(n => 'name=' + encodeURIComponent(n)).join('&'));
   view.replaceChildren(
@@ -441,6 +404,12 @@ async function renderSweep(view, name) {
          el('span', {class: 'muted', text: s.eta.known || s.finished ? '' : ` (${s.eta.basis})`})),
       el('h3', {text: 'Success rate [95% Wilson interval] n=trials, median final cost'}),
       table1(sweepData),
+      sweepData.table.cells.length ? successChart(sweepData.table.variants.map(v => ({
+          title: v || 'all trials',
+          points: sweepData.table.cells.filter(c => c.variant === v).map(c => ({
+              method: c.method, successes: c.successes, trials: c.trials, rate: c.success_rate,
+              low: c.wilson95_low, high: c.wilson95_high, paper: null}))})),
+          sweepData.table.colours) : null,
       el('p', {}, el('a', {id: 'table1-link', href: '#/table1/' + encodeURIComponent(s.name),
                            text: 'in the paper\'s Table 1 layout'})),
       el('h3', {text: 'Learning curves: evaluation cost per episode, median and quartiles over trials'}),

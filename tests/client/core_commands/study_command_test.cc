@@ -224,10 +224,19 @@ TEST(StudyCommand, EndToEndFromATrialSnapshot) {
   EXPECT_EQ(doc.at("references").size(), 2u);
   EXPECT_EQ(doc["references"][0]["gradient"].size(), doc["num_parameters"].get<size_t>());
   if (std::system("gnuplot --version > /dev/null 2>&1") == 0) {
-    for (const char* f : {"work_precision.png", "horizon_sweep.png"}) {
+    for (const char* f : {"work_precision.png", "horizon_sweep.png", "work_precision.pdf",
+                          "horizon_sweep.pdf"}) {
       ASSERT_TRUE(std::filesystem::exists(out + "/" + f)) << f;
       EXPECT_GT(std::filesystem::file_size(out + "/" + f), 1000u) << f;
     }
+    std::ifstream pdf(out + "/work_precision.pdf");
+    std::string magic(4, ' ');
+    pdf.read(magic.data(), 4);
+    EXPECT_EQ(magic, "%PDF");
+    // Every point of the work-precision plot carries its P.
+    std::ifstream script(out + "/work_precision.gp");
+    const std::string text((std::istreambuf_iterator<char>(script)), std::istreambuf_iterator<char>());
+    EXPECT_THAT(text, HasSubstr("sprintf('%d', $1) : '') with labels"));
   }
   // CSV and JSON on stdout.
   run = RunCommand({"study", dir + "/study.json", "--format", "csv", "--quiet"});

@@ -278,5 +278,42 @@ TEST(TrialOptionTable, PilcoBudgetIsTheScenesProtocolUnlessSet) {
   EXPECT_EQ(PilcoEvaluationsPerLineSearch(o), 9);
 }
 
+// Issue 29: a user's options take the scene's own horizon and threshold
+// where they do not give them; stored pairs (which list every key they ran
+// with) never do, and the cart-pole's are the plain defaults.
+TEST(TrialOptionTable, UserOptionsTakeTheScenesHorizonAndThreshold) {
+  for (const tasks::SceneDefinition& scene : tasks::SceneCatalog()) {
+    absl::StatusOr<TrialOptions> user = TrialOptionsFromPairs({{"scene", scene.name}});
+    TG_ASSERT_OK(user.status());
+    EXPECT_EQ(user->scene.horizon, scene.horizon) << scene.name;
+    EXPECT_EQ(user->success_threshold, scene.success_threshold) << scene.name;
+    TG_EXPECT_OK(user->Validate());
+  }
+  absl::StatusOr<TrialOptions> pendulum = TrialOptionsFromPairs({{"scene", "pendulum"}});
+  TG_ASSERT_OK(pendulum.status());
+  EXPECT_EQ(pendulum->scene.horizon, 40);           // PILCO's settings_pendulum.m: T = 4, dt = 0.1
+  EXPECT_EQ(pendulum->success_threshold, 20.0);     // H / 2
+  // Given keys win, in either order with the scene.
+  absl::StatusOr<TrialOptions> given =
+      TrialOptionsFromPairs({{"horizon", "12"}, {"scene", "pendubot"}, {"threshold", "3.5"}});
+  TG_ASSERT_OK(given.status());
+  EXPECT_EQ(given->scene.horizon, 12);
+  EXPECT_EQ(given->success_threshold, 3.5);
+  // The cart-pole's scene defaults are TrialOptions{}'s: no stored number moves.
+  absl::StatusOr<TrialOptions> cartpole = TrialOptionsFromPairs({});
+  TG_ASSERT_OK(cartpole.status());
+  EXPECT_TRUE(*cartpole == TrialOptions());
+  // Stored pairs are taken as they are.
+  std::vector<std::pair<std::string, std::string>> stored;
+  for (const auto& pair : TrialOptionPairs(TrialOptions()))
+    if (pair.first != "horizon" && pair.first != "threshold") stored.push_back(pair);
+  stored.emplace_back("scene", "pendulum");
+  absl::StatusOr<TrialOptions> from_store = TrialOptionsFromStoredPairs(stored);
+  TG_ASSERT_OK(from_store.status());
+  EXPECT_EQ(from_store->scene.horizon, 30);
+  EXPECT_EQ(from_store->success_threshold, 15.0);
+  EXPECT_EQ(SceneDefaultedKeys(), (std::vector<std::string>{"horizon", "threshold"}));
+}
+
 }  // namespace trial_options_test
 }  // namespace totalgrad::learner
