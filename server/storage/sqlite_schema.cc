@@ -1,5 +1,6 @@
 #include "server/storage/sqlite_schema.h"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 #include <vector>
@@ -8,9 +9,11 @@
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
 #include "server/common/status_macros.h"
+#include "server/storage/sqlite_internal.h"
 
 namespace totalgrad::storage::internal {
 namespace {
@@ -311,22 +314,47 @@ ALTER TABLE episodes ADD COLUMN ess_low_fraction REAL;
 ALTER TABLE episodes ADD COLUMN lr_share_json TEXT;
 )sql";
 
-// One row per stored episode of every sweep (version 5: the seed is already
-// an integer; version 4 cast it; version 7 adds held_fraction).
+// One row per stored episode of every sweep, under the names of `results
+// export -f csv` (version 9): the job's coordinates and outcome, the
+// episode's record, the worker's build, and `wall_seconds`, the old name of
+// optimisation_seconds, kept for one schema version. final_attempt is 1 for
+// the attempt that completed the job, as in the exports (until version 8 it
+// was also 1 for a running job's latest attempt).
 constexpr char kEpisodeRowsView[] = R"sql(
 CREATE VIEW episode_rows AS
-  SELECT s.name AS sweep, j.id AS job_id, j.method AS method, j.seed AS seed,
-         j.variant AS variant, e.attempt AS attempt,
-         (e.attempt = COALESCE(j.completed_attempt, j.attempts)) AS final_attempt,
+  SELECT s.name AS sweep, j.id AS job_id, e.attempt AS attempt,
+         (e.attempt = COALESCE(j.completed_attempt, 0)) AS final_attempt,
+         j.method AS method, j.seed AS seed, j.variant AS variant,
+         j.state AS job_state, j.success AS success, j.final_eval_cost AS final_eval_cost,
          e.episode AS episode, e.real_cost AS real_cost, e.eval_cost_mean AS eval_cost_mean,
          e.eval_cost_std AS eval_cost_std, e.predicted_cost AS predicted_cost,
-         e.optimisation_seconds AS wall_seconds, e.cpu_seconds AS cpu_seconds,
+         e.optimisation_seconds AS optimisation_seconds, e.cpu_seconds AS cpu_seconds,
          e.held_fraction AS held_fraction,
-         j.state AS job_state, j.success AS success, j.final_eval_cost AS final_eval_cost,
-         a.worker_build AS worker_build
+         e.gradient_norm_first AS gradient_norm_first, e.gradient_norm_middle AS gradient_norm_middle,
+         e.gradient_norm_last AS gradient_norm_last, e.gradient_norm_mean AS gradient_norm_mean,
+         e.gradient_snr_first AS gradient_snr_first, e.gradient_snr_middle AS gradient_snr_middle,
+         e.gradient_snr_last AS gradient_snr_last, e.gradient_snr_mean AS gradient_snr_mean,
+         e.step_norm_first AS step_norm_first, e.step_norm_middle AS step_norm_middle,
+         e.step_norm_last AS step_norm_last, e.step_norm_mean AS step_norm_mean,
+         e.ess_min AS ess_min, e.ess_median AS ess_median, e.ess_low_fraction AS ess_low_fraction,
+         e.reported_ms AS reported_unix_ms, e.details_json AS details_json,
+         a.worker_build AS worker_build, e.optimisation_seconds AS wall_seconds
   FROM episodes e JOIN jobs j ON j.id = e.job_id JOIN sweeps s ON s.id = j.sweep_id
        JOIN attempts a ON a.job_id = e.job_id AND a.attempt = e.attempt;
 )sql";
+
+// episode_rows' columns after the job's and before the episode's: where a
+// sweep's view puts the trial options.
+constexpr char kJobColumns[] =
+    "r.sweep, r.job_id, r.attempt, r.final_attempt, r.method, r.seed, r.variant, r.job_state, "
+    "r.success, r.final_eval_cost";
+constexpr char kEpisodeColumns[] =
+    "r.episode, r.real_cost, r.eval_cost_mean, r.eval_cost_std, r.predicted_cost, "
+    "r.optimisation_seconds, r.cpu_seconds, r.held_fraction, r.gradient_norm_first, "
+    "r.gradient_norm_middle, r.gradient_norm_last, r.gradient_norm_mean, r.gradient_snr_first, "
+    "r.gradient_snr_middle, r.gradient_snr_last, r.gradient_snr_mean, r.step_norm_first, "
+    "r.step_norm_middle, r.step_norm_last, r.step_norm_mean, r.ess_min, r.ess_median, "
+    "r.ess_low_fraction, r.reported_unix_ms, r.details_json, r.worker_build, r.wall_seconds";
 
 // A value's number, when its canonical text is one: integers (seeds,
 // counts) as INTEGER, others as REAL.
@@ -386,32 +414,65 @@ absl::Status WriteJobOptions(Db& db, int64_t job_id, const std::string& method,
 
 std::string SweepViewName(const std::string& sweep_name) { return "episodes/" + sweep_name; }
 
+// An option's text as an SQL literal of its type: an integer or a finite
+// real as a number (the typing of job_options.number), other text quoted.
+std::string OptionLiteral(const std::string& text) {
+  int64_t integer;
+  double real;
+  if (absl::SimpleAtoi(text, &integer)) return std::to_string(integer);
+  if (absl::SimpleAtod(text, &real) && std::isfinite(real)) return absl::StrFormat("%.17g", real);
+  std::string quoted = "'";
+  for (char c : text) {
+    if (c == '\'') quoted += '\'';
+    quoted += c;
+  }
+  return quoted + "'";
+}
+
 absl::Status CreateSweepView(Db& db, int64_t sweep_id, const std::string& sweep_name) {
-  // The swept keys other than method and seed, in the order of first use.
+  // The swept keys other than method and seed: typed per row from job_options.
   ASSIGN_OR_RETURN(Statement keys, Statement::Prepare(db, R"sql(
 SELECT o.key FROM job_options o JOIN jobs j ON j.id = o.job_id
 WHERE j.sweep_id = ? AND o.key NOT IN ('method', 'seed')
 GROUP BY o.key ORDER BY MIN(j.ordinal), o.key)sql"));
   keys.Bind(1, sweep_id);
-  std::vector<std::string> columns;
+  std::vector<std::string> swept;
   for (;;) {
     ASSIGN_OR_RETURN(bool row, keys.Step());
     if (!row) break;
-    columns.push_back(keys.ColumnText(0));
+    swept.push_back(keys.ColumnText(0));
   }
-  std::string select = "SELECT r.sweep, r.job_id, r.method, r.seed";
-  for (const std::string& key : columns) {
+  // Every other option is the sweep's protocol, the same in every trial job
+  // (SqliteStore::GrowSweep refuses jobs that would differ): a constant
+  // column from the first trial job. A key that job lacks (added to the
+  // options after it ran) is left out.
+  ASSIGN_OR_RETURN(Statement first, Statement::Prepare(db, R"sql(
+SELECT options_json FROM jobs WHERE sweep_id = ? AND kind = 'trial' ORDER BY ordinal LIMIT 1)sql"));
+  first.Bind(1, sweep_id);
+  ASSIGN_OR_RETURN(bool has_trial, first.Step());
+  const OptionList options = has_trial ? OptionsFromJson(first.ColumnText(0)) : OptionList();
+  std::vector<std::string> columns;
+  const auto swept_column = [](const std::string& key) {
     // Keys are trial option names ([a-z_0-9]): safe as identifiers; the
     // value is bound per row by the subquery, never built from data.
-    absl::StrAppend(&select, ", (SELECT COALESCE(o.number, o.value) FROM job_options o WHERE "
-                    "o.job_id = r.job_id AND o.key = '", key, "') AS ", QuoteIdentifier(key));
+    return absl::StrCat("(SELECT COALESCE(o.number, o.value) FROM job_options o WHERE "
+                        "o.job_id = r.job_id AND o.key = '", key, "') AS ", QuoteIdentifier(key));
+  };
+  std::vector<std::string> placed;
+  for (const auto& [key, value] : options) {
+    if (key == "method" || key == "seed") continue;
+    const bool is_swept = std::find(swept.begin(), swept.end(), key) != swept.end();
+    columns.push_back(is_swept ? swept_column(key)
+                               : absl::StrCat(OptionLiteral(value), " AS ", QuoteIdentifier(key)));
+    placed.push_back(key);
   }
-  absl::StrAppend(&select,
-                  ", r.attempt, r.final_attempt, r.episode, r.real_cost, r.eval_cost_mean, "
-                  "r.eval_cost_std, r.predicted_cost, r.wall_seconds, r.cpu_seconds, r.held_fraction, "
-                  "r.job_state, "
-                  "r.success, r.final_eval_cost, r.worker_build FROM episode_rows r WHERE r.sweep = ",
-                  "(SELECT name FROM sweeps WHERE id = ", sweep_id, ")");
+  for (const std::string& key : swept) {
+    if (std::find(placed.begin(), placed.end(), key) == placed.end()) columns.push_back(swept_column(key));
+  }
+  const std::string select = absl::StrCat(
+      "SELECT ", kJobColumns, columns.empty() ? "" : ", ", absl::StrJoin(columns, ", "), ", ",
+      kEpisodeColumns, " FROM episode_rows r WHERE r.sweep = (SELECT name FROM sweeps WHERE id = ",
+      sweep_id, ")");
   const std::string view = QuoteIdentifier(SweepViewName(sweep_name));
   RETURN_IF_ERROR(db.Exec(absl::StrCat("DROP VIEW IF EXISTS ", view)));
   return db.Exec(absl::StrCat("CREATE VIEW ", view, " AS ", select));
@@ -500,11 +561,11 @@ absl::Status Migrate(Db& db, int64_t from) {
     }
   }
   if (from < 6) RETURN_IF_ERROR(db.Exec(kMigration6));
-  if (from < 7) {
-    RETURN_IF_ERROR(db.Exec(kMigration7));
-    RETURN_IF_ERROR(RecreateViews(db));
-  }
+  if (from < 7) RETURN_IF_ERROR(db.Exec(kMigration7));
   if (from < 8) RETURN_IF_ERROR(db.Exec(kMigration8));
+  // Version 9 changes only the views (every option and the export's names):
+  // they are created again from the tables of the latest version.
+  if (from < 9) RETURN_IF_ERROR(RecreateViews(db));
   RETURN_IF_ERROR(db.Exec(absl::StrCat(
       "INSERT OR REPLACE INTO meta(key, value) VALUES ('format', 'totalgrad coordinator database'), "
       "('schema_version', '", kSchemaVersion, "'), ('documentation', 'docs/results_schema.md')")));

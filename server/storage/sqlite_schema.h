@@ -19,7 +19,9 @@ namespace totalgrad::storage::internal {
 // Version 4: job_options, episodes.cpu_seconds, the views, meta filled.
 // Version 5: jobs.seed is an INTEGER column (was TEXT).
 // Version 6: study_references.agreement_resolution.
-inline constexpr int kSchemaVersion = 8;
+// Version 7: episodes.held_fraction. Version 8: the estimator statistics.
+// Version 9: the views carry every option and the exports' column names.
+inline constexpr int kSchemaVersion = 9;
 
 // The schema of version 1 (a new database is created as version 1 and
 // migrated, in one transaction, so new and migrated files are alike).
@@ -38,9 +40,12 @@ absl::Status WriteJobOptions(Db& db, int64_t job_id, const std::string& method,
                              const std::string& seed, const std::string& variant);
 
 // The view "episodes/<sweep name>": one row per stored episode of the sweep
-// with every swept key as a column (typed), the attempt, whether it is the
-// job's counting attempt, the costs, wall and CPU seconds, the job's state and
-// outcome and the worker's build. (Re)created from the sweep's job_options.
+// with the columns of `results export -f csv` in its order (the job's
+// coordinates and outcome, every trial option typed, the episode's record)
+// and then worker_build and wall_seconds (optimisation_seconds' old name).
+// Swept options are read per row from job_options; the others, the sweep's
+// protocol, are constants from its first trial job. (Re)created when the
+// sweep is created or grown.
 std::string SweepViewName(const std::string& sweep_name);
 absl::Status CreateSweepView(Db& db, int64_t sweep_id, const std::string& sweep_name);
 absl::Status DropSweepView(Db& db, const std::string& sweep_name);

@@ -1149,6 +1149,12 @@ TEST_F(StorageTest, SweepViewHasOneTypedColumnPerSweptKey) {
   sweep.jobs[0].variant = "cost=tip noise_k=0.01";
   sweep.jobs[1].variant = "cost=angle noise_k=1";
   sweep.jobs[1].method = "TP";
+  // Schema 9: the protocol's options are (constant) columns too.
+  for (storage::NewJob& job : sweep.jobs) {
+    job.options.emplace_back("particles", "300");
+    job.options.emplace_back("scene", "cart'pole");
+    job.options.emplace_back("epsilon", "1e-08");
+  }
   bool created = false;
   TG_ASSERT_OK(store_->CreateSweep(sweep, kNow, &created).status());
   TG_ASSERT_OK_AND_ASSIGN(std::vector<JobRecord> jobs, store_->ListJobs({"typed", {}, 0, 10}));
@@ -1160,7 +1166,8 @@ TEST_F(StorageTest, SweepViewHasOneTypedColumnPerSweptKey) {
   ASSERT_TRUE(db.ok()) << db.status();
   TG_ASSERT_OK_AND_ASSIGN(internal::Statement query, internal::Statement::Prepare(*db, R"sql(
 SELECT method, seed, typeof(seed), cost, typeof(cost), noise_k, typeof(noise_k), cpu_seconds,
-       final_attempt, worker_build FROM "episodes/typed")sql"));
+       final_attempt, worker_build, particles, typeof(particles), scene, epsilon, typeof(epsilon),
+       optimisation_seconds, wall_seconds, variant FROM "episodes/typed")sql"));
   TG_ASSERT_OK_AND_ASSIGN(bool row, query.Step());
   ASSERT_TRUE(row);
   EXPECT_EQ(query.ColumnText(0), "RP");
@@ -1171,8 +1178,15 @@ SELECT method, seed, typeof(seed), cost, typeof(cost), noise_k, typeof(noise_k),
   EXPECT_EQ(query.ColumnDouble(5), 0.01);
   EXPECT_EQ(query.ColumnText(6), "real");
   EXPECT_EQ(query.ColumnDouble(7), 1.5);
-  EXPECT_EQ(query.ColumnInt(8), 1);
+  EXPECT_EQ(query.ColumnInt(8), 0);  // the attempt runs: not the one that completed the job
   EXPECT_EQ(query.ColumnText(9), MakeWorker("w1").build);
+  EXPECT_EQ(query.ColumnInt(10), 300);
+  EXPECT_EQ(query.ColumnText(11), "integer");
+  EXPECT_EQ(query.ColumnText(12), "cart'pole");  // quoted as a literal
+  EXPECT_EQ(query.ColumnDouble(13), 1e-08);
+  EXPECT_EQ(query.ColumnText(14), "real");
+  EXPECT_EQ(query.ColumnDouble(15), query.ColumnDouble(16));  // wall_seconds: the old name
+  EXPECT_EQ(query.ColumnText(17), "cost=tip noise_k=0.01");
   TG_ASSERT_OK_AND_ASSIGN(bool more, query.Step());
   EXPECT_FALSE(more);
   TG_ASSERT_OK_AND_ASSIGN(internal::Statement meta, internal::Statement::Prepare(
