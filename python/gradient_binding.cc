@@ -12,6 +12,7 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <chrono>
 #include <limits>
 #include <memory>
 #include <string>
@@ -24,7 +25,10 @@
 #include "core/common/blas.h"
 #include "core/estimators/estimator.h"
 #include "core/estimators/method.h"
+#include "core/pilco/gp_moments.h"
+#include "core/pilco/pilco.h"
 #include "core/study/frozen_problem.h"
+#include "core/study/pilco_problem.h"
 #include "core/study/replicates.h"
 #include "core/study/study.h"
 #include "io/study_file.h"
@@ -79,9 +83,10 @@ class PyProblem {
 
   // R estimates of `method` with P particles at horizon H (0: the
   // problem's): {"gradients": R x n, "objectives": R, "seconds": R,
-  // "nonfinite": count}. ValueError for PILCO (moment matching: see
-  // `study`), an unknown method or option; RuntimeError naming the
-  // estimator's error.
+  // "nonfinite": count}. PILCO is deterministic and has no particles: its
+  // moment-matched gradient as the study's PILCO cell computes it, R timed
+  // runs with R equal rows. ValueError for an unknown method or option;
+  // RuntimeError naming the estimator's error.
   py::dict Gradients(const std::string& method_name, int particles, int replicates,
                      uint64_t seed, int horizon, const OptionPairs& option_pairs) {
     if (particles < 1) throw py::value_error("particles must be at least 1");
@@ -89,6 +94,10 @@ class PyProblem {
     if (horizon < 0) throw py::value_error("horizon must be positive (0: the problem's)");
     const absl::StatusOr<estimators::Method> method = estimators::ParseMethod(method_name);
     if (!method.ok()) throw py::value_error(std::string(method.status().message()));
+    if (*method == estimators::Method::kPilco) {
+      if (!option_pairs.empty()) throw py::value_error("PILCO takes no estimator options");
+      return PilcoGradients(replicates, horizon);
+    }
     estimators::EstimatorOptions options;
     for (const auto& [key, value] : option_pairs) {
       if (absl::Status st = estimators::EstimatorOptions::Table().Set(key, value, &options);
@@ -121,12 +130,57 @@ class PyProblem {
     return out;
   }
 
+  // PILCO's moment matching on the problem (study::MakeStudyPilcoProblem):
+  // the study's PILCO cell's objective and gradient, timed `replicates` times.
+  py::dict PilcoGradients(int replicates, int horizon) {
+    if (problem_->model == nullptr) {
+      throw py::value_error("PILCO needs the problem's GP model (a snapshot or a synthetic problem)");
+    }
+    estimators::Problem problem = problem_->problem;
+    if (horizon > 0) problem.horizon = horizon;
+    absl::StatusOr<pilco::PilcoProblem> built = study::MakeStudyPilcoProblem(*problem_, problem, nullptr);
+    if (!built.ok()) throw py::value_error("PILCO: " + std::string(built.status().message()));
+    std::vector<Vector> gradients;
+    std::vector<double> objectives, seconds;
+    {
+      py::gil_scoped_release release;
+      SetBlasThreads(1);
+      if (!pilco_gp_) {
+        pilco_gp_ = std::make_unique<pilco::GaussianInputGp>(
+            pilco::GaussianInputGpFromModel(*problem_->model));
+      }
+      for (int r = 0; r < replicates; ++r) {
+        Vector g;
+        const auto start = std::chrono::steady_clock::now();
+        absl::StatusOr<pilco::Trajectory> trajectory =
+            pilco::Propagate(*pilco_gp_, *built, problem_->policy->parameters(), &g);
+        seconds.push_back(
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+        if (!trajectory.ok()) {
+          throw std::runtime_error("PILCO: " + std::string(trajectory.status().message()));
+        }
+        gradients.push_back(std::move(g));
+        objectives.push_back(trajectory->total_cost);
+      }
+    }
+    py::dict out;
+    out["gradients"] = ToNumpy(gradients, gradients.front().size());
+    out["objectives"] = py::array_t<double>(static_cast<py::ssize_t>(objectives.size()),
+                                            objectives.data());
+    out["seconds"] = py::array_t<double>(static_cast<py::ssize_t>(seconds.size()), seconds.data());
+    int nonfinite = 0;
+    for (const Vector& g : gradients) nonfinite += g.allFinite() ? 0 : 1;
+    out["nonfinite"] = nonfinite;
+    return out;
+  }
+
   std::string source() const { return problem_->source; }
   std::string scene() const { return problem_->scene; }
   int horizon() const { return problem_->problem.horizon; }
 
  private:
   std::unique_ptr<study::FrozenProblem> problem_;
+  std::unique_ptr<pilco::GaussianInputGp> pilco_gp_;  // built on first use by PILCO
 };
 
 // `totalgrad study FILE --format json` for a study document (JSON text).

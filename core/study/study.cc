@@ -13,11 +13,11 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "core/common/rng.h"
-#include "core/learner/problem_builder.h"
 #include "core/estimators/likelihood_ratio.h"
 #include "core/estimators/total_propagation.h"
 #include "core/pilco/gp_moments.h"
 #include "core/pilco/pilco.h"
+#include "core/study/pilco_problem.h"
 #include "core/study/reference.h"
 #include "core/study/replicates.h"
 
@@ -96,22 +96,15 @@ CellResult RunPilcoCell(const FrozenProblem& frozen, const pilco::GaussianInputG
   cell.reference_agrees = reference.agree;
   // PILCO's problem on the model's and policy's features (the raw state, or
   // the angles as sin/cos), built as the trial builds it.
-  absl::StatusOr<pilco::PilcoProblem> built = learner::MakePilcoProblem(
-      *problem.cost, problem.mu0, problem.initial_std, problem.horizon, frozen.angle_indices,
-      frozen.policy->num_basis(), frozen.policy->max_control());
+  std::string noise_note;
+  absl::StatusOr<pilco::PilcoProblem> built = MakeStudyPilcoProblem(frozen, problem, &noise_note);
   if (!built.ok()) {
     cell.omitted = true;
     cell.omission_reason = absl::StrCat("no closed-form cost: ", built.status().message());
     return cell;
   }
   pilco::PilcoProblem& pp = *built;
-  // The particles' transitions include the model noise whenever its
-  // multiplier is > 0; PILCO's predictions then include it too.
-  pp.propagation.prediction_includes_noise = problem.noise_variance_multiplier > 0;
-  if (problem.noise_variance_multiplier != 0 && problem.noise_variance_multiplier != 1) {
-    cell.error = absl::StrCat("PILCO adds the noise variance once; the particles use it x",
-                              problem.noise_variance_multiplier);
-  }
+  if (!noise_note.empty()) cell.error = noise_note;
   const Vector& theta = frozen.policy->parameters();
   std::vector<double> times;
   Vector gradient;

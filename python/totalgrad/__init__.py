@@ -195,7 +195,9 @@ class Problem:
         "nonfinite" (estimates dropped for non-finite values). The random
         numbers are those of a study's cell at (particles, horizon), the same
         for every method. Options: lr_weights, lr_baseline, gs_derivative,
-        sn_noise_multiplier, forced_k_lr."""
+        sn_noise_multiplier, forced_k_lr. "PILCO": the moment-matched
+        gradient of the study's PILCO cell (deterministic, no particles:
+        `replicates` timed runs, equal rows)."""
         pairs = [(k, _option_text(k, v)) for k, v in options.items()]
         return self._problem.gradients(method, int(particles), int(replicates), int(seed),
                                        0 if horizon is None else int(horizon), pairs)

@@ -14,6 +14,7 @@ import textwrap
 import threading
 import time
 
+import numpy
 import pytest
 
 import totalgrad
@@ -286,8 +287,13 @@ def test_gradients_are_numpy_repeatable_and_share_random_numbers():
     tp = problem.gradients("TP", particles=20, replicates=4, seed=5)
     assert (tp["objectives"] == rp["objectives"]).all()
     assert (tp["gradients"] != rp["gradients"]).any()
-    with pytest.raises(ValueError, match="PILCO|particle"):
-        problem.gradients("PILCO", particles=20, replicates=2)
+    # PILCO is deterministic: every replicate is the same moment-matched gradient.
+    pilco = problem.gradients("PILCO", replicates=3)
+    assert pilco["gradients"].shape == (3, rp["gradients"].shape[1])
+    assert (pilco["gradients"] == pilco["gradients"][0]).all()
+    assert len(set(pilco["objectives"].tolist())) == 1 and pilco["nonfinite"] == 0
+    with pytest.raises(ValueError, match="PILCO takes no estimator options"):
+        problem.gradients("PILCO", lr_weights="plain")
     with pytest.raises(ValueError, match="lr_weight"):
         problem.gradients("LR", particles=20, replicates=2, lr_weight="plain")
 
@@ -316,6 +322,14 @@ def test_the_study_is_the_clis_and_its_cells_are_the_problems_gradients(tmp_path
     for value in lr["objectives"]:
         total += value
     assert total / 3 == cell["objective_mean"]
+    # PILCO's cell is the problem's PILCO gradient: its J bit for bit, and its
+    # error against the study's reference gradient.
+    pilco = problem.gradients("PILCO", replicates=2, horizon=5)
+    pilco_cell = next(c for c in ours["cells"] if c["estimator"] == "PILCO")
+    assert pilco["objectives"][0] == pilco_cell["objective_mean"]
+    reference = numpy.array(next(r for r in ours["references"] if r["horizon"] == 5)["gradient"])
+    rel_bias = numpy.linalg.norm(pilco["gradients"][0] - reference) / numpy.linalg.norm(reference)
+    assert rel_bias == pytest.approx(pilco_cell["rel_bias"], rel=1e-12)
 
 
 @pytest.fixture()
