@@ -12,6 +12,17 @@ function(totalgrad_core_library name)
     set_target_properties(totalgrad_core_${name} PROPERTIES UNITY_BUILD OFF)
     target_include_directories(totalgrad_core_${name} PUBLIC ${PROJECT_SOURCE_DIR})
     target_link_libraries(totalgrad_core_${name} PUBLIC ${ARG_DEPS})
+    # Eigen and abseil parsed once for all of core/ (core/common/
+    # precompiled_headers.h): every core library has core_common's flags and
+    # definitions, so they reuse its precompiled header.
+    if(TOTALGRAD_PRECOMPILED_HEADERS)
+      if(name STREQUAL "common")
+        target_precompile_headers(totalgrad_core_common PRIVATE
+                                  ${PROJECT_SOURCE_DIR}/core/common/precompiled_headers.h)
+      else()
+        target_precompile_headers(totalgrad_core_${name} REUSE_FROM totalgrad_core_common)
+      endif()
+    endif()
   else()
     add_library(totalgrad_core_${name} INTERFACE)
     target_include_directories(totalgrad_core_${name} INTERFACE ${PROJECT_SOURCE_DIR})

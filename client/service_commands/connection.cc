@@ -348,15 +348,7 @@ int PlotResultsTable(Connection* connection, const std::string& sweep_name,
   plot.title = absl::StrCat("sweep ", sweep_name,
                             ": success rate per method with its 95% Wilson interval (successes/trials)");
   for (const TableCell& c : cells) {
-    SuccessPoint point;
-    point.variant = c.variant;
-    point.method = c.method;
-    point.trials = c.trials;
-    point.successes = c.successes;
-    point.rate = c.rate;
-    point.low = c.low;
-    point.high = c.high;
-    plot.points.push_back(point);
+    plot.points.push_back({c.variant, c.method, c.trials, c.successes, c.rate, c.low, c.high});
   }
   std::vector<results::CurvePanel> panels;
   std::string problem = FetchCurvePanels(connection, sweep_name, &panels);
@@ -365,12 +357,7 @@ int PlotResultsTable(Connection* connection, const std::string& sweep_name,
     plot.panel_titles.push_back(panel.title);
   }
   if (problem.empty()) problem = WriteSuccessPlot(plot, plot_path);
-  if (!problem.empty()) {
-    std::cerr << "error: results table --plot: " << problem << "\n";
-    return 1;
-  }
-  std::cerr << "plot written to " << plot_path << "\n";
-  return 0;
+  return ReportPlot("table", plot_path, problem);
 }
 
 }  // namespace
@@ -485,11 +472,7 @@ int PrintCurves(Connection* connection, const std::string& sweep_name, Format fo
     }
     std::string problem = FetchCurvePanels(connection, sweep_name, &plot.panels);
     if (problem.empty()) problem = WriteCurvesPlot(plot, plot_path);
-    if (!problem.empty()) {
-      std::cerr << "error: results curves --plot: " << problem << "\n";
-      return 1;
-    }
-    std::cerr << "plot written to " << plot_path << "\n";
+    return ReportPlot("curves", plot_path, problem);
   }
   return 0;
 }

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <map>
 
 #include "absl/strings/str_cat.h"
@@ -12,6 +13,15 @@
 #include "results/plot_style.h"
 
 namespace totalgrad::cli {
+
+int ReportPlot(const std::string& command, const std::string& path, const std::string& problem) {
+  if (!problem.empty()) {
+    std::cerr << "error: results " << command << " --plot: " << problem << "\n";
+    return 1;
+  }
+  std::cerr << "plot written to " << path << "\n";
+  return 0;
+}
 
 std::string WriteSuccessPlot(const SuccessPlotInput& input, const std::string& path) {
   const std::string extension = std::filesystem::path(path).extension().string();

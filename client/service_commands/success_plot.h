@@ -34,6 +34,11 @@ struct SuccessPlotInput {
   std::vector<std::string> panel_titles;
 };
 
+// What every `--plot` of `results` says once its picture is written or not:
+// "plot written to PATH" on stderr and 0, or "error: results COMMAND --plot:
+// PROBLEM" and 1 (`problem` "" means written).
+int ReportPlot(const std::string& command, const std::string& path, const std::string& problem);
+
 // Writes `path` (.svg, .pdf or .png), `path`.dat and `path`.gp and runs
 // gnuplot. Returns "" on success, else what went wrong (the file type,
 // an unwritable file, gnuplot, no point with a trial).

@@ -205,28 +205,14 @@ int PlotTable1(const results::Table1& table, const std::vector<std::string>& swe
     for (size_t m = 0; m < methods.size(); ++m) trials += table.cells[r * methods.size() + m].trials;
     if (trials == 0) continue;
     for (size_t m = 0; m < methods.size(); ++m) {
-      const Table1Cell& cell = table.cells[r * methods.size() + m];
-      SuccessPoint point;
-      point.variant = rows[r].Label();
-      point.method = cell.method;
-      point.trials = cell.trials;
-      point.successes = cell.successes;
-      point.rate = cell.success_rate;
-      point.low = cell.wilson95_low;
-      point.high = cell.wilson95_high;
-      point.paper_rate = cell.paper_success_rate;
-      plot.points.push_back(point);
+      const Table1Cell& c = table.cells[r * methods.size() + m];
+      plot.points.push_back({rows[r].Label(), c.method, c.trials, c.successes, c.success_rate,
+                             c.wilson95_low, c.wilson95_high, c.paper_success_rate});
     }
     plot.panel_variants.push_back(rows[r].Label());
     plot.panel_titles.push_back(absl::StrCat("cart-pole swing-up, ", rows[r].Label()));
   }
-  const std::string problem = WriteSuccessPlot(plot, path);
-  if (!problem.empty()) {
-    std::cerr << "error: results table1 --plot: " << problem << "\n";
-    return 1;
-  }
-  std::cerr << "plot written to " << path << "\n";
-  return 0;
+  return ReportPlot("table1", path, WriteSuccessPlot(plot, path));
 }
 
 int PrintTable1(Connection* connection, const std::vector<std::string>& sweeps,
