@@ -31,6 +31,21 @@ function(totalgrad_core_library name)
   add_library(totalgrad::core_${name} ALIAS totalgrad_core_${name})
 endfunction()
 
+# totalgrad_reuse_core_precompiled_headers(TARGET...)
+# A library or program above core/ that links core_common (so it compiles
+# with core's definitions, EIGEN_USE_BLAS among them) parses Eigen and
+# abseil from core's precompiled header too. GCC checks that a file's
+# settings match the header's and otherwise parses the headers itself
+# (-Winvalid-pch says so): programs (-fpie) and targets compiled with
+# -pthread (gRPC's, Threads') cannot use it, so they are not listed.
+function(totalgrad_reuse_core_precompiled_headers)
+  if(TOTALGRAD_PRECOMPILED_HEADERS)
+    foreach(target IN LISTS ARGN)
+      target_precompile_headers(${target} REUSE_FROM totalgrad_core_common)
+    endforeach()
+  endif()
+endfunction()
+
 # totalgrad_test_folder(tests/<folder> LIBS ... LABELS ...)
 # One GoogleTest executable per test folder (tests/core/pilco ->
 # core_pilco_tests) holding every *_test.cc in it, registered with CTest test
