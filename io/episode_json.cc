@@ -1,5 +1,7 @@
 #include "io/episode_json.h"
 
+#include <cmath>
+
 #include "io/record_format.h"
 
 namespace totalgrad::io {
@@ -54,6 +56,18 @@ nlohmann::json EpisodeToJson(const learner::EpisodeResult& result) {
   nlohmann::json j = nlohmann::json::parse(EpisodeDetailsJson(result));
   AppendRecordJson<learner::EpisodeSummary>(learner::EpisodeFields(), result, &j);
   return j;
+}
+
+nlohmann::json TrialSummaryJson(const learner::TrialSummary& summary,
+                                const learner::TrialOptions& options) {
+  nlohmann::json used = nlohmann::json::object();
+  for (const auto& [key, value] : learner::TrialOptionPairs(options)) used[key] = value;
+  const double held = summary.episodes.empty() ? std::nan("") : summary.episodes.back().held_fraction;
+  return {{"success", summary.success},
+          {"final_eval_cost", summary.final_eval_cost},
+          {"threshold", options.success_threshold},
+          {"held_fraction", std::isnan(held) ? nlohmann::json(nullptr) : nlohmann::json(held)},
+          {"options", used}};
 }
 
 }  // namespace totalgrad::io

@@ -11,6 +11,10 @@
 //       "predicted_cost_std_per_step" (steps 1..H). Non-finite numbers: null.
 //   EpisodeToJson  the episode's record (learner::EpisodeFields(): the
 //       stored row's columns, io/record_format.h) with the details' keys.
+//   TrialSummaryJson  a finished trial's verdict: "success",
+//       "final_eval_cost", "threshold", "held_fraction" (null without a
+//       rollout verdict) and "options" (every option used, key -> text);
+//       `totalgrad trial --json`'s last line and Python's summary().
 #ifndef TOTALGRAD_IO_EPISODE_JSON_H_
 #define TOTALGRAD_IO_EPISODE_JSON_H_
 
@@ -24,6 +28,8 @@ namespace totalgrad::io {
 
 std::string EpisodeDetailsJson(const learner::EpisodeResult& result);
 nlohmann::json EpisodeToJson(const learner::EpisodeResult& result);
+nlohmann::json TrialSummaryJson(const learner::TrialSummary& summary,
+                                const learner::TrialOptions& options);
 
 }  // namespace totalgrad::io
 

@@ -118,16 +118,7 @@ class TrialRun final : public learner::TrialObserver {
   std::string Summary() const {
     std::lock_guard<std::mutex> lock(mutex_);
     if (!finished_ || !status_.ok()) throw std::runtime_error("the trial has not completed");
-    nlohmann::json used = nlohmann::json::object();
-    for (const auto& [key, value] : learner::TrialOptionPairs(options_)) used[key] = value;
-    const double held = summary_.episodes.back().held_fraction;
-    const nlohmann::json out = {
-        {"success", summary_.success},
-        {"final_eval_cost", summary_.final_eval_cost},
-        {"threshold", options_.success_threshold},
-        {"held_fraction", std::isnan(held) ? nlohmann::json(nullptr) : nlohmann::json(held)},
-        {"options", used}};
-    return out.dump();
+    return io::TrialSummaryJson(summary_, options_).dump();
   }
 
   // TrialObserver (the trial's thread).

@@ -132,17 +132,9 @@ void AddTrialCommand(CLI::App* app, int* exit_code) {
                 << options.episodes << " do not exist)\n";
     }
     if (state->json) {
-      nlohmann::json used = nlohmann::json::object();
-      for (const auto& [key, value] : learner::TrialOptionPairs(options)) used[key] = value;
-      nlohmann::json done = {{"done", true},
-                             {"success", summary->success},
-                             {"final_eval_cost", summary->final_eval_cost},
-                             {"threshold", options.success_threshold},
-                             {"held_fraction", std::isnan(summary->episodes.back().held_fraction)
-                                                    ? nlohmann::json(nullptr)
-                                                    : nlohmann::json(summary->episodes.back().held_fraction)},
-                             {"options", used},
-                             {"threads", state->threads}};
+      nlohmann::json done = {{"done", true}};
+      done.update(io::TrialSummaryJson(*summary, options));
+      done["threads"] = state->threads;
       std::cout << done.dump() << std::endl;
     } else {
       std::printf("final evaluation cost %.3f (threshold %.3g): %s\n", summary->final_eval_cost,

@@ -64,6 +64,9 @@ def test_a_trial_gives_the_clis_episodes_bit_for_bit(method, seed):
     assert run.summary["success"] == done["success"]
     assert run.summary["held_fraction"] == done["held_fraction"]
     assert run.summary["options"] == done["options"]
+    # One writer of the verdict (io::TrialSummaryJson): the CLI adds done and threads.
+    assert {k: v for k, v in done.items() if k not in ("done", "threads")} == run.summary
+    assert done["done"] is True and done["threads"] == 1
 
 
 def test_a_trial_as_a_frame_has_one_row_per_episode():
