@@ -47,8 +47,7 @@ namespace totalgrad::python {
 }
 
 [[noreturn]] void Raise(const grpc::Status& status, const std::string& what) {
-  Raise(absl::Status(static_cast<absl::StatusCode>(status.error_code()), status.error_message()),
-        what);
+  Raise(cli::ToAbslStatus(status), what);
 }
 
 PyConnection::PyConnection(std::optional<std::string> db, std::optional<std::string> coordinator,

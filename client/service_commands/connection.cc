@@ -222,6 +222,10 @@ int ReportError(const grpc::Status& status, const std::string& what) {
   return kExitCoordinatorRefused;
 }
 
+absl::Status ToAbslStatus(const grpc::Status& status) {
+  return absl::Status(static_cast<absl::StatusCode>(status.error_code()), status.error_message());
+}
+
 int ReportError(const absl::Status& status, const std::string& what) {
   return ReportError(grpc::Status(static_cast<grpc::StatusCode>(status.code()),
                                   std::string(status.message())),
@@ -430,9 +434,7 @@ absl::StatusOr<std::vector<EpisodeValue>> ReadEvaluationCosts(Connection* connec
         }
         return reader->Finish();
       });
-  if (!status.ok()) {
-    return absl::Status(static_cast<absl::StatusCode>(status.error_code()), status.error_message());
-  }
+  if (!status.ok()) return ToAbslStatus(status);
   return values;
 }
 

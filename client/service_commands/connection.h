@@ -130,6 +130,8 @@ inline constexpr int kExitCoordinatorRefused = 4;
 // UNAUTHENTICATED/PERMISSION_DENIED, kExitFailed otherwise.
 int ReportError(const grpc::Status& status, const std::string& what);
 int ReportError(const absl::Status& status, const std::string& what);
+// A gRPC status as an absl::Status (the codes are the same numbers).
+absl::Status ToAbslStatus(const grpc::Status& status);
 
 // Shared helpers of the commands.
 std::string StateName(v1::JobState state);

@@ -48,9 +48,7 @@ absl::StatusOr<std::vector<results::DiagnosticPoint>> ReadDiagnostics(
         }
         return reader->Finish();
       });
-  if (!status.ok()) {
-    return absl::Status(static_cast<absl::StatusCode>(status.error_code()), status.error_message());
-  }
+  if (!status.ok()) return ToAbslStatus(status);
   return results::DiagnosticCurves(rows, statistic);
 }
 

@@ -7,14 +7,6 @@
 #include "client/service_commands/streamed_reads.h"
 
 namespace totalgrad::cli {
-namespace {
-
-absl::Status ToAbsl(const grpc::Status& status) {
-  return absl::Status(static_cast<absl::StatusCode>(status.error_code()),
-                      status.error_message());
-}
-
-}  // namespace
 
 absl::StatusOr<std::vector<results::CompletedTrial>> RpcResultsReader::CompletedTrials(
     const std::string& sweep) {
@@ -22,7 +14,7 @@ absl::StatusOr<std::vector<results::CompletedTrial>> RpcResultsReader::Completed
   // jobs are listed.
   v1::ListTrialResultsResponse completed;
   grpc::Status status = FetchTrialResults(connection_, sweep, &completed);
-  if (!status.ok()) return ToAbsl(status);
+  if (!status.ok()) return ToAbslStatus(status);
   last_sweep_ = completed.sweep();
   std::map<int64_t, record::TextPairs> options_of;
   v1::ListJobsRequest jobs_request;
@@ -35,7 +27,7 @@ absl::StatusOr<std::vector<results::CompletedTrial>> RpcResultsReader::Completed
     }
     return grpc::Status::OK;
   });
-  if (!status.ok()) return ToAbsl(status);
+  if (!status.ok()) return ToAbslStatus(status);
   std::vector<results::CompletedTrial> trials;
   trials.reserve(completed.results_size());
   for (const v1::TrialResult& result : completed.results()) {

@@ -1,6 +1,7 @@
 // SqliteStore: sweep archives taken over (ImportJobs) and sweeps grown (GrowSweep)
 // (sqlite_store.h).
 #include <algorithm>
+#include <map>
 #include <set>
 #include <utility>
 
@@ -216,10 +217,10 @@ namespace {
 // FailedPrecondition naming the first option whose stored text differs from
 // `job`'s. Keys one side lacks are not compared: a key added after the job
 // was stored defaults to the computation it ran (TrialOptionsFromStoredPairs).
-absl::Status SameStoredOptions(const std::string& sweep, const NewJob& job, const OptionList& stored) {
+absl::Status SameStoredOptions(const std::string& sweep, const NewJob& job, const OptionList& list) {
+  const std::map<std::string, std::string> stored(list.begin(), list.end());
   for (const auto& [key, value] : job.options) {
-    const auto found = std::find_if(stored.begin(), stored.end(),
-                                    [&key](const auto& pair) { return pair.first == key; });
+    const auto found = stored.find(key);
     if (found == stored.end() || found->second == value) continue;
     return absl::FailedPreconditionError(absl::StrCat(
         "sweep '", sweep, "' cannot grow: its job ", job.method, " seed ", job.seed,

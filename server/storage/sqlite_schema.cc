@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -357,14 +358,26 @@ constexpr char kEpisodeColumns[] =
     "r.ess_low_fraction, r.reported_unix_ms, r.details_json, r.worker_build, r.wall_seconds";
 
 // A value's number, when its canonical text is one: integers (seeds,
-// counts) as INTEGER, others as REAL.
-void BindNumber(Statement& statement, int index, const std::string& text) {
+// counts) as INTEGER, finite others as REAL; otherwise neither is set.
+// The one typing rule of job_options.number and the views' protocol columns.
+struct TextNumber {
+  std::optional<int64_t> integer;
+  std::optional<double> real;
+};
+TextNumber ParseTextNumber(const std::string& text) {
   int64_t integer;
   double real;
-  if (absl::SimpleAtoi(text, &integer)) {
-    statement.Bind(index, integer);
-  } else if (absl::SimpleAtod(text, &real) && std::isfinite(real)) {
-    statement.Bind(index, real);
+  if (absl::SimpleAtoi(text, &integer)) return {integer, std::nullopt};
+  if (absl::SimpleAtod(text, &real) && std::isfinite(real)) return {std::nullopt, real};
+  return {};
+}
+
+void BindNumber(Statement& statement, int index, const std::string& text) {
+  const TextNumber number = ParseTextNumber(text);
+  if (number.integer) {
+    statement.Bind(index, *number.integer);
+  } else if (number.real) {
+    statement.Bind(index, *number.real);
   } else {
     statement.BindNull(index);
   }
@@ -414,13 +427,12 @@ absl::Status WriteJobOptions(Db& db, int64_t job_id, const std::string& method,
 
 std::string SweepViewName(const std::string& sweep_name) { return "episodes/" + sweep_name; }
 
-// An option's text as an SQL literal of its type: an integer or a finite
-// real as a number (the typing of job_options.number), other text quoted.
+// An option's text as an SQL literal of its type (ParseTextNumber, as
+// job_options.number types it): a number, or the text quoted.
 std::string OptionLiteral(const std::string& text) {
-  int64_t integer;
-  double real;
-  if (absl::SimpleAtoi(text, &integer)) return std::to_string(integer);
-  if (absl::SimpleAtod(text, &real) && std::isfinite(real)) return absl::StrFormat("%.17g", real);
+  const TextNumber number = ParseTextNumber(text);
+  if (number.integer) return std::to_string(*number.integer);
+  if (number.real) return absl::StrFormat("%.17g", *number.real);
   std::string quoted = "'";
   for (char c : text) {
     if (c == '\'') quoted += '\'';
