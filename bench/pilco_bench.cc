@@ -13,7 +13,7 @@
 #include "core/common/blas.h"
 #include "core/common/rng.h"
 #include "core/gp/fitc.h"
-#include "core/pilco/angle_features.h"
+#include "core/gaussian/angle_features.h"
 #include "core/pilco/pilco.h"
 #include "core/tasks/cartpole.h"
 
@@ -43,7 +43,7 @@ Setup MakeSetup(int n, int m, int horizon, int centres) {
     y.row(i) = (next - s).transpose();
   }
   RowMatrix features;
-  StatesToFeatures(states, 1, &features);
+  gaussian::StatesToFeatures(states, 1, &features);
   RowMatrix x(n, 6);
   x << features, u;
   gp::GpHyperparameters hyp;
@@ -77,7 +77,7 @@ Setup MakeSetup(int n, int m, int horizon, int centres) {
   setup.problem.mu0 = Vector::Zero(4);
   setup.problem.S0 = 0.01 * Matrix::Identity(4, 4);
   setup.problem.horizon = horizon;
-  setup.problem.cost = std::make_shared<GaussianCost>(*GaussianCost::Tip(4, 0, 1, 0.5, 0.25));
+  setup.problem.cost = std::make_shared<gaussian::GaussianCost>(*gaussian::GaussianCost::Tip(4, 0, 1, 0.5, 0.25));
   setup.problem.propagation.angle_index = 1;
   setup.problem.propagation.num_basis = centres;
   Rng rng(3, Stream::kPolicyInit);

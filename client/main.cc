@@ -15,7 +15,7 @@
 #include <grpc/support/log.h>
 
 #include "client/service_commands/service_commands.h"
-#include "server/common/build_info.h"
+#include "runtime/build_info.h"
 #endif
 
 int main(int argc, char** argv) {

@@ -143,6 +143,93 @@ absl::StatusOr<std::vector<study::EstimatorSpec>> ParseEstimatorList(const Json&
 }
 
 
+// problem = {"snapshot": FILE or an inlined snapshot, "episode", "policy"}.
+absl::Status ParseSnapshotProblem(const Json& problem, const Json& snapshot_json,
+                                  const std::string& base_dir, StudySpec* out) {
+  const Json* snapshot = &snapshot_json;
+  StudySpec& spec = *out;
+  if (absl::Status st = CheckKeys(problem, "problem", {"snapshot", "episode", "policy"}); !st.ok()) {
+    return st;
+  }
+  spec.from_snapshot = true;
+  if (snapshot->is_object()) {
+    absl::StatusOr<std::vector<learner::TrialSnapshot>> inline_snapshots =
+        SnapshotsFromJson(*snapshot);
+    if (!inline_snapshots.ok()) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("problem.snapshot (inline): ", inline_snapshots.status().message()));
+    }
+    spec.inline_snapshots = *std::move(inline_snapshots);
+  } else if (snapshot->is_string()) {
+    std::filesystem::path path(snapshot->get<std::string>());
+    if (path.is_relative() && !base_dir.empty()) path = std::filesystem::path(base_dir) / path;
+    spec.snapshot_file = path.string();
+  } else {
+    return absl::InvalidArgumentError(
+        "problem.snapshot: not a file name or an inlined snapshot object");
+  }
+  if (absl::Status st = ReadInt(problem, "episode", "problem.", &spec.snapshot_episode); !st.ok()) {
+    return st;
+  }
+  if (const Json* policy = Find(problem, "policy"); policy != nullptr) {
+    const std::string p = policy->is_string() ? policy->get<std::string>() : "";
+    if (p == "before") spec.snapshot_policy = study::SnapshotPolicy::kBefore;
+    else if (p == "after") spec.snapshot_policy = study::SnapshotPolicy::kAfter;
+    else return absl::InvalidArgumentError("problem.policy: must be \"before\" or \"after\"");
+  }
+  return absl::OkStatus();
+}
+
+// problem = {"synthetic": {data, horizon, basis_functions, cost, scene, seed,
+// train_iterations, angle_features}}.
+absl::Status ParseSyntheticProblem(const Json& problem, const Json& synthetic_json,
+                                   StudySpec* out) {
+  const Json* synthetic = &synthetic_json;
+  StudySpec& spec = *out;
+  if (absl::Status st = CheckKeys(problem, "problem", {"synthetic"}); !st.ok()) return st;
+  if (!synthetic->is_object()) return absl::InvalidArgumentError("problem.synthetic: not an object");
+  if (absl::Status st = CheckKeys(*synthetic, "problem.synthetic",
+                                  {"data", "horizon", "basis_functions", "cost", "scene", "seed",
+                                   "train_iterations", "angle_features"});
+      !st.ok()) {
+    return st;
+  }
+  estimators::SyntheticProblemOptions& o = spec.synthetic;
+  const std::string w = "problem.synthetic.";
+  for (absl::Status st : {ReadInt(*synthetic, "data", w, &o.data),
+                          ReadInt(*synthetic, "horizon", w, &o.horizon),
+                          ReadInt(*synthetic, "basis_functions", w, &o.basis_functions),
+                          ReadInt(*synthetic, "train_iterations", w, &o.train_iterations)}) {
+    if (!st.ok()) return st;
+  }
+  for (const char* key : {"cost", "scene"}) {
+    if (const Json* v = Find(*synthetic, key); v != nullptr) {
+      if (!v->is_string()) return absl::InvalidArgumentError(absl::StrCat(w, key, ": not a string"));
+      (std::string(key) == "cost" ? o.cost : o.scene) = v->get<std::string>();
+    }
+  }
+  if (const Json* v = Find(*synthetic, "seed"); v != nullptr) {
+    if (!v->is_number_integer() || v->get<int64_t>() < 0) {
+      return absl::InvalidArgumentError(w + "seed: not a non-negative integer");
+    }
+    o.seed = v->get<uint64_t>();
+  }
+  if (const Json* v = Find(*synthetic, "angle_features"); v != nullptr) {
+    const std::string text = v->is_string() ? v->get<std::string>() : "";
+    if (absl::Status st = ParseEnum("angle_features", text, learner::AngleFeaturesNames(),
+                                    &spec.synthetic_angle_features);
+        !st.ok()) {
+      return absl::InvalidArgumentError(absl::StrCat(w, st.message()));
+    }
+  }
+  if (tasks::FindSceneDefinition(o.scene) == nullptr) {
+    return absl::InvalidArgumentError(absl::StrCat(w, "scene: unknown scene '", o.scene,
+                                                   "' (known: ", absl::StrJoin(tasks::SceneNames(), ", "),
+                                                   ")"));
+  }
+  return absl::OkStatus();
+}
+
 }  // namespace
 
 absl::StatusOr<StudySpec> ParseStudySpec(const Json& doc, const std::string& base_dir) {
@@ -160,77 +247,11 @@ absl::StatusOr<StudySpec> ParseStudySpec(const Json& doc, const std::string& bas
     return absl::InvalidArgumentError("study file: missing object 'problem'");
   }
   if (const Json* snapshot = Find(*problem, "snapshot"); snapshot != nullptr) {
-    if (absl::Status st = CheckKeys(*problem, "problem", {"snapshot", "episode", "policy"}); !st.ok()) {
+    if (absl::Status st = ParseSnapshotProblem(*problem, *snapshot, base_dir, &spec); !st.ok()) {
       return st;
-    }
-    spec.from_snapshot = true;
-    if (snapshot->is_object()) {
-      absl::StatusOr<std::vector<learner::TrialSnapshot>> inline_snapshots =
-          SnapshotsFromJson(*snapshot);
-      if (!inline_snapshots.ok()) {
-        return absl::InvalidArgumentError(
-            absl::StrCat("problem.snapshot (inline): ", inline_snapshots.status().message()));
-      }
-      spec.inline_snapshots = *std::move(inline_snapshots);
-    } else if (snapshot->is_string()) {
-      std::filesystem::path path(snapshot->get<std::string>());
-      if (path.is_relative() && !base_dir.empty()) path = std::filesystem::path(base_dir) / path;
-      spec.snapshot_file = path.string();
-    } else {
-      return absl::InvalidArgumentError(
-          "problem.snapshot: not a file name or an inlined snapshot object");
-    }
-    if (absl::Status st = ReadInt(*problem, "episode", "problem.", &spec.snapshot_episode); !st.ok()) {
-      return st;
-    }
-    if (const Json* policy = Find(*problem, "policy"); policy != nullptr) {
-      const std::string p = policy->is_string() ? policy->get<std::string>() : "";
-      if (p == "before") spec.snapshot_policy = study::SnapshotPolicy::kBefore;
-      else if (p == "after") spec.snapshot_policy = study::SnapshotPolicy::kAfter;
-      else return absl::InvalidArgumentError("problem.policy: must be \"before\" or \"after\"");
     }
   } else if (const Json* synthetic = Find(*problem, "synthetic"); synthetic != nullptr) {
-    if (absl::Status st = CheckKeys(*problem, "problem", {"synthetic"}); !st.ok()) return st;
-    if (!synthetic->is_object()) return absl::InvalidArgumentError("problem.synthetic: not an object");
-    if (absl::Status st = CheckKeys(*synthetic, "problem.synthetic",
-                                    {"data", "horizon", "basis_functions", "cost", "scene", "seed",
-                                     "train_iterations", "angle_features"});
-        !st.ok()) {
-      return st;
-    }
-    estimators::SyntheticProblemOptions& o = spec.synthetic;
-    const std::string w = "problem.synthetic.";
-    for (absl::Status st : {ReadInt(*synthetic, "data", w, &o.data),
-                            ReadInt(*synthetic, "horizon", w, &o.horizon),
-                            ReadInt(*synthetic, "basis_functions", w, &o.basis_functions),
-                            ReadInt(*synthetic, "train_iterations", w, &o.train_iterations)}) {
-      if (!st.ok()) return st;
-    }
-    for (const char* key : {"cost", "scene"}) {
-      if (const Json* v = Find(*synthetic, key); v != nullptr) {
-        if (!v->is_string()) return absl::InvalidArgumentError(absl::StrCat(w, key, ": not a string"));
-        (std::string(key) == "cost" ? o.cost : o.scene) = v->get<std::string>();
-      }
-    }
-    if (const Json* v = Find(*synthetic, "seed"); v != nullptr) {
-      if (!v->is_number_integer() || v->get<int64_t>() < 0) {
-        return absl::InvalidArgumentError(w + "seed: not a non-negative integer");
-      }
-      o.seed = v->get<uint64_t>();
-    }
-    if (const Json* v = Find(*synthetic, "angle_features"); v != nullptr) {
-      const std::string text = v->is_string() ? v->get<std::string>() : "";
-      if (absl::Status st = ParseEnum("angle_features", text, learner::AngleFeaturesNames(),
-                                      &spec.synthetic_angle_features);
-          !st.ok()) {
-        return absl::InvalidArgumentError(absl::StrCat(w, st.message()));
-      }
-    }
-    if (tasks::FindSceneDefinition(o.scene) == nullptr) {
-      return absl::InvalidArgumentError(absl::StrCat(w, "scene: unknown scene '", o.scene,
-                                                     "' (known: ", absl::StrJoin(tasks::SceneNames(), ", "),
-                                                     ")"));
-    }
+    if (absl::Status st = ParseSyntheticProblem(*problem, *synthetic, &spec); !st.ok()) return st;
   } else {
     return absl::InvalidArgumentError("problem: needs 'snapshot' or 'synthetic'");
   }

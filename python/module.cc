@@ -3,7 +3,7 @@
 
 #include "core/common/blas.h"
 #include "python/bindings.h"
-#include "server/common/build_info.h"
+#include "runtime/build_info.h"
 
 PYBIND11_MODULE(_totalgrad, module) {
   module.doc() = "totalgrad's C++ core, service client and results library (use the "

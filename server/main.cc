@@ -14,9 +14,9 @@
 #include <fstream>
 #include <thread>
 
-#include "server/common/build_info.h"
-#include "server/common/signals.h"
-#include "server/common/token_file.h"
+#include "runtime/build_info.h"
+#include "runtime/signals.h"
+#include "runtime/token_file.h"
 #include "server/service/auth.h"
 #include "server/service/coordinator.h"
 #include "server/storage/sqlite_store.h"

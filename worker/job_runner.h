@@ -13,7 +13,7 @@
 // it runs). The records are the core's own (core/learner/episode_record.h,
 // core/study/study_records.h: header only, so the runtime links no
 // numerical code); the runtime converts them to the wire by their field
-// tables (server/common/record_proto.h).
+// tables (runtime/record_proto.h).
 #ifndef TOTALGRAD_WORKER_JOB_RUNNER_H_
 #define TOTALGRAD_WORKER_JOB_RUNNER_H_
 
@@ -23,12 +23,12 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
+#include "core/common/option_pairs.h"
 #include "core/learner/episode_record.h"
 #include "core/study/study_records.h"
 
 namespace totalgrad::worker {
 
-using OptionList = std::vector<std::pair<std::string, std::string>>;
 
 // One finished episode: its record (learner::EpisodeSummary, the core's own;
 // NaN: no value, e.g. the evaluation of episode 0) and the trial's details.
@@ -39,7 +39,7 @@ struct EpisodeOutcome : learner::EpisodeSummary {
 // What a lease asks a runner to do; each kind reads what it needs.
 struct JobInput {
   // Trials: options applied in order to the default options.
-  OptionList options;
+  OptionPairs options;
   // Studies: the self-contained spec (the study file's JSON with its
   // snapshot inlined; io/study_file.h).
   std::string spec_json;

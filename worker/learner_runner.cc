@@ -31,7 +31,7 @@ class ObserverAdapter final : public learner::TrialObserver {
 
 // A job's options are stored pairs: one stored before a key existed reads
 // as the value it was submitted with (learner::TrialOptionsFromStoredPairs).
-absl::StatusOr<learner::TrialOptions> ApplyOptions(const OptionList& options) {
+absl::StatusOr<learner::TrialOptions> ApplyOptions(const OptionPairs& options) {
   return learner::TrialOptionsFromStoredPairs(options);
 }
 

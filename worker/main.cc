@@ -20,10 +20,10 @@
 #include <thread>
 
 #include "core/common/blas.h"
-#include "server/common/build_info.h"
-#include "server/common/signals.h"
-#include "server/common/token_file.h"
-#include "server/common/rpc_client.h"
+#include "runtime/build_info.h"
+#include "runtime/signals.h"
+#include "runtime/token_file.h"
+#include "runtime/rpc_client.h"
 #include "worker/learner_runner.h"
 #include "worker/study_runner.h"
 #include "worker/worker.h"

@@ -16,8 +16,8 @@
 #include "absl/strings/ascii.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/strip.h"
-#include "server/common/record_proto.h"
-#include "server/common/rpc_client.h"
+#include "runtime/record_proto.h"
+#include "runtime/rpc_client.h"
 #include "worker/worker_internal.h"
 
 namespace totalgrad::worker {

@@ -10,8 +10,8 @@
 #include <vector>
 
 #include "absl/strings/str_cat.h"
-#include "server/common/record_proto.h"
-#include "server/common/rpc_client.h"
+#include "runtime/record_proto.h"
+#include "runtime/rpc_client.h"
 #include "worker/worker.h"
 #include "worker/worker_internal.h"
 

@@ -28,7 +28,7 @@
 #include "core/gp/training.h"
 #include "core/learner/problem_builder.h"
 #include "core/learner/trial_options.h"
-#include "core/pilco/angle_features.h"
+#include "core/gaussian/angle_features.h"
 #include "core/policy/rbf_policy.h"
 #include "core/study/frozen_problem.h"
 #include "core/tasks/scene.h"

@@ -17,7 +17,7 @@
 #include "client/core_commands/commands.h"
 #include "core/gp/fitc.h"
 #include "core/gp/gp.h"
-#include "core/pilco/expected_cost.h"
+#include "core/gaussian/expected_cost.h"
 #include "core/pilco/gp_moments.h"
 #include "core/pilco/policy_moments.h"
 #include "core/pilco/propagation.h"
@@ -67,7 +67,7 @@ struct Propagated {
 // file gave them (`given`: weights, or pseudo-targets when s.has_targets, in
 // RbfPolicy's layout) and writes the trajectory ("mean", "cov", "cost_mean",
 // "cost_std", "J") into *out.
-absl::StatusOr<Propagated> PropagateAndWrite(const pilco::Propagator& prop, const pilco::GaussianCost& cost,
+absl::StatusOr<Propagated> PropagateAndWrite(const pilco::Propagator& prop, const gaussian::GaussianCost& cost,
                                          const PilcoScenario& s, const Vector& given,
                                          nlohmann::ordered_json* out) {
   Vector params = given;
@@ -153,7 +153,7 @@ absl::StatusOr<nlohmann::ordered_json> RunGeneral(const PilcoScenario& s) {
   if (absl::Status st = pilco::Propagator::Validate(*gp, options); !st.ok()) return st;
   const pilco::Propagator prop(&*gp, options);
 
-  absl::StatusOr<pilco::GaussianCost> cost = pilco::GaussianCost::Saturating(
+  absl::StatusOr<gaussian::GaussianCost> cost = gaussian::GaussianCost::Saturating(
       d, g.angle_indices, g.cost_q, AugmentedTarget(g.cost_target, g.angle_indices), g.widths);
   if (!cost.ok()) return cost.status();
 
@@ -272,11 +272,11 @@ absl::StatusOr<nlohmann::ordered_json> RunPilcoPropagate(const PilcoScenario& s)
   if (absl::Status st = pilco::Propagator::Validate(*gp, options); !st.ok()) return st;
   const pilco::Propagator prop(&*gp, options);
 
-  absl::StatusOr<pilco::GaussianCost> cost =
+  absl::StatusOr<gaussian::GaussianCost> cost =
       s.cost_type == "tip"
-          ? pilco::GaussianCost::Tip(d, s.cost_position_index, s.cost_angle_index,
+          ? gaussian::GaussianCost::Tip(d, s.cost_position_index, s.cost_angle_index,
                                      s.pendulum_length, s.width, s.target_position)
-          : pilco::GaussianCost::Angle(s.cost_target, s.cost_q);
+          : gaussian::GaussianCost::Angle(s.cost_target, s.cost_q);
   if (!cost.ok()) return cost.status();
 
   Vector given(prop.num_parameters());

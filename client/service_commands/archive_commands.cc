@@ -22,7 +22,7 @@
 #include "client/service_commands/streamed_reads.h"
 #include "core/learner/episode_record.h"
 #include "io/record_format.h"
-#include "server/common/record_proto.h"
+#include "runtime/record_proto.h"
 
 namespace totalgrad::cli {
 namespace {

@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "client/service_commands/streamed_reads.h"
-#include "server/common/build_info.h"
+#include "runtime/build_info.h"
 #include "server/service/sweep_archive.h"
 #include "server/service/sweep_archive_writer.h"
 

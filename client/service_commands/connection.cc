@@ -17,8 +17,8 @@
 
 #include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
-#include "server/common/status_origin.h"
-#include "server/common/token_file.h"
+#include "runtime/status_origin.h"
+#include "runtime/token_file.h"
 #include "absl/time/time.h"
 #include "client/service_commands/curves_plot.h"
 #include "client/service_commands/success_plot.h"

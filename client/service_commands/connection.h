@@ -16,7 +16,7 @@
 #include "results/comparison.h"
 #include "results/diagnostics.h"
 #include "results/stats.h"
-#include "server/common/rpc_client.h"
+#include "runtime/rpc_client.h"
 #include "totalgrad/v1/control_service.grpc.pb.h"
 
 namespace totalgrad::cli {

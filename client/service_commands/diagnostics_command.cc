@@ -14,7 +14,7 @@
 #include "client/service_commands/connection.h"
 #include "core/common/closest_word.h"
 #include "results/diagnostics.h"
-#include "server/common/record_proto.h"
+#include "runtime/record_proto.h"
 
 namespace totalgrad::cli {
 

@@ -5,7 +5,7 @@
 
 #include <utility>
 
-#include "server/common/build_info.h"
+#include "runtime/build_info.h"
 #include "server/scheduler/clock.h"
 #include "server/scheduler/scheduler.h"
 #include "server/service/auth.h"

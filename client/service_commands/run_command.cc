@@ -142,15 +142,24 @@ struct RunFlags {
   std::string format = "table";
 };
 
-int Run(const RunFlags& flags) {
-  std::string source;
-  absl::StatusOr<sweep::SweepSpec> spec = sweep::LoadSweepFile(flags.file, &source);
-  if (!spec.ok()) {
-    std::cerr << "error: " << spec.status().message() << "\n";
-    return 2;
-  }
-  Format format;
-  if (!ParseFormat(flags.format, &format)) return 2;
+// What `run` starts and where its files are (beside the database).
+struct LocalService {
+  std::string base;  // DIR/<sweep>: the prefix of every file
+  std::string db;
+  std::string user_token_file;
+  std::string port_file;
+  std::string coordinator_log;
+  std::string address;  // the coordinator's gRPC address on loopback
+  int http_port = 0;
+  pid_t coordinator = -1;
+  std::vector<pid_t> workers;
+};
+
+// Starts the coordinator on a loopback port of the system's choosing (read
+// back from its port file) and `flags.workers` workers. 0, or 1 having said
+// why and stopped whatever it started.
+int StartLocalService(const RunFlags& flags, const std::string& sweep_name,
+                      LocalService* service) {
   const std::string coordinator_bin = FindProgram("totalgrad-coordinator", "server");
   const std::string worker_bin = FindProgram("totalgrad-worker", "worker");
   if (coordinator_bin.empty() || worker_bin.empty()) {
@@ -164,144 +173,168 @@ int Run(const RunFlags& flags) {
     std::cerr << "error: run: cannot create " << flags.dir << ": " << error.message() << "\n";
     return 1;
   }
-  const std::string base = (std::filesystem::path(flags.dir) / spec->name).string();
-  const std::string db = flags.db.empty() ? base + ".db" : flags.db;
-  const std::string plot = flags.no_plot ? "" : (flags.plot.empty() ? base + "-curves.svg" : flags.plot);
+  const std::string base = (std::filesystem::path(flags.dir) / sweep_name).string();
+  service->base = base;
+  service->db = flags.db.empty() ? base + ".db" : flags.db;
   const std::string worker_token = RandomToken(), user_token = RandomToken();
-  const std::string worker_token_file = base + ".worker-token", user_token_file = base + ".user-token";
-  const std::string port_file = base + ".port";
+  const std::string worker_token_file = base + ".worker-token";
+  service->user_token_file = base + ".user-token";
+  service->port_file = base + ".port";
   // The dashboard's port: one the system has just handed out (bound and
   // released here; another process taking it in between is unlikely on a
   // workstation, and then the coordinator reports it and the run stops).
-  const int http_port = FreeLoopbackPort();
-  if (http_port <= 0) {
+  service->http_port = FreeLoopbackPort();
+  if (service->http_port <= 0) {
     std::cerr << "error: run: no free loopback port for the dashboard\n";
     return 1;
   }
-  if (!WriteSecret(worker_token_file, worker_token) || !WriteSecret(user_token_file, user_token)) {
+  if (!WriteSecret(worker_token_file, worker_token) ||
+      !WriteSecret(service->user_token_file, user_token)) {
     std::cerr << "error: run: cannot write token files in " << flags.dir << "\n";
     return 1;
   }
-  std::filesystem::remove(port_file, error);
+  std::filesystem::remove(service->port_file, error);
 
-  struct sigaction action = {};
-  action.sa_handler = OnInterrupt;
-  sigaction(SIGINT, &action, nullptr);
-  sigaction(SIGTERM, &action, nullptr);
-
-  const std::string coordinator_log = base + "-coordinator.log";
-  const pid_t coordinator = Spawn(
-      {coordinator_bin, "--db", db, "--listen", "127.0.0.1:0", "--insecure", "--worker-token-file",
-       worker_token_file, "--user-token-file", user_token_file, "--port-file", port_file,
-       "--heartbeat-interval", absl::StrCat(flags.heartbeat_seconds), "--lease-timeout",
+  service->coordinator_log = base + "-coordinator.log";
+  service->coordinator = Spawn(
+      {coordinator_bin, "--db", service->db, "--listen", "127.0.0.1:0", "--insecure",
+       "--worker-token-file", worker_token_file, "--user-token-file", service->user_token_file,
+       "--port-file", service->port_file, "--heartbeat-interval",
+       absl::StrCat(flags.heartbeat_seconds), "--lease-timeout",
        absl::StrCat(flags.lease_timeout_seconds), "--http-listen",
-       absl::StrCat("127.0.0.1:", http_port)},
-      coordinator_log);
+       absl::StrCat("127.0.0.1:", service->http_port)},
+      service->coordinator_log);
   int port = 0;
   for (int i = 0; i < 600 && port == 0; ++i) {  // up to 30 s
-    std::ifstream in(port_file);
+    std::ifstream in(service->port_file);
     if (in >> port && port > 0) break;
     port = 0;
-    if (!Alive(coordinator) || g_interrupted) break;
+    if (!Alive(service->coordinator) || g_interrupted) break;
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
   if (port == 0) {
-    std::cerr << "error: run: the coordinator did not start; see " << coordinator_log << "\n";
-    Terminate({coordinator}, std::chrono::seconds(5));
+    std::cerr << "error: run: the coordinator did not start; see " << service->coordinator_log
+              << "\n";
+    Terminate({service->coordinator}, std::chrono::seconds(5));
     return 1;
   }
-  const std::string address = absl::StrCat("127.0.0.1:", port);
-  std::vector<pid_t> workers;
+  service->address = absl::StrCat("127.0.0.1:", port);
   // Stable worker ids and a state directory beside the database: after a
   // Ctrl-C, worker i of the next `run` replays what worker i kept (results
   // not yet delivered when it had to stop).
   for (int i = 0; i < flags.workers; ++i) {
-    workers.push_back(Spawn({worker_bin, "--coordinator", address, "--insecure", "--token-file",
-                             worker_token_file, "--slots", "1", "--worker-id",
-                             absl::StrCat("run-", i), "--state-dir", base + "-worker-state",
-                             "--drain-timeout", "5", "--acquire-wait", "5"},
-                            absl::StrCat(base, "-worker-", i, ".log")));
+    service->workers.push_back(
+        Spawn({worker_bin, "--coordinator", service->address, "--insecure", "--token-file",
+               worker_token_file, "--slots", "1", "--worker-id", absl::StrCat("run-", i),
+               "--state-dir", base + "-worker-state", "--drain-timeout", "5", "--acquire-wait",
+               "5"},
+              absl::StrCat(base, "-worker-", i, ".log")));
   }
-  std::cerr << "coordinator on " << address << " (database " << db << ", log "
-            << coordinator_log << "), " << flags.workers << " workers\n";
-  std::cerr << "dashboard: http://127.0.0.1:" << http_port
-            << "/ while this runs (the page asks for the user token: " << user_token_file
-            << ")\n";
+  std::cerr << "coordinator on " << service->address << " (database " << service->db << ", log "
+            << service->coordinator_log << "), " << flags.workers << " workers\n";
+  std::cerr << "dashboard: http://127.0.0.1:" << service->http_port
+            << "/ while this runs (the page asks for the user token: "
+            << service->user_token_file << ")\n";
+  return 0;
+}
 
-  int code = 0;
-  {
-    ServiceFlags service;
-    service.coordinator = address;
-    service.insecure = true;
-    service.token_file = user_token_file;
-    service.format = flags.format;
-    absl::StatusOr<Connection> connection = Connection::Open(service);
-    if (!connection.ok()) {
-      code = ReportError(connection.status(), "run");
-    } else {
-      if (absl::StatusOr<sweep::SweepCostEstimate> cost = sweep::EstimateSweepCost(*spec);
-          cost.ok()) {
-        std::cerr << "estimated cost: " << cost->Text() << "\n";
-      }
-      v1::SubmitSweepRequest request;
-      sweep::SweepSpecToProto(*spec, request.mutable_spec());
-      request.set_source_name(flags.file);
-      request.set_source_text(source);
-      v1::SubmitSweepResponse response;
-      const grpc::Status status =
-          connection->Call(&v1::ControlService::Stub::SubmitSweep, request, &response);
-      if (!status.ok()) {
-        code = ReportError(status, "run: submit " + flags.file);
-      } else {
-        if (response.jobs_added() > 0) {
-          std::cerr << "grew sweep " << spec->name << " by " << response.jobs_added()
-                    << " jobs (now " << response.sweep().jobs_total() << ")\n";
-        } else {
-          std::cerr << (response.created() ? "submitted" : "already in the database")
-                    << ": sweep " << spec->name << ", " << response.sweep().jobs_total()
-                    << " jobs\n";
-        }
-        code = WaitForSweep(&*connection, spec->name, &g_interrupted);
-        if (code == 130) {
-          std::cerr << "interrupted: stopping the workers (running trials are released) and the "
-                       "coordinator; run the same file again to continue the sweep\n";
-        }
-        if (code == 0 || code == 1) {
-          int table = 0;
-          if (!spec->grid.empty()) table = PrintResultsTable(&*connection, spec->name, format);
-          if (!spec->studies.empty()) {
-            if (!spec->grid.empty() && format == Format::kTable) std::cout << "\n";
-            const int study = PrintStudyResults(&*connection, spec->name, format,
-                                                /*references=*/false, /*all_attempts=*/false,
-                                                std::cout);
-            if (table == 0) table = study;
-          }
-          if (!spec->grid.empty() && format == Format::kTable) {
-            // The story of the sweep: which method is better, and how they learned.
-            std::cout << "\n";
-            const int compared = PrintComparison(&*connection, spec->name, results::ComparisonOptions(),
-                                                 format);
-            if (compared != 0 && code == 0) code = compared;
-            std::cout << "\n";
-          }
-          if (!spec->grid.empty()) {
-            const int curves = PrintCurves(&*connection, spec->name, format, plot,
-                                           /*print_table=*/format == Format::kTable);
-            if (curves != 0 && code == 0) code = curves;
-          }
-          if (table != 0 && code == 0) code = table;
-          std::cerr << "results stored in " << db << "; read them any time without a "
-                    << "coordinator, e.g. `totalgrad results table " << spec->name << " --db "
-                    << db << "`, `totalgrad results compare " << spec->name << " --db " << db
-                    << "`, or in Python: pandas.read_sql('SELECT * FROM \"episodes/" << spec->name
-                    << "\"', sqlite3.connect('" << db << "')) (docs/results_schema.md)\n";
-        }
-      }
-    }
+// What `run` prints once the sweep is done: the results table (and a
+// study's rows), the paired comparison and the curves with their plot.
+// Returns `code`, or the first failure of a printout if `code` is 0.
+int PrintRunResults(Connection* connection, const sweep::SweepSpec& spec, Format format,
+                    const std::string& plot, const std::string& db, int code) {
+  int table = 0;
+  if (!spec.grid.empty()) table = PrintResultsTable(connection, spec.name, format);
+  if (!spec.studies.empty()) {
+    if (!spec.grid.empty() && format == Format::kTable) std::cout << "\n";
+    const int study = PrintStudyResults(connection, spec.name, format, /*references=*/false,
+                                        /*all_attempts=*/false, std::cout);
+    if (table == 0) table = study;
   }
-  Terminate(workers, std::chrono::seconds(15));
-  Terminate({coordinator}, std::chrono::seconds(15));
-  std::filesystem::remove(port_file, error);
+  if (!spec.grid.empty() && format == Format::kTable) {
+    // The story of the sweep: which method is better, and how they learned.
+    std::cout << "\n";
+    const int compared =
+        PrintComparison(connection, spec.name, results::ComparisonOptions(), format);
+    if (compared != 0 && code == 0) code = compared;
+    std::cout << "\n";
+  }
+  if (!spec.grid.empty()) {
+    const int curves = PrintCurves(connection, spec.name, format, plot,
+                                   /*print_table=*/format == Format::kTable);
+    if (curves != 0 && code == 0) code = curves;
+  }
+  if (table != 0 && code == 0) code = table;
+  std::cerr << "results stored in " << db << "; read them any time without a "
+            << "coordinator, e.g. `totalgrad results table " << spec.name << " --db " << db
+            << "`, `totalgrad results compare " << spec.name << " --db " << db
+            << "`, or in Python: pandas.read_sql('SELECT * FROM \"episodes/" << spec.name
+            << "\"', sqlite3.connect('" << db << "')) (docs/results_schema.md)\n";
+  return code;
+}
+
+// Submits the sweep to the local coordinator, waits for it with the usual
+// progress display and prints its results. The exit code of `run`.
+int SubmitAndReport(const RunFlags& flags, const sweep::SweepSpec& spec, const std::string& source,
+                    Format format, const LocalService& service) {
+  ServiceFlags service_flags;
+  service_flags.coordinator = service.address;
+  service_flags.insecure = true;
+  service_flags.token_file = service.user_token_file;
+  service_flags.format = flags.format;
+  absl::StatusOr<Connection> connection = Connection::Open(service_flags);
+  if (!connection.ok()) return ReportError(connection.status(), "run");
+  if (absl::StatusOr<sweep::SweepCostEstimate> cost = sweep::EstimateSweepCost(spec); cost.ok()) {
+    std::cerr << "estimated cost: " << cost->Text() << "\n";
+  }
+  v1::SubmitSweepRequest request;
+  sweep::SweepSpecToProto(spec, request.mutable_spec());
+  request.set_source_name(flags.file);
+  request.set_source_text(source);
+  v1::SubmitSweepResponse response;
+  const grpc::Status status =
+      connection->Call(&v1::ControlService::Stub::SubmitSweep, request, &response);
+  if (!status.ok()) return ReportError(status, "run: submit " + flags.file);
+  if (response.jobs_added() > 0) {
+    std::cerr << "grew sweep " << spec.name << " by " << response.jobs_added() << " jobs (now "
+              << response.sweep().jobs_total() << ")\n";
+  } else {
+    std::cerr << (response.created() ? "submitted" : "already in the database") << ": sweep "
+              << spec.name << ", " << response.sweep().jobs_total() << " jobs\n";
+  }
+  const int code = WaitForSweep(&*connection, spec.name, &g_interrupted);
+  if (code == 130) {
+    std::cerr << "interrupted: stopping the workers (running trials are released) and the "
+                 "coordinator; run the same file again to continue the sweep\n";
+  }
+  if (code != 0 && code != 1) return code;
+  const std::string plot =
+      flags.no_plot ? "" : (flags.plot.empty() ? service.base + "-curves.svg" : flags.plot);
+  return PrintRunResults(&*connection, spec, format, plot, service.db, code);
+}
+
+int Run(const RunFlags& flags) {
+  std::string source;
+  absl::StatusOr<sweep::SweepSpec> spec = sweep::LoadSweepFile(flags.file, &source);
+  if (!spec.ok()) {
+    std::cerr << "error: " << spec.status().message() << "\n";
+    return 2;
+  }
+  Format format;
+  if (!ParseFormat(flags.format, &format)) return 2;
+  struct sigaction action = {};
+  action.sa_handler = OnInterrupt;
+  sigaction(SIGINT, &action, nullptr);
+  sigaction(SIGTERM, &action, nullptr);
+  LocalService service;
+  if (const int started = StartLocalService(flags, spec->name, &service); started != 0) {
+    return started;
+  }
+  const int code = SubmitAndReport(flags, *spec, source, format, service);
+  Terminate(service.workers, std::chrono::seconds(15));
+  Terminate({service.coordinator}, std::chrono::seconds(15));
+  std::error_code error;
+  std::filesystem::remove(service.port_file, error);
   return code;
 }
 

@@ -8,8 +8,8 @@
 #include "core/learner/episode_record.h"
 #include "core/learner/trial_options.h"
 #include "io/record_format.h"
-#include "server/common/record_proto.h"
-#include "server/common/rpc_client.h"
+#include "runtime/record_proto.h"
+#include "runtime/rpc_client.h"
 
 namespace totalgrad::cli {
 namespace {

@@ -18,7 +18,7 @@
 #include "client/service_commands/format.h"
 #include "core/study/study.h"
 #include "io/record_format.h"
-#include "server/common/record_proto.h"
+#include "runtime/record_proto.h"
 #include "server/sweep/sweep_spec.h"
 
 namespace totalgrad::cli {

@@ -34,11 +34,9 @@
 #include "absl/strings/str_join.h"
 #include "core/common/check.h"
 #include "core/common/closest_word.h"
+#include "core/common/option_pairs.h"
 
 namespace totalgrad {
-
-// (key, canonical text) pairs, in a table's order.
-using OptionPairs = std::vector<std::pair<std::string, std::string>>;
 
 // The canonical names of an enum's values, each value once.
 template <typename E>

@@ -3,7 +3,7 @@
 // CSV column), beside the struct that holds them. Every path that copies
 // the record reads the table instead of naming the fields again:
 //   io/record_format.h          CSV header and rows, JSON objects (write, read)
-//   server/common/record_proto.h  the proto message, by reflection on names
+//   runtime/record_proto.h  the proto message, by reflection on names
 //   server/storage/sqlite_records.h  SQL column lists, binds and reads
 // so a field added to the struct and its table line reaches every writer,
 // and a path that drops one is a test failure (tests/service/records_test.cc),

@@ -23,11 +23,11 @@ void SampledExpectedCostGradient(const tasks::StateCost& cost, const GaussianFit
   out->dcov = CholeskyBackward(fit.chol, chol_bar);
 }
 
-absl::Status ExactExpectedCostGradient(const pilco::GaussianCost& cost, const GaussianFit& fit,
+absl::Status ExactExpectedCostGradient(const gaussian::GaussianCost& cost, const GaussianFit& fit,
                                        ExpectedCostGradient* out) {
   Matrix cov = fit.covariance;
   cov.diagonal().array() += fit.jitter;
-  pilco::CostMoments moments;
+  gaussian::CostMoments moments;
   absl::Status status = cost.Evaluate(fit.mean, cov, /*with_gradient=*/true, &moments);
   if (!status.ok()) return status;
   out->value = moments.mean;

@@ -17,7 +17,7 @@
 //      e_mean = (1/K) sum_k dc/dx(x_k),
 //      e_cov  = CholeskyBackward(L, tril((1/K) sum_k dc/dx(x_k) zeta_k^T)),
 //    unbiased for the exact derivatives; works for any cost with a gradient;
-//  * exact: closed forms under a Gaussian (pilco::GaussianCost, pilco-spec.md
+//  * exact: closed forms under a Gaussian (gaussian::GaussianCost, pilco-spec.md
 //    3.3-3.4). Exact for the angle cost; for the tip cost it is PILCO's
 //    loss_cp, i.e. the expectation under the moment-matched Gaussian of
 //    [x; sin x_a; cos x_a], an approximation of the true Gaussian expectation.
@@ -32,7 +32,7 @@
 #include "core/common/rng.h"
 #include "core/common/types.h"
 #include "core/estimators/gaussian_fit.h"
-#include "core/pilco/expected_cost.h"
+#include "core/gaussian/expected_cost.h"
 #include "core/tasks/cost.h"
 
 namespace totalgrad::estimators {
@@ -53,8 +53,8 @@ void SampledExpectedCostGradient(const tasks::StateCost& cost, const GaussianFit
 
 // Exact derivatives at N(fit.mean, fit.covariance + jitter I) from the
 // cost's closed form (tasks::StateCost::GaussianExpectation). Errors as
-// pilco::GaussianCost::Evaluate (non-finite fit).
-absl::Status ExactExpectedCostGradient(const pilco::GaussianCost& cost, const GaussianFit& fit,
+// gaussian::GaussianCost::Evaluate (non-finite fit).
+absl::Status ExactExpectedCostGradient(const gaussian::GaussianCost& cost, const GaussianFit& fit,
                                        ExpectedCostGradient* out);
 
 // Shaped values g (P, overwritten). Sums to zero up to round-off.

@@ -3,7 +3,7 @@
 #include <utility>
 
 #include "core/common/check.h"
-#include "core/pilco/angle_features.h"
+#include "core/gaussian/angle_features.h"
 
 namespace totalgrad::estimators {
 
@@ -104,7 +104,7 @@ void AngleFeatureDynamics::Predict(const ConstRowMatrixRef& z, double noise_vari
   const int a_count = static_cast<int>(angles_.size());
   TG_CHECK_EQ(z.cols(), e_dim);
   RowMatrix features;
-  pilco::StatesToFeatures(z.leftCols(s_dim), angles_, &features);
+  gaussian::StatesToFeatures(z.leftCols(s_dim), angles_, &features);
   RowMatrix zf(z.rows(), e_dim + a_count);
   zf.leftCols(s_dim + a_count) = features;
   zf.rightCols(e_dim - s_dim) = z.rightCols(e_dim - s_dim);
@@ -130,7 +130,7 @@ void AngleFeaturePolicy::Evaluate(const ConstRowMatrixRef& states, Vector* force
                                   PolicyCache* cache) const {
   TG_CHECK_EQ(states.cols(), state_dim());
   RowMatrix features;
-  pilco::StatesToFeatures(states, angles_, &features);
+  gaussian::StatesToFeatures(states, angles_, &features);
   inner_->Evaluate(features, forces, cache);
 }
 

@@ -49,9 +49,9 @@ absl::Status CheckRollout(const Rollout& rollout, const BackwardConfig& config, 
 // Exact Gaussian-shaping derivatives need the cost's closed-form expectation
 // (into `exact_cost`); sampled ones need an Rng.
 absl::Status PrepareShaping(const Problem& problem, const BackwardConfig& config, const Rng* rng,
-                            std::optional<pilco::GaussianCost>& exact_cost) {
+                            std::optional<gaussian::GaussianCost>& exact_cost) {
   if (config.cost == CostNodeKind::kGaussianShaped && config.gs_derivative == GsDerivative::kExact) {
-    absl::StatusOr<pilco::GaussianCost> c = problem.cost->GaussianExpectation();
+    absl::StatusOr<gaussian::GaussianCost> c = problem.cost->GaussianExpectation();
     if (!c.ok())
       return absl::InvalidArgumentError(absl::StrCat("exact Gaussian-shaping derivatives: ", c.status().message(),
                                                      " (use gs_derivative=sampled)"));
@@ -65,7 +65,7 @@ absl::Status PrepareShaping(const Problem& problem, const BackwardConfig& config
 // 1. The cost node at x_{t+1}: each particle's cost into `local` and, with a
 // pathwise branch, dJ/dx_{t+1} of the node into `rp_cost` (1/P inside).
 void CostNode(const Problem& problem, const BackwardConfig& config, const StepRecord& step,
-              const std::optional<pilco::GaussianCost>& exact_cost, int s_dim, Eigen::Index p,
+              const std::optional<gaussian::GaussianCost>& exact_cost, int s_dim, Eigen::Index p,
               double scale, Rng* rng, GaussianFit& fit, ExpectedCostGradient& expected,
               Vector& local, RowMatrix& rp_cost) {
   if (config.cost == CostNodeKind::kPlain) {
@@ -183,7 +183,7 @@ absl::Status BackwardPass(const Problem& problem, const Rollout& rollout,
   const int n = policy.num_parameters();
   const Eigen::Index p = rollout.steps.front().state.rows();
   if (absl::Status st = CheckRollout(rollout, config, p, s_dim); !st.ok()) return st;
-  std::optional<pilco::GaussianCost> exact_cost;
+  std::optional<gaussian::GaussianCost> exact_cost;
   if (absl::Status st = PrepareShaping(problem, config, rng, exact_cost); !st.ok()) return st;
 
   const bool combining = config.pathwise && config.jump != JumpKind::kNone;

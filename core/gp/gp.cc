@@ -43,39 +43,6 @@ PredictWorkspace& ThreadWorkspace() {
 }
 
 
-absl::Status ValidateCreateArguments(const RowMatrix& inputs, const RowMatrix& targets,
-                                     const GpHyperparameters& hyp) {
-  if (inputs.rows() == 0) return absl::InvalidArgumentError("inputs has no rows (N == 0)");
-  if (inputs.cols() == 0) return absl::InvalidArgumentError("inputs has no columns (E == 0)");
-  if (targets.cols() == 0) return absl::InvalidArgumentError("targets has no columns (D == 0)");
-  if (targets.rows() != inputs.rows()) {
-    return absl::InvalidArgumentError(absl::StrCat("targets has ", targets.rows(),
-                                                   " rows but inputs has ", inputs.rows()));
-  }
-  if (hyp.log_lengthscales.rows() != targets.cols()) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("hyperparameters.log_lengthscales has ", hyp.log_lengthscales.rows(),
-                     " rows but targets has ", targets.cols(), " columns (outputs)"));
-  }
-  if (hyp.log_lengthscales.cols() != inputs.cols()) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("hyperparameters.log_lengthscales has ", hyp.log_lengthscales.cols(),
-                     " columns but inputs has ", inputs.cols()));
-  }
-  if (hyp.log_signal_std.size() != targets.cols()) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("hyperparameters.log_signal_std has ", hyp.log_signal_std.size(),
-                     " entries but targets has ", targets.cols(), " columns"));
-  }
-  if (hyp.log_noise_std.size() != targets.cols()) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("hyperparameters.log_noise_std has ", hyp.log_noise_std.size(),
-                     " entries but targets has ", targets.cols(), " columns"));
-  }
-  if (absl::Status s = CheckFinite(inputs, "inputs"); !s.ok()) return s;
-  if (absl::Status s = CheckFinite(targets, "targets"); !s.ok()) return s;
-  return hyp.ValidateFinite();
-}
 
 // The rank GpModelOptions asks for: the smallest r with
 // sf^2 lambda_{r+1}^2 / (s^2 (lambda_{r+1} + s)) <= tolerance, lambda_{N+1} = 0
@@ -112,6 +79,40 @@ absl::Status GpHyperparameters::ValidateFinite() const {
   return CheckFinite(log_noise_std, "hyperparameters.log_noise_std");
 }
 
+absl::Status ValidateGpData(const RowMatrix& inputs, const RowMatrix& targets,
+                            const GpHyperparameters& hyp) {
+  if (inputs.rows() == 0) return absl::InvalidArgumentError("inputs has no rows (N == 0)");
+  if (inputs.cols() == 0) return absl::InvalidArgumentError("inputs has no columns (E == 0)");
+  if (targets.cols() == 0) return absl::InvalidArgumentError("targets has no columns (D == 0)");
+  if (targets.rows() != inputs.rows()) {
+    return absl::InvalidArgumentError(absl::StrCat("targets has ", targets.rows(),
+                                                   " rows but inputs has ", inputs.rows()));
+  }
+  if (hyp.log_lengthscales.rows() != targets.cols()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("hyperparameters.log_lengthscales has ", hyp.log_lengthscales.rows(),
+                     " rows but targets has ", targets.cols(), " columns (outputs)"));
+  }
+  if (hyp.log_lengthscales.cols() != inputs.cols()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("hyperparameters.log_lengthscales has ", hyp.log_lengthscales.cols(),
+                     " columns but inputs has ", inputs.cols()));
+  }
+  if (hyp.log_signal_std.size() != targets.cols()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("hyperparameters.log_signal_std has ", hyp.log_signal_std.size(),
+                     " entries but targets has ", targets.cols(), " columns"));
+  }
+  if (hyp.log_noise_std.size() != targets.cols()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("hyperparameters.log_noise_std has ", hyp.log_noise_std.size(),
+                     " entries but targets has ", targets.cols(), " columns"));
+  }
+  if (absl::Status s = CheckFinite(inputs, "inputs"); !s.ok()) return s;
+  if (absl::Status s = CheckFinite(targets, "targets"); !s.ok()) return s;
+  return hyp.ValidateFinite();
+}
+
 void GpHyperparameters::SetPacked(int a, const Vector& packed) {
   const int e = num_inputs();
   TG_CHECK_EQ(packed.size(), e + 2);
@@ -123,7 +124,7 @@ void GpHyperparameters::SetPacked(int a, const Vector& packed) {
 absl::StatusOr<GpModel> GpModel::Create(const RowMatrix& inputs, const RowMatrix& targets,
                                         const GpHyperparameters& hyperparameters,
                                         const GpModelOptions& options) {
-  if (absl::Status s = ValidateCreateArguments(inputs, targets, hyperparameters); !s.ok()) {
+  if (absl::Status s = ValidateGpData(inputs, targets, hyperparameters); !s.ok()) {
     return s;
   }
   const double tolerance = options.variance_rank_tolerance;

@@ -47,6 +47,13 @@ struct GpHyperparameters {
   absl::Status ValidateFinite() const;
 };
 
+// What building or training a GP on (inputs, targets) with `hyp` requires:
+// N >= 1 rows of E >= 1 inputs, targets N x D (D >= 1), hyperparameters of
+// D x E lengthscales and D signal and noise scales, every number finite.
+// OK, or InvalidArgument naming the first violation.
+absl::Status ValidateGpData(const RowMatrix& inputs, const RowMatrix& targets,
+                            const GpHyperparameters& hyp);
+
 // Options fixed when a model is built.
 struct GpModelOptions {
   // 0 (default): the predictive variance uses the exact K^-1, bit for bit the

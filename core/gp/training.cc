@@ -41,30 +41,7 @@ Vector NonZeroStd(const Vector& std_dev) {
 absl::Status ValidateTrainingArguments(const RowMatrix& inputs, const RowMatrix& targets,
                                        const TrainingOptions& options,
                                        const GpHyperparameters& hyp) {
-  if (inputs.rows() == 0) return absl::InvalidArgumentError("inputs has no rows (N == 0)");
-  if (inputs.cols() == 0) return absl::InvalidArgumentError("inputs has no columns (E == 0)");
-  if (targets.cols() == 0) return absl::InvalidArgumentError("targets has no columns (D == 0)");
-  if (targets.rows() != inputs.rows()) {
-    return absl::InvalidArgumentError(absl::StrCat("targets has ", targets.rows(),
-                                                   " rows but inputs has ", inputs.rows()));
-  }
-  if (hyp.log_lengthscales.rows() != targets.cols() ||
-      hyp.log_lengthscales.cols() != inputs.cols()) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "hyperparameters.log_lengthscales is ", hyp.log_lengthscales.rows(), " x ",
-        hyp.log_lengthscales.cols(), " but must be D x E = ", targets.cols(), " x ",
-        inputs.cols()));
-  }
-  if (hyp.log_signal_std.size() != targets.cols()) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("hyperparameters.log_signal_std has ", hyp.log_signal_std.size(),
-                     " entries but targets has ", targets.cols(), " columns"));
-  }
-  if (hyp.log_noise_std.size() != targets.cols()) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("hyperparameters.log_noise_std has ", hyp.log_noise_std.size(),
-                     " entries but targets has ", targets.cols(), " columns"));
-  }
+  if (absl::Status s = ValidateGpData(inputs, targets, hyp); !s.ok()) return s;
   if (options.max_iterations < 0) {
     return absl::InvalidArgumentError("options.max_iterations must be >= 0");
   }
@@ -79,9 +56,7 @@ absl::Status ValidateTrainingArguments(const RowMatrix& inputs, const RowMatrix&
       return absl::InvalidArgumentError("options.penalty.power must be >= 1");
     }
   }
-  if (absl::Status s = CheckFinite(inputs, "inputs"); !s.ok()) return s;
-  if (absl::Status s = CheckFinite(targets, "targets"); !s.ok()) return s;
-  return hyp.ValidateFinite();
+  return absl::OkStatus();
 }
 
 }  // namespace

@@ -10,7 +10,7 @@
 #include "core/common/check.h"
 #include "core/common/rng.h"
 #include "core/learner/problem_builder.h"
-#include "core/pilco/angle_features.h"
+#include "core/gaussian/angle_features.h"
 #include "core/policy/rbf_policy.h"
 
 namespace totalgrad::learner {
@@ -90,7 +90,7 @@ absl::StatusOr<PolicyOnScene> MakePolicyOnScene(const TrialOptions& options,
   if (!scene.ok()) return scene.status();
   std::vector<int> angles = FeatureAngles(options, *scene);
   auto policy = std::make_unique<policy::RbfPolicy>(
-      options.basis_functions, pilco::FeatureDim(scene->state_dim(), angles), scene->max_control);
+      options.basis_functions, gaussian::FeatureDim(scene->state_dim(), angles), scene->max_control);
   if (policy_parameters.size() != policy->num_parameters()) {
     return absl::InvalidArgumentError(absl::StrCat(
         "the policy has ", policy_parameters.size(), " parameters; ",

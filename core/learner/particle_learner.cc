@@ -15,7 +15,7 @@
 #include "core/learner/optimisation_diagnostics.h"
 #include "core/learner/optimizer.h"
 #include "core/learner/policy_learner.h"
-#include "core/pilco/angle_features.h"
+#include "core/gaussian/angle_features.h"
 
 namespace totalgrad::learner {
 namespace {
@@ -70,7 +70,7 @@ class ParticleLearner final : public PolicyLearner {
     policy::RbfPolicy raw(options.basis_functions, s_dim, scene.max_control);
     raw.Initialize(scene.mu0, centre_std, options.policy_init_lengthscale, &init_rng);
     RowMatrix centres;
-    pilco::StatesToFeatures(raw.centres(), angles_, &centres);
+    gaussian::StatesToFeatures(raw.centres(), angles_, &centres);
     const int c = options.basis_functions;
     const int feature_dim = policy_.state_dim();
     Vector params(policy_.num_parameters());

@@ -4,7 +4,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "core/gp/training.h"
-#include "core/pilco/angle_features.h"
+#include "core/gaussian/angle_features.h"
 
 namespace totalgrad::learner {
 
@@ -13,7 +13,7 @@ PolicyLearner::PolicyLearner(const TrialOptions& options, const tasks::Scene& sc
     : options_(options),
       scene_(scene),
       angles_(std::move(angles)),
-      policy_(options.basis_functions, pilco::FeatureDim(scene.state_dim(), angles_),
+      policy_(options.basis_functions, gaussian::FeatureDim(scene.state_dim(), angles_),
               scene.max_control) {}
 
 absl::Status PolicyLearner::TrainModel(const GpTrainingSet& data, int episode, EpisodeResult* result) {

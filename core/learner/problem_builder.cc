@@ -4,7 +4,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "core/common/check.h"
-#include "core/pilco/angle_features.h"
+#include "core/gaussian/angle_features.h"
 
 namespace totalgrad::learner {
 
@@ -31,7 +31,7 @@ GpTrainingSet MakeGpTrainingSet(const Transitions& data, const std::vector<int>&
   const int f = data.control_dim();
   TG_CHECK(data.next_states.rows() == data.size() && data.forces.size() == data.size() * f);
   RowMatrix features;
-  pilco::StatesToFeatures(data.states, angle_indices, &features);
+  gaussian::StatesToFeatures(data.states, angle_indices, &features);
   GpTrainingSet set;
   set.inputs.resize(data.size(), features.cols() + f);
   set.inputs.leftCols(features.cols()) = features;
@@ -105,13 +105,13 @@ absl::StatusOr<pilco::PilcoProblem> MakePilcoProblem(const tasks::StateCost& cos
                                                      int horizon,
                                                      const std::vector<int>& angle_indices,
                                                      int num_basis, const Vector& max_control) {
-  absl::StatusOr<pilco::GaussianCost> gaussian_cost = cost.GaussianExpectation();
+  absl::StatusOr<gaussian::GaussianCost> gaussian_cost = cost.GaussianExpectation();
   if (!gaussian_cost.ok()) return gaussian_cost.status();
   pilco::PilcoProblem problem;
   problem.mu0 = mu0;
   problem.S0 = initial_std.array().square().matrix().asDiagonal();
   problem.horizon = horizon;
-  problem.cost = std::make_shared<pilco::GaussianCost>(*std::move(gaussian_cost));
+  problem.cost = std::make_shared<gaussian::GaussianCost>(*std::move(gaussian_cost));
   // One angle keeps the one-angle option (the form PILCO problems always had).
   if (angle_indices.size() == 1) {
     problem.propagation.angle_index = angle_indices[0];
@@ -136,7 +136,7 @@ tasks::MultiController FeaturePolicyController(const policy::RbfPolicy* policy,
     if (angle_indices.empty()) {
       policy->Evaluate(observation.transpose(), &controls, nullptr);
     } else {
-      const Vector features = pilco::StateFeatures(observation, angle_indices);
+      const Vector features = gaussian::StateFeatures(observation, angle_indices);
       policy->Evaluate(features.transpose(), &controls, nullptr);
     }
     return controls;

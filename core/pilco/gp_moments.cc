@@ -187,38 +187,41 @@ absl::StatusOr<GaussianInputGp> GaussianInputGpFromData(const RowMatrix& inputs,
   return gp;
 }
 
-GaussianInputGp GaussianInputGpFromModel(const gp::GpModel& model) {
+namespace {
+
+// The moment-matching view of a trained model (a full GP or FITC, which
+// share the interface: centres, hyperparameters, beta_a and the matrix the
+// predictive variance weights, K^-1 or FITC's): per output a, the centres'
+// weights beta_a and W_a = model.VarianceWeights(a).
+template <typename Model, typename VarianceWeights>
+GaussianInputGp GaussianInputGpFrom(const Model& model, const RowMatrix& centres,
+                                    VarianceWeights variance_weights) {
   GaussianInputGp gp;
   const int d = model.num_outputs();
   const gp::GpHyperparameters& h = model.hyperparameters();
-  gp.inputs = model.inputs();
+  gp.inputs = centres;
   gp.inv_lengthscale_sq = (-2.0 * h.log_lengthscales.array()).exp().matrix();
   gp.signal_var = (2.0 * h.log_signal_std.array()).exp().matrix();
   gp.noise_var = (2.0 * h.log_noise_std.array()).exp().matrix();
-  gp.beta.resize(model.num_data(), d);
+  gp.beta.resize(centres.rows(), d);
   gp.variance_weights.resize(d);
   for (int a = 0; a < d; ++a) {
     gp.beta.col(a) = model.beta(a);
-    gp.variance_weights[a] = model.k_inverse(a);
+    gp.variance_weights[a] = variance_weights(a);
   }
   return gp;
 }
 
+}  // namespace
+
+GaussianInputGp GaussianInputGpFromModel(const gp::GpModel& model) {
+  return GaussianInputGpFrom(model, model.inputs(),
+                             [&](int a) -> const Matrix& { return model.k_inverse(a); });
+}
+
 GaussianInputGp GaussianInputGpFromFitc(const gp::FitcModel& model) {
-  GaussianInputGp gp;
-  const int d = model.num_outputs();
-  const gp::GpHyperparameters& h = model.hyperparameters();
-  gp.inputs = model.inducing();
-  gp.inv_lengthscale_sq = (-2.0 * h.log_lengthscales.array()).exp().matrix();
-  gp.signal_var = (2.0 * h.log_signal_std.array()).exp().matrix();
-  gp.noise_var = (2.0 * h.log_noise_std.array()).exp().matrix();
-  gp.beta.resize(model.num_inducing(), d);
-  gp.variance_weights.resize(d);
-  for (int a = 0; a < d; ++a) {
-    gp.beta.col(a) = model.beta(a);
-    gp.variance_weights[a] = model.variance_weights(a);
-  }
-  return gp;
+  return GaussianInputGpFrom(model, model.inducing(),
+                             [&](int a) -> const Matrix& { return model.variance_weights(a); });
 }
 
 absl::Status PredictGaussian(const GaussianInputGp& gp, const Vector& m, const Matrix& s,

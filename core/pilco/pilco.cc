@@ -8,7 +8,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "core/pilco/policy_moments.h"
-#include "core/pilco/trig.h"
+#include "core/gaussian/trig.h"
 
 namespace totalgrad::pilco {
 
@@ -166,7 +166,7 @@ absl::StatusOr<Vector> InitialPolicyParameters(const PilcoProblem& problem, Rng*
   // (as Propagator's).
   std::vector<int> index;
   if (!angles.empty()) {
-    AugmentWithTrig(problem.mu0, problem.S0, angles, &y_mean, &y_cov);
+    gaussian::AugmentWithTrig(problem.mu0, problem.S0, angles, &y_mean, &y_cov);
     size_t next = 0;
     for (int i = 0; i < d; ++i) {
       if (next < angles.size() && angles[next] == i) ++next;

@@ -31,7 +31,7 @@
 #include "core/gp/fitc.h"
 #include "core/gp/gp.h"
 #include "core/pilco/bfgs.h"
-#include "core/pilco/expected_cost.h"
+#include "core/gaussian/expected_cost.h"
 #include "core/pilco/gp_moments.h"
 #include "core/pilco/propagation.h"
 
@@ -41,7 +41,7 @@ struct PilcoProblem {
   Vector mu0;                                // D, start mean
   Matrix S0;                                 // D x D, start covariance
   int horizon = 30;                          // H (PILCO's cart-pole: 40)
-  std::shared_ptr<const GaussianCost> cost;  // must be non-null
+  std::shared_ptr<const gaussian::GaussianCost> cost;  // must be non-null
   // angle_index, prediction_includes_noise (false), policy_jitter (1e-6),
   // max_force (10), num_basis (C).
   PropagationOptions propagation;

@@ -4,7 +4,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "core/common/check.h"
-#include "core/pilco/trig.h"
+#include "core/gaussian/trig.h"
 
 namespace totalgrad::pilco {
 namespace {
@@ -173,7 +173,7 @@ absl::Status Propagator::Step(const Vector& params, const Vector& m, const Matri
   c.m = m;
   c.S = S;
   if (!angles_.empty()) {
-    AugmentWithTrig(m, S, angles_, &c.y_mean, &c.y_cov);
+    gaussian::AugmentWithTrig(m, S, angles_, &c.y_mean, &c.y_cov);
   } else {
     c.y_mean = m;
     c.y_cov = S;
@@ -367,7 +367,7 @@ void Propagator::TrigBackward(const StepCache& c, const Vector& y_mean_bar,
                               const Matrix& y_cov_bar, Vector mb, Matrix sb, Vector* m_bar,
                               Matrix* S_bar) const {
   if (!angles_.empty()) {
-    AugmentWithTrigBackward(c.m, c.S, angles_, y_mean_bar, y_cov_bar, &mb, &sb);
+    gaussian::AugmentWithTrigBackward(c.m, c.S, angles_, y_mean_bar, y_cov_bar, &mb, &sb);
   } else {
     mb += y_mean_bar;
     sb += y_cov_bar;
@@ -501,7 +501,7 @@ absl::Status Propagator::StepSeparateBackward(const Vector& params, const StepCa
   return absl::OkStatus();
 }
 
-absl::Status PredictTrajectory(const Propagator& propagator, const GaussianCost& cost,
+absl::Status PredictTrajectory(const Propagator& propagator, const gaussian::GaussianCost& cost,
                                const Vector& params, const Vector& mu0, const Matrix& S0,
                                int horizon, Trajectory* trajectory, Vector* gradient) {
   const int d = propagator.state_dim();
@@ -534,7 +534,7 @@ absl::Status PredictTrajectory(const Propagator& propagator, const GaussianCost&
         !st.ok()) {
       return Annotate(st, absl::StrCat("step ", t + 1));
     }
-    CostMoments cm;
+    gaussian::CostMoments cm;
     if (absl::Status st = cost.Evaluate(tr.means[t + 1], tr.covs[t + 1], with_gradient, &cm);
         !st.ok()) {
       return Annotate(st, absl::StrCat("step ", t + 1));

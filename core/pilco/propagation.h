@@ -30,7 +30,7 @@
 
 #include "absl/status/status.h"
 #include "core/common/types.h"
-#include "core/pilco/expected_cost.h"
+#include "core/gaussian/expected_cost.h"
 #include "core/pilco/gp_moments.h"
 #include "core/pilco/policy_moments.h"
 
@@ -173,7 +173,7 @@ struct Trajectory {
 
 // Runs the horizon from N(mu0, S0). If `gradient` is non-null it receives
 // dJ/dparams (num_parameters()). Errors name the step (1-based) and block.
-absl::Status PredictTrajectory(const Propagator& propagator, const GaussianCost& cost,
+absl::Status PredictTrajectory(const Propagator& propagator, const gaussian::GaussianCost& cost,
                                const Vector& params, const Vector& mu0, const Matrix& S0,
                                int horizon, Trajectory* trajectory, Vector* gradient);
 

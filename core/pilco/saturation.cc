@@ -4,7 +4,7 @@
 #include <vector>
 
 #include "core/common/check.h"
-#include "core/pilco/trig.h"
+#include "core/gaussian/trig.h"
 
 namespace totalgrad::pilco {
 
@@ -96,7 +96,7 @@ void GSatJoint(const Vector& mean, const Matrix& cov, const Vector& max_u, Joint
   const Matrix qs = q.m * cov * q.m.transpose();
   Vector ym;
   Matrix ys;
-  AugmentWithTrig(qm, qs, q.all, &ym, &ys);
+  gaussian::AugmentWithTrig(qm, qs, q.all, &ym, &ys);
   // sin q_k at 2F + 2k, cos q_k at 2F + 2k + 1.
   const int n = 2 * f;
   Vector e_sin(n), e_cos(n);
@@ -141,7 +141,7 @@ void GSatJointBackward(const Vector& mean, const Matrix& cov, const Vector& max_
   }
   Vector qm_bar = Vector::Zero(n);
   Matrix qs_bar = Matrix::Zero(n, n);
-  AugmentWithTrigBackward(qm, qs, q.all, ym_bar, ys_bar, &qm_bar, &qs_bar);
+  gaussian::AugmentWithTrigBackward(qm, qs, q.all, ym_bar, ys_bar, &qm_bar, &qs_bar);
   mean_bar->noalias() += q.m.transpose() * qm_bar;
   cov_bar->noalias() += q.m.transpose() * qs_bar * q.m;
 }

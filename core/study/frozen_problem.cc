@@ -5,7 +5,7 @@
 #include "absl/strings/str_cat.h"
 #include "core/common/rng.h"
 #include "core/gp/training.h"
-#include "core/pilco/angle_features.h"
+#include "core/gaussian/angle_features.h"
 
 namespace totalgrad::study {
 namespace {
@@ -54,7 +54,7 @@ absl::StatusOr<std::unique_ptr<FrozenProblem>> FrozenProblemFromSnapshot(
   // (what the trial's learner used; learner::FeatureAngles decides for both).
   out->angle_indices = learner::FeatureAngles(options, sc);
   out->owned_policy = std::make_unique<policy::RbfPolicy>(
-      options.basis_functions, pilco::FeatureDim(d, out->angle_indices), sc.max_control);
+      options.basis_functions, gaussian::FeatureDim(d, out->angle_indices), sc.max_control);
   const Vector& theta = which == SnapshotPolicy::kBefore ? snapshot.policy_parameters_before
                                                          : snapshot.policy_parameters;
   if (theta.size() != out->owned_policy->num_parameters()) {
@@ -140,13 +140,13 @@ absl::StatusOr<SceneSyntheticProblem> MakeSceneSyntheticProblem(const tasks::Sce
   // Centres drawn in the raw state, then mapped to the features (as the
   // particle learner initialises a sin/cos policy); unit length-scales.
   const int c = options.basis_functions;
-  out.policy = std::make_unique<policy::RbfPolicy>(c, pilco::FeatureDim(d, angles),
+  out.policy = std::make_unique<policy::RbfPolicy>(c, gaussian::FeatureDim(d, angles),
                                                    scene.max_control);
   Rng policy_rng(options.seed, Stream::kPolicyInit);
   policy::RbfPolicy raw(c, d, scene.max_control);
   raw.Initialize(scene.mu0, Vector::Constant(d, 1.0), 1.0, &policy_rng);
   RowMatrix centres;
-  pilco::StatesToFeatures(raw.centres(), angles, &centres);
+  gaussian::StatesToFeatures(raw.centres(), angles, &centres);
   const int f = out.policy->state_dim();
   Vector params(out.policy->num_parameters());
   Eigen::Map<RowMatrix>(params.data(), c, f) = centres;

@@ -8,29 +8,29 @@
 
 namespace totalgrad::tasks {
 
-absl::StatusOr<pilco::GaussianCost> StateCost::GaussianExpectation() const {
+absl::StatusOr<gaussian::GaussianCost> StateCost::GaussianExpectation() const {
   return absl::InvalidArgumentError(
       absl::StrCat("the cost '", Name(), "' has no closed-form expectation under a Gaussian state"));
 }
 
-absl::StatusOr<pilco::GaussianCost> AngleCost::GaussianExpectation() const {
+absl::StatusOr<gaussian::GaussianCost> AngleCost::GaussianExpectation() const {
   const Vector target = target_;
   const Matrix q = q_.asDiagonal();
-  return pilco::GaussianCost::Angle(target, q);
+  return gaussian::GaussianCost::Angle(target, q);
 }
 
-absl::StatusOr<pilco::GaussianCost> TipCost::GaussianExpectation() const {
-  return pilco::GaussianCost::Tip(kCartPoleStateDim, /*position_index=*/0, /*angle_index=*/1, length_,
+absl::StatusOr<gaussian::GaussianCost> TipCost::GaussianExpectation() const {
+  return gaussian::GaussianCost::Tip(kCartPoleStateDim, /*position_index=*/0, /*angle_index=*/1, length_,
                                   width_, target_position_);
 }
 
-absl::StatusOr<pilco::GaussianCost> SaturatingCost::GaussianExpectation() const {
+absl::StatusOr<gaussian::GaussianCost> SaturatingCost::GaussianExpectation() const {
   const int d = static_cast<int>(target_z_.size() - 2 * angle_indices_.size());
   // The angle-list form for every scene: with no angle it is lossSat on x,
   // with one angle it is the one-angle overload bit for bit (that overload
   // forwards here, and Evaluate keeps the one-angle trig block), with several
   // the joint Gaussian approximation of z (PILCO's gTrig pair blocks).
-  return pilco::GaussianCost::Saturating(d, angle_indices_, q_, target_z_, widths_);
+  return gaussian::GaussianCost::Saturating(d, angle_indices_, q_, target_z_, widths_);
 }
 
 double StateCost::Value(const Vector& x) const {

@@ -16,7 +16,7 @@
 // gradient is P x D with grad(i, m) = dc(x_i)/dx_im.
 //
 // Each cost also states its expectation under a Gaussian state in closed form
-// (GaussianExpectation(): PILCO's lossSat form, core/pilco/expected_cost.h),
+// (GaussianExpectation(): PILCO's lossSat form, core/gaussian/expected_cost.h),
 // which PILCO's moment matching and the exact Gaussian-shaping derivatives
 // use: the closed form lives with the cost it belongs to.
 //
@@ -30,7 +30,7 @@
 
 #include "absl/status/statusor.h"
 #include "core/common/types.h"
-#include "core/pilco/expected_cost.h"
+#include "core/gaussian/expected_cost.h"
 #include "core/tasks/cartpole.h"
 
 namespace totalgrad::tasks {
@@ -44,7 +44,7 @@ class StateCost {
   virtual std::string Name() const = 0;
   // E[c(x)], Var[c(x)] and their gradients for x ~ N(m, S) in closed form.
   // InvalidArgument naming the cost when it has none (the default).
-  virtual absl::StatusOr<pilco::GaussianCost> GaussianExpectation() const;
+  virtual absl::StatusOr<gaussian::GaussianCost> GaussianExpectation() const;
   // Convenience for one state.
   double Value(const Vector& x) const;
 };
@@ -55,8 +55,8 @@ class AngleCost final : public StateCost {
   AngleCost(const Vector& target, const Vector& q_diagonal);
   void Evaluate(const ConstRowMatrixRef& x, Vector* cost, RowMatrix* grad) const override;
   std::string Name() const override { return "angle"; }
-  // W = 2 Q on the raw state (pilco::GaussianCost::Angle).
-  absl::StatusOr<pilco::GaussianCost> GaussianExpectation() const override;
+  // W = 2 Q on the raw state (gaussian::GaussianCost::Angle).
+  absl::StatusOr<gaussian::GaussianCost> GaussianExpectation() const override;
   const Vector& target() const { return target_; }
   const Vector& q_diagonal() const { return q_; }
 
@@ -71,8 +71,8 @@ class TipCost final : public StateCost {
   void Evaluate(const ConstRowMatrixRef& x, Vector* cost, RowMatrix* grad) const override;
   std::string Name() const override { return "tip"; }
   // On the Gaussian approximation of [x; sin beta; cos beta], as PILCO's
-  // loss_cp (pilco::GaussianCost::Tip with position index 0, angle index 1).
-  absl::StatusOr<pilco::GaussianCost> GaussianExpectation() const override;
+  // loss_cp (gaussian::GaussianCost::Tip with position index 0, angle index 1).
+  absl::StatusOr<gaussian::GaussianCost> GaussianExpectation() const override;
   double target_position() const { return target_position_; }
   double pendulum_length() const { return length_; }
   double width() const { return width_; }
@@ -92,13 +92,13 @@ class SaturatingCost final : public StateCost {
   void Evaluate(const ConstRowMatrixRef& x, Vector* cost, RowMatrix* grad) const override;
   std::string Name() const override { return "saturating"; }
   // PILCO's lossSat on the Gaussian approximation of z for any number of
-  // angles and widths (pilco::GaussianCost::Saturating with the angle list:
+  // angles and widths (gaussian::GaussianCost::Saturating with the angle list:
   // the mean over the widths, the variance the mean of theirs, gradients
   // with respect to the state's mean and covariance). No angle or one angle
   // gives the same bits as the one-angle form; several angles use z's joint
   // moments (PILCO's gTrig). The constructor's checks leave no error but a
   // Q that is not PSD (InvalidArgument from the factorisation).
-  absl::StatusOr<pilco::GaussianCost> GaussianExpectation() const override;
+  absl::StatusOr<gaussian::GaussianCost> GaussianExpectation() const override;
 
  private:
   Vector target_z_;

@@ -29,7 +29,9 @@ def _choose_blas_kernels():
     themselves with it set, which a Python process cannot. The choice depends
     on the kernels OpenBLAS would load by itself, so a child interpreter
     loads the extension once and says (one short process per import)."""
-    if os.environ.get("OPENBLAS_CORETYPE") or os.environ.get("TOTALGRAD_BLAS_CORE") == "env":
+    # As the binaries: an inherited OPENBLAS_CORETYPE does not decide unless
+    # TOTALGRAD_BLAS_CORE=env (the child below sees it and says what they run).
+    if os.environ.get("TOTALGRAD_BLAS_CORE") == "env":
         return
     try:
         with open("/proc/self/maps") as maps:

@@ -45,7 +45,7 @@ class Dashboard {
   // `authorize` gets the request's Authorization header (nullptr if none)
   // and returns OK, Unauthenticated or PermissionDenied. `now_ms` is the
   // coordinator's wall clock. `store` is not owned and must outlive this.
-  Dashboard(storage::Store* store, DashboardOptions options,
+  Dashboard(storage::StoreReader* store, DashboardOptions options,
             std::function<absl::Status(const std::string* authorization)> authorize,
             std::function<int64_t()> now_ms)
       : data_(store, std::move(options)), authorize_(std::move(authorize)),

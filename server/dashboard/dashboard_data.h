@@ -87,7 +87,7 @@ struct DashboardOptions {
 class DashboardData {
  public:
   // `store` is not owned and must outlive this object.
-  DashboardData(storage::Store* store, DashboardOptions options)
+  DashboardData(storage::StoreReader* store, DashboardOptions options)
       : store_(store), options_(std::move(options)) {}
 
   // Sweeps (newest first) with progress and an estimated time to finish,
@@ -147,7 +147,7 @@ class DashboardData {
   absl::StatusOr<std::optional<nlohmann::json>> FinalTrajectorySummary(
       const storage::JobRecord& job);
 
-  storage::Store* const store_;
+  storage::StoreReader* const store_;
   const DashboardOptions options_;
 
   // ETAs are recomputed only when a sweep's stored episodes or job counts

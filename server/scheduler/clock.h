@@ -1,4 +1,4 @@
-// The coordinator's clocks (server/common/clock.h, shared with the worker),
+// The coordinator's clocks (runtime/clock.h, shared with the worker),
 // under the names the scheduler and the service have always used. Lease
 // expiry is judged on the coordinator's monotonic clock only, never on a
 // worker's clock and never on the wall clock (which NTP or an operator may
@@ -6,7 +6,7 @@
 #ifndef TOTALGRAD_SERVER_SCHEDULER_CLOCK_H_
 #define TOTALGRAD_SERVER_SCHEDULER_CLOCK_H_
 
-#include "server/common/clock.h"
+#include "runtime/clock.h"
 
 namespace totalgrad::scheduler {
 

@@ -9,7 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "absl/strings/str_cat.h"
-#include "server/common/status_macros.h"
+#include "runtime/status_macros.h"
 #include "server/storage/job_kinds.h"
 
 namespace totalgrad::scheduler {

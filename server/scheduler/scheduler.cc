@@ -6,7 +6,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
-#include "server/common/status_macros.h"
+#include "runtime/status_macros.h"
 #include "server/storage/job_kinds.h"
 
 namespace totalgrad::scheduler {

@@ -45,7 +45,7 @@ class TokenAuthenticator {
   std::string user_token_;
 };
 
-// Tokens are read from files with totalgrad::ReadTokenFile (server/common/token_file.h).
+// Tokens are read from files with totalgrad::ReadTokenFile (runtime/token_file.h).
 
 }  // namespace totalgrad::service
 

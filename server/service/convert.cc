@@ -2,8 +2,8 @@
 
 #include <cmath>
 
-#include "server/common/record_proto.h"
-#include "server/common/status_origin.h"
+#include "runtime/record_proto.h"
+#include "runtime/status_origin.h"
 #include "server/storage/service_records.h"
 #include "server/sweep/sweep_proto.h"
 
@@ -32,7 +32,7 @@ storage::WorkerIdentity FromProto(const v1::WorkerIdentity& worker) {
 }
 
 // The study rows are core's records: their fields go by name through the
-// records' field tables (server/common/record_proto.h); only the row's key
+// records' field tables (runtime/record_proto.h); only the row's key
 // is named here.
 storage::StudyCell FromProto(const v1::StudyCellRow& row) {
   storage::StudyCell c;

@@ -13,8 +13,8 @@
 #include <sstream>
 
 #include "absl/strings/str_cat.h"
-#include "server/common/address.h"
-#include "server/common/build_info.h"
+#include "runtime/address.h"
+#include "runtime/build_info.h"
 
 namespace totalgrad::service {
 namespace {
@@ -38,6 +38,26 @@ absl::StatusOr<std::string> ReadFile(const std::string& path, const char* what) 
   std::ostringstream buffer;
   buffer << in.rdbuf();
   return buffer.str();
+}
+
+// TLS from the options' files (and client certificates when a client CA is
+// given), or plaintext with --insecure.
+absl::StatusOr<std::shared_ptr<grpc::ServerCredentials>> ServerCredentials(
+    const CoordinatorOptions& options) {
+  if (options.insecure) return grpc::InsecureServerCredentials();
+  absl::StatusOr<std::string> cert = ReadFile(options.tls_cert_file, "TLS certificate");
+  if (!cert.ok()) return cert.status();
+  absl::StatusOr<std::string> key = ReadFile(options.tls_key_file, "TLS key");
+  if (!key.ok()) return key.status();
+  grpc::SslServerCredentialsOptions ssl;
+  ssl.pem_key_cert_pairs.push_back({*key, *cert});
+  if (!options.tls_client_ca_file.empty()) {
+    absl::StatusOr<std::string> ca = ReadFile(options.tls_client_ca_file, "client CA");
+    if (!ca.ok()) return ca.status();
+    ssl.pem_root_certs = *ca;
+    ssl.client_certificate_request = GRPC_SSL_REQUEST_AND_REQUIRE_CLIENT_CERTIFICATE_AND_VERIFY;
+  }
+  return grpc::SslServerCredentials(ssl);
 }
 
 }  // namespace
@@ -110,27 +130,12 @@ absl::StatusOr<std::unique_ptr<Coordinator>> Coordinator::Start(const Coordinato
   // the atomic serving_ flag).
   c->control_service_->SetHealthCheck([raw = c.get()] { return raw->CheckHealth(); });
 
-  std::shared_ptr<grpc::ServerCredentials> credentials;
-  if (options.insecure) {
-    credentials = grpc::InsecureServerCredentials();
-  } else {
-    absl::StatusOr<std::string> cert = ReadFile(options.tls_cert_file, "TLS certificate");
-    if (!cert.ok()) return cert.status();
-    absl::StatusOr<std::string> key = ReadFile(options.tls_key_file, "TLS key");
-    if (!key.ok()) return key.status();
-    grpc::SslServerCredentialsOptions ssl;
-    ssl.pem_key_cert_pairs.push_back({*key, *cert});
-    if (!options.tls_client_ca_file.empty()) {
-      absl::StatusOr<std::string> ca = ReadFile(options.tls_client_ca_file, "client CA");
-      if (!ca.ok()) return ca.status();
-      ssl.pem_root_certs = *ca;
-      ssl.client_certificate_request = GRPC_SSL_REQUEST_AND_REQUIRE_CLIENT_CERTIFICATE_AND_VERIFY;
-    }
-    credentials = grpc::SslServerCredentials(ssl);
-  }
+  absl::StatusOr<std::shared_ptr<grpc::ServerCredentials>> credentials =
+      ServerCredentials(options);
+  if (!credentials.ok()) return credentials.status();
 
   grpc::ServerBuilder builder;
-  builder.AddListeningPort(options.listen, credentials, &c->port_);
+  builder.AddListeningPort(options.listen, *credentials, &c->port_);
   builder.SetMaxReceiveMessageSize(options.max_message_bytes);
   builder.SetMaxSendMessageSize(options.max_message_bytes);
   // Workers beat every 15 s, so the connection is never idle for long; allow
@@ -145,46 +150,7 @@ absl::StatusOr<std::unique_ptr<Coordinator>> Coordinator::Start(const Coordinato
                                                " (address in use, or not an address?)"));
   }
   if (!options.health_listen.empty()) {
-    HttpPortOptions http;
-    if (!options.insecure) {
-      http.tls_cert_file = options.tls_cert_file;
-      http.tls_key_file = options.tls_key_file;
-    }
-    // Plaintext leaves the machine only from a non-loopback address: the
-    // dashboard (sweep names, errors, hosts) is then not served at all.
-    const bool dashboard = options.serve_dashboard &&
-                           (!options.insecure || IsLoopbackAddress(options.health_listen));
-    if (dashboard) {
-      dashboard::DashboardOptions view;
-      view.build = BuildId();
-      view.database = options.database;
-      view.lease_timeout_ms = absl::ToInt64Milliseconds(options.scheduler.lease_timeout);
-      c->dashboard_ = std::make_unique<dashboard::Dashboard>(
-          c->store_.get(), view,
-          [auth = c->auth_.get()](const std::string* authorization) {
-            return auth->CheckBearer(authorization, Role::kUser);
-          },
-          [clock] { return clock->NowMs(); });
-      http.add_routes = [raw = c->dashboard_.get()](httplib::Server* server) {
-        raw->Register(server);
-      };
-    } else if (options.serve_dashboard) {
-      spdlog::warn("dashboard not served: the HTTP port {} is plaintext (--insecure) on an "
-                   "address that is not loopback; it serves /healthz alone. Use TLS, or a "
-                   "loopback address and an SSH tunnel",
-                   options.health_listen);
-    }
-    absl::StatusOr<std::unique_ptr<HealthServer>> health = HealthServer::Start(
-        options.health_listen, [raw = c.get()] { return raw->CheckHealth(); }, std::move(http));
-    if (!health.ok()) return health.status();
-    c->health_server_ = *std::move(health);
-    const char* scheme = c->health_server_->tls() ? "https" : "http";
-    spdlog::info("health endpoint: {}://{}/healthz (port {})", scheme, options.health_listen,
-                 c->health_server_->port());
-    if (dashboard) {
-      spdlog::info("dashboard: {}://{}/ ({})", scheme, options.health_listen,
-                   c->auth_->enabled() ? "asks for the user token" : "no token configured");
-    }
+    if (absl::Status http = c->StartHttpPort(); !http.ok()) return http;
   }
   c->control_service_->SetServing(true);
   c->serving_ = true;
@@ -193,6 +159,52 @@ absl::StatusOr<std::unique_ptr<Coordinator>> Coordinator::Start(const Coordinato
                options.insecure ? "plaintext" : "TLS",
                c->auth_->enabled() ? "required" : "not configured");
   return c;
+}
+
+// The HTTP port (--health-listen): /healthz, and the dashboard where it may
+// be served (TLS, or plaintext on loopback).
+absl::Status Coordinator::StartHttpPort() {
+  HttpPortOptions http;
+  if (!options_.insecure) {
+    http.tls_cert_file = options_.tls_cert_file;
+    http.tls_key_file = options_.tls_key_file;
+  }
+  // Plaintext leaves the machine only from a non-loopback address: the
+  // dashboard (sweep names, errors, hosts) is then not served at all.
+  const bool dashboard = options_.serve_dashboard &&
+                         (!options_.insecure || IsLoopbackAddress(options_.health_listen));
+  if (dashboard) {
+    dashboard::DashboardOptions view;
+    view.build = BuildId();
+    view.database = options_.database;
+    view.lease_timeout_ms = absl::ToInt64Milliseconds(options_.scheduler.lease_timeout);
+    dashboard_ = std::make_unique<dashboard::Dashboard>(
+        store_.get(), view,
+        [auth = auth_.get()](const std::string* authorization) {
+          return auth->CheckBearer(authorization, Role::kUser);
+        },
+        [clock = clock_] { return clock->NowMs(); });
+    http.add_routes = [raw = dashboard_.get()](httplib::Server* server) {
+      raw->Register(server);
+    };
+  } else if (options_.serve_dashboard) {
+    spdlog::warn("dashboard not served: the HTTP port {} is plaintext (--insecure) on an "
+                 "address that is not loopback; it serves /healthz alone. Use TLS, or a "
+                 "loopback address and an SSH tunnel",
+                 options_.health_listen);
+  }
+  absl::StatusOr<std::unique_ptr<HealthServer>> health = HealthServer::Start(
+      options_.health_listen, [this] { return CheckHealth(); }, std::move(http));
+  if (!health.ok()) return health.status();
+  health_server_ = *std::move(health);
+  const char* scheme = health_server_->tls() ? "https" : "http";
+  spdlog::info("health endpoint: {}://{}/healthz (port {})", scheme, options_.health_listen,
+               health_server_->port());
+  if (dashboard) {
+    spdlog::info("dashboard: {}://{}/ ({})", scheme, options_.health_listen,
+                 auth_->enabled() ? "asks for the user token" : "no token configured");
+  }
+  return absl::OkStatus();
 }
 
 void Coordinator::ExpiryLoop() {

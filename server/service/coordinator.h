@@ -105,6 +105,8 @@ class Coordinator {
  private:
   Coordinator() = default;
   void ExpiryLoop() ABSL_LOCKS_EXCLUDED(mutex_);
+  // Serves /healthz and the dashboard on options_.health_listen (Start).
+  absl::Status StartHttpPort();
 
   CoordinatorOptions options_;
   std::unique_ptr<scheduler::SystemClock> own_clock_;

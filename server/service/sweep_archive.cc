@@ -11,8 +11,8 @@
 #include "absl/strings/string_view.h"
 #include "core/study/study.h"
 #include "io/record_format.h"
-#include "server/common/record_proto.h"
-#include "server/common/status_macros.h"
+#include "runtime/record_proto.h"
+#include "runtime/status_macros.h"
 #include "server/service/convert.h"
 #include "server/storage/job_kinds.h"
 #include "server/storage/service_records.h"
@@ -257,6 +257,93 @@ class Reader {
   if (!var##_or.ok()) return var##_or.status(); \
   const auto var = *var##_or
 
+// One attempt of a version 1 or 2 archive's job, with its episodes and
+// study rows; errors name the job (`jr`).
+absl::StatusOr<storage::ImportedAttempt> ParseVersion1Or2Attempt(const nlohmann::json& a,
+                                                                const Reader& jr,
+                                                                int64_t version) {
+  storage::ImportedAttempt attempt;
+  TG_READ(number, jr.Integer(a, "attempt"));
+  TG_READ(attempt_state, jr.String(a, "state"));
+  const std::optional<storage::AttemptState> parsed = storage::ParseAttemptState(attempt_state);
+  if (!parsed) return jr.Error("attempt_log[].state");
+  TG_READ(worker_id, jr.String(a, "worker_id"));
+  TG_READ(worker_host, jr.String(a, "worker_host"));
+  TG_READ(worker_build, jr.String(a, "worker_build"));
+  TG_READ(started, jr.Integer(a, "started_unix_ms"));
+  TG_READ(ended, jr.Integer(a, "ended_unix_ms"));
+  TG_READ(error, jr.String(a, "error"));
+  attempt.attempt = static_cast<int>(number);
+  attempt.state = *parsed;
+  attempt.worker_id = worker_id;
+  attempt.worker_host = worker_host;
+  attempt.worker_build = worker_build;
+  attempt.started_ms = started;
+  attempt.ended_ms = ended;
+  attempt.error = error;
+  if (!a.contains("episodes") || !a["episodes"].is_array()) return jr.Error("episodes");
+  for (const nlohmann::json& e : a["episodes"]) {
+    storage::Episode episode;
+    TG_READ(episode_number, jr.Integer(e, "episode"));
+    TG_READ(reported, jr.Integer(e, "reported_unix_ms"));
+    if (version >= 2) {  // the episode's record
+      if (!io::RecordFromJson<learner::EpisodeSummary>(learner::EpisodeFields(), e, "", &episode)
+               .ok()) {
+        return jr.Error("episodes");
+      }
+    } else {  // version 1 named the optimisation time wall_seconds
+      TG_READ(real_cost, jr.Real(e, "real_cost"));
+      TG_READ(eval_mean, jr.Real(e, "eval_cost_mean"));
+      TG_READ(eval_std, jr.Real(e, "eval_cost_std"));
+      TG_READ(predicted, jr.Real(e, "predicted_cost"));
+      TG_READ(wall, jr.Real(e, "wall_seconds"));
+      TG_READ(cpu, jr.Real(e, "cpu_seconds"));
+      episode.episode = static_cast<int>(episode_number);
+      episode.real_cost = real_cost;
+      episode.eval_cost_mean = eval_mean;
+      episode.eval_cost_std = eval_std;
+      episode.predicted_cost = predicted;
+      episode.optimisation_seconds = wall;
+      episode.cpu_seconds = cpu;
+    }
+    if (e.contains("details")) {
+      episode.details_json = e["details"].is_string() ? e["details"].get<std::string>()
+                                                      : e["details"].dump();
+    }
+    attempt.episodes.emplace_back(std::move(episode), reported);
+  }
+  for (const char* field : {"study_cells", "study_references"}) {
+    if (!a.contains(field)) continue;
+    if (!a[field].is_array()) return jr.Error(field);
+    for (const nlohmann::json& row : a[field]) {
+      if (version >= 2) {  // the records' JSON
+        const bool ok = std::string(field) == "study_cells"
+                            ? RowFromJson(study::CellFields(), row,
+                                          &attempt.study.cells.emplace_back())
+                            : RowFromJson(study::ReferenceFields(), row,
+                                          &attempt.study.references.emplace_back());
+        if (!ok) return jr.Error(field);
+        continue;
+      }
+      // Version 1: protobuf's JSON mapping of the rows.
+      google::protobuf::util::JsonParseOptions options;
+      options.ignore_unknown_fields = false;
+      if (std::string(field) == "study_cells") {
+        v1::StudyCellRow proto;
+        if (!google::protobuf::util::JsonStringToMessage(row.dump(), &proto, options).ok())
+          return jr.Error(field);
+        attempt.study.cells.push_back(FromProto(proto));
+      } else {
+        v1::StudyReferenceRow proto;
+        if (!google::protobuf::util::JsonStringToMessage(row.dump(), &proto, options).ok())
+          return jr.Error(field);
+        attempt.study.references.push_back(FromProto(proto));
+      }
+    }
+  }
+  return attempt;
+}
+
 absl::StatusOr<ParsedSweepArchive> ParseVersion1Or2(const nlohmann::json& doc, int64_t version) {
   const Reader top("");
   if (!doc.contains("sweep") || !doc["sweep"].is_object()) return top.Error("sweep");
@@ -310,86 +397,9 @@ absl::StatusOr<ParsedSweepArchive> ParseVersion1Or2(const nlohmann::json& doc, i
     job.record.success = j["success"].get<bool>();
     if (!j.contains("attempt_log") || !j["attempt_log"].is_array()) return jr.Error("attempt_log");
     for (const nlohmann::json& a : j["attempt_log"]) {
-      storage::ImportedAttempt attempt;
-      TG_READ(number, jr.Integer(a, "attempt"));
-      TG_READ(attempt_state, jr.String(a, "state"));
-      const std::optional<storage::AttemptState> parsed = storage::ParseAttemptState(attempt_state);
-      if (!parsed) return jr.Error("attempt_log[].state");
-      TG_READ(worker_id, jr.String(a, "worker_id"));
-      TG_READ(worker_host, jr.String(a, "worker_host"));
-      TG_READ(worker_build, jr.String(a, "worker_build"));
-      TG_READ(started, jr.Integer(a, "started_unix_ms"));
-      TG_READ(ended, jr.Integer(a, "ended_unix_ms"));
-      TG_READ(error, jr.String(a, "error"));
-      attempt.attempt = static_cast<int>(number);
-      attempt.state = *parsed;
-      attempt.worker_id = worker_id;
-      attempt.worker_host = worker_host;
-      attempt.worker_build = worker_build;
-      attempt.started_ms = started;
-      attempt.ended_ms = ended;
-      attempt.error = error;
-      if (!a.contains("episodes") || !a["episodes"].is_array()) return jr.Error("episodes");
-      for (const nlohmann::json& e : a["episodes"]) {
-        storage::Episode episode;
-        TG_READ(episode_number, jr.Integer(e, "episode"));
-        TG_READ(reported, jr.Integer(e, "reported_unix_ms"));
-        if (version >= 2) {  // the episode's record
-          if (!io::RecordFromJson<learner::EpisodeSummary>(learner::EpisodeFields(), e, "", &episode)
-                   .ok()) {
-            return jr.Error("episodes");
-          }
-        } else {  // version 1 named the optimisation time wall_seconds
-          TG_READ(real_cost, jr.Real(e, "real_cost"));
-          TG_READ(eval_mean, jr.Real(e, "eval_cost_mean"));
-          TG_READ(eval_std, jr.Real(e, "eval_cost_std"));
-          TG_READ(predicted, jr.Real(e, "predicted_cost"));
-          TG_READ(wall, jr.Real(e, "wall_seconds"));
-          TG_READ(cpu, jr.Real(e, "cpu_seconds"));
-          episode.episode = static_cast<int>(episode_number);
-          episode.real_cost = real_cost;
-          episode.eval_cost_mean = eval_mean;
-          episode.eval_cost_std = eval_std;
-          episode.predicted_cost = predicted;
-          episode.optimisation_seconds = wall;
-          episode.cpu_seconds = cpu;
-        }
-        if (e.contains("details")) {
-          episode.details_json = e["details"].is_string() ? e["details"].get<std::string>()
-                                                          : e["details"].dump();
-        }
-        attempt.episodes.emplace_back(std::move(episode), reported);
-      }
-      for (const char* field : {"study_cells", "study_references"}) {
-        if (!a.contains(field)) continue;
-        if (!a[field].is_array()) return jr.Error(field);
-        for (const nlohmann::json& row : a[field]) {
-          if (version >= 2) {  // the records' JSON
-            const bool ok = std::string(field) == "study_cells"
-                                ? RowFromJson(study::CellFields(), row,
-                                              &attempt.study.cells.emplace_back())
-                                : RowFromJson(study::ReferenceFields(), row,
-                                              &attempt.study.references.emplace_back());
-            if (!ok) return jr.Error(field);
-            continue;
-          }
-          // Version 1: protobuf's JSON mapping of the rows.
-          google::protobuf::util::JsonParseOptions options;
-          options.ignore_unknown_fields = false;
-          if (std::string(field) == "study_cells") {
-            v1::StudyCellRow proto;
-            if (!google::protobuf::util::JsonStringToMessage(row.dump(), &proto, options).ok())
-              return jr.Error(field);
-            attempt.study.cells.push_back(FromProto(proto));
-          } else {
-            v1::StudyReferenceRow proto;
-            if (!google::protobuf::util::JsonStringToMessage(row.dump(), &proto, options).ok())
-              return jr.Error(field);
-            attempt.study.references.push_back(FromProto(proto));
-          }
-        }
-      }
-      job.attempts.push_back(std::move(attempt));
+      absl::StatusOr<storage::ImportedAttempt> attempt = ParseVersion1Or2Attempt(a, jr, version);
+      if (!attempt.ok()) return attempt.status();
+      job.attempts.push_back(*std::move(attempt));
     }
     archive.jobs.push_back(std::move(job));
   }

@@ -4,7 +4,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
-#include "server/common/status_macros.h"
+#include "runtime/status_macros.h"
 #include "server/storage/sqlite_internal.h"
 #include "server/storage/sqlite_schema.h"
 #include "server/storage/sqlite_store.h"

@@ -7,7 +7,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
-#include "server/common/status_macros.h"
+#include "runtime/status_macros.h"
 #include "server/storage/sqlite_internal.h"
 #include "server/storage/sqlite_schema.h"
 #include "server/storage/sqlite_store.h"
@@ -60,6 +60,83 @@ absl::Status CheckImportedCompletion(Db& db, const ImportedJob& job, const Impor
   return absl::OkStatus();
 }
 
+// The statements an import runs for every attempt, prepared once.
+struct ImportStatements {
+  Statement attempt_insert;
+  Statement checkpoint_insert;
+  Statement episode_insert;
+};
+
+// Stores archived attempt `a` of `job` as attempt `key` here: the attempt
+// row, its checkpoint, episodes and study rows, each checked as a worker's
+// report would be (tables the kind owns, episodes in range).
+absl::Status ImportAttempt(Db& db, ImportStatements& statements, const ImportedJob& job,
+                           const ImportedAttempt& a, const LeaseKey& key, int episodes_expected,
+                           int64_t now_ms, ImportResult* result) {
+  Statement& attempt_insert = statements.attempt_insert;
+  Statement& checkpoint_insert = statements.checkpoint_insert;
+  Statement& episode_insert = statements.episode_insert;
+  // An attempt that was still open where the archive was written ran
+  // nowhere here: it arrives released.
+  const AttemptState arrived =
+      a.state == AttemptState::kRunning ? AttemptState::kReleased : a.state;
+  attempt_insert.Bind(1, key.job_id).Bind(2, key.attempt).Bind(3, ToString(arrived));
+  attempt_insert.Bind(4, a.worker_id).Bind(5, a.worker_host).Bind(6, a.worker_build);
+  attempt_insert.Bind(7, a.started_ms).Bind(8, a.ended_ms > 0 ? a.ended_ms : a.started_ms);
+  attempt_insert.Bind(9, a.ended_ms > 0 ? a.ended_ms : now_ms).Bind(10, a.error);
+  attempt_insert.Bind(11, a.origin);
+  RETURN_IF_ERROR(attempt_insert.Run());
+  attempt_insert.Reset();
+  if (a.checkpoint.has_value()) {
+    if (!KindInfo(job.record.kind).checkpoints) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "archive: job ", job.record.method, " seed ", job.record.seed, " attempt ",
+          a.attempt, " has a checkpoint, but ", ToString(job.record.kind),
+          " jobs keep none"));
+    }
+    if (a.checkpoint->episode < 0 || a.checkpoint->episode >= episodes_expected) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "archive: job ", job.record.method, " seed ", job.record.seed, " attempt ",
+          a.attempt, ": checkpoint episode ", a.checkpoint->episode,
+          " is out of range 0..", episodes_expected - 1));
+    }
+    checkpoint_insert.Bind(1, key.job_id).Bind(2, key.attempt).Bind(3, a.checkpoint->episode);
+    checkpoint_insert.Bind(4, a.checkpoint->format_version);
+    checkpoint_insert.BindBlob(5, a.checkpoint->data);
+    checkpoint_insert.Bind(6, a.ended_ms > 0 ? a.ended_ms : now_ms);
+    RETURN_IF_ERROR(checkpoint_insert.Run());
+    checkpoint_insert.Reset();
+    ++result->checkpoints_imported;
+  }
+  // Rows of a table the job's kind does not own are refused
+  // (job_kinds.h); one row of each table is enough to tell.
+  JobResults probe;
+  probe.study = a.study;
+  if (!a.episodes.empty()) probe.episodes.push_back(a.episodes.front().first);
+  RETURN_IF_ERROR(CheckOwnedTables(KindInfo(job.record.kind), key.job_id, probe));
+  for (const auto& [episode, reported_ms] : a.episodes) {
+    if (episode.episode < 0 || episode.episode >= episodes_expected) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "archive: job ", job.record.method, " seed ", job.record.seed, " ",
+          job.record.variant, " attempt ",
+          a.attempt, ": episode ", episode.episode, " is out of range 0..",
+          episodes_expected - 1));
+    }
+    BindEpisode(episode_insert, key, episode, reported_ms);
+    RETURN_IF_ERROR(episode_insert.Run());
+    episode_insert.Reset();
+    ++result->episodes_imported;
+  }
+  if (!a.study.empty()) {
+    OpenAttempt into;
+    into.kind = job.record.kind;
+    probe.episodes.clear();  // stored above, each with its own time
+    RETURN_IF_ERROR(InsertResults(db, key, into, probe, now_ms));
+    result->study_rows_imported += static_cast<int64_t>(a.study.size());
+  }
+  return absl::OkStatus();
+}
+
 }  // namespace
 
 absl::StatusOr<ImportResult> SqliteStore::ImportJobs(const std::optional<NewSweep>& create,
@@ -89,6 +166,8 @@ VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?))sql"));
 INSERT INTO checkpoints(job_id, attempt, episode, format_version, data, reported_ms)
 VALUES(?, ?, ?, ?, ?, ?))sql"));
     ASSIGN_OR_RETURN(Statement episode_insert, Statement::Prepare(db, EpisodeInsertSql()));
+    ImportStatements statements{std::move(attempt_insert), std::move(checkpoint_insert),
+                                std::move(episode_insert)};
     ASSIGN_OR_RETURN(Statement job_update, Statement::Prepare(db, R"sql(
 UPDATE jobs SET state = 'completed', attempts = ?, completed_attempt = ?, success = ?,
                 final_eval_cost = ?, failures = failures + ?, lost_leases = lost_leases + ?,
@@ -124,64 +203,8 @@ WHERE id = ?)sql"));
         const ImportedAttempt& a = job.attempts[i];
         const int number = attempts_here + static_cast<int>(i) + 1;
         if (a.attempt == job.completed_attempt) completed_here = number;
-        // An attempt that was still open where the archive was written ran
-        // nowhere here: it arrives released.
-        const AttemptState arrived =
-            a.state == AttemptState::kRunning ? AttemptState::kReleased : a.state;
-        attempt_insert.Bind(1, job_id).Bind(2, number).Bind(3, ToString(arrived));
-        attempt_insert.Bind(4, a.worker_id).Bind(5, a.worker_host).Bind(6, a.worker_build);
-        attempt_insert.Bind(7, a.started_ms).Bind(8, a.ended_ms > 0 ? a.ended_ms : a.started_ms);
-        attempt_insert.Bind(9, a.ended_ms > 0 ? a.ended_ms : now_ms).Bind(10, a.error);
-        attempt_insert.Bind(11, a.origin);
-        RETURN_IF_ERROR(attempt_insert.Run());
-        attempt_insert.Reset();
-        if (a.checkpoint.has_value()) {
-          if (!KindInfo(job.record.kind).checkpoints) {
-            return absl::InvalidArgumentError(absl::StrCat(
-                "archive: job ", job.record.method, " seed ", job.record.seed, " attempt ",
-                a.attempt, " has a checkpoint, but ", ToString(job.record.kind),
-                " jobs keep none"));
-          }
-          if (a.checkpoint->episode < 0 || a.checkpoint->episode >= episodes_expected) {
-            return absl::InvalidArgumentError(absl::StrCat(
-                "archive: job ", job.record.method, " seed ", job.record.seed, " attempt ",
-                a.attempt, ": checkpoint episode ", a.checkpoint->episode,
-                " is out of range 0..", episodes_expected - 1));
-          }
-          checkpoint_insert.Bind(1, job_id).Bind(2, number).Bind(3, a.checkpoint->episode);
-          checkpoint_insert.Bind(4, a.checkpoint->format_version);
-          checkpoint_insert.BindBlob(5, a.checkpoint->data);
-          checkpoint_insert.Bind(6, a.ended_ms > 0 ? a.ended_ms : now_ms);
-          RETURN_IF_ERROR(checkpoint_insert.Run());
-          checkpoint_insert.Reset();
-          ++result.checkpoints_imported;
-        }
-        // Rows of a table the job's kind does not own are refused
-        // (job_kinds.h); one row of each table is enough to tell.
-        JobResults probe;
-        probe.study = a.study;
-        if (!a.episodes.empty()) probe.episodes.push_back(a.episodes.front().first);
-        RETURN_IF_ERROR(CheckOwnedTables(KindInfo(job.record.kind), job_id, probe));
-        for (const auto& [episode, reported_ms] : a.episodes) {
-          if (episode.episode < 0 || episode.episode >= episodes_expected) {
-            return absl::InvalidArgumentError(absl::StrCat(
-                "archive: job ", job.record.method, " seed ", job.record.seed, " ",
-                job.record.variant, " attempt ",
-                a.attempt, ": episode ", episode.episode, " is out of range 0..",
-                episodes_expected - 1));
-          }
-          BindEpisode(episode_insert, {job_id, number}, episode, reported_ms);
-          RETURN_IF_ERROR(episode_insert.Run());
-          episode_insert.Reset();
-          ++result.episodes_imported;
-        }
-        if (!a.study.empty()) {
-          OpenAttempt into;
-          into.kind = job.record.kind;
-          probe.episodes.clear();  // stored above, each with its own time
-          RETURN_IF_ERROR(InsertResults(db, {job_id, number}, into, probe, now_ms));
-          result.study_rows_imported += static_cast<int64_t>(a.study.size());
-        }
+        RETURN_IF_ERROR(ImportAttempt(db, statements, job, a, {job_id, number},
+                                      episodes_expected, now_ms, &result));
         if (a.attempt == job.completed_attempt) {
           RETURN_IF_ERROR(CheckImportedCompletion(db, job, a, {job_id, number}, episodes_expected));
         }
@@ -217,7 +240,7 @@ namespace {
 // FailedPrecondition naming the first option whose stored text differs from
 // `job`'s. Keys one side lacks are not compared: a key added after the job
 // was stored defaults to the computation it ran (TrialOptionsFromStoredPairs).
-absl::Status SameStoredOptions(const std::string& sweep, const NewJob& job, const OptionList& list) {
+absl::Status SameStoredOptions(const std::string& sweep, const NewJob& job, const OptionPairs& list) {
   const std::map<std::string, std::string> stored(list.begin(), list.end());
   for (const auto& [key, value] : job.options) {
     const auto found = stored.find(key);
@@ -253,11 +276,8 @@ WHERE sweep_id = ? AND kind = ? AND method = ? AND seed = ? AND variant = ?)sql"
         db, "SELECT COALESCE(MAX(ordinal), -1) FROM jobs WHERE sweep_id = ?"));
     last.Bind(1, sweep_id);
     ASSIGN_OR_RETURN(bool any, last.Step());
-    int64_t ordinal = any ? last.ColumnInt(0) : -1;
-    ASSIGN_OR_RETURN(Statement job_insert, Statement::Prepare(db, R"sql(
-INSERT INTO jobs(sweep_id, ordinal, method, seed, variant, options_json, episodes_expected, state,
-                 kind, payload)
-VALUES(?, ?, ?, ?, ?, ?, ?, 'queued', ?, ?))sql"));
+    const int64_t ordinal = any ? last.ColumnInt(0) : -1;
+    std::vector<const NewJob*> new_jobs;
     for (const NewJob& job : grown.jobs) {
       exists.Bind(1, sweep_id).Bind(2, ToString(job.kind)).Bind(3, job.method);
       exists.Bind(4, job.seed).Bind(5, job.variant);
@@ -271,16 +291,10 @@ VALUES(?, ?, ?, ?, ?, ?, ?, 'queued', ?, ?))sql"));
         RETURN_IF_ERROR(SameStoredOptions(grown.name, job, OptionsFromJson(stored_options)));
         continue;
       }
-      job_insert.Bind(1, sweep_id).Bind(2, ++ordinal).Bind(3, job.method).Bind(4, job.seed);
-      job_insert.Bind(5, job.variant).Bind(6, OptionsToJson(job.options));
-      job_insert.Bind(7, EpisodesExpectedColumn(KindInfo(job.kind), job.episodes_expected));
-      job_insert.Bind(8, ToString(job.kind)).Bind(9, job.payload);
-      RETURN_IF_ERROR(job_insert.Run());
-      job_insert.Reset();
-      RETURN_IF_ERROR(internal::WriteJobOptions(db, db.LastInsertRowId(), job.method, job.seed,
-                                                job.variant));
-      ++added;
+      new_jobs.push_back(&job);
     }
+    RETURN_IF_ERROR(InsertQueuedJobs(db, sweep_id, ordinal + 1, new_jobs));
+    added = static_cast<int>(new_jobs.size());
     ASSIGN_OR_RETURN(Statement update, Statement::Prepare(db, R"sql(
 UPDATE sweeps SET canonical_spec = ?, spec_hash = ?, description = ?, source_name = ?,
                   source_text = ?

@@ -10,7 +10,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
-#include "server/common/status_macros.h"
+#include "runtime/status_macros.h"
 #include "server/storage/service_records.h"
 #include "server/storage/sqlite_records.h"
 #include "server/storage/sqlite_schema.h"
@@ -31,14 +31,14 @@ std::vector<double> DoublesFromJson(const std::string& text) {
   return values;
 }
 
-std::string OptionsToJson(const OptionList& options) {
+std::string OptionsToJson(const OptionPairs& options) {
   nlohmann::json array = nlohmann::json::array();
   for (const auto& [key, value] : options) array.push_back({key, value});
   return array.dump();
 }
 
-OptionList OptionsFromJson(const std::string& text) {
-  OptionList options;
+OptionPairs OptionsFromJson(const std::string& text) {
+  OptionPairs options;
   const nlohmann::json array = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
   if (!array.is_array()) return options;
   for (const auto& pair : array) {
@@ -402,6 +402,26 @@ WHERE excluded.episode >= checkpoints.episode)sql"));
 
 // CreateSweep inside the caller's transaction: *created tells whether it
 // was inserted (false: a sweep of that name and hash existed).
+absl::Status InsertQueuedJobs(Db& db, int64_t sweep_id, int64_t first_ordinal,
+                              const std::vector<const NewJob*>& jobs) {
+  ASSIGN_OR_RETURN(Statement insert, Statement::Prepare(db, R"sql(
+INSERT INTO jobs(sweep_id, ordinal, method, seed, variant, options_json, episodes_expected, state,
+                 kind, payload)
+VALUES(?, ?, ?, ?, ?, ?, ?, 'queued', ?, ?))sql"));
+  int64_t ordinal = first_ordinal;
+  for (const NewJob* job : jobs) {
+    insert.Bind(1, sweep_id).Bind(2, ordinal++).Bind(3, job->method).Bind(4, job->seed);
+    insert.Bind(5, job->variant).Bind(6, OptionsToJson(job->options));
+    insert.Bind(7, EpisodesExpectedColumn(KindInfo(job->kind), job->episodes_expected));
+    insert.Bind(8, ToString(job->kind)).Bind(9, job->payload);
+    RETURN_IF_ERROR(insert.Run());
+    insert.Reset();
+    RETURN_IF_ERROR(WriteJobOptions(db, db.LastInsertRowId(), job->method, job->seed,
+                                    job->variant));
+  }
+  return absl::OkStatus();
+}
+
 absl::Status InsertSweep(Db& db, const NewSweep& sweep, int64_t now_ms, bool* created) {
   *created = false;
     ASSIGN_OR_RETURN(Statement existing,
@@ -431,21 +451,9 @@ VALUES(?, ?, 'running', ?, ?, ?, ?, ?, ?, ?, ?, ?))sql"));
   insert.Bind(11, sweep.created_ms > 0 ? sweep.created_ms : now_ms);
   RETURN_IF_ERROR(insert.Run());
   const int64_t sweep_id = db.LastInsertRowId();
-  ASSIGN_OR_RETURN(Statement job_insert, Statement::Prepare(db, R"sql(
-INSERT INTO jobs(sweep_id, ordinal, method, seed, variant, options_json, episodes_expected, state,
-               kind, payload)
-VALUES(?, ?, ?, ?, ?, ?, ?, 'queued', ?, ?))sql"));
-  for (size_t i = 0; i < sweep.jobs.size(); ++i) {
-    const NewJob& job = sweep.jobs[i];
-    job_insert.Bind(1, sweep_id).Bind(2, static_cast<int64_t>(i)).Bind(3, job.method);
-    job_insert.Bind(4, job.seed).Bind(5, job.variant).Bind(6, OptionsToJson(job.options));
-    job_insert.Bind(7, EpisodesExpectedColumn(KindInfo(job.kind), job.episodes_expected));
-    job_insert.Bind(8, ToString(job.kind)).Bind(9, job.payload);
-    RETURN_IF_ERROR(job_insert.Run());
-    job_insert.Reset();
-    RETURN_IF_ERROR(internal::WriteJobOptions(db, db.LastInsertRowId(), job.method, job.seed,
-                                              job.variant));
-  }
+  std::vector<const NewJob*> jobs;
+  for (const NewJob& job : sweep.jobs) jobs.push_back(&job);
+  RETURN_IF_ERROR(InsertQueuedJobs(db, sweep_id, 0, jobs));
   RETURN_IF_ERROR(internal::CreateSweepView(db, sweep_id, sweep.name));
   *created = true;
   return AddEvent(db, now_ms, sweep_id, 0, 0, "sweep_submitted",

@@ -27,8 +27,8 @@ namespace totalgrad::storage::internal {
 std::string DoublesToJson(const std::vector<double>& values);
 std::vector<double> DoublesFromJson(const std::string& text);
 // Options as the jobs.options_json column holds them: [[key, value], ...].
-std::string OptionsToJson(const OptionList& options);
-OptionList OptionsFromJson(const std::string& text);
+std::string OptionsToJson(const OptionPairs& options);
+OptionPairs OptionsFromJson(const std::string& text);
 
 // The queries behind SqliteStore::ListClaimCandidates: the running sweeps
 // with their running counts (no parameter), then one sweep's first queued
@@ -97,6 +97,11 @@ absl::Status UpsertCheckpoint(Db& db, const LeaseKey& key, const OpenAttempt& at
 // CreateSweep inside the caller's transaction: *created tells whether it
 // was inserted (false: a sweep of that name and hash existed).
 absl::Status InsertSweep(Db& db, const NewSweep& sweep, int64_t now_ms, bool* created);
+// Inserts `jobs` as queued jobs of sweep `sweep_id` with ordinals
+// first_ordinal, first_ordinal + 1, ..., each with its job_options rows
+// (sweep creation and growth).
+absl::Status InsertQueuedJobs(Db& db, int64_t sweep_id, int64_t first_ordinal,
+                              const std::vector<const NewJob*>& jobs);
 
 }  // namespace totalgrad::storage::internal
 

@@ -6,7 +6,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
-#include "server/common/status_macros.h"
+#include "runtime/status_macros.h"
 #include "server/storage/sqlite_internal.h"
 #include "server/storage/sqlite_records.h"
 #include "server/storage/sqlite_schema.h"
@@ -28,6 +28,32 @@ void ReadStudyRowHeader(Statement& query, StudyRecord* record) {
   record->attempt = static_cast<int>(query.ColumnInt(1));
   record->study = query.ColumnText(2);
   record->final_attempt = query.ColumnInt(3) != 0;
+}
+
+// One study table's rows of a sweep (study_cells or study_references), every
+// attempt's or the completing (else the latest) attempt's, in (job, attempt,
+// index) order: the row's key, then the record's own columns through its
+// field table, into `Record::*row` (a StudyCell or StudyReference).
+template <typename Record, typename Row, typename Core>
+absl::Status ReadStudyTable(Db& db, absl::string_view table,
+                            const record::FieldTable<Core>& fields, int64_t sweep_id,
+                            bool all_attempts, Row Record::*row, std::vector<Record>* out) {
+  ASSIGN_OR_RETURN(Statement query, Statement::Prepare(db, absl::StrCat(
+      "SELECT t.job_id, t.attempt, j.variant, COALESCE(j.completed_attempt, 0) = t.attempt, "
+      "t.idx, ", RecordColumnList(fields, false, "t."), " FROM ", table, R"sql( t
+JOIN jobs j ON j.id = t.job_id
+WHERE j.sweep_id = ? AND (? OR t.attempt = COALESCE(j.completed_attempt, j.attempts))
+ORDER BY t.job_id, t.attempt, t.idx)sql")));
+  query.Bind(1, sweep_id).Bind(2, all_attempts ? 1 : 0);
+  while (true) {
+    ASSIGN_OR_RETURN(bool found, query.Step());
+    if (!found) return absl::OkStatus();
+    Record r;
+    ReadStudyRowHeader(query, &r);
+    (r.*row).index = static_cast<int>(query.ColumnInt(4));
+    ReadRecord<Core>(query, 5, fields, &(r.*row));
+    out->push_back(std::move(r));
+  }
 }
 
 
@@ -126,38 +152,11 @@ absl::Status SqliteStore::ListStudyRows(const std::string& sweep_name, bool all_
     if (!found) return absl::NotFoundError(absl::StrCat("no sweep named '", sweep_name, "'"));
     const int64_t sweep_id = check.ColumnInt(0);
     // The row's key, then the record's own columns (sqlite_records.h).
-    ASSIGN_OR_RETURN(Statement query, Statement::Prepare(reader_, absl::StrCat(
-        "SELECT c.job_id, c.attempt, j.variant, COALESCE(j.completed_attempt, 0) = c.attempt, "
-        "c.idx, ", RecordColumnList(study::CellFields(), false, "c."), R"sql(
-FROM study_cells c JOIN jobs j ON j.id = c.job_id
-WHERE j.sweep_id = ? AND (? OR c.attempt = COALESCE(j.completed_attempt, j.attempts))
-ORDER BY c.job_id, c.attempt, c.idx)sql")));
-    query.Bind(1, sweep_id).Bind(2, all_attempts ? 1 : 0);
-    while (true) {
-      ASSIGN_OR_RETURN(bool row, query.Step());
-      if (!row) break;
-      StudyCellRecord r;
-      ReadStudyRowHeader(query, &r);
-      r.cell.index = static_cast<int>(query.ColumnInt(4));
-      ReadRecord<study::CellResult>(query, 5, study::CellFields(), &r.cell);
-      cells->push_back(std::move(r));
-    }
-    ASSIGN_OR_RETURN(Statement refs, Statement::Prepare(reader_, absl::StrCat(
-        "SELECT r.job_id, r.attempt, j.variant, COALESCE(j.completed_attempt, 0) = r.attempt, "
-        "r.idx, ", RecordColumnList(study::ReferenceFields(), false, "r."), R"sql(
-FROM study_references r JOIN jobs j ON j.id = r.job_id
-WHERE j.sweep_id = ? AND (? OR r.attempt = COALESCE(j.completed_attempt, j.attempts))
-ORDER BY r.job_id, r.attempt, r.idx)sql")));
-    refs.Bind(1, sweep_id).Bind(2, all_attempts ? 1 : 0);
-    while (true) {
-      ASSIGN_OR_RETURN(bool row, refs.Step());
-      if (!row) break;
-      StudyReferenceRecord r;
-      ReadStudyRowHeader(refs, &r);
-      r.reference.index = static_cast<int>(refs.ColumnInt(4));
-      ReadRecord<study::ReferenceGradient>(refs, 5, study::ReferenceFields(), &r.reference);
-      references->push_back(std::move(r));
-    }
+    RETURN_IF_ERROR(ReadStudyTable(reader_, "study_cells", study::CellFields(), sweep_id,
+                                   all_attempts, &StudyCellRecord::cell, cells));
+    RETURN_IF_ERROR(ReadStudyTable(reader_, "study_references", study::ReferenceFields(),
+                                   sweep_id, all_attempts, &StudyReferenceRecord::reference,
+                                   references));
     return absl::OkStatus();
   }();
   (void)reader_.Exec("COMMIT");

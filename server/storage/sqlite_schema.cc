@@ -13,7 +13,7 @@
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
-#include "server/common/status_macros.h"
+#include "runtime/status_macros.h"
 #include "server/storage/sqlite_internal.h"
 
 namespace totalgrad::storage::internal {
@@ -462,7 +462,7 @@ GROUP BY o.key ORDER BY MIN(j.ordinal), o.key)sql"));
 SELECT options_json FROM jobs WHERE sweep_id = ? AND kind = 'trial' ORDER BY ordinal LIMIT 1)sql"));
   first.Bind(1, sweep_id);
   ASSIGN_OR_RETURN(bool has_trial, first.Step());
-  const OptionList options = has_trial ? OptionsFromJson(first.ColumnText(0)) : OptionList();
+  const OptionPairs options = has_trial ? OptionsFromJson(first.ColumnText(0)) : OptionPairs();
   std::vector<std::string> columns;
   const auto swept_column = [](const std::string& key) {
     // Keys are trial option names ([a-z_0-9]): safe as identifiers; the

@@ -3,7 +3,10 @@
 // schema is documented in docs/results_schema.md.
 //
 // Store is an interface (leveldb's DB/Env seam) so tests can wrap it, e.g.
-// with a fault-injecting store. SqliteStore (sqlite_store.h) is the real one.
+// with a fault-injecting store, made of three by their users: LeaseStore
+// (the scheduler's leasing), SweepAdministration (submission and the sweep
+// and job commands) and StoreReader (the dashboard, results and --db reads).
+// SqliteStore (sqlite_store.h) is the real one and implements all three.
 //
 // Contract shared by every write:
 //   * It is one transaction: when it returns OK the change is committed
@@ -34,45 +37,11 @@
 
 namespace totalgrad::storage {
 
-class Store {
+// What leasing needs (the scheduler): the next jobs to run, attempts opened,
+// fed, checkpointed and ended under their lease, expired leases, workers.
+class LeaseStore {
  public:
-  virtual ~Store() = default;
-
-  // ---- Writes ----
-
-  // Stores the sweep and its jobs (all queued, ordinals in vector order).
-  // If a sweep with that name exists: same spec_hash (or one of
-  // equivalent_spec_hashes) -> returns it with *created = false and stores
-  // nothing; different hash -> AlreadyExists.
-  virtual absl::StatusOr<SweepRecord> CreateSweep(const NewSweep& sweep, int64_t now_ms,
-                                                  bool* created) = 0;
-
-  // Sets a sweep's state. kCancelled also cancels its queued and running jobs
-  // (open attempts stay open until the worker answers the CANCEL directive or
-  // the lease is lost); kRunning from kCancelled re-queues its cancelled jobs
-  // (running again if their attempt is still open). NotFound if no such sweep.
-  virtual absl::Status SetSweepState(const std::string& name, SweepState state,
-                                     int64_t now_ms) = 0;
-
-  // Deletes sweep `name` and every row stored for it, in one transaction:
-  // its jobs, their options, attempts, episodes, study rows, checkpoints and
-  // events, and its view; one event "sweep_deleted" (no sweep id) records
-  // the name and the counts. NotFound if no such sweep. FailedPrecondition,
-  // deleting nothing, while an attempt of the sweep is open (a worker holds
-  // its lease: cancel the sweep and let the trials stop first), or when the
-  // sweep's contents differ from `expected` (it changed after the caller
-  // archived it). Returns what was deleted.
-  virtual absl::StatusOr<SweepContents> DeleteSweep(const std::string& name,
-                                                    const SweepContents& expected,
-                                                    int64_t now_ms) = 0;
-
-  // What a sweep's rows take (SweepDiskUse) and, for a scope other than
-  // kNone, removes that scope's checkpoints in the same transaction (one
-  // event "checkpoints_pruned" records what). Checkpoints of jobs not
-  // completed (the points their next attempts resume from) are never
-  // removed. NotFound if no such sweep.
-  virtual absl::StatusOr<SweepDiskUse> PruneCheckpoints(const std::string& name, PruneScope scope,
-                                                        int64_t now_ms) = 0;
+  virtual ~LeaseStore() = default;
 
   // Opens attempt `key.attempt` of a queued job for `worker`: the job becomes
   // running with attempts = key.attempt. FailedPrecondition (nothing changed)
@@ -109,6 +78,68 @@ class Store {
   // missing rows of the first table that lacks some of 0..total-1 (nothing
   // changes).
   virtual absl::StatusOr<EndOutcome> EndAttempt(const AttemptEnd& end) = 0;
+
+  // Sets the lease expiry of every open attempt to at least `lease_expires_ms`
+  // (coordinator start-up or after a stall, so running workers can reattach);
+  // `reason` goes into the event log. Returns how many.
+  virtual absl::StatusOr<int> ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms,
+                                               const std::string& reason) = 0;
+
+  // Inserts or refreshes a worker (host, build, slots, last seen).
+  virtual absl::Status TouchWorker(const WorkerIdentity& worker, int64_t now_ms) = 0;
+
+  // NotFound if the worker was never seen.
+  virtual absl::Status SetWorkerDraining(const std::string& worker_id, bool draining,
+                                         int64_t now_ms) = 0;
+
+  // Queued jobs of running sweeps, oldest sweep first then ordinal; at most
+  // `limit`. A sweep already running max_concurrent jobs contributes none.
+  virtual absl::StatusOr<std::vector<ClaimCandidate>> ListClaimCandidates(int limit) = 0;
+
+  // Open attempts whose lease expired before `now_ms`.
+  virtual absl::StatusOr<std::vector<LeaseKey>> ListExpiredLeases(int64_t now_ms) = 0;
+};
+
+// What changes sweeps as a whole (submission, the CLI's sweep and job
+// commands, archives): create, grow, pause, cancel, delete, prune, import,
+// retry, supersede, back up.
+class SweepAdministration {
+ public:
+  virtual ~SweepAdministration() = default;
+
+  // Stores the sweep and its jobs (all queued, ordinals in vector order).
+  // If a sweep with that name exists: same spec_hash (or one of
+  // equivalent_spec_hashes) -> returns it with *created = false and stores
+  // nothing; different hash -> AlreadyExists.
+  virtual absl::StatusOr<SweepRecord> CreateSweep(const NewSweep& sweep, int64_t now_ms,
+                                                  bool* created) = 0;
+
+  // Sets a sweep's state. kCancelled also cancels its queued and running jobs
+  // (open attempts stay open until the worker answers the CANCEL directive or
+  // the lease is lost); kRunning from kCancelled re-queues its cancelled jobs
+  // (running again if their attempt is still open). NotFound if no such sweep.
+  virtual absl::Status SetSweepState(const std::string& name, SweepState state,
+                                     int64_t now_ms) = 0;
+
+  // Deletes sweep `name` and every row stored for it, in one transaction:
+  // its jobs, their options, attempts, episodes, study rows, checkpoints and
+  // events, and its view; one event "sweep_deleted" (no sweep id) records
+  // the name and the counts. NotFound if no such sweep. FailedPrecondition,
+  // deleting nothing, while an attempt of the sweep is open (a worker holds
+  // its lease: cancel the sweep and let the trials stop first), or when the
+  // sweep's contents differ from `expected` (it changed after the caller
+  // archived it). Returns what was deleted.
+  virtual absl::StatusOr<SweepContents> DeleteSweep(const std::string& name,
+                                                    const SweepContents& expected,
+                                                    int64_t now_ms) = 0;
+
+  // What a sweep's rows take (SweepDiskUse) and, for a scope other than
+  // kNone, removes that scope's checkpoints in the same transaction (one
+  // event "checkpoints_pruned" records what). Checkpoints of jobs not
+  // completed (the points their next attempts resume from) are never
+  // removed. NotFound if no such sweep.
+  virtual absl::StatusOr<SweepDiskUse> PruneCheckpoints(const std::string& name, PruneScope scope,
+                                                        int64_t now_ms) = 0;
 
   // Grows an existing sweep to `grown` (the union of its spec and a
   // resubmission, sweep::UnionOfSweeps): stores its jobs that the sweep lacks
@@ -154,43 +185,45 @@ class Store {
   // either does not exist.
   virtual absl::StatusOr<int> SupersedeJob(int64_t job_id, int64_t by_job_id, int64_t now_ms) = 0;
 
-  // Sets the lease expiry of every open attempt to at least `lease_expires_ms`
-  // (coordinator start-up or after a stall, so running workers can reattach);
-  // `reason` goes into the event log. Returns how many.
-  virtual absl::StatusOr<int> ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms,
-                                               const std::string& reason) = 0;
+  // Writes a consistent copy of the database to `path` (which must not
+  // exist) while the store stays usable. Returns its size in bytes.
+  virtual absl::StatusOr<int64_t> Backup(const std::string& path) = 0;
+};
 
-  // Inserts or refreshes a worker (host, build, slots, last seen).
-  virtual absl::Status TouchWorker(const WorkerIdentity& worker, int64_t now_ms) = 0;
-  // NotFound if the worker was never seen.
-  virtual absl::Status SetWorkerDraining(const std::string& worker_id, bool draining,
-                                         int64_t now_ms) = 0;
-
-  // ---- Reads ----
+// Reading what is stored (the dashboard, results, the CLI's --db reads).
+// Every read sees one committed state.
+class StoreReader {
+ public:
+  virtual ~StoreReader() = default;
 
   virtual absl::StatusOr<SweepRecord> GetSweep(const std::string& name) = 0;
+
   // Newest first.
   virtual absl::StatusOr<std::vector<SweepRecord>> ListSweeps() = 0;
+
   virtual absl::StatusOr<JobRecord> GetJob(int64_t job_id) = 0;
+
   virtual absl::StatusOr<std::vector<JobRecord>> ListJobs(const JobFilter& filter) = 0;
+
   virtual absl::StatusOr<std::vector<AttemptRecord>> ListAttempts(int64_t job_id) = 0;
+
   virtual absl::StatusOr<std::vector<EventRecord>> ListEvents(int64_t job_id) = 0;
+
   // The checkpoint of attempt `attempt` of the job, or with attempt 0 the
   // latest over all its attempts (highest episode, then highest attempt);
   // nullopt if there is none.
   virtual absl::StatusOr<std::optional<CheckpointRecord>> GetCheckpoint(int64_t job_id,
                                                                         int attempt) = 0;
-  // Queued jobs of running sweeps, oldest sweep first then ordinal; at most
-  // `limit`. A sweep already running max_concurrent jobs contributes none.
-  virtual absl::StatusOr<std::vector<ClaimCandidate>> ListClaimCandidates(int limit) = 0;
-  // Open attempts whose lease expired before `now_ms`.
-  virtual absl::StatusOr<std::vector<LeaseKey>> ListExpiredLeases(int64_t now_ms) = 0;
+
   virtual absl::StatusOr<std::vector<WorkerRecord>> ListWorkers() = 0;
+
   // NotFound if never seen.
   virtual absl::StatusOr<WorkerRecord> GetWorker(const std::string& worker_id) = 0;
+
   // Completed jobs of a sweep. NotFound if no such sweep.
   virtual absl::StatusOr<std::vector<TrialResultRecord>> ListTrialResults(
       const std::string& sweep_name) = 0;
+
   // Calls `sink` with batches of at most `batch_size` rows ordered by job,
   // attempt, episode; stops at the first non-OK status `sink` returns and
   // returns it. Only each job's counting attempt (completed, else latest)
@@ -198,16 +231,21 @@ class Store {
   virtual absl::Status ExportEpisodes(
       const std::string& sweep_name, bool all_attempts, int batch_size,
       const std::function<absl::Status(std::vector<EpisodeRowRecord>)>& sink) = 0;
+
   // Study rows of the sweep's study jobs, ordered by job and index; only each
   // job's counting attempt unless `all_attempts`. NotFound if no such sweep.
   virtual absl::Status ListStudyRows(const std::string& sweep_name, bool all_attempts,
                                      std::vector<StudyCellRecord>* cells,
                                      std::vector<StudyReferenceRecord>* references) = 0;
-  virtual absl::StatusOr<StoreCounts> Counts() = 0;
 
-  // Writes a consistent copy of the database to `path` (which must not
-  // exist) while the store stays usable. Returns its size in bytes.
-  virtual absl::StatusOr<int64_t> Backup(const std::string& path) = 0;
+  virtual absl::StatusOr<StoreCounts> Counts() = 0;
+};
+
+// The whole store, one implementation of the three (SqliteStore); a user
+// that needs only one part takes that interface.
+class Store : public LeaseStore, public SweepAdministration, public StoreReader {
+ public:
+  ~Store() override = default;
 };
 
 // Opens an existing coordinator database for reading only, behind Store's

@@ -15,9 +15,10 @@
 #include <vector>
 
 #include "absl/strings/string_view.h"
+#include "core/common/option_pairs.h"
 #include "core/learner/episode_record.h"
 #include "core/study/study.h"
-#include "server/common/job_kind.h"
+#include "runtime/job_kind.h"
 
 namespace totalgrad::storage {
 
@@ -34,7 +35,7 @@ struct SweepContents {
 };
 enum class JobState { kQueued, kRunning, kCompleted, kFailed, kCancelled };
 enum class AttemptState { kRunning, kCompleted, kFailed, kLeaseLost, kReleased, kCancelled };
-// What a job runs and reports (server/common/job_kind.h, the one
+// What a job runs and reports (runtime/job_kind.h, the one
 // definition); what differs between kinds is data in job_kinds.h.
 using ::totalgrad::JobKind;
 
@@ -47,8 +48,6 @@ std::optional<SweepState> ParseSweepState(absl::string_view text);
 std::optional<JobState> ParseJobState(absl::string_view text);
 std::optional<AttemptState> ParseAttemptState(absl::string_view text);
 
-// Trial options as (key, canonical text), in application order.
-using OptionList = std::vector<std::pair<std::string, std::string>>;
 
 inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
@@ -124,7 +123,7 @@ struct NewJob {
   std::string method;
   std::string seed;
   std::string variant;
-  OptionList options;
+  OptionPairs options;
   int episodes_expected = 0;  // study jobs: 0
   JobKind kind = JobKind::kTrial;
   std::string payload;        // study jobs: the self-contained study spec (JSON)
@@ -257,7 +256,7 @@ struct JobRecord {
   std::string method;
   std::string seed;
   std::string variant;
-  OptionList options;
+  OptionPairs options;
   JobState state = JobState::kQueued;
   int attempts = 0;  // leases granted; the latest attempt's number
   int failures = 0;

@@ -16,7 +16,7 @@ namespace totalgrad::storage {
 // Thread-safe when the store is (SqliteStore is). Does not own the store.
 class StoreResultsReader : public results::ResultsReader {
  public:
-  explicit StoreResultsReader(Store* store) : store_(store) {}
+  explicit StoreResultsReader(StoreReader* store) : store_(store) {}
 
   // The store's trial results (ListTrialResults: the counting attempts)
   // joined with the options of their completed jobs (ListJobs, page by
@@ -25,7 +25,7 @@ class StoreResultsReader : public results::ResultsReader {
       const std::string& sweep) override;
 
  private:
-  Store* store_;
+  StoreReader* store_;
 };
 
 }  // namespace totalgrad::storage

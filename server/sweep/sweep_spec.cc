@@ -19,7 +19,7 @@
 #include "absl/strings/str_join.h"
 #include "io/study_file.h"
 #include "core/learner/trial.h"
-#include "server/common/status_macros.h"
+#include "runtime/status_macros.h"
 
 namespace totalgrad::sweep {
 namespace {
@@ -39,7 +39,7 @@ absl::StatusOr<std::string> CanonicalValue(const std::string& key, const std::st
 // point's values.
 absl::StatusOr<learner::TrialOptions> OptionsAt(const SweepSpec& spec,
                                                 const std::vector<size_t>& index) {
-  OptionList pairs(spec.protocol.begin(), spec.protocol.end());
+  OptionPairs pairs(spec.protocol.begin(), spec.protocol.end());
   for (size_t a = 0; a < spec.grid.size(); ++a) {
     pairs.emplace_back(spec.grid[a].key, spec.grid[a].values[index[a]]);
   }
@@ -424,7 +424,7 @@ absl::StatusOr<std::vector<ExpandedJob>> ExpandJobs(const SweepSpec& spec) {
   return jobs;
 }
 
-absl::StatusOr<OptionList> ResolveOptions(const OptionList& pairs) {
+absl::StatusOr<OptionPairs> ResolveOptions(const OptionPairs& pairs) {
   ASSIGN_OR_RETURN(learner::TrialOptions options, learner::TrialOptionsFromPairs(pairs));
   RETURN_IF_ERROR(options.Validate());
   return learner::TrialOptionPairs(options);

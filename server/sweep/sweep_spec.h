@@ -44,11 +44,11 @@
 
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
-#include "server/common/job_kind.h"
+#include "core/common/option_pairs.h"
+#include "runtime/job_kind.h"
 
 namespace totalgrad::sweep {
 
-using OptionList = std::vector<std::pair<std::string, std::string>>;
 
 struct GridAxis {
   std::string key;
@@ -69,7 +69,7 @@ struct SweepSpec {
   std::string name;
   std::string description;
   std::vector<GridAxis> grid;
-  OptionList protocol;
+  OptionPairs protocol;
   int max_attempts = 0;     // 0: kDefaultMaxAttempts
   int max_lost_leases = 0;  // 0: kDefaultMaxLostLeases
   int max_concurrent = 0;   // 0: no limit
@@ -91,7 +91,7 @@ inline constexpr size_t kMaxSourceBytes = 1 << 20;
 inline constexpr size_t kMaxStudySpecBytes = 2 << 20;
 inline constexpr int kMaxStudiesPerSweep = 1000;
 
-// A trial or a study job (server/common/job_kind.h, the one definition).
+// A trial or a study job (runtime/job_kind.h, the one definition).
 using ::totalgrad::JobKind;
 
 // One job of an expanded sweep.
@@ -105,7 +105,7 @@ struct ExpandedJob {
   // "key=value ..." for the grid axes other than method and seed.
   std::string variant;
   // Every trial option as (key, canonical text): enough to re-run the trial.
-  OptionList options;
+  OptionPairs options;
   // Episodes the trial reports (the random one + the learned ones).
   int episodes_expected = 0;
 };
@@ -185,7 +185,7 @@ absl::StatusOr<SweepCostEstimate> EstimateSweepCost(const SweepSpec& spec);
 // Applies option pairs to default trial options (the scene's horizon and
 // threshold where not given: learner::TrialOptionsFromPairs) and returns the full
 // canonical list (what a worker is given). InvalidArgument naming the key.
-absl::StatusOr<OptionList> ResolveOptions(const OptionList& pairs);
+absl::StatusOr<OptionPairs> ResolveOptions(const OptionPairs& pairs);
 
 // The service's own limits on trial options, beyond what the runner checks:
 // InvalidArgument naming the option, its value and the limit

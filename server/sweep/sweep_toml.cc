@@ -17,7 +17,7 @@
 #include "absl/strings/str_cat.h"
 #include "core/learner/trial.h"
 #include "io/study_file.h"
-#include "server/common/status_macros.h"
+#include "runtime/status_macros.h"
 #include "server/sweep/sweep_spec.h"
 
 namespace totalgrad::sweep {

@@ -31,7 +31,7 @@ import sys
 
 DOC = "docs/core.md"
 SECTION = "## Where to add what"
-PRODUCT_DIRS = ("core", "server", "worker", "client", "results", "proto", "io")
+PRODUCT_DIRS = ("core", "runtime", "server", "worker", "client", "results", "proto", "io")
 
 
 class Recipe:
@@ -110,7 +110,7 @@ RECIPES = [
                 "the study's own runner; a new kind has a runner of its own",
             "client/service_commands/study_results.cc":
                 "the study's own results command; a new kind has its own",
-            "server/common/record_proto.h":
+            "runtime/record_proto.h":
                 "converts any record by its field table; its comment names "
                 "the study runner as one user",
             "server/service/worker_service.cc":

@@ -11,6 +11,9 @@
 #     (server/storage/sqlite_*): the CLI and the Python module read results
 #     through the results library's read interface, and a database file
 #     (--db) through storage::OpenStoreReadOnly.
+#   * runtime/ (build id, clocks, tokens, the RPC client: shared by the
+#     coordinator, the worker and the CLI) includes nothing from server/,
+#     worker/ or client/.
 # Usage: results_layer.sh SOURCE_DIR
 set -euo pipefail
 source_dir="$1"
@@ -20,6 +23,12 @@ include='^[[:space:]]*#[[:space:]]*include[[:space:]]*[<"]'
 if hits=$(grep -rEn --include='*.h' --include='*.cc' --include='*.inc' \
             "${include}client/" "$source_dir/server" "$source_dir/worker"); then
   echo "FAIL: server/ or worker/ includes a client/ header:"; echo "$hits"; failed=1
+fi
+
+# runtime/ sits below the coordinator, the worker and the CLI it serves.
+if hits=$(grep -rEn --include='*.h' --include='*.cc' --include='*.inc' --include='*.in' \
+            "${include}(server|worker|client)/" "$source_dir/runtime"); then
+  echo "FAIL: runtime/ includes a server/, worker/ or client/ header:"; echo "$hits"; failed=1
 fi
 
 if [ ! -d "$source_dir/results" ]; then
@@ -43,4 +52,4 @@ if hits=$(grep -rEn --include='*.h' --include='*.cc' --include='*.inc' \
 fi
 
 if [ "$failed" -ne 0 ]; then exit 1; fi
-echo "ok: server/ and worker/ include no client/ header; results/ includes and links no gRPC, protobuf, SQLite, server/ or client/; client/ and python/ include no storage implementation"
+echo "ok: runtime/ includes no server/, worker/ or client/ header; server/ and worker/ include no client/ header; results/ includes and links no gRPC, protobuf, SQLite, server/ or client/; client/ and python/ include no storage implementation"

@@ -1,10 +1,10 @@
-// The clocks' AwaitUntil (server/common/clock.h): the waits behind the
+// The clocks' AwaitUntil (runtime/clock.h): the waits behind the
 // worker's heartbeats and drain deadlines, the scheduler's long polls and the
 // coordinator's lease loop. SystemClock's deadline is kept by its own
 // steady-clock thread (abseil's timed waits follow the wall clock), so these
 // check that it fires, that a condition made true by another thread ends the
 // wait early, and that many waiters on one mutex each get their own deadline.
-#include "server/common/clock.h"
+#include "runtime/clock.h"
 
 #include <gtest/gtest.h>
 

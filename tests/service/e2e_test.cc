@@ -318,7 +318,7 @@ TEST_F(EndToEndTest, TwoWorkersStoreExactlyTheExpectedRows) {
 TEST_F(EndToEndTest, ThreadsPerSlotGiveTheSameRowsAndRecordCpuTime) {
   StartCoordinator();
   auto worker = StartWorker("threads", {"--threads-per-slot", "2"});
-  worker::OptionList protocol = TinyProtocol();
+  OptionPairs protocol = TinyProtocol();
   for (auto& [key, value] : protocol)
     if (key == "particles") value = "70";  // more than one 64-particle block
   ASSERT_TRUE(Submit(MakeSpec("threads", {1, 2}, protocol)).ok());
@@ -378,7 +378,7 @@ TEST_F(EndToEndTest, KilledWorkersTrialIsFinishedByAnother) {
 // inducing inputs must travel in the checkpoint too.
 class CheckpointTest : public ServiceFixture {
  protected:
-  void KillAndResume(const std::string& sweep, const worker::OptionList& protocol,
+  void KillAndResume(const std::string& sweep, const OptionPairs& protocol,
                      int kill_after_checkpoint) {
     StartCoordinator(0, {}, /*lease_timeout_seconds=*/1.5);
     ASSERT_TRUE(Submit(MakeSpec(sweep, {7}, protocol)).ok());
@@ -436,7 +436,7 @@ TEST_F(CheckpointTest, KilledWorkersTrialResumesFromItsCheckpointBitForBit) {
 // horizon 15 and gp_inducing 20: episode 1 fits the full GP (15 points),
 // episodes 2.. FITC (30, 45, ... points), warm-starting the inducing inputs.
 TEST_F(CheckpointTest, KilledWorkersFitcTrialResumesFromItsCheckpointBitForBit) {
-  worker::OptionList protocol = SlowProtocol();
+  OptionPairs protocol = SlowProtocol();
   protocol.emplace_back("gp_inducing", "20");
   KillAndResume("resume-fitc", protocol, /*kill_after_checkpoint=*/3);
 }
@@ -760,7 +760,7 @@ TEST_F(EndToEndTest, ResubmittingASweepIsIdempotent) {
   EXPECT_FALSE(fourth.created());
   EXPECT_EQ(fourth.sweep().spec_hash(), first.sweep().spec_hash());
   // Another protocol under the same name is refused and stores nothing.
-  worker::OptionList other_protocol = TinyProtocol();
+  OptionPairs other_protocol = TinyProtocol();
   other_protocol[0].second = "3";  // episodes
   status = Submit(MakeSpec("again", {1, 2}, other_protocol));
   EXPECT_EQ(status.error_code(), grpc::StatusCode::FAILED_PRECONDITION) << status.error_message();
@@ -1017,7 +1017,7 @@ TEST_F(EndToEndTest, WorkerShutdownIsBoundedWhileTheCoordinatorIsUnreachable) {
   StartCoordinator();
   // The trial must still be running well after the drain deadline: five times
   // SlowProtocol's gradient steps (a few seconds per episode at N >= 60).
-  worker::OptionList protocol = SlowProtocol();
+  OptionPairs protocol = SlowProtocol();
   for (auto& [key, value] : protocol)
     if (key == "policy_steps") value = "400";
   ASSERT_TRUE(Submit(MakeSpec("unreachable", {3}, protocol)).ok());

@@ -15,18 +15,18 @@
 
 namespace totalgrad::testing {
 
-worker::OptionList TinyProtocol() {
+OptionPairs TinyProtocol() {
   return {{"episodes", "2"}, {"policy_steps", "3"}, {"particles", "8"},
           {"eval_rollouts", "2"}, {"horizon", "10"}};
 }
 
-worker::OptionList SlowProtocol() {
+OptionPairs SlowProtocol() {
   return {{"episodes", "8"}, {"policy_steps", "80"}, {"particles", "40"},
           {"eval_rollouts", "2"}, {"horizon", "15"}};
 }
 
 v1::SweepSpec MakeSpec(const std::string& name, const std::vector<int>& seeds,
-                       const worker::OptionList& protocol) {
+                       const OptionPairs& protocol) {
   v1::SweepSpec spec;
   spec.set_name(name);
   auto* method = spec.add_grid();
@@ -52,7 +52,7 @@ class Collect final : public worker::JobProgress {
 };
 }  // namespace
 
-std::vector<worker::EpisodeOutcome> ReferenceEpisodes(const worker::OptionList& options) {
+std::vector<worker::EpisodeOutcome> ReferenceEpisodes(const OptionPairs& options) {
   worker::LearnerTrialRunner runner;
   Collect collect;
   worker::JobInput job;
@@ -210,7 +210,7 @@ v1::GetJobLogResponse ServiceFixture::JobLog(int64_t job_id) {
 }
 
 void ServiceFixture::ExpectRowsEqualReference(const std::string& sweep,
-                                              const worker::OptionList& protocol) {
+                                              const OptionPairs& protocol) {
   const std::vector<v1::JobInfo> jobs = Jobs(sweep);
   const std::vector<v1::EpisodeRow> rows = Export(sweep, /*all_attempts=*/false);
   std::map<int64_t, std::map<int, const v1::EpisodeRow*>> by_job;
@@ -224,7 +224,7 @@ void ServiceFixture::ExpectRowsEqualReference(const std::string& sweep,
   for (const v1::JobInfo& job : jobs) {
     EXPECT_EQ(job.state(), v1::JOB_STATE_COMPLETED) << "job " << job.job_id();
     if (job.kind() == v1::JOB_KIND_STUDY) continue;  // no episodes; study_e2e_test checks its rows
-    worker::OptionList options = protocol;
+    OptionPairs options = protocol;
     options.emplace_back("method", job.method());
     options.emplace_back("seed", job.seed());
     const std::vector<worker::EpisodeOutcome> reference = ReferenceEpisodes(options);

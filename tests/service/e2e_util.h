@@ -22,17 +22,17 @@ inline constexpr char kWorkerToken[] = "worker-token-0123456789abcdef";
 inline constexpr char kUserToken[] = "user-token-0123456789abcdef";
 
 // Options of a trial that takes ~0.05 s (3 episodes).
-worker::OptionList TinyProtocol();
+OptionPairs TinyProtocol();
 // Options of a trial that takes a few seconds (9 episodes), for kill tests.
-worker::OptionList SlowProtocol();
+OptionPairs SlowProtocol();
 
 // One sweep spec: method RP, seeds, and the given protocol.
 v1::SweepSpec MakeSpec(const std::string& name, const std::vector<int>& seeds,
-                       const worker::OptionList& protocol);
+                       const OptionPairs& protocol);
 
 // Runs the trial in this process with the real runner: the reference values
 // that every stored row must equal exactly (trials are deterministic).
-std::vector<worker::EpisodeOutcome> ReferenceEpisodes(const worker::OptionList& options);
+std::vector<worker::EpisodeOutcome> ReferenceEpisodes(const OptionPairs& options);
 
 class ServiceFixture : public ::testing::Test {
  protected:
@@ -59,7 +59,7 @@ class ServiceFixture : public ::testing::Test {
   v1::GetJobLogResponse JobLog(int64_t job_id);
   // Expects the completed sweep's rows to equal the reference runs exactly:
   // every job, every episode, once, with identical values.
-  void ExpectRowsEqualReference(const std::string& sweep, const worker::OptionList& protocol);
+  void ExpectRowsEqualReference(const std::string& sweep, const OptionPairs& protocol);
 
   // A context with deadline and the given token ("" for none).
   static std::unique_ptr<grpc::ClientContext> Context(const std::string& token,

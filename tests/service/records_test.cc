@@ -32,7 +32,7 @@
 #include "io/episode_json.h"
 #include "io/record_format.h"
 #include "io/study_results.h"
-#include "server/common/record_proto.h"
+#include "runtime/record_proto.h"
 #include "server/service/convert.h"
 #include "server/service/sweep_archive.h"
 #include "server/storage/sqlite_db.h"
@@ -370,7 +370,7 @@ TEST_F(RecordsTest, JobAndSweepReadThroughTheirTables) {
   store_.reset();
   Open();
   TG_ASSERT_OK_AND_ASSIGN(storage::JobRecord job, store_->GetJob(job_id));
-  const storage::OptionList expected = {{"method", "RP"}, {"seed", "1"}, {"noise_k", "1"}};
+  const OptionPairs expected = {{"method", "RP"}, {"seed", "1"}, {"noise_k", "1"}};
   EXPECT_EQ(job.options, expected);
   EXPECT_EQ(job.worker_id, "w1");
   EXPECT_EQ(job.state, storage::JobState::kRunning);

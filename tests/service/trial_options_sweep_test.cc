@@ -38,7 +38,7 @@ TEST(TrialOptionsSweepTest, EveryFieldRoundTripsThroughASweepFile) {
   absl::StatusOr<learner::TrialOptions> back = learner::TrialOptionsFromPairs(jobs[0].options);
   TG_ASSERT_OK(back.status());
   EXPECT_TRUE(*back == changed) << "a field did not survive the sweep file";
-  TG_ASSERT_OK_AND_ASSIGN(OptionList resolved, ResolveOptions(jobs[0].options));
+  TG_ASSERT_OK_AND_ASSIGN(OptionPairs resolved, ResolveOptions(jobs[0].options));
   EXPECT_EQ(resolved, jobs[0].options);
 }
 

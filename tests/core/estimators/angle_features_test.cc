@@ -15,7 +15,7 @@
 #include "core/estimators/rp.h"
 #include "core/estimators/synthetic_problem.h"
 #include "core/gp/training.h"
-#include "core/pilco/angle_features.h"
+#include "core/gaussian/angle_features.h"
 
 #include "tests/core/estimators/rollout_test_util.h"
 namespace totalgrad::estimators {
@@ -44,7 +44,7 @@ FeatureModel MakeFeatureModel(const std::string& cost) {
   out.synthetic = ::totalgrad::estimators::testing::SmallSyntheticProblem(cost);
   const gp::GpModel& raw = *out.synthetic->model;
   RowMatrix features;
-  pilco::StatesToFeatures(raw.inputs().leftCols(kS), kAngle, &features);
+  gaussian::StatesToFeatures(raw.inputs().leftCols(kS), kAngle, &features);
   RowMatrix inputs(raw.inputs().rows(), kE + 1);
   inputs.leftCols(kE) = features;
   inputs.col(kE) = raw.inputs().col(kS);
@@ -99,7 +99,7 @@ TEST(AngleFeatureDynamics, MatchesTheInnerModelOnFeaturesAndFiniteDifferences) {
 
   // Values: the inner model at [phi(x), u].
   RowMatrix features;
-  pilco::StatesToFeatures(z.leftCols(kS), kAngle, &features);
+  gaussian::StatesToFeatures(z.leftCols(kS), kAngle, &features);
   RowMatrix zf(z.rows(), kE + 1);
   zf.leftCols(kE) = features;
   zf.col(kE) = z.col(kS);
@@ -183,7 +183,7 @@ TEST(AngleFeaturePolicy, AdjointsMatchFiniteDifferences) {
   PolicyCache cache;
   policy.Evaluate(x, &forces, &cache);
   RowMatrix features;
-  pilco::StatesToFeatures(x, kAngle, &features);
+  gaussian::StatesToFeatures(x, kAngle, &features);
   fp.rbf->Evaluate(features, &forces_f, nullptr);
   EXPECT_EQ(forces, forces_f);
   EXPECT_GT(forces.cwiseAbs().minCoeff(), 0.05);

@@ -12,7 +12,7 @@
 #include "core/diff/gradient_checker.h"
 #include "core/estimators/particle_system.h"
 #include "core/gp/training.h"
-#include "core/pilco/angle_features.h"
+#include "core/gaussian/angle_features.h"
 
 namespace totalgrad::estimators {
 namespace multi_angle_features_test {
@@ -36,7 +36,7 @@ std::unique_ptr<gp::GpModel> FeatureGp() {
   RowMatrix x(40, kE);
   rng.FillNormal(&x);
   RowMatrix features;
-  pilco::StatesToFeatures(x.leftCols(kS), kAngles, &features);
+  gaussian::StatesToFeatures(x.leftCols(kS), kAngles, &features);
   RowMatrix inputs(40, kF + 1);
   inputs.leftCols(kF) = features;
   inputs.col(kF) = x.col(kS);
@@ -59,7 +59,7 @@ RowMatrix SomeInputs() {
 TEST(MultiAngleFeatures, FeaturesAreTheNonAngleDimsThenSinCosPerAngle) {
   const RowMatrix x = SomeInputs().leftCols(kS);
   RowMatrix f;
-  pilco::StatesToFeatures(x, kAngles, &f);
+  gaussian::StatesToFeatures(x, kAngles, &f);
   ASSERT_EQ(f.cols(), kF);
   for (Eigen::Index i = 0; i < x.rows(); ++i) {
     EXPECT_EQ(f(i, 0), x(i, 0));
@@ -71,8 +71,8 @@ TEST(MultiAngleFeatures, FeaturesAreTheNonAngleDimsThenSinCosPerAngle) {
   }
   // One angle: the single-angle features, the same bits.
   RowMatrix one, single;
-  pilco::StatesToFeatures(x, std::vector<int>{1}, &one);
-  pilco::StatesToFeatures(x, 1, &single);
+  gaussian::StatesToFeatures(x, std::vector<int>{1}, &one);
+  gaussian::StatesToFeatures(x, 1, &single);
   EXPECT_EQ(one, single);
 }
 

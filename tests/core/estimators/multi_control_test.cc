@@ -30,7 +30,7 @@
 #include "core/estimators/rp.h"
 #include "core/estimators/total_propagation.h"
 #include "core/gp/training.h"
-#include "core/pilco/angle_features.h"
+#include "core/gaussian/angle_features.h"
 #include "core/tasks/scene.h"
 #include "tests/core/estimators/linear_gaussian.h"
 
@@ -85,7 +85,7 @@ std::unique_ptr<TwoControlProblem> MakeTwoControlProblem(int horizon) {
     next.row(i) = xn.transpose();
   }
   RowMatrix features;
-  pilco::StatesToFeatures(x, kAngles, &features);
+  gaussian::StatesToFeatures(x, kAngles, &features);
   RowMatrix inputs(n, kFeat + kF);
   inputs.leftCols(kFeat) = features;
   inputs.rightCols(kF) = u;
@@ -100,7 +100,7 @@ std::unique_ptr<TwoControlProblem> MakeTwoControlProblem(int horizon) {
   // torques are far from zero and the saturation's curvature matters.
   out->rbf = std::make_unique<policy::RbfPolicy>(kBasis, kFeat, out->scene.max_control);
   Rng init(18, Stream::kPolicyInit);
-  const Vector mu_features = pilco::StateFeatures(out->scene.mu0, kAngles);
+  const Vector mu_features = gaussian::StateFeatures(out->scene.mu0, kAngles);
   out->rbf->Initialize(mu_features, Vector::Constant(kFeat, 0.8), 1.0, &init);
   Vector theta = out->rbf->parameters();
   theta.tail(kBasis * kF) *= 6.0;

@@ -15,7 +15,7 @@
 #include "core/learner/problem_builder.h"
 #include "core/learner/trial.h"
 #include "core/learner/trial_options.h"
-#include "core/pilco/angle_features.h"
+#include "core/gaussian/angle_features.h"
 #include "core/policy/rbf_policy.h"
 #include "core/tasks/scene.h"
 
@@ -186,7 +186,7 @@ TEST(RolloutVerdict, APolicyThatSwingsUpAndThenDropsThePoleIsNotHeld) {
 #include "tests/core/learner/testdata/pilco_swingup_policy.inc"
   };
   const std::vector<int> angles = FeatureAngles(options, *scene);
-  policy::RbfPolicy policy(options.basis_functions, pilco::FeatureDim(scene->state_dim(), angles),
+  policy::RbfPolicy policy(options.basis_functions, gaussian::FeatureDim(scene->state_dim(), angles),
                            scene->max_control);
   ASSERT_EQ(policy.num_parameters(), static_cast<int>(parameters.size()));
   policy.set_parameters(Eigen::Map<const Vector>(parameters.data(), parameters.size()));

@@ -10,12 +10,12 @@
 #include <vector>
 
 #include "core/diff/gradient_checker.h"
-#include "core/pilco/expected_cost.h"
+#include "core/gaussian/expected_cost.h"
 #include "core/pilco/gp_moments.h"
 #include "core/pilco/policy_moments.h"
 #include "core/pilco/propagation.h"
 #include "core/pilco/saturation.h"
-#include "core/pilco/trig.h"
+#include "core/gaussian/trig.h"
 #include "tests/core/pilco/pilco_test_util.h"
 
 namespace totalgrad::pilco {
@@ -39,11 +39,11 @@ diff::CheckOptions Tight() {
 TEST(GTrigTest, JacobianMatchesFiniteDifferences) {
   for (const auto& [mean, var] : {std::pair{0.3, 0.2}, {2.9, 1e-4}, {-1.2, 3.0}, {3.14159, 0.0}}) {
     const diff::VectorFunction f = [](const Vector& x, Vector* y) {
-      *y = GTrig(x(0), x(1)).AsVector();
+      *y = gaussian::GTrig(x(0), x(1)).AsVector();
       return true;
     };
     const Vector x = Eigen::Vector2d(mean, var);
-    const diff::CheckResult r = diff::CheckJacobian(f, x, Dx_GTrig(mean, var), Tight());
+    const diff::CheckResult r = diff::CheckJacobian(f, x, gaussian::Dx_GTrig(mean, var), Tight());
     EXPECT_TRUE(r.ok) << "mean " << mean << " var " << var << ": " << r.log;
   }
 }
@@ -129,7 +129,7 @@ TEST(AugmentWithTrigTest, ReverseModeMatchesFiniteDifferences) {
   const BlockForward fwd = [&](const Vector& mm, const Matrix& ss, const Vector&, Vector* y) {
     Vector ym;
     Matrix ys;
-    AugmentWithTrig(mm, ss, angle, &ym, &ys);
+    gaussian::AugmentWithTrig(mm, ss, angle, &ym, &ys);
     y->resize(ym.size() + ys.size());
     *y << ym, Flatten(ys);
     return true;
@@ -141,7 +141,7 @@ TEST(AugmentWithTrigTest, ReverseModeMatchesFiniteDifferences) {
     const Matrix ysb = Eigen::Map<const Matrix>(yb.data() + ny, ny, ny);
     *mb = Vector::Zero(d);
     *sb = Matrix::Zero(d, d);
-    AugmentWithTrigBackward(mm, ss, angle, ymb, ysb, mb, sb);
+    gaussian::AugmentWithTrigBackward(mm, ss, angle, ymb, ysb, mb, sb);
     return true;
   };
   const diff::CheckResult r = CheckBlock(fwd, bwd, m, s, Vector(), Tight());
@@ -167,7 +167,7 @@ TEST_P(AugmentWithTrigAngles, ReverseModeMatchesFiniteDifferences) {
   const BlockForward fwd = [&](const Vector& mm, const Matrix& ss, const Vector&, Vector* y) {
     Vector ym;
     Matrix ys;
-    AugmentWithTrig(mm, ss, angles, &ym, &ys);
+    gaussian::AugmentWithTrig(mm, ss, angles, &ym, &ys);
     y->resize(ym.size() + ys.size());
     *y << ym, Flatten(ys);
     return true;
@@ -178,7 +178,7 @@ TEST_P(AugmentWithTrigAngles, ReverseModeMatchesFiniteDifferences) {
     const Matrix ysb = Eigen::Map<const Matrix>(yb.data() + ny, ny, ny);
     *mb = Vector::Zero(d);
     *sb = Matrix::Zero(d, d);
-    AugmentWithTrigBackward(mm, ss, angles, ymb, ysb, mb, sb);
+    gaussian::AugmentWithTrigBackward(mm, ss, angles, ymb, ysb, mb, sb);
     return true;
   };
   const diff::CheckResult r = CheckBlock(fwd, bwd, m, s, Vector(), Tight());
@@ -204,7 +204,7 @@ TEST_P(AugmentWithTrigAngles, ReverseModeMatchesFiniteDifferences) {
         for (int j = 0; j < d + 2; ++j)
           ysb1(i, j) = (i < d && j < d && k > 0) ? 0.0 : ysb(idx[i], idx[j]);
       }
-      AugmentWithTrigBackward(mm, ss, angles[k], ymb, ysb1, mb, sb);
+      gaussian::AugmentWithTrigBackward(mm, ss, angles[k], ymb, ysb1, mb, sb);
     }
     return true;
   };
@@ -228,8 +228,8 @@ TEST(AugmentWithTrigTest, OneAngleListIsTheOneAngleFunction) {
   const Matrix s = testing::RandomCovariance(4, 0.3, &rng);
   Vector y1, y2;
   Matrix c1, c2;
-  AugmentWithTrig(m, s, 1, &y1, &c1);
-  AugmentWithTrig(m, s, std::vector<int>{1}, &y2, &c2);
+  gaussian::AugmentWithTrig(m, s, 1, &y1, &c1);
+  gaussian::AugmentWithTrig(m, s, std::vector<int>{1}, &y2, &c2);
   EXPECT_EQ(y1, y2);
   EXPECT_EQ(c1, c2);
 }
@@ -578,16 +578,16 @@ TEST(PolicyMomentsTest, TwoControlPseudoTargetsMatchFiniteDifferences) {
 
 // ---------------------------------------------------------------- costs
 
-void CheckCost(const GaussianCost& cost, const Vector& m, const Matrix& s) {
+void CheckCost(const gaussian::GaussianCost& cost, const Vector& m, const Matrix& s) {
   const BlockForward fwd = [&](const Vector& mm, const Matrix& ss, const Vector&, Vector* y) {
-    CostMoments c;
+    gaussian::CostMoments c;
     if (!cost.Evaluate(mm, ss, false, &c).ok()) return false;
     *y = Vector::Constant(1, c.mean);
     return true;
   };
   const BlockBackward bwd = [&](const Vector& mm, const Matrix& ss, const Vector&,
                                 const Vector& yb, Vector* mb, Matrix* sb, Vector*) {
-    CostMoments c;
+    gaussian::CostMoments c;
     if (!cost.Evaluate(mm, ss, true, &c).ok()) return false;
     *mb = yb(0) * c.dmean_dm;
     *sb = yb(0) * c.dmean_dS;
@@ -601,14 +601,14 @@ TEST(ExpectedCostTest, AngleCostGradientMatchesFiniteDifferences) {
   std::mt19937_64 rng(6);
   const Vector target = Eigen::Vector4d(0, M_PI, 0, 0);
   const Matrix q = Eigen::Vector4d(1, 1, 0, 0).asDiagonal();
-  auto cost = GaussianCost::Angle(target, q);
+  auto cost = gaussian::GaussianCost::Angle(target, q);
   ASSERT_TRUE(cost.ok());
   CheckCost(*cost, Eigen::Vector4d(0.2, 2.5, 0.3, -0.4), testing::RandomCovariance(4, 0.2, &rng));
 }
 
 TEST(ExpectedCostTest, TipCostGradientMatchesFiniteDifferences) {
   std::mt19937_64 rng(7);
-  auto cost = GaussianCost::Tip(4, 0, 1, 0.5, 0.25);
+  auto cost = gaussian::GaussianCost::Tip(4, 0, 1, 0.5, 0.25);
   ASSERT_TRUE(cost.ok());
   CheckCost(*cost, Eigen::Vector4d(0.2, 2.5, 0.3, -0.4), testing::RandomCovariance(4, 0.05, &rng));
   CheckCost(*cost, Eigen::Vector4d(-0.1, 0.1, 0.0, 0.0), 1e-4 * Matrix::Identity(4, 4));
@@ -621,12 +621,12 @@ TEST(ExpectedCostTest, SaturatingCostGradientMatchesFiniteDifferences) {
   Matrix q_z = Matrix::Zero(4, 4);
   q_z(2, 2) = q_z(3, 3) = 1.0;  // l^2 on (sin, cos), l = 1
   const Vector target_z = Eigen::Vector4d(0, M_PI, std::sin(M_PI), std::cos(M_PI));
-  auto pendulum = GaussianCost::Saturating(2, 1, q_z, target_z, {0.5, 1.5});
+  auto pendulum = gaussian::GaussianCost::Saturating(2, 1, q_z, target_z, {0.5, 1.5});
   ASSERT_TRUE(pendulum.ok()) << pendulum.status();
   CheckCost(*pendulum, Eigen::Vector2d(0.3, 2.5), testing::RandomCovariance(2, 0.1, &rng));
   CheckCost(*pendulum, Eigen::Vector2d(-0.1, 0.2), 1e-4 * Matrix::Identity(2, 2));
   const Matrix a = testing::RandomCovariance(3, 1.0, &rng);  // a PSD Q on a raw 3-state
-  auto raw = GaussianCost::Saturating(3, -1, a, Eigen::Vector3d(0.1, -0.2, 0.3), {0.7});
+  auto raw = gaussian::GaussianCost::Saturating(3, -1, a, Eigen::Vector3d(0.1, -0.2, 0.3), {0.7});
   ASSERT_TRUE(raw.ok()) << raw.status();
   CheckCost(*raw, Eigen::Vector3d(0.5, 0.0, -0.4), testing::RandomCovariance(3, 0.3, &rng));
 }
@@ -643,14 +643,14 @@ TEST(ExpectedCostTest, SaturatingCostOnTheCartPoleIsTheTipCost) {
   target_z(1) = M_PI;
   target_z(4) = std::sin(M_PI);
   target_z(5) = std::cos(M_PI);
-  auto saturating = GaussianCost::Saturating(4, 1, c.transpose() * c, target_z, {w});
-  auto tip = GaussianCost::Tip(4, 0, 1, l, w);
+  auto saturating = gaussian::GaussianCost::Saturating(4, 1, c.transpose() * c, target_z, {w});
+  auto tip = gaussian::GaussianCost::Tip(4, 0, 1, l, w);
   ASSERT_TRUE(saturating.ok() && tip.ok());
   std::mt19937_64 rng(9);
   for (int trial = 0; trial < 5; ++trial) {
     const Vector m = testing::RandomVector(4, 1.0, &rng);
     const Matrix s = testing::RandomCovariance(4, 0.05, &rng);
-    CostMoments a, b;
+    gaussian::CostMoments a, b;
     ASSERT_TRUE(saturating->Evaluate(m, s, true, &a).ok());
     ASSERT_TRUE(tip->Evaluate(m, s, true, &b).ok());
     EXPECT_NEAR(a.mean, b.mean, 1e-12);
@@ -669,11 +669,11 @@ TEST(ExpectedCostTest, SaturatingCostWithoutAnglesIsTheExpectationOfTheCost) {
   const Matrix q = testing::RandomCovariance(3, 1.0, &rng);
   const Vector target = Eigen::Vector3d(0.2, -0.1, 0.4);
   const std::vector<double> widths = {0.6, 1.3};
-  auto cost = GaussianCost::Saturating(3, -1, q, target, widths);
+  auto cost = gaussian::GaussianCost::Saturating(3, -1, q, target, widths);
   ASSERT_TRUE(cost.ok());
   const Vector m = Eigen::Vector3d(0.5, 0.3, -0.2);
   const Matrix s = testing::RandomCovariance(3, 0.5, &rng);
-  CostMoments closed;
+  gaussian::CostMoments closed;
   ASSERT_TRUE(cost->Evaluate(m, s, false, &closed).ok());
   const Eigen::LLT<Matrix> chol(s);
   std::normal_distribution<double> normal;
@@ -695,12 +695,12 @@ TEST(ExpectedCostTest, SaturatingCostWithoutAnglesIsTheExpectationOfTheCost) {
   EXPECT_GT(closed.mean, 0.05);  // not a trivial case
   Matrix not_psd = q;
   not_psd(0, 0) = -1.0;
-  EXPECT_NE(GaussianCost::Saturating(3, -1, not_psd, target, widths).status().message().find(
+  EXPECT_NE(gaussian::GaussianCost::Saturating(3, -1, not_psd, target, widths).status().message().find(
                 "positive semi-definite"),
             std::string::npos);
-  EXPECT_NE(GaussianCost::Saturating(3, -1, q, target, {0.0}).status().message().find("width"),
+  EXPECT_NE(gaussian::GaussianCost::Saturating(3, -1, q, target, {0.0}).status().message().find("width"),
             std::string::npos);
-  EXPECT_FALSE(GaussianCost::Saturating(3, 1, q, target, widths).ok());  // z would be 5-dim
+  EXPECT_FALSE(gaussian::GaussianCost::Saturating(3, 1, q, target, widths).ok());  // z would be 5-dim
 }
 
 // PILCO's lossSat on z = [x, sin x_a1, cos x_a1, sin x_a2, cos x_a2, ...]
@@ -721,7 +721,7 @@ TEST(ExpectedCostTest, SaturatingCostWithSeveralAnglesMatchesFiniteDifferences) 
       target(d + 2 * k) = std::sin(x_t(angles[k]));
       target(d + 2 * k + 1) = std::cos(x_t(angles[k]));
     }
-    auto cost = GaussianCost::Saturating(d, angles, q, target, {0.8, 2.0});
+    auto cost = gaussian::GaussianCost::Saturating(d, angles, q, target, {0.8, 2.0});
     ASSERT_TRUE(cost.ok()) << cost.status();
     const Vector m = testing::RandomVector(d, 1.0, &rng);
     Matrix s = testing::RandomCovariance(d, 0.2, &rng);
@@ -730,19 +730,19 @@ TEST(ExpectedCostTest, SaturatingCostWithSeveralAnglesMatchesFiniteDifferences) 
 
     // The S_kl entry between the first two angles carries a real gradient
     // (the pair moments); zeroing it must fail the check.
-    CostMoments right;
+    gaussian::CostMoments right;
     ASSERT_TRUE(cost->Evaluate(m, s, true, &right).ok());
     const int a1 = angles[0], a2 = angles[1];
     ASSERT_GT(std::abs(right.dmean_dS(a1, a2)), 1e-4);
     const BlockForward fwd = [&](const Vector& mm, const Matrix& ss, const Vector&, Vector* y) {
-      CostMoments c;
+      gaussian::CostMoments c;
       if (!cost->Evaluate(mm, ss, false, &c).ok()) return false;
       *y = Vector::Constant(1, c.mean);
       return true;
     };
     const BlockBackward wrong = [&](const Vector& mm, const Matrix& ss, const Vector&,
                                     const Vector& yb, Vector* mb, Matrix* sb, Vector*) {
-      CostMoments c;
+      gaussian::CostMoments c;
       if (!cost->Evaluate(mm, ss, true, &c).ok()) return false;
       *mb = yb(0) * c.dmean_dm;
       *sb = yb(0) * c.dmean_dS;
@@ -762,28 +762,28 @@ TEST(ExpectedCostTest, SaturatingCostAngleListIsValidatedAndOneAngleIsUnchanged)
   for (const std::vector<int>& bad :
        {std::vector<int>{2, 1}, std::vector<int>{1, 1}, std::vector<int>{-1, 2},
         std::vector<int>{1, 3}}) {
-    auto c = GaussianCost::Saturating(3, bad, q7, t7, {1.0});
+    auto c = gaussian::GaussianCost::Saturating(3, bad, q7, t7, {1.0});
     ASSERT_FALSE(c.ok());
     EXPECT_NE(c.status().message().find("angle indices"), std::string::npos) << c.status();
   }
   // Q of the wrong size for two angles (z = 3 + 4 = 7).
-  auto wrong_size = GaussianCost::Saturating(3, std::vector<int>{0, 1}, q7.topLeftCorner(5, 5),
+  auto wrong_size = gaussian::GaussianCost::Saturating(3, std::vector<int>{0, 1}, q7.topLeftCorner(5, 5),
                                              t7.head(5), {1.0});
   ASSERT_FALSE(wrong_size.ok());
   EXPECT_NE(wrong_size.status().message().find("7 x 7"), std::string::npos) << wrong_size.status();
   Matrix asym = q7;
   asym(0, 1) += 0.1;
-  auto not_sym = GaussianCost::Saturating(5, std::vector<int>{0}, asym, t7, {1.0});
+  auto not_sym = gaussian::GaussianCost::Saturating(5, std::vector<int>{0}, asym, t7, {1.0});
   ASSERT_FALSE(not_sym.ok());
   EXPECT_NE(not_sym.status().message().find("symmetric"), std::string::npos);
 
   const Matrix q6 = q7.topLeftCorner(6, 6);
-  auto one = GaussianCost::Saturating(4, 1, q6, t7.head(6), {0.5, 1.5});
-  auto list = GaussianCost::Saturating(4, std::vector<int>{1}, q6, t7.head(6), {0.5, 1.5});
+  auto one = gaussian::GaussianCost::Saturating(4, 1, q6, t7.head(6), {0.5, 1.5});
+  auto list = gaussian::GaussianCost::Saturating(4, std::vector<int>{1}, q6, t7.head(6), {0.5, 1.5});
   ASSERT_TRUE(one.ok() && list.ok());
   const Vector m = testing::RandomVector(4, 1.0, &rng);
   const Matrix s = testing::RandomCovariance(4, 0.2, &rng);
-  CostMoments a, b;
+  gaussian::CostMoments a, b;
   ASSERT_TRUE(one->Evaluate(m, s, true, &a).ok());
   ASSERT_TRUE(list->Evaluate(m, s, true, &b).ok());
   EXPECT_EQ(a.mean, b.mean);

@@ -10,8 +10,8 @@
 #include "core/common/rng.h"
 #include "core/diff/gradient_checker.h"
 #include "core/gp/fitc.h"
-#include "core/pilco/angle_features.h"
-#include "core/pilco/expected_cost.h"
+#include "core/gaussian/angle_features.h"
+#include "core/gaussian/expected_cost.h"
 #include "core/pilco/gp_moments.h"
 #include "core/pilco/propagation.h"
 #include "tests/core/pilco/pilco_test_util.h"
@@ -216,7 +216,7 @@ TEST(FitcTest, ChainedGradientWithFitcMatchesFiniteDifferences) {
         -0.9 * std::sin(states(i, 1)) - 0.1 * u(i) * std::cos(states(i, 1));
   }
   RowMatrix features;
-  StatesToFeatures(states, 1, &features);
+  gaussian::StatesToFeatures(states, 1, &features);
   RowMatrix x(n, 6);
   x << features, u;
   gp::GpHyperparameters hyp;
@@ -231,7 +231,7 @@ TEST(FitcTest, ChainedGradientWithFitcMatchesFiniteDifferences) {
   options.angle_index = 1;
   options.num_basis = 5;
   const Propagator prop(&sparse, options);
-  auto cost = GaussianCost::Tip(4, 0, 1, 0.5, 0.25);
+  auto cost = gaussian::GaussianCost::Tip(4, 0, 1, 0.5, 0.25);
   TG_ASSERT_OK(cost.status());
   Vector params(prop.num_parameters());
   params.head(25) = testing::RandomVector(25, 0.3, &gen);

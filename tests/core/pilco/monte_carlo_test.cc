@@ -13,12 +13,12 @@
 #include <string>
 #include <vector>
 
-#include "core/pilco/expected_cost.h"
+#include "core/gaussian/expected_cost.h"
 #include "core/pilco/gp_moments.h"
 #include "core/pilco/policy_moments.h"
 #include "core/pilco/propagation.h"
 #include "core/pilco/saturation.h"
-#include "core/pilco/trig.h"
+#include "core/gaussian/trig.h"
 #include "tests/core/pilco/pilco_test_util.h"
 
 namespace totalgrad::pilco {
@@ -60,7 +60,7 @@ TEST(MonteCarloTest, AugmentWithTrig) {
   const Matrix s = testing::RandomCovariance(4, 0.4, &rng);
   Vector ym;
   Matrix ys;
-  AugmentWithTrig(m, s, 1, &ym, &ys);
+  gaussian::AugmentWithTrig(m, s, 1, &ym, &ys);
   const GaussianSampler sampler(m, s);
   MomentAccumulator acc(6);
   acc.SetShift(ym);
@@ -87,7 +87,7 @@ TEST(MonteCarloTest, AugmentWithSeveralAngles) {
     const Matrix s = testing::RandomCovariance(d, 0.5, &rng);
     Vector ym;
     Matrix ys;
-    AugmentWithTrig(m, s, angles, &ym, &ys);
+    gaussian::AugmentWithTrig(m, s, angles, &ym, &ys);
     const GaussianSampler sampler(m, s);
     MomentAccumulator acc(ny);
     acc.SetShift(ym);
@@ -306,11 +306,11 @@ TEST(MonteCarloTest, AngleCost) {
   std::mt19937_64 rng(15);
   const Vector target = Eigen::Vector4d(0, M_PI, 0, 0);
   const Matrix q = Eigen::Vector4d(1, 1, 0, 0).asDiagonal();
-  auto cost = GaussianCost::Angle(target, q);
+  auto cost = gaussian::GaussianCost::Angle(target, q);
   ASSERT_TRUE(cost.ok());
   const Vector m = Eigen::Vector4d(0.3, 2.5, 0.1, 0.2);
   const Matrix s = testing::RandomCovariance(4, 0.3, &rng);
-  CostMoments cm;
+  gaussian::CostMoments cm;
   ASSERT_TRUE(cost->Evaluate(m, s, false, &cm).ok());
   const GaussianSampler sampler(m, s);
   MomentAccumulator acc(1);
@@ -329,15 +329,15 @@ TEST(MonteCarloTest, AngleCost) {
 // y = [x; sin; cos]: exact for y ~ N(AugmentWithTrig(m, S)).
 TEST(MonteCarloTest, TipCostOnTheAugmentedGaussian) {
   std::mt19937_64 rng(16);
-  auto cost = GaussianCost::Tip(4, 0, 1, 0.5, 0.25);
+  auto cost = gaussian::GaussianCost::Tip(4, 0, 1, 0.5, 0.25);
   ASSERT_TRUE(cost.ok());
   const Vector m = Eigen::Vector4d(0.1, 2.7, 0.1, 0.2);
   const Matrix s = testing::RandomCovariance(4, 0.05, &rng);
-  CostMoments cm;
+  gaussian::CostMoments cm;
   ASSERT_TRUE(cost->Evaluate(m, s, false, &cm).ok());
   Vector ym;
   Matrix ys;
-  AugmentWithTrig(m, s, 1, &ym, &ys);
+  gaussian::AugmentWithTrig(m, s, 1, &ym, &ys);
   const GaussianSampler sampler(ym, ys);
   MomentAccumulator acc(1);
   acc.SetShift(Vector::Constant(1, cm.mean));
@@ -368,15 +368,15 @@ TEST(MonteCarloTest, SaturatingCostSeveralAnglesOnTheAugmentedGaussian) {
   const std::vector<double> widths = {0.7, 1.6};
   Vector ym;
   Matrix ys;
-  AugmentWithTrig(m, s, angles, &ym, &ys);
+  gaussian::AugmentWithTrig(m, s, angles, &ym, &ys);
   // A target near z's mean, so that neither width saturates the cost.
   const Vector target = ym + testing::RandomVector(nz, 0.3, &rng);
   const GaussianSampler sampler(ym, ys);
   double mean_of_means = 0, mean_of_vars = 0;
   for (double w : widths) {
-    auto cost = GaussianCost::Saturating(d, angles, q, target, {w});
+    auto cost = gaussian::GaussianCost::Saturating(d, angles, q, target, {w});
     ASSERT_TRUE(cost.ok()) << cost.status();
-    CostMoments cm;
+    gaussian::CostMoments cm;
     ASSERT_TRUE(cost->Evaluate(m, s, false, &cm).ok());
     mean_of_means += cm.mean / widths.size();
     mean_of_vars += cm.var / widths.size();
@@ -395,9 +395,9 @@ TEST(MonteCarloTest, SaturatingCostSeveralAnglesOnTheAugmentedGaussian) {
     EXPECT_TRUE(WithinMcError(Matrix::Constant(1, 1, cm.var), acc.Cov(), acc.CovStdError(), kSigmas))
         << "width " << w;
   }
-  auto both = GaussianCost::Saturating(d, angles, q, target, widths);
+  auto both = gaussian::GaussianCost::Saturating(d, angles, q, target, widths);
   ASSERT_TRUE(both.ok());
-  CostMoments cm;
+  gaussian::CostMoments cm;
   ASSERT_TRUE(both->Evaluate(m, s, false, &cm).ok());
   EXPECT_NEAR(cm.mean, mean_of_means, 1e-15);
   EXPECT_NEAR(cm.var, mean_of_vars, 1e-15);

@@ -5,7 +5,7 @@
 #include <random>
 
 #include "core/common/rng.h"
-#include "core/pilco/angle_features.h"
+#include "core/gaussian/angle_features.h"
 #include "core/pilco/bfgs.h"
 #include "core/gp/gp.h"
 #include "core/pilco/pilco.h"
@@ -112,7 +112,7 @@ GaussianInputGp CartPoleGp(int n, int angle_index, uint64_t seed, double beta_ce
     y.row(i) = (next - s).transpose();
   }
   RowMatrix features;
-  StatesToFeatures(states, angle_index, &features);
+  gaussian::StatesToFeatures(states, angle_index, &features);
   RowMatrix x(n, features.cols() + 1);
   x << features, u;
   RowMatrix log_hyp(4, x.cols() + 2);
@@ -136,7 +136,7 @@ PilcoProblem SwingUpProblem(int angle_index) {
   p.mu0 = Vector::Zero(4);
   p.S0 = 0.01 * Matrix::Identity(4, 4);
   p.horizon = 15;
-  p.cost = std::make_shared<GaussianCost>(*GaussianCost::Tip(4, 0, 1, 0.5, 0.25));
+  p.cost = std::make_shared<gaussian::GaussianCost>(*gaussian::GaussianCost::Tip(4, 0, 1, 0.5, 0.25));
   p.propagation.angle_index = angle_index;
   p.propagation.num_basis = 5;
   return p;
@@ -263,7 +263,7 @@ TEST(AngleFeaturesTest, MapAndChainRule) {
   RowMatrix states(2, 4);
   states << 0.1, 0.2, 0.3, 0.4, -1, 3.0, 2, 1;
   RowMatrix f;
-  StatesToFeatures(states, 1, &f);
+  gaussian::StatesToFeatures(states, 1, &f);
   ASSERT_EQ(f.cols(), 5);
   EXPECT_DOUBLE_EQ(f(0, 0), 0.1);
   EXPECT_DOUBLE_EQ(f(0, 1), 0.3);
@@ -271,10 +271,10 @@ TEST(AngleFeaturesTest, MapAndChainRule) {
   EXPECT_DOUBLE_EQ(f(1, 3), std::sin(3.0));
   EXPECT_DOUBLE_EQ(f(1, 4), std::cos(3.0));
   RowMatrix fb = RowMatrix::Ones(2, 5), sb;
-  StatesToFeaturesBackward(states, 1, fb, &sb);
+  gaussian::StatesToFeaturesBackward(states, 1, fb, &sb);
   EXPECT_DOUBLE_EQ(sb(1, 1), std::cos(3.0) - std::sin(3.0));
   EXPECT_DOUBLE_EQ(sb(1, 0), 1.0);
-  StatesToFeatures(states, -1, &f);
+  gaussian::StatesToFeatures(states, -1, &f);
   EXPECT_TRUE(f.isApprox(states));
 }
 

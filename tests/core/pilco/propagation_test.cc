@@ -12,7 +12,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "core/diff/gradient_checker.h"
-#include "core/pilco/expected_cost.h"
+#include "core/gaussian/expected_cost.h"
 #include "core/pilco/gp_moments.h"
 #include "core/pilco/propagation.h"
 #include "core/tasks/cartpole.h"
@@ -107,8 +107,8 @@ TEST_P(ChainedObjectiveTest, GradientOver30StepsMatchesFiniteDifferences) {
   options.num_basis = 6;
   const Propagator prop(&gp, options);
   auto cost = std::string(sc.cost) == "tip"
-                  ? GaussianCost::Tip(4, 0, 1, 0.5, 0.25)
-                  : GaussianCost::Angle(Eigen::Vector4d(0, M_PI, 0, 0),
+                  ? gaussian::GaussianCost::Tip(4, 0, 1, 0.5, 0.25)
+                  : gaussian::GaussianCost::Angle(Eigen::Vector4d(0, M_PI, 0, 0),
                                         Eigen::Vector4d(1, 1, 0, 0).asDiagonal().toDenseMatrix());
   ASSERT_TRUE(cost.ok());
   const Vector params = InitialPolicy(prop, 6, 22);
@@ -200,7 +200,7 @@ TEST(ChainedObjectiveTwoAngles, CartDoublePendulumGradientMatchesFiniteDifferenc
   target << 0.0, 0.0, 0.0, 0.0, M_PI - 0.5, M_PI + 0.5;
   Vector q(d);
   q << 1.0, 0.0, 0.0, 0.0, 1.0, 1.0;
-  absl::StatusOr<GaussianCost> cost = GaussianCost::Angle(target, q.asDiagonal().toDenseMatrix());
+  absl::StatusOr<gaussian::GaussianCost> cost = gaussian::GaussianCost::Angle(target, q.asDiagonal().toDenseMatrix());
   ASSERT_TRUE(cost.ok()) << cost.status();
   // Centres at the policy inputs of states around the start, log l = 0, the
   // (sin, cos) ones log 0.7, weights ~ N(0, 1).
@@ -285,7 +285,7 @@ TEST(ChainedObjectiveTwoControls, DoublePendulumGradientMatchesFiniteDifferences
   target << 0.0, 0.0, M_PI - 0.5, M_PI + 0.5;
   Vector q(d);
   q << 0.0, 0.0, 1.0, 1.0;
-  absl::StatusOr<GaussianCost> cost = GaussianCost::Angle(target, q.asDiagonal().toDenseMatrix());
+  absl::StatusOr<gaussian::GaussianCost> cost = gaussian::GaussianCost::Angle(target, q.asDiagonal().toDenseMatrix());
   ASSERT_TRUE(cost.ok()) << cost.status();
   const int ep = prop.policy_input_dim();
   ASSERT_EQ(ep, 6);
@@ -378,7 +378,7 @@ TEST_P(SeparateInputsTest, GradientMatchesFiniteDifferences) {
   Vector zt = Vector::Zero(8);
   zt(6) = 0.0;
   zt(7) = -1.0;
-  auto cost = GaussianCost::Saturating(d, angles, q, zt, {1.0, 2.0});
+  auto cost = gaussian::GaussianCost::Saturating(d, angles, q, zt, {1.0, 2.0});
   ASSERT_TRUE(cost.ok()) << cost.status();
   const int horizon = 15;
   Trajectory tr;
@@ -426,7 +426,7 @@ TEST(SeparateInputsTest, EqualPerControlLengthscalesAreTheSharedPolicy) {
   Vector pa = testing::RandomVector(a.num_parameters(), 0.5, &rng);
   Vector pb(b.num_parameters());
   pb << pa.head(c * ep), pa.segment(c * ep, ep), pa.segment(c * ep, ep), pa.tail(c * f);
-  auto cost = GaussianCost::Saturating(d, std::vector<int>{1},
+  auto cost = gaussian::GaussianCost::Saturating(d, std::vector<int>{1},
                                        testing::RandomCovariance(d + 2, 0.5, &rng),
                                        Vector::Zero(d + 2), {1.0});
   ASSERT_TRUE(cost.ok());
@@ -465,7 +465,7 @@ TEST(SeparateInputsTest, SharedSetIsTheDefaultPathAndBadSetsAreRefused) {
   explicit_sets.dynamics_inputs = {0, 2, 3, 4, 5};
   const Propagator a(&gp, base), b(&gp, explicit_sets);
   Vector params = testing::RandomVector(a.num_parameters(), 0.5, &rng);
-  auto cost = GaussianCost::Tip(d, 0, 1, 0.5, 0.25);
+  auto cost = gaussian::GaussianCost::Tip(d, 0, 1, 0.5, 0.25);
   ASSERT_TRUE(cost.ok());
   const Vector mu0 = Eigen::Vector4d(0.0, 0.2, 0.0, 0.0);
   const Matrix s0 = 0.01 * Matrix::Identity(d, d);
@@ -504,7 +504,7 @@ TEST(PropagationTest, PredictionIncludesNoiseAddsTheNoiseVariance) {
   const Propagator without(&gp, options);
   options.prediction_includes_noise = true;
   const Propagator with(&gp, options);
-  auto cost = GaussianCost::Tip(4, 0, 1, 0.5, 0.25);
+  auto cost = gaussian::GaussianCost::Tip(4, 0, 1, 0.5, 0.25);
   ASSERT_TRUE(cost.ok());
   const Vector params = InitialPolicy(without, 5, 24);
   Trajectory a, b;
@@ -526,14 +526,14 @@ class DegenerateTest : public ::testing::Test {
     options_.angle_index = 1;
     options_.num_basis = 6;
     prop_ = std::make_unique<Propagator>(&gp_, options_);
-    auto c = GaussianCost::Tip(4, 0, 1, 0.5, 0.25);
-    cost_ = std::make_unique<GaussianCost>(*c);
+    auto c = gaussian::GaussianCost::Tip(4, 0, 1, 0.5, 0.25);
+    cost_ = std::make_unique<gaussian::GaussianCost>(*c);
     params_ = InitialPolicy(*prop_, 6, 32);
   }
   GaussianInputGp gp_;
   PropagationOptions options_;
   std::unique_ptr<Propagator> prop_;
-  std::unique_ptr<GaussianCost> cost_;
+  std::unique_ptr<gaussian::GaussianCost> cost_;
   Vector params_;
 };
 

@@ -15,7 +15,7 @@
 
 #include "core/common/rng.h"
 #include "core/diff/gradient_checker.h"
-#include "core/pilco/angle_features.h"
+#include "core/gaussian/angle_features.h"
 #include "core/pilco/pilco.h"
 #include "core/pilco/saturation.h"
 #include "core/tasks/cartpole.h"
@@ -46,7 +46,7 @@ GaussianInputGp CartPoleGp(int n, int angle_index, uint64_t seed) {
     targets.row(i) = (next - s).transpose();
   }
   RowMatrix features;
-  StatesToFeatures(states, angle_index, &features);
+  gaussian::StatesToFeatures(states, angle_index, &features);
   RowMatrix inputs(n, features.cols() + 1);
   inputs << features, forces;
   const int e = static_cast<int>(inputs.cols());
@@ -75,8 +75,8 @@ class PilcoExtremes : public ::testing::TestWithParam<int> {  // the angle index
     problem_.horizon = kHorizon;
     tasks::State target;
     target << 0, M_PI, 0, 0;
-    problem_.cost = std::make_shared<GaussianCost>(
-        *GaussianCost::Angle(target, Eigen::Vector4d(1, 1, 0, 0).asDiagonal().toDenseMatrix()));
+    problem_.cost = std::make_shared<gaussian::GaussianCost>(
+        *gaussian::GaussianCost::Angle(target, Eigen::Vector4d(1, 1, 0, 0).asDiagonal().toDenseMatrix()));
     problem_.propagation.angle_index = angle_index_;
     problem_.propagation.num_basis = kBasis;
     Rng rng(42, Stream::kPolicyInit);

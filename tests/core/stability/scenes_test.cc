@@ -29,7 +29,7 @@
 #include "core/learner/trial.h"
 #include "core/ode/integrator.h"
 #include "core/pilco/saturation.h"
-#include "core/pilco/trig.h"
+#include "core/gaussian/trig.h"
 #include "core/study/frozen_problem.h"
 #include "core/tasks/scene.h"
 #include "core/tasks/scene_catalog.h"
@@ -276,7 +276,7 @@ TEST(SceneFeatureExtremes, TwoAnglesAtVariance1e3) {
               r.max_relative_error, r.max_abs_error, check.absolute_tolerance, r.log.c_str());
 }
 
-// The one-angle trig block of PILCO's moment matching (pilco::AugmentWithTrig)
+// The one-angle trig block of PILCO's moment matching (gaussian::AugmentWithTrig)
 // applied to each of two angles in turn, at variance 1e3: for independent
 // angles the result is the exact joint Gaussian moments of
 // [x, sin a1, cos a1, sin a2, cos a2] (checked against the closed form:
@@ -293,8 +293,8 @@ TEST(SceneFeatureExtremes, OneAngleTrigBlockOnTwoAnglesAtVariance1e3) {
   s(2, 2) = s(3, 3) = 1e3;
   Vector y1, y2;
   Matrix c1, c2;
-  pilco::AugmentWithTrig(m, s, 2, &y1, &c1);
-  pilco::AugmentWithTrig(y1, c1, 3, &y2, &c2);
+  gaussian::AugmentWithTrig(m, s, 2, &y1, &c1);
+  gaussian::AugmentWithTrig(y1, c1, 3, &y2, &c2);
   ASSERT_EQ(y2.size(), 8);
   EXPECT_TRUE(y2.allFinite() && c2.allFinite());
   EXPECT_EQ((c2 - c2.transpose()).cwiseAbs().maxCoeff(), 0.0);
@@ -313,8 +313,8 @@ TEST(SceneFeatureExtremes, OneAngleTrigBlockOnTwoAnglesAtVariance1e3) {
 
   // Correlated (rho = 0.9999): the joint moment the one-angle block cannot give.
   s(2, 3) = s(3, 2) = 0.9999e3;
-  pilco::AugmentWithTrig(m, s, 2, &y1, &c1);
-  pilco::AugmentWithTrig(y1, c1, 3, &y2, &c2);
+  gaussian::AugmentWithTrig(m, s, 2, &y1, &c1);
+  gaussian::AugmentWithTrig(y1, c1, 3, &y2, &c2);
   const double var_diff = s(2, 2) + s(3, 3) - 2 * s(2, 3);
   const double var_sum = s(2, 2) + s(3, 3) + 2 * s(2, 3);
   const double exact_ss = 0.5 * (std::exp(-var_diff / 2) * std::cos(m(2) - m(3)) -
@@ -338,7 +338,7 @@ TEST(SceneFeatureExtremes, SeveralAnglesJointBlockAtVariance1e3) {
   s(2, 3) = s(3, 2) = 0.9999e3;
   Vector y;
   Matrix c;
-  pilco::AugmentWithTrig(m, s, std::vector<int>{2, 3}, &y, &c);
+  gaussian::AugmentWithTrig(m, s, std::vector<int>{2, 3}, &y, &c);
   ASSERT_EQ(y.size(), 8);
   EXPECT_TRUE(y.allFinite() && c.allFinite());
   EXPECT_LE((c - c.transpose()).cwiseAbs().maxCoeff(), 1e-15);

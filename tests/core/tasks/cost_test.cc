@@ -11,7 +11,7 @@
 
 #include "core/common/rng.h"
 #include "core/diff/gradient_checker.h"
-#include "core/pilco/trig.h"
+#include "core/gaussian/trig.h"
 #include "core/tasks/scene.h"
 #include "core/tasks/scene_catalog.h"
 #include "tests/core/pilco/pilco_test_util.h"
@@ -253,12 +253,12 @@ TEST(SaturatingCostTest, EverySceneHasTheClosedForm) {
     absl::StatusOr<Scene> scene = MakeScene(options);
     ASSERT_TRUE(scene.ok()) << s.name << ": " << scene.status();
     ASSERT_EQ(scene->cost->Name(), "saturating") << s.name;
-    absl::StatusOr<pilco::GaussianCost> closed = scene->cost->GaussianExpectation();
+    absl::StatusOr<gaussian::GaussianCost> closed = scene->cost->GaussianExpectation();
     ASSERT_TRUE(closed.ok()) << s.name << ": " << closed.status();
     Vector x = s.target;
     for (Eigen::Index i = 0; i < x.size(); ++i) x(i) += 0.3 * static_cast<double>(i + 1);
     const Matrix tiny = 1e-14 * Matrix::Identity(x.size(), x.size());
-    pilco::CostMoments moments;
+    gaussian::CostMoments moments;
     ASSERT_TRUE(closed->Evaluate(x, tiny, true, &moments).ok());
     EXPECT_NEAR(moments.mean, scene->cost->Value(x), 1e-9) << s.name;
     if (s.angle_indices.size() > 1) {
@@ -272,13 +272,13 @@ TEST(SaturatingCostTest, EverySceneHasTheClosedForm) {
       target_z(s.state_dim() + 2 * a) = std::sin(s.target(s.angle_indices[a]));
       target_z(s.state_dim() + 2 * a + 1) = std::cos(s.target(s.angle_indices[a]));
     }
-    absl::StatusOr<pilco::GaussianCost> before = pilco::GaussianCost::Saturating(
+    absl::StatusOr<gaussian::GaussianCost> before = gaussian::GaussianCost::Saturating(
         s.state_dim(), s.angle_indices.empty() ? -1 : s.angle_indices[0], s.saturating_cost.q,
         target_z, s.saturating_cost.widths);
     ASSERT_TRUE(before.ok()) << before.status();
     std::mt19937_64 rng(41);
     const Matrix cov = pilco::testing::RandomCovariance(s.state_dim(), 0.05, &rng);
-    pilco::CostMoments now, then;
+    gaussian::CostMoments now, then;
     ASSERT_TRUE(closed->Evaluate(x, cov, true, &now).ok());
     ASSERT_TRUE(before->Evaluate(x, cov, true, &then).ok());
     EXPECT_EQ(now.mean, then.mean) << s.name;
@@ -316,7 +316,7 @@ TEST(SaturatingCostTest, SeveralAngleScenesGaussianExpectationMatchesMonteCarloA
     options.cost = "saturating";
     absl::StatusOr<Scene> scene = MakeScene(options);
     ASSERT_TRUE(scene.ok()) << scene.status();
-    absl::StatusOr<pilco::GaussianCost> closed = scene->cost->GaussianExpectation();
+    absl::StatusOr<gaussian::GaussianCost> closed = scene->cost->GaussianExpectation();
     ASSERT_TRUE(closed.ok()) << closed.status();
     const int d = s.state_dim();
     const int nz = d + 2 * static_cast<int>(s.angle_indices.size());
@@ -328,7 +328,7 @@ TEST(SaturatingCostTest, SeveralAngleScenesGaussianExpectationMatchesMonteCarloA
     const Matrix cov = pilco::testing::RandomCovariance(d, 0.02, &rng);
     const int a1 = s.angle_indices[0], a2 = s.angle_indices[1];
     ASSERT_GT(std::abs(cov(a1, a2)), 1e-3);  // correlated angles: the pair blocks matter
-    pilco::CostMoments cm;
+    gaussian::CostMoments cm;
     ASSERT_TRUE(closed->Evaluate(m, cov, true, &cm).ok());
     EXPECT_GT(cm.mean, 0.05);
     EXPECT_LT(cm.mean, 0.95);
@@ -353,7 +353,7 @@ TEST(SaturatingCostTest, SeveralAngleScenesGaussianExpectationMatchesMonteCarloA
     // z's moments under x ~ N(m, S): what the closed form's Gaussian must be.
     Vector zm;
     Matrix zs;
-    pilco::AugmentWithTrig(m, cov, s.angle_indices, &zm, &zs);
+    gaussian::AugmentWithTrig(m, cov, s.angle_indices, &zm, &zs);
     const pilco::testing::GaussianSampler x_sampler(m, cov);
     pilco::testing::MomentAccumulator z_acc(nz);
     z_acc.SetShift(zm);
@@ -402,7 +402,7 @@ TEST(SaturatingCostTest, SeveralAngleScenesGaussianExpectationMatchesMonteCarloA
     // Gradient with respect to (m, S), S through its lower triangle.
     const pilco::testing::BlockForward fwd = [&](const Vector& mm, const Matrix& ss, const Vector&,
                                                  Vector* y) {
-      pilco::CostMoments c;
+      gaussian::CostMoments c;
       if (!closed->Evaluate(mm, ss, false, &c).ok()) return false;
       *y = Vector::Constant(1, c.mean);
       return true;
@@ -410,7 +410,7 @@ TEST(SaturatingCostTest, SeveralAngleScenesGaussianExpectationMatchesMonteCarloA
     const auto backward = [&](bool drop_pair) -> pilco::testing::BlockBackward {
       return [&, drop_pair](const Vector& mm, const Matrix& ss, const Vector&, const Vector& yb,
                             Vector* mb, Matrix* sb, Vector*) {
-        pilco::CostMoments c;
+        gaussian::CostMoments c;
         if (!closed->Evaluate(mm, ss, true, &c).ok()) return false;
         *mb = yb(0) * c.dmean_dm;
         *sb = yb(0) * c.dmean_dS;

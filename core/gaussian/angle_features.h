@@ -12,8 +12,8 @@
 // A GP input is the features followed by the force u.
 //
 // Thread safety: pure functions.
-#ifndef TOTALGRAD_CORE_PILCO_ANGLE_FEATURES_H_
-#define TOTALGRAD_CORE_PILCO_ANGLE_FEATURES_H_
+#ifndef TOTALGRAD_CORE_GAUSSIAN_ANGLE_FEATURES_H_
+#define TOTALGRAD_CORE_GAUSSIAN_ANGLE_FEATURES_H_
 
 #include <cmath>
 #include <vector>
@@ -21,7 +21,7 @@
 #include "core/common/check.h"
 #include "core/common/types.h"
 
-namespace totalgrad::pilco {
+namespace totalgrad::gaussian {
 
 inline int FeatureDim(int state_dim, int angle_index) {
   return angle_index >= 0 ? state_dim + 1 : state_dim;
@@ -110,6 +110,6 @@ inline Vector StateFeatures(const Vector& x, const std::vector<int>& angle_indic
   return f.row(0).transpose();
 }
 
-}  // namespace totalgrad::pilco
+}  // namespace totalgrad::gaussian
 
-#endif  // TOTALGRAD_CORE_PILCO_ANGLE_FEATURES_H_
+#endif  // TOTALGRAD_CORE_GAUSSIAN_ANGLE_FEATURES_H_

@@ -4,8 +4,8 @@
 // so it may run on any thread, including threads that libraries start before
 // main() could block signals; the waiting thread does the real work outside
 // signal context.
-#ifndef TOTALGRAD_SERVER_COMMON_SIGNALS_H_
-#define TOTALGRAD_SERVER_COMMON_SIGNALS_H_
+#ifndef TOTALGRAD_RUNTIME_SIGNALS_H_
+#define TOTALGRAD_RUNTIME_SIGNALS_H_
 
 namespace totalgrad {
 
@@ -17,4 +17,4 @@ int WaitForShutdownSignal();
 
 }  // namespace totalgrad
 
-#endif  // TOTALGRAD_SERVER_COMMON_SIGNALS_H_
+#endif  // TOTALGRAD_RUNTIME_SIGNALS_H_

@@ -1,4 +1,4 @@
-#include "server/common/token_file.h"
+#include "runtime/token_file.h"
 
 #include <sys/stat.h>
 

@@ -1,4 +1,4 @@
-#include "server/common/signals.h"
+#include "runtime/signals.h"
 
 #include <errno.h>
 #include <fcntl.h>

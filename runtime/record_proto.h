@@ -17,8 +17,8 @@
 //
 // Header only, used by the coordinator (server/service/convert.cc) and the
 // worker (worker/study_runner.cc). Thread safety: plain functions.
-#ifndef TOTALGRAD_SERVER_COMMON_RECORD_PROTO_H_
-#define TOTALGRAD_SERVER_COMMON_RECORD_PROTO_H_
+#ifndef TOTALGRAD_RUNTIME_RECORD_PROTO_H_
+#define TOTALGRAD_RUNTIME_RECORD_PROTO_H_
 
 #include <cmath>
 #include <limits>
@@ -258,4 +258,4 @@ void RecordFromProto(const record::FieldTable<R>& table, const google::protobuf:
 
 }  // namespace totalgrad::record_proto
 
-#endif  // TOTALGRAD_SERVER_COMMON_RECORD_PROTO_H_
+#endif  // TOTALGRAD_RUNTIME_RECORD_PROTO_H_

@@ -7,8 +7,8 @@
 // service is idempotent (a timed-out call may have been committed).
 //
 // Threading: free functions; a Channel may be shared by many threads.
-#ifndef TOTALGRAD_SERVER_COMMON_RPC_CLIENT_H_
-#define TOTALGRAD_SERVER_COMMON_RPC_CLIENT_H_
+#ifndef TOTALGRAD_RUNTIME_RPC_CLIENT_H_
+#define TOTALGRAD_RUNTIME_RPC_CLIENT_H_
 
 #include <grpcpp/channel.h>
 #include <grpcpp/client_context.h>
@@ -108,4 +108,4 @@ void PrepareContext(grpc::ClientContext* context, const std::string& token,
 
 }  // namespace totalgrad::rpc
 
-#endif  // TOTALGRAD_SERVER_COMMON_RPC_CLIENT_H_
+#endif  // TOTALGRAD_RUNTIME_RPC_CLIENT_H_

@@ -1,4 +1,4 @@
-#include "server/common/rpc_client.h"
+#include "runtime/rpc_client.h"
 
 #include <grpcpp/create_channel.h>
 #include <grpcpp/security/credentials.h>
@@ -10,8 +10,8 @@
 #include <thread>
 
 #include "absl/strings/str_cat.h"
-#include "server/common/address.h"
-#include "server/common/status_origin.h"
+#include "runtime/address.h"
+#include "runtime/status_origin.h"
 
 namespace totalgrad::rpc {
 namespace {

@@ -8,8 +8,8 @@
 // reverse-mode accumulation over a horizon needs.
 //
 // Thread safety: free functions, no shared state.
-#ifndef TOTALGRAD_CORE_PILCO_TRIG_H_
-#define TOTALGRAD_CORE_PILCO_TRIG_H_
+#ifndef TOTALGRAD_CORE_GAUSSIAN_TRIG_H_
+#define TOTALGRAD_CORE_GAUSSIAN_TRIG_H_
 
 #include <vector>
 
@@ -17,7 +17,7 @@
 
 #include "core/common/types.h"
 
-namespace totalgrad::pilco {
+namespace totalgrad::gaussian {
 
 // Moments of (sin t, cos t) for t ~ N(mean, var), var >= 0.
 struct TrigMoments {
@@ -69,6 +69,6 @@ void AugmentWithTrigBackward(const Vector& m, const Matrix& S, const std::vector
                              const Vector& y_mean_bar, const Matrix& y_cov_bar, Vector* m_bar,
                              Matrix* S_bar);
 
-}  // namespace totalgrad::pilco
+}  // namespace totalgrad::gaussian
 
-#endif  // TOTALGRAD_CORE_PILCO_TRIG_H_
+#endif  // TOTALGRAD_CORE_GAUSSIAN_TRIG_H_

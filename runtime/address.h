@@ -1,6 +1,6 @@
 // Network address helpers shared by the coordinator, worker and CLI.
-#ifndef TOTALGRAD_SERVER_COMMON_ADDRESS_H_
-#define TOTALGRAD_SERVER_COMMON_ADDRESS_H_
+#ifndef TOTALGRAD_RUNTIME_ADDRESS_H_
+#define TOTALGRAD_RUNTIME_ADDRESS_H_
 
 #include <string>
 
@@ -13,4 +13,4 @@ bool IsLoopbackAddress(const std::string& address);
 
 }  // namespace totalgrad
 
-#endif  // TOTALGRAD_SERVER_COMMON_ADDRESS_H_
+#endif  // TOTALGRAD_RUNTIME_ADDRESS_H_

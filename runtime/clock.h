@@ -7,8 +7,8 @@
 // deadline is measured on it, never on the wall clock).
 //
 // Threading: implementations are safe to call from any thread.
-#ifndef TOTALGRAD_SERVER_COMMON_CLOCK_H_
-#define TOTALGRAD_SERVER_COMMON_CLOCK_H_
+#ifndef TOTALGRAD_RUNTIME_CLOCK_H_
+#define TOTALGRAD_RUNTIME_CLOCK_H_
 
 #include <atomic>
 #include <cstdint>
@@ -71,4 +71,4 @@ class FakeClock final : public Clock {
 
 }  // namespace totalgrad
 
-#endif  // TOTALGRAD_SERVER_COMMON_CLOCK_H_
+#endif  // TOTALGRAD_RUNTIME_CLOCK_H_

@@ -1,4 +1,4 @@
-#include "core/pilco/expected_cost.h"
+#include "core/gaussian/expected_cost.h"
 
 #include <cmath>
 
@@ -7,9 +7,9 @@
 
 #include "absl/strings/str_cat.h"
 #include "core/common/check.h"
-#include "core/pilco/trig.h"
+#include "core/gaussian/trig.h"
 
-namespace totalgrad::pilco {
+namespace totalgrad::gaussian {
 
 absl::Status ExpectedSaturatingCost(const Matrix& F, const Vector& z, const Vector& m,
                                     const Matrix& S, bool with_gradient, CostMoments* out) {
@@ -226,4 +226,4 @@ absl::Status GaussianCost::Evaluate(const Vector& m, const Matrix& S, bool with_
   return absl::OkStatus();
 }
 
-}  // namespace totalgrad::pilco
+}  // namespace totalgrad::gaussian

@@ -1,10 +1,10 @@
-#include "core/pilco/trig.h"
+#include "core/gaussian/trig.h"
 
 #include <cmath>
 
 #include "core/common/check.h"
 
-namespace totalgrad::pilco {
+namespace totalgrad::gaussian {
 
 Eigen::Matrix<double, 5, 1> TrigMoments::AsVector() const {
   Eigen::Matrix<double, 5, 1> v;
@@ -259,4 +259,4 @@ void AugmentWithTrigBackward(const Vector& m, const Matrix& S, const std::vector
   }
 }
 
-}  // namespace totalgrad::pilco
+}  // namespace totalgrad::gaussian

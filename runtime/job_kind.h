@@ -9,8 +9,8 @@
 //
 // Header only: the worker's runtime, the sweep library and the store include
 // it without linking one another.
-#ifndef TOTALGRAD_SERVER_COMMON_JOB_KIND_H_
-#define TOTALGRAD_SERVER_COMMON_JOB_KIND_H_
+#ifndef TOTALGRAD_RUNTIME_JOB_KIND_H_
+#define TOTALGRAD_RUNTIME_JOB_KIND_H_
 
 namespace totalgrad {
 
@@ -18,4 +18,4 @@ enum class JobKind { kTrial, kStudy };
 
 }  // namespace totalgrad
 
-#endif  // TOTALGRAD_SERVER_COMMON_JOB_KIND_H_
+#endif  // TOTALGRAD_RUNTIME_JOB_KIND_H_

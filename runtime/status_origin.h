@@ -8,8 +8,8 @@
 // deleted database (the coordinator refused; a worker retries it, a user
 // must act on the coordinator's side) is told apart from UNAVAILABLE of an
 // unreachable address. Header only: both sides of the wire use it.
-#ifndef TOTALGRAD_SERVER_COMMON_STATUS_ORIGIN_H_
-#define TOTALGRAD_SERVER_COMMON_STATUS_ORIGIN_H_
+#ifndef TOTALGRAD_RUNTIME_STATUS_ORIGIN_H_
+#define TOTALGRAD_RUNTIME_STATUS_ORIGIN_H_
 
 #include <grpcpp/support/status.h>
 
@@ -48,4 +48,4 @@ inline bool AnsweredByCoordinator(const grpc::Status& status) {
 
 }  // namespace totalgrad::rpc
 
-#endif  // TOTALGRAD_SERVER_COMMON_STATUS_ORIGIN_H_
+#endif  // TOTALGRAD_RUNTIME_STATUS_ORIGIN_H_

@@ -2,8 +2,8 @@
 // way).
 //
 // Threading: free functions, no shared state.
-#ifndef TOTALGRAD_SERVER_COMMON_TOKEN_FILE_H_
-#define TOTALGRAD_SERVER_COMMON_TOKEN_FILE_H_
+#ifndef TOTALGRAD_RUNTIME_TOKEN_FILE_H_
+#define TOTALGRAD_RUNTIME_TOKEN_FILE_H_
 
 #include <string>
 
@@ -25,4 +25,4 @@ absl::StatusOr<TokenFile> ReadTokenFile(const std::string& path);
 
 }  // namespace totalgrad
 
-#endif  // TOTALGRAD_SERVER_COMMON_TOKEN_FILE_H_
+#endif  // TOTALGRAD_RUNTIME_TOKEN_FILE_H_

@@ -18,8 +18,8 @@
 //    (AugmentWithTrig).
 //
 // Thread safety: const methods are thread-safe.
-#ifndef TOTALGRAD_CORE_PILCO_EXPECTED_COST_H_
-#define TOTALGRAD_CORE_PILCO_EXPECTED_COST_H_
+#ifndef TOTALGRAD_CORE_GAUSSIAN_EXPECTED_COST_H_
+#define TOTALGRAD_CORE_GAUSSIAN_EXPECTED_COST_H_
 
 #include <vector>
 
@@ -27,7 +27,7 @@
 #include "absl/status/statusor.h"
 #include "core/common/types.h"
 
-namespace totalgrad::pilco {
+namespace totalgrad::gaussian {
 
 struct CostMoments {
   double mean = 0;   // E[c]
@@ -87,6 +87,6 @@ class GaussianCost {
   Vector z_;
 };
 
-}  // namespace totalgrad::pilco
+}  // namespace totalgrad::gaussian
 
-#endif  // TOTALGRAD_CORE_PILCO_EXPECTED_COST_H_
+#endif  // TOTALGRAD_CORE_GAUSSIAN_EXPECTED_COST_H_

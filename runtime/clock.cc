@@ -1,4 +1,4 @@
-#include "server/common/clock.h"
+#include "runtime/clock.h"
 
 #include <algorithm>
 #include <chrono>

@@ -1,4 +1,4 @@
-#include "server/common/address.h"
+#include "runtime/address.h"
 
 namespace totalgrad {
 

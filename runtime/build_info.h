@@ -2,8 +2,8 @@
 // when the tree had local changes at configure time), compiler and flags.
 // Stored with every sweep (coordinator) and every attempt (worker), so each
 // number in the database can be traced to the code that produced it.
-#ifndef TOTALGRAD_SERVER_COMMON_BUILD_INFO_H_
-#define TOTALGRAD_SERVER_COMMON_BUILD_INFO_H_
+#ifndef TOTALGRAD_RUNTIME_BUILD_INFO_H_
+#define TOTALGRAD_RUNTIME_BUILD_INFO_H_
 
 #include <string>
 
@@ -16,4 +16,4 @@ std::string ProjectVersion();
 
 }  // namespace totalgrad
 
-#endif  // TOTALGRAD_SERVER_COMMON_BUILD_INFO_H_
+#endif  // TOTALGRAD_RUNTIME_BUILD_INFO_H_
