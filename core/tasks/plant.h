@@ -9,6 +9,9 @@
 //   CartDoublePendulum  [x, dx, dtheta1, dtheta2, theta1, theta2], 1 force
 //   DoublePendulum      [dtheta1, dtheta2, theta1, theta2], torques through an
 //                       input map (two torques; the pendubot's one, at joint 1)
+//   Unicycle            PILCO's 12 ODE states, 2 torques (unicycle.h; not yet
+//                       a scene of the catalog: its cost, linear policy and
+//                       augmented state come with it)
 // Units SI, angles in radians, never wrapped.
 //
 // Thread safety: plants are immutable after construction; const methods are

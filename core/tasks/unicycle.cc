@@ -1,0 +1,147 @@
+#include "core/tasks/unicycle.h"
+
+#include <cmath>
+#include <utility>
+
+#include <Eigen/LU>
+
+#include "core/common/check.h"
+
+namespace totalgrad::tasks {
+namespace {
+
+// The constants with short names, and the combinations the equations use.
+struct Constants {
+  explicit Constants(const UnicycleParams& p)
+      : mt(p.turntable_mass), mw(p.wheel_mass), mf(p.frame_mass), rw(p.wheel_radius),
+        rf(p.frame_centre_to_wheel), rt(p.frame_centre_to_turntable),
+        r(p.frame_centre_to_wheel + p.frame_centre_to_turntable), cw(p.wheel_axial_inertia),
+        aw(p.wheel_diametral_inertia), cf(p.frame_inertia_c), bf(p.frame_inertia_b),
+        af(p.frame_inertia_a), ct(p.turntable_axial_inertia),
+        at(p.turntable_diametral_inertia), g(p.gravity), total_mass(mw + mf + mt),
+        first_moment(mf * rf + mt * r), second_moment(mf * rf * rf + mt * r * r),
+        pitch_inertia(cw + at + second_moment) {}
+  double mt, mw, mf, rw, rf, rt, r, cw, aw, cf, bf, af, ct, at, g;
+  double total_mass;     // M
+  double first_moment;   // L = mf rf + mt r: frame and turntable about the axle
+  double second_moment;  // mf rf^2 + mt r^2
+  double pitch_inertia;  // Cw + At + mf rf^2 + mt r^2 (see unicycle.h on Cw)
+};
+
+// The configuration's trigonometry and the body rates of unicycle.h.
+struct Rates {
+  explicit Rates(const Vector& x) {
+    dtheta = x(Unicycle::kRollRate);
+    dphi = x(Unicycle::kYawRate);
+    dpsiw = x(Unicycle::kWheelRate);
+    dpsif = x(Unicycle::kPitchRate);
+    dpsit = x(Unicycle::kTurntableRate);
+    st = std::sin(x(Unicycle::kRoll));
+    ct = std::cos(x(Unicycle::kRoll));
+    sf = std::sin(x(Unicycle::kPitch));
+    cf = std::cos(x(Unicycle::kPitch));
+    w1 = dphi * sf * ct + cf * dtheta;
+    w2 = -dphi * cf * ct + sf * dtheta;
+    w3 = -dphi * st + dpsif;
+    wheel_spin = -dphi * st + dpsiw;
+    turntable_spin = -w2 + dpsit;
+    yaw_roll = dphi * ct * dtheta;
+    // The velocity parts of d(w2)/dt and d(w1)/dt.
+    dw2 = dphi * sf * dpsif * ct + dphi * cf * st * dtheta + cf * dpsif * dtheta;
+    dw1 = dphi * cf * dpsif * ct - dphi * sf * st * dtheta - dpsif * sf * dtheta;
+  }
+  double dtheta, dphi, dpsiw, dpsif, dpsit;
+  double st, ct, sf, cf;
+  double w1, w2, w3, wheel_spin, turntable_spin, yaw_roll, dw1, dw2;
+};
+
+}  // namespace
+
+Unicycle::Unicycle(const UnicycleParams& params, double dt,
+                   const ode::IntegratorOptions& integrator)
+    : Plant(dt, integrator), params_(params) {}
+
+void Unicycle::Derivative(const Vector& x, const Vector& u, Vector* dxdt) const {
+  TG_CHECK(x.size() == 12 && u.size() == 2);
+  const Constants k(params_);
+  const Rates q(x);
+  const double rw = k.rw, g = k.g;
+  const double st = q.st, ct = q.ct, sf = q.sf, cf = q.cf;
+  const double w1 = q.w1, w2 = q.w2, w3 = q.w3, ww = q.wheel_spin, wt = q.turntable_spin;
+  // Velocity terms of a point mass m at distance l along the frame's axis
+  // (the frame's centre, l = rf, or the turntable's, l = r): along the wheel's
+  // forward direction (q_along), the axle (r_axle) and the frame's axis
+  // (s_axis), with gravity's share (g_along, h_axle).
+  auto q_along = [&](double l) {
+    return sf * q.dpsif * ww * rw + cf * q.yaw_roll * rw - w3 * sf * ww * rw + q.yaw_roll * l -
+           w2 * (q.dtheta * rw + w1 * l);
+  };
+  auto r_axle = [&](double l) {
+    return w1 * sf * ww * rw + q.dw1 * l + w2 * (-cf * ww * rw - w3 * l);
+  };
+  auto s_axis = [&](double l) {
+    return -cf * q.dpsif * ww * rw + sf * q.yaw_roll * rw + w1 * (q.dtheta * rw + w1 * l) -
+           w3 * (-cf * ww * rw - w3 * l);
+  };
+  auto g_along = [&](double l, double m) { return m * (g * sf * ct + q_along(l)); };
+  auto h_axle = [&](double l, double m) { return m * (g * st - r_axle(l)); };
+  const double f_frame = g_along(k.rf, k.mf), f_turntable = g_along(k.r, k.mt);
+  const double k1 = -(k.af + k.ct) * q.dw2 + (k.bf - k.cf) * w1 * w3;
+  const double k2 = -(k.bf + k.at) * q.dw1 + (k.cf - k.af + k.at) * w2 * w3 + k.ct * w3 * wt +
+                    k.rf * (h_axle(k.rf, k.mf) + h_axle(k.r, k.mt)) + k.rt * h_axle(k.r, k.mt);
+  const double gyro = (k.af - k.bf - k.at) * w1 * w2 - k.ct * w1 * wt;
+  const double lean = k.rf * (f_frame + f_turntable) + k.rt * f_turntable;
+  Eigen::Matrix<double, 5, 1> b;
+  b(0) = -u(0) - k.ct * q.dw2;
+  b(1) = -u(1) + (k.cw + k.at) * q.yaw_roll + gyro + lean;
+  b(2) = -2.0 * k.aw * q.dphi * st * q.dtheta - k.cw * q.dtheta * ww + cf * k1 - sf * k2;
+  b(3) = -k.aw * q.dphi * q.dphi * st * ct - k.cw * q.dphi * ct * ww -
+         rw * (k.mw * rw * q.dphi * ct * ww - k.total_mass * g * st + k.mf * r_axle(k.rf) +
+               k.mt * r_axle(k.r)) +
+         sf * k1 + cf * k2;
+  b(4) = (2.0 * k.cw + k.at) * q.yaw_roll + gyro + lean +
+         rw * (2.0 * k.mw * rw * q.yaw_roll +
+               sf * (k.mf * s_axis(k.rf) + k.mt * s_axis(k.r) - (k.mf + k.mt) * g * cf * ct) +
+               cf * (f_frame + f_turntable));
+  const double lever = rw * k.first_moment;  // rw L
+  const double m_rw2 = k.total_mass * rw * rw;
+  Eigen::Matrix<double, 5, 5> a = Eigen::Matrix<double, 5, 5>::Zero();
+  a.row(0) << -k.ct * sf, k.ct * cf * ct, 0.0, 0.0, k.ct;
+  a.row(1) << 0.0, st * (k.pitch_inertia + cf * lever), -cf * lever, -k.pitch_inertia, 0.0;
+  a.row(2) << sf * (cf * (k.bf + k.at - k.af - k.ct + k.second_moment) + lever),
+      ct * (k.aw + cf * cf * (k.af + k.ct) + sf * sf * (k.bf + k.at + k.second_moment)), 0.0,
+      0.0, k.ct * cf;
+  a.row(3) << -(k.aw + m_rw2 + 2.0 * cf * lever + sf * sf * (k.af + k.ct) +
+                cf * cf * (k.bf + k.at + k.second_moment)),
+      sf * ct * (cf * (k.af + k.ct - k.bf - k.at - k.second_moment) - lever), 0.0, 0.0,
+      k.ct * sf;
+  a.row(4) << 0.0,
+      st * (2.0 * k.cw + k.at + k.second_moment + 2.0 * cf * lever + m_rw2),
+      -(k.cw + m_rw2 + cf * lever), -(k.pitch_inertia + cf * lever), 0.0;
+  const Eigen::Matrix<double, 5, 1> accelerations = -a.partialPivLu().solve(b);
+  dxdt->resize(12);
+  dxdt->head<5>() = accelerations;
+  (*dxdt)(kX) = rw * std::cos(x(kYaw)) * q.dpsiw;
+  (*dxdt)(kY) = rw * std::sin(x(kYaw)) * q.dpsiw;
+  dxdt->tail<5>() = x.head<5>();
+}
+
+double Unicycle::Energy(const Vector& x) const {
+  TG_CHECK(x.size() == 12);
+  const Constants k(params_);
+  const Rates q(x);
+  const double rw = k.rw, ww = q.wheel_spin;
+  double energy = 0.5 * (k.aw * (q.dtheta * q.dtheta + q.dphi * q.dphi * q.ct * q.ct) +
+                         k.cw * ww * ww + k.mw * rw * rw * (ww * ww + q.dtheta * q.dtheta));
+  energy += 0.5 * (k.bf * q.w1 * q.w1 + k.af * q.w2 * q.w2 + k.cw * q.w3 * q.w3 +
+                   k.at * (q.w1 * q.w1 + q.w3 * q.w3) + k.ct * q.turntable_spin * q.turntable_spin);
+  for (const auto& [m, l] : {std::pair{k.mf, k.rf}, std::pair{k.mt, k.r}}) {
+    const double forward = rw * ww * q.cf + l * q.w3;
+    const double sideways = rw * q.dtheta + l * q.w1;
+    const double along_axis = rw * ww * q.sf;
+    energy += 0.5 * m * (forward * forward + sideways * sideways + along_axis * along_axis);
+  }
+  return energy + k.g * q.ct * (k.total_mass * rw + q.cf * k.first_moment);
+}
+
+}  // namespace totalgrad::tasks

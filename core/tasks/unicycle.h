@@ -1,0 +1,83 @@
+// The robotic unicycle of PILCO's unicycle scene (scenarios/unicycle at
+// a0b48b7, dynamics_unicycle.m, after Forster's derivation): a wheel rolling
+// without slipping on the ground, a frame (fork) pivoting on the wheel's
+// axle, and a turntable (flywheel) on top of the frame, spinning about the
+// frame's axis. Two torques: u = [V, U], V on the turntable and U on the
+// wheel, each acting between that body and the frame. No friction.
+//
+// State x (12, PILCO's ODE state, odei order):
+//   [dtheta, dphi, dpsiw, dpsif, dpsit, x, y, theta, phi, psiw, psif, psit]
+//   theta roll (tilt sideways), phi yaw (heading), psiw the wheel's angle,
+//   psif the frame's pitch, psit the turntable's angle; (x, y) the contact
+//   point on the ground. Upright is theta = psif = 0. Angles never wrapped.
+//
+// Equations (the published ones, regrouped; unicycle.cc names the terms).
+// With st = sin theta, ct = cos theta, sf = sin psif, cf = cos psif, the
+// angular velocities of the frame in its own axes (forward f', axle a,
+// frame axis n')
+//   w1 = dphi sf ct + cf dtheta,  w3 = dpsif - dphi st,  -w2 = dphi cf ct - sf dtheta,
+// the wheel's spin ww = dpsiw - dphi st and the turntable's wt = dpsit - w2,
+// the five accelerations solve A(q) [ddtheta ddphi ddpsiw ddpsif ddpsit]' = -b
+// (5 x 5, dense LU), and dx = rw cos(phi) dpsiw, dy = rw sin(phi) dpsiw.
+//
+// Energy (conserved without torques; with them dE/dt = V dpsit + U (dpsiw -
+// dpsif), the power of the two torques; both tested):
+//   E = [Aw (dtheta^2 + dphi^2 ct^2) + Cw ww^2 + mw rw^2 (ww^2 + dtheta^2)] / 2
+//     + [Bf w1^2 + Af w2^2 + Cw w3^2 + At (w1^2 + w3^2) + Ct wt^2] / 2
+//     + sum over (m, l) in {(mf, rf), (mt, rf + rt)} of
+//         m [(rw ww cf + l w3)^2 + (rw dtheta + l w1)^2 + (rw ww sf)^2] / 2
+//     + g ct (M rw + cf (mf rf + mt (rf + rt))),   M = mw + mf + mt.
+// The frame's inertia about its pitch axis enters the published equations as
+// Cw (the wheel's axial inertia), not Cf: the energy above, with Cw there, is
+// what they conserve (with Cf it drifts by percents within a second), and
+// Cf appears only in gyroscopic terms. We keep the equations as published.
+//
+// Thread safety: immutable after construction.
+#ifndef TOTALGRAD_CORE_TASKS_UNICYCLE_H_
+#define TOTALGRAD_CORE_TASKS_UNICYCLE_H_
+
+#include "core/tasks/plant.h"
+
+namespace totalgrad::tasks {
+
+// The constants at the top of dynamics_unicycle.m (SI units).
+struct UnicycleParams {
+  double turntable_mass = 10.0;            // mt
+  double wheel_mass = 1.0;                 // mw
+  double frame_mass = 23.5;                // mf
+  double wheel_radius = 0.225;             // rw
+  double frame_centre_to_wheel = 0.54;     // rf: the frame's centre of mass above the axle
+  double frame_centre_to_turntable = 0.27; // rt
+  double wheel_axial_inertia = 0.0484;     // Cw
+  double wheel_diametral_inertia = 0.0242; // Aw
+  double frame_inertia_c = 0.8292;         // Cf (in gyroscopic terms only; see above)
+  double frame_inertia_b = 0.4608;         // Bf (about the forward axis)
+  double frame_inertia_a = 0.4248;         // Af (about the frame's axis)
+  double turntable_axial_inertia = 0.2;    // Ct
+  double turntable_diametral_inertia = 1.3;  // At
+  double gravity = 9.82;
+};
+
+class Unicycle final : public Plant {
+ public:
+  // Indices into the state (PILCO's ODE order).
+  enum Index {
+    kRollRate, kYawRate, kWheelRate, kPitchRate, kTurntableRate,
+    kX, kY, kRoll, kYaw, kWheel, kPitch, kTurntable,
+  };
+
+  Unicycle(const UnicycleParams& params, double dt, const ode::IntegratorOptions& integrator);
+  int state_dim() const override { return 12; }
+  int control_dim() const override { return 2; }
+  // u = [V (turntable), U (wheel)] in N m.
+  void Derivative(const Vector& x, const Vector& u, Vector* dxdt) const override;
+  double Energy(const Vector& x) const override;
+  const UnicycleParams& params() const { return params_; }
+
+ private:
+  UnicycleParams params_;
+};
+
+}  // namespace totalgrad::tasks
+
+#endif  // TOTALGRAD_CORE_TASKS_UNICYCLE_H_

@@ -1,0 +1,214 @@
+// The unicycle's plant (core/tasks/unicycle.h): the planar case against the
+// wheel-and-pendulum equations derived here, the energy's rate as the power
+// of the two torques, energy conserved over seconds without them, the mirror
+// image, the upright equilibrium, and the adaptive integrator against a
+// tighter one over an episode (PILCO's 0.15 s steps) until the unicycle falls.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <iostream>
+#include <numbers>
+#include <random>
+
+#include "core/tasks/unicycle.h"
+
+namespace totalgrad::tasks {
+namespace unicycle_test {
+
+using U = Unicycle;
+
+Unicycle MakeUnicycle(double tolerance = 1e-10) {
+  ode::IntegratorOptions integrator;
+  integrator.relative_tolerance = tolerance;
+  integrator.absolute_tolerance = tolerance;
+  return Unicycle(UnicycleParams(), 0.15, integrator);
+}
+
+Vector RandomState(std::mt19937_64& rng, double rate_scale, double angle_scale) {
+  std::normal_distribution<double> normal;
+  Vector x(12);
+  for (int i = 0; i < 5; ++i) x(i) = rate_scale * normal(rng);
+  for (int i = 5; i < 12; ++i) x(i) = angle_scale * normal(rng);
+  return x;
+}
+
+Vector Torques(double turntable, double wheel) { return Eigen::Vector2d(turntable, wheel); }
+
+// dE/dt along f(x, u) by central differences of E in the direction f.
+double EnergyRate(const Plant& plant, const Vector& x, const Vector& u) {
+  Vector f;
+  plant.Derivative(x, u, &f);
+  const double h = 1e-6;
+  return (plant.Energy(x + h * f) - plant.Energy(x - h * f)) / (2 * h);
+}
+
+TEST(UnicycleTest, PlanarMotionIsAWheelWithAPendulumOnItsAxle) {
+  // No roll, yaw or turntable motion: the wheel (angle w) and the frame with
+  // the turntable (pitch p) as a pendulum on the rolling axle. Lagrange with
+  // T = (Cw + M rw^2) w'^2 / 2 + rw L cos(p) w' p' + Ip p'^2 / 2 and
+  // V = g (M rw + L cos p), the wheel torque U doing work U (w' - p'):
+  //   (Cw + M rw^2) w'' + rw L cos(p) p'' - rw L sin(p) p'^2 = U
+  //   rw L cos(p) w'' + Ip p'' - g L sin(p) = -U,
+  // with the pitch inertia Ip = Cw + At + mf rf^2 + mt r^2 of the published
+  // equations (unicycle.h).
+  const Unicycle plant = MakeUnicycle();
+  const UnicycleParams p;
+  const double mass = p.wheel_mass + p.frame_mass + p.turntable_mass, rw = p.wheel_radius;
+  const double r = p.frame_centre_to_wheel + p.frame_centre_to_turntable;
+  const double moment = p.frame_mass * p.frame_centre_to_wheel + p.turntable_mass * r;
+  const double pitch_inertia = p.wheel_axial_inertia + p.turntable_diametral_inertia +
+                               p.frame_mass * std::pow(p.frame_centre_to_wheel, 2) +
+                               p.turntable_mass * r * r;
+  std::mt19937_64 rng(7);
+  std::normal_distribution<double> normal;
+  for (int trial = 0; trial < 20; ++trial) {
+    Vector x = Vector::Zero(12);
+    x(U::kWheelRate) = 3 * normal(rng);
+    x(U::kPitchRate) = normal(rng);
+    x(U::kPitch) = 0.5 * normal(rng);
+    x(U::kYaw) = normal(rng);
+    const double torque = 5 * normal(rng);
+    Vector f;
+    plant.Derivative(x, Torques(0.0, torque), &f);
+    const double cp = std::cos(x(U::kPitch)), sp = std::sin(x(U::kPitch));
+    const double dp = x(U::kPitchRate);
+    Eigen::Matrix2d mass_matrix;
+    mass_matrix << p.wheel_axial_inertia + mass * rw * rw, rw * moment * cp, rw * moment * cp,
+        pitch_inertia;
+    const Eigen::Vector2d forces(torque + rw * moment * sp * dp * dp,
+                                 -torque + p.gravity * moment * sp);
+    const Eigen::Vector2d expected = mass_matrix.lu().solve(forces);
+    EXPECT_NEAR(f(U::kWheelRate), expected(0), 1e-10 * (1 + std::abs(expected(0))));
+    EXPECT_NEAR(f(U::kPitchRate), expected(1), 1e-10 * (1 + std::abs(expected(1))));
+    // It stays planar, and the contact point rolls along the heading.
+    EXPECT_NEAR(f(U::kRollRate), 0.0, 1e-12);
+    EXPECT_NEAR(f(U::kYawRate), 0.0, 1e-12);
+    EXPECT_NEAR(f(U::kTurntableRate), 0.0, 1e-12);
+    EXPECT_DOUBLE_EQ(f(U::kX), rw * std::cos(x(U::kYaw)) * x(U::kWheelRate));
+    EXPECT_DOUBLE_EQ(f(U::kY), rw * std::sin(x(U::kYaw)) * x(U::kWheelRate));
+  }
+}
+
+TEST(UnicycleTest, EnergyRateIsThePowerOfTheTwoTorques) {
+  // Each torque acts between its body and the frame: the turntable's V at
+  // the relative rate dpsit, the wheel's U at dpsiw - dpsif.
+  const Unicycle plant = MakeUnicycle();
+  std::mt19937_64 rng(11);
+  std::normal_distribution<double> normal;
+  for (int trial = 0; trial < 50; ++trial) {
+    const Vector x = RandomState(rng, 1.0, 0.4);
+    const double v = 5 * normal(rng), u = 5 * normal(rng);
+    const double power = v * x(U::kTurntableRate) + u * (x(U::kWheelRate) - x(U::kPitchRate));
+    const double rate = EnergyRate(plant, x, Torques(v, u));
+    EXPECT_NEAR(rate, power, 1e-6 * (1 + std::abs(power))) << "trial " << trial;
+  }
+  // Without torques nothing changes the energy.
+  const Vector x = RandomState(rng, 1.0, 0.4);
+  EXPECT_NEAR(EnergyRate(plant, x, Torques(0, 0)), 0.0, 1e-6);
+}
+
+TEST(UnicycleTest, AWrongInertiaFailsTheEnergyRateCheck) {
+  // The check above can fail: the same energy with another mass for the
+  // frame than the dynamics use does not match the power of the torques.
+  UnicycleParams heavier;
+  heavier.frame_mass *= 1.01;
+  const Unicycle plant = MakeUnicycle();
+  const Unicycle other(heavier, 0.15, ode::IntegratorOptions());
+  std::mt19937_64 rng(13);
+  const Vector x = RandomState(rng, 1.0, 0.4);
+  Vector f;
+  plant.Derivative(x, Torques(0, 0), &f);
+  const double h = 1e-6;
+  const double rate = (other.Energy(x + h * f) - other.Energy(x - h * f)) / (2 * h);
+  EXPECT_GT(std::abs(rate), 1e-3);
+}
+
+TEST(UnicycleTest, EnergyIsConservedOverSecondsWithoutTorques) {
+  const Unicycle plant = MakeUnicycle();
+  std::mt19937_64 rng(17);
+  Vector x = RandomState(rng, 1.0, 0.3);
+  const double start = plant.Energy(x);
+  for (int step = 0; step < 20; ++step) {  // 3 s
+    Vector next;
+    ASSERT_TRUE(plant.Step(x, Torques(0, 0), &next).ok()) << "step " << step;
+    x = next;
+  }
+  // Tolerances of 1e-10 per accepted step: the energy within 1e-8 relative.
+  EXPECT_NEAR(plant.Energy(x), start, 1e-8 * std::abs(start));
+  std::cout.precision(12);
+  std::cout << "energy " << start << " J, after 3 s " << plant.Energy(x) << " J\n";
+}
+
+TEST(UnicycleTest, TheMirrorImageMovesAsTheMirrorImage) {
+  // Reflection in the vertical plane of the heading: roll, yaw, y and the
+  // turntable change sign (with their rates and the turntable's torque);
+  // the wheel, the pitch and x do not.
+  const Unicycle plant = MakeUnicycle();
+  Vector mirror(12);
+  mirror << -1, -1, 1, 1, -1, 1, -1, -1, -1, 1, 1, -1;
+  std::mt19937_64 rng(19);
+  for (int trial = 0; trial < 20; ++trial) {
+    const Vector x = RandomState(rng, 1.0, 0.5);
+    Vector f, g;
+    plant.Derivative(x, Torques(1.5, -0.5), &f);
+    plant.Derivative(mirror.cwiseProduct(x), Torques(-1.5, -0.5), &g);
+    EXPECT_LT((mirror.cwiseProduct(f) - g).cwiseAbs().maxCoeff(), 1e-12) << "trial " << trial;
+  }
+}
+
+TEST(UnicycleTest, UprightAtRestIsAnUnstableEquilibrium) {
+  const Unicycle plant = MakeUnicycle();
+  Vector f;
+  plant.Derivative(Vector::Zero(12), Torques(0, 0), &f);
+  EXPECT_EQ(f.cwiseAbs().maxCoeff(), 0.0);
+  // Tilted sideways or forwards it falls further that way.
+  Vector rolled = Vector::Zero(12), pitched = Vector::Zero(12);
+  rolled(U::kRoll) = 0.01;
+  pitched(U::kPitch) = 0.01;
+  plant.Derivative(rolled, Torques(0, 0), &f);
+  EXPECT_GT(f(U::kRollRate), 0.0);
+  plant.Derivative(pitched, Torques(0, 0), &f);
+  EXPECT_GT(f(U::kPitchRate), 0.0);
+}
+
+TEST(UnicycleTest, AgreesWithATighterIntegratorUntilItFalls) {
+  // An episode of PILCO's protocol (dt = 0.15 s, H = 67) from its start
+  // distribution (S0 of the scenario) with random torques within maxU / 5:
+  // the adaptive steps at the scenes' tolerance (1e-10) against 1e-13, to
+  // 1e-7 absolute, for as long as |roll| and |pitch| stay below pi / 2.
+  const Unicycle plant = MakeUnicycle(1e-10), reference = MakeUnicycle(1e-13);
+  const double start_std[12] = {0.02, 0.02, 0.02, 0.02, 0.02, 0.1, 0.1,
+                                0.02, 0.02, 0.02, 0.02, 0.02};
+  std::mt19937_64 rng(23);
+  std::normal_distribution<double> normal;
+  int steps_compared = 0;
+  double largest = 0;
+  for (int episode = 0; episode < 3; ++episode) {
+    Vector x(12);
+    for (int i = 0; i < 12; ++i) x(i) = start_std[i] * normal(rng);
+    Vector y = x;
+    std::uniform_real_distribution<double> turntable(-2.0, 2.0), wheel(-10.0, 10.0);
+    for (int step = 0; step < 67; ++step) {
+      if (std::abs(x(U::kRoll)) > std::numbers::pi / 2 ||
+          std::abs(x(U::kPitch)) > std::numbers::pi / 2) {
+        break;
+      }
+      const Vector u = Torques(turntable(rng), wheel(rng));
+      Vector next_x, next_y;
+      ASSERT_TRUE(plant.Step(x, u, &next_x).ok());
+      ASSERT_TRUE(reference.Step(y, u, &next_y).ok());
+      x = next_x;
+      y = next_y;
+      EXPECT_LT((x - y).cwiseAbs().maxCoeff(), 1e-7) << "episode " << episode << " step " << step;
+      largest = std::max(largest, (x - y).cwiseAbs().maxCoeff());
+      ++steps_compared;
+    }
+  }
+  EXPECT_GT(steps_compared, 10);
+  std::cout << steps_compared << " steps compared before the falls; largest difference "
+            << largest << "\n";
+}
+
+}  // namespace unicycle_test
+}  // namespace totalgrad::tasks
