@@ -170,12 +170,44 @@ absl::StatusOr<GaussianCost> GaussianCost::Tip(int state_dim, int position_index
   return c;
 }
 
+absl::StatusOr<GaussianCost> GaussianCost::OfLinearMap(const Matrix& input_map,
+                                                       GaussianCost cost_of_y) {
+  if (input_map.rows() != cost_of_y.state_dim() || input_map.cols() == 0) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "cost of a linear map: the map is ", input_map.rows(), " x ", input_map.cols(),
+        " but the cost sees ", cost_of_y.state_dim(), " entries"));
+  }
+  if (!input_map.allFinite()) return absl::InvalidArgumentError("cost of a linear map: map not finite");
+  if (cost_of_y.input_map_.size() > 0) {
+    cost_of_y.input_map_ = cost_of_y.input_map_ * input_map;
+  } else {
+    cost_of_y.input_map_ = input_map;
+  }
+  cost_of_y.state_dim_ = static_cast<int>(input_map.cols());
+  return cost_of_y;
+}
+
 absl::Status GaussianCost::Evaluate(const Vector& m, const Matrix& S, bool with_gradient,
                                     CostMoments* out) const {
   TG_CHECK(m.size() == state_dim_ && S.rows() == state_dim_ && S.cols() == state_dim_);
   if (!m.allFinite() || !S.allFinite()) {
     return absl::InvalidArgumentError("cost: state mean or covariance not finite");
   }
+  if (input_map_.size() == 0) return EvaluateWithoutMap(m, S, with_gradient, out);
+  const Matrix& p = input_map_;
+  const Matrix sy = p * S * p.transpose();
+  if (absl::Status st = EvaluateWithoutMap(p * m, 0.5 * (sy + sy.transpose()), with_gradient, out);
+      !st.ok()) {
+    return st;
+  }
+  if (!with_gradient) return absl::OkStatus();
+  out->dmean_dm = p.transpose() * out->dmean_dm;
+  out->dmean_dS = p.transpose() * out->dmean_dS * p;
+  return absl::OkStatus();
+}
+
+absl::Status GaussianCost::EvaluateWithoutMap(const Vector& m, const Matrix& S,
+                                              bool with_gradient, CostMoments* out) const {
   Vector ym = m;
   Matrix ys = S;
   // One angle through the one-angle block (its own bits, as before several
@@ -213,8 +245,8 @@ absl::Status GaussianCost::Evaluate(const Vector& m, const Matrix& S, bool with_
     out->dmean_dS = std::move(sum.dmean_dS);
     return absl::OkStatus();
   }
-  out->dmean_dm = Vector::Zero(state_dim_);
-  out->dmean_dS = Matrix::Zero(state_dim_, state_dim_);
+  out->dmean_dm = Vector::Zero(m.size());
+  out->dmean_dS = Matrix::Zero(m.size(), m.size());
   if (angles_.size() == 1) {
     AugmentWithTrigBackward(m, S, angles_[0], sum.dmean_dm, sum.dmean_dS, &out->dmean_dm,
                             &out->dmean_dS);

@@ -65,6 +65,12 @@ class GaussianCost {
                                                  const std::vector<int>& angle_indices,
                                                  const Matrix& q_z, const Vector& target_z,
                                                  const std::vector<double>& widths);
+  // `cost_of_y` applied to y = P x (P = input_map, Y x D, finite; Y =
+  // cost_of_y.state_dim()): y ~ N(P m, P S P^T), the gradients taken back
+  // through P. PILCO's unicycle cost sees angle differences and sums this
+  // way (tasks::UnicycleCost). InvalidArgument on a shape or a non-finite P.
+  static absl::StatusOr<GaussianCost> OfLinearMap(const Matrix& input_map,
+                                                  GaussianCost cost_of_y);
   // Indices into the D-dim state; length > 0, width > 0.
   static absl::StatusOr<GaussianCost> Tip(int state_dim, int position_index, int angle_index,
                                           double pendulum_length, double width,
@@ -79,7 +85,11 @@ class GaussianCost {
 
  private:
   GaussianCost() = default;
+  // Moments of the cost of the state the factors see (before input_map_).
+  absl::Status EvaluateWithoutMap(const Vector& m, const Matrix& S, bool with_gradient,
+                                  CostMoments* out) const;
   int state_dim_ = 0;
+  Matrix input_map_;  // empty: none (the cost sees x itself)
   // Non-empty: the cost sees [x; sin x_a1; cos x_a1; ...] (one angle: the
   // one-angle AugmentWithTrig, so Tip and one-angle Saturating keep their bits).
   std::vector<int> angles_;

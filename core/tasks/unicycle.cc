@@ -1,6 +1,7 @@
 #include "core/tasks/unicycle.h"
 
 #include <cmath>
+#include <numbers>
 #include <utility>
 
 #include <Eigen/LU>
@@ -142,6 +143,70 @@ double Unicycle::Energy(const Vector& x) const {
     energy += 0.5 * m * (forward * forward + sideways * sideways + along_axis * along_axis);
   }
   return energy + k.g * q.ct * (k.total_mass * rw + q.cf * k.first_moment);
+}
+
+namespace {
+
+// Indices into the cost's state s and its extension y = [s, theta - psif,
+// theta + psif].
+constexpr int kCostXc = 5, kCostYc = 6, kCostRoll = 7, kCostYaw = 8, kCostPitch = 9;
+constexpr int kRollMinusPitch = 10, kRollPlusPitch = 11;
+
+}  // namespace
+
+absl::StatusOr<gaussian::GaussianCost> UnicycleCost(const UnicycleCostParams& params) {
+  const int d = kUnicycleCostStateDim;
+  Matrix map = Matrix::Zero(d + 2, d);  // y = P s
+  map.topRows(d).setIdentity();
+  map(kRollMinusPitch, kCostRoll) = 1.0;
+  map(kRollMinusPitch, kCostPitch) = -1.0;
+  map(kRollPlusPitch, kCostRoll) = 1.0;
+  map(kRollPlusPitch, kCostPitch) = 1.0;
+  // z = [y, (sin, cos) of the angles in increasing y index].
+  const std::vector<int> angles = {kCostRoll, kCostPitch, kRollMinusPitch, kRollPlusPitch};
+  auto sin_of = [&](int k) { return d + 2 + 2 * k; };  // k: position in `angles`
+  auto cos_of = [&](int k) { return d + 3 + 2 * k; };
+  const int n = d + 2 + 2 * static_cast<int>(angles.size());
+  const double rw = params.wheel_radius, r = params.rod_length;
+  Matrix q = Matrix::Zero(n, n);
+  Vector target = Vector::Zero(n);
+  // Height: rw cos theta + r (cos(theta - psif) + cos(theta + psif)) / 2 against rw + r.
+  const int height[3] = {cos_of(0), cos_of(2), cos_of(3)};
+  const double height_weights[3] = {rw, r / 2, r / 2};
+  for (int i = 0; i < 3; ++i) {
+    target(height[i]) = 1.0;
+    for (int j = 0; j < 3; ++j) q(height[i], height[j]) += 8.0 * height_weights[i] * height_weights[j];
+  }
+  target(cos_of(1)) = 1.0;  // cos psif (no weight, as PILCO's target)
+  // Forward: xc - r sin psif; sideways: yc - (r + rw) sin theta.
+  auto add_pair = [&](int a, int b, double coefficient) {
+    q(a, a) += 0.5;
+    q(a, b) -= 0.5 * coefficient;
+    q(b, a) -= 0.5 * coefficient;
+    q(b, b) += 0.5 * coefficient * coefficient;
+  };
+  add_pair(kCostXc, sin_of(1), r);
+  add_pair(kCostYc, sin_of(0), r + rw);
+  q(kCostYaw, kCostYaw) = 1.0 / (16.0 * std::numbers::pi * std::numbers::pi);
+  absl::StatusOr<gaussian::GaussianCost> of_y =
+      gaussian::GaussianCost::Saturating(d + 2, angles, q, target, params.widths);
+  if (!of_y.ok()) return of_y.status();
+  return gaussian::GaussianCost::OfLinearMap(map, *std::move(of_y));
+}
+
+double UnicycleCostValue(const UnicycleCostParams& params, const Vector& s) {
+  TG_CHECK(s.size() == kUnicycleCostStateDim);
+  const double rw = params.wheel_radius, r = params.rod_length;
+  const double ct = std::cos(s(kCostRoll)), st = std::sin(s(kCostRoll));
+  const double cp = std::cos(s(kCostPitch)), sp = std::sin(s(kCostPitch));
+  const double height = rw * ct + r * ct * cp - rw - r;
+  const double forward = s(kCostXc) - r * sp, sideways = s(kCostYc) - (r + rw) * st;
+  const double yaw = s(kCostYaw) / (4.0 * std::numbers::pi);
+  const double d2 = 8.0 * height * height + 0.5 * forward * forward +
+                    0.5 * sideways * sideways + yaw * yaw;
+  double sum = 0;
+  for (double w : params.widths) sum += 1.0 - std::exp(-d2 / (2.0 * w * w));
+  return sum / static_cast<double>(params.widths.size());
 }
 
 }  // namespace totalgrad::tasks

@@ -36,6 +36,10 @@
 #ifndef TOTALGRAD_CORE_TASKS_UNICYCLE_H_
 #define TOTALGRAD_CORE_TASKS_UNICYCLE_H_
 
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "core/gaussian/expected_cost.h"
 #include "core/tasks/plant.h"
 
 namespace totalgrad::tasks {
@@ -77,6 +81,31 @@ class Unicycle final : public Plant {
  private:
   UnicycleParams params_;
 };
+
+// PILCO's loss_unicycle (scenarios/unicycle, cost.p = [rw, r] = [0.22,
+// 0.81], width 1) on the unicycle's GP state (PILCO's dyno order)
+//   s = [dtheta, dphi, dpsiw, dpsif, dpsit, xc, yc, theta, phi, psif]
+// (xc, yc: the contact point in the unicycle's coordinates): for each width
+// w, 1 - exp(-d^2 / (2 w^2)), the mean over the widths, with
+//   d^2 = 8 (rw cos theta + r cos theta cos psif - rw - r)^2   (the top's height)
+//       + (xc - r sin psif)^2 / 2 + (yc - (r + rw) sin theta)^2 / 2
+//       + (phi / (4 pi))^2,
+// the distance of the configuration to upright over the origin facing 0.
+// PILCO writes it as lossSat on z = [s, theta - psif, theta + psif, and
+// (sin, cos) of theta, psif, theta - psif, theta + psif], so that
+// cos theta cos psif = (cos(theta - psif) + cos(theta + psif)) / 2 is linear
+// in z; UnicycleCost builds that (the Gaussian of z as gTrig's, exact in
+// its first two moments) as gaussian::GaussianCost::OfLinearMap.
+struct UnicycleCostParams {
+  double wheel_radius = 0.22;  // rw of the cost (the plant's is 0.225)
+  double rod_length = 0.81;    // r
+  std::vector<double> widths = {1.0};
+};
+inline constexpr int kUnicycleCostStateDim = 10;
+absl::StatusOr<gaussian::GaussianCost> UnicycleCost(const UnicycleCostParams& params = {});
+// The cost of one state s (10 entries as above): d^2 written out, not
+// through z.
+double UnicycleCostValue(const UnicycleCostParams& params, const Vector& s);
 
 }  // namespace totalgrad::tasks
 

@@ -11,6 +11,7 @@
 #include <numbers>
 #include <random>
 
+#include "core/gaussian/trig.h"
 #include "core/tasks/unicycle.h"
 
 namespace totalgrad::tasks {
@@ -208,6 +209,176 @@ TEST(UnicycleTest, AgreesWithATighterIntegratorUntilItFalls) {
   EXPECT_GT(steps_compared, 10);
   std::cout << steps_compared << " steps compared before the falls; largest difference "
             << largest << "\n";
+}
+
+// ---- the cost (loss_unicycle) ----
+
+// A mean near upright and a covariance with correlations: s = [rates (5),
+// xc, yc, theta, phi, psif].
+void CostTestMoments(std::mt19937_64& rng, double scale, Vector* m, Matrix* s) {
+  std::normal_distribution<double> normal;
+  *m = Vector(10);
+  for (int i = 0; i < 10; ++i) (*m)(i) = 0.3 * normal(rng);
+  Matrix root(10, 10);
+  for (int i = 0; i < 10; ++i) {
+    for (int j = 0; j < 10; ++j) root(i, j) = scale * normal(rng) / std::sqrt(10.0);
+  }
+  *s = root * root.transpose();
+}
+
+// d^2 from z = [s, theta - psif, theta + psif, (sin, cos) of theta, psif,
+// theta - psif, theta + psif] as unicycle.h writes it (indices 12.. are the
+// sines and cosines in that order).
+double CostOfZ(const Vector& z) {
+  const double rw = 0.22, r = 0.81;
+  const double height = rw * z(13) + r / 2 * z(17) + r / 2 * z(19) - rw - r;
+  const double forward = z(5) - r * z(14), sideways = z(6) - (r + rw) * z(12);
+  const double yaw = z(8) / (4 * std::numbers::pi);
+  return 1 - std::exp(-(8 * height * height + 0.5 * forward * forward +
+                        0.5 * sideways * sideways + yaw * yaw) / 2);
+}
+
+Matrix CostInputMap() {
+  Matrix p = Matrix::Zero(12, 10);
+  p.topRows(10).setIdentity();
+  p(10, 7) = 1;
+  p(10, 9) = -1;
+  p(11, 7) = 1;
+  p(11, 9) = 1;
+  return p;
+}
+
+TEST(UnicycleCostTest, AtAPointTheClosedFormIsTheCost) {
+  const absl::StatusOr<gaussian::GaussianCost> cost = UnicycleCost();
+  ASSERT_TRUE(cost.ok()) << cost.status();
+  EXPECT_EQ(cost->state_dim(), kUnicycleCostStateDim);
+  std::mt19937_64 rng(29);
+  std::normal_distribution<double> normal;
+  for (int trial = 0; trial < 20; ++trial) {
+    Vector s(10);
+    for (int i = 0; i < 10; ++i) s(i) = 0.7 * normal(rng);
+    gaussian::CostMoments moments;
+    ASSERT_TRUE(cost->Evaluate(s, Matrix::Zero(10, 10), false, &moments).ok());
+    EXPECT_NEAR(moments.mean, UnicycleCostValue({}, s), 1e-12);
+    EXPECT_NEAR(moments.var, 0.0, 1e-12);
+  }
+  // Upright over the origin, facing 0: no cost. Fallen sideways (theta =
+  // pi / 2): the top is rw + r = 1.03 m lower and (r + rw) to the side, so
+  // d^2 = 8 (1.03)^2 + (1.03)^2 / 2.
+  EXPECT_EQ(UnicycleCostValue({}, Vector::Zero(10)), 0.0);
+  Vector fallen = Vector::Zero(10);
+  fallen(7) = std::numbers::pi / 2;
+  EXPECT_NEAR(UnicycleCostValue({}, fallen), 1 - std::exp(-8.5 * 1.03 * 1.03 / 2), 1e-12);
+}
+
+TEST(UnicycleCostTest, GaussianExpectationMatchesMonteCarlo) {
+  // z's Gaussian (the trig moments are exact in mean and covariance) against
+  // samples of z(s), then E[c] and Var[c] of the closed form against
+  // lossSat on samples of that Gaussian: 10^6 samples, 5 standard errors.
+  const absl::StatusOr<gaussian::GaussianCost> cost = UnicycleCost();
+  ASSERT_TRUE(cost.ok());
+  std::mt19937_64 rng(31);
+  Vector m;
+  Matrix s;
+  CostTestMoments(rng, 0.25, &m, &s);
+  const Matrix p = CostInputMap();
+  Vector mz;
+  Matrix sz;
+  gaussian::AugmentWithTrig(p * m, p * s * p.transpose(), std::vector<int>{7, 9, 10, 11}, &mz,
+                            &sz);
+  const int samples = 1000000;
+  std::normal_distribution<double> normal;
+  const Matrix ls = s.llt().matrixL();
+  const Matrix lz = (sz + 1e-12 * Matrix::Identity(20, 20)).llt().matrixL();
+  Vector z_sum = Vector::Zero(20);
+  Matrix z_outer = Matrix::Zero(20, 20);
+  double c_sum = 0, c_sq = 0;
+  Vector e10(10), e20(20);
+  for (int k = 0; k < samples; ++k) {
+    for (int i = 0; i < 10; ++i) e10(i) = normal(rng);
+    const Vector y = p * (m + ls * e10);
+    Vector z(20);
+    z.head(12) = y;
+    const int angles[4] = {7, 9, 10, 11};
+    for (int a = 0; a < 4; ++a) {
+      z(12 + 2 * a) = std::sin(y(angles[a]));
+      z(13 + 2 * a) = std::cos(y(angles[a]));
+    }
+    z_sum += z;
+    z_outer.noalias() += (z - mz) * (z - mz).transpose();
+    for (int i = 0; i < 20; ++i) e20(i) = normal(rng);
+    const double c = CostOfZ(mz + lz * e20);
+    c_sum += c;
+    c_sq += c * c;
+  }
+  const Vector z_mean = z_sum / samples;
+  const Matrix z_cov = z_outer / samples - (z_mean - mz) * (z_mean - mz).transpose();
+  for (int i = 0; i < 20; ++i) {
+    EXPECT_NEAR(z_mean(i), mz(i), 5 * std::sqrt(sz(i, i) / samples) + 1e-12) << "z " << i;
+    for (int j = 0; j < 20; ++j) {
+      const double se = std::sqrt((sz(i, i) * sz(j, j) + sz(i, j) * sz(i, j)) / samples);
+      EXPECT_NEAR(z_cov(i, j), sz(i, j), 5 * se + 1e-12) << "cov " << i << "," << j;
+    }
+  }
+  gaussian::CostMoments moments;
+  ASSERT_TRUE(cost->Evaluate(m, s, false, &moments).ok());
+  const double mean = c_sum / samples, var = c_sq / samples - mean * mean;
+  EXPECT_NEAR(moments.mean, mean, 5 * std::sqrt(var / samples));
+  EXPECT_NEAR(moments.var, var, 0.01 * var);
+  std::cout << "E[c] " << moments.mean << " (Monte Carlo " << mean << "), Var[c] "
+            << moments.var << " (" << var << ")\n";
+}
+
+TEST(UnicycleCostTest, GradientsMatchCentralDifferences) {
+  const absl::StatusOr<gaussian::GaussianCost> cost = UnicycleCost();
+  ASSERT_TRUE(cost.ok());
+  std::mt19937_64 rng(37);
+  Vector m;
+  Matrix s;
+  CostTestMoments(rng, 0.3, &m, &s);
+  gaussian::CostMoments moments;
+  ASSERT_TRUE(cost->Evaluate(m, s, true, &moments).ok());
+  auto mean_at = [&](const Vector& mm, const Matrix& ss) {
+    gaussian::CostMoments out;
+    EXPECT_TRUE(cost->Evaluate(mm, ss, false, &out).ok());
+    return out.mean;
+  };
+  const double h = 1e-6;
+  for (int i = 0; i < 10; ++i) {
+    Vector up = m, down = m;
+    up(i) += h;
+    down(i) -= h;
+    EXPECT_NEAR(moments.dmean_dm(i), (mean_at(up, s) - mean_at(down, s)) / (2 * h), 1e-7)
+        << "dm " << i;
+    for (int j = 0; j <= i; ++j) {
+      // A symmetric perturbation of S(i, j) and S(j, i) together.
+      Matrix su = s, sd = s;
+      su(i, j) += h;
+      sd(i, j) -= h;
+      if (i != j) {
+        su(j, i) += h;
+        sd(j, i) -= h;
+      }
+      const double fd = (mean_at(m, su) - mean_at(m, sd)) / (2 * h);
+      const double analytic =
+          i == j ? moments.dmean_dS(i, i) : moments.dmean_dS(i, j) + moments.dmean_dS(j, i);
+      EXPECT_NEAR(analytic, fd, 1e-7) << "dS " << i << "," << j;
+    }
+  }
+}
+
+TEST(UnicycleCostTest, AMapOfTheWrongShapeIsRefused) {
+  const absl::StatusOr<gaussian::GaussianCost> of_y =
+      gaussian::GaussianCost::Saturating(3, std::vector<int>{}, Matrix::Identity(3, 3),
+                                         Vector::Zero(3), {1.0});
+  ASSERT_TRUE(of_y.ok());
+  const absl::StatusOr<gaussian::GaussianCost> wrong =
+      gaussian::GaussianCost::OfLinearMap(Matrix::Identity(2, 4), *of_y);
+  EXPECT_EQ(wrong.status().code(), absl::StatusCode::kInvalidArgument);
+  Matrix nan_map = Matrix::Identity(3, 2);
+  nan_map(0, 0) = std::nan("");
+  EXPECT_EQ(gaussian::GaussianCost::OfLinearMap(nan_map, *of_y).status().code(),
+            absl::StatusCode::kInvalidArgument);
 }
 
 }  // namespace unicycle_test
