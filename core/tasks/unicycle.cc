@@ -154,6 +154,30 @@ constexpr int kRollMinusPitch = 10, kRollPlusPitch = 11;
 
 }  // namespace
 
+Vector UnicycleAugmentedEntries(const Vector& ode_state, double wheel_radius) {
+  TG_CHECK(ode_state.size() == 12);
+  const double phi = ode_state(Unicycle::kYaw), dphi = ode_state(Unicycle::kYawRate);
+  const double c = std::cos(phi), s = std::sin(phi);
+  const double x = ode_state(Unicycle::kX), y = ode_state(Unicycle::kY);
+  const double dx = wheel_radius * c * ode_state(Unicycle::kWheelRate);
+  const double dy = wheel_radius * s * ode_state(Unicycle::kWheelRate);
+  // (xc, yc) = -[[c, s], [-s, c]] (x, y), and its derivative in time.
+  const double xc = -(c * x + s * y), yc = -(-s * x + c * y);
+  const double dxc = -(c * dx + s * dy) - dphi * (-s * x + c * y);
+  const double dyc = -(-s * dx + c * dy) + dphi * (c * x + s * y);
+  Vector out(6);
+  out << dx, dy, dxc, dyc, xc, yc;
+  return out;
+}
+
+Vector UnicycleGpState(const Vector& ode_state, double wheel_radius) {
+  const Vector augmented = UnicycleAugmentedEntries(ode_state, wheel_radius);
+  Vector out(kUnicycleCostStateDim);
+  out << ode_state.head<5>(), augmented(4), augmented(5), ode_state(Unicycle::kRoll),
+      ode_state(Unicycle::kYaw), ode_state(Unicycle::kPitch);
+  return out;
+}
+
 absl::StatusOr<gaussian::GaussianCost> UnicycleCost(const UnicycleCostParams& params) {
   const int d = kUnicycleCostStateDim;
   Matrix map = Matrix::Zero(d + 2, d);  // y = P s

@@ -82,6 +82,16 @@ class Unicycle final : public Plant {
   UnicycleParams params_;
 };
 
+// PILCO's augmented entries of a state (augment_unicycle.m), computed from
+// the 12 ODE values after each step: [dx, dy, dxc, dyc, xc, yc], the
+// contact point's velocity on the ground, and the origin (the goal) in the
+// unicycle's coordinates, (xc, yc) = -R(phi)^T (x, y), with its time
+// derivative (dxc, dyc). The wheel radius is the plant's.
+Vector UnicycleAugmentedEntries(const Vector& ode_state, double wheel_radius);
+// The state the GP predicts and the cost reads (PILCO's dyno order):
+// [dtheta, dphi, dpsiw, dpsif, dpsit, xc, yc, theta, phi, psif].
+Vector UnicycleGpState(const Vector& ode_state, double wheel_radius);
+
 // PILCO's loss_unicycle (scenarios/unicycle, cost.p = [rw, r] = [0.22,
 // 0.81], width 1) on the unicycle's GP state (PILCO's dyno order)
 //   s = [dtheta, dphi, dpsiw, dpsif, dpsit, xc, yc, theta, phi, psif]

@@ -211,6 +211,57 @@ TEST(UnicycleTest, AgreesWithATighterIntegratorUntilItFalls) {
             << largest << "\n";
 }
 
+// ---- the augmented state ----
+
+TEST(UnicycleAugmentTest, TheContactPointsVelocitiesAreTheTimeDerivatives) {
+  // Along the ODE, (x, y) moves at (dx, dy) and the goal's coordinates in
+  // the unicycle's frame (xc, yc) at (dxc, dyc): central differences in time.
+  const Unicycle plant = MakeUnicycle();
+  const double rw = UnicycleParams().wheel_radius;
+  std::mt19937_64 rng(41);
+  for (int trial = 0; trial < 20; ++trial) {
+    const Vector x = RandomState(rng, 1.0, 0.8);
+    Vector f;
+    plant.Derivative(x, Torques(0.5, 1.0), &f);
+    const Vector a = UnicycleAugmentedEntries(x, rw);
+    EXPECT_NEAR(a(0), f(U::kX), 1e-15);
+    EXPECT_NEAR(a(1), f(U::kY), 1e-15);
+    const double h = 1e-6;
+    const Vector ahead = UnicycleAugmentedEntries(x + h * f, rw);
+    const Vector behind = UnicycleAugmentedEntries(x - h * f, rw);
+    EXPECT_NEAR(a(2), (ahead(4) - behind(4)) / (2 * h), 1e-7) << "trial " << trial;
+    EXPECT_NEAR(a(3), (ahead(5) - behind(5)) / (2 * h), 1e-7) << "trial " << trial;
+  }
+}
+
+TEST(UnicycleAugmentTest, HandComputedCasesAndTheGpState) {
+  // Facing phi = 0 at (1, 2): the goal (the origin) is 1 m behind and 2 m to
+  // the right, (xc, yc) = (-1, -2); facing phi = pi / 2 it is (-2, 1).
+  Vector x = Vector::Zero(12);
+  x(U::kX) = 1;
+  x(U::kY) = 2;
+  Vector a = UnicycleAugmentedEntries(x, 0.225);
+  EXPECT_DOUBLE_EQ(a(4), -1);
+  EXPECT_DOUBLE_EQ(a(5), -2);
+  x(U::kYaw) = std::numbers::pi / 2;
+  a = UnicycleAugmentedEntries(x, 0.225);
+  EXPECT_NEAR(a(4), -2, 1e-15);
+  EXPECT_NEAR(a(5), 1, 1e-15);
+  // The GP state in PILCO's dyno order, and upright over the goal costs 0.
+  for (int i = 0; i < 5; ++i) x(i) = i + 1;
+  x(U::kRoll) = 0.1;
+  x(U::kPitch) = 0.2;
+  const Vector s = UnicycleGpState(x, 0.225);
+  ASSERT_EQ(s.size(), kUnicycleCostStateDim);
+  for (int i = 0; i < 5; ++i) EXPECT_EQ(s(i), i + 1);
+  EXPECT_NEAR(s(5), -2, 1e-15);
+  EXPECT_NEAR(s(6), 1, 1e-15);
+  EXPECT_EQ(s(7), 0.1);
+  EXPECT_EQ(s(8), std::numbers::pi / 2);
+  EXPECT_EQ(s(9), 0.2);
+  EXPECT_EQ(UnicycleCostValue({}, UnicycleGpState(Vector::Zero(12), 0.225)), 0.0);
+}
+
 // ---- the cost (loss_unicycle) ----
 
 // A mean near upright and a covariance with correlations: s = [rates (5),
