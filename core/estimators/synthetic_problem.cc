@@ -10,11 +10,8 @@ absl::StatusOr<std::unique_ptr<SyntheticProblem>> MakeSyntheticProblem(
     const SyntheticProblemOptions& options) {
   if (options.data < 2) return absl::InvalidArgumentError("synthetic problem: data must be >= 2");
   auto out = std::make_unique<SyntheticProblem>();
-  tasks::SceneOptions scene_options;
-  scene_options.scene = options.scene;
-  scene_options.cost = options.cost;
-  scene_options.horizon = options.horizon;
-  absl::StatusOr<tasks::Scene> scene = tasks::MakeScene(scene_options);
+  absl::StatusOr<tasks::Scene> scene =
+      tasks::MakeScene(options.scene, options.cost, options.horizon);
   if (!scene.ok()) return scene.status();
   out->scene = std::make_unique<tasks::Scene>(*std::move(scene));
   const tasks::Scene& sc = *out->scene;

@@ -212,6 +212,46 @@ GaussianInputGp GaussianInputGpFrom(const Model& model, const RowMatrix& centres
   return gp;
 }
 
+// The second moments' share of the reverse passes: for every pair of
+// outputs a <= b whose covariance adjoint gamma (sym_bar(a, a), or
+// 2 sym_bar(a, b)) is not 0, the pair's terms (ComputePairTerms), the
+// pair's share of beta's adjoint when `beta_bar` is given, and then p.q
+// replaced by the weights W = Q_ab o gamma (beta_a beta_b^T - [a == b,
+// model variance] Vw_a), handed to visit(a, b, p).
+template <typename Visit>
+absl::Status ForEachWeightedPair(const GaussianInputGp& gp, const Matrix& delta, const Matrix& s,
+                                 const Matrix& sym_bar, bool model_variance, Matrix* beta_bar,
+                                 Visit visit) {
+  const int d = gp.num_outputs();
+  PairTerms p;
+  for (int a = 0; a < d; ++a) {
+    const Vector ila = gp.inv_lengthscale_sq.row(a).transpose();
+    for (int b = a; b < d; ++b) {
+      const double gamma = a == b ? sym_bar(a, a) : 2.0 * sym_bar(a, b);
+      if (gamma == 0.0) continue;
+      const Vector ilb = gp.inv_lengthscale_sq.row(b).transpose();
+      if (absl::Status st = ComputePairTerms(delta, s, ila, ilb, gp.signal_var(a),
+                                             gp.signal_var(b), a, b, &p);
+          !st.ok()) {
+        return st;
+      }
+      if (beta_bar != nullptr) {
+        beta_bar->col(a).noalias() += gamma * (p.q * gp.beta.col(b));
+        beta_bar->col(b).noalias() += gamma * (p.q.transpose() * gp.beta.col(a));
+      }
+      Matrix& w = p.q;
+      if (a == b && model_variance) {
+        w.array() *= gamma * ((gp.beta.col(a) * gp.beta.col(b).transpose()).array() -
+                              gp.variance_weights[a].array());
+      } else {
+        w.array() *= gamma * (gp.beta.col(a) * gp.beta.col(b).transpose()).array();
+      }
+      visit(a, b, ila, ilb, p);
+    }
+  }
+  return absl::OkStatus();
+}
+
 }  // namespace
 
 GaussianInputGp GaussianInputGpFromModel(const gp::GpModel& model) {
@@ -301,56 +341,36 @@ absl::Status PredictGaussianBackward(const GaussianInputGp& gp, const Vector& m,
   if (beta_bar != nullptr) beta_bar->setZero(n, d);
 
   // Second moments.
-  PairTerms p;
-  for (int a = 0; a < d; ++a) {
-    const Vector ila = gp.inv_lengthscale_sq.row(a).transpose();
-    for (int b = a; b < d; ++b) {
-      const double gamma = a == b ? sym_bar(a, a) : 2.0 * sym_bar(a, b);
-      if (gamma == 0.0) continue;
-      const Vector ilb = gp.inv_lengthscale_sq.row(b).transpose();
-      if (absl::Status st = ComputePairTerms(delta, s, ila, ilb, gp.signal_var(a),
-                                             gp.signal_var(b), a, b, &p);
-          !st.ok()) {
-        return st;
-      }
-      if (beta_bar != nullptr) {
-        beta_bar->col(a).noalias() += gamma * (p.q * gp.beta.col(b));
-        beta_bar->col(b).noalias() += gamma * (p.q.transpose() * gp.beta.col(a));
-      }
-      // W = Qbar o Q, in place; Qbar = gamma (beta_a beta_b^T - [a == b] Vw_a).
-      Matrix& w = p.q;
-      if (a == b && options.model_variance) {
-        w.array() *= gamma * ((gp.beta.col(a) * gp.beta.col(b).transpose()).array() -
-                              gp.variance_weights[a].array());
-      } else {
-        w.array() *= gamma * (gp.beta.col(a) * gp.beta.col(b).transpose()).array();
-      }
-      // For a == b, W is symmetric (Q_aa, beta beta^T and Vw_a are), so
-      // c = r and W^T Za = W Zb: one product instead of two.
-      const Vector r = w.rowwise().sum();
-      const Vector c = a == b ? r : Vector(w.colwise().sum().transpose());
-      const double sum_w = r.sum();
-      const Matrix wzb = w * p.zb;                                     // N x E
-      const Matrix wtza = a == b ? wzb : Matrix(w.transpose() * p.za);  // N x E
-      const Matrix rza = r.asDiagonal() * p.za;
-      const Matrix czb = c.asDiagonal() * p.zb;
-      delta_bar.noalias() -= rza + czb;
-      delta_bar.noalias() += (rza + wzb) * p.t * ila.asDiagonal();
-      delta_bar.noalias() += (wtza + czb) * p.t * ilb.asDiagonal();
-      const Matrix cross_g = p.za.transpose() * wzb;
-      const Matrix g = p.za.transpose() * rza + p.zb.transpose() * czb + cross_g +
-                       cross_g.transpose();
-      // d(-1/2 log det R)/ds = -1/2 R^-T Psi = -1/2 Psi^1/2 Rs^-1 Psi^1/2;
-      // d(1/2 zeta^T T zeta)/ds = 1/2 R^-T zeta zeta^T R^-1, with
-      // R^-T = Psi^1/2 Rs^-1 Psi^-1/2.
-      const Matrix rs_inv = p.llt.solve(Matrix::Identity(e, e));
-      const Matrix r_inv_t =
-          p.sqrt_psi.asDiagonal() * rs_inv * p.sqrt_psi.cwiseInverse().asDiagonal();
-      sb.noalias() -= 0.5 * sum_w *
-                      (p.sqrt_psi.asDiagonal() * rs_inv * p.sqrt_psi.asDiagonal());
-      sb.noalias() += 0.5 * r_inv_t * g * r_inv_t.transpose();
-    }
-  }
+  const absl::Status pairs = ForEachWeightedPair(
+      gp, delta, s, sym_bar, options.model_variance, beta_bar,
+      [&](int a, int b, const Vector& ila, const Vector& ilb, const PairTerms& p) {
+        const Matrix& w = p.q;
+        // For a == b, W is symmetric (Q_aa, beta beta^T and Vw_a are), so
+        // c = r and W^T Za = W Zb: one product instead of two.
+        const Vector r = w.rowwise().sum();
+        const Vector c = a == b ? r : Vector(w.colwise().sum().transpose());
+        const double sum_w = r.sum();
+        const Matrix wzb = w * p.zb;                                     // N x E
+        const Matrix wtza = a == b ? wzb : Matrix(w.transpose() * p.za);  // N x E
+        const Matrix rza = r.asDiagonal() * p.za;
+        const Matrix czb = c.asDiagonal() * p.zb;
+        delta_bar.noalias() -= rza + czb;
+        delta_bar.noalias() += (rza + wzb) * p.t * ila.asDiagonal();
+        delta_bar.noalias() += (wtza + czb) * p.t * ilb.asDiagonal();
+        const Matrix cross_g = p.za.transpose() * wzb;
+        const Matrix g = p.za.transpose() * rza + p.zb.transpose() * czb + cross_g +
+                         cross_g.transpose();
+        // d(-1/2 log det R)/ds = -1/2 R^-T Psi = -1/2 Psi^1/2 Rs^-1 Psi^1/2;
+        // d(1/2 zeta^T T zeta)/ds = 1/2 R^-T zeta zeta^T R^-1, with
+        // R^-T = Psi^1/2 Rs^-1 Psi^-1/2.
+        const Matrix rs_inv = p.llt.solve(Matrix::Identity(e, e));
+        const Matrix r_inv_t =
+            p.sqrt_psi.asDiagonal() * rs_inv * p.sqrt_psi.cwiseInverse().asDiagonal();
+        sb.noalias() -= 0.5 * sum_w *
+                        (p.sqrt_psi.asDiagonal() * rs_inv * p.sqrt_psi.asDiagonal());
+        sb.noalias() += 0.5 * r_inv_t * g * r_inv_t.transpose();
+      });
+  if (!pairs.ok()) return pairs;
 
   // Means and cross-covariances.
   for (int a = 0; a < d; ++a) {
@@ -432,46 +452,31 @@ absl::Status PredictGaussianLengthscaleAdjoint(const GaussianInputGp& gp, const 
   }
 
   // Second moments: cov_ab = beta_a^T Q_ab beta_b (- [a == b] tr(Vw_a Q_aa)).
-  PairTerms p;
-  for (int a = 0; a < d; ++a) {
-    const Vector ila = gp.inv_lengthscale_sq.row(a).transpose();
-    for (int b = a; b < d; ++b) {
-      const double gamma = a == b ? sym_bar(a, a) : 2.0 * sym_bar(a, b);
-      if (gamma == 0.0) continue;
-      const Vector ilb = gp.inv_lengthscale_sq.row(b).transpose();
-      if (absl::Status st = ComputePairTerms(delta, s, ila, ilb, gp.signal_var(a),
-                                             gp.signal_var(b), a, b, &p);
-          !st.ok()) {
-        return st;
-      }
-      Matrix w = p.q;
-      if (a == b && options.model_variance) {
-        w.array() *= gamma * ((gp.beta.col(a) * gp.beta.col(b).transpose()).array() -
-                              gp.variance_weights[a].array());
-      } else {
-        w.array() *= gamma * (gp.beta.col(a) * gp.beta.col(b).transpose()).array();
-      }
-      // T z_ij = (Za T)_i + (Zb T)_j (T symmetric).
-      const Matrix tza = p.za * p.t;  // N x E
-      const Matrix tzb = p.zb * p.t;
-      for (int k = 0; k < e; ++k) {
-        const double tkk = p.t(k, k);
-        double sa = 0, sb = 0;
-        for (int j = 0; j < n; ++j) {
-          for (int i = 0; i < n; ++i) {
-            const double wij = w(i, j);
-            if (wij == 0.0) continue;
-            const double tz = tza(i, k) + tzb(j, k);
-            const double ra = delta(i, k) - tz, rb = delta(j, k) - tz;
-            sa += wij * (ra * ra + tkk);
-            sb += wij * (rb * rb + tkk);
+  const absl::Status pairs = ForEachWeightedPair(
+      gp, delta, s, sym_bar, options.model_variance, /*beta_bar=*/nullptr,
+      [&](int a, int b, const Vector&, const Vector&, const PairTerms& p) {
+        const Matrix& w = p.q;
+        // T z_ij = (Za T)_i + (Zb T)_j (T symmetric).
+        const Matrix tza = p.za * p.t;  // N x E
+        const Matrix tzb = p.zb * p.t;
+        for (int k = 0; k < e; ++k) {
+          const double tkk = p.t(k, k);
+          double sa = 0, sb = 0;
+          for (int j = 0; j < n; ++j) {
+            for (int i = 0; i < n; ++i) {
+              const double wij = w(i, j);
+              if (wij == 0.0) continue;
+              const double tz = tza(i, k) + tzb(j, k);
+              const double ra = delta(i, k) - tz, rb = delta(j, k) - tz;
+              sa += wij * (ra * ra + tkk);
+              sb += wij * (rb * rb + tkk);
+            }
           }
+          (*il_bar)(a, k) -= 0.5 * sa;
+          (*il_bar)(b, k) -= 0.5 * sb;
         }
-        (*il_bar)(a, k) -= 0.5 * sa;
-        (*il_bar)(b, k) -= 0.5 * sb;
-      }
-    }
-  }
+      });
+  if (!pairs.ok()) return pairs;
   if (!il_bar->allFinite()) {
     return absl::InternalError("GP prediction length-scale derivative is not finite");
   }

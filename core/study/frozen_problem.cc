@@ -209,11 +209,8 @@ absl::StatusOr<std::unique_ptr<FrozenProblem>> FrozenProblemFromSynthetic(
                                options.train_iterations > 0 ? ", trained GP" : ", untrained GP");
     return out;
   }
-  tasks::SceneOptions scene_options;
-  scene_options.scene = options.scene;
-  scene_options.cost = options.cost;
-  scene_options.horizon = options.horizon;
-  absl::StatusOr<tasks::Scene> scene = tasks::MakeScene(scene_options);
+  absl::StatusOr<tasks::Scene> scene =
+      tasks::MakeScene(options.scene, options.cost, options.horizon);
   if (!scene.ok()) return scene.status();
   SceneSyntheticOptions scene_synthetic;
   scene_synthetic.data = options.data;

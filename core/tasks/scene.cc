@@ -66,6 +66,14 @@ const OptionTable<SceneOptions>& SceneOptions::Table() {
   return *table;
 }
 
+absl::StatusOr<Scene> MakeScene(const std::string& scene, const std::string& cost, int horizon) {
+  SceneOptions options;
+  options.scene = scene;
+  options.cost = cost;
+  options.horizon = horizon;
+  return MakeScene(options);
+}
+
 absl::StatusOr<Scene> MakeScene(const SceneOptions& options) {
   const SceneDefinition* definition = FindSceneDefinition(options.scene);
   if (definition == nullptr) {

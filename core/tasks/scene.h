@@ -81,6 +81,9 @@ struct Scene {
 // The tip cost measures the tip of this plant's pole, so it uses
 // plant.pole_length (PILCO: cost length = pole length = 0.5 m).
 absl::StatusOr<Scene> MakeScene(const SceneOptions& options);
+// The scene `scene` with cost `cost` and horizon `horizon`, every other
+// option at its default (the gradient studies' synthetic problems).
+absl::StatusOr<Scene> MakeScene(const std::string& scene, const std::string& cost, int horizon);
 
 // How far state x (D) is from the scene's goal, in the metric of PILCO's
 // saturating cost: sqrt((z - z_t)^T Q (z - z_t)), z = [x, sin x_a, cos x_a,
