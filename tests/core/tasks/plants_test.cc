@@ -13,6 +13,7 @@
 #include "core/ode/integrator.h"
 #include "core/tasks/scene_catalog.h"
 #include "tests/testutil/testutil.h"
+#include "tests/testutil/plant_energy.h"
 
 namespace totalgrad::tasks {
 namespace plants_test {
@@ -32,13 +33,7 @@ std::unique_ptr<Plant> PlantOf(const std::string& scene) {
   return MakePlant(*d);
 }
 
-// dE/dt along f(x, u) by central differences of E in time direction f.
-double EnergyRate(const Plant& plant, const Vector& x, const Vector& u) {
-  Vector f;
-  plant.Derivative(x, u, &f);
-  const double h = 1e-6;
-  return (plant.Energy(x + h * f) - plant.Energy(x - h * f)) / (2 * h);
-}
+using ::totalgrad::testing::EnergyRate;
 
 TEST(PendulumTest, PublishedRightHandSide) {
   const auto plant = PlantOf("pendulum");  // m = l = 1, b = 0.01, g = 9.82

@@ -13,6 +13,7 @@
 
 #include "core/gaussian/trig.h"
 #include "core/tasks/unicycle.h"
+#include "tests/testutil/plant_energy.h"
 
 namespace totalgrad::tasks {
 namespace unicycle_test {
@@ -36,13 +37,7 @@ Vector RandomState(std::mt19937_64& rng, double rate_scale, double angle_scale) 
 
 Vector Torques(double turntable, double wheel) { return Eigen::Vector2d(turntable, wheel); }
 
-// dE/dt along f(x, u) by central differences of E in the direction f.
-double EnergyRate(const Plant& plant, const Vector& x, const Vector& u) {
-  Vector f;
-  plant.Derivative(x, u, &f);
-  const double h = 1e-6;
-  return (plant.Energy(x + h * f) - plant.Energy(x - h * f)) / (2 * h);
-}
+using ::totalgrad::testing::EnergyRate;
 
 TEST(UnicycleTest, PlanarMotionIsAWheelWithAPendulumOnItsAxle) {
   // No roll, yaw or turntable motion: the wheel (angle w) and the frame with
