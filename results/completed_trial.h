@@ -13,6 +13,7 @@
 
 #include <cstdint>
 #include <limits>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -41,6 +42,10 @@ struct CompletedTrial {
 
 // The record's fields, named as every path names them.
 const record::FieldTable<CompletedTrial>& CompletedTrialFields();
+// The fields a coordinator reports per trial (the store's ListTrialResults,
+// the wire's TrialResult): all but `sweep` and `options`, which the readers
+// add. CompletedTrialFields is `sweep`, these in order, then `options`.
+const record::FieldTable<CompletedTrial>& CompletedTrialResultFields();
 
 // Where completed trials come from: a coordinator over gRPC (the CLI), the
 // coordinator's own store (the dashboard, ControlService), a database file.
@@ -55,6 +60,14 @@ class ResultsReader {
   virtual absl::StatusOr<std::vector<CompletedTrial>> CompletedTrials(
       const std::string& sweep) = 0;
 };
+
+// Sets each trial's `options` to its job's entry of `options_of` (moved
+// out). InternalError naming the job and `sweep` when a trial's job has no
+// entry: a result whose job is not listed completed. What both readers do
+// after reading the results and then the completed jobs' options.
+absl::Status AttachOptions(const std::string& sweep,
+                           std::map<int64_t, record::TextPairs> options_of,
+                           std::vector<CompletedTrial>* trials);
 
 // The completed trials of several sweeps, in the order named (each sweep's
 // `sweep` field set); the first error, prefixed with the sweep's name.

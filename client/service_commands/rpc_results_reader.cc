@@ -5,6 +5,7 @@
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
 #include "client/service_commands/streamed_reads.h"
+#include "runtime/record_proto.h"
 
 namespace totalgrad::cli {
 
@@ -31,24 +32,13 @@ absl::StatusOr<std::vector<results::CompletedTrial>> RpcResultsReader::Completed
   std::vector<results::CompletedTrial> trials;
   trials.reserve(completed.results_size());
   for (const v1::TrialResult& result : completed.results()) {
-    auto options = options_of.find(result.job_id());
-    if (options == options_of.end()) {
-      return absl::InternalError(absl::StrCat("job ", result.job_id(), " of sweep ", sweep,
-                                              " has a result but is not listed as completed"));
-    }
-    results::CompletedTrial trial;
-    trial.method = result.method();
-    trial.seed = result.seed();
-    trial.variant = result.variant();
-    trial.success = result.success();
-    trial.final_eval_cost = result.final_eval_cost();
-    trial.held_fraction = result.held_fraction();
+    results::CompletedTrial& trial = trials.emplace_back();
+    record_proto::RecordFromProto(results::CompletedTrialResultFields(), result, &trial);
     trial.sweep = sweep;
-    trial.job_id = result.job_id();
-    trial.attempt = result.attempt();
-    trial.episodes = result.episodes();
-    trial.options = std::move(options->second);
-    trials.push_back(std::move(trial));
+  }
+  if (absl::Status attached = results::AttachOptions(sweep, std::move(options_of), &trials);
+      !attached.ok()) {
+    return attached;
   }
   return trials;
 }

@@ -75,48 +75,67 @@ TraceVariance RowTraceVariance(const RowMatrix& rows) {
 
 namespace {
 
-// max over i, j of |factor_i rows_ij - mean_j| (rows: p x n, row-major).
-TG_VECTOR_CLONES double MaxDeviation(const double* factor, const double* rows, Eigen::Index p,
-                                     Eigen::Index n, const double* mean) {
-  using simd::Doubles;
-  Doubles lanes = simd::Broadcast(0.0);
-  double tail = 0;
+// Calls visit.Lanes(d) on full packets and visit.Tail(d) on the rest of the
+// deviations d_ij = factor_i rows_ij - mean_j (rows: p x n, row-major), rows
+// in order, j ascending. Inlined into each vector clone of its callers, with
+// the visitor's members.
+template <typename Visitor>
+__attribute__((always_inline)) inline void VisitDeviations(const double* factor,
+                                                           const double* rows, Eigen::Index p,
+                                                           Eigen::Index n, const double* mean,
+                                                           Visitor* visit) {
   for (Eigen::Index i = 0; i < p; ++i) {
     const double f = factor[i];
     const double* r = rows + i * n;
     Eigen::Index j = 0;
     for (; j + simd::kLanes <= n; j += simd::kLanes) {
-      Doubles d = f * simd::Load(r + j) - simd::Load(mean + j);
-      d = simd::Select(d < 0.0, -d, d);
-      lanes = simd::Select(d > lanes, d, lanes);
+      visit->Lanes(f * simd::Load(r + j) - simd::Load(mean + j));
     }
-    for (; j < n; ++j) tail = std::max(tail, std::abs(f * r[j] - mean[j]));
+    for (; j < n; ++j) visit->Tail(f * r[j] - mean[j]);
   }
-  for (int l = 0; l < simd::kLanes; ++l) tail = std::max(tail, lanes[l]);
-  return tail;
 }
+
+// max over i, j of |factor_i rows_ij - mean_j|.
+struct MaxAbsDeviation {
+  simd::Doubles lanes = simd::Broadcast(0.0);
+  double tail = 0;
+  __attribute__((always_inline)) void Lanes(simd::Doubles d) {
+    d = simd::Select(d < 0.0, -d, d);
+    lanes = simd::Select(d > lanes, d, lanes);
+  }
+  __attribute__((always_inline)) void Tail(double d) { tail = std::max(tail, std::abs(d)); }
+};
 
 // sum over i, j of ((factor_i rows_ij - mean_j) * inv)^2: lanes over j, rows
 // in order, lanes combined in order.
+struct ScaledSquares {
+  double inv;
+  simd::Doubles lanes = simd::Broadcast(0.0);
+  double tail = 0;
+  __attribute__((always_inline)) void Lanes(simd::Doubles d) {
+    const simd::Doubles scaled = d * inv;
+    lanes += scaled * scaled;
+  }
+  __attribute__((always_inline)) void Tail(double d) {
+    const double scaled = d * inv;
+    tail += scaled * scaled;
+  }
+};
+
+TG_VECTOR_CLONES double MaxDeviation(const double* factor, const double* rows, Eigen::Index p,
+                                     Eigen::Index n, const double* mean) {
+  MaxAbsDeviation visit;
+  VisitDeviations(factor, rows, p, n, mean, &visit);
+  double max = visit.tail;
+  for (int l = 0; l < simd::kLanes; ++l) max = std::max(max, visit.lanes[l]);
+  return max;
+}
+
 TG_VECTOR_CLONES double ScaledSquareSum(const double* factor, const double* rows, Eigen::Index p,
                                         Eigen::Index n, const double* mean, double inv) {
-  using simd::Doubles;
-  Doubles lanes = simd::Broadcast(0.0);
-  double tail = 0;
-  for (Eigen::Index i = 0; i < p; ++i) {
-    const double f = factor[i];
-    const double* r = rows + i * n;
-    Eigen::Index j = 0;
-    for (; j + simd::kLanes <= n; j += simd::kLanes) {
-      const Doubles d = (f * simd::Load(r + j) - simd::Load(mean + j)) * inv;
-      lanes += d * d;
-    }
-    for (; j < n; ++j) {
-      const double d = (f * r[j] - mean[j]) * inv;
-      tail += d * d;
-    }
-  }
-  return simd::CombineLanes(lanes) + tail;
+  ScaledSquares visit{inv};
+  VisitDeviations(factor, rows, p, n, mean, &visit);
+  return simd::CombineLanes(visit.lanes) + visit.tail;
 }
 
 }  // namespace

@@ -7,22 +7,6 @@
 
 namespace totalgrad::estimators {
 
-void GpDynamics::Predict(const ConstRowMatrixRef& z, double noise_variance_multiplier,
-                         RowMatrix* mean, RowMatrix* variance, RowMatrix* dmean_dz,
-                         RowMatrix* dvar_dz) const {
-  gp::PredictOptions options;
-  options.noise_variance_multiplier = noise_variance_multiplier;
-  model_->Predict(z, options, mean, variance, dmean_dz, dvar_dz, pool_);
-}
-
-void FitcDynamics::Predict(const ConstRowMatrixRef& z, double noise_variance_multiplier,
-                           RowMatrix* mean, RowMatrix* variance, RowMatrix* dmean_dz,
-                           RowMatrix* dvar_dz) const {
-  gp::PredictOptions options;
-  options.noise_variance_multiplier = noise_variance_multiplier;
-  model_->Predict(z, options, mean, variance, dmean_dz, dvar_dz, pool_);
-}
-
 namespace {
 
 // Chain rule from feature coordinates to raw ones, for `blocks` blocks of

@@ -73,39 +73,32 @@ class ParticlePolicy {
                         RowMatrix* per_particle_param_bar, Vector* param_bar) const = 0;
 };
 
-// Adapter over a GP model (non-owning; the model must outlive the adapter).
-class GpDynamics final : public ParticleDynamics {
+// Adapter over a GP model (non-owning; the model must outlive the adapter):
+// gp::GpModel (the full GP) or gp::FitcModel (a sparse GP, for trials with
+// gp_inducing), the same batched contract, one call per step.
+template <typename Model>
+class GpModelDynamics final : public ParticleDynamics {
  public:
   // `pool` (may be null) spreads Predict's outputs over threads.
-  explicit GpDynamics(const gp::GpModel* model, ThreadPool* pool = nullptr)
+  explicit GpModelDynamics(const Model* model, ThreadPool* pool = nullptr)
       : model_(model), pool_(pool) {}
   int state_dim() const override { return model_->num_outputs(); }
   int input_dim() const override { return model_->num_inputs(); }
   void Predict(const ConstRowMatrixRef& z, double noise_variance_multiplier, RowMatrix* mean,
-               RowMatrix* variance, RowMatrix* dmean_dz, RowMatrix* dvar_dz) const override;
-  const gp::GpModel& model() const { return *model_; }
+               RowMatrix* variance, RowMatrix* dmean_dz, RowMatrix* dvar_dz) const override {
+    gp::PredictOptions options;
+    options.noise_variance_multiplier = noise_variance_multiplier;
+    model_->Predict(z, options, mean, variance, dmean_dz, dvar_dz, pool_);
+  }
+  const Model& model() const { return *model_; }
 
  private:
-  const gp::GpModel* model_;
+  const Model* model_;
   ThreadPool* pool_;
 };
 
-// Adapter over a sparse (FITC) GP model (non-owning), for trials with
-// gp_inducing: the same batched contract, one call per step.
-class FitcDynamics final : public ParticleDynamics {
- public:
-  explicit FitcDynamics(const gp::FitcModel* model, ThreadPool* pool = nullptr)
-      : model_(model), pool_(pool) {}
-  int state_dim() const override { return model_->num_outputs(); }
-  int input_dim() const override { return model_->num_inputs(); }
-  void Predict(const ConstRowMatrixRef& z, double noise_variance_multiplier, RowMatrix* mean,
-               RowMatrix* variance, RowMatrix* dmean_dz, RowMatrix* dvar_dz) const override;
-  const gp::FitcModel& model() const { return *model_; }
-
- private:
-  const gp::FitcModel* model_;
-  ThreadPool* pool_;
-};
+using GpDynamics = GpModelDynamics<gp::GpModel>;
+using FitcDynamics = GpModelDynamics<gp::FitcModel>;
 
 // A model on (sin, cos) angle features as a model on the raw state
 // (non-owning): the inner model's inputs are zf = [phi(x), u] (S + A + F

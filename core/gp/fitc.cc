@@ -183,10 +183,8 @@ void FitcModel::PredictOutput(int a, const ConstRowMatrixRef& z, const PredictOp
   FitcWorkspace& ws = ThreadFitcWorkspace();
   {
     const Output& out = outputs_[a];
-    ws.zs.noalias() = z * out.inv_lengthscales.asDiagonal();
-    ws.zs_sq.noalias() = ws.zs.rowwise().squaredNorm();
-    internal::SeCrossKernel(ws.zs, ws.zs_sq, out.scaled_inducing, out.scaled_sq_norms,
-                            out.signal_var, &ws.kstar);
+    internal::ScaledQueryCrossKernel(z, out.inv_lengthscales, out.scaled_inducing, out.scaled_sq_norms,
+                                     out.signal_var, &ws.zs, &ws.zs_sq, &ws.kstar);
     ws.column.noalias() = ws.kstar * beta_.col(a);
     mean->col(a) = ws.column;
 

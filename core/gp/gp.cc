@@ -270,10 +270,8 @@ void GpModel::PredictOutput(int a, const ConstRowMatrixRef& z, const PredictOpti
   PredictWorkspace& ws = ThreadWorkspace();
   {
     const Output& out = outputs_[a];
-    ws.zs.noalias() = z * out.inv_lengthscales.asDiagonal();
-    ws.zs_sq.noalias() = ws.zs.rowwise().squaredNorm();
-    internal::SeCrossKernel(ws.zs, ws.zs_sq, out.scaled_inputs, out.scaled_sq_norms,
-                            out.signal_var, &ws.kstar);
+    internal::ScaledQueryCrossKernel(z, out.inv_lengthscales, out.scaled_inputs, out.scaled_sq_norms,
+                                     out.signal_var, &ws.zs, &ws.zs_sq, &ws.kstar);
 
     // Mean and variance are computed the same way whether or not Jacobians are
     // requested, so that asking for derivatives never changes the values. The

@@ -35,6 +35,18 @@ inline void SeCrossKernel(const ConstRowMatrixRef& a, const Vector& a_sq,
   }
 }
 
+// The query side of a prediction for one output: zs (P x E, overwritten) =
+// z / l, zs_sq = its squared row norms, and kstar (P x N) = SeCrossKernel of
+// zs against the support points b (N x E, already divided by l, with squared
+// norms b_sq).
+inline void ScaledQueryCrossKernel(const ConstRowMatrixRef& z, const Vector& inv_lengthscales,
+                                   const ConstRowMatrixRef& b, const Vector& b_sq, double sf2,
+                                   RowMatrix* zs, Vector* zs_sq, Matrix* kstar) {
+  zs->noalias() = z * inv_lengthscales.asDiagonal();
+  zs_sq->noalias() = zs->rowwise().squaredNorm();
+  SeCrossKernel(*zs, *zs_sq, b, b_sq, sf2, kstar);
+}
+
 // True when `llt` succeeded and K is positive definite beyond round-off: every
 // pivot L_ii^2 must exceed N * eps * max_diag. Eigen's LLT only reports a
 // non-positive pivot; for exactly duplicated inputs with tiny noise the pivot is

@@ -80,12 +80,9 @@ class ParticleLearner final : public PolicyLearner {
     policy_.set_parameters(params);
   }
 
-  absl::Status Improve(const Transitions& data, int e, TrialObserver* observer, PhaseClock* clock,
-                       EpisodeResult* result) override {
+  absl::Status ImprovePolicy(const GpTrainingSet& training_set, int e, TrialObserver* observer,
+                             PhaseClock* clock, EpisodeResult* result) override {
     EpisodeTiming& timing = result->timing;
-    const GpTrainingSet training_set = MakeGpTrainingSet(data, angles_);
-    absl::Status status = TrainModel(training_set, e, result);
-    if (!status.ok()) return status;
     // The full GP, or FITC once the data exceed gp_inducing points. Inducing
     // inputs as PILCO: a random subset the first time, then warm-started
     // from the last episode.
@@ -111,7 +108,7 @@ class ParticleLearner final : public PolicyLearner {
       if (observer != nullptr && observer->ShouldCancel())
         return absl::CancelledError(absl::StrCat("trial cancelled in episode ", e, " at step ", step));
       Rng particle_rng(options_.seed, Stream::kParticleNoise, StepStreamIndex(e, step));
-      status = estimator_->Estimate(problem, estimate_options, &particle_rng, &estimate);
+      absl::Status status = estimator_->Estimate(problem, estimate_options, &particle_rng, &estimate);
       if (!status.ok()) return status;
       if (!estimate.finite) {
         ++result->flags.non_finite_gradients;
@@ -129,9 +126,11 @@ class ParticleLearner final : public PolicyLearner {
     clock->Lap(&timing.policy_cpu, &timing.policy_wall);
     estimators::Rollout rollout;
     Rng predicted_rng(options_.seed, Stream::kParticleNoise, StepStreamIndex(e, kPredictedCostStep));
-    status = estimators::SimulateParticles(problem, options_.predicted_cost_particles, {},
-                                           &predicted_rng, &rollout);
-    if (!status.ok()) return status;
+    if (absl::Status status = estimators::SimulateParticles(
+            problem, options_.predicted_cost_particles, {}, &predicted_rng, &rollout);
+        !status.ok()) {
+      return status;
+    }
     clock->Lap(&timing.prediction_cpu, &timing.prediction_wall);
     result->predicted_cost = rollout.objective;
     PredictedStates(rollout, &result->trajectories);

@@ -39,12 +39,9 @@ class PilcoLearner final : public PolicyLearner {
     return absl::OkStatus();
   }
 
-  absl::Status Improve(const Transitions& data, int e, TrialObserver* observer, PhaseClock* clock,
-                       EpisodeResult* result) override {
+  absl::Status ImprovePolicy(const GpTrainingSet& training_set, int e, TrialObserver* observer,
+                             PhaseClock* clock, EpisodeResult* result) override {
     EpisodeTiming& timing = result->timing;
-    const GpTrainingSet training_set = MakeGpTrainingSet(data, angles_);
-    absl::Status status = TrainModel(training_set, e, result);
-    if (!status.ok()) return status;
     pilco::DynamicsModelOptions model_options;
     model_options.num_inducing = InducingInputs(options_);
     Rng inducing_rng(options_.seed, Stream::kGpInit, static_cast<uint64_t>(e));

@@ -16,7 +16,9 @@ PolicyLearner::PolicyLearner(const TrialOptions& options, const tasks::Scene& sc
       policy_(options.basis_functions, gaussian::FeatureDim(scene.state_dim(), angles_),
               scene.max_control) {}
 
-absl::Status PolicyLearner::TrainModel(const GpTrainingSet& data, int episode, EpisodeResult* result) {
+absl::StatusOr<GpTrainingSet> PolicyLearner::TrainModel(const Transitions& transitions,
+                                                        int episode, EpisodeResult* result) {
+  GpTrainingSet data = MakeGpTrainingSet(transitions, angles_);
   if (!hyperparameters_) hyperparameters_ = gp::InitialHyperparameters(data.inputs, data.targets);
   absl::StatusOr<gp::TrainingSummary> training =
       gp::TrainHyperparameters(data.inputs, data.targets, options_.gp_training, &*hyperparameters_);
@@ -26,7 +28,14 @@ absl::Status PolicyLearner::TrainModel(const GpTrainingSet& data, int episode, E
   result->flags.gp_line_search_failures = training->line_search_failures;
   result->flags.gp_non_finite_evaluations = training->non_finite_evaluations;
   result->hyperparameters = *hyperparameters_;
-  return absl::OkStatus();
+  return data;
+}
+
+absl::Status PolicyLearner::Improve(const Transitions& data, int episode, TrialObserver* observer,
+                                    PhaseClock* clock, EpisodeResult* result) {
+  absl::StatusOr<GpTrainingSet> trained = TrainModel(data, episode, result);
+  if (!trained.ok()) return trained.status();
+  return ImprovePolicy(*trained, episode, observer, clock, result);
 }
 
 void PolicyLearner::SaveState(TrialCheckpoint* checkpoint) const {

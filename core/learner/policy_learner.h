@@ -26,12 +26,13 @@ namespace totalgrad::learner {
 class PolicyLearner {
  public:
   virtual ~PolicyLearner() = default;
-  // Fits the model on `data`, optimises the policy, fills the model- and
+  // Trains the GP's hyperparameters on `data` (TrainModel), then fits the
+  // model, optimises the policy (ImprovePolicy) and fills the model- and
   // optimisation-related fields of *result, timing its phases with `clock`
   // (model, policy, prediction laps into result->timing). Errors name the
   // episode; Cancelled when the observer asked.
-  virtual absl::Status Improve(const Transitions& data, int episode, TrialObserver* observer,
-                               PhaseClock* clock, EpisodeResult* result) = 0;
+  absl::Status Improve(const Transitions& data, int episode, TrialObserver* observer,
+                       PhaseClock* clock, EpisodeResult* result);
   // What carries over to the next episode (checkpoint.h), and back.
   virtual void SaveState(TrialCheckpoint* checkpoint) const;
   virtual absl::Status RestoreState(const TrialCheckpoint& checkpoint);
@@ -45,9 +46,16 @@ class PolicyLearner {
  protected:
   // angles: none (raw) or the scene's angles (sin, cos features).
   PolicyLearner(const TrialOptions& options, const tasks::Scene& scene, std::vector<int> angles);
-  // Trains the GP hyperparameters on `data` (warm-started from the last
-  // episode's) and records the training's flags in *result.
-  absl::Status TrainModel(const GpTrainingSet& data, int episode, EpisodeResult* result);
+  // The GP's training set from `data` (on angle features where angles_ is
+  // not empty), its hyperparameters trained on it (warm-started from the
+  // last episode's) and the training's flags recorded in *result.
+  absl::StatusOr<GpTrainingSet> TrainModel(const Transitions& data, int episode,
+                                           EpisodeResult* result);
+  // Improve's method-specific part, after the hyperparameters are trained on
+  // `training_set` (hyperparameters_ holds them).
+  virtual absl::Status ImprovePolicy(const GpTrainingSet& training_set, int episode,
+                                     TrialObserver* observer, PhaseClock* clock,
+                                     EpisodeResult* result) = 0;
 
   const TrialOptions& options_;
   const tasks::Scene& scene_;

@@ -101,6 +101,18 @@ absl::Status RealEpisodeAndEvaluation(const TrialOptions& options, const tasks::
   return absl::OkStatus();
 }
 
+// What a checkpoint and a snapshot after episode e both carry: the episode,
+// the trial's options and the data so far.
+template <typename TrialRecord>
+void FillEpisodeData(int e, const TrialOptions& options, const Transitions& data,
+                     TrialRecord* record) {
+  record->episode = e;
+  record->options = TrialOptionPairs(options);
+  record->states = data.states;
+  record->forces = data.forces;
+  record->next_states = data.next_states;
+}
+
 }  // namespace
 
 absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver* observer,
@@ -138,12 +150,8 @@ absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver
   // After episode e: everything the next episode reads (checkpoint.h).
   const auto emit_checkpoint = [&](int e) {
     TrialCheckpoint c;
-    c.episode = e;
-    c.options = TrialOptionPairs(options);
+    FillEpisodeData(e, options, data, &c);
     c.episodes = summary.episodes;
-    c.states = data.states;
-    c.forces = data.forces;
-    c.next_states = data.next_states;
     learner->SaveState(&c);
     observer->OnCheckpoint(c);
   };
@@ -184,11 +192,7 @@ absl::StatusOr<TrialSummary> RunTrial(const TrialOptions& options, TrialObserver
     result.optimisation_seconds = Seconds(start_time);
     if (snapshot) {
       TrialSnapshot s;
-      s.episode = e;
-      s.options = TrialOptionPairs(options);
-      s.states = data.states;
-      s.forces = data.forces;
-      s.next_states = data.next_states;
+      FillEpisodeData(e, options, data, &s);
       s.hyperparameters = result.hyperparameters;
       s.policy_parameters_before = policy_before;
       s.policy_parameters = result.policy_parameters;

@@ -65,6 +65,45 @@ GaussianPredictionOptions Gp2Options(const RbfPolicyShape& shape) {
   return o;
 }
 
+
+// Adjoints through the unsquashed outputs a = gp2(m, s) in scaled coordinates
+// (one row of length-scales), F columns: a_mean_bar (F), a_cov_bar (F x F),
+// a_cross_bar (E x F). `a_cross` is the forward Cov(x, a) (E x F), read only
+// with params_bar (a_cross = diag(il) cross_scaled depends on log l
+// explicitly; summed over the controls).
+absl::Status ScaledUnsquashedBackward(const RbfPolicyShape& shape, const Scaled& sc,
+                                      const Vector& a_mean_bar, const Matrix& a_cov_bar,
+                                      const Matrix& a_cross_bar, const Matrix& a_cross,
+                                      Vector* m_bar, Matrix* s_bar, Vector* params_bar) {
+  const int c = shape.num_basis, e = shape.input_dim, f = shape.num_controls();
+  const Matrix cross_bar_scaled = sc.il.asDiagonal() * a_cross_bar;
+  Vector m_bar_scaled;
+  Matrix s_bar_scaled;
+  RowMatrix inputs_bar;
+  Matrix beta_bar;
+  if (absl::Status st = PredictGaussianBackward(sc.gp, sc.m, sc.s, Gp2Options(shape), a_mean_bar,
+                                                a_cov_bar, cross_bar_scaled, &m_bar_scaled,
+                                                &s_bar_scaled, params_bar ? &inputs_bar : nullptr,
+                                                params_bar ? &beta_bar : nullptr);
+      !st.ok()) {
+    return st;
+  }
+  *m_bar = sc.il.cwiseProduct(m_bar_scaled);
+  *s_bar = sc.il.asDiagonal() * s_bar_scaled * sc.il.asDiagonal();
+  if (params_bar != nullptr) {
+    TG_CHECK(params_bar->size() == shape.num_parameters());
+    TG_CHECK(a_cross.rows() == e && a_cross.cols() == f);
+    Eigen::Map<RowMatrix> centres_bar(params_bar->data(), c, e);
+    centres_bar += inputs_bar * sc.il.asDiagonal();
+    const Vector log_l_bar =
+        -(inputs_bar.cwiseProduct(sc.gp.inputs).colwise().sum().transpose() +
+          m_bar_scaled.cwiseProduct(sc.m) + 2.0 * s_bar_scaled.cwiseProduct(sc.s).rowwise().sum() +
+          a_cross_bar.cwiseProduct(a_cross).rowwise().sum());
+    params_bar->segment(c * e, e) += log_l_bar;
+    Eigen::Map<RowMatrix>(params_bar->data() + c * e + e, c, f) += beta_bar;
+  }
+  return absl::OkStatus();
+}
 }  // namespace
 
 absl::Status PolicyAtGaussian(const RbfPolicyShape& shape, const Vector& params, const Vector& m,
@@ -87,44 +126,21 @@ absl::Status UnsquashedPolicyBackward(const RbfPolicyShape& shape, const Vector&
                                       const Vector& m, const Matrix& s, double a_mean_bar,
                                       double a_var_bar, const Vector& a_cross_bar, Vector* m_bar,
                                       Matrix* s_bar, Vector* params_bar) {
-  const int c = shape.num_basis, e = shape.input_dim;
   TG_CHECK(shape.num_controls() == 1);
   const Scaled sc = MakeScaled(shape, params, m, s);
-  TG_CHECK(a_cross_bar.size() == e);
-  const Vector mean_bar = Vector::Constant(1, a_mean_bar);
-  const Matrix cov_bar = Matrix::Constant(1, 1, a_var_bar);
-  const Matrix cross_bar_scaled = sc.il.cwiseProduct(a_cross_bar);
-  Vector m_bar_scaled;
-  Matrix s_bar_scaled;
-  RowMatrix inputs_bar;
-  Matrix beta_bar;
-  const GaussianPredictionOptions options = Gp2Options(shape);
-  if (absl::Status st = PredictGaussianBackward(sc.gp, sc.m, sc.s, options, mean_bar, cov_bar,
-                                                cross_bar_scaled, &m_bar_scaled, &s_bar_scaled,
-                                                params_bar ? &inputs_bar : nullptr,
-                                                params_bar ? &beta_bar : nullptr);
-      !st.ok()) {
-    return st;
-  }
-  *m_bar = sc.il.cwiseProduct(m_bar_scaled);
-  *s_bar = sc.il.asDiagonal() * s_bar_scaled * sc.il.asDiagonal();
+  TG_CHECK(a_cross_bar.size() == shape.input_dim);
+  Matrix a_cross;
   if (params_bar != nullptr) {
-    TG_CHECK(params_bar->size() == shape.num_parameters());
-    Eigen::Map<RowMatrix> centres_bar(params_bar->data(), c, e);
-    centres_bar += inputs_bar * sc.il.asDiagonal();
-    // a_cross = il o cross_scaled: explicit dependence on log l.
     GaussianPrediction pred;
-    if (absl::Status st = PredictGaussian(sc.gp, sc.m, sc.s, options, &pred); !st.ok()) return st;
-    const Vector a_cross = sc.il.cwiseProduct(pred.cross.col(0));
-    const Vector log_l_bar =
-        -(inputs_bar.cwiseProduct(sc.gp.inputs).colwise().sum().transpose() +
-          m_bar_scaled.cwiseProduct(sc.m) +
-          2.0 * s_bar_scaled.cwiseProduct(sc.s).rowwise().sum() +
-          a_cross_bar.cwiseProduct(a_cross));
-    params_bar->segment(c * e, e) += log_l_bar;
-    params_bar->tail(c) += beta_bar.col(0);
+    if (absl::Status st = PredictGaussian(sc.gp, sc.m, sc.s, Gp2Options(shape), &pred);
+        !st.ok()) {
+      return st;
+    }
+    a_cross = sc.il.cwiseProduct(pred.cross.col(0));
   }
-  return absl::OkStatus();
+  return ScaledUnsquashedBackward(shape, sc, Vector::Constant(1, a_mean_bar),
+                                  Matrix::Constant(1, 1, a_var_bar), a_cross_bar, a_cross, m_bar,
+                                  s_bar, params_bar);
 }
 
 absl::Status MultiPolicyAtGaussian(const RbfPolicyShape& shape, const Vector& params,
@@ -202,37 +218,8 @@ absl::Status MultiPolicyAtGaussianBackward(const RbfPolicyShape& shape, const Ve
     }
     return absl::OkStatus();
   }
-  // The unsquashed outputs: gp2 in scaled coordinates, as the one-control
-  // UnsquashedPolicyBackward, with F columns.
-  const Scaled sc = MakeScaled(shape, params, m, s);
-  const Matrix cross_bar_scaled = sc.il.asDiagonal() * a_cross_bar;
-  Vector m_bar_scaled;
-  Matrix s_bar_scaled;
-  RowMatrix inputs_bar;
-  Matrix beta_bar;
-  if (absl::Status st = PredictGaussianBackward(sc.gp, sc.m, sc.s, Gp2Options(shape), a_mean_bar,
-                                                a_cov_bar, cross_bar_scaled, &m_bar_scaled,
-                                                &s_bar_scaled, params_bar ? &inputs_bar : nullptr,
-                                                params_bar ? &beta_bar : nullptr);
-      !st.ok()) {
-    return st;
-  }
-  *m_bar = sc.il.cwiseProduct(m_bar_scaled);
-  *s_bar = sc.il.asDiagonal() * s_bar_scaled * sc.il.asDiagonal();
-  if (params_bar != nullptr) {
-    TG_CHECK(params_bar->size() == shape.num_parameters());
-    Eigen::Map<RowMatrix> centres_bar(params_bar->data(), c, e);
-    centres_bar += inputs_bar * sc.il.asDiagonal();
-    // a_cross = diag(il) cross_scaled: explicit dependence on log l, summed
-    // over the controls.
-    const Vector log_l_bar =
-        -(inputs_bar.cwiseProduct(sc.gp.inputs).colwise().sum().transpose() +
-          m_bar_scaled.cwiseProduct(sc.m) + 2.0 * s_bar_scaled.cwiseProduct(sc.s).rowwise().sum() +
-          a_cross_bar.cwiseProduct(pm.a_cross).rowwise().sum());
-    params_bar->segment(c * e, e) += log_l_bar;
-    Eigen::Map<RowMatrix>(params_bar->data() + c * e + e, c, f) += beta_bar;
-  }
-  return absl::OkStatus();
+  return ScaledUnsquashedBackward(shape, MakeScaled(shape, params, m, s), a_mean_bar, a_cov_bar,
+                                  a_cross_bar, pm.a_cross, m_bar, s_bar, params_bar);
 }
 
 absl::Status PolicyAtGaussianBackward(const RbfPolicyShape& shape, const Vector& params,

@@ -7,6 +7,20 @@
 #include "core/gaussian/trig.h"
 
 namespace totalgrad::pilco {
+
+// What JointStepBackward gives (see there).
+struct Propagator::JointInputAdjoints {
+  Matrix cxg_bar;
+  Vector g_mean_bar;
+  Matrix g_cov_bar;
+  Matrix r_bar;
+  Matrix u_cross_bar;
+  // The policy's adjoints through u (PolicyBackward): of p's mean and
+  // covariance.
+  Vector pm_bar;
+  Matrix ps_bar;
+};
+
 namespace {
 
 absl::Status Annotate(const absl::Status& st, const std::string& where) {
@@ -28,6 +42,7 @@ absl::Status AddDelta(const Vector& m, const Matrix& S, const Matrix& cxg,
   }
   return absl::OkStatus();
 }
+
 
 }  // namespace
 
@@ -244,42 +259,72 @@ absl::Status Propagator::StepControlsBackward(const Vector& params, const StepCa
                                               const Vector& m_next_bar, const Matrix& sb_next,
                                               Vector* p_mean_bar, Matrix* p_cov_bar,
                                               Matrix* s_xp_bar, Vector* params_bar) const {
-  const int d = state_dim_, ep = policy_input_dim_, f = control_dim();
+  const int ep = policy_input_dim_, f = control_dim();
+  JointInputAdjoints j;
+  if (absl::Status st = JointStepBackward(params, c, c.s_xp, c.p_cov, c.multi.u_cross, m_next_bar,
+                                          sb_next, params_bar, &j);
+      !st.ok()) {
+    return st;
+  }
+  *s_xp_bar = j.cxg_bar.leftCols(ep) + j.cxg_bar.rightCols(f) * c.multi.u_cross.transpose();
+  *p_mean_bar = j.g_mean_bar.head(ep);
+  *p_cov_bar = j.g_cov_bar.topLeftCorner(ep, ep);
+  p_cov_bar->noalias() += j.r_bar * c.multi.u_cross.transpose();
+  *p_mean_bar += j.pm_bar;
+  *p_cov_bar += j.ps_bar;
+  return absl::OkStatus();
+}
+
+absl::Status Propagator::PolicyBackward(const Vector& params, const StepCache& c,
+                                        const Vector& u_mean_bar, const Matrix& u_cov_bar,
+                                        const Matrix& u_cross_bar, Vector* pm_bar, Matrix* ps_bar,
+                                        Vector* params_bar) const {
+  absl::Status st =
+      control_dim() == 1
+          ? PolicyAtGaussianBackward(shape_, params, c.p_mean, c.p_cov, u_mean_bar(0),
+                                     u_cov_bar(0, 0), u_cross_bar.col(0), pm_bar, ps_bar,
+                                     params_bar)
+          : MultiPolicyAtGaussianBackward(shape_, params, c.p_mean, c.p_cov, u_mean_bar, u_cov_bar,
+                                          u_cross_bar, pm_bar, ps_bar, params_bar);
+  return Annotate(st, "policy (backward)");
+}
+
+// The adjoints shared by the two step forms whose GP input is the joint
+// g = [a; u] (a: the GP's Ea state inputs, u: the F controls) with
+// Cov(x, g) = cxg = [s_xa, s_xp u_cross] and Cov(a, u) = s_ap u_cross: the
+// adjoints of cxg (cxg_bar, D x (Ea + F)), of g's moments and of the
+// symmetric off-diagonal block r_bar (Ea x F), and u_cross_bar (Ep x F)
+// through cxg's right block and Cov(a, u); then the policy's adjoints
+// through u (pm_bar, ps_bar; params_bar ADDED to). Each step form adds what
+// its own a is (the policy input p, or the separate dynamics inputs q).
+absl::Status Propagator::JointStepBackward(const Vector& params, const StepCache& c,
+                                           const Matrix& s_xa, const Matrix& s_ap,
+                                           const Matrix& u_cross, const Vector& m_next_bar,
+                                           const Matrix& sb_next, Vector* params_bar,
+                                           JointInputAdjoints* out) const {
+  const int d = static_cast<int>(s_xa.rows()), ea = static_cast<int>(s_xa.cols());
+  const int f = control_dim();
+  // m' = m + E[Delta]; S' = S + Cov[Delta] + C + C^T with C = cxg * cross.
   const Matrix c_bar = 2.0 * sb_next;
-  Matrix cxg(d, ep + f);
-  cxg.leftCols(ep) = c.s_xp;
-  cxg.rightCols(f) = c.s_xp * c.multi.u_cross;
-  const Matrix cxg_bar = c_bar * c.delta.cross.transpose();  // D x (Ep + F)
-  const Matrix delta_cross_bar = cxg.transpose() * c_bar;     // (Ep + F) x D
-  *s_xp_bar = cxg_bar.leftCols(ep) + cxg_bar.rightCols(f) * c.multi.u_cross.transpose();
-  Matrix u_cross_bar = c.s_xp.transpose() * cxg_bar.rightCols(f);  // Ep x F
-  Vector g_mean_bar;
-  Matrix g_cov_bar;
+  Matrix cxg(d, ea + f);
+  cxg.leftCols(ea) = s_xa;
+  cxg.rightCols(f) = c.s_xp * u_cross;
+  out->cxg_bar = c_bar * c.delta.cross.transpose();       // D x (Ea + F)
+  const Matrix delta_cross_bar = cxg.transpose() * c_bar;  // (Ea + F) x D
+  out->u_cross_bar = c.s_xp.transpose() * out->cxg_bar.rightCols(f);  // Ep x F
   if (absl::Status st = PredictGaussianBackward(*dynamics_, c.g_mean, c.g_cov, dyn_options_,
                                                 m_next_bar, sb_next, delta_cross_bar,
-                                                &g_mean_bar, &g_cov_bar, nullptr, nullptr);
+                                                &out->g_mean_bar, &out->g_cov_bar, nullptr,
+                                                nullptr);
       !st.ok()) {
     return Annotate(st, "dynamics GP (backward)");
   }
-  *p_mean_bar = g_mean_bar.head(ep);
-  const Vector u_mean_bar = g_mean_bar.tail(f);
-  *p_cov_bar = g_cov_bar.topLeftCorner(ep, ep);
-  // Both off-diagonal blocks hold cov_pu = p_cov u_cross (and its transpose).
-  const Matrix r_bar = g_cov_bar.topRightCorner(ep, f) + g_cov_bar.bottomLeftCorner(f, ep).transpose();
-  p_cov_bar->noalias() += r_bar * c.multi.u_cross.transpose();
-  u_cross_bar.noalias() += c.p_cov.transpose() * r_bar;
-  const Matrix u_cov_bar = g_cov_bar.bottomRightCorner(f, f);
-  Vector pm_bar;
-  Matrix ps_bar;
-  if (absl::Status st = MultiPolicyAtGaussianBackward(shape_, params, c.p_mean, c.p_cov, u_mean_bar,
-                                                      u_cov_bar, u_cross_bar, &pm_bar, &ps_bar,
-                                                      params_bar);
-      !st.ok()) {
-    return Annotate(st, "policy (backward)");
-  }
-  *p_mean_bar += pm_bar;
-  *p_cov_bar += ps_bar;
-  return absl::OkStatus();
+  // Both off-diagonal blocks hold Cov(a, u) = s_ap u_cross (and its transpose).
+  out->r_bar = out->g_cov_bar.topRightCorner(ea, f) +
+               out->g_cov_bar.bottomLeftCorner(f, ea).transpose();
+  out->u_cross_bar.noalias() += s_ap.transpose() * out->r_bar;
+  return PolicyBackward(params, c, out->g_mean_bar.tail(f), out->g_cov_bar.bottomRightCorner(f, f),
+                        out->u_cross_bar, &out->pm_bar, &out->ps_bar, params_bar);
 }
 
 absl::Status Propagator::StepBackward(const Vector& params, const StepCache& c,
@@ -334,11 +379,11 @@ absl::Status Propagator::StepBackward(const Vector& params, const StepCache& c,
 
   Vector pm_bar;
   Matrix ps_bar;
-  if (absl::Status st = PolicyAtGaussianBackward(shape_, params, c.p_mean, c.p_cov, u_mean_bar,
-                                                 u_var_bar, u_cross_bar, &pm_bar, &ps_bar,
-                                                 params_bar);
+  if (absl::Status st = PolicyBackward(params, c, Vector::Constant(1, u_mean_bar),
+                                       Matrix::Constant(1, 1, u_var_bar), u_cross_bar, &pm_bar,
+                                       &ps_bar, params_bar);
       !st.ok()) {
-    return Annotate(st, "policy (backward)");
+    return st;
   }
   p_mean_bar += pm_bar;
   p_cov_bar += ps_bar;
@@ -436,49 +481,19 @@ absl::Status Propagator::StepSeparateBackward(const Vector& params, const StepCa
                                               Vector* params_bar) const {
   const int d = state_dim_, f = control_dim();
   const int eq = static_cast<int>(dynamics_index_.size()), ep = policy_input_dim_;
-  // m' = m + E[Delta]; S' = S + Cov[Delta] + C + C^T with C = cxg * cross.
-  const Matrix c_bar = 2.0 * sb_next;
-  Matrix cxg(d, eq + f);
-  cxg.leftCols(eq) = c.s_xq;
-  cxg.rightCols(f) = c.s_xp * c.u_cross;
-  const Matrix cxg_bar = c_bar * c.delta.cross.transpose();  // D x (Eq + F)
-  const Matrix delta_cross_bar = cxg.transpose() * c_bar;     // (Eq + F) x D
-  const Matrix s_xq_bar = cxg_bar.leftCols(eq);
-  Matrix s_xp_bar = cxg_bar.rightCols(f) * c.u_cross.transpose();
-  Matrix u_cross_bar = c.s_xp.transpose() * cxg_bar.rightCols(f);  // Ep x F
-  Vector g_mean_bar;
-  Matrix g_cov_bar;
-  if (absl::Status st = PredictGaussianBackward(*dynamics_, c.g_mean, c.g_cov, dyn_options_,
-                                                m_next_bar, sb_next, delta_cross_bar,
-                                                &g_mean_bar, &g_cov_bar, nullptr, nullptr);
+  JointInputAdjoints j;
+  if (absl::Status st = JointStepBackward(params, c, c.s_xq, c.s_qp, c.u_cross, m_next_bar,
+                                          sb_next, params_bar, &j);
       !st.ok()) {
-    return Annotate(st, "dynamics GP (backward)");
+    return st;
   }
-  const Vector q_mean_bar = g_mean_bar.head(eq);
-  const Vector u_mean_bar = g_mean_bar.tail(f);
-  const Matrix q_cov_bar = g_cov_bar.topLeftCorner(eq, eq);
-  // Both off-diagonal blocks hold cov_qu = s_qp u_cross (and its transpose).
-  const Matrix r_bar = g_cov_bar.topRightCorner(eq, f) + g_cov_bar.bottomLeftCorner(f, eq).transpose();
-  const Matrix s_qp_bar = r_bar * c.u_cross.transpose();
-  u_cross_bar.noalias() += c.s_qp.transpose() * r_bar;
-  const Matrix u_cov_bar = g_cov_bar.bottomRightCorner(f, f);
-  Vector p_mean_bar;
-  Matrix p_cov_bar;
-  if (f == 1) {
-    if (absl::Status st = PolicyAtGaussianBackward(shape_, params, c.p_mean, c.p_cov, u_mean_bar(0),
-                                                   u_cov_bar(0, 0), u_cross_bar.col(0),
-                                                   &p_mean_bar, &p_cov_bar, params_bar);
-        !st.ok()) {
-      return Annotate(st, "policy (backward)");
-    }
-  } else {
-    if (absl::Status st = MultiPolicyAtGaussianBackward(shape_, params, c.p_mean, c.p_cov,
-                                                        u_mean_bar, u_cov_bar, u_cross_bar,
-                                                        &p_mean_bar, &p_cov_bar, params_bar);
-        !st.ok()) {
-      return Annotate(st, "policy (backward)");
-    }
-  }
+  const Matrix s_xq_bar = j.cxg_bar.leftCols(eq);
+  Matrix s_xp_bar = j.cxg_bar.rightCols(f) * c.u_cross.transpose();
+  const Vector q_mean_bar = j.g_mean_bar.head(eq);
+  const Matrix q_cov_bar = j.g_cov_bar.topLeftCorner(eq, eq);
+  const Matrix s_qp_bar = j.r_bar * c.u_cross.transpose();
+  const Vector& p_mean_bar = j.pm_bar;
+  const Matrix& p_cov_bar = j.ps_bar;
   // Every y-block the step read: p's and q's moments, Cov(x, p), Cov(x, q)
   // and Cov(q, p) (each entry its own output; TrigBackward symmetrises).
   const int ny = static_cast<int>(c.y_mean.size());

@@ -145,6 +145,19 @@ class Propagator {
                                     const Vector& m_next_bar, const Matrix& sb_next,
                                     Vector* p_mean_bar, Matrix* p_cov_bar, Matrix* s_xp_bar,
                                     Vector* params_bar) const;
+  // The adjoints of a step whose GP input is [a; u], the controls u
+  // from the policy: through the GP and on into the policy (PolicyBackward).
+  struct JointInputAdjoints;
+  absl::Status JointStepBackward(const Vector& params, const StepCache& c, const Matrix& s_xa,
+                                 const Matrix& s_ap, const Matrix& u_cross,
+                                 const Vector& m_next_bar, const Matrix& sb_next,
+                                 Vector* params_bar, JointInputAdjoints* out) const;
+  // The policy's adjoints (*pm_bar, *ps_bar: of p's mean and covariance;
+  // params_bar ADDED to) from those of its output u (F, F x F, Ep x F), for
+  // either control count.
+  absl::Status PolicyBackward(const Vector& params, const StepCache& c, const Vector& u_mean_bar,
+                              const Matrix& u_cov_bar, const Matrix& u_cross_bar, Vector* pm_bar,
+                              Matrix* ps_bar, Vector* params_bar) const;
   // From the adjoints of p and s_xp (and of m, S through the identity paths,
   // mb and sb) back through the trig augmentation to *m_bar, *S_bar.
   absl::Status FinishStepBackward(const StepCache& c, const Vector& p_mean_bar,

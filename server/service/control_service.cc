@@ -24,14 +24,14 @@ grpc::Status ClientWentAway() {
 // answer them.
 struct TrialResultsOfSweep {
   storage::SweepRecord sweep;
-  std::vector<storage::TrialResultRecord> results;
+  std::vector<results::CompletedTrial> results;
 };
 
 absl::StatusOr<TrialResultsOfSweep> ReadTrialResults(storage::Store* store,
                                                      const std::string& sweep_name) {
   absl::StatusOr<storage::SweepRecord> sweep = store->GetSweep(sweep_name);
   if (!sweep.ok()) return sweep.status();
-  absl::StatusOr<std::vector<storage::TrialResultRecord>> results =
+  absl::StatusOr<std::vector<results::CompletedTrial>> results =
       store->ListTrialResults(sweep_name);
   if (!results.ok()) return results.status();
   return TrialResultsOfSweep{*std::move(sweep), *std::move(results)};

@@ -284,16 +284,9 @@ void ToProto(const storage::WorkerRecord& worker, int64_t now_ms, int64_t lease_
   }
 }
 
-void ToProto(const storage::TrialResultRecord& result, v1::TrialResult* out) {
-  out->set_job_id(result.job_id);
-  out->set_method(result.method);
-  out->set_seed(result.seed);
-  out->set_variant(result.variant);
-  out->set_attempt(result.attempt);
-  out->set_success(result.success);
-  out->set_final_eval_cost(result.final_eval_cost);
-  out->set_episodes(result.episodes);
-  out->set_held_fraction(result.held_fraction);
+void ToProto(const results::CompletedTrial& result, v1::TrialResult* out) {
+  record_proto::RecordToProto<results::CompletedTrial>(results::CompletedTrialResultFields(),
+                                                       result, out);
 }
 
 void ToProto(const storage::Episode& episode, v1::EpisodeReport* out) {

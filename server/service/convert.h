@@ -67,7 +67,7 @@ void ToProto(const storage::EventRecord& event, v1::Event* out);
 // `now_ms` and `lease_timeout_ms` decide ACTIVE vs GONE.
 void ToProto(const storage::WorkerRecord& worker, int64_t now_ms, int64_t lease_timeout_ms,
              v1::WorkerInfo* out);
-void ToProto(const storage::TrialResultRecord& result, v1::TrialResult* out);
+void ToProto(const results::CompletedTrial& result, v1::TrialResult* out);
 void ToProto(const storage::Episode& episode, v1::EpisodeReport* out);
 void ToProto(const storage::EpisodeRowRecord& row, v1::EpisodeRow* out);
 void ToProto(const scheduler::Lease& lease, v1::Lease* out);

@@ -267,20 +267,14 @@ absl::StatusOr<storage::ImportedAttempt> ParseVersion1Or2Attempt(const nlohmann:
   TG_READ(attempt_state, jr.String(a, "state"));
   const std::optional<storage::AttemptState> parsed = storage::ParseAttemptState(attempt_state);
   if (!parsed) return jr.Error("attempt_log[].state");
-  TG_READ(worker_id, jr.String(a, "worker_id"));
-  TG_READ(worker_host, jr.String(a, "worker_host"));
-  TG_READ(worker_build, jr.String(a, "worker_build"));
-  TG_READ(started, jr.Integer(a, "started_unix_ms"));
-  TG_READ(ended, jr.Integer(a, "ended_unix_ms"));
-  TG_READ(error, jr.String(a, "error"));
   attempt.attempt = static_cast<int>(number);
   attempt.state = *parsed;
-  attempt.worker_id = worker_id;
-  attempt.worker_host = worker_host;
-  attempt.worker_build = worker_build;
-  attempt.started_ms = started;
-  attempt.ended_ms = ended;
-  attempt.error = error;
+  ASSIGN_OR_RETURN(attempt.worker_id, jr.String(a, "worker_id"));
+  ASSIGN_OR_RETURN(attempt.worker_host, jr.String(a, "worker_host"));
+  ASSIGN_OR_RETURN(attempt.worker_build, jr.String(a, "worker_build"));
+  ASSIGN_OR_RETURN(attempt.started_ms, jr.Integer(a, "started_unix_ms"));
+  ASSIGN_OR_RETURN(attempt.ended_ms, jr.Integer(a, "ended_unix_ms"));
+  ASSIGN_OR_RETURN(attempt.error, jr.String(a, "error"));
   if (!a.contains("episodes") || !a["episodes"].is_array()) return jr.Error("episodes");
   for (const nlohmann::json& e : a["episodes"]) {
     storage::Episode episode;
@@ -292,19 +286,13 @@ absl::StatusOr<storage::ImportedAttempt> ParseVersion1Or2Attempt(const nlohmann:
         return jr.Error("episodes");
       }
     } else {  // version 1 named the optimisation time wall_seconds
-      TG_READ(real_cost, jr.Real(e, "real_cost"));
-      TG_READ(eval_mean, jr.Real(e, "eval_cost_mean"));
-      TG_READ(eval_std, jr.Real(e, "eval_cost_std"));
-      TG_READ(predicted, jr.Real(e, "predicted_cost"));
-      TG_READ(wall, jr.Real(e, "wall_seconds"));
-      TG_READ(cpu, jr.Real(e, "cpu_seconds"));
       episode.episode = static_cast<int>(episode_number);
-      episode.real_cost = real_cost;
-      episode.eval_cost_mean = eval_mean;
-      episode.eval_cost_std = eval_std;
-      episode.predicted_cost = predicted;
-      episode.optimisation_seconds = wall;
-      episode.cpu_seconds = cpu;
+      ASSIGN_OR_RETURN(episode.real_cost, jr.Real(e, "real_cost"));
+      ASSIGN_OR_RETURN(episode.eval_cost_mean, jr.Real(e, "eval_cost_mean"));
+      ASSIGN_OR_RETURN(episode.eval_cost_std, jr.Real(e, "eval_cost_std"));
+      ASSIGN_OR_RETURN(episode.predicted_cost, jr.Real(e, "predicted_cost"));
+      ASSIGN_OR_RETURN(episode.optimisation_seconds, jr.Real(e, "wall_seconds"));
+      ASSIGN_OR_RETURN(episode.cpu_seconds, jr.Real(e, "cpu_seconds"));
     }
     if (e.contains("details")) {
       episode.details_json = e["details"].is_string() ? e["details"].get<std::string>()

@@ -59,7 +59,7 @@ ORDER BY t.job_id, t.attempt, t.idx)sql")));
 
 }  // namespace
 
-absl::StatusOr<std::vector<TrialResultRecord>> SqliteStore::ListTrialResults(
+absl::StatusOr<std::vector<results::CompletedTrial>> SqliteStore::ListTrialResults(
     const std::string& sweep_name) {
   absl::MutexLock lock(&read_mutex_);
   ASSIGN_OR_RETURN(Statement check, Statement::Prepare(reader_, "SELECT id FROM sweeps WHERE name = ?"));
@@ -75,11 +75,12 @@ SELECT j.id, j.method, j.seed, j.variant, j.completed_attempt, j.success, j.fina
 FROM jobs j WHERE j.sweep_id = ? AND j.state = 'completed' AND j.kind = 'trial'
 ORDER BY j.ordinal)sql"));
   query.Bind(1, sweep_id);
-  std::vector<TrialResultRecord> results;
+  std::vector<results::CompletedTrial> results;
   while (true) {
     ASSIGN_OR_RETURN(bool row, query.Step());
     if (!row) break;
-    TrialResultRecord r;
+    results::CompletedTrial r;
+    r.sweep = sweep_name;
     r.job_id = query.ColumnInt(0);
     r.method = query.ColumnText(1);
     r.seed = query.ColumnText(2);

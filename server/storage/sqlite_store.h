@@ -147,7 +147,7 @@ class SqliteStore final : public Store {
   absl::StatusOr<std::vector<LeaseKey>> ListExpiredLeases(int64_t now_ms) override;
   absl::StatusOr<std::vector<WorkerRecord>> ListWorkers() override;
   absl::StatusOr<WorkerRecord> GetWorker(const std::string& worker_id) override;
-  absl::StatusOr<std::vector<TrialResultRecord>> ListTrialResults(
+  absl::StatusOr<std::vector<results::CompletedTrial>> ListTrialResults(
       const std::string& sweep_name) override;
   absl::Status ExportEpisodes(
       const std::string& sweep_name, bool all_attempts, int batch_size,

@@ -220,8 +220,11 @@ class StoreReader {
   // NotFound if never seen.
   virtual absl::StatusOr<WorkerRecord> GetWorker(const std::string& worker_id) = 0;
 
-  // Completed jobs of a sweep. NotFound if no such sweep.
-  virtual absl::StatusOr<std::vector<TrialResultRecord>> ListTrialResults(
+  // The completed trial jobs of a sweep, in job order, each with its
+  // counting attempt, verdict, final evaluation cost, rollout verdict and
+  // episode count; `sweep` set, `options` left empty (StoreResultsReader
+  // joins them). NotFound if no such sweep.
+  virtual absl::StatusOr<std::vector<results::CompletedTrial>> ListTrialResults(
       const std::string& sweep_name) = 0;
 
   // Calls `sink` with batches of at most `batch_size` rows ordered by job,

@@ -18,6 +18,7 @@
 #include "core/common/option_pairs.h"
 #include "core/learner/episode_record.h"
 #include "core/study/study.h"
+#include "results/completed_trial.h"
 #include "runtime/job_kind.h"
 
 namespace totalgrad::storage {
@@ -307,18 +308,6 @@ struct WorkerRecord {
   int64_t last_seen_ms = 0;
   bool draining = false;
   int running = 0;  // open attempts
-};
-
-struct TrialResultRecord {
-  int64_t job_id = 0;
-  std::string method;
-  std::string seed;
-  std::string variant;
-  int attempt = 0;
-  bool success = false;
-  double final_eval_cost = kNaN;
-  int episodes = 0;
-  double held_fraction = kNaN;  // as JobRecord::held_fraction
 };
 
 struct EpisodeRowRecord {

@@ -192,6 +192,9 @@ TEST(RecordTables, NamesAreUniqueAndEveryFieldHasItsProtoField) {
   EXPECT_EQ(record_proto::RecordProtoMismatch(learner::EpisodeFields(),
                                               *v1::EpisodeReport::descriptor()),
             "");
+  EXPECT_EQ(record_proto::RecordProtoMismatch(results::CompletedTrialResultFields(),
+                                              *v1::TrialResult::descriptor()),
+            "");
   // The check has power: a field the message lacks, and one of another type.
   const FieldTable<study::CellResult> missing = {{"no_such_field", &study::CellResult::ess_min}};
   EXPECT_NE(record_proto::RecordProtoMismatch(missing, *v1::StudyCellRow::descriptor()), "");

@@ -186,7 +186,7 @@ absl::StatusOr<std::vector<storage::WorkerRecord>> FaultyStore::ListWorkers() {
 absl::StatusOr<storage::WorkerRecord> FaultyStore::GetWorker(const std::string& worker_id) {
   TG_FORWARD("GetWorker", target_->GetWorker(worker_id));
 }
-absl::StatusOr<std::vector<storage::TrialResultRecord>> FaultyStore::ListTrialResults(
+absl::StatusOr<std::vector<results::CompletedTrial>> FaultyStore::ListTrialResults(
     const std::string& sweep_name) {
   TG_FORWARD("ListTrialResults", target_->ListTrialResults(sweep_name));
 }

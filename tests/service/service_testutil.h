@@ -85,7 +85,7 @@ class FaultyStore final : public storage::Store {
   absl::StatusOr<std::vector<storage::LeaseKey>> ListExpiredLeases(int64_t now_ms) override;
   absl::StatusOr<std::vector<storage::WorkerRecord>> ListWorkers() override;
   absl::StatusOr<storage::WorkerRecord> GetWorker(const std::string& worker_id) override;
-  absl::StatusOr<std::vector<storage::TrialResultRecord>> ListTrialResults(
+  absl::StatusOr<std::vector<results::CompletedTrial>> ListTrialResults(
       const std::string& sweep_name) override;
   absl::Status ExportEpisodes(
       const std::string& sweep_name, bool all_attempts, int batch_size,

@@ -1088,7 +1088,7 @@ TEST_F(StorageTest, StudyRowsRoundTripExactlyAndReplaysAreNoOps) {
   EXPECT_EQ(r.agreement_max_z, 1.25);
   EXPECT_TRUE(r.agree);
   // The study job is not a trial result; the sweep counts no episodes for it.
-  TG_ASSERT_OK_AND_ASSIGN(std::vector<TrialResultRecord> results, store_->ListTrialResults("st"));
+  TG_ASSERT_OK_AND_ASSIGN(std::vector<results::CompletedTrial> results, store_->ListTrialResults("st"));
   EXPECT_TRUE(results.empty());
   TG_ASSERT_OK_AND_ASSIGN(SweepRecord sweep, store_->GetSweep("st"));
   EXPECT_EQ(sweep.episodes_expected, 3);
