@@ -19,6 +19,22 @@
 namespace totalgrad::io {
 namespace {
 
+// A scene a study can build its problem on: a catalog scene whose trials
+// run. InvalidArgument "scene: unknown scene ..." or "scene: 'unicycle' has
+// no studies yet: <why>".
+absl::Status CheckStudyScene(const std::string& scene) {
+  const tasks::SceneDefinition* definition = tasks::FindSceneDefinition(scene);
+  if (definition == nullptr) {
+    return absl::InvalidArgumentError(absl::StrCat("scene: unknown scene '", scene, "' (known: ",
+                                                   absl::StrJoin(tasks::SceneNames(), ", "), ")"));
+  }
+  if (!definition->trials_unavailable.empty()) {
+    return absl::InvalidArgumentError(absl::StrCat("scene: '", scene, "' has no studies yet: ",
+                                                   definition->trials_unavailable));
+  }
+  return absl::OkStatus();
+}
+
 using Json = nlohmann::json;
 
 const Json* Find(const Json& obj, const std::string& key) {
@@ -222,10 +238,8 @@ absl::Status ParseSyntheticProblem(const Json& problem, const Json& synthetic_js
       return absl::InvalidArgumentError(absl::StrCat(w, st.message()));
     }
   }
-  if (tasks::FindSceneDefinition(o.scene) == nullptr) {
-    return absl::InvalidArgumentError(absl::StrCat(w, "scene: unknown scene '", o.scene,
-                                                   "' (known: ", absl::StrJoin(tasks::SceneNames(), ", "),
-                                                   ")"));
+  if (absl::Status st = CheckStudyScene(o.scene); !st.ok()) {
+    return absl::InvalidArgumentError(absl::StrCat(w, st.message()));
   }
   return absl::OkStatus();
 }
@@ -398,10 +412,7 @@ absl::StatusOr<Json> InlineStudyDocument(const Json& doc, const std::string& bas
 }
 
 absl::StatusOr<Json> SetStudyScene(const Json& doc, const std::string& scene) {
-  if (tasks::FindSceneDefinition(scene) == nullptr) {
-    return absl::InvalidArgumentError(absl::StrCat("scene: unknown scene '", scene, "' (known: ",
-                                                   absl::StrJoin(tasks::SceneNames(), ", "), ")"));
-  }
+  if (absl::Status st = CheckStudyScene(scene); !st.ok()) return st;
   if (!doc.is_object()) return absl::InvalidArgumentError("study file: not a JSON object");
   const Json* problem = Find(doc, "problem");
   if (problem == nullptr || !problem->is_object()) {

@@ -107,6 +107,8 @@ absl::StatusOr<TrajectoryView> ViewTrajectory(const learner::TrialCheckpoint& ch
         view.links = {{2, definition->double_pendulum.length1},
                       {3, definition->double_pendulum.length2}};
         break;
+      case tasks::PlantKind::kUnicycle:  // no trials yet (its drawing comes with them)
+        break;
     }
   }
   return view;

@@ -33,6 +33,7 @@ const char* PlantName(tasks::PlantKind kind) {
     case tasks::PlantKind::kCartPole: return "cart-pole";
     case tasks::PlantKind::kCartDoublePendulum: return "cart-double-pendulum";
     case tasks::PlantKind::kDoublePendulum: return "double-pendulum";
+    case tasks::PlantKind::kUnicycle: return "unicycle";
   }
   return "";
 }
@@ -67,9 +68,18 @@ nlohmann::ordered_json ScenesToJson(const std::vector<tasks::SceneDefinition>& s
                {"model", absl::StrCat("full GP; FITC with ", s.inducing_inputs,
                                       " inducing inputs once N > ", s.inducing_inputs)},
                {"inducing_inputs", s.inducing_inputs}};
-    j["saturating_cost"] = {{"Q", MatrixRows(s.saturating_cost.q)},
-                            {"widths", s.saturating_cost.widths},
-                            {"target_z", ToStd(tasks::AugmentState(s.target, s.angle_indices))}};
+    j["cost"] = s.cost_kind;
+    if (s.cost_kind == "unicycle") {
+      j["unicycle_cost"] = {{"wheel_radius", s.unicycle_cost.wheel_radius},
+                            {"rod_length", s.unicycle_cost.rod_length},
+                            {"widths", s.unicycle_cost.widths}};
+    } else {
+      j["saturating_cost"] = {{"Q", MatrixRows(s.saturating_cost.q)},
+                              {"widths", s.saturating_cost.widths},
+                              {"target_z", ToStd(tasks::AugmentState(s.target, s.angle_indices))}};
+    }
+    j["policy"] = s.policy_class;
+    j["trials"] = s.trials_unavailable.empty() ? "yes" : s.trials_unavailable;
     j["angle_cost"] = {{"Q_diagonal", ToStd(s.angle_cost_q)}, {"target", ToStd(s.target)}};
     j["protocol"] = {{"basis_functions", s.basis_functions},
                      {"learned_episodes", s.learned_episodes},
@@ -91,21 +101,37 @@ std::string ScenesText(const std::vector<tasks::SceneDefinition>& scenes) {
                     Join(s.max_control), "], dt = ", s.dt, " s, H = ", s.horizon, "\n");
     absl::StrAppend(&out, "  trial defaults: horizon ", s.horizon, ", threshold ", s.success_threshold,
                     " (success: the last evaluation's mean episode cost below it)\n");
-    absl::StrAppend(&out, "  angles ", absl::StrJoin(s.angle_indices, ","), "; GP inputs z[",
-                    absl::StrJoin(s.dynamics_inputs, ","), "] + u, policy inputs z[",
-                    absl::StrJoin(s.policy_inputs, ","), "]; FITC M = ", s.inducing_inputs,
-                    " once N > M\n");
+    if (s.trials_unavailable.empty()) {
+      absl::StrAppend(&out, "  angles ", absl::StrJoin(s.angle_indices, ","), "; GP inputs z[",
+                      absl::StrJoin(s.dynamics_inputs, ","), "] + u, policy inputs z[",
+                      absl::StrJoin(s.policy_inputs, ","), "]; FITC M = ", s.inducing_inputs,
+                      " once N > M\n");
+    } else {  // the index sets come with the trials
+      absl::StrAppend(&out, "  FITC M = ", s.inducing_inputs, " once N > M\n");
+    }
     absl::StrAppend(&out, "  start N([", Join(s.mu0), "], diag([", Join(s.start_std),
                     "])^2), noise std [", Join(s.measurement_noise_std), "], target [",
                     Join(s.target), "]\n");
-    absl::StrAppend(&out, "  saturating cost widths [",
-                    absl::StrJoin(s.saturating_cost.widths, ", "), "]; angle cost Q = diag([",
-                    Join(s.angle_cost_q), "])\n");
-    absl::StrAppend(&out, "  PILCO protocol: ", s.basis_functions, " RBF centres, ",
+    if (s.cost_kind == "unicycle") {
+      absl::StrAppend(&out, "  cost loss_unicycle: wheel radius ", s.unicycle_cost.wheel_radius,
+                      " m, rod length ", s.unicycle_cost.rod_length, " m, widths [",
+                      absl::StrJoin(s.unicycle_cost.widths, ", "), "]\n");
+    } else {
+      absl::StrAppend(&out, "  saturating cost widths [",
+                      absl::StrJoin(s.saturating_cost.widths, ", "), "]; angle cost Q = diag([",
+                      Join(s.angle_cost_q), "])\n");
+    }
+    const std::string policy = s.policy_class == "linear"
+                                   ? std::string("a linear policy")
+                                   : absl::StrCat(s.basis_functions, " RBF centres");
+    absl::StrAppend(&out, "  PILCO protocol: ", policy, ", ",
                     s.learned_episodes, " episodes, ", s.line_searches, " line searches x ",
                     s.evaluations_per_line_search, " evaluations; peak memory per trial ~",
                     absl::StrFormat("%.0f", tasks::PeakTrialBytes(s, kDefaultParticles) / 1e6), " MB\n");
     absl::StrAppend(&out, "  source: ", s.source, "\n");
+    if (!s.trials_unavailable.empty()) {
+      absl::StrAppend(&out, "  trials: not yet: ", s.trials_unavailable, "\n");
+    }
   }
   return out;
 }

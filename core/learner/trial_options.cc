@@ -199,6 +199,10 @@ absl::StatusOr<TrialOptions> TrialOptionsFromPairs(
   if (!options.ok()) return options;
   const tasks::SceneDefinition* scene = tasks::FindSceneDefinition(options->scene.scene);
   if (scene == nullptr) return options;
+  if (!scene->trials_unavailable.empty()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("scene ", scene->name, ": no trials yet: ", scene->trials_unavailable));
+  }
   const auto given = [&pairs](const std::string& key) {
     return std::any_of(pairs.begin(), pairs.end(), [&key](const auto& pair) { return pair.first == key; });
   };

@@ -79,6 +79,10 @@ absl::StatusOr<Scene> MakeScene(const SceneOptions& options) {
   if (definition == nullptr) {
     return absl::InvalidArgumentError(absl::StrCat("scene: ", UnknownSceneText(options.scene)));
   }
+  if (!definition->trials_unavailable.empty()) {
+    return absl::InvalidArgumentError(absl::StrCat("scene ", definition->name, ": no trials yet: ",
+                                                   definition->trials_unavailable));
+  }
   if (!std::isfinite(options.noise_k) || !(options.noise_k >= 0)) {
     return absl::InvalidArgumentError(
         absl::StrCat("scene: noise_k must be finite and >= 0, got ", options.noise_k));

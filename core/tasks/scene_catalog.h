@@ -9,6 +9,8 @@
 //   cart-double-pendulum  D 6, F 1, A 2   swing-up, force |u| <= 20 N
 //   double-pendulum       D 4, F 2, A 2   swing-up, torques |u_i| <= 2 N m
 //   pendubot              D 4, F 1, A 2   swing-up, torque at joint 1 |u| <= 3.5 N m
+//   unicycle              D 12, F 2, A 0  balance, torques |V| <= 10, |U| <= 50 N m
+//                                         (listed and simulated; no trials yet)
 //
 // Index sets are 0-based; the augmented state is z = [x, sin x_a1,
 // cos x_a1, sin x_a2, cos x_a2, ...] over angle_indices in order;
@@ -28,10 +30,11 @@
 #include "core/tasks/double_pendulum.h"
 #include "core/tasks/pendulum.h"
 #include "core/tasks/plant.h"
+#include "core/tasks/unicycle.h"
 
 namespace totalgrad::tasks {
 
-enum class PlantKind { kPendulum, kCartPole, kCartDoublePendulum, kDoublePendulum };
+enum class PlantKind { kPendulum, kCartPole, kCartDoublePendulum, kDoublePendulum, kUnicycle };
 
 // PILCO's saturating cost (lossSat) on z: for each width w,
 // c_w(x) = 1 - exp(-(z - z_t)^T (Q / w^2) (z - z_t) / 2), z_t the augmented
@@ -50,6 +53,7 @@ struct SceneDefinition {
   CartPoleParams cartpole;
   CartDoublePendulumParams cart_double_pendulum;
   DoublePendulumParams double_pendulum;
+  UnicycleParams unicycle;
   double dt = 0.1;                       // s, control period
   std::vector<std::string> state_names;  // D, in the plant's state order
   std::vector<std::string> state_units;  // D
@@ -69,7 +73,15 @@ struct SceneDefinition {
   std::vector<int> angle_indices;        // A, strictly increasing state indices
   std::vector<int> dynamics_inputs;      // into z, strictly increasing
   std::vector<int> policy_inputs;        // into z, strictly increasing
-  SaturatingCostSpec saturating_cost;    // PILCO's loss
+  SaturatingCostSpec saturating_cost;    // PILCO's loss (empty for the unicycle)
+  // The unicycle's loss_unicycle instead of a saturating cost (its
+  // parameters; unused by the other scenes, whose cost_kind is "saturating").
+  std::string cost_kind = "saturating";  // "saturating" or "unicycle"
+  UnicycleCostParams unicycle_cost;
+  std::string policy_class = "rbf";      // PILCO's policy: "rbf" or "linear"
+  // Empty when trials run on the scene; else why they do not yet (MakeScene
+  // refuses the scene with this text; `simulate` and `scenes` take it).
+  std::string trials_unavailable;
   Vector angle_cost_q;                   // D, diag Q of the angle cost 1 - exp(-(x-t)^T Q (x-t))
   // PILCO's protocol.
   int basis_functions = 50;              // RBF centres

@@ -445,7 +445,7 @@ TEST_F(SweepStudyTest, StudyEntriesTakeTheScene) {
                    .status());
   for (const auto& [scene, expected] : std::vector<std::pair<std::string, std::string>>{
            {"pendulum", "snapshot is of scene 'cartpole-swingup', not 'pendulum'"},
-           {"unicycle", "unknown scene 'unicycle'"}}) {
+           {"acrobot", "unknown scene 'acrobot'"}}) {
     const absl::StatusOr<SweepSpec> bad = ParseSweepToml(
         absl::StrCat("name = \"s\"\n[[study]]\nname = \"a\"\nfile = \"snap.json\"\nscene = \"",
                      scene, "\"\n"),

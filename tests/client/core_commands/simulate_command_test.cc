@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -13,6 +15,9 @@
 #include "tests/client/core_commands/run_command.h"
 #include "core/tasks/cartpole.h"
 #include "core/tasks/scene.h"
+#include "core/tasks/scene_catalog.h"
+#include "core/tasks/unicycle.h"
+#include "absl/strings/str_cat.h"
 #include "tests/testutil/testutil.h"
 
 namespace totalgrad::cli {
@@ -190,6 +195,45 @@ TEST(SimulateCommandTest, PrintsJson) {
   ASSERT_EQ(doc.at("states").size(), 3u);
   // PILCO convention: pushing right from hanging moves the cart right.
   EXPECT_GT(doc["states"][2][0].get<double>(), 0.0);
+}
+
+// The unicycle (issue 30, item 1): 12 ODE values in PILCO's odei order, two
+// torques a step; 30 steps print 31 rows, the plant's own steps bit for bit,
+// integrated on through the fall (the constraint is the task's, not the
+// plant's): a small roll with no torque falls past pi/2 within the 4.5 s.
+TEST(SimulateCommandTest, TheUnicycleFallsAndIsIntegratedThroughTheFall) {
+  std::string forces;
+  for (int k = 0; k < 30; ++k) absl::StrAppend(&forces, k > 0 ? "," : "", "0,0");
+  const CommandRun run = RunCommand({"simulate", "--scene", "unicycle", "--start",
+                                     "0,0,0,0,0,0,0,0.05,0,0,0.02,0", "--forces", forces, "--json"});
+  EXPECT_EQ(run.exit_code, 0) << run.err;
+  const nlohmann::json doc = nlohmann::json::parse(run.out);
+  ASSERT_EQ(doc.at("states").size(), 31u);
+  ASSERT_EQ(doc["states"][0].size(), 12u);
+  EXPECT_EQ(doc.at("dt").get<double>(), 0.15);
+  const tasks::SceneDefinition& definition = *tasks::FindSceneDefinition("unicycle");
+  const std::unique_ptr<tasks::Plant> plant = tasks::MakePlant(definition);
+  Vector x(12);
+  x << 0, 0, 0, 0, 0, 0, 0, 0.05, 0, 0, 0.02, 0;
+  int fallen_at = -1;
+  for (int k = 0; k < 30; ++k) {
+    Vector next;
+    TG_ASSERT_OK(plant->Step(x, Vector::Zero(2), &next));
+    for (int i = 0; i < 12; ++i) {
+      ASSERT_EQ(doc["states"][k + 1][i].get<double>(), next(i)) << "step " << k << " entry " << i;
+    }
+    x = next;
+    const bool fallen = std::abs(x(tasks::Unicycle::kRoll)) > M_PI / 2 ||
+                        std::abs(x(tasks::Unicycle::kPitch)) > M_PI / 2;
+    if (fallen && fallen_at < 0) fallen_at = k + 1;
+  }
+  EXPECT_GT(fallen_at, 0) << "did not fall in 30 steps";
+  EXPECT_LT(fallen_at, 30) << "integrated on after the fall";
+  // A wrong count names the two controls.
+  const CommandRun odd = RunCommand({"simulate", "--scene", "unicycle", "--start",
+                                     "0,0,0,0,0,0,0,0,0,0,0,0", "--forces", "1,2,3", "--json"});
+  EXPECT_EQ(odd.exit_code, 2);
+  EXPECT_NE(odd.err.find("turntable,wheel"), std::string::npos) << odd.err;
 }
 
 TEST(SimulateCommandTest, NegativeNumbersAndDtAreAccepted) {

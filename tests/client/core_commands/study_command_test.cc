@@ -180,7 +180,9 @@ TEST(ParseStudySpec, DefaultsAndNamedErrors) {
            {{{"problem", synthetic}, {"horizons", {10, "x"}}}, "horizons[1]"},
            {{{"problem", synthetic}, {"replicates", 1}}, "replicates"},
            {{{"problem", synthetic}, {"reference", {{"estimators", {"PILCO"}}}}}, "PILCO"},
-           {{{"problem", {{"synthetic", {{"scene", "unicycle"}}}}}}, "unknown scene 'unicycle'"},
+           {{{"problem", {{"synthetic", {{"scene", "acrobot"}}}}}}, "unknown scene 'acrobot'"},
+           {{{"problem", {{"synthetic", {{"scene", "unicycle"}}}}}},
+            "problem.synthetic.scene: 'unicycle' has no studies yet: "},
            {{{"problem", {{"synthetic", {{"angle_features", "polar"}}}}}}, "'polar'"}}) {
     const absl::StatusOr<StudySpec> s = ParseStudySpec(c.doc, "");
     EXPECT_EQ(s.status().code(), absl::StatusCode::kInvalidArgument) << c.doc.dump();
@@ -271,8 +273,11 @@ TEST(SetStudyScene, SetsSyntheticScenesAndChecksSnapshots) {
   TG_ASSERT_OK(set.status());
   EXPECT_EQ((*set)["problem"]["synthetic"]["scene"], "pendubot");
   EXPECT_EQ((*set)["problem"]["synthetic"]["data"], 30);
+  EXPECT_THAT(std::string(io::SetStudyScene(synthetic, "acrobot").status().message()),
+              HasSubstr("unknown scene 'acrobot'"));
+  // A listed scene without trials has no study either, and says why.
   EXPECT_THAT(std::string(io::SetStudyScene(synthetic, "unicycle").status().message()),
-              HasSubstr("unknown scene 'unicycle'"));
+              HasSubstr("scene: 'unicycle' has no studies yet: "));
   EXPECT_THAT(std::string(io::SetStudyScene({{"problem", {{"snapshot", "s.json"}}}}, "pendulum")
                               .status()
                               .message()),

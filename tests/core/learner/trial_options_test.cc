@@ -284,6 +284,12 @@ TEST(TrialOptionTable, PilcoBudgetIsTheScenesProtocolUnlessSet) {
 TEST(TrialOptionTable, UserOptionsTakeTheScenesHorizonAndThreshold) {
   for (const tasks::SceneDefinition& scene : tasks::SceneCatalog()) {
     absl::StatusOr<TrialOptions> user = TrialOptionsFromPairs({{"scene", scene.name}});
+    if (!scene.trials_unavailable.empty()) {  // refused, naming the scene and why
+      EXPECT_EQ(user.status().code(), absl::StatusCode::kInvalidArgument) << scene.name;
+      EXPECT_NE(user.status().message().find(scene.trials_unavailable), std::string::npos)
+          << user.status();
+      continue;
+    }
     TG_ASSERT_OK(user.status());
     EXPECT_EQ(user->scene.horizon, scene.horizon) << scene.name;
     EXPECT_EQ(user->success_threshold, scene.success_threshold) << scene.name;

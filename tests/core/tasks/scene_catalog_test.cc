@@ -34,7 +34,7 @@ TEST(SceneCatalogTest, EveryDefinitionIsConsistent) {
     EXPECT_EQ(static_cast<int>(s.state_names.size()), d);
     EXPECT_EQ(static_cast<int>(s.state_units.size()), d);
     EXPECT_EQ(static_cast<int>(s.control_names.size()), f);
-    for (const Vector* v : {&s.start_std, &s.measurement_noise_std, &s.target, &s.angle_cost_q})
+    for (const Vector* v : {&s.start_std, &s.measurement_noise_std, &s.target})
       EXPECT_EQ(v->size(), d);
     EXPECT_TRUE((s.max_control.array() > 0).all());
     EXPECT_TRUE(StrictlyIncreasingBelow(s.angle_indices, d));
@@ -45,17 +45,57 @@ TEST(SceneCatalogTest, EveryDefinitionIsConsistent) {
       EXPECT_EQ(std::count(s.dynamics_inputs.begin(), s.dynamics_inputs.end(), a), 0);
       EXPECT_EQ(std::count(s.policy_inputs.begin(), s.policy_inputs.end(), a), 0);
     }
-    EXPECT_EQ(s.saturating_cost.q.rows(), z);
-    EXPECT_EQ(s.saturating_cost.q.cols(), z);
-    EXPECT_TRUE(s.saturating_cost.q.isApprox(s.saturating_cost.q.transpose()));
-    EXPECT_GE(Eigen::SelfAdjointEigenSolver<Matrix>(s.saturating_cost.q).eigenvalues().minCoeff(), -1e-12);
-    EXPECT_FALSE(s.saturating_cost.widths.empty());
+    if (s.cost_kind == "unicycle") {
+      EXPECT_TRUE(UnicycleCost(s.unicycle_cost).ok());
+    } else {
+      EXPECT_EQ(s.cost_kind, "saturating");
+      EXPECT_EQ(s.angle_cost_q.size(), d);
+      EXPECT_EQ(s.saturating_cost.q.rows(), z);
+      EXPECT_EQ(s.saturating_cost.q.cols(), z);
+      EXPECT_TRUE(s.saturating_cost.q.isApprox(s.saturating_cost.q.transpose()));
+      EXPECT_GE(Eigen::SelfAdjointEigenSolver<Matrix>(s.saturating_cost.q).eigenvalues().minCoeff(),
+                -1e-12);
+      EXPECT_FALSE(s.saturating_cost.widths.empty());
+    }
+    EXPECT_TRUE(s.policy_class == "rbf" || s.policy_class == "linear") << s.policy_class;
     EXPECT_GT(s.horizon, 0);
     EXPECT_GT(s.dt, 0);
     EXPECT_FALSE(s.source.empty());
     EXPECT_GT(PeakTrialBytes(s, 300), 0);
   }
-  EXPECT_EQ(SceneNames().size(), 6u);
+  EXPECT_EQ(SceneNames().size(), 7u);
+}
+
+// PILCO's unicycle settings (settings_unicycle.m at a0b48b7, as issue 30
+// quotes them), and its trials refused with the reason until they exist.
+TEST(SceneCatalogTest, UnicycleSettingsAndItsTrialsRefused) {
+  const SceneDefinition* unicycle = FindSceneDefinition("unicycle");
+  ASSERT_NE(unicycle, nullptr);
+  EXPECT_EQ(unicycle->plant, PlantKind::kUnicycle);
+  EXPECT_EQ(unicycle->dt, 0.15);
+  EXPECT_EQ(unicycle->horizon, 67);
+  EXPECT_EQ(unicycle->max_control, (Vector(2) << 10.0, 50.0).finished());
+  EXPECT_EQ(unicycle->start_std(5), 0.1);
+  EXPECT_EQ(unicycle->start_std(0), 0.02);
+  EXPECT_EQ(unicycle->measurement_noise_std(4), 0.01);
+  EXPECT_EQ(unicycle->measurement_noise_std(5), 0.003);
+  EXPECT_EQ(unicycle->learned_episodes, 40);
+  EXPECT_EQ(unicycle->evaluations_per_line_search, 20);
+  EXPECT_EQ(unicycle->policy_class, "linear");
+  EXPECT_EQ(unicycle->unicycle_cost.rod_length, 0.81);
+  EXPECT_FALSE(unicycle->trials_unavailable.empty());
+  SceneOptions options;
+  options.scene = "unicycle";
+  const absl::StatusOr<Scene> scene = MakeScene(options);
+  EXPECT_EQ(scene.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(scene.status().message().find("no trials yet"), std::string::npos) << scene.status();
+  EXPECT_NE(scene.status().message().find("linear policy"), std::string::npos) << scene.status();
+  // Every other scene builds.
+  for (const SceneDefinition& s : SceneCatalog()) {
+    if (!s.trials_unavailable.empty()) continue;
+    options.scene = s.name;
+    EXPECT_TRUE(MakeScene(options).ok()) << s.name;
+  }
 }
 
 // PILCO's settings as the notes give them (a few of each scene's numbers).

@@ -128,16 +128,16 @@ TEST(MakeSceneTest, AnUnknownSceneSaysWhichWasMeant) {
   EXPECT_EQ(scene.status().message(),
             "scene: unknown scene 'cartpole' (did you mean cartpole-swingup or cartpole-balance?; "
             "known: pendulum, cartpole-swingup, cartpole-balance, cart-double-pendulum, "
-            "double-pendulum, pendubot)");
+            "double-pendulum, pendubot, unicycle)");
   options.scene = "pendulm";
   scene = MakeScene(options);
   ASSERT_FALSE(scene.ok());
   EXPECT_NE(scene.status().message().find("(did you mean pendulum?; known:"), std::string::npos)
       << scene.status();
-  options.scene = "unicycle";
+  options.scene = "acrobot";
   scene = MakeScene(options);
   ASSERT_FALSE(scene.ok());
-  EXPECT_NE(scene.status().message().find("unknown scene 'unicycle' (known: "), std::string::npos)
+  EXPECT_NE(scene.status().message().find("unknown scene 'acrobot' ("), std::string::npos)
       << scene.status();
 }
 
