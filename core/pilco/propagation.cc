@@ -391,19 +391,29 @@ absl::Status Propagator::StepBackward(const Vector& params, const StepCache& c,
                             S_bar);
 }
 
+void Propagator::PolicyInputAdjointsToY(const StepCache& c, const Vector& p_mean_bar,
+                                        const Matrix& p_cov_bar, const Matrix& s_xp_bar,
+                                        Vector* y_mean_bar, Matrix* y_cov_bar) const {
+  const int d = state_dim_, ep = policy_input_dim_;
+  const int ny = static_cast<int>(c.y_mean.size());
+  *y_mean_bar = Vector::Zero(ny);
+  *y_cov_bar = Matrix::Zero(ny, ny);
+  for (int i = 0; i < ep; ++i) {
+    (*y_mean_bar)(policy_index_[i]) += p_mean_bar(i);
+    for (int j = 0; j < ep; ++j) {
+      (*y_cov_bar)(policy_index_[i], policy_index_[j]) += p_cov_bar(i, j);
+    }
+    for (int r = 0; r < d; ++r) (*y_cov_bar)(r, policy_index_[i]) += s_xp_bar(r, i);
+  }
+}
+
 absl::Status Propagator::FinishStepBackward(const StepCache& c, const Vector& p_mean_bar,
                                             const Matrix& p_cov_bar, const Matrix& s_xp_bar,
                                             Vector mb, Matrix sb, Vector* m_bar,
                                             Matrix* S_bar) const {
-  const int d = state_dim_, ep = policy_input_dim_;
-  const int ny = static_cast<int>(c.y_mean.size());
-  Vector y_mean_bar = Vector::Zero(ny);
-  Matrix y_cov_bar = Matrix::Zero(ny, ny);
-  for (int i = 0; i < ep; ++i) {
-    y_mean_bar(policy_index_[i]) += p_mean_bar(i);
-    for (int j = 0; j < ep; ++j) y_cov_bar(policy_index_[i], policy_index_[j]) += p_cov_bar(i, j);
-    for (int r = 0; r < d; ++r) y_cov_bar(r, policy_index_[i]) += s_xp_bar(r, i);
-  }
+  Vector y_mean_bar;
+  Matrix y_cov_bar;
+  PolicyInputAdjointsToY(c, p_mean_bar, p_cov_bar, s_xp_bar, &y_mean_bar, &y_cov_bar);
   TrigBackward(c, y_mean_bar, y_cov_bar, std::move(mb), std::move(sb), m_bar, S_bar);
   return absl::OkStatus();
 }
@@ -496,14 +506,9 @@ absl::Status Propagator::StepSeparateBackward(const Vector& params, const StepCa
   const Matrix& p_cov_bar = j.ps_bar;
   // Every y-block the step read: p's and q's moments, Cov(x, p), Cov(x, q)
   // and Cov(q, p) (each entry its own output; TrigBackward symmetrises).
-  const int ny = static_cast<int>(c.y_mean.size());
-  Vector y_mean_bar = Vector::Zero(ny);
-  Matrix y_cov_bar = Matrix::Zero(ny, ny);
-  for (int i = 0; i < ep; ++i) {
-    y_mean_bar(policy_index_[i]) += p_mean_bar(i);
-    for (int j = 0; j < ep; ++j) y_cov_bar(policy_index_[i], policy_index_[j]) += p_cov_bar(i, j);
-    for (int r = 0; r < d; ++r) y_cov_bar(r, policy_index_[i]) += s_xp_bar(r, i);
-  }
+  Vector y_mean_bar;
+  Matrix y_cov_bar;
+  PolicyInputAdjointsToY(c, p_mean_bar, p_cov_bar, s_xp_bar, &y_mean_bar, &y_cov_bar);
   for (int i = 0; i < eq; ++i) {
     y_mean_bar(dynamics_index_[i]) += q_mean_bar(i);
     for (int j = 0; j < eq; ++j) {

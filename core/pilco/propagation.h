@@ -158,6 +158,11 @@ class Propagator {
   absl::Status PolicyBackward(const Vector& params, const StepCache& c, const Vector& u_mean_bar,
                               const Matrix& u_cov_bar, const Matrix& u_cross_bar, Vector* pm_bar,
                               Matrix* ps_bar, Vector* params_bar) const;
+  // The adjoints of y = [x, sin, cos ...] that p's mean, covariance and
+  // s_xp = Cov(x, p) give (zeros elsewhere; each entry its own output).
+  void PolicyInputAdjointsToY(const StepCache& c, const Vector& p_mean_bar,
+                              const Matrix& p_cov_bar, const Matrix& s_xp_bar,
+                              Vector* y_mean_bar, Matrix* y_cov_bar) const;
   // From the adjoints of p and s_xp (and of m, S through the identity paths,
   // mb and sb) back through the trig augmentation to *m_bar, *S_bar.
   absl::Status FinishStepBackward(const StepCache& c, const Vector& p_mean_bar,

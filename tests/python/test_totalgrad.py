@@ -98,7 +98,9 @@ def test_python_runs_while_a_trial_computes():
     counter = threading.Thread(target=count)
     counter.start()
     start = time.monotonic()
-    list(totalgrad.trial(method="RP", seed=1, episodes=2, policy_steps=60, particles=100,
+    # Long enough (about 1.5 s here) that a fast machine still takes well
+    # over the 0.5 s below: 60 steps took 0.46 s on a quiet run.
+    list(totalgrad.trial(method="RP", seed=1, episodes=2, policy_steps=200, particles=100,
                          eval_rollouts=2, horizon=30, verdict_rollouts=0))
     seconds = time.monotonic() - start
     stop.set()
