@@ -78,6 +78,16 @@ nlohmann::ordered_json ScenesToJson(const std::vector<tasks::SceneDefinition>& s
                               {"widths", s.saturating_cost.widths},
                               {"target_z", ToStd(tasks::AugmentState(s.target, s.angle_indices))}};
     }
+    if (!s.full_state.empty()) {
+      const tasks::FullStateIndexSets& f = s.full_state;
+      j["full_state"] = {{"names", f.names},
+                         {"integrated", f.integrated},
+                         {"augmented", f.augmented},
+                         {"controls", f.controls},
+                         {"predicted", f.predicted},
+                         {"dynamics_inputs", f.dynamics_inputs},
+                         {"policy_inputs", f.policy_inputs}};
+    }
     j["policy"] = s.policy_class;
     j["trials"] = s.trials_unavailable.empty() ? "yes" : s.trials_unavailable;
     j["angle_cost"] = {{"Q_diagonal", ToStd(s.angle_cost_q)}, {"target", ToStd(s.target)}};
@@ -106,8 +116,22 @@ std::string ScenesText(const std::vector<tasks::SceneDefinition>& scenes) {
                       absl::StrJoin(s.dynamics_inputs, ","), "] + u, policy inputs z[",
                       absl::StrJoin(s.policy_inputs, ","), "]; FITC M = ", s.inducing_inputs,
                       " once N > M\n");
-    } else {  // the index sets come with the trials
+    } else {
       absl::StrAppend(&out, "  FITC M = ", s.inducing_inputs, " once N > M\n");
+    }
+    if (!s.full_state.empty()) {
+      const tasks::FullStateIndexSets& f = s.full_state;
+      const auto names = [&f](const std::vector<int>& indices, const std::vector<int>* of) {
+        std::vector<std::string> out;
+        for (int i : indices) out.push_back(f.names[of == nullptr ? i : (*of)[i]]);
+        return absl::StrJoin(out, ",");
+      };
+      absl::StrAppend(&out, "  full state (", f.names.size(), "): integrated [",
+                      names(f.integrated, nullptr), "], augmented [", names(f.augmented, nullptr),
+                      "], controls [", names(f.controls, nullptr), "]; GP predicts [",
+                      names(f.predicted, nullptr), "] from [",
+                      names(f.dynamics_inputs, &f.predicted), "] + u; policy reads [",
+                      names(f.policy_inputs, &f.predicted), "]\n");
     }
     absl::StrAppend(&out, "  start N([", Join(s.mu0), "], diag([", Join(s.start_std),
                     "])^2), noise std [", Join(s.measurement_noise_std), "], target [",

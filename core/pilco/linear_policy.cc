@@ -27,11 +27,13 @@ void LinearPolicyForward(const LinearPolicy& policy, const Vector& m, const Matr
   out->mean = sat.mean;
   out->cov = sat.cov;
   out->cross = s_wt * sat.c.asDiagonal();
+  out->u_cross = w.transpose() * sat.c.asDiagonal();
 }
 
 void LinearPolicyBackward(const LinearPolicy& policy, const Vector& m, const Matrix& s,
                           const Vector& mean_bar, const Matrix& cov_bar, const Matrix& cross_bar,
-                          Vector* m_bar, Matrix* s_bar, Matrix* w_bar, Vector* b_bar) {
+                          Vector* m_bar, Matrix* s_bar, Matrix* w_bar, Vector* b_bar,
+                          const Matrix* u_cross_bar) {
   CheckShapes(policy, m, s);
   const Matrix& w = policy.w;
   const Eigen::Index f = w.rows(), d = w.cols();
@@ -45,8 +47,15 @@ void LinearPolicyBackward(const LinearPolicy& policy, const Vector& m, const Mat
   JointSatMoments sat;
   GSatJoint(a_mean, a_cov, policy.max_u, &sat);
   // cross = S W^T diag(c): adjoints of c and of S W^T.
-  const Vector c_bar = s_wt.cwiseProduct(cross_bar).colwise().sum().transpose();
+  Vector c_bar = s_wt.cwiseProduct(cross_bar).colwise().sum().transpose();
   Matrix s_wt_bar = cross_bar * sat.c.asDiagonal();
+  // u_cross = W^T diag(c): adjoints of c and of W directly.
+  Matrix w_direct_bar = Matrix::Zero(f, d);
+  if (u_cross_bar != nullptr) {
+    TG_CHECK(u_cross_bar->rows() == d && u_cross_bar->cols() == f);
+    c_bar += w.transpose().cwiseProduct(*u_cross_bar).colwise().sum().transpose();
+    w_direct_bar = sat.c.asDiagonal() * u_cross_bar->transpose();
+  }
   Vector a_mean_bar = Vector::Zero(f);
   Matrix a_cov_bar = Matrix::Zero(f, f);
   GSatJointBackward(a_mean, a_cov, policy.max_u, mean_bar, cov_bar, c_bar, &a_mean_bar,
@@ -58,6 +67,7 @@ void LinearPolicyBackward(const LinearPolicy& policy, const Vector& m, const Mat
   w_adjoint += a_mean_bar * m.transpose();
   // S W^T: S's and W's shares.
   w_adjoint += s_wt_bar.transpose() * s;
+  w_adjoint += w_direct_bar;
   if (m_bar != nullptr) *m_bar += w.transpose() * a_mean_bar;
   if (b_bar != nullptr) *b_bar += a_mean_bar;
   if (s_bar != nullptr) *s_bar += s_wt_bar * w;

@@ -27,6 +27,10 @@ struct LinearPolicyMoments {
   Vector mean;   // F, E[u]
   Matrix cov;    // F x F, Cov[u]
   Matrix cross;  // D x F, Cov(x, u)
+  // D x F, S^-1 Cov(x, u) = W^T diag(c): the form the moment-matching
+  // propagation carries (pilco::MultiPolicyMoments::u_cross), exact and
+  // without S^-1.
+  Matrix u_cross;
 };
 
 // m D, s D x D symmetric PSD.
@@ -34,12 +38,13 @@ void LinearPolicyForward(const LinearPolicy& policy, const Vector& m, const Matr
                          LinearPolicyMoments* out);
 
 // Reverse mode: from the adjoints of out.mean, out.cov and out.cross (every
-// entry its own output) ADDS the adjoints of m (D), s (D x D, every entry its
-// own input), w (F x D) and b (F), which must be sized; any of them may be
-// null when not wanted.
+// entry its own output), and of out.u_cross when u_cross_bar is given, ADDS
+// the adjoints of m (D), s (D x D, every entry its own input), w (F x D) and
+// b (F), which must be sized; any of them may be null when not wanted.
 void LinearPolicyBackward(const LinearPolicy& policy, const Vector& m, const Matrix& s,
                           const Vector& mean_bar, const Matrix& cov_bar, const Matrix& cross_bar,
-                          Vector* m_bar, Matrix* s_bar, Matrix* w_bar, Vector* b_bar);
+                          Vector* m_bar, Matrix* s_bar, Matrix* w_bar, Vector* b_bar,
+                          const Matrix* u_cross_bar = nullptr);
 
 }  // namespace totalgrad::pilco
 

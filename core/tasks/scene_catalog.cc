@@ -214,6 +214,18 @@ SceneDefinition UnicycleScene() {
   s.measurement_noise_std = Values({0.01, 0.01, 0.01, 0.01, 0.01, 0.003, 0.003, 0.003, 0.003,
                                     0.003, 0.003, 0.003});
   s.target = Vector::Zero(12);
+  // PILCO's full state of 20: [dx dy dxc dyc | dtheta dphi dpsiw dpsif
+  // dpsit | x y | xc yc | theta phi psiw psif psit | V U] and its sets
+  // (settings_unicycle.m: odei, augi, dyno, dyni, poli; minus one).
+  s.full_state.names = {"dx",    "dy",    "dxc", "dyc", "dtheta", "dphi", "dpsiw",
+                        "dpsif", "dpsit", "x",   "y",   "xc",     "yc",   "theta",
+                        "phi",   "psiw",  "psif", "psit", "V",     "U"};
+  s.full_state.integrated = {4, 5, 6, 7, 8, 9, 10, 13, 14, 15, 16, 17};
+  s.full_state.augmented = {0, 1, 2, 3, 11, 12};
+  s.full_state.controls = {18, 19};
+  s.full_state.predicted = {4, 5, 6, 7, 8, 11, 12, 13, 14, 16};
+  s.full_state.dynamics_inputs = {0, 1, 2, 3, 4, 5, 6, 7, 9};
+  s.full_state.policy_inputs = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9};
   s.cost_kind = "unicycle";
   s.policy_class = "linear";
   s.trials_unavailable =

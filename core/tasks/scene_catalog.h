@@ -44,6 +44,21 @@ struct SaturatingCostSpec {
   std::vector<double> widths;  // > 0
 };
 
+// A scene whose state has more entries than its plant integrates (PILCO's
+// unicycle): the full state's entries by name and which of them are what.
+// 0-based (PILCO's 1-based indices minus one). Empty for the scenes whose
+// full state is the plant's (their GP and policy inputs index z above).
+struct FullStateIndexSets {
+  std::vector<std::string> names;    // every entry of the full state
+  std::vector<int> integrated;       // odei: the plant's state, in its order
+  std::vector<int> augmented;        // augi: computed from it after each step
+  std::vector<int> controls;         // the controls, in the plant's order
+  std::vector<int> predicted;        // dyno: the GP's outputs (as differences)
+  std::vector<int> dynamics_inputs;  // dyni: into `predicted`, the GP's state inputs
+  std::vector<int> policy_inputs;    // poli: into `predicted`
+  bool empty() const { return names.empty(); }
+};
+
 struct SceneDefinition {
   std::string name;
   std::string summary;
@@ -73,6 +88,7 @@ struct SceneDefinition {
   std::vector<int> angle_indices;        // A, strictly increasing state indices
   std::vector<int> dynamics_inputs;      // into z, strictly increasing
   std::vector<int> policy_inputs;        // into z, strictly increasing
+  FullStateIndexSets full_state;         // the unicycle's; empty elsewhere
   SaturatingCostSpec saturating_cost;    // PILCO's loss (empty for the unicycle)
   // The unicycle's loss_unicycle instead of a saturating cost (its
   // parameters; unused by the other scenes, whose cost_kind is "saturating").

@@ -103,23 +103,30 @@ TEST(LinearPolicyTest, AdjointsMatchCentralDifferences) {
   std::mt19937_64 rng(13);
   std::normal_distribution<double> normal;
   const Vector mean_bar = Eigen::Vector2d(normal(rng), normal(rng));
-  Matrix cov_bar(2, 2), cross_bar(d, 2);
+  Matrix cov_bar(2, 2), cross_bar(d, 2), u_cross_bar(d, 2);
   for (int i = 0; i < 2; ++i) {
     for (int j = 0; j < 2; ++j) cov_bar(i, j) = normal(rng);
   }
   for (int i = 0; i < d; ++i) {
-    for (int j = 0; j < 2; ++j) cross_bar(i, j) = normal(rng);
+    for (int j = 0; j < 2; ++j) {
+      cross_bar(i, j) = normal(rng);
+      u_cross_bar(i, j) = normal(rng);
+    }
   }
+  // u_cross is S^-1 Cov(x, u), as the propagation carries it.
+  LinearPolicyMoments at_case;
+  LinearPolicyForward(c.policy, c.m, c.s, &at_case);
+  EXPECT_LT((c.s * at_case.u_cross - at_case.cross).norm(), 1e-12 * at_case.cross.norm());
   auto objective = [&](const LinearPolicy& p, const Vector& m, const Matrix& s) {
     LinearPolicyMoments out;
     LinearPolicyForward(p, m, s, &out);
     return mean_bar.dot(out.mean) + cov_bar.cwiseProduct(out.cov).sum() +
-           cross_bar.cwiseProduct(out.cross).sum();
+           cross_bar.cwiseProduct(out.cross).sum() + u_cross_bar.cwiseProduct(out.u_cross).sum();
   };
   Vector m_bar = Vector::Zero(d), b_bar = Vector::Zero(2);
   Matrix s_bar = Matrix::Zero(d, d), w_bar = Matrix::Zero(2, d);
   LinearPolicyBackward(c.policy, c.m, c.s, mean_bar, cov_bar, cross_bar, &m_bar, &s_bar, &w_bar,
-                       &b_bar);
+                       &b_bar, &u_cross_bar);
   const double h = 1e-6, tol = 1e-6;
   for (int i = 0; i < d; ++i) {
     Vector up = c.m, down = c.m;

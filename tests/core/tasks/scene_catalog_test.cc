@@ -8,7 +8,9 @@
 #include <algorithm>
 
 #include <cmath>
+#include <limits>
 #include <numbers>
+#include <random>
 #include <set>
 
 namespace totalgrad::tasks {
@@ -84,6 +86,48 @@ TEST(SceneCatalogTest, UnicycleSettingsAndItsTrialsRefused) {
   EXPECT_EQ(unicycle->policy_class, "linear");
   EXPECT_EQ(unicycle->unicycle_cost.rod_length, 0.81);
   EXPECT_FALSE(unicycle->trials_unavailable.empty());
+  // The index sets as settings_unicycle.m gives them (1-based there).
+  const FullStateIndexSets& sets = unicycle->full_state;
+  const auto minus_one = [](std::vector<int> v) {
+    for (int& i : v) --i;
+    return v;
+  };
+  EXPECT_EQ(sets.integrated, minus_one({5, 6, 7, 8, 9, 10, 11, 14, 15, 16, 17, 18}));
+  EXPECT_EQ(sets.augmented, minus_one({1, 2, 3, 4, 12, 13}));
+  EXPECT_EQ(sets.predicted, minus_one({5, 6, 7, 8, 9, 12, 13, 14, 15, 17}));
+  EXPECT_EQ(sets.dynamics_inputs, minus_one({1, 2, 3, 4, 5, 6, 7, 8, 10}));
+  EXPECT_EQ(sets.policy_inputs, minus_one({1, 2, 3, 4, 5, 6, 7, 8, 9, 10}));
+  // integrated, augmented and controls partition the 20 entries; the
+  // integrated ones are the plant's state by name, in its order.
+  std::vector<int> all = sets.integrated;
+  all.insert(all.end(), sets.augmented.begin(), sets.augmented.end());
+  all.insert(all.end(), sets.controls.begin(), sets.controls.end());
+  std::sort(all.begin(), all.end());
+  std::vector<int> every(20);
+  for (int i = 0; i < 20; ++i) every[i] = i;
+  EXPECT_EQ(all, every);
+  ASSERT_EQ(sets.names.size(), 20u);
+  for (size_t k = 0; k < sets.integrated.size(); ++k) {
+    EXPECT_EQ(sets.names[sets.integrated[k]], unicycle->state_names[k]);
+  }
+  // The data and the code agree: a full state assembled from a random ODE
+  // state (the plant's entries, UnicycleAugmentedEntries, the torques), read
+  // at `predicted`, is UnicycleGpState.
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> normal;
+  Vector ode(12);
+  for (int i = 0; i < 12; ++i) ode(i) = normal(rng);
+  const Vector augmented = UnicycleAugmentedEntries(ode, unicycle->unicycle.wheel_radius);
+  Vector full = Vector::Constant(20, std::numeric_limits<double>::quiet_NaN());
+  for (int k = 0; k < 12; ++k) full(sets.integrated[k]) = ode(k);
+  for (int k = 0; k < 6; ++k) full(sets.augmented[k]) = augmented(k);
+  full(sets.controls[0]) = 1.5;
+  full(sets.controls[1]) = -2.5;
+  const Vector gp_state = UnicycleGpState(ode, unicycle->unicycle.wheel_radius);
+  ASSERT_EQ(gp_state.size(), static_cast<Eigen::Index>(sets.predicted.size()));
+  for (size_t k = 0; k < sets.predicted.size(); ++k) {
+    EXPECT_EQ(full(sets.predicted[k]), gp_state(k)) << sets.names[sets.predicted[k]];
+  }
   SceneOptions options;
   options.scene = "unicycle";
   const absl::StatusOr<Scene> scene = MakeScene(options);
