@@ -10,6 +10,7 @@
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
 #include "core/common/option_table.h"
+#include "core/common/status_context.h"
 #include "core/estimators/method.h"
 #include "core/learner/trial.h"
 #include "core/learner/trial_options.h"
@@ -23,16 +24,7 @@ namespace {
 // run. InvalidArgument "scene: unknown scene ..." or "scene: 'unicycle' has
 // no studies yet: <why>".
 absl::Status CheckStudyScene(const std::string& scene) {
-  const tasks::SceneDefinition* definition = tasks::FindSceneDefinition(scene);
-  if (definition == nullptr) {
-    return absl::InvalidArgumentError(absl::StrCat("scene: unknown scene '", scene, "' (known: ",
-                                                   absl::StrJoin(tasks::SceneNames(), ", "), ")"));
-  }
-  if (!definition->trials_unavailable.empty()) {
-    return absl::InvalidArgumentError(absl::StrCat("scene: '", scene, "' has no studies yet: ",
-                                                   definition->trials_unavailable));
-  }
-  return absl::OkStatus();
+  return WithContext(tasks::RunnableScene(scene, "studies").status(), "scene");
 }
 
 using Json = nlohmann::json;

@@ -21,6 +21,7 @@
 #include "core/pilco/gp_moments.h"
 #include "core/pilco/policy_moments.h"
 #include "core/pilco/propagation.h"
+#include "core/tasks/unicycle.h"
 
 namespace totalgrad::cli {
 namespace {
@@ -105,16 +106,10 @@ absl::StatusOr<Propagated> PropagateAndWrite(const pilco::Propagator& prop, cons
   return Propagated{std::move(params), std::move(grad_given)};
 }
 
-absl::StatusOr<nlohmann::ordered_json> RunGeneral(const PilcoScenario& s) {
+// The general form's dynamics GP: the full GP, or FITC as PILCO's gp1 with
+// the file's inducing inputs and hyperparameters.
+absl::StatusOr<pilco::GaussianInputGp> GeneralDynamics(const PilcoScenario& s) {
   const GeneralPilcoScenario& g = s.general;
-  const int d = static_cast<int>(s.train_targets.cols());
-  const int c = static_cast<int>(s.centres.rows());
-  const int ep = static_cast<int>(g.policy_inputs.size());
-  const int f = static_cast<int>(g.policy_values.cols());
-  // F x Ep rows with F >= 2: PILCO's per-output policy hyperparameters.
-  const bool per_control = !g.lengthscales_given_as_vector && f > 1;
-  const int ll_rows = per_control ? f : 1;
-
   absl::StatusOr<pilco::GaussianInputGp> gp;
   if (g.inducing_inputs.rows() == 0) {
     gp = pilco::GaussianInputGpFromData(s.train_inputs, s.train_targets, s.gp_log_hyp);
@@ -130,7 +125,47 @@ absl::StatusOr<nlohmann::ordered_json> RunGeneral(const PilcoScenario& s) {
     if (!fitc.ok()) return fitc.status();
     gp = pilco::GaussianInputGpFromFitc(*fitc);
   }
+  return gp;
+}
+
+absl::StatusOr<gaussian::GaussianCost> GeneralCost(const PilcoScenario& s) {
+  const GeneralPilcoScenario& g = s.general;
+  if (s.cost_type == "unicycle") return tasks::UnicycleCost(g.unicycle_cost);
+  const int d = static_cast<int>(s.train_targets.cols());
+  return gaussian::GaussianCost::Saturating(d, g.angle_indices, g.cost_q,
+                                            AugmentedTarget(g.cost_target, g.angle_indices),
+                                            g.widths);
+}
+
+// The linear policy's run: parameters [W column-major, b] in, dJ_dw (F x
+// Ep, as the file's w) and dJ_db out.
+absl::StatusOr<nlohmann::ordered_json> RunGeneralLinear(const PilcoScenario& s,
+                                                        const pilco::GaussianInputGp& gp,
+                                                        pilco::PropagationOptions options,
+                                                        const gaussian::GaussianCost& cost) {
+  const GeneralPilcoScenario& g = s.general;
+  const int f = static_cast<int>(g.linear_w.rows()), ep = static_cast<int>(g.linear_w.cols());
+  options.policy_class = pilco::PolicyClass::kLinear;
+  if (absl::Status st = pilco::Propagator::Validate(gp, options); !st.ok()) return st;
+  const pilco::Propagator prop(&gp, options);
+  Vector given(prop.num_parameters());
+  const Matrix w = g.linear_w;  // column-major, as PILCO's unwrap
+  given << Eigen::Map<const Vector>(w.data(), f * ep), g.linear_b;
+  nlohmann::ordered_json out;
+  absl::StatusOr<Propagated> propagated = PropagateAndWrite(prop, cost, s, given, &out);
+  if (!propagated.ok()) return propagated.status();
+  const Vector& grad = propagated->grad_given;
+  out["dJ_dw"] = MatrixJson(Eigen::Map<const Matrix>(grad.data(), f, ep));
+  out["dJ_db"] = VectorJson(grad.tail(f));
+  return out;
+}
+
+absl::StatusOr<nlohmann::ordered_json> RunGeneral(const PilcoScenario& s) {
+  const GeneralPilcoScenario& g = s.general;
+  absl::StatusOr<pilco::GaussianInputGp> gp = GeneralDynamics(s);
   if (!gp.ok()) return gp.status();
+  absl::StatusOr<gaussian::GaussianCost> cost = GeneralCost(s);
+  if (!cost.ok()) return cost.status();
 
   pilco::PropagationOptions options;
   // One angle keeps the one-angle option (today's form's code and bits).
@@ -142,20 +177,24 @@ absl::StatusOr<nlohmann::ordered_json> RunGeneral(const PilcoScenario& s) {
   options.policy_inputs = g.policy_inputs;
   options.dynamics_inputs = g.dynamics_inputs;
   options.prediction_includes_noise = s.prediction_includes_noise;
-  options.policy_jitter = s.output_variance_jitter;
-  if (f == 1) {
+  if (g.max_force.size() == 1) {
     options.max_force = g.max_force(0);
   } else {
     options.max_controls = g.max_force;
   }
+  if (g.policy_type == "linear") return RunGeneralLinear(s, *gp, options, *cost);
+
+  const int c = static_cast<int>(s.centres.rows());
+  const int ep = static_cast<int>(g.policy_inputs.size());
+  const int f = static_cast<int>(g.policy_values.cols());
+  // F x Ep rows with F >= 2: PILCO's per-output policy hyperparameters.
+  const bool per_control = !g.lengthscales_given_as_vector && f > 1;
+  const int ll_rows = per_control ? f : 1;
+  options.policy_jitter = s.output_variance_jitter;
   options.num_basis = c;
   options.policy_lengthscale_per_control = per_control;
   if (absl::Status st = pilco::Propagator::Validate(*gp, options); !st.ok()) return st;
   const pilco::Propagator prop(&*gp, options);
-
-  absl::StatusOr<gaussian::GaussianCost> cost = gaussian::GaussianCost::Saturating(
-      d, g.angle_indices, g.cost_q, AugmentedTarget(g.cost_target, g.angle_indices), g.widths);
-  if (!cost.ok()) return cost.status();
 
   // [centres row-major, log l (1 or F rows, row-major), values C x F
   // row-major] (RbfPolicy's layout; RbfPolicyShape::lengthscale_per_control).

@@ -16,6 +16,7 @@
 
 #include "absl/status/statusor.h"
 #include "core/common/types.h"
+#include "core/tasks/unicycle.h"
 
 namespace totalgrad::cli {
 
@@ -27,14 +28,22 @@ struct GeneralPilcoScenario {
   std::vector<int> dynamics_inputs;  // Eq indices into z, strictly increasing
   std::vector<int> policy_inputs;    // Ep indices into z, strictly increasing
   RowMatrix inducing_inputs;         // M x (Eq + F); empty: full GP
+  // "rbf" (policy_values, log_lengthscales and the scenario's centres) or
+  // "linear" (linear_w, linear_b: PILCO's conlin + gSat).
+  std::string policy_type = "rbf";
+  RowMatrix linear_w;                // F x Ep
+  Vector linear_b;                   // F
   RowMatrix policy_values;           // C x F: weights, or PILCO's pseudo-targets
   bool values_given_as_vector = false;  // a plain C-vector (F = 1)
   RowMatrix log_lengthscales;        // 1 x Ep (shared) or F x Ep (per control)
   bool lengthscales_given_as_vector = false;
   Vector max_force;                  // F, each > 0
+  // cost_type (PilcoScenario) "saturating": lossSat on z.
   Vector cost_target;                // D
   Matrix cost_q;                     // (D + 2A) x (D + 2A), symmetric PSD
   std::vector<double> widths;        // >= 1, each > 0
+  // cost_type "unicycle": loss_unicycle on the unicycle's 10-entry GP state.
+  tasks::UnicycleCostParams unicycle_cost;
 };
 
 struct PilcoScenario {
@@ -56,7 +65,7 @@ struct PilcoScenario {
   Matrix s0;
   int horizon = 0;
   // Cost.
-  std::string cost_type;  // "tip" or "angle"
+  std::string cost_type;  // "tip" or "angle"; general form: "saturating" or "unicycle"
   int cost_position_index = 0;
   int cost_angle_index = 1;
   double pendulum_length = 0.5;

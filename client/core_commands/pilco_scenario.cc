@@ -137,17 +137,75 @@ absl::StatusOr<RowMatrix> VectorOrMatrix(const Json& v, const std::string& what,
   TG_ASSIGN_OR_RETURN(Vector x, ToVector(v, what));
   return RowMatrix(x.transpose());
 }
-// policy: the centres, weights or PILCO's pseudo-targets, lengthscales and
-// force limits of the RBF policy on z(policy_inputs). Returns F, the number
-// of controls (the columns of the weights or targets).
+// policy.max_force: F positive bounds (a plain number when F = 1).
+absl::StatusOr<Vector> MaxForce(const Json& policy, int f, const std::string& f_from) {
+  TG_ASSIGN_OR_RETURN(const Json* mf, Required(policy, "max_force", "policy."));
+  Vector max_force;
+  if (mf->is_number()) {
+    TG_ASSIGN_OR_RETURN(double one, Number(*mf, "policy.max_force"));
+    max_force = Vector::Constant(1, one);
+  } else {
+    TG_ASSIGN_OR_RETURN(max_force, ToVector(*mf, "policy.max_force"));
+  }
+  if (max_force.size() != f) {
+    return absl::InvalidArgumentError(absl::StrCat("policy.max_force: must have ", f,
+                                                   " entries (F, ", f_from, "), has ",
+                                                   max_force.size()));
+  }
+  for (int j = 0; j < f; ++j) {
+    if (!(max_force(j) > 0)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("policy.max_force[", j, "]: must be > 0, is ", max_force(j)));
+    }
+  }
+  return max_force;
+}
+
+// The linear policy (PILCO's conlin + gSat): w F x Ep, b F, max_force F.
+absl::StatusOr<int> ParseGeneralLinearPolicy(const Json& policy, int ep, PilcoScenario* out) {
+  GeneralPilcoScenario& g = out->general;
+  if (absl::Status st = OnlyKnownKeys(policy, {"type", "w", "b", "max_force"}, "policy.");
+      !st.ok()) {
+    return st;
+  }
+  g.policy_type = "linear";
+  TG_ASSIGN_OR_RETURN(const Json* w, Required(policy, "w", "policy."));
+  TG_ASSIGN_OR_RETURN(g.linear_w, ToMatrix(*w, "policy.w"));
+  const int f = static_cast<int>(g.linear_w.rows());
+  if (f == 0) return absl::InvalidArgumentError("policy.w: no rows (F >= 1 controls)");
+  if (absl::Status st = Shape(g.linear_w, f, ep, "policy.w", "F x len(policy_inputs)"); !st.ok()) {
+    return st;
+  }
+  TG_ASSIGN_OR_RETURN(const Json* b, Required(policy, "b", "policy."));
+  TG_ASSIGN_OR_RETURN(g.linear_b, ToVector(*b, "policy.b"));
+  if (g.linear_b.size() != f) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "policy.b: must have ", f, " entries (F, the rows of policy.w), has ", g.linear_b.size()));
+  }
+  TG_ASSIGN_OR_RETURN(g.max_force, MaxForce(policy, f, "the rows of policy.w"));
+  return f;
+}
+
+// policy: the RBF policy on z(policy_inputs) (its centres, weights or
+// PILCO's pseudo-targets, lengthscales and force limits), or with "type":
+// "linear" the linear one. Returns F, the number of controls (the columns of
+// the weights or targets, the rows of w).
 absl::StatusOr<int> ParseGeneralPolicy(const Json& doc, int ep, PilcoScenario* out) {
   PilcoScenario& s = *out;
   GeneralPilcoScenario& g = s.general;
   // The policy fixes F (the columns of targets / weights).
   TG_ASSIGN_OR_RETURN(const Json* policy, Required(doc, "policy", ""));
   if (!policy->is_object()) return absl::InvalidArgumentError("policy: not an object");
+  if (const Json* type = Field(*policy, "type"); type != nullptr) {
+    if (!type->is_string() ||
+        (type->get<std::string>() != "rbf" && type->get<std::string>() != "linear")) {
+      return absl::InvalidArgumentError(
+          "policy.type: \"rbf\" (the default) or \"linear\" (PILCO's conlin + gSat)");
+    }
+    if (type->get<std::string>() == "linear") return ParseGeneralLinearPolicy(*policy, ep, out);
+  }
   if (absl::Status st = OnlyKnownKeys(*policy,
-                                      {"centres", "weights", "targets", "log_lengthscales",
+                                      {"type", "centres", "weights", "targets", "log_lengthscales",
                                        "max_force", "output_variance_jitter"},
                                       "policy.");
       !st.ok()) {
@@ -189,24 +247,7 @@ absl::StatusOr<int> ParseGeneralPolicy(const Json& doc, int ep, PilcoScenario* o
         " x ", ep, " (one row per control), is ", g.log_lengthscales.rows(), " x ",
         g.log_lengthscales.cols()));
   }
-  TG_ASSIGN_OR_RETURN(const Json* mf, Required(*policy, "max_force", "policy."));
-  if (mf->is_number()) {
-    TG_ASSIGN_OR_RETURN(double one, Number(*mf, "policy.max_force"));
-    g.max_force = Vector::Constant(1, one);
-  } else {
-    TG_ASSIGN_OR_RETURN(g.max_force, ToVector(*mf, "policy.max_force"));
-  }
-  if (g.max_force.size() != f) {
-    return absl::InvalidArgumentError(absl::StrCat("policy.max_force: must have ", f,
-                                                   " entries (F, the columns of ", vname,
-                                                   "), has ", g.max_force.size()));
-  }
-  for (int j = 0; j < f; ++j) {
-    if (!(g.max_force(j) > 0)) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("policy.max_force[", j, "]: must be > 0, is ", g.max_force(j)));
-    }
-  }
+  TG_ASSIGN_OR_RETURN(g.max_force, MaxForce(*policy, f, absl::StrCat("the columns of ", vname)));
   if (const Json* j = Field(*policy, "output_variance_jitter"); j != nullptr) {
     TG_ASSIGN_OR_RETURN(s.output_variance_jitter, Number(*j, "policy.output_variance_jitter"));
     if (!(s.output_variance_jitter >= 0)) {
@@ -277,21 +318,79 @@ absl::Status ParseGeneralStart(const Json& doc, int d, PilcoScenario* out) {
   return absl::OkStatus();
 }
 
+// cost.width: one or more widths, each > 0 (a plain number for one).
+absl::StatusOr<std::vector<double>> Widths(const Json& w) {
+  std::vector<double> widths;
+  if (w.is_number()) {
+    TG_ASSIGN_OR_RETURN(double one, Number(w, "cost.width"));
+    widths = {one};
+  } else {
+    TG_ASSIGN_OR_RETURN(Vector ws, ToVector(w, "cost.width"));
+    if (ws.size() == 0) return absl::InvalidArgumentError("cost.width: empty list");
+    widths.assign(ws.data(), ws.data() + ws.size());
+  }
+  for (size_t k = 0; k < widths.size(); ++k) {
+    if (!(widths[k] > 0)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("cost.width[", k, "]: must be > 0, is ", widths[k]));
+    }
+  }
+  return widths;
+}
+
+// PILCO's loss_unicycle on the unicycle's GP state (D = 10, no angle through
+// sin/cos): the wheel radius, rod length and widths of the cost, each
+// optional (defaults: PILCO's 0.22, 0.81, [1]).
+absl::Status ParseUnicycleCost(const Json& cost, int d, int a, PilcoScenario* out) {
+  tasks::UnicycleCostParams& params = out->general.unicycle_cost;
+  if (absl::Status st =
+          OnlyKnownKeys(cost, {"type", "wheel_radius", "rod_length", "width"}, "cost.");
+      !st.ok()) {
+    return st;
+  }
+  if (d != tasks::kUnicycleCostStateDim || a != 0) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "cost.type \"unicycle\": the state must be the unicycle's GP state of ",
+        tasks::kUnicycleCostStateDim,
+        " entries [dtheta, dphi, dpsiw, dpsif, dpsit, xc, yc, theta, phi, psif] with no "
+        "angle_indices; it has D = ", d, " and ", a, " angles"));
+  }
+  out->cost_type = "unicycle";
+  for (const auto& [key, value] : {std::pair<const char*, double*>{"wheel_radius",
+                                                                   &params.wheel_radius},
+                                   {"rod_length", &params.rod_length}}) {
+    if (const Json* v = Field(cost, key); v != nullptr) {
+      TG_ASSIGN_OR_RETURN(*value, Number(*v, absl::StrCat("cost.", key)));
+      if (!(*value > 0)) {
+        return absl::InvalidArgumentError(absl::StrCat("cost.", key, ": must be > 0, is ", *value));
+      }
+    }
+  }
+  if (const Json* w = Field(cost, "width"); w != nullptr) {
+    TG_ASSIGN_OR_RETURN(params.widths, Widths(*w));
+  }
+  return absl::OkStatus();
+}
+
 // cost: PILCO's saturating cost on z (nz = D + 2A entries), with one or more
-// widths.
+// widths, or the unicycle's.
 absl::Status ParseGeneralCost(const Json& doc, int d, int nz, PilcoScenario* out) {
   PilcoScenario& s = *out;
   GeneralPilcoScenario& g = s.general;
   TG_ASSIGN_OR_RETURN(const Json* cost, Required(doc, "cost", ""));
   if (!cost->is_object()) return absl::InvalidArgumentError("cost: not an object");
+  TG_ASSIGN_OR_RETURN(const Json* type, Required(*cost, "type", "cost."));
+  if (type->is_string() && type->get<std::string>() == "unicycle") {
+    return ParseUnicycleCost(*cost, d, (nz - d) / 2, out);
+  }
+  if (!type->is_string() || type->get<std::string>() != "saturating") {
+    return absl::InvalidArgumentError(
+        "cost.type: the general form takes \"saturating\" (PILCO's lossSat on z) or "
+        "\"unicycle\" (loss_unicycle)");
+  }
   if (absl::Status st = OnlyKnownKeys(*cost, {"type", "target", "Q", "width"}, "cost.");
       !st.ok()) {
     return st;
-  }
-  TG_ASSIGN_OR_RETURN(const Json* type, Required(*cost, "type", "cost."));
-  if (!type->is_string() || type->get<std::string>() != "saturating") {
-    return absl::InvalidArgumentError(
-        "cost.type: the general form takes \"saturating\" (PILCO's lossSat on z)");
   }
   s.cost_type = "saturating";
   TG_ASSIGN_OR_RETURN(const Json* t, Required(*cost, "target", "cost."));
@@ -313,20 +412,7 @@ absl::Status ParseGeneralCost(const Json& doc, int d, int nz, PilcoScenario* out
   }
   g.cost_q = qm;
   TG_ASSIGN_OR_RETURN(const Json* w, Required(*cost, "width", "cost."));
-  if (w->is_number()) {
-    TG_ASSIGN_OR_RETURN(double one, Number(*w, "cost.width"));
-    g.widths = {one};
-  } else {
-    TG_ASSIGN_OR_RETURN(Vector ws, ToVector(*w, "cost.width"));
-    if (ws.size() == 0) return absl::InvalidArgumentError("cost.width: empty list");
-    g.widths.assign(ws.data(), ws.data() + ws.size());
-  }
-  for (size_t k = 0; k < g.widths.size(); ++k) {
-    if (!(g.widths[k] > 0)) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("cost.width[", k, "]: must be > 0, is ", g.widths[k]));
-    }
-  }
+  TG_ASSIGN_OR_RETURN(g.widths, Widths(*w));
   return absl::OkStatus();
 }
 

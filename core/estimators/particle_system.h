@@ -29,6 +29,7 @@
 #include "core/common/types.h"
 #include "core/gp/fitc.h"
 #include "core/gp/gp.h"
+#include "core/policy/linear_policy.h"
 #include "core/policy/rbf_policy.h"
 
 namespace totalgrad::estimators {
@@ -171,6 +172,25 @@ class RbfParticlePolicy final : public ParticlePolicy {
  private:
   const policy::RbfPolicy* policy_;
   ThreadPool* pool_;
+};
+
+// Adapter over PILCO's linear policy with saturation (non-owning).
+class LinearParticlePolicy final : public ParticlePolicy {
+ public:
+  explicit LinearParticlePolicy(const policy::LinearPolicy* policy) : policy_(policy) {}
+  int state_dim() const override { return policy_->state_dim(); }
+  int control_dim() const override { return policy_->control_dim(); }
+  int num_parameters() const override { return policy_->num_parameters(); }
+  void Evaluate(const ConstRowMatrixRef& states, Vector* forces, PolicyCache* cache) const override {
+    policy_->Evaluate(states, forces, cache);
+  }
+  void Backward(const PolicyCache& cache, const Vector& force_bar, RowMatrix* state_bar,
+                RowMatrix* per_particle_param_bar, Vector* param_bar) const override {
+    policy_->Backward(cache, force_bar, state_bar, per_particle_param_bar, param_bar);
+  }
+
+ private:
+  const policy::LinearPolicy* policy_;
 };
 
 }  // namespace totalgrad::estimators

@@ -5,6 +5,7 @@
 
 #include "absl/status/statusor.h"
 #include "absl/strings/str_cat.h"
+#include "core/common/status_context.h"
 
 namespace totalgrad::learner {
 
@@ -197,12 +198,12 @@ absl::StatusOr<TrialOptions> TrialOptionsFromPairs(
     const std::vector<std::pair<std::string, std::string>>& pairs) {
   absl::StatusOr<TrialOptions> options = ApplyPairs(TrialOptions{}, pairs);
   if (!options.ok()) return options;
-  const tasks::SceneDefinition* scene = tasks::FindSceneDefinition(options->scene.scene);
-  if (scene == nullptr) return options;
-  if (!scene->trials_unavailable.empty()) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("scene ", scene->name, ": no trials yet: ", scene->trials_unavailable));
-  }
+  // An unknown name is left to MakeScene, which names it with the rest.
+  if (tasks::FindSceneDefinition(options->scene.scene) == nullptr) return options;
+  absl::StatusOr<const tasks::SceneDefinition*> runnable =
+      tasks::RunnableScene(options->scene.scene, "trials");
+  if (!runnable.ok()) return WithContext(runnable.status(), "scene");
+  const tasks::SceneDefinition* scene = *runnable;
   const auto given = [&pairs](const std::string& key) {
     return std::any_of(pairs.begin(), pairs.end(), [&key](const auto& pair) { return pair.first == key; });
   };

@@ -4,6 +4,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "core/common/check.h"
+#include "core/common/status_context.h"
 #include "core/gaussian/trig.h"
 
 namespace totalgrad::pilco {
@@ -22,11 +23,6 @@ struct Propagator::JointInputAdjoints {
 };
 
 namespace {
-
-absl::Status Annotate(const absl::Status& st, const std::string& where) {
-  if (st.ok()) return st;
-  return absl::Status(st.code(), absl::StrCat(where, ": ", st.message()));
-}
 
 // The next state of every step form: m' = m + E[Delta],
 // S' = S + Cov[Delta] + C + C^T with C = cxg * delta.cross (cxg: Cov[x, g],
@@ -107,11 +103,17 @@ absl::Status Propagator::Validate(const GaussianInputGp& dynamics,
   if (dynamics.variance_weights.size() != static_cast<size_t>(d)) {
     return absl::InvalidArgumentError("dynamics GP lacks its variance weights (K^-1)");
   }
-  if (options.policy_lengthscale_per_control && f < 2) {
-    return absl::InvalidArgumentError(
-        "policy length-scales per control need 2 or more controls (max_controls)");
+  if (options.policy_class == PolicyClass::kLinear) {
+    if (options.policy_lengthscale_per_control) {
+      return absl::InvalidArgumentError("the linear policy has no length-scales");
+    }
+  } else {
+    if (options.policy_lengthscale_per_control && f < 2) {
+      return absl::InvalidArgumentError(
+          "policy length-scales per control need 2 or more controls (max_controls)");
+    }
+    if (options.num_basis < 1) return absl::InvalidArgumentError("num_basis must be >= 1");
   }
-  if (options.num_basis < 1) return absl::InvalidArgumentError("num_basis must be >= 1");
   if (!(options.max_force > 0) || !std::isfinite(options.max_force)) {
     return absl::InvalidArgumentError("max_force must be > 0");
   }
@@ -162,19 +164,6 @@ Propagator::Propagator(const GaussianInputGp* dynamics, const PropagationOptions
   dyn_options_.jitter = 0.0;
 }
 
-Vector Propagator::PolicyInput(const Vector& x) const {
-  TG_CHECK(x.size() == state_dim_);
-  Vector y(state_dim_ + 2 * angles_.size());
-  y.head(state_dim_) = x;
-  for (size_t k = 0; k < angles_.size(); ++k) {
-    y(state_dim_ + 2 * k) = std::sin(x(angles_[k]));
-    y(state_dim_ + 2 * k + 1) = std::cos(x(angles_[k]));
-  }
-  Vector p(policy_input_dim_);
-  for (int i = 0; i < policy_input_dim_; ++i) p(i) = y(policy_index_[i]);
-  return p;
-}
-
 absl::Status Propagator::Step(const Vector& params, const Vector& m, const Matrix& S,
                               Vector* m_next, Matrix* S_next, StepCache* cache) const {
   const int d = state_dim_, ep = policy_input_dim_;
@@ -202,10 +191,12 @@ absl::Status Propagator::Step(const Vector& params, const Vector& m, const Matri
     for (int r = 0; r < d; ++r) c.s_xp(r, i) = c.y_cov(r, policy_index_[i]);
   }
   if (!dynamics_index_.empty()) return StepSeparate(params, m, S, m_next, S_next, &c);
-  if (control_dim() > 1) return StepControls(params, m, S, m_next, S_next, &c);
+  if (control_dim() > 1 || options_.policy_class == PolicyClass::kLinear) {
+    return StepControls(params, m, S, m_next, S_next, &c);
+  }
   if (absl::Status st = PolicyAtGaussian(shape_, params, c.p_mean, c.p_cov, &c.policy);
       !st.ok()) {
-    return Annotate(st, "policy");
+    return WithContext(st, "policy");
   }
   c.g_mean.resize(ep + 1);
   c.g_mean.head(ep) = c.p_mean;
@@ -218,7 +209,7 @@ absl::Status Propagator::Step(const Vector& params, const Vector& m, const Matri
   c.g_cov(ep, ep) = c.policy.sat.var;
   if (absl::Status st = PredictGaussian(*dynamics_, c.g_mean, c.g_cov, dyn_options_, &c.delta);
       !st.ok()) {
-    return Annotate(st, "dynamics GP");
+    return WithContext(st, "dynamics GP");
   }
   Matrix cxg(d, ep + 1);
   cxg.leftCols(ep) = c.s_xp;
@@ -232,26 +223,25 @@ absl::Status Propagator::StepControls(const Vector& params, const Vector& m, con
   // Cov(p, u) = p_cov u_cross (Ep x F), Cov(u) from GSatJoint.
   const int d = state_dim_, ep = policy_input_dim_, f = control_dim();
   StepCache& c = *cache;
-  if (absl::Status st = MultiPolicyAtGaussian(shape_, params, c.p_mean, c.p_cov, &c.multi);
-      !st.ok()) {
-    return Annotate(st, "policy");
-  }
+  Vector u_mean;
+  Matrix u_cov;
+  if (absl::Status st = JointPolicyForward(params, &c, &u_mean, &u_cov); !st.ok()) return st;
   c.g_mean.resize(ep + f);
   c.g_mean.head(ep) = c.p_mean;
-  c.g_mean.tail(f) = c.multi.sat.mean;
+  c.g_mean.tail(f) = u_mean;
   c.g_cov.resize(ep + f, ep + f);
   c.g_cov.topLeftCorner(ep, ep) = c.p_cov;
-  const Matrix cov_pu = c.p_cov * c.multi.u_cross;
+  const Matrix cov_pu = c.p_cov * c.u_cross;
   c.g_cov.topRightCorner(ep, f) = cov_pu;
   c.g_cov.bottomLeftCorner(f, ep) = cov_pu.transpose();
-  c.g_cov.bottomRightCorner(f, f) = c.multi.sat.cov;
+  c.g_cov.bottomRightCorner(f, f) = u_cov;
   if (absl::Status st = PredictGaussian(*dynamics_, c.g_mean, c.g_cov, dyn_options_, &c.delta);
       !st.ok()) {
-    return Annotate(st, "dynamics GP");
+    return WithContext(st, "dynamics GP");
   }
   Matrix cxg(d, ep + f);
   cxg.leftCols(ep) = c.s_xp;
-  cxg.rightCols(f) = c.s_xp * c.multi.u_cross;
+  cxg.rightCols(f) = c.s_xp * c.u_cross;
   return AddDelta(m, S, cxg, c.delta, m_next, S_next);
 }
 
@@ -261,32 +251,18 @@ absl::Status Propagator::StepControlsBackward(const Vector& params, const StepCa
                                               Matrix* s_xp_bar, Vector* params_bar) const {
   const int ep = policy_input_dim_, f = control_dim();
   JointInputAdjoints j;
-  if (absl::Status st = JointStepBackward(params, c, c.s_xp, c.p_cov, c.multi.u_cross, m_next_bar,
+  if (absl::Status st = JointStepBackward(params, c, c.s_xp, c.p_cov, c.u_cross, m_next_bar,
                                           sb_next, params_bar, &j);
       !st.ok()) {
     return st;
   }
-  *s_xp_bar = j.cxg_bar.leftCols(ep) + j.cxg_bar.rightCols(f) * c.multi.u_cross.transpose();
+  *s_xp_bar = j.cxg_bar.leftCols(ep) + j.cxg_bar.rightCols(f) * c.u_cross.transpose();
   *p_mean_bar = j.g_mean_bar.head(ep);
   *p_cov_bar = j.g_cov_bar.topLeftCorner(ep, ep);
-  p_cov_bar->noalias() += j.r_bar * c.multi.u_cross.transpose();
+  p_cov_bar->noalias() += j.r_bar * c.u_cross.transpose();
   *p_mean_bar += j.pm_bar;
   *p_cov_bar += j.ps_bar;
   return absl::OkStatus();
-}
-
-absl::Status Propagator::PolicyBackward(const Vector& params, const StepCache& c,
-                                        const Vector& u_mean_bar, const Matrix& u_cov_bar,
-                                        const Matrix& u_cross_bar, Vector* pm_bar, Matrix* ps_bar,
-                                        Vector* params_bar) const {
-  absl::Status st =
-      control_dim() == 1
-          ? PolicyAtGaussianBackward(shape_, params, c.p_mean, c.p_cov, u_mean_bar(0),
-                                     u_cov_bar(0, 0), u_cross_bar.col(0), pm_bar, ps_bar,
-                                     params_bar)
-          : MultiPolicyAtGaussianBackward(shape_, params, c.p_mean, c.p_cov, u_mean_bar, u_cov_bar,
-                                          u_cross_bar, pm_bar, ps_bar, params_bar);
-  return Annotate(st, "policy (backward)");
 }
 
 // The adjoints shared by the two step forms whose GP input is the joint
@@ -317,7 +293,7 @@ absl::Status Propagator::JointStepBackward(const Vector& params, const StepCache
                                                 &out->g_mean_bar, &out->g_cov_bar, nullptr,
                                                 nullptr);
       !st.ok()) {
-    return Annotate(st, "dynamics GP (backward)");
+    return WithContext(st, "dynamics GP (backward)");
   }
   // Both off-diagonal blocks hold Cov(a, u) = s_ap u_cross (and its transpose).
   out->r_bar = out->g_cov_bar.topRightCorner(ea, f) +
@@ -340,7 +316,7 @@ absl::Status Propagator::StepBackward(const Vector& params, const StepCache& c,
   if (!dynamics_index_.empty()) {
     return StepSeparateBackward(params, c, m_next_bar, sb_next, m_bar, S_bar, params_bar);
   }
-  if (control_dim() > 1) {
+  if (control_dim() > 1 || options_.policy_class == PolicyClass::kLinear) {
     if (absl::Status st = StepControlsBackward(params, c, m_next_bar, sb_next, &p_mean_bar,
                                                &p_cov_bar, &s_xp_bar, params_bar);
         !st.ok()) {
@@ -367,7 +343,7 @@ absl::Status Propagator::StepBackward(const Vector& params, const StepCache& c,
                                                 delta_mean_bar, delta_cov_bar, delta_cross_bar,
                                                 &g_mean_bar, &g_cov_bar, nullptr, nullptr);
       !st.ok()) {
-    return Annotate(st, "dynamics GP (backward)");
+    return WithContext(st, "dynamics GP (backward)");
   }
   p_mean_bar = g_mean_bar.head(ep);
   const double u_mean_bar = g_mean_bar(ep);
@@ -448,24 +424,9 @@ absl::Status Propagator::StepSeparate(const Vector& params, const Vector& m, con
     for (int j = 0; j < ep; ++j) c.s_qp(i, j) = c.y_cov(dynamics_index_[i], policy_index_[j]);
     for (int r = 0; r < d; ++r) c.s_xq(r, i) = c.y_cov(r, dynamics_index_[i]);
   }
-  Vector u_mean(f);
-  Matrix u_cov(f, f);
-  if (f == 1) {
-    if (absl::Status st = PolicyAtGaussian(shape_, params, c.p_mean, c.p_cov, &c.policy); !st.ok()) {
-      return Annotate(st, "policy");
-    }
-    u_mean(0) = c.policy.sat.mean;
-    u_cov(0, 0) = c.policy.sat.var;
-    c.u_cross = c.policy.u_cross;
-  } else {
-    if (absl::Status st = MultiPolicyAtGaussian(shape_, params, c.p_mean, c.p_cov, &c.multi);
-        !st.ok()) {
-      return Annotate(st, "policy");
-    }
-    u_mean = c.multi.sat.mean;
-    u_cov = c.multi.sat.cov;
-    c.u_cross = c.multi.u_cross;
-  }
+  Vector u_mean;
+  Matrix u_cov;
+  if (absl::Status st = JointPolicyForward(params, &c, &u_mean, &u_cov); !st.ok()) return st;
   c.g_mean.resize(eq + f);
   c.g_mean.head(eq) = c.q_mean;
   c.g_mean.tail(f) = u_mean;
@@ -477,7 +438,7 @@ absl::Status Propagator::StepSeparate(const Vector& params, const Vector& m, con
   c.g_cov.bottomRightCorner(f, f) = u_cov;
   if (absl::Status st = PredictGaussian(*dynamics_, c.g_mean, c.g_cov, dyn_options_, &c.delta);
       !st.ok()) {
-    return Annotate(st, "dynamics GP");
+    return WithContext(st, "dynamics GP");
   }
   Matrix cxg(d, eq + f);
   cxg.leftCols(eq) = c.s_xq;
@@ -518,73 +479,6 @@ absl::Status Propagator::StepSeparateBackward(const Vector& params, const StepCa
     for (int r = 0; r < d; ++r) y_cov_bar(r, dynamics_index_[i]) += s_xq_bar(r, i);
   }
   TrigBackward(c, y_mean_bar, y_cov_bar, m_next_bar, sb_next, m_bar, S_bar);
-  return absl::OkStatus();
-}
-
-absl::Status PredictTrajectory(const Propagator& propagator, const gaussian::GaussianCost& cost,
-                               const Vector& params, const Vector& mu0, const Matrix& S0,
-                               int horizon, Trajectory* trajectory, Vector* gradient) {
-  const int d = propagator.state_dim();
-  TG_CHECK(cost.state_dim() == d);
-  if (mu0.size() != d || S0.rows() != d || S0.cols() != d) {
-    return absl::InvalidArgumentError(absl::StrCat("mu0 / S0 must have dimension ", d));
-  }
-  if (horizon < 1) return absl::InvalidArgumentError("horizon must be >= 1");
-  if (params.size() != propagator.num_parameters()) {
-    return absl::InvalidArgumentError(absl::StrCat("policy has ", params.size(),
-                                                   " parameters; expected ",
-                                                   propagator.num_parameters()));
-  }
-  if (!params.allFinite()) return absl::InvalidArgumentError("policy parameters not finite");
-  const bool with_gradient = gradient != nullptr;
-  Trajectory& tr = *trajectory;
-  tr.means.assign(horizon + 1, Vector());
-  tr.covs.assign(horizon + 1, Matrix());
-  tr.means[0] = mu0;
-  tr.covs[0] = S0;
-  tr.cost_mean.resize(horizon);
-  tr.cost_std.resize(horizon);
-  std::vector<StepCache> caches(with_gradient ? horizon : 0);
-  std::vector<Vector> cost_dm(with_gradient ? horizon : 0);
-  std::vector<Matrix> cost_ds(with_gradient ? horizon : 0);
-  for (int t = 0; t < horizon; ++t) {
-    if (absl::Status st =
-            propagator.Step(params, tr.means[t], tr.covs[t], &tr.means[t + 1], &tr.covs[t + 1],
-                            with_gradient ? &caches[t] : nullptr);
-        !st.ok()) {
-      return Annotate(st, absl::StrCat("step ", t + 1));
-    }
-    gaussian::CostMoments cm;
-    if (absl::Status st = cost.Evaluate(tr.means[t + 1], tr.covs[t + 1], with_gradient, &cm);
-        !st.ok()) {
-      return Annotate(st, absl::StrCat("step ", t + 1));
-    }
-    tr.cost_mean(t) = cm.mean;
-    tr.cost_std(t) = std::sqrt(cm.var);
-    if (with_gradient) {
-      cost_dm[t] = cm.dmean_dm;
-      cost_ds[t] = cm.dmean_dS;
-    }
-  }
-  tr.total_cost = tr.cost_mean.sum();
-  if (!with_gradient) return absl::OkStatus();
-  gradient->setZero(propagator.num_parameters());
-  Vector mb = Vector::Zero(d);
-  Matrix sb = Matrix::Zero(d, d);
-  for (int t = horizon - 1; t >= 0; --t) {
-    mb += cost_dm[t];
-    sb += cost_ds[t];
-    Vector mb_prev;
-    Matrix sb_prev;
-    if (absl::Status st =
-            propagator.StepBackward(params, caches[t], mb, sb, &mb_prev, &sb_prev, gradient);
-        !st.ok()) {
-      return Annotate(st, absl::StrCat("step ", t + 1));
-    }
-    mb = std::move(mb_prev);
-    sb = std::move(sb_prev);
-  }
-  if (!gradient->allFinite()) return absl::InternalError("dJ/dtheta not finite");
   return absl::OkStatus();
 }
 

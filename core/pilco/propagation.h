@@ -32,17 +32,26 @@
 #include "core/common/types.h"
 #include "core/gaussian/expected_cost.h"
 #include "core/pilco/gp_moments.h"
+#include "core/pilco/linear_policy.h"
 #include "core/pilco/policy_moments.h"
 
 namespace totalgrad::pilco {
 
+// The policy's form. kRbf: the RBF network with saturation (gp2 + gSat;
+// RbfPolicyShape's parameters). kLinear: PILCO's conlin + gSat
+// (linear_policy.h), u = max_u sat(W p + b) on the policy inputs p, with
+// parameters [W column-major (F x Ep), b (F)] as PILCO's unwrap orders them;
+// its moments are exact, and it always takes the joint step form (F >= 1).
+enum class PolicyClass { kRbf, kLinear };
+
 struct PropagationOptions {
+  PolicyClass policy_class = PolicyClass::kRbf;
   int angle_index = -1;                   // -1: GP and policy see the raw state
   // Several angles (strictly increasing state indices); when non-empty,
   // angle_index must stay -1. Angles() is the list either way.
   std::vector<int> angle_indices;
   bool prediction_includes_noise = false;  // add sn^2 to Cov[Delta] (PILCO: false)
-  double policy_jitter = 1e-6;            // gp2's output-variance jitter
+  double policy_jitter = 1e-6;            // gp2's output-variance jitter (RBF only)
   double max_force = 10.0;                // u_max of the saturation (one control)
   // F >= 2 controls (the double pendulum): their bounds; the GP's inputs are
   // then [p; u_1 .. u_F] and the policy has C x F weights. Empty: one control.
@@ -51,7 +60,7 @@ struct PropagationOptions {
   // (RbfPolicyShape::lengthscale_per_control; parameters [centres, log l
   // F x Ep, weights C x F]). false: one shared row.
   bool policy_lengthscale_per_control = false;
-  int num_basis = 10;                     // C, RBF centres
+  int num_basis = 10;                     // C, RBF centres (RBF only)
   // PILCO's general index sets (poli, dyni), 0-based indices into
   // y = [x, sin x_a1, cos x_a1, ...] (D + 2A), each strictly increasing.
   // Empty policy_inputs: the default p above. Empty dynamics_inputs: the GP
@@ -80,8 +89,9 @@ struct StepCache {
   Matrix y_cov;
   Vector p_mean;
   Matrix p_cov;
-  PolicyMoments policy;         // one control
-  MultiPolicyMoments multi;     // F >= 2 controls
+  PolicyMoments policy;         // RBF, one control
+  MultiPolicyMoments multi;     // RBF, F >= 2 controls
+  LinearPolicyMoments linear;   // the linear policy
   Vector g_mean;
   Matrix g_cov;
   GaussianPrediction delta;
@@ -91,7 +101,9 @@ struct StepCache {
   Matrix q_cov;  // Eq x Eq
   Matrix s_xq;   // D x Eq, Cov(x, q)
   Matrix s_qp;   // Eq x Ep, Cov(q, p)
-  Matrix u_cross;  // Ep x F, s_pp^-1 Cov(p, u) (either control count)
+  // Ep x F, s_pp^-1 Cov(p, u): every step form but the RBF's one-control
+  // shared-input one (which keeps policy.u_cross).
+  Matrix u_cross;
 };
 
 class Propagator {
@@ -107,8 +119,15 @@ class Propagator {
   int state_dim() const { return state_dim_; }
   int policy_input_dim() const { return policy_input_dim_; }
   int control_dim() const { return shape_.num_controls(); }
+  // The RBF policy's shape (its control count and bounds also hold for the
+  // linear policy).
   const RbfPolicyShape& policy_shape() const { return shape_; }
-  int num_parameters() const { return shape_.num_parameters(); }
+  PolicyClass policy_class() const { return options_.policy_class; }
+  // RBF: policy_shape().num_parameters(); linear: F (Ep + 1).
+  int num_parameters() const;
+  // The linear policy of a parameter vector (kLinear only; CHECK-fails
+  // otherwise or on a wrong size).
+  LinearPolicy LinearPolicyOf(const Vector& params) const;
 
   // One step from N(m, S) to N(m_next, S_next). `cache` may be null. Errors
   // from the blocks (non-finite or non-PSD covariances), naming the block.
@@ -137,7 +156,13 @@ class Propagator {
   // identity paths) back through the trig augmentation.
   void TrigBackward(const StepCache& c, const Vector& y_mean_bar, const Matrix& y_cov_bar,
                     Vector mb, Matrix sb, Vector* m_bar, Matrix* S_bar) const;
-  // Step and StepBackward from the policy on, with F >= 2 controls.
+  // The policy's moments at p ~ N(c->p_mean, c->p_cov) for the joint step
+  // forms: *u_mean (F), *u_cov (F x F), and c->u_cross; the policy's own
+  // moments in c->policy, c->multi or c->linear.
+  absl::Status JointPolicyForward(const Vector& params, StepCache* c, Vector* u_mean,
+                                  Matrix* u_cov) const;
+  // Step and StepBackward from the policy on, with F >= 2 controls or the
+  // linear policy (the GP sees [p; u]).
   absl::Status StepControls(const Vector& params, const Vector& m, const Matrix& S,
                             Vector* m_next, Matrix* S_next, StepCache* cache) const;
   // Gives the adjoints of p's mean and covariance and of s_xp = Cov(x, p).
@@ -154,7 +179,7 @@ class Propagator {
                                  Vector* params_bar, JointInputAdjoints* out) const;
   // The policy's adjoints (*pm_bar, *ps_bar: of p's mean and covariance;
   // params_bar ADDED to) from those of its output u (F, F x F, Ep x F), for
-  // either control count.
+  // either control count and policy class.
   absl::Status PolicyBackward(const Vector& params, const StepCache& c, const Vector& u_mean_bar,
                               const Matrix& u_cov_bar, const Matrix& u_cross_bar, Vector* pm_bar,
                               Matrix* ps_bar, Vector* params_bar) const;

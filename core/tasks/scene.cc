@@ -8,6 +8,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "core/common/check.h"
+#include "core/common/status_context.h"
 
 namespace totalgrad::tasks {
 namespace {
@@ -75,14 +76,9 @@ absl::StatusOr<Scene> MakeScene(const std::string& scene, const std::string& cos
 }
 
 absl::StatusOr<Scene> MakeScene(const SceneOptions& options) {
-  const SceneDefinition* definition = FindSceneDefinition(options.scene);
-  if (definition == nullptr) {
-    return absl::InvalidArgumentError(absl::StrCat("scene: ", UnknownSceneText(options.scene)));
-  }
-  if (!definition->trials_unavailable.empty()) {
-    return absl::InvalidArgumentError(absl::StrCat("scene ", definition->name, ": no trials yet: ",
-                                                   definition->trials_unavailable));
-  }
+  absl::StatusOr<const SceneDefinition*> runnable = RunnableScene(options.scene, "trials");
+  if (!runnable.ok()) return WithContext(runnable.status(), "scene");
+  const SceneDefinition* definition = *runnable;
   if (!std::isfinite(options.noise_k) || !(options.noise_k >= 0)) {
     return absl::InvalidArgumentError(
         absl::StrCat("scene: noise_k must be finite and >= 0, got ", options.noise_k));

@@ -278,6 +278,17 @@ std::string UnknownSceneText(const std::string& name) {
   return text;
 }
 
+absl::StatusOr<const SceneDefinition*> RunnableScene(const std::string& name,
+                                                     const std::string& what) {
+  const SceneDefinition* definition = FindSceneDefinition(name);
+  if (definition == nullptr) return absl::InvalidArgumentError(UnknownSceneText(name));
+  if (!definition->trials_unavailable.empty()) {
+    return absl::InvalidArgumentError(absl::StrCat("'", name, "' has no ", what, " yet: ",
+                                                   definition->trials_unavailable));
+  }
+  return definition;
+}
+
 std::unique_ptr<Plant> MakePlant(const SceneDefinition& d, const ode::IntegratorOptions& integrator) {
   switch (d.plant) {
     case PlantKind::kPendulum:

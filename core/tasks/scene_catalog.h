@@ -24,6 +24,7 @@
 #include <string>
 #include <vector>
 
+#include "absl/status/statusor.h"
 #include "core/common/types.h"
 #include "core/tasks/cart_double_pendulum.h"
 #include "core/tasks/cartpole.h"
@@ -125,6 +126,12 @@ std::vector<std::string> SceneNames();
 // name. Every reader of a scene name (trial options, `simulate`, study
 // files) says the same.
 std::string UnknownSceneText(const std::string& name);
+// The definition of a scene that runs `what` ("trials", "studies": both
+// need the learning loop); InvalidArgument "unknown scene ..."
+// (UnknownSceneText) or "'<name>' has no <what> yet: <why>" (the
+// entry's trials_unavailable). Callers put their field name in front.
+absl::StatusOr<const SceneDefinition*> RunnableScene(const std::string& name,
+                                                     const std::string& what);
 
 // The plant of a definition with its dt and `integrator`.
 std::unique_ptr<Plant> MakePlant(const SceneDefinition& definition,

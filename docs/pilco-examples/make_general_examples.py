@@ -211,6 +211,60 @@ def double_pendulum_per_control(cli, sc):
     }
 
 
+def unicycle_gp_state(x, wheel_radius):
+    """The unicycle's GP state [dtheta, dphi, dpsiw, dpsif, dpsit, xc, yc,
+    theta, phi, psif] of ODE states (rows, PILCO's odei order): (xc, yc) =
+    -R(phi)^T (x, y), the origin in the unicycle's coordinates."""
+    x = np.atleast_2d(x)
+    c, s = np.cos(x[:, 8]), np.sin(x[:, 8])
+    xc = -(c * x[:, 5] + s * x[:, 6])
+    yc = -(-s * x[:, 5] + c * x[:, 6])
+    return np.column_stack([x[:, :5], xc, yc, x[:, 7], x[:, 8], x[:, 10]])
+
+
+def unicycle_linear(cli, sc):
+    """The unicycle's sets: the linear policy on the 10-entry GP state, the
+    GP on 9 of them (not the yaw) and both torques, full GP, loss_unicycle.
+    Transitions from short rollouts with random torques of a fifth of the
+    bounds (PILCO's initial rollouts), observation noise std 0.003."""
+    rng = np.random.default_rng(7)
+    umax = np.array(sc["max_control"])
+    rw = sc["unicycle_cost"]["wheel_radius"]
+    dyni = sc["full_state"]["dynamics_inputs"]  # into the GP state, as PILCO's dyni
+    d = len(sc["full_state"]["policy_inputs"])
+    inputs, targets = [], []
+    for _ in range(3):
+        start = np.array(sc["mu0"]) + np.array(sc["start_std"]) * rng.standard_normal(12)
+        u = rng.uniform(-1, 1, size=(10, 2)) * umax / 5
+        states = unicycle_gp_state(simulate(cli, "unicycle", start, u), rw)
+        obs = states + 0.003 * rng.standard_normal(states.shape)
+        inputs.append(np.hstack([obs[:-1][:, dyni], u]))
+        targets.append(obs[1:] - obs[:-1])
+    x, y = np.vstack(inputs), np.vstack(targets)
+    # The GP state's start spread: xc, yc have x's and y's at yaw 0.
+    start_std = np.array(sc["start_std"])[[0, 1, 2, 3, 4, 5, 6, 7, 8, 10]]
+    return {
+        "angle_indices": [],
+        "dynamics_inputs": dyni,
+        "policy_inputs": list(range(d)),
+        "train_inputs": x.tolist(),
+        "train_targets": y.tolist(),
+        "gp_log_hyp": init_hyp(x, y).tolist(),
+        "policy": {
+            "type": "linear",
+            "w": (0.5 * rng.standard_normal((2, d))).tolist(),
+            "b": (0.1 * rng.standard_normal(2)).tolist(),
+            "max_force": sc["max_control"],
+        },
+        "mu0": [0.0] * d,
+        "S0": np.diag(np.square(start_std)).tolist(),
+        "horizon": 10,
+        "cost": {"type": "unicycle", "wheel_radius": rw,
+                 "rod_length": sc["unicycle_cost"]["rod_length"],
+                 "width": sc["unicycle_cost"]["widths"]},
+    }
+
+
 if __name__ == "__main__":
     cli = sys.argv[1] if len(sys.argv) > 1 else "build/client/totalgrad"
     sc = scenes(cli)
@@ -219,3 +273,4 @@ if __name__ == "__main__":
     write("general_pendulum_dyni.json", pendulum_own_dynamics_inputs(cli, sc["pendulum"]))
     write("general_double_pendulum_per_control.json",
           double_pendulum_per_control(cli, sc["double-pendulum"]))
+    write("general_unicycle_linear.json", unicycle_linear(cli, sc["unicycle"]))

@@ -439,5 +439,100 @@ TEST(PilcoCommandTest, GeneralFormBadInputIsNamed) {
       << out.status();
 }
 
+// The unicycle's example (docs/pilco-examples/general_unicycle_linear.json:
+// PILCO's linear policy on the 10-entry GP state, the GP on 9 of them and
+// both torques, loss_unicycle): the documented output shape, J the sum of
+// the expected costs, and every entry of dJ_dw and dJ_db against central
+// differences of J through the file format.
+TEST(PilcoCommandTest, LinearPolicyAndUnicycleCostGradientsMatchCentralDifferences) {
+  const nlohmann::json doc = Load("general_unicycle_linear.json");
+  absl::StatusOr<PilcoScenario> s = ParsePilcoScenario(doc);
+  TG_ASSERT_OK(s.status());
+  EXPECT_EQ(s->general.policy_type, "linear");
+  EXPECT_EQ(s->cost_type, "unicycle");
+  absl::StatusOr<nlohmann::ordered_json> out = RunPilcoPropagate(*s);
+  TG_ASSERT_OK(out.status());
+  const int h = doc["horizon"].get<int>(), d = 10, f = 2;
+  ASSERT_EQ((*out)["mean"].size(), static_cast<size_t>(h + 1));
+  EXPECT_EQ((*out)["mean"][h].size(), static_cast<size_t>(d));
+  EXPECT_EQ(Flat((*out)["cov"][h]).size(), static_cast<size_t>(d * d));
+  double sum = 0;
+  for (const auto& v : (*out)["cost_mean"]) sum += v.get<double>();
+  EXPECT_NEAR((*out)["J"].get<double>(), sum, 1e-12);
+  EXPECT_GT(sum, 0.0);
+  EXPECT_LT(sum, h);  // each expected cost is in [0, 1)
+  EXPECT_FALSE(out->contains("dJ_dcentres"));
+  ASSERT_EQ((*out)["dJ_dw"].size(), static_cast<size_t>(f));
+  ASSERT_EQ((*out)["dJ_db"].size(), static_cast<size_t>(f));
+  const double step = 1e-5;
+  auto central = [&](auto mutate) {
+    nlohmann::json plus = doc, minus = doc;
+    mutate(plus, step);
+    mutate(minus, -step);
+    return (RunJ(plus) - RunJ(minus)) / (2 * step);
+  };
+  auto near = [](double analytic, double numeric) {
+    return std::abs(analytic - numeric) <= 1e-8 + 1e-5 * std::abs(numeric);
+  };
+  double largest = 0;
+  for (int j = 0; j < f; ++j) {
+    ASSERT_EQ((*out)["dJ_dw"][j].size(), static_cast<size_t>(d));
+    for (int k = 0; k < d; ++k) {
+      const double g = (*out)["dJ_dw"][j][k].get<double>();
+      const double n = central([&](nlohmann::json& p, double e) {
+        p["policy"]["w"][j][k] = p["policy"]["w"][j][k].get<double>() + e;
+      });
+      EXPECT_TRUE(near(g, n)) << "w " << j << "," << k << ": " << g << " vs " << n;
+      largest = std::max(largest, std::abs(n));
+    }
+    const double g = (*out)["dJ_db"][j].get<double>();
+    const double n = central([&](nlohmann::json& p, double e) {
+      p["policy"]["b"][j] = p["policy"]["b"][j].get<double>() + e;
+    });
+    EXPECT_TRUE(near(g, n)) << "b " << j << ": " << g << " vs " << n;
+  }
+  EXPECT_GT(largest, 1e-3) << "the example's gradient should not vanish";
+}
+
+TEST(PilcoCommandTest, LinearPolicyAndUnicycleCostBadInputIsNamed) {
+  const nlohmann::json good = Load("general_unicycle_linear.json");  // D 10, F 2, Ep 10
+  struct Case {
+    std::function<void(nlohmann::json*)> mutate;
+    std::string want;
+  };
+  const std::vector<Case> cases = {
+      {[](nlohmann::json* d) { (*d)["policy"]["type"] = "affine"; }, "policy.type: \"rbf\" (the default) or \"linear\""},
+      {[](nlohmann::json* d) { (*d)["policy"]["centres"] = {{0.0}}; }, "unknown field 'policy.centres'"},
+      {[](nlohmann::json* d) { (*d)["policy"]["w"][1].erase(0); }, "policy.w[1]: has 9 entries, row 0 has 10"},
+      {[](nlohmann::json* d) { for (auto& r : (*d)["policy"]["w"]) r.erase(0); }, "policy.w: must be 2 x 10"},
+      {[](nlohmann::json* d) { (*d)["policy"]["w"] = nlohmann::json::array(); }, "policy.w: no rows"},
+      {[](nlohmann::json* d) { (*d)["policy"]["b"] = {0.0}; }, "policy.b: must have 2 entries"},
+      {[](nlohmann::json* d) { (*d)["policy"].erase("b"); }, "missing field 'policy.b'"},
+      {[](nlohmann::json* d) { (*d)["policy"]["max_force"] = {10.0}; }, "policy.max_force: must have 2 entries (F, the rows of policy.w)"},
+      {[](nlohmann::json* d) { (*d)["policy"]["max_force"] = {10.0, 0.0}; }, "policy.max_force[1]: must be > 0"},
+      {[](nlohmann::json* d) { (*d)["cost"]["Q"] = 1.0; }, "unknown field 'cost.Q'"},
+      {[](nlohmann::json* d) { (*d)["cost"]["rod_length"] = -0.8; }, "cost.rod_length: must be > 0"},
+      {[](nlohmann::json* d) { (*d)["cost"]["wheel_radius"] = "r"; }, "cost.wheel_radius: not a number"},
+      {[](nlohmann::json* d) { (*d)["cost"]["width"] = {1.0, -2.0}; }, "cost.width[1]: must be > 0"},
+      {[](nlohmann::json* d) { (*d)["cost"]["type"] = "tip"; }, "\"saturating\" (PILCO's lossSat on z) or \"unicycle\""},
+      {[](nlohmann::json* d) { (*d)["angle_indices"] = {7}; }, "cost.type \"unicycle\": the state must be the unicycle's GP state of 10 entries"},
+  };
+  for (const Case& c : cases) {
+    nlohmann::json d = good;
+    c.mutate(&d);
+    absl::StatusOr<PilcoScenario> s = ParsePilcoScenario(d);
+    ASSERT_FALSE(s.ok()) << c.want;
+    EXPECT_EQ(s.status().code(), absl::StatusCode::kInvalidArgument);
+    EXPECT_NE(s.status().message().find(c.want), std::string::npos)
+        << "want '" << c.want << "', got: " << s.status();
+  }
+  // The unicycle cost on a state of another size.
+  nlohmann::json d = Load("general_double_pendulum.json");
+  d["cost"] = {{"type", "unicycle"}};
+  absl::StatusOr<PilcoScenario> s = ParsePilcoScenario(d);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.status().message().find("it has D = 4 and 2 angles"), std::string::npos) << s.status();
+}
+
 }  // namespace pilco_command_test
 }  // namespace totalgrad::cli

@@ -79,6 +79,51 @@ TEST(RpGradientCheck, IgnoringTheVariancePathFails) {
   EXPECT_FALSE(diff::CheckJacobian(f, sp->policy->parameters(), wrong.transpose(), options).ok);
 }
 
+// The RP gradient through PILCO's linear policy (LinearParticlePolicy): the
+// synthetic cart-pole problem with its RBF policy replaced by a linear one
+// (S = 4, one force bounded by 10), against central differences of the
+// fixed-noise objective.
+TEST(RpGradientLinearPolicy, MatchesFiniteDifferencesWithFixedNoise) {
+  auto sp = SmallProblem("tip");
+  policy::LinearPolicy linear(4, Vector::Constant(1, 10.0));
+  Rng init(5, Stream::kPolicyInit);
+  linear.Initialize(0.5, &init);
+  const int particles = 5;
+  auto objective = [&](const Vector& theta) {
+    policy::LinearPolicy moved = linear;
+    moved.set_parameters(theta);
+    const LinearParticlePolicy adapter(&moved);
+    Problem problem = sp->problem;
+    problem.policy = &adapter;
+    Rng rng(11, Stream::kParticleNoise);
+    Rollout rollout;
+    EXPECT_TRUE(SimulateParticles(problem, particles, {}, &rng, &rollout).ok());
+    return rollout.objective;
+  };
+  const LinearParticlePolicy adapter(&linear);
+  Problem problem = sp->problem;
+  problem.policy = &adapter;
+  Rng rng(11, Stream::kParticleNoise);
+  RpEstimator rp;
+  EstimateOptions eo;
+  eo.particles = particles;
+  GradientEstimate estimate;
+  ASSERT_TRUE(rp.Estimate(problem, eo, &rng, &estimate).ok());
+  ASSERT_EQ(estimate.gradient.size(), 5);
+  EXPECT_NEAR(estimate.objective, objective(linear.parameters()), 1e-12);
+  const diff::VectorFunction f = [&](const Vector& theta, Vector* out) {
+    *out = Vector::Constant(1, objective(theta));
+    return std::isfinite((*out)(0));
+  };
+  diff::CheckOptions options;
+  options.relative_tolerance = 1e-5;
+  options.absolute_tolerance = 1e-8;
+  const diff::CheckResult r =
+      diff::CheckJacobian(f, linear.parameters(), estimate.gradient.transpose(), options);
+  EXPECT_TRUE(r.ok) << r.log;
+  EXPECT_GT(estimate.gradient.norm(), 1e-6) << "a zero gradient would pass trivially";
+}
+
 TEST(ColumnSampleVariance, MatchesDefinition) {
   RowMatrix m(3, 2);
   m << 1, 2, 3, 2, 5, 2;
