@@ -146,6 +146,8 @@ absl::StatusOr<Scene> MakeScene(const SceneOptions& options) {
     }
   }
   scene.observation_noise_std = std::sqrt(options.noise_k) * definition->measurement_noise_std;
+  scene.episode_end_indices = definition->episode_end_indices;
+  scene.episode_end_bound = definition->episode_end_bound;
   scene.goal_q = definition->saturating_cost.q;
   if (definition->plant == PlantKind::kCartPole) {
     // d^2 = (s + l sin beta)^2 + l^2 (cos beta + 1)^2 = |C (z - z_t)|^2 with
@@ -160,6 +162,13 @@ absl::StatusOr<Scene> MakeScene(const SceneOptions& options) {
         scene.goal_q(at[i], at[j]) = c[0][i] * c[0][j] + c[1][i] * c[1][j];
   }
   return scene;
+}
+
+bool Scene::EpisodeEnds(const Vector& x) const {
+  for (int i : episode_end_indices) {
+    if (std::abs(x(i)) > episode_end_bound) return true;
+  }
+  return false;
 }
 
 double GoalDistance(const Scene& scene, const Vector& x) {
@@ -203,6 +212,8 @@ absl::Status RunEpisode(const Scene& scene, const MultiController& controller, R
   const int f = scene.control_dim();
 
   Episode& ep = *episode;
+  ep.steps = horizon;
+  ep.ended = false;
   ep.states.resize(horizon + 1, d);
   ep.observations.resize(horizon + 1, d);
   ep.forces.resize(horizon * f);
@@ -248,6 +259,20 @@ absl::Status RunEpisode(const Scene& scene, const MultiController& controller, R
     Vector next;
     if (absl::Status st = scene.plant->Step(x, u, &next); !st.ok()) {
       return absl::InternalError(StepError(t, st));
+    }
+    if (scene.EpisodeEnds(next)) {
+      // PILCO's rollout: the step into the end is neither kept nor costed;
+      // the steps from it on cost ended_step_cost each.
+      ep.steps = t;
+      ep.ended = true;
+      ep.states.conservativeResize(t + 1, d);
+      ep.observations.conservativeResize(t + 1, d);
+      ep.forces.conservativeResize(t * f);
+      for (int k = t; k < horizon; ++k) {
+        ep.costs(k) = scene.ended_step_cost;
+        ep.total_cost += scene.ended_step_cost;
+      }
+      return absl::OkStatus();
     }
     x = next;
     const double cost = scene.cost->Value(x);

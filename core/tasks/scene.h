@@ -61,6 +61,15 @@ struct Scene {
   // The state indices of the angles: where PILCO's (sin, cos) features of
   // the GP's and the policy's inputs act (the definition's angle_indices).
   std::vector<int> angle_indices;
+  // Where the real episode ends (the definition's episode_end_*; empty:
+  // never), and what each step after the end costs: 1, the supremum of
+  // PILCO's saturating costs and of loss_unicycle, so that an early fall
+  // does not look cheap (PILCO sums only the executed steps).
+  std::vector<int> episode_end_indices;
+  double episode_end_bound = 0;
+  double ended_step_cost = 1.0;
+  // Whether the real episode ends at state x (D).
+  bool EpisodeEnds(const Vector& x) const;
   // The metric of GoalDistance: PILCO's saturating cost's Q on z (the
   // definition's), for the cart-pole built from the plant's pole length, so
   // that the distance is the pole tip's from the upright tip, in metres.
@@ -92,14 +101,21 @@ absl::StatusOr<Scene> MakeScene(const std::string& scene, const std::string& cos
 // pole's) from where it is at the goal, whichever cost the trial uses.
 double GoalDistance(const Scene& scene, const Vector& x);
 
-// One real episode.
+// One real episode. It runs the horizon H unless the scene's episode end
+// is reached: when step t would lead to a state beyond it, the episode ends
+// after t steps as PILCO's rollout does (that last transition is not kept:
+// the data are the t steps before it), and steps t+1..H cost
+// scene.ended_step_cost each.
 struct Episode {
-  RowMatrix states;        // (H+1) x D true states, row 0 is x0
-  RowMatrix observations;  // (H+1) x D noisy observations of `states`
-  Vector forces;           // H F, the controls applied at steps 0..H-1, step-major
-                           // (u_0^1..u_0^F, u_1^1, ...; one control: H)
-  Vector costs;            // H, cost of the true post-step states x1..xH
-  double total_cost = 0;   // sum of costs
+  int steps = 0;           // T: H, or the steps kept before the end
+  bool ended = false;      // whether the scene's episode end was reached
+  RowMatrix states;        // (T+1) x D true states, row 0 is x0
+  RowMatrix observations;  // (T+1) x D noisy observations of `states`
+  Vector forces;           // T F, the controls applied at steps 0..T-1, step-major
+                           // (u_0^1..u_0^F, u_1^1, ...; one control: T)
+  Vector costs;            // H, cost of the true post-step states x1..xT, then
+                           // ended_step_cost for each step after the end
+  double total_cost = 0;   // sum of costs (all H)
 };
 
 // Maps the current observation (D) to the control of a one-control scene
@@ -108,7 +124,8 @@ using Controller = std::function<double(const Vector& observation)>;
 // Maps the current observation (D) to the F controls of any scene.
 using MultiController = std::function<Vector(const Vector& observation)>;
 
-// Runs one episode of scene.horizon steps from x0 ~ N(mu0, S0) drawn from
+// Runs one episode of scene.horizon steps (fewer when it ends: Episode)
+// from x0 ~ N(mu0, S0) drawn from
 // *start_rng, observation noise from *noise_rng. Fails (Internal, with the
 // step number) if the plant integration fails or a state is non-finite;
 // *episode is then unspecified.

@@ -228,9 +228,13 @@ SceneDefinition UnicycleScene() {
   s.full_state.policy_inputs = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9};
   s.cost_kind = "unicycle";
   s.policy_class = "linear";
+  // plant.constraint: |theta| or |psif| > pi/2 (in the ODE state).
+  s.episode_end_indices = {Unicycle::kRoll, Unicycle::kPitch};
+  s.episode_end_bound = std::numbers::pi / 2;
   s.trials_unavailable =
-      "the unicycle's trials need its linear policy, its augmented state and episodes that end "
-      "when it falls, which are not built yet (`simulate --scene unicycle` and `scenes` work)";
+      "the unicycle's trials need its linear policy in the learners and a GP on its augmented "
+      "state, which are not built yet (`simulate --scene unicycle`, `scenes` and `pilco "
+      "propagate` with the linear policy and the unicycle cost work)";
   s.basis_functions = 0;  // a linear policy
   s.inducing_inputs = 300;
   s.learned_episodes = 40;

@@ -99,6 +99,11 @@ struct SceneDefinition {
   // Empty when trials run on the scene; else why they do not yet (MakeScene
   // refuses the scene with this text; `simulate` and `scenes` take it).
   std::string trials_unavailable;
+  // PILCO's plant.constraint: the real episode ends at the first state with
+  // |x_i| > episode_end_bound for an i in episode_end_indices (the
+  // unicycle's roll and pitch beyond pi/2). Empty: episodes run the horizon.
+  std::vector<int> episode_end_indices;
+  double episode_end_bound = 0;
   Vector angle_cost_q;                   // D, diag Q of the angle cost 1 - exp(-(x-t)^T Q (x-t))
   // PILCO's protocol.
   int basis_functions = 50;              // RBF centres

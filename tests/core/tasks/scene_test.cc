@@ -357,5 +357,67 @@ TEST(RunEpisodeTest, WrongControlsFailNamingTheStep) {
   EXPECT_NE(nan.message().find("for control 1"), std::string::npos) << nan;
 }
 
+// Episodes that end (issue 30, PILCO's plant.constraint): the cart-pole
+// swing-up (start spread 0.01) with an end at |s| > 0.2 m and a constant
+// push. The ended
+// episode is the full one's prefix, bit for bit, up to the last state within
+// the bound; the step into the end is neither kept nor costed (PILCO's
+// rollout), and every step from it on costs ended_step_cost (1), so the
+// total is the kept costs plus (H - T).
+TEST(RunEpisodeTest, AnEpisodeEndsAtTheScenesBoundAndTheRestCostsTheMaximum) {
+  SceneOptions options;
+  options.horizon = 30;
+  options.initial_std = 0.01;
+  Scene full = MustMakeScene(options);
+  ASSERT_TRUE(full.episode_end_indices.empty()) << "the cart-pole's episodes never end";
+  Scene ending = full;
+  ending.episode_end_indices = {0};
+  ending.episode_end_bound = 0.2;
+  const Controller push = [](const State&) { return 5.0; };
+  Episode whole, ended;
+  TG_ASSERT_OK(RunSeeded(full, 4, 5, &whole, push));
+  TG_ASSERT_OK(RunSeeded(ending, 4, 5, &ended, push));
+  EXPECT_FALSE(whole.ended);
+  EXPECT_EQ(whole.steps, 30);
+  ASSERT_TRUE(ended.ended);
+  const int t = ended.steps;
+  ASSERT_GT(t, 0);
+  ASSERT_LT(t, 30);
+  EXPECT_EQ(ended.states.rows(), t + 1);
+  EXPECT_EQ(ended.observations.rows(), t + 1);
+  EXPECT_EQ(ended.forces.size(), t);
+  ASSERT_EQ(ended.costs.size(), 30);
+  EXPECT_EQ(ended.states, whole.states.topRows(t + 1));
+  EXPECT_EQ(ended.observations, whole.observations.topRows(t + 1));
+  EXPECT_EQ(ended.costs.head(t), whole.costs.head(t));
+  // The kept states are within the bound; the next one is not.
+  EXPECT_LE(whole.states.col(0).head(t + 1).cwiseAbs().maxCoeff(), 0.2);
+  EXPECT_GT(std::abs(whole.states(t + 1, 0)), 0.2);
+  for (int k = t; k < 30; ++k) EXPECT_EQ(ended.costs(k), 1.0) << k;
+  EXPECT_NEAR(ended.total_cost, whole.costs.head(t).sum() + (30 - t), 1e-12);
+  EXPECT_GT(ended.total_cost, whole.total_cost) << "an early end must not look cheap";
+}
+
+// The unicycle's end is PILCO's: |roll| or |pitch| > pi/2 in its ODE state.
+TEST(RunEpisodeTest, TheUnicycleEndsWhenRollOrPitchPassesAQuarterTurn) {
+  const SceneDefinition* unicycle = FindSceneDefinition("unicycle");
+  ASSERT_NE(unicycle, nullptr);
+  Scene scene;
+  scene.episode_end_indices = unicycle->episode_end_indices;
+  scene.episode_end_bound = unicycle->episode_end_bound;
+  EXPECT_EQ(scene.episode_end_indices, (std::vector<int>{Unicycle::kRoll, Unicycle::kPitch}));
+  Vector x = Vector::Zero(12);
+  x(Unicycle::kYaw) = 3.0;  // heading and turning are free
+  x(Unicycle::kYawRate) = 40.0;
+  x(Unicycle::kRoll) = 1.57;
+  x(Unicycle::kPitch) = -1.57;
+  EXPECT_FALSE(scene.EpisodeEnds(x));
+  x(Unicycle::kRoll) = 1.571;
+  EXPECT_TRUE(scene.EpisodeEnds(x));
+  x(Unicycle::kRoll) = 0.0;
+  x(Unicycle::kPitch) = -1.571;
+  EXPECT_TRUE(scene.EpisodeEnds(x));
+}
+
 }  // namespace scene_test
 }  // namespace totalgrad::tasks
