@@ -11,7 +11,7 @@
 #include "core/common/rng.h"
 #include "core/learner/problem_builder.h"
 #include "core/gaussian/angle_features.h"
-#include "core/policy/rbf_policy.h"
+#include "core/learner/trial_policy.h"
 
 namespace totalgrad::learner {
 
@@ -80,7 +80,7 @@ namespace {
 // trial of `options` runs its policy.
 struct PolicyOnScene {
   tasks::Scene scene;
-  std::unique_ptr<policy::RbfPolicy> policy;
+  std::unique_ptr<TrialPolicy> policy;
   tasks::MultiController controller;
 };
 
@@ -89,13 +89,17 @@ absl::StatusOr<PolicyOnScene> MakePolicyOnScene(const TrialOptions& options,
   absl::StatusOr<tasks::Scene> scene = tasks::MakeScene(options.scene);
   if (!scene.ok()) return scene.status();
   std::vector<int> angles = FeatureAngles(options, *scene);
-  auto policy = std::make_unique<policy::RbfPolicy>(
-      options.basis_functions, gaussian::FeatureDim(scene->state_dim(), angles), scene->max_control);
+  auto policy = std::make_unique<TrialPolicy>(options.policy, options.basis_functions,
+                                              gaussian::FeatureDim(scene->state_dim(), angles),
+                                              scene->max_control);
   if (policy_parameters.size() != policy->num_parameters()) {
     return absl::InvalidArgumentError(absl::StrCat(
         "the policy has ", policy_parameters.size(), " parameters; ",
-        estimators::MethodName(options.method), " with ", options.basis_functions,
-        " basis functions and angle_features=",
+        estimators::MethodName(options.method), " with ",
+        options.policy == policy::PolicyClass::kLinear
+            ? std::string("the linear policy")
+            : absl::StrCat(options.basis_functions, " basis functions"),
+        " and angle_features=",
         EnumName(AngleFeaturesNames(), options.angle_features), " has ", policy->num_parameters()));
   }
   policy->set_parameters(policy_parameters);

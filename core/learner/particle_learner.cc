@@ -58,10 +58,14 @@ class ParticleLearner final : public PolicyLearner {
         pool_(pool),
         optimiser_(options.optimizer, policy_.num_parameters()) {
     Rng init_rng(options.seed, Stream::kPolicyInit);
+    if (options.policy == policy::PolicyClass::kLinear) {
+      policy_.linear().Initialize(policy::kLinearPolicyInitStd, &init_rng);
+      return;
+    }
     const int s_dim = scene.state_dim();
     const Vector centre_std = Vector::Constant(s_dim, options.policy_centre_std);
     if (angles_.empty()) {
-      policy_.Initialize(scene.mu0, centre_std, options.policy_init_lengthscale, &init_rng);
+      policy_.rbf().Initialize(scene.mu0, centre_std, options.policy_init_lengthscale, &init_rng);
       return;
     }
     // The same draws as the raw policy (centres ~ N(mu0, centre_std^2 I) in
@@ -72,7 +76,7 @@ class ParticleLearner final : public PolicyLearner {
     RowMatrix centres;
     gaussian::StatesToFeatures(raw.centres(), angles_, &centres);
     const int c = options.basis_functions;
-    const int feature_dim = policy_.state_dim();
+    const int feature_dim = policy_.input_dim();
     Vector params(policy_.num_parameters());
     Eigen::Map<RowMatrix>(params.data(), c, feature_dim) = centres;
     params.segment(c * feature_dim, feature_dim).setConstant(std::log(options.policy_init_lengthscale));

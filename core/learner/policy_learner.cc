@@ -13,8 +13,8 @@ PolicyLearner::PolicyLearner(const TrialOptions& options, const tasks::Scene& sc
     : options_(options),
       scene_(scene),
       angles_(std::move(angles)),
-      policy_(options.basis_functions, gaussian::FeatureDim(scene.state_dim(), angles_),
-              scene.max_control) {}
+      policy_(options.policy, options.basis_functions,
+              gaussian::FeatureDim(scene.state_dim(), angles_), scene.max_control) {}
 
 absl::StatusOr<GpTrainingSet> PolicyLearner::TrainModel(const Transitions& transitions,
                                                         int episode, EpisodeResult* result) {

@@ -18,7 +18,7 @@
 #include "core/learner/phase_clock.h"
 #include "core/learner/problem_builder.h"
 #include "core/learner/trial.h"
-#include "core/policy/rbf_policy.h"
+#include "core/learner/trial_policy.h"
 #include "core/tasks/scene.h"
 
 namespace totalgrad::learner {
@@ -60,7 +60,7 @@ class PolicyLearner {
   const TrialOptions& options_;
   const tasks::Scene& scene_;
   const std::vector<int> angles_;
-  policy::RbfPolicy policy_;
+  TrialPolicy policy_;
   std::optional<gp::GpHyperparameters> hyperparameters_;
   RowMatrix inducing_;  // FITC inducing inputs of the last sparse fit (warm start)
 };

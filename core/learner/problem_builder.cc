@@ -48,7 +48,7 @@ absl::StatusOr<ModelProblem> ModelProblem::Build(const GpTrainingSet& data,
                                                  const gp::GpHyperparameters& hyperparameters,
                                                  const SparseModelFit& sparse,
                                                  const std::vector<int>& angle_indices,
-                                                 const policy::RbfPolicy* policy,
+                                                 const TrialPolicy* policy,
                                                  const tasks::Scene& scene,
                                                  double noise_variance_multiplier,
                                                  ThreadPool* pool,
@@ -72,15 +72,15 @@ absl::StatusOr<ModelProblem> ModelProblem::Build(const GpTrainingSet& data,
     out.full_ = std::make_unique<gp::GpModel>(*std::move(model));
     out.model_dynamics_ = std::make_unique<estimators::GpDynamics>(out.full_.get(), pool);
   }
-  out.rbf_policy_ = std::make_unique<estimators::RbfParticlePolicy>(policy, pool);
+  out.raw_policy_ = policy->ParticleForm(pool);
   estimators::Problem& p = out.problem_;
   p.dynamics = out.model_dynamics_.get();
-  p.policy = out.rbf_policy_.get();
+  p.policy = out.raw_policy_.get();
   if (!angle_indices.empty()) {
     out.feature_dynamics_ =
         std::make_unique<estimators::AngleFeatureDynamics>(out.model_dynamics_.get(), angle_indices);
     out.feature_policy_ =
-        std::make_unique<estimators::AngleFeaturePolicy>(out.rbf_policy_.get(), angle_indices);
+        std::make_unique<estimators::AngleFeaturePolicy>(out.raw_policy_.get(), angle_indices);
     p.dynamics = out.feature_dynamics_.get();
     p.policy = out.feature_policy_.get();
   }
@@ -104,7 +104,8 @@ absl::StatusOr<pilco::PilcoProblem> MakePilcoProblem(const tasks::StateCost& cos
                                                      const Vector& mu0, const Vector& initial_std,
                                                      int horizon,
                                                      const std::vector<int>& angle_indices,
-                                                     int num_basis, const Vector& max_control) {
+                                                     int num_basis, const Vector& max_control,
+                                                     policy::PolicyClass policy_class) {
   absl::StatusOr<gaussian::GaussianCost> gaussian_cost = cost.GaussianExpectation();
   if (!gaussian_cost.ok()) return gaussian_cost.status();
   pilco::PilcoProblem problem;
@@ -125,22 +126,8 @@ absl::StatusOr<pilco::PilcoProblem> MakePilcoProblem(const tasks::StateCost& cos
     problem.propagation.max_controls = max_control;
   }
   problem.propagation.num_basis = num_basis;
+  problem.propagation.policy_class = policy_class;
   return problem;
-}
-
-tasks::MultiController FeaturePolicyController(const policy::RbfPolicy* policy,
-                                               std::vector<int> angle_indices) {
-  TG_CHECK(policy != nullptr);
-  return [policy, angle_indices = std::move(angle_indices)](const Vector& observation) {
-    Vector controls;
-    if (angle_indices.empty()) {
-      policy->Evaluate(observation.transpose(), &controls, nullptr);
-    } else {
-      const Vector features = gaussian::StateFeatures(observation, angle_indices);
-      policy->Evaluate(features.transpose(), &controls, nullptr);
-    }
-    return controls;
-  };
 }
 
 }  // namespace totalgrad::learner

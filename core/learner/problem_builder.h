@@ -30,7 +30,8 @@
 #include "core/gp/fitc.h"
 #include "core/gp/gp.h"
 #include "core/pilco/pilco.h"
-#include "core/policy/rbf_policy.h"
+#include "core/learner/trial_policy.h"
+#include "core/policy/policy_class.h"
 #include "core/tasks/cost.h"
 #include "core/tasks/scene.h"
 
@@ -94,7 +95,7 @@ class ModelProblem {
                                             const gp::GpHyperparameters& hyperparameters,
                                             const SparseModelFit& sparse,
                                             const std::vector<int>& angle_indices,
-                                            const policy::RbfPolicy* policy,
+                                            const TrialPolicy* policy,
                                             const tasks::Scene& scene,
                                             double noise_variance_multiplier, ThreadPool* pool,
                                             const gp::GpModelOptions& gp_options = {});
@@ -117,14 +118,14 @@ class ModelProblem {
   std::unique_ptr<gp::FitcModel> sparse_;
   std::unique_ptr<estimators::ParticleDynamics> model_dynamics_;    // over full_ or sparse_
   std::unique_ptr<estimators::ParticleDynamics> feature_dynamics_;  // angle wrapper, or null
-  std::unique_ptr<estimators::ParticlePolicy> rbf_policy_;
+  std::unique_ptr<estimators::ParticlePolicy> raw_policy_;  // the policy on its own inputs
   std::unique_ptr<estimators::ParticlePolicy> feature_policy_;      // angle wrapper, or null
   estimators::Problem problem_;
 };
 
 // PILCO's problem for the same task: start N(mu0, diag(initial_std^2)),
 // horizon, the cost's closed form (tasks::StateCost::GaussianExpectation),
-// a policy of num_basis basis functions, control j saturated at
+// a policy of `policy_class` (RBF: num_basis basis functions), control j saturated at
 // max_control(j) (F = max_control.size() controls), on the features of
 // angle_indices (strictly increasing; empty: the raw state).
 // prediction_includes_noise stays PILCO's false;
@@ -134,12 +135,9 @@ absl::StatusOr<pilco::PilcoProblem> MakePilcoProblem(const tasks::StateCost& cos
                                                      const Vector& mu0, const Vector& initial_std,
                                                      int horizon,
                                                      const std::vector<int>& angle_indices,
-                                                     int num_basis, const Vector& max_control);
-
-// The policy as a controller of the real plant: the controls of the policy
-// at phi(observation) (policy non-null, must outlive the controller).
-tasks::MultiController FeaturePolicyController(const policy::RbfPolicy* policy,
-                                               std::vector<int> angle_indices);
+                                                     int num_basis, const Vector& max_control,
+                                                     policy::PolicyClass policy_class =
+                                                         policy::PolicyClass::kRbf);
 
 }  // namespace totalgrad::learner
 

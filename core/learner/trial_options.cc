@@ -56,7 +56,8 @@ const OptionTable<TrialOptions>& TrialOptions::Table() {
         .Double("gp_variance_tolerance", &O::gp_variance_tolerance)
         .Int("pilco_line_searches", &O::pilco_line_searches)
         .Int("pilco_evaluations_per_line_search", &O::pilco_evaluations_per_line_search)
-        .Nest(&O::estimator, estimators::EstimatorOptions::Table());
+        .Nest(&O::estimator, estimators::EstimatorOptions::Table())
+        .Enum("policy", &O::policy, policy::PolicyClassNames());
     return t;
   }();
   return *table;
@@ -85,6 +86,7 @@ absl::Status TrialOptions::Validate() const {
   if (pilco_evaluations_per_line_search == 0 || pilco_evaluations_per_line_search < -1)
     return InvalidOption("pilco_evaluations_per_line_search",
                          "must be -1 (the scene's PILCO protocol) or >= 1");
+  if (!IsNamedEnum(policy::PolicyClassNames(), policy)) return InvalidOption("policy", "is not rbf or linear");
   if (!IsNamedEnum(AngleFeaturesNames(), angle_features))
     return InvalidOption("angle_features", "is not one of auto, raw, sincos");
   if (!IsNamedEnum(estimators::MethodNames(), method)) return InvalidOption("method", "is not a known method");

@@ -37,6 +37,7 @@
 #include "core/gp/gp.h"
 #include "core/gp/training.h"
 #include "core/learner/optimizer.h"
+#include "core/policy/policy_class.h"
 #include "core/tasks/scene.h"
 
 namespace totalgrad::learner {
@@ -88,6 +89,10 @@ struct TrialOptions {
   OptimizerOptions optimizer;
   gp::TrainingOptions gp_training;
   AngleFeatures angle_features = AngleFeatures::kAuto;
+  // The policy's class (key "policy", last in the table): the RBF network of
+  // basis_functions centres, or PILCO's linear policy with saturation
+  // (W ~ 1e-2 N(0, 1), b = 0 at the start, as PILCO's unicycle; every method).
+  policy::PolicyClass policy = policy::PolicyClass::kRbf;
   // Sparse GP (FITC, gp/fitc.h) with this many inducing inputs once the data
   // exceed it, for every method; the full GP while N <= gp_inducing. 0 = always
   // the full GP; -1 = auto (300 for PILCO as PILCO does, 0 for particle

@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <utility>
 
 #include <Eigen/Eigenvalues>
 
@@ -55,6 +56,56 @@ absl::StatusOr<Trajectory> Propagate(const GaussianInputGp& model, const PilcoPr
   return tr;
 }
 
+namespace {
+
+// The end of an optimisation whose answer is the policy parameters x: the
+// prediction at x into result->prediction, x into *params, the time since
+// `start` into result->seconds.
+absl::Status FinishAt(const Propagator& prop, const PilcoProblem& problem,
+                      std::chrono::steady_clock::time_point start, Vector x, PilcoResult* result,
+                      Vector* params) {
+  if (absl::Status st = PredictTrajectory(prop, *problem.cost, x, problem.mu0, problem.S0,
+                                          problem.horizon, &result->prediction, nullptr);
+      !st.ok()) {
+    return st;
+  }
+  *params = std::move(x);
+  result->seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return absl::OkStatus();
+}
+
+// The linear policy's parameters [W, b] are well scaled as they are (no
+// pseudo-targets): BFGS on J(W, b) directly, as PILCO's learnPolicy on
+// conlin's policy.p.
+absl::StatusOr<PilcoResult> OptimizeLinearPolicy(
+    const Propagator& prop, const PilcoProblem& problem, const PilcoOptions& options,
+    std::chrono::steady_clock::time_point start, Vector* params) {
+  const Objective objective = [&](const Vector& theta, double* f, Vector* g) {
+    Trajectory tr;
+    if (!PredictTrajectory(prop, *problem.cost, theta, problem.mu0, problem.S0, problem.horizon,
+                           &tr, g)
+             .ok()) {
+      return false;
+    }
+    *f = tr.total_cost;
+    return true;
+  };
+  PilcoResult result;
+  Vector theta = *params;
+  result.optimizer = MinimizeBfgs(objective, options.bfgs, &theta);
+  if (result.optimizer.termination == BfgsSummary::Termination::kInitialEvaluationFailed) {
+    return absl::InternalError("PILCO: the initial policy could not be evaluated");
+  }
+  if (absl::Status st = FinishAt(prop, problem, start, std::move(theta), &result, params);
+      !st.ok()) {
+    return st;
+  }
+  return result;
+}
+
+}  // namespace
+
 absl::StatusOr<PilcoResult> OptimizePolicy(const GaussianInputGp& model,
                                            const PilcoProblem& problem,
                                            const PilcoOptions& options, Vector* params) {
@@ -82,6 +133,9 @@ absl::StatusOr<PilcoResult> OptimizePolicy(const GaussianInputGp& model,
   // and one step of the centres then sends the policy's output variance so
   // high that the saturation's moments underflow to an exactly zero
   // gradient (the pendulum stopped after one line search).
+  if (problem.propagation.policy_class == PolicyClass::kLinear) {
+    return OptimizeLinearPolicy(prop, problem, options, start, params);
+  }
   const RbfPolicyShape& shape = prop.policy_shape();
   Vector y;
   if (absl::Status st = WeightsToPseudoTargets(shape, *params, &y); !st.ok()) return st;
@@ -109,14 +163,9 @@ absl::StatusOr<PilcoResult> OptimizePolicy(const GaussianInputGp& model,
   }
   Vector x;
   if (absl::Status st = PseudoTargetsToWeights(shape, y, &x); !st.ok()) return st;
-  if (absl::Status st = PredictTrajectory(prop, *problem.cost, x, problem.mu0, problem.S0,
-                                          problem.horizon, &result.prediction, nullptr);
-      !st.ok()) {
+  if (absl::Status st = FinishAt(prop, problem, start, std::move(x), &result, params); !st.ok()) {
     return st;
   }
-  *params = x;
-  result.seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;
 }
 
@@ -157,6 +206,19 @@ absl::StatusOr<Vector> InitialPolicyParameters(const PilcoProblem& problem, Rng*
   for (size_t k = 0; k < angles.size(); ++k) {
     if (angles[k] < 0 || angles[k] >= d || (k > 0 && angles[k] <= angles[k - 1]))
       return absl::InvalidArgumentError("angle indices out of range or not increasing");
+  }
+  if (problem.propagation.policy_class == PolicyClass::kLinear) {
+    // PILCO's conlin start: W ~ 1e-2 N(0, 1) column by column, b = 0, on the
+    // policy inputs (the non-angle dims, then (sin, cos) per angle).
+    const int f = problem.propagation.max_controls.size() >= 2
+                      ? static_cast<int>(problem.propagation.max_controls.size())
+                      : 1;
+    const int ep = problem.propagation.policy_inputs.empty()
+                       ? d + static_cast<int>(angles.size())
+                       : static_cast<int>(problem.propagation.policy_inputs.size());
+    Vector params = Vector::Zero(f * (ep + 1));
+    for (int k = 0; k < f * ep; ++k) params(k) = policy::kLinearPolicyInitStd * rng->Normal();
+    return params;
   }
   const int c = problem.propagation.num_basis;
   if (c < 1) return absl::InvalidArgumentError("num_basis must be >= 1");

@@ -34,15 +34,17 @@
 #include "core/pilco/gp_moments.h"
 #include "core/pilco/linear_policy.h"
 #include "core/pilco/policy_moments.h"
+#include "core/policy/policy_class.h"
 
 namespace totalgrad::pilco {
 
-// The policy's form. kRbf: the RBF network with saturation (gp2 + gSat;
-// RbfPolicyShape's parameters). kLinear: PILCO's conlin + gSat
-// (linear_policy.h), u = max_u sat(W p + b) on the policy inputs p, with
-// parameters [W column-major (F x Ep), b (F)] as PILCO's unwrap orders them;
-// its moments are exact, and it always takes the joint step form (F >= 1).
-enum class PolicyClass { kRbf, kLinear };
+// The policy's form (policy/policy_class.h). kRbf: the RBF network with
+// saturation (gp2 + gSat; RbfPolicyShape's parameters). kLinear: PILCO's
+// conlin + gSat (linear_policy.h), u = max_u sat(W p + b) on the policy
+// inputs p, with parameters [W column-major (F x Ep), b (F)] as PILCO's
+// unwrap orders them (policy::LinearPolicy's); its moments are exact, and
+// it always takes the joint step form (F >= 1).
+using PolicyClass = policy::PolicyClass;
 
 struct PropagationOptions {
   PolicyClass policy_class = PolicyClass::kRbf;

@@ -53,26 +53,31 @@ absl::StatusOr<std::unique_ptr<FrozenProblem>> FrozenProblemFromSnapshot(
   // The trial's features: the raw state, or the scene's angles as (sin, cos)
   // (what the trial's learner used; learner::FeatureAngles decides for both).
   out->angle_indices = learner::FeatureAngles(options, sc);
-  out->owned_policy = std::make_unique<policy::RbfPolicy>(
-      options.basis_functions, gaussian::FeatureDim(d, out->angle_indices), sc.max_control);
+  if (options.policy != policy::PolicyClass::kRbf) {
+    return absl::InvalidArgumentError(
+        "snapshot: the trial's policy is linear; gradient studies take the RBF policy so far");
+  }
+  out->owned_policy = std::make_unique<learner::TrialPolicy>(
+      policy::PolicyClass::kRbf, options.basis_functions,
+      gaussian::FeatureDim(d, out->angle_indices), sc.max_control);
   const Vector& theta = which == SnapshotPolicy::kBefore ? snapshot.policy_parameters_before
                                                          : snapshot.policy_parameters;
   if (theta.size() != out->owned_policy->num_parameters()) {
     return absl::InvalidArgumentError(absl::StrCat(
         "snapshot: policy_parameters", which == SnapshotPolicy::kBefore ? "_before" : "",
         " has ", theta.size(), " entries; ", options.basis_functions, " basis functions on the ",
-        AnglesText(out->angle_indices), " (", out->owned_policy->state_dim(), " inputs) need ",
+        AnglesText(out->angle_indices), " (", out->owned_policy->input_dim(), " inputs) need ",
         out->owned_policy->num_parameters()));
   }
   out->owned_policy->set_parameters(theta);
-  out->policy = out->owned_policy.get();
+  out->policy = &out->owned_policy->rbf();
 
   // The trial's model of the episode: its training set and problem, built as
   // the trial builds them (its features, full GP, no thread pool).
   const learner::Transitions data{snapshot.states, snapshot.forces, snapshot.next_states};
   absl::StatusOr<learner::ModelProblem> model = learner::ModelProblem::Build(
       learner::MakeGpTrainingSet(data, out->angle_indices), snapshot.hyperparameters,
-      learner::SparseModelFit{}, out->angle_indices, out->policy, sc,
+      learner::SparseModelFit{}, out->angle_indices, out->owned_policy.get(), sc,
       options.model_noise_multiplier, /*pool=*/nullptr, learner::GpOptions(options));
   if (!model.ok()) {
     return absl::Status(model.status().code(), absl::StrCat("snapshot ", model.status().message()));
@@ -140,14 +145,14 @@ absl::StatusOr<SceneSyntheticProblem> MakeSceneSyntheticProblem(const tasks::Sce
   // Centres drawn in the raw state, then mapped to the features (as the
   // particle learner initialises a sin/cos policy); unit length-scales.
   const int c = options.basis_functions;
-  out.policy = std::make_unique<policy::RbfPolicy>(c, gaussian::FeatureDim(d, angles),
-                                                   scene.max_control);
+  out.policy = std::make_unique<learner::TrialPolicy>(
+      policy::PolicyClass::kRbf, c, gaussian::FeatureDim(d, angles), scene.max_control);
   Rng policy_rng(options.seed, Stream::kPolicyInit);
   policy::RbfPolicy raw(c, d, scene.max_control);
   raw.Initialize(scene.mu0, Vector::Constant(d, 1.0), 1.0, &policy_rng);
   RowMatrix centres;
   gaussian::StatesToFeatures(raw.centres(), angles, &centres);
-  const int f = out.policy->state_dim();
+  const int f = out.policy->input_dim();
   Vector params(out.policy->num_parameters());
   Eigen::Map<RowMatrix>(params.data(), c, f) = centres;
   params.segment(c * f, f).setZero();
@@ -175,7 +180,7 @@ absl::StatusOr<std::unique_ptr<FrozenProblem>> FrozenProblemFromScene(
   out->owned_policy = std::move(built->policy);
   out->model_problem = std::move(built->model);
   out->angle_indices = std::move(built->angle_indices);
-  out->policy = out->owned_policy.get();
+  out->policy = &out->owned_policy->rbf();
   out->model = out->model_problem->full_model();
   out->problem = out->model_problem->problem();
   out->problem.horizon = options.horizon;

@@ -63,7 +63,7 @@ struct FrozenProblem {
 
   // Owners of what the members above point into (those of the source used).
   std::unique_ptr<tasks::Scene> owned_scene;
-  std::unique_ptr<policy::RbfPolicy> owned_policy;
+  std::unique_ptr<learner::TrialPolicy> owned_policy;  // an RBF policy
   std::unique_ptr<learner::ModelProblem> model_problem;
   std::unique_ptr<estimators::SyntheticProblem> synthetic;
 
@@ -109,7 +109,7 @@ struct SceneSyntheticOptions {
 // What MakeSceneSyntheticProblem builds: the policy and the model problem
 // over it (the problem points into both and into the scene).
 struct SceneSyntheticProblem {
-  std::unique_ptr<policy::RbfPolicy> policy;
+  std::unique_ptr<learner::TrialPolicy> policy;  // an RBF policy
   std::unique_ptr<learner::ModelProblem> model;
   std::vector<int> angle_indices;
 };

@@ -232,9 +232,10 @@ SceneDefinition UnicycleScene() {
   s.episode_end_indices = {Unicycle::kRoll, Unicycle::kPitch};
   s.episode_end_bound = std::numbers::pi / 2;
   s.trials_unavailable =
-      "the unicycle's trials need its linear policy in the learners and a GP on its augmented "
-      "state, which are not built yet (`simulate --scene unicycle`, `scenes` and `pilco "
-      "propagate` with the linear policy and the unicycle cost work)";
+      "the unicycle's trials need a GP on its augmented state (its index sets), which trials do "
+      "not build yet; its linear policy runs on the other scenes (`policy = linear`), and "
+      "`simulate --scene unicycle`, `scenes` and `pilco propagate` with the linear policy and "
+      "the unicycle cost work";
   s.basis_functions = 0;  // a linear policy
   s.inducing_inputs = 300;
   s.learned_episodes = 40;

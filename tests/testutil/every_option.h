@@ -67,6 +67,7 @@ inline learner::TrialOptions EveryOptionChanged() {
   o.verdict_hold_seconds = 0.5;
   o.pilco_line_searches = 40;
   o.pilco_evaluations_per_line_search = 12;
+  o.policy = policy::PolicyClass::kLinear;
   o.estimator.lr_weights = estimators::LrWeights::kPlain;
   o.estimator.lr_baseline = estimators::LrBaseline::kLeaveOneOut;
   o.estimator.gs_derivative = estimators::GsDerivative::kExact;

@@ -109,12 +109,28 @@ TEST(PilcoCommandTest, PseudoTargetsAndTheirWeightsGiveTheSamePrediction) {
   EXPECT_NEAR(RunJ(doc), (*a)["J"].get<double>(), 1e-12);
 }
 
+// A bad input: how it is made from a good file, and what its error says.
+struct Case {
+  std::function<void(nlohmann::json*)> mutate;
+  std::string want;
+};
+
+// Each case, applied to `good`, is refused when parsed: InvalidArgument
+// whose message contains the case's text.
+void ExpectEachRefused(const nlohmann::json& good, const std::vector<Case>& cases) {
+  for (const Case& c : cases) {
+    nlohmann::json d = good;
+    c.mutate(&d);
+    absl::StatusOr<PilcoScenario> s = ParsePilcoScenario(d);
+    ASSERT_FALSE(s.ok()) << c.want;
+    EXPECT_EQ(s.status().code(), absl::StatusCode::kInvalidArgument);
+    EXPECT_NE(s.status().message().find(c.want), std::string::npos)
+        << "want '" << c.want << "', got: " << s.status();
+  }
+}
+
 TEST(PilcoCommandTest, BadInputIsNamed) {
   const nlohmann::json good = Load("balance_raw_angle.json");
-  struct Case {
-    std::function<void(nlohmann::json*)> mutate;
-    std::string want;
-  };
   const std::vector<Case> cases = {
       {[](nlohmann::json* d) { d->erase("mu0"); }, "missing field 'mu0'"},
       {[](nlohmann::json* d) { (*d)["policy"].erase("max_force"); },
@@ -125,14 +141,7 @@ TEST(PilcoCommandTest, BadInputIsNamed) {
       {[](nlohmann::json* d) { (*d)["policy"]["targets"] = {1.0}; }, "exactly one of"},
       {[](nlohmann::json* d) { (*d)["horizon"] = 0; }, "horizon"},
   };
-  for (const Case& c : cases) {
-    nlohmann::json d = good;
-    c.mutate(&d);
-    absl::StatusOr<PilcoScenario> s = ParsePilcoScenario(d);
-    ASSERT_FALSE(s.ok()) << c.want;
-    EXPECT_EQ(s.status().code(), absl::StatusCode::kInvalidArgument);
-    EXPECT_NE(s.status().message().find(c.want), std::string::npos) << s.status();
-  }
+  ExpectEachRefused(good, cases);
   // Shape errors found when running.
   nlohmann::json d = good;
   d["policy"]["log_lengthscales"] = {0.0, 0.0};
@@ -363,10 +372,6 @@ TEST_P(PilcoExampleTest, GeneralFormOfTodaysExampleGivesTheSameResult) {
 // what is wrong with it.
 TEST(PilcoCommandTest, GeneralFormBadInputIsNamed) {
   const nlohmann::json good = Load("general_double_pendulum.json");  // D 4, A 2, F 2, Ep 6
-  struct Case {
-    std::function<void(nlohmann::json*)> mutate;
-    std::string want;
-  };
   const double inf = std::numeric_limits<double>::infinity();
   const std::vector<Case> cases = {
       {[](nlohmann::json* d) { (*d)["angle_indx"] = 1; }, "unknown field 'angle_indx'"},
@@ -416,15 +421,7 @@ TEST(PilcoCommandTest, GeneralFormBadInputIsNamed) {
       {[](nlohmann::json* d) { (*d)["cost"].erase("Q"); }, "missing field 'cost.Q'"},
       {[](nlohmann::json* d) { d->erase("dynamics_inputs"); }, "missing field 'dynamics_inputs'"},
   };
-  for (const Case& c : cases) {
-    nlohmann::json d = good;
-    c.mutate(&d);
-    absl::StatusOr<PilcoScenario> s = ParsePilcoScenario(d);
-    ASSERT_FALSE(s.ok()) << c.want;
-    EXPECT_EQ(s.status().code(), absl::StatusCode::kInvalidArgument);
-    EXPECT_NE(s.status().message().find(c.want), std::string::npos)
-        << "want '" << c.want << "', got: " << s.status();
-  }
+  ExpectEachRefused(good, cases);
   // Found when running (it needs the numbers, not only the shapes): Q not
   // positive semi-definite.
   nlohmann::json d = good;
@@ -496,10 +493,6 @@ TEST(PilcoCommandTest, LinearPolicyAndUnicycleCostGradientsMatchCentralDifferenc
 
 TEST(PilcoCommandTest, LinearPolicyAndUnicycleCostBadInputIsNamed) {
   const nlohmann::json good = Load("general_unicycle_linear.json");  // D 10, F 2, Ep 10
-  struct Case {
-    std::function<void(nlohmann::json*)> mutate;
-    std::string want;
-  };
   const std::vector<Case> cases = {
       {[](nlohmann::json* d) { (*d)["policy"]["type"] = "affine"; }, "policy.type: \"rbf\" (the default) or \"linear\""},
       {[](nlohmann::json* d) { (*d)["policy"]["centres"] = {{0.0}}; }, "unknown field 'policy.centres'"},
@@ -517,15 +510,7 @@ TEST(PilcoCommandTest, LinearPolicyAndUnicycleCostBadInputIsNamed) {
       {[](nlohmann::json* d) { (*d)["cost"]["type"] = "tip"; }, "\"saturating\" (PILCO's lossSat on z) or \"unicycle\""},
       {[](nlohmann::json* d) { (*d)["angle_indices"] = {7}; }, "cost.type \"unicycle\": the state must be the unicycle's GP state of 10 entries"},
   };
-  for (const Case& c : cases) {
-    nlohmann::json d = good;
-    c.mutate(&d);
-    absl::StatusOr<PilcoScenario> s = ParsePilcoScenario(d);
-    ASSERT_FALSE(s.ok()) << c.want;
-    EXPECT_EQ(s.status().code(), absl::StatusCode::kInvalidArgument);
-    EXPECT_NE(s.status().message().find(c.want), std::string::npos)
-        << "want '" << c.want << "', got: " << s.status();
-  }
+  ExpectEachRefused(good, cases);
   // The unicycle cost on a state of another size.
   nlohmann::json d = Load("general_double_pendulum.json");
   d["cost"] = {{"type", "unicycle"}};

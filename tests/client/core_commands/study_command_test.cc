@@ -388,7 +388,7 @@ TEST(SceneStudyProblems, RpOnThePendulumStudyIsTheExactDerivativeOfItsSampleObje
   TG_ASSERT_OK(frozen.status());
   EXPECT_EQ((*frozen)->scene, "pendulum");
   EXPECT_EQ((*frozen)->angle_indices, std::vector<int>{1});
-  policy::RbfPolicy* policy = (*frozen)->owned_policy.get();
+  policy::RbfPolicy* policy = &(*frozen)->owned_policy->rbf();
   ASSERT_NE(policy, nullptr);
   absl::StatusOr<std::unique_ptr<estimators::Estimator>> rp =
       estimators::MakeEstimator(estimators::Method::kRp, {});

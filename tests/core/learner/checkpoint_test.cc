@@ -6,6 +6,7 @@
 // evaluation of its final policy.
 #include "core/learner/checkpoint.h"
 #include "core/learner/evaluation.h"
+#include "core/gaussian/angle_features.h"
 
 #include <gtest/gtest.h>
 
@@ -284,13 +285,42 @@ TEST(TrialCheckpoint, ResumedTwoControlPilcoTrialGivesTheSameBits) {
                                                   {"basis_functions", "6"}}));
 }
 
+// PILCO's linear policy (trial option policy = linear): the particle methods
+// and PILCO resume from every episode's checkpoint with the same bits (its
+// parameters are the checkpoint's policy vector), one control and two.
+TEST(TrialCheckpoint, ResumedLinearPolicyTrialsGiveTheSameBits) {
+  for (const TrialOptions& options :
+       {Tiny({{"policy", "linear"}, {"episodes", "3"}}),
+        Tiny({{"policy", "linear"}, {"method", "PILCO"}, {"episodes", "2"}}),
+        Tiny({{"policy", "linear"}, {"scene", "double-pendulum"}, {"method", "TP"},
+              {"episodes", "2"}}),
+        Tiny({{"policy", "linear"}, {"scene", "double-pendulum"}, {"method", "PILCO"},
+              {"episodes", "2"}})}) {
+    SCOPED_TRACE(estimators::MethodName(options.method) + " " + options.scene.scene);
+    Collector probe;
+    ASSERT_TRUE(RunTrial(options, &probe).ok());
+    ASSERT_FALSE(probe.checkpoints.empty());
+    absl::StatusOr<tasks::Scene> scene = tasks::MakeScene(options.scene);
+    ASSERT_TRUE(scene.ok());
+    // F (Ep + 1) parameters: W and b on the policy's inputs (the raw state
+    // or its angle features).
+    const int ep = gaussian::FeatureDim(scene->state_dim(), FeatureAngles(options, *scene));
+    EXPECT_EQ(probe.checkpoints.back().policy_parameters.size(),
+              scene->control_dim() * (ep + 1));
+    ExpectResumedRunsEqualTheUninterruptedOne(options);
+  }
+}
+
 // `totalgrad evaluate` of a trial's final policy with the trial's seed and
-// episode reproduces the trial's own evaluation, bit for bit.
+// episode reproduces the trial's own evaluation, bit for bit (RBF and linear
+// policies).
 TEST(TrialCheckpoint, EvaluatePolicyReproducesTheTrialsEvaluation) {
   for (const TrialOptions& options :
        {Tiny({{"episodes", "2"}}), Tiny({{"method", "PILCO"}, {"episodes", "1"}}),
         Tiny({{"scene", "double-pendulum"}, {"episodes", "1"}}),
-        Tiny({{"scene", "double-pendulum"}, {"method", "PILCO"}, {"episodes", "1"}})}) {
+        Tiny({{"scene", "double-pendulum"}, {"method", "PILCO"}, {"episodes", "1"}}),
+        Tiny({{"policy", "linear"}, {"episodes", "1"}}),
+        Tiny({{"policy", "linear"}, {"method", "PILCO"}, {"episodes", "1"}})}) {
     auto summary = RunTrial(options, nullptr);
     ASSERT_TRUE(summary.ok()) << summary.status();
     const EpisodeResult& last = summary->episodes.back();

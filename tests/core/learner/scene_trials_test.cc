@@ -26,6 +26,30 @@ TrialOptions Short(const std::string& scene, const std::string& method) {
   return o;
 }
 
+// Runs `o` twice: two episodes (the random one and one learned), finite
+// numbers, no non-finite gradient, the same bits both times. Returns the
+// learned episode's result.
+EpisodeResult RunTwiceFiniteAndSame(const TrialOptions& o) {
+  EXPECT_TRUE(o.Validate().ok()) << o.Validate();
+  absl::StatusOr<TrialSummary> a = RunTrial(o, nullptr);
+  absl::StatusOr<TrialSummary> b = RunTrial(o, nullptr);
+  EXPECT_TRUE(a.ok()) << a.status();
+  EXPECT_TRUE(b.ok()) << b.status();
+  if (!a.ok() || !b.ok() || a->episodes.size() != 2u || b->episodes.size() != 2u) {
+    ADD_FAILURE() << "expected two episodes";
+    return {};
+  }
+  const EpisodeResult& r = a->episodes[1];
+  EXPECT_TRUE(std::isfinite(r.real_cost));
+  EXPECT_TRUE(std::isfinite(r.eval_cost_mean));
+  EXPECT_TRUE(std::isfinite(r.predicted_cost));
+  EXPECT_TRUE(r.policy_parameters.allFinite());
+  EXPECT_EQ(r.flags.non_finite_gradients, 0);
+  EXPECT_EQ(r.eval_cost_mean, b->episodes[1].eval_cost_mean);
+  EXPECT_EQ(r.policy_parameters, b->episodes[1].policy_parameters);
+  return r;
+}
+
 bool Supported(const tasks::SceneDefinition& scene, estimators::Method) {
   // Every method on every scene of the catalog that has trials (the
   // unicycle's are refused: scene_catalog_test.cc).
@@ -38,21 +62,7 @@ TEST(SceneTrials, EveryMethodOnEverySupportedSceneIsFiniteAndDeterministic) {
     for (const auto& [method, name] : estimators::MethodNames()) {
       if (!Supported(scene, method)) continue;
       SCOPED_TRACE(scene.name + " " + name);
-      const TrialOptions o = Short(scene.name, name);
-      TG_ASSERT_OK(o.Validate());
-      absl::StatusOr<TrialSummary> a = RunTrial(o, nullptr);
-      TG_ASSERT_OK(a.status());
-      absl::StatusOr<TrialSummary> b = RunTrial(o, nullptr);
-      TG_ASSERT_OK(b.status());
-      ASSERT_EQ(a->episodes.size(), 2u);
-      const EpisodeResult& r = a->episodes[1];
-      EXPECT_TRUE(std::isfinite(r.real_cost));
-      EXPECT_TRUE(std::isfinite(r.eval_cost_mean));
-      EXPECT_TRUE(std::isfinite(r.predicted_cost));
-      EXPECT_TRUE(r.policy_parameters.allFinite());
-      EXPECT_EQ(r.flags.non_finite_gradients, 0);
-      EXPECT_EQ(r.eval_cost_mean, b->episodes[1].eval_cost_mean);
-      EXPECT_EQ(r.policy_parameters, b->episodes[1].policy_parameters);
+      const EpisodeResult r = RunTwiceFiniteAndSame(Short(scene.name, name));
       // On the new scenes every method sees the scene's index sets by
       // default: GP inputs z(dynamics_inputs) and u.
       if (scene.plant != tasks::PlantKind::kCartPole) {
@@ -72,6 +82,28 @@ TEST(SceneTrials, EveryMethodOnEverySupportedSceneIsFiniteAndDeterministic) {
   // Five scenes (the double pendulum's two torques included) x 9 methods.
   EXPECT_GE(ran, 5 * 9);
   EXPECT_EQ(multi_control, 9);  // every method on the double pendulum
+}
+
+// PILCO's linear policy (policy = linear) for every method, on the
+// cart-pole balance (one force) and the double pendulum (two torques):
+// finite and deterministic, with F (Ep + 1) parameters.
+TEST(SceneTrials, EveryMethodWithTheLinearPolicyIsFiniteAndDeterministic) {
+  int ran = 0;
+  for (const std::string scene_name : {"cartpole-balance", "double-pendulum"}) {
+    for (const auto& [method, name] : estimators::MethodNames()) {
+      SCOPED_TRACE(scene_name + " " + name);
+      TrialOptions o = Short(scene_name, name);
+      TG_ASSERT_OK(SetTrialOption("policy", "linear", &o));
+      const EpisodeResult r = RunTwiceFiniteAndSame(o);
+      absl::StatusOr<tasks::Scene> scene = tasks::MakeScene(o.scene);
+      TG_ASSERT_OK(scene.status());
+      const std::vector<int> angles = FeatureAngles(o, *scene);
+      const int ep = scene->state_dim() + static_cast<int>(angles.size());
+      EXPECT_EQ(r.policy_parameters.size(), scene->control_dim() * (ep + 1));
+      ++ran;
+    }
+  }
+  EXPECT_EQ(ran, 2 * 9);
 }
 
 // The two-control scene on the other model and feature paths: FITC once the

@@ -186,8 +186,8 @@ TEST(RolloutVerdict, APolicyThatSwingsUpAndThenDropsThePoleIsNotHeld) {
 #include "tests/core/learner/testdata/pilco_swingup_policy.inc"
   };
   const std::vector<int> angles = FeatureAngles(options, *scene);
-  policy::RbfPolicy policy(options.basis_functions, gaussian::FeatureDim(scene->state_dim(), angles),
-                           scene->max_control);
+  TrialPolicy policy(policy::PolicyClass::kRbf, options.basis_functions,
+                     gaussian::FeatureDim(scene->state_dim(), angles), scene->max_control);
   ASSERT_EQ(policy.num_parameters(), static_cast<int>(parameters.size()));
   policy.set_parameters(Eigen::Map<const Vector>(parameters.data(), parameters.size()));
   const tasks::MultiController swing_up = FeaturePolicyController(&policy, angles);

@@ -252,7 +252,7 @@ TEST(SceneFeatureExtremes, TwoAnglesAtVariance1e3) {
   TG_ASSERT_OK(rp.status());
   // The policy is shared with the problem's adapter: set its parameters for
   // every probe and restore them afterwards.
-  policy::RbfPolicy* policy = (*frozen)->owned_policy.get();
+  policy::RbfPolicy* policy = &(*frozen)->owned_policy->rbf();
   const Vector theta0 = policy->parameters();
   estimators::GradientEstimate at;
   Rng rng0(3, Stream::kStudy, 12);
@@ -420,7 +420,7 @@ TEST(SceneFeatureExtremes, SceneWithNoAngle) {
   TG_ASSERT_OK(rp.status());
   estimators::EstimateOptions eo;
   eo.particles = 20;
-  policy::RbfPolicy* policy = (*frozen)->owned_policy.get();
+  policy::RbfPolicy* policy = &(*frozen)->owned_policy->rbf();
   const Vector theta0 = policy->parameters();
   estimators::GradientEstimate at;
   Rng rng0(4, Stream::kStudy, 1);
