@@ -104,6 +104,40 @@ void AngleFeatureDynamics::Predict(const ConstRowMatrixRef& z, double noise_vari
     FeatureColumnsToRaw(dvar_f, s_dim, s_dim, e_dim, angles_, sin_a, cos_a, dvar_dz);
 }
 
+InputSubsetDynamics::InputSubsetDynamics(const ParticleDynamics* inner, std::vector<int> inputs)
+    : inner_(inner), inputs_(std::move(inputs)) {
+  TG_CHECK(inner != nullptr);
+  TG_CHECK(!inputs_.empty() && StrictlyIncreasingWithin(inputs_, inner->state_dim()));
+  TG_CHECK(inner->input_dim() > static_cast<int>(inputs_.size()));  // F >= 1 controls
+}
+
+void InputSubsetDynamics::Predict(const ConstRowMatrixRef& z, double noise_variance_multiplier,
+                                  RowMatrix* mean, RowMatrix* variance, RowMatrix* dmean_dz,
+                                  RowMatrix* dvar_dz) const {
+  const int s_dim = state_dim(), e_dim = input_dim();
+  const int q_dim = static_cast<int>(inputs_.size());
+  const int inner_dim = inner_->input_dim();  // q + F
+  const int f_dim = inner_dim - q_dim;
+  TG_CHECK_EQ(z.cols(), e_dim);
+  // inner column k reads z's column at[k]: the subset, then the controls.
+  std::vector<int> at(inputs_);
+  for (int j = 0; j < f_dim; ++j) at.push_back(s_dim + j);
+  RowMatrix zq(z.rows(), inner_dim);
+  for (int k = 0; k < inner_dim; ++k) zq.col(k) = z.col(at[k]);
+  RowMatrix dmean_q, dvar_q;
+  inner_->Predict(zq, noise_variance_multiplier, mean, variance,
+                  dmean_dz != nullptr ? &dmean_q : nullptr, dvar_dz != nullptr ? &dvar_q : nullptr);
+  // Row-major Jacobians: (p, a * E + m) = d out(p, a) / d z(p, m).
+  const auto scatter = [&](const RowMatrix& inner, RowMatrix* out) {
+    out->setZero(z.rows(), static_cast<Eigen::Index>(s_dim) * e_dim);
+    for (int a = 0; a < s_dim; ++a) {
+      for (int k = 0; k < inner_dim; ++k) out->col(a * e_dim + at[k]) = inner.col(a * inner_dim + k);
+    }
+  };
+  if (dmean_dz != nullptr) scatter(dmean_q, dmean_dz);
+  if (dvar_dz != nullptr) scatter(dvar_q, dvar_dz);
+}
+
 AngleFeaturePolicy::AngleFeaturePolicy(const ParticlePolicy* inner, std::vector<int> angle_indices)
     : inner_(inner), angles_(std::move(angle_indices)) {
   TG_CHECK(inner != nullptr);

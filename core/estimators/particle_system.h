@@ -128,6 +128,28 @@ class AngleFeatureDynamics final : public ParticleDynamics {
   std::vector<int> angles_;
 };
 
+// A model that sees a subset of the state (PILCO's dyni: the unicycle's GP
+// does not see its yaw) as a model on the whole state (non-owning): the
+// inner model's inputs are [x(inputs), u] (|inputs| + F columns), its
+// outputs the S state differences. Predict takes z = [x, u], passes the
+// subset on, and maps the inner Jacobians back to z's columns: those of
+// the state dims the model does not see are zero.
+class InputSubsetDynamics final : public ParticleDynamics {
+ public:
+  // inputs: strictly increasing, in [0, S), S = inner->state_dim().
+  InputSubsetDynamics(const ParticleDynamics* inner, std::vector<int> inputs);
+  int state_dim() const override { return inner_->state_dim(); }
+  int input_dim() const override {
+    return state_dim() + inner_->input_dim() - static_cast<int>(inputs_.size());
+  }
+  void Predict(const ConstRowMatrixRef& z, double noise_variance_multiplier, RowMatrix* mean,
+               RowMatrix* variance, RowMatrix* dmean_dz, RowMatrix* dvar_dz) const override;
+
+ private:
+  const ParticleDynamics* inner_;
+  std::vector<int> inputs_;
+};
+
 // A policy on (sin, cos) angle features as a policy on the raw state
 // (non-owning): state_dim() = inner->state_dim() - A. Evaluate passes phi(x)
 // to the inner policy, whose cache must keep its input (the features) in
