@@ -221,26 +221,34 @@ absl::Status Propagator::StepControls(const Vector& params, const Vector& m, con
                                       Vector* m_next, Matrix* S_next, StepCache* cache) const {
   // As Step from the policy on, with F controls: g = [p; u] (Ep + F),
   // Cov(p, u) = p_cov u_cross (Ep x F), Cov(u) from GSatJoint.
-  const int d = state_dim_, ep = policy_input_dim_, f = control_dim();
+  StepCache& c = *cache;
+  return JointStepForward(params, m, S, c.p_mean, c.p_cov, c.s_xp, c.p_cov, &c, m_next, S_next);
+}
+
+absl::Status Propagator::JointStepForward(const Vector& params, const Vector& m, const Matrix& S,
+                                          const Vector& a_mean, const Matrix& a_cov,
+                                          const Matrix& s_xa, const Matrix& s_ap, StepCache* cache,
+                                          Vector* m_next, Matrix* S_next) const {
+  const int d = state_dim_, ea = static_cast<int>(a_mean.size()), f = control_dim();
   StepCache& c = *cache;
   Vector u_mean;
   Matrix u_cov;
   if (absl::Status st = JointPolicyForward(params, &c, &u_mean, &u_cov); !st.ok()) return st;
-  c.g_mean.resize(ep + f);
-  c.g_mean.head(ep) = c.p_mean;
+  c.g_mean.resize(ea + f);
+  c.g_mean.head(ea) = a_mean;
   c.g_mean.tail(f) = u_mean;
-  c.g_cov.resize(ep + f, ep + f);
-  c.g_cov.topLeftCorner(ep, ep) = c.p_cov;
-  const Matrix cov_pu = c.p_cov * c.u_cross;
-  c.g_cov.topRightCorner(ep, f) = cov_pu;
-  c.g_cov.bottomLeftCorner(f, ep) = cov_pu.transpose();
+  c.g_cov.resize(ea + f, ea + f);
+  c.g_cov.topLeftCorner(ea, ea) = a_cov;
+  const Matrix cov_au = s_ap * c.u_cross;
+  c.g_cov.topRightCorner(ea, f) = cov_au;
+  c.g_cov.bottomLeftCorner(f, ea) = cov_au.transpose();
   c.g_cov.bottomRightCorner(f, f) = u_cov;
   if (absl::Status st = PredictGaussian(*dynamics_, c.g_mean, c.g_cov, dyn_options_, &c.delta);
       !st.ok()) {
     return WithContext(st, "dynamics GP");
   }
-  Matrix cxg(d, ep + f);
-  cxg.leftCols(ep) = c.s_xp;
+  Matrix cxg(d, ea + f);
+  cxg.leftCols(ea) = s_xa;
   cxg.rightCols(f) = c.s_xp * c.u_cross;
   return AddDelta(m, S, cxg, c.delta, m_next, S_next);
 }
@@ -411,7 +419,7 @@ absl::Status Propagator::StepSeparate(const Vector& params, const Vector& m, con
                                       Vector* m_next, Matrix* S_next, StepCache* cache) const {
   // g = [q; u] with q = y(dynamics_index_) (Eq), Cov(q, u) = Cov(q, p) u_cross
   // and Cov(x, u) = Cov(x, p) u_cross (u depends on x only through p).
-  const int d = state_dim_, f = control_dim();
+  const int d = state_dim_;
   const int eq = static_cast<int>(dynamics_index_.size()), ep = policy_input_dim_;
   StepCache& c = *cache;
   c.q_mean.resize(eq);
@@ -424,26 +432,7 @@ absl::Status Propagator::StepSeparate(const Vector& params, const Vector& m, con
     for (int j = 0; j < ep; ++j) c.s_qp(i, j) = c.y_cov(dynamics_index_[i], policy_index_[j]);
     for (int r = 0; r < d; ++r) c.s_xq(r, i) = c.y_cov(r, dynamics_index_[i]);
   }
-  Vector u_mean;
-  Matrix u_cov;
-  if (absl::Status st = JointPolicyForward(params, &c, &u_mean, &u_cov); !st.ok()) return st;
-  c.g_mean.resize(eq + f);
-  c.g_mean.head(eq) = c.q_mean;
-  c.g_mean.tail(f) = u_mean;
-  c.g_cov.resize(eq + f, eq + f);
-  c.g_cov.topLeftCorner(eq, eq) = c.q_cov;
-  const Matrix cov_qu = c.s_qp * c.u_cross;
-  c.g_cov.topRightCorner(eq, f) = cov_qu;
-  c.g_cov.bottomLeftCorner(f, eq) = cov_qu.transpose();
-  c.g_cov.bottomRightCorner(f, f) = u_cov;
-  if (absl::Status st = PredictGaussian(*dynamics_, c.g_mean, c.g_cov, dyn_options_, &c.delta);
-      !st.ok()) {
-    return WithContext(st, "dynamics GP");
-  }
-  Matrix cxg(d, eq + f);
-  cxg.leftCols(eq) = c.s_xq;
-  cxg.rightCols(f) = c.s_xp * c.u_cross;
-  return AddDelta(m, S, cxg, c.delta, m_next, S_next);
+  return JointStepForward(params, m, S, c.q_mean, c.q_cov, c.s_xq, c.s_qp, &c, m_next, S_next);
 }
 
 absl::Status Propagator::StepSeparateBackward(const Vector& params, const StepCache& c,

@@ -163,6 +163,14 @@ class Propagator {
   // moments in c->policy, c->multi or c->linear.
   absl::Status JointPolicyForward(const Vector& params, StepCache* c, Vector* u_mean,
                                   Matrix* u_cov) const;
+  // The forward half of the two step forms whose GP input is the joint
+  // g = [a; u] (a: the GP's state inputs, a_mean, a_cov, with Cov(x, a) =
+  // s_xa and Cov(a, p) = s_ap; a = p or q): the policy's moments, g's, the
+  // GP's prediction and the next state. JointStepBackward is its reverse.
+  absl::Status JointStepForward(const Vector& params, const Vector& m, const Matrix& S,
+                                const Vector& a_mean, const Matrix& a_cov, const Matrix& s_xa,
+                                const Matrix& s_ap, StepCache* cache, Vector* m_next,
+                                Matrix* S_next) const;
   // Step and StepBackward from the policy on, with F >= 2 controls or the
   // linear policy (the GP sees [p; u]).
   absl::Status StepControls(const Vector& params, const Vector& m, const Matrix& S,
