@@ -9,6 +9,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "core/pilco/policy_moments.h"
+#include "core/policy/linear_policy.h"
 #include "core/gaussian/trig.h"
 
 namespace totalgrad::pilco {
@@ -216,9 +217,10 @@ absl::StatusOr<Vector> InitialPolicyParameters(const PilcoProblem& problem, Rng*
     const int ep = problem.propagation.policy_inputs.empty()
                        ? d + static_cast<int>(angles.size())
                        : static_cast<int>(problem.propagation.policy_inputs.size());
-    Vector params = Vector::Zero(f * (ep + 1));
-    for (int k = 0; k < f * ep; ++k) params(k) = policy::kLinearPolicyInitStd * rng->Normal();
-    return params;
+    policy::LinearPolicy linear(ep, f >= 2 ? problem.propagation.max_controls
+                                           : Vector::Constant(1, problem.propagation.max_force));
+    linear.Initialize(policy::kLinearPolicyInitStd, rng);
+    return linear.parameters();
   }
   const int c = problem.propagation.num_basis;
   if (c < 1) return absl::InvalidArgumentError("num_basis must be >= 1");
