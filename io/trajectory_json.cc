@@ -70,19 +70,26 @@ absl::StatusOr<TrajectoryView> ViewTrajectory(const learner::TrialCheckpoint& ch
   view.scene = scene->name;
   const tasks::SceneDefinition* definition = scene->definition;
   const Eigen::Index d = view.shown->states.cols(), f = view.shown->controls.cols();
-  if (d != scene->state_dim() || f != scene->control_dim()) {
+  // An episode that ended before its first step has no control rows (0 x 0).
+  const bool no_controls = view.shown->controls.rows() == 0;
+  if (d != scene->state_dim() || (f != scene->control_dim() && !no_controls)) {
     return absl::InvalidArgumentError(absl::StrCat(
         "the trajectory has ", d, " states and ", f, " controls; scene '", scene->name, "' has ",
         scene->state_dim(), " and ", scene->control_dim()));
   }
   view.dt = scene->plant->dt();
-  if (definition != nullptr && static_cast<Eigen::Index>(definition->state_names.size()) == d &&
-      static_cast<Eigen::Index>(definition->control_names.size()) == f) {
-    view.state_names = definition->state_names;
+  // The learner's state names (the unicycle's GP state; the plant's elsewhere).
+  const std::vector<std::string>* state_names =
+      definition == nullptr ? nullptr
+      : definition->learner_state_names.empty() ? &definition->state_names
+                                                : &definition->learner_state_names;
+  if (state_names != nullptr && static_cast<Eigen::Index>(state_names->size()) == d &&
+      static_cast<Eigen::Index>(definition->control_names.size()) == scene->control_dim()) {
+    view.state_names = *state_names;
     view.control_names = definition->control_names;
   } else {
     view.state_names = Numbered("x", d);
-    view.control_names = Numbered("u", f);
+    view.control_names = Numbered("u", scene->control_dim());
   }
   for (Eigen::Index t = 0; t < view.shown->states.rows(); ++t)
     view.goal_distance.push_back(tasks::GoalDistance(*scene, view.shown->states.row(t).transpose()));
@@ -107,7 +114,7 @@ absl::StatusOr<TrajectoryView> ViewTrajectory(const learner::TrialCheckpoint& ch
         view.links = {{2, definition->double_pendulum.length1},
                       {3, definition->double_pendulum.length2}};
         break;
-      case tasks::PlantKind::kUnicycle:  // no trials yet (its drawing comes with them)
+      case tasks::PlantKind::kUnicycle:  // no planar drawing: its states and distance only
         break;
     }
   }

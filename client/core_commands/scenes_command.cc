@@ -63,8 +63,13 @@ nlohmann::ordered_json ScenesToJson(const std::vector<tasks::SceneDefinition>& s
     j["angle_indices"] = s.angle_indices;
     j["dynamics_inputs"] = s.dynamics_inputs;
     j["policy_inputs"] = s.policy_inputs;
+    if (s.learner_mu0.size() > 0) {
+      j["learner_state"] = {{"names", s.learner_state_names},
+                            {"mu0", ToStd(s.learner_mu0)},
+                            {"start_std", ToStd(s.learner_start_std)}};
+    }
     j["gp"] = {{"inputs", static_cast<int>(s.dynamics_inputs.size()) + s.control_dim()},
-               {"outputs", s.state_dim()},
+               {"outputs", s.learner_state_dim()},
                {"model", absl::StrCat("full GP; FITC with ", s.inducing_inputs,
                                       " inducing inputs once N > ", s.inducing_inputs)},
                {"inducing_inputs", s.inducing_inputs}};
@@ -90,11 +95,17 @@ nlohmann::ordered_json ScenesToJson(const std::vector<tasks::SceneDefinition>& s
     }
     j["policy"] = s.policy_class;
     j["trials"] = s.trials_unavailable.empty() ? "yes" : s.trials_unavailable;
+    j["studies"] = !s.trials_unavailable.empty()    ? s.trials_unavailable
+                   : !s.studies_unavailable.empty() ? s.studies_unavailable
+                                                    : "yes";
+    j["default_cost"] = s.default_cost;
     j["angle_cost"] = {{"Q_diagonal", ToStd(s.angle_cost_q)}, {"target", ToStd(s.target)}};
     j["protocol"] = {{"basis_functions", s.basis_functions},
                      {"learned_episodes", s.learned_episodes},
                      {"line_searches", s.line_searches},
-                     {"evaluations_per_line_search", s.evaluations_per_line_search}};
+                     {"evaluations_per_line_search", s.evaluations_per_line_search},
+                     {"random_episodes", s.random_episodes},
+                     {"random_control_fraction", s.random_control_fraction}};
     j["peak_trial_bytes"] = tasks::PeakTrialBytes(s, kDefaultParticles);
     j["source"] = s.source;
     out.push_back(std::move(j));
@@ -111,6 +122,11 @@ std::string ScenesText(const std::vector<tasks::SceneDefinition>& scenes) {
                     Join(s.max_control), "], dt = ", s.dt, " s, H = ", s.horizon, "\n");
     absl::StrAppend(&out, "  trial defaults: horizon ", s.horizon, ", threshold ", s.success_threshold,
                     " (success: the last evaluation's mean episode cost below it)\n");
+    if (s.learner_mu0.size() > 0) {
+      absl::StrAppend(&out, "  the learner sees ", s.learner_state_dim(), " [",
+                      absl::StrJoin(s.learner_state_names, ", "), "], start N([",
+                      Join(s.learner_mu0), "], diag([", Join(s.learner_start_std), "])^2)\n");
+    }
     if (s.trials_unavailable.empty()) {
       absl::StrAppend(&out, "  angles ", absl::StrJoin(s.angle_indices, ","), "; GP inputs z[",
                       absl::StrJoin(s.dynamics_inputs, ","), "] + u, policy inputs z[",
@@ -148,13 +164,20 @@ std::string ScenesText(const std::vector<tasks::SceneDefinition>& scenes) {
     const std::string policy = s.policy_class == "linear"
                                    ? std::string("a linear policy")
                                    : absl::StrCat(s.basis_functions, " RBF centres");
-    absl::StrAppend(&out, "  PILCO protocol: ", policy, ", ",
+    const std::string random =
+        s.random_episodes == 1 && s.random_control_fraction == 1.0
+            ? std::string()
+            : absl::StrCat(s.random_episodes, " random rollouts at ", s.random_control_fraction,
+                           " x |u| max, ");
+    absl::StrAppend(&out, "  PILCO protocol: ", policy, ", ", random,
                     s.learned_episodes, " episodes, ", s.line_searches, " line searches x ",
                     s.evaluations_per_line_search, " evaluations; peak memory per trial ~",
                     absl::StrFormat("%.0f", tasks::PeakTrialBytes(s, kDefaultParticles) / 1e6), " MB\n");
     absl::StrAppend(&out, "  source: ", s.source, "\n");
     if (!s.trials_unavailable.empty()) {
       absl::StrAppend(&out, "  trials: not yet: ", s.trials_unavailable, "\n");
+    } else if (!s.studies_unavailable.empty()) {
+      absl::StrAppend(&out, "  studies: not yet: ", s.studies_unavailable, "\n");
     }
   }
   return out;

@@ -41,6 +41,9 @@ absl::StatusOr<PolicyEvaluation> EvaluateController(const tasks::Scene& scene,
 
 bool RolloutHeld(const tasks::Scene& scene, const tasks::Episode& rollout, double distance,
                  int hold_steps) {
+  // An episode that reached the scene's end (the unicycle fell) did not
+  // hold, however close its last kept states were.
+  if (rollout.ended) return false;
   const int horizon = static_cast<int>(rollout.states.rows()) - 1;
   TG_CHECK(hold_steps >= 1 && hold_steps <= horizon);
   for (int t = horizon - hold_steps + 1; t <= horizon; ++t) {

@@ -58,7 +58,9 @@ absl::StatusOr<PolicyEvaluation> EvaluatePolicy(const TrialOptions& options,
 // `distance` (on the cart-pole: the pole tip within `distance` metres of the
 // upright tip above the target for the last hold_steps * dt seconds). A
 // policy that swings up and then lets the pole fall is not held, however
-// low its summed cost.
+// low its summed cost. A rollout that reached the scene's episode end (the
+// unicycle fell: tasks::Episode::ended) is not held. On the unicycle the
+// distance is that of loss_unicycle (tasks::UnicycleUprightDistance).
 bool RolloutHeld(const tasks::Scene& scene, const tasks::Episode& rollout, double distance,
                  int hold_steps);
 

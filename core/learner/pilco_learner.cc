@@ -90,7 +90,8 @@ absl::StatusOr<std::unique_ptr<PolicyLearner>> MakePilcoLearner(const TrialOptio
   // controls.
   absl::StatusOr<pilco::PilcoProblem> problem =
       MakePilcoProblem(*scene.cost, scene.mu0, scene.initial_std, scene.horizon, angles,
-                       options.basis_functions, scene.max_control, options.policy);
+                       options.basis_functions, scene.max_control, options.policy,
+                       scene.dynamics_inputs);
   if (!problem.ok()) return problem.status();
   auto learner = std::make_unique<PilcoLearner>(options, scene, std::move(angles), *std::move(problem));
   if (absl::Status status = learner->Init(); !status.ok()) return status;

@@ -18,7 +18,7 @@ PolicyLearner::PolicyLearner(const TrialOptions& options, const tasks::Scene& sc
 
 absl::StatusOr<GpTrainingSet> PolicyLearner::TrainModel(const Transitions& transitions,
                                                         int episode, EpisodeResult* result) {
-  GpTrainingSet data = MakeGpTrainingSet(transitions, angles_);
+  GpTrainingSet data = MakeGpTrainingSet(transitions, angles_, scene_.dynamics_inputs);
   if (!hyperparameters_) hyperparameters_ = gp::InitialHyperparameters(data.inputs, data.targets);
   absl::StatusOr<gp::TrainingSummary> training =
       gp::TrainHyperparameters(data.inputs, data.targets, options_.gp_training, &*hyperparameters_);

@@ -27,11 +27,19 @@ void Transitions::Append(const tasks::Episode& episode) {
   forces.tail(episode.forces.size()) = episode.forces;
 }
 
-GpTrainingSet MakeGpTrainingSet(const Transitions& data, const std::vector<int>& angle_indices) {
+GpTrainingSet MakeGpTrainingSet(const Transitions& data, const std::vector<int>& angle_indices,
+                                const std::vector<int>& dynamics_inputs) {
   const int f = data.control_dim();
   TG_CHECK(data.next_states.rows() == data.size() && data.forces.size() == data.size() * f);
+  TG_CHECK(dynamics_inputs.empty() || angle_indices.empty());
   RowMatrix features;
-  gaussian::StatesToFeatures(data.states, angle_indices, &features);
+  if (dynamics_inputs.empty()) {
+    gaussian::StatesToFeatures(data.states, angle_indices, &features);
+  } else {
+    features.resize(data.size(), static_cast<Eigen::Index>(dynamics_inputs.size()));
+    for (size_t k = 0; k < dynamics_inputs.size(); ++k)
+      features.col(static_cast<Eigen::Index>(k)) = data.states.col(dynamics_inputs[k]);
+  }
   GpTrainingSet set;
   set.inputs.resize(data.size(), features.cols() + f);
   set.inputs.leftCols(features.cols()) = features;
@@ -75,6 +83,14 @@ absl::StatusOr<ModelProblem> ModelProblem::Build(const GpTrainingSet& data,
   out.raw_policy_ = policy->ParticleForm(pool);
   estimators::Problem& p = out.problem_;
   p.dynamics = out.model_dynamics_.get();
+  if (!scene.dynamics_inputs.empty()) {
+    // The GP sees a subset of the state (the unicycle's dyni); there are no
+    // angle features then (TrialDynamicsInputs).
+    TG_CHECK(angle_indices.empty());
+    out.subset_dynamics_ = std::make_unique<estimators::InputSubsetDynamics>(
+        out.model_dynamics_.get(), scene.dynamics_inputs);
+    p.dynamics = out.subset_dynamics_.get();
+  }
   p.policy = out.raw_policy_.get();
   if (!angle_indices.empty()) {
     out.feature_dynamics_ =
@@ -105,7 +121,8 @@ absl::StatusOr<pilco::PilcoProblem> MakePilcoProblem(const tasks::StateCost& cos
                                                      int horizon,
                                                      const std::vector<int>& angle_indices,
                                                      int num_basis, const Vector& max_control,
-                                                     policy::PolicyClass policy_class) {
+                                                     policy::PolicyClass policy_class,
+                                                     const std::vector<int>& dynamics_inputs) {
   absl::StatusOr<gaussian::GaussianCost> gaussian_cost = cost.GaussianExpectation();
   if (!gaussian_cost.ok()) return gaussian_cost.status();
   pilco::PilcoProblem problem;
@@ -127,6 +144,7 @@ absl::StatusOr<pilco::PilcoProblem> MakePilcoProblem(const tasks::StateCost& cos
   }
   problem.propagation.num_basis = num_basis;
   problem.propagation.policy_class = policy_class;
+  problem.propagation.dynamics_inputs = dynamics_inputs;
   return problem;
 }
 

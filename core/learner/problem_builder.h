@@ -62,7 +62,10 @@ struct GpTrainingSet {
   RowMatrix targets;
 };
 // angle_indices: empty (raw) or strictly increasing state indices of `data`.
-GpTrainingSet MakeGpTrainingSet(const Transitions& data, const std::vector<int>& angle_indices);
+// dynamics_inputs (tasks::Scene's; only with no angles): phi(x) is then
+// x(dynamics_inputs), the state entries the GP sees.
+GpTrainingSet MakeGpTrainingSet(const Transitions& data, const std::vector<int>& angle_indices,
+                                const std::vector<int>& dynamics_inputs = {});
 
 // The sparse alternative to the full GP: FITC with num_inducing inducing
 // inputs once N > num_inducing (gp::FitFitcModel: a random subset of the
@@ -82,7 +85,8 @@ class ModelProblem {
   // Builds the model on `data` with hyperparameters `hyperparameters` (the
   // full GP unless sparse.num_inducing > 0 and N > sparse.num_inducing; then
   // sparse.inducing and sparse.rng must be non-null), wraps model and policy
-  // for angle_indices (empty: used directly), and fills the problem's start
+  // for angle_indices (empty: used directly), the model for the scene's
+  // dynamics_inputs (non-empty only with no angles), and fills the problem's start
   // distribution, cost and horizon from `scene` and its noise multiplier.
   // `policy` (non-null) and `scene` must outlive the result; `pool` (may be
   // null) is given to the adapters and the problem.
@@ -118,6 +122,7 @@ class ModelProblem {
   std::unique_ptr<gp::FitcModel> sparse_;
   std::unique_ptr<estimators::ParticleDynamics> model_dynamics_;    // over full_ or sparse_
   std::unique_ptr<estimators::ParticleDynamics> feature_dynamics_;  // angle wrapper, or null
+  std::unique_ptr<estimators::ParticleDynamics> subset_dynamics_;   // dyni wrapper, or null
   std::unique_ptr<estimators::ParticlePolicy> raw_policy_;  // the policy on its own inputs
   std::unique_ptr<estimators::ParticlePolicy> feature_policy_;      // angle wrapper, or null
   estimators::Problem problem_;
@@ -127,7 +132,8 @@ class ModelProblem {
 // horizon, the cost's closed form (tasks::StateCost::GaussianExpectation),
 // a policy of `policy_class` (RBF: num_basis basis functions), control j saturated at
 // max_control(j) (F = max_control.size() controls), on the features of
-// angle_indices (strictly increasing; empty: the raw state).
+// angle_indices (strictly increasing; empty: the raw state); the GP on
+// [x(dynamics_inputs), u] when dynamics_inputs is non-empty (the scene's).
 // prediction_includes_noise stays PILCO's false;
 // the caller sets it where the particles' model includes the noise.
 // Errors: the cost's InvalidArgument when it has no closed form.
@@ -137,7 +143,8 @@ absl::StatusOr<pilco::PilcoProblem> MakePilcoProblem(const tasks::StateCost& cos
                                                      const std::vector<int>& angle_indices,
                                                      int num_basis, const Vector& max_control,
                                                      policy::PolicyClass policy_class =
-                                                         policy::PolicyClass::kRbf);
+                                                         policy::PolicyClass::kRbf,
+                                                     const std::vector<int>& dynamics_inputs = {});
 
 }  // namespace totalgrad::learner
 

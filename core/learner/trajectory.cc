@@ -28,11 +28,12 @@ StateTrajectory ReadTrajectory(binary::Reader& r, const char* what) {
   return t;
 }
 
-// Empty, or H + 1 state rows for H control rows (H >= 1).
+// Empty, or T + 1 state rows for T control rows (T >= 0: an episode that
+// ended before its first step keeps its start state and no control).
 absl::Status CheckTrajectory(const StateTrajectory& t, const std::string& what) {
   if (t.empty()) return absl::OkStatus();
-  if (t.states.rows() != t.controls.rows() + 1 || t.controls.rows() < 1 || t.states.cols() < 1 ||
-      t.controls.cols() < 1) {
+  if (t.states.rows() != t.controls.rows() + 1 || t.states.cols() < 1 ||
+      (t.controls.rows() > 0 && t.controls.cols() < 1)) {
     return Invalid(absl::StrCat(what, ": states ", t.states.rows(), "x", t.states.cols(),
                                 " do not fit controls ", t.controls.rows(), "x",
                                 t.controls.cols(), " (one state row more than control rows)"));

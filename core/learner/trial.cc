@@ -23,29 +23,50 @@ double Seconds(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
 }
 
-// Episode 0: random exploration, each control uniform in its bounds; its
-// data are appended to `data`.
+// The stream index of episode 0's random rollout j >= 1 (rollout 0 keeps
+// index 0, the learned episodes' e, and evaluation's its own stream): far
+// above any episode number.
+constexpr uint64_t kRandomRolloutIndexBase = uint64_t{1} << 40;
+
+// Episode 0: random exploration, scene.random_episodes real episodes (1 but
+// on the unicycle, PILCO's J = 10), each control uniform in
+// +-random_control_fraction x its bound; their data are appended to `data`
+// in order. The episode's real cost is their mean cost, its trajectory the
+// first's.
 absl::StatusOr<EpisodeResult> RandomEpisode(const tasks::Scene& scene, uint64_t seed,
                                             ThreadPool* pool, Transitions& data) {
   PhaseClock clock(pool);
   Rng action_rng(seed, Stream::kExplorationAction);
-  // Each control uniform in its bounds, drawn in control order.
+  // Each control uniform in its bounds, drawn in control order (one stream
+  // through all the rollouts).
   const tasks::MultiController random_controller = [&](const Vector&) {
     Vector u(scene.control_dim());
-    for (int j = 0; j < scene.control_dim(); ++j)
-      u(j) = action_rng.Uniform(-scene.max_control(j), scene.max_control(j));
+    for (int j = 0; j < scene.control_dim(); ++j) {
+      const double bound = scene.random_control_fraction * scene.max_control(j);
+      u(j) = action_rng.Uniform(-bound, bound);
+    }
     return u;
   };
-  Rng start_rng(seed, Stream::kInitialState, 0), noise_rng(seed, Stream::kObservationNoise, 0);
-  tasks::Episode episode;
-  const absl::Status status =
-      tasks::RunEpisode(scene, random_controller, &start_rng, &noise_rng, &episode);
-  if (!status.ok()) return absl::InternalError(absl::StrCat("episode 0: ", status.message()));
-  data.Append(episode);
   EpisodeResult result;
   result.episode = 0;
-  result.real_cost = episode.total_cost;
-  result.trajectories.real = TrajectoryOfEpisode(episode);
+  double cost_sum = 0;
+  for (int r = 0; r < scene.random_episodes; ++r) {
+    const uint64_t index = r == 0 ? 0 : kRandomRolloutIndexBase + static_cast<uint64_t>(r);
+    Rng start_rng(seed, Stream::kInitialState, index);
+    Rng noise_rng(seed, Stream::kObservationNoise, index);
+    tasks::Episode episode;
+    const absl::Status status =
+        tasks::RunEpisode(scene, random_controller, &start_rng, &noise_rng, &episode);
+    if (!status.ok()) {
+      return absl::InternalError(absl::StrCat(
+          "episode 0", scene.random_episodes > 1 ? absl::StrCat(" (random rollout ", r, ")") : "",
+          ": ", status.message()));
+    }
+    data.Append(episode);
+    cost_sum += episode.total_cost;
+    if (r == 0) result.trajectories.real = TrajectoryOfEpisode(episode);
+  }
+  result.real_cost = scene.random_episodes == 1 ? cost_sum : cost_sum / scene.random_episodes;
   clock.Lap(&result.timing.real_episode_cpu, &result.timing.real_episode_wall);
   result.cpu_seconds = result.timing.total_cpu();
   return result;

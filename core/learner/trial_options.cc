@@ -192,7 +192,8 @@ absl::StatusOr<TrialOptions> ApplyPairs(TrialOptions base,
 }  // namespace
 
 const std::vector<std::string>& SceneDefaultedKeys() {
-  static const std::vector<std::string>* keys = new std::vector<std::string>{"horizon", "threshold"};
+  static const std::vector<std::string>* keys =
+      new std::vector<std::string>{"horizon", "threshold", "cost", "policy"};
   return *keys;
 }
 
@@ -211,6 +212,10 @@ absl::StatusOr<TrialOptions> TrialOptionsFromPairs(
   };
   if (!given("horizon")) options->scene.horizon = scene->horizon;
   if (!given("threshold")) options->success_threshold = scene->success_threshold;
+  if (!given("cost")) options->scene.cost = scene->default_cost;
+  if (!given("policy"))
+    options->policy = scene->policy_class == "linear" ? policy::PolicyClass::kLinear
+                                                      : policy::PolicyClass::kRbf;
   return options;
 }
 

@@ -168,8 +168,9 @@ absl::Status SetTrialOption(const std::string& key, const std::string& value, Tr
 std::vector<std::pair<std::string, std::string>> TrialOptionPairs(const TrialOptions& options);
 std::vector<std::string> TrialOptionKeys();
 // The keys whose default is the scene's (tasks::SceneDefinition): "horizon"
-// (its H) and "threshold" (its success_threshold). TrialOptions{} holds the
-// cart-pole's values (30 and 15).
+// (its H), "threshold" (its success_threshold), "cost" (its default_cost)
+// and "policy" (its policy_class). TrialOptions{} holds the cart-pole's
+// values (30, 15, angle, rbf).
 const std::vector<std::string>& SceneDefaultedKeys();
 // Options as a user gives them: default options with `pairs` applied in
 // order, then each of SceneDefaultedKeys() that `pairs` lacks set to the

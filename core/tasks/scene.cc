@@ -43,6 +43,49 @@ absl::Status ValidatePlant(const CartPoleParams& p) {
   return p.integrator.Validate();
 }
 
+// PILCO's scenes have their own plant and start distribution; the
+// cart-pole's options must not pretend to change them.
+absl::Status RefuseCartPoleOptions(const SceneOptions& options) {
+  CartPoleParams defaults;
+  defaults.integrator = options.plant.integrator;
+  if (!(options.plant == defaults)) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "scene '", options.scene, "': the plant options (cart_mass, pole_mass, pole_length, "
+        "friction, dt, max_force, gravity) are the cart-pole's; this scene's plant is fixed "
+        "(totalgrad scenes)"));
+  }
+  if (options.initial_std != SceneOptions().initial_std) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "scene '", options.scene, "': initial_std is the cart-pole's; this scene's start "
+        "distribution is PILCO's (totalgrad scenes)"));
+  }
+  return absl::OkStatus();
+}
+
+// The unicycle: the plant's 12 integrated, the learner's 10 (its GP state)
+// costed by loss_unicycle.
+absl::Status MakeUnicycleScene(const SceneOptions& options, const SceneDefinition& definition,
+                               Scene* scene) {
+  if (absl::Status st = RefuseCartPoleOptions(options); !st.ok()) return st;
+  if (options.cost != "unicycle") {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "cost: unknown cost '", options.cost,
+        "' for scene 'unicycle' (expected 'unicycle', PILCO's loss_unicycle)"));
+  }
+  scene->plant = MakePlant(definition, options.plant.integrator);
+  scene->max_control = definition.max_control;
+  scene->mu0 = definition.learner_mu0;
+  scene->initial_std = definition.learner_start_std;
+  scene->target = Vector::Zero(definition.learner_mu0.size());
+  scene->cost = std::make_shared<UnicycleStateCost>(definition.unicycle_cost);
+  const double wheel_radius = definition.unicycle.wheel_radius;
+  scene->learner_state_of = [wheel_radius](const Vector& x) {
+    return UnicycleGpState(x, wheel_radius);
+  };
+  scene->dynamics_inputs = definition.dynamics_inputs;
+  return absl::OkStatus();
+}
+
 std::string StepError(int step, const absl::Status& cause) {
   return absl::StrCat("episode step ", step, ": ", cause.message());
 }
@@ -115,22 +158,11 @@ absl::StatusOr<Scene> MakeScene(const SceneOptions& options) {
       if (!cost.ok()) return cost.status();
       scene.cost = std::shared_ptr<const StateCost>(std::move(*cost));
     }
+  } else if (definition->plant == PlantKind::kUnicycle) {
+    if (absl::Status st = MakeUnicycleScene(options, *definition, &scene); !st.ok()) return st;
   } else {
-    // PILCO's scene: its own plant and start distribution; the cart-pole's
-    // options must not pretend to change it.
-    CartPoleParams defaults;
-    defaults.integrator = options.plant.integrator;
-    if (!(options.plant == defaults)) {
-      return absl::InvalidArgumentError(absl::StrCat(
-          "scene '", options.scene, "': the plant options (cart_mass, pole_mass, pole_length, "
-          "friction, dt, max_force, gravity) are the cart-pole's; this scene's plant is fixed "
-          "(totalgrad scenes)"));
-    }
-    if (options.initial_std != SceneOptions().initial_std) {
-      return absl::InvalidArgumentError(absl::StrCat(
-          "scene '", options.scene, "': initial_std is the cart-pole's; this scene's start "
-          "distribution is PILCO's (totalgrad scenes)"));
-    }
+    // PILCO's scene: its own plant and start distribution.
+    if (absl::Status st = RefuseCartPoleOptions(options); !st.ok()) return st;
     scene.plant = MakePlant(*definition, options.plant.integrator);
     scene.max_control = definition->max_control;
     scene.initial_std = definition->start_std;
@@ -145,6 +177,13 @@ absl::StatusOr<Scene> MakeScene(const SceneOptions& options) {
                                                      options.scene, "' (expected 'angle' or 'saturating')"));
     }
   }
+  // The real episodes start from the plant's distribution (the learner's
+  // but on the unicycle).
+  const bool learner_state_differs = definition->plant == PlantKind::kUnicycle;
+  scene.plant_mu0 = learner_state_differs ? definition->mu0 : scene.mu0;
+  scene.plant_initial_std = learner_state_differs ? definition->start_std : scene.initial_std;
+  scene.random_episodes = definition->random_episodes;
+  scene.random_control_fraction = definition->random_control_fraction;
   scene.observation_noise_std = std::sqrt(options.noise_k) * definition->measurement_noise_std;
   scene.episode_end_indices = definition->episode_end_indices;
   scene.episode_end_bound = definition->episode_end_bound;
@@ -174,6 +213,8 @@ bool Scene::EpisodeEnds(const Vector& x) const {
 double GoalDistance(const Scene& scene, const Vector& x) {
   const int d = scene.state_dim();
   TG_CHECK_EQ(x.size(), d);
+  if (scene.definition != nullptr && scene.definition->plant == PlantKind::kUnicycle)
+    return UnicycleUprightDistance(scene.definition->unicycle_cost, x);
   const int angles = static_cast<int>(scene.angle_indices.size());
   Vector dz(d + 2 * angles);
   dz.head(d) = x - scene.target;
@@ -209,7 +250,10 @@ absl::Status RunEpisode(const Scene& scene, const MultiController& controller, R
   const int horizon = scene.horizon;
   TG_CHECK(horizon >= 1);
   const int d = scene.state_dim();
+  const int p = scene.plant->state_dim();
   const int f = scene.control_dim();
+  TG_CHECK(scene.plant_mu0.size() == p && scene.plant_initial_std.size() == p &&
+           scene.observation_noise_std.size() == p);
 
   Episode& ep = *episode;
   ep.steps = horizon;
@@ -221,23 +265,24 @@ absl::Status RunEpisode(const Scene& scene, const MultiController& controller, R
   ep.total_cost = 0;
 
   // Draw order is part of the reproducibility contract: x0 takes the first
-  // D normals of the start stream (in state order); observation t takes
-  // normals D t .. D t + D - 1 of the noise stream.
-  Vector x(d);
-  for (int m = 0; m < d; ++m) {
-    x(m) = scene.mu0(m) + scene.initial_std(m) * start_rng->Normal();
+  // P normals of the start stream (in the plant's state order); observation
+  // t takes normals P t .. P t + P - 1 of the noise stream.
+  Vector x(p);
+  for (int m = 0; m < p; ++m) {
+    x(m) = scene.plant_mu0(m) + scene.plant_initial_std(m) * start_rng->Normal();
   }
   if (!x.allFinite()) {
     return absl::InternalError("episode step 0: non-finite start state");
   }
   auto observe = [&](int t) {
-    ep.states.row(t) = x.transpose();
-    Vector o(d);
-    for (int m = 0; m < d; ++m) {
+    ep.states.row(t) = scene.LearnerState(x).transpose();
+    Vector o(p);
+    for (int m = 0; m < p; ++m) {
       o(m) = x(m) + scene.observation_noise_std(m) * noise_rng->Normal();
     }
-    ep.observations.row(t) = o.transpose();
-    return o;
+    const Vector observed = scene.LearnerState(o);
+    ep.observations.row(t) = observed.transpose();
+    return observed;
   };
 
   for (int t = 0; t < horizon; ++t) {
@@ -275,7 +320,7 @@ absl::Status RunEpisode(const Scene& scene, const MultiController& controller, R
       return absl::OkStatus();
     }
     x = next;
-    const double cost = scene.cost->Value(x);
+    const double cost = scene.cost->Value(scene.LearnerState(x));
     if (!std::isfinite(cost)) {
       return absl::InternalError(absl::StrCat("episode step ", t, ": non-finite cost"));
     }

@@ -16,6 +16,12 @@
 // options apply to every scene.
 // The policy acts on observations; the cost is taken of the true post-step
 // state.
+// The unicycle: the plant integrates 12 values; the learner (GP, policy,
+// cost, start distribution) sees PILCO's 10-entry GP state of them
+// (tasks::UnicycleGpState), so its states and observations are that map of
+// the plant's state and of the plant's state plus measurement noise, as
+// PILCO's rollout augments the noisy ODE state. Its only cost is "unicycle"
+// (loss_unicycle).
 #ifndef TOTALGRAD_CORE_TASKS_SCENE_H_
 #define TOTALGRAD_CORE_TASKS_SCENE_H_
 
@@ -52,12 +58,29 @@ struct Scene {
   const SceneDefinition* definition = nullptr;  // the catalog entry (static)
   std::shared_ptr<const Plant> plant;
   Vector max_control;           // F, the policy's saturation bounds
-  Vector mu0;                   // D
-  Vector initial_std;           // D, per-dimension std of x0
+  // D below is the learner's state dimension, P the plant's (equal but on
+  // the unicycle, D 10 and P 12).
+  Vector mu0;                   // D, the learner's start mean
+  Vector initial_std;           // D, the learner's per-dimension start std
+  Vector plant_mu0;             // P, x0 ~ N(plant_mu0, diag(plant_initial_std^2))
+  Vector plant_initial_std;     // P
   Vector target;                // D
-  Vector observation_noise_std; // D, sqrt(k) * base std
+  Vector observation_noise_std; // P, sqrt(k) * base std, on the plant's state
   int horizon = 30;
-  std::shared_ptr<const StateCost> cost;
+  std::shared_ptr<const StateCost> cost;  // on the learner's state
+  // The learner's state of a plant state (P -> D); null: the plant's own.
+  std::function<Vector(const Vector&)> learner_state_of;
+  Vector LearnerState(const Vector& plant_state) const {
+    return learner_state_of ? learner_state_of(plant_state) : plant_state;
+  }
+  // The GP's state inputs when they are a strict subset of the learner's
+  // state (the unicycle's dyni, without its yaw; only with no angle
+  // features); empty: all.
+  std::vector<int> dynamics_inputs;
+  // Episode 0's random rollouts (SceneDefinition::random_episodes) and
+  // their controls' fraction of max_control.
+  int random_episodes = 1;
+  double random_control_fraction = 1.0;
   // The state indices of the angles: where PILCO's (sin, cos) features of
   // the GP's and the policy's inputs act (the definition's angle_indices).
   std::vector<int> angle_indices;
@@ -68,7 +91,7 @@ struct Scene {
   std::vector<int> episode_end_indices;
   double episode_end_bound = 0;
   double ended_step_cost = 1.0;
-  // Whether the real episode ends at state x (D).
+  // Whether the real episode ends at plant state x (P).
   bool EpisodeEnds(const Vector& x) const;
   // The metric of GoalDistance: PILCO's saturating cost's Q on z (the
   // definition's), for the cart-pole built from the plant's pole length, so
@@ -109,7 +132,7 @@ double GoalDistance(const Scene& scene, const Vector& x);
 struct Episode {
   int steps = 0;           // T: H, or the steps kept before the end
   bool ended = false;      // whether the scene's episode end was reached
-  RowMatrix states;        // (T+1) x D true states, row 0 is x0
+  RowMatrix states;        // (T+1) x D true (learner) states, row 0 is x0's
   RowMatrix observations;  // (T+1) x D noisy observations of `states`
   Vector forces;           // T F, the controls applied at steps 0..T-1, step-major
                            // (u_0^1..u_0^F, u_1^1, ...; one control: T)
@@ -133,9 +156,9 @@ using MultiController = std::function<Vector(const Vector& observation)>;
 // F > 1) when the controller returns a non-finite control, and
 // InvalidArgument (with the step number) when it returns other than F
 // controls. Draw order, part of the
-// reproducibility contract: x0 takes the first D normals of *start_rng (in
-// state order); observation t (t = 0..H) takes the next D normals of
-// *noise_rng, drawn before the controller is called at step t.
+// reproducibility contract: x0 takes the first P normals of *start_rng (in
+// the plant's state order); observation t (t = 0..H) takes the next P
+// normals of *noise_rng, drawn before the controller is called at step t.
 absl::Status RunEpisode(const Scene& scene, const MultiController& controller, Rng* start_rng,
                         Rng* noise_rng, Episode* episode);
 // The same for a one-control scene (InvalidArgument on a scene of F > 1).

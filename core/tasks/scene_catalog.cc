@@ -193,8 +193,9 @@ SceneDefinition DoublePendulumScene(bool pendubot) {
 // dynamics_unicycle.m, loss_unicycle.m, augment_unicycle.m). The state here
 // is the plant's: the 12 values PILCO's ODE integrates (odei). PILCO's full
 // state adds 6 augmented entries and 2 torques (20); its GP predicts 10 of
-// them (dyno) from 9 (dyni), its linear policy reads 10 (poli): those index
-// sets come with the scene's trials.
+// them (dyno) from 9 (dyni), its linear policy reads 10 (poli): the
+// learner sees those 10 (learner_mu0 below), the plant's 12 are mapped to
+// them after each step.
 SceneDefinition UnicycleScene() {
   SceneDefinition s;
   s.name = "unicycle";
@@ -227,15 +228,29 @@ SceneDefinition UnicycleScene() {
   s.full_state.dynamics_inputs = {0, 1, 2, 3, 4, 5, 6, 7, 9};
   s.full_state.policy_inputs = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9};
   s.cost_kind = "unicycle";
+  s.default_cost = "unicycle";
   s.policy_class = "linear";
+  // The learner's state is PILCO's dyno (UnicycleGpState): the GP predicts
+  // all 10 as differences from 9 (dyni: all but the yaw, to which the
+  // dynamics are blind), the policy reads all 10 (poli). Its start: PILCO
+  // projects mu0 and S0 onto dyno with the augmented (xc, yc) at variance
+  // 0; here (xc, yc) = -R(phi)^T (x, y) take the spread of (x, y), std 0.1
+  // (exact to first order in the yaw's 0.02), which is what the real
+  // episodes start from.
+  s.learner_mu0 = Vector::Zero(kUnicycleCostStateDim);
+  s.learner_state_names = {"dtheta", "dphi", "dpsiw", "dpsif", "dpsit",
+                           "xc",     "yc",   "theta", "phi",   "psif"};
+  s.learner_start_std = Values({0.02, 0.02, 0.02, 0.02, 0.02, 0.1, 0.1, 0.02, 0.02, 0.02});
+  s.dynamics_inputs = {0, 1, 2, 3, 4, 5, 6, 7, 9};
+  s.policy_inputs = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9};
+  s.random_episodes = 10;
+  s.random_control_fraction = 0.2;
   // plant.constraint: |theta| or |psif| > pi/2 (in the ODE state).
   s.episode_end_indices = {Unicycle::kRoll, Unicycle::kPitch};
   s.episode_end_bound = std::numbers::pi / 2;
-  s.trials_unavailable =
-      "the unicycle's trials need a GP on its augmented state (its index sets), which trials do "
-      "not build yet; its linear policy runs on the other scenes (`policy = linear`), and "
-      "`simulate --scene unicycle`, `scenes` and `pilco propagate` with the linear policy and "
-      "the unicycle cost work";
+  s.studies_unavailable =
+      "a study's problems (synthetic, or frozen from a trial's snapshot) take the RBF policy on "
+      "the plant's own state; the unicycle's learner state and linear policy are not in them";
   s.basis_functions = 0;  // a linear policy
   s.inducing_inputs = 300;
   s.learned_episodes = 40;
@@ -287,9 +302,12 @@ absl::StatusOr<const SceneDefinition*> RunnableScene(const std::string& name,
                                                      const std::string& what) {
   const SceneDefinition* definition = FindSceneDefinition(name);
   if (definition == nullptr) return absl::InvalidArgumentError(UnknownSceneText(name));
-  if (!definition->trials_unavailable.empty()) {
-    return absl::InvalidArgumentError(absl::StrCat("'", name, "' has no ", what, " yet: ",
-                                                   definition->trials_unavailable));
+  const std::string& unavailable = !definition->trials_unavailable.empty() || what != "studies"
+                                       ? definition->trials_unavailable
+                                       : definition->studies_unavailable;
+  if (!unavailable.empty()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("'", name, "' has no ", what, " yet: ", unavailable));
   }
   return definition;
 }
@@ -329,9 +347,9 @@ Vector AugmentState(const Vector& x, const std::vector<int>& angle_indices) {
 double PeakTrialBytes(const SceneDefinition& d, int particles) {
   const double n = static_cast<double>(d.horizon) * (d.learned_episodes + 1);
   const double support = std::min(n, static_cast<double>(d.inducing_inputs));
-  const double outputs = d.state_dim();
+  const double outputs = d.learner_state_dim();
   const double gp = 8.0 * outputs * 2.0 * support * support + 8.0 * particles * n * outputs;
-  const double e = d.state_dim() + d.control_dim();
+  const double e = d.learner_state_dim() + d.control_dim();
   const double rollout = 8.0 * particles * d.horizon * outputs * (2.0 * e + 6.0);
   return gp + rollout;
 }

@@ -10,7 +10,7 @@
 //   double-pendulum       D 4, F 2, A 2   swing-up, torques |u_i| <= 2 N m
 //   pendubot              D 4, F 1, A 2   swing-up, torque at joint 1 |u| <= 3.5 N m
 //   unicycle              D 12, F 2, A 0  balance, torques |V| <= 10, |U| <= 50 N m
-//                                         (listed and simulated; no trials yet)
+//                                         (the learner sees 10: learner_mu0 below)
 //
 // Index sets are 0-based; the augmented state is z = [x, sin x_a1,
 // cos x_a1, sin x_a2, cos x_a2, ...] over angle_indices in order;
@@ -96,9 +96,28 @@ struct SceneDefinition {
   std::string cost_kind = "saturating";  // "saturating" or "unicycle"
   UnicycleCostParams unicycle_cost;
   std::string policy_class = "rbf";      // PILCO's policy: "rbf" or "linear"
+  // The trial option "cost" defaults to this ("angle" on the cart-pole and
+  // PILCO's swing-ups, as before; "unicycle" on the unicycle, whose only cost
+  // is loss_unicycle).
+  std::string default_cost = "angle";
+  // A scene whose learner sees another state than the plant's (the
+  // unicycle: its GP state, UnicycleGpState of the plant's 12, 10 entries):
+  // that state's start mean and std (empty: the plant's mu0 and start_std).
+  // dynamics_inputs and policy_inputs then index it.
+  Vector learner_mu0;
+  Vector learner_start_std;
+  std::vector<std::string> learner_state_names;
+  // PILCO's initial random rollouts: the trial's episode 0 is this many
+  // real episodes with each control uniform in +-random_control_fraction x
+  // its bound (PILCO's J and maxU / 5 on the unicycle; 1 and 1 elsewhere,
+  // the paper's one random episode).
+  int random_episodes = 1;
+  double random_control_fraction = 1.0;
   // Empty when trials run on the scene; else why they do not yet (MakeScene
   // refuses the scene with this text; `simulate` and `scenes` take it).
   std::string trials_unavailable;
+  // The same for studies (RunnableScene(name, "studies") takes either).
+  std::string studies_unavailable;
   // PILCO's plant.constraint: the real episode ends at the first state with
   // |x_i| > episode_end_bound for an i in episode_end_indices (the
   // unicycle's roll and pitch beyond pi/2). Empty: episodes run the horizon.
@@ -116,6 +135,10 @@ struct SceneDefinition {
   int state_dim() const { return static_cast<int>(mu0.size()); }
   int control_dim() const { return static_cast<int>(max_control.size()); }
   int num_angles() const { return static_cast<int>(angle_indices.size()); }
+  // The state the learner sees (its GP's outputs): learner_mu0's, else D.
+  int learner_state_dim() const {
+    return learner_mu0.size() > 0 ? static_cast<int>(learner_mu0.size()) : state_dim();
+  }
   int augmented_dim() const { return state_dim() + 2 * num_angles(); }
 };
 
@@ -134,7 +157,7 @@ std::string UnknownSceneText(const std::string& name);
 // The definition of a scene that runs `what` ("trials", "studies": both
 // need the learning loop); InvalidArgument "unknown scene ..."
 // (UnknownSceneText) or "'<name>' has no <what> yet: <why>" (the
-// entry's trials_unavailable). Callers put their field name in front.
+// entry's trials_unavailable, and for studies its studies_unavailable). Callers put their field name in front.
 absl::StatusOr<const SceneDefinition*> RunnableScene(const std::string& name,
                                                      const std::string& what);
 

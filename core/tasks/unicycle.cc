@@ -218,19 +218,72 @@ absl::StatusOr<gaussian::GaussianCost> UnicycleCost(const UnicycleCostParams& pa
   return gaussian::GaussianCost::OfLinearMap(map, *std::move(of_y));
 }
 
-double UnicycleCostValue(const UnicycleCostParams& params, const Vector& s) {
+namespace {
+
+// d^2 of loss_unicycle at s and, when grad is non-null, its gradient (10).
+double UnicycleDistanceSquared(const UnicycleCostParams& params, const Vector& s, Vector* grad) {
   TG_CHECK(s.size() == kUnicycleCostStateDim);
   const double rw = params.wheel_radius, r = params.rod_length;
   const double ct = std::cos(s(kCostRoll)), st = std::sin(s(kCostRoll));
   const double cp = std::cos(s(kCostPitch)), sp = std::sin(s(kCostPitch));
   const double height = rw * ct + r * ct * cp - rw - r;
   const double forward = s(kCostXc) - r * sp, sideways = s(kCostYc) - (r + rw) * st;
-  const double yaw = s(kCostYaw) / (4.0 * std::numbers::pi);
-  const double d2 = 8.0 * height * height + 0.5 * forward * forward +
-                    0.5 * sideways * sideways + yaw * yaw;
+  const double yaw_scale = 1.0 / (4.0 * std::numbers::pi);
+  const double yaw = s(kCostYaw) * yaw_scale;
+  if (grad != nullptr) {
+    grad->setZero(kUnicycleCostStateDim);
+    (*grad)(kCostXc) = forward;
+    (*grad)(kCostYc) = sideways;
+    (*grad)(kCostYaw) = 2.0 * yaw * yaw_scale;
+    (*grad)(kCostRoll) = 16.0 * height * (-rw * st - r * st * cp) - sideways * (r + rw) * ct;
+    (*grad)(kCostPitch) = 16.0 * height * (-r * ct * sp) - forward * r * cp;
+  }
+  return 8.0 * height * height + 0.5 * forward * forward + 0.5 * sideways * sideways + yaw * yaw;
+}
+
+}  // namespace
+
+double UnicycleCostValue(const UnicycleCostParams& params, const Vector& s) {
+  const double d2 = UnicycleDistanceSquared(params, s, nullptr);
   double sum = 0;
   for (double w : params.widths) sum += 1.0 - std::exp(-d2 / (2.0 * w * w));
   return sum / static_cast<double>(params.widths.size());
+}
+
+double UnicycleUprightDistance(const UnicycleCostParams& params, const Vector& s) {
+  return std::sqrt(UnicycleDistanceSquared(params, s, nullptr));
+}
+
+UnicycleStateCost::UnicycleStateCost(const UnicycleCostParams& params) : params_(params) {
+  TG_CHECK(!params_.widths.empty());
+  for (double w : params_.widths) TG_CHECK(w > 0);
+}
+
+void UnicycleStateCost::Evaluate(const ConstRowMatrixRef& x, Vector* cost, RowMatrix* grad) const {
+  TG_CHECK(cost != nullptr);
+  TG_CHECK_EQ(x.cols(), kUnicycleCostStateDim);
+  const Eigen::Index n = x.rows();
+  cost->resize(n);
+  if (grad != nullptr) grad->resize(n, kUnicycleCostStateDim);
+  const double widths = static_cast<double>(params_.widths.size());
+  Vector d2_grad;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const Vector s = x.row(i).transpose();
+    const double d2 = UnicycleDistanceSquared(params_, s, grad != nullptr ? &d2_grad : nullptr);
+    // c = mean_w (1 - exp(-d2 / (2 w^2))); dc/dd2 = mean_w exp(-d2 / (2 w^2)) / (2 w^2).
+    double value = 0, slope = 0;
+    for (double w : params_.widths) {
+      const double e = std::exp(-d2 / (2.0 * w * w));
+      value += 1.0 - e;
+      slope += e / (2.0 * w * w);
+    }
+    (*cost)(i) = value / widths;
+    if (grad != nullptr) grad->row(i) = (slope / widths) * d2_grad.transpose();
+  }
+}
+
+absl::StatusOr<gaussian::GaussianCost> UnicycleStateCost::GaussianExpectation() const {
+  return UnicycleCost(params_);
 }
 
 }  // namespace totalgrad::tasks

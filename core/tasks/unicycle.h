@@ -40,6 +40,7 @@
 
 #include "absl/status/statusor.h"
 #include "core/gaussian/expected_cost.h"
+#include "core/tasks/cost.h"
 #include "core/tasks/plant.h"
 
 namespace totalgrad::tasks {
@@ -116,6 +117,24 @@ absl::StatusOr<gaussian::GaussianCost> UnicycleCost(const UnicycleCostParams& pa
 // The cost of one state s (10 entries as above): d^2 written out, not
 // through z.
 double UnicycleCostValue(const UnicycleCostParams& params, const Vector& s);
+// d of the loss above (sqrt of d^2): how far the configuration s is from
+// upright over the origin facing 0, the unicycle's goal distance.
+double UnicycleUprightDistance(const UnicycleCostParams& params, const Vector& s);
+
+// loss_unicycle as the per-step cost of a trial on the unicycle, on the GP
+// state s (10 entries, PILCO's dyno order): the value UnicycleCostValue's,
+// the gradient of d^2 written out (FD-tested), the Gaussian form
+// UnicycleCost's. Widths must be > 0 (CHECK).
+class UnicycleStateCost final : public StateCost {
+ public:
+  explicit UnicycleStateCost(const UnicycleCostParams& params = {});
+  void Evaluate(const ConstRowMatrixRef& x, Vector* cost, RowMatrix* grad) const override;
+  std::string Name() const override { return "unicycle"; }
+  absl::StatusOr<gaussian::GaussianCost> GaussianExpectation() const override;
+
+ private:
+  UnicycleCostParams params_;
+};
 
 }  // namespace totalgrad::tasks
 

@@ -203,10 +203,11 @@ log "lease of job $job_w1 lost $(( (expired_at - cut_at) / 1000000 )) ms after t
 
 # worker_id names the running attempt's worker only (empty once the job is
 # completed), and the re-run from w1's checkpoint can finish between two
-# polls: a completed attempt >= 2 is the takeover too (w1 is cut off;
+# polls: a completed job of 2 or more attempts (`attempts` in job list) is
+# the takeover too (w1 is cut off;
 # netns_verify.py checks below that w2 stored those rows).
 wait_for 60 "w2 to take over job $job_w1" job_query \
-  "any(j['job_id'] == $job_w1 and ((j['worker_id'] == 'w2' and j['state'] == 'running') or (j['state'] == 'completed' and j['completed_attempt'] >= 2)) for j in jobs)"
+  "any(j['job_id'] == $job_w1 and ((j['worker_id'] == 'w2' and j['state'] == 'running') or (j['state'] == 'completed' and j['attempts'] >= 2)) for j in jobs)"
 log "job $job_w1 re-run by w2"
 
 # ---- plug it back: w1's late reports are refused -------------------------------------------

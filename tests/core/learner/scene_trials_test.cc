@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "core/learner/evaluation.h"
 #include "core/learner/trial.h"
 #include "core/tasks/scene_catalog.h"
 #include "tests/testutil/test_base.h"
@@ -15,15 +16,15 @@
 namespace totalgrad::learner {
 namespace scene_trials_test {
 
+// As a user's options: the scene's defaults (its cost and policy class:
+// the unicycle's loss_unicycle and linear policy) under the pairs.
 TrialOptions Short(const std::string& scene, const std::string& method) {
-  TrialOptions o;
-  for (const auto& [k, v] : std::vector<std::pair<std::string, std::string>>{
-           {"scene", scene}, {"method", method}, {"episodes", "1"}, {"policy_steps", "3"},
-           {"particles", "8"}, {"eval_rollouts", "2"}, {"horizon", "8"}, {"basis_functions", "6"},
-           {"gp_iterations", "10"}, {"predicted_cost_particles", "10"}, {"seed", "3"}}) {
-    EXPECT_TRUE(SetTrialOption(k, v, &o).ok()) << k << "=" << v;
-  }
-  return o;
+  absl::StatusOr<TrialOptions> o = TrialOptionsFromPairs({
+      {"scene", scene}, {"method", method}, {"episodes", "1"}, {"policy_steps", "3"},
+      {"particles", "8"}, {"eval_rollouts", "2"}, {"horizon", "8"}, {"basis_functions", "6"},
+      {"gp_iterations", "10"}, {"predicted_cost_particles", "10"}, {"seed", "3"}});
+  EXPECT_TRUE(o.ok()) << o.status();
+  return o.ok() ? *o : TrialOptions{};
 }
 
 // Runs `o` twice: two episodes (the random one and one learned), finite
@@ -51,13 +52,13 @@ EpisodeResult RunTwiceFiniteAndSame(const TrialOptions& o) {
 }
 
 bool Supported(const tasks::SceneDefinition& scene, estimators::Method) {
-  // Every method on every scene of the catalog that has trials (the
-  // unicycle's are refused: scene_catalog_test.cc).
+  // Every method on every scene of the catalog that has trials (all of
+  // them since the unicycle's).
   return scene.trials_unavailable.empty();
 }
 
 TEST(SceneTrials, EveryMethodOnEverySupportedSceneIsFiniteAndDeterministic) {
-  int ran = 0, multi_control = 0;
+  int ran = 0, multi_control = 0, unicycle = 0;
   for (const tasks::SceneDefinition& scene : tasks::SceneCatalog()) {
     for (const auto& [method, name] : estimators::MethodNames()) {
       if (!Supported(scene, method)) continue;
@@ -70,18 +71,58 @@ TEST(SceneTrials, EveryMethodOnEverySupportedSceneIsFiniteAndDeterministic) {
                   static_cast<int>(scene.dynamics_inputs.size()) + scene.control_dim());
       }
       // The policy has one weight column per control: C x |policy inputs|
-      // centres, the length-scales, C x F weights (C = 6 here).
-      if (method != estimators::Method::kPilco && scene.plant != tasks::PlantKind::kCartPole) {
-        const int inputs = static_cast<int>(scene.policy_inputs.size());
+      // centres, the length-scales, C x F weights (C = 6 here); the
+      // unicycle's linear policy F x |policy inputs| weights and F offsets.
+      const int inputs = static_cast<int>(scene.policy_inputs.size());
+      if (scene.policy_class == "linear") {
+        EXPECT_EQ(r.policy_parameters.size(), scene.control_dim() * (inputs + 1));
+      } else if (method != estimators::Method::kPilco &&
+                 scene.plant != tasks::PlantKind::kCartPole) {
         EXPECT_EQ(r.policy_parameters.size(), 6 * inputs + inputs + 6 * scene.control_dim());
       }
       if (scene.control_dim() > 1) ++multi_control;
+      if (scene.plant == tasks::PlantKind::kUnicycle) ++unicycle;
       ++ran;
     }
   }
-  // Five scenes (the double pendulum's two torques included) x 9 methods.
-  EXPECT_GE(ran, 5 * 9);
-  EXPECT_EQ(multi_control, 9);  // every method on the double pendulum
+  // Six scenes (the double pendulum's and the unicycle's two torques
+  // included) x 9 methods.
+  EXPECT_GE(ran, 6 * 9);
+  EXPECT_EQ(multi_control, 18);
+  EXPECT_EQ(unicycle, 9);
+}
+
+// The unicycle's episode 0 is PILCO's ten random rollouts at a fifth of the
+// torque bounds: 10 x 8 transitions, fewer where one fell; its real cost is
+// their mean, at most H = 8. A rollout that fell is never held.
+TEST(SceneTrials, UnicycleRandomRolloutsAndFallsAreNotHeld) {
+  TrialOptions o = Short("unicycle", "PILCO");
+  TG_ASSERT_OK(o.Validate());
+  absl::StatusOr<tasks::Scene> scene = tasks::MakeScene(o.scene);
+  TG_ASSERT_OK(scene.status());
+  EXPECT_EQ(scene->random_episodes, 10);
+  EXPECT_EQ(scene->random_control_fraction, 0.2);
+  struct Counter : TrialObserver {
+    void OnEpisode(const EpisodeResult&) override {}
+    void OnCheckpoint(const TrialCheckpoint& c) override {
+      if (c.episode == 0) transitions = static_cast<int>(c.states.rows());
+    }
+    bool WantsCheckpoints() override { return true; }
+    int transitions = -1;
+  } counter;
+  absl::StatusOr<TrialSummary> a = RunTrial(o, &counter);
+  TG_ASSERT_OK(a.status());
+  EXPECT_GT(counter.transitions, 8);  // more than one rollout's
+  EXPECT_LE(counter.transitions, 80);
+  EXPECT_LE(a->episodes[0].real_cost, 8.0);
+  EXPECT_EQ(a->episodes[0].trajectories.real.states.cols(), 10);
+  // At the goal throughout: held, unless the episode ended.
+  tasks::Episode still;
+  still.steps = 8;
+  still.states = RowMatrix::Zero(9, 10);
+  EXPECT_TRUE(RolloutHeld(*scene, still, 0.4, 3));
+  still.ended = true;
+  EXPECT_FALSE(RolloutHeld(*scene, still, 0.4, 3));
 }
 
 // PILCO's linear policy (policy = linear) for every method, on the

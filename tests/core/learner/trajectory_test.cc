@@ -168,6 +168,28 @@ TEST(TrajectoryFormatTest, RefusesWhatItCannotRead) {
   bad = Small();
   bad.predicted_std = RowMatrix::Random(3, 2);
   refused(EncodeEpisodeTrajectories(bad), "differ");
+  bad = Small();
+  bad.verdict_rollouts[0].states = RowMatrix::Random(2, 2);  // one state too many
+  bad.verdict_rollouts[0].controls.resize(0, 0);
+  refused(EncodeEpisodeTrajectories(bad), "verdict rollout 0: states 2x2 do not fit controls 0x0");
+}
+
+// A rollout that ended before its first step (the unicycle fell at once)
+// keeps its start state and no control; it reads back as it was written.
+TEST(TrajectoryFormatTest, AnEpisodeThatEndedAtOnceRoundTrips) {
+  tasks::Episode fell;
+  fell.steps = 0;
+  fell.ended = true;
+  fell.states = RowMatrix::Random(1, 10);
+  fell.observations = fell.states;
+  EpisodeTrajectories t = Small();
+  t.verdict_rollouts.push_back(TrajectoryOfEpisode(fell));
+  EXPECT_EQ(t.verdict_rollouts.back().controls.rows(), 0);
+  absl::StatusOr<EpisodeTrajectories> back =
+      DecodeEpisodeTrajectories(EncodeEpisodeTrajectories(t));
+  ASSERT_TRUE(back.ok()) << back.status();
+  EXPECT_EQ(back->verdict_rollouts.back().states, fell.states);
+  EXPECT_EQ(back->verdict_rollouts.back().controls.rows(), 0);
 }
 
 // Recording reads the computation: a trial's checkpoint of version 4 holds

@@ -318,7 +318,21 @@ TEST(TrialOptionTable, UserOptionsTakeTheScenesHorizonAndThreshold) {
   TG_ASSERT_OK(from_store.status());
   EXPECT_EQ(from_store->scene.horizon, 30);
   EXPECT_EQ(from_store->success_threshold, 15.0);
-  EXPECT_EQ(SceneDefaultedKeys(), (std::vector<std::string>{"horizon", "threshold"}));
+  EXPECT_EQ(SceneDefaultedKeys(),
+            (std::vector<std::string>{"horizon", "threshold", "cost", "policy"}));
+  // The unicycle's cost and policy class are its own unless given.
+  absl::StatusOr<TrialOptions> unicycle = TrialOptionsFromPairs({{"scene", "unicycle"}});
+  TG_ASSERT_OK(unicycle.status());
+  EXPECT_EQ(unicycle->scene.cost, "unicycle");
+  EXPECT_EQ(unicycle->policy, policy::PolicyClass::kLinear);
+  EXPECT_EQ(unicycle->scene.horizon, 67);
+  TG_EXPECT_OK(unicycle->Validate());
+  absl::StatusOr<TrialOptions> unicycle_rbf =
+      TrialOptionsFromPairs({{"policy", "rbf"}, {"scene", "unicycle"}});
+  TG_ASSERT_OK(unicycle_rbf.status());
+  EXPECT_EQ(unicycle_rbf->policy, policy::PolicyClass::kRbf);
+  EXPECT_EQ(pendulum->scene.cost, "angle");
+  EXPECT_EQ(pendulum->policy, policy::PolicyClass::kRbf);
 }
 
 }  // namespace trial_options_test

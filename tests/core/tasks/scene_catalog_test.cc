@@ -13,6 +13,9 @@
 #include <random>
 #include <set>
 
+#include "core/common/rng.h"
+#include "core/tasks/scene.h"
+
 namespace totalgrad::tasks {
 namespace scene_catalog_test {
 
@@ -70,7 +73,7 @@ TEST(SceneCatalogTest, EveryDefinitionIsConsistent) {
 
 // PILCO's unicycle settings (settings_unicycle.m at a0b48b7, as issue 30
 // quotes them), and its trials refused with the reason until they exist.
-TEST(SceneCatalogTest, UnicycleSettingsAndItsTrialsRefused) {
+TEST(SceneCatalogTest, UnicycleSettingsAndItsLearnerState) {
   const SceneDefinition* unicycle = FindSceneDefinition("unicycle");
   ASSERT_NE(unicycle, nullptr);
   EXPECT_EQ(unicycle->plant, PlantKind::kUnicycle);
@@ -85,7 +88,8 @@ TEST(SceneCatalogTest, UnicycleSettingsAndItsTrialsRefused) {
   EXPECT_EQ(unicycle->evaluations_per_line_search, 20);
   EXPECT_EQ(unicycle->policy_class, "linear");
   EXPECT_EQ(unicycle->unicycle_cost.rod_length, 0.81);
-  EXPECT_FALSE(unicycle->trials_unavailable.empty());
+  EXPECT_TRUE(unicycle->trials_unavailable.empty());
+  EXPECT_FALSE(unicycle->studies_unavailable.empty());
   // The index sets as settings_unicycle.m gives them (1-based there).
   const FullStateIndexSets& sets = unicycle->full_state;
   const auto minus_one = [](std::vector<int> v) {
@@ -128,18 +132,82 @@ TEST(SceneCatalogTest, UnicycleSettingsAndItsTrialsRefused) {
   for (size_t k = 0; k < sets.predicted.size(); ++k) {
     EXPECT_EQ(full(sets.predicted[k]), gp_state(k)) << sets.names[sets.predicted[k]];
   }
+  // The learner's index sets are the full state's, read in `predicted`.
+  EXPECT_EQ(unicycle->dynamics_inputs, sets.dynamics_inputs);
+  EXPECT_EQ(unicycle->policy_inputs, sets.policy_inputs);
+  EXPECT_EQ(unicycle->learner_state_dim(), static_cast<int>(sets.predicted.size()));
+  for (size_t k = 0; k < sets.predicted.size(); ++k)
+    EXPECT_EQ(unicycle->learner_state_names[k], sets.names[sets.predicted[k]]);
+  EXPECT_EQ(unicycle->random_episodes, 10);
+  EXPECT_EQ(unicycle->random_control_fraction, 0.2);
+  // Its scene takes only its own cost, and studies refuse it.
   SceneOptions options;
   options.scene = "unicycle";
-  const absl::StatusOr<Scene> scene = MakeScene(options);
-  EXPECT_EQ(scene.status().code(), absl::StatusCode::kInvalidArgument);
-  EXPECT_NE(scene.status().message().find("no trials yet"), std::string::npos) << scene.status();
-  EXPECT_NE(scene.status().message().find("linear policy"), std::string::npos) << scene.status();
-  // Every other scene builds.
+  const absl::StatusOr<Scene> angle = MakeScene(options);
+  EXPECT_EQ(angle.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(angle.status().message().find("unknown cost 'angle' for scene 'unicycle'"),
+            std::string::npos) << angle.status();
+  const absl::StatusOr<const SceneDefinition*> study = RunnableScene("unicycle", "studies");
+  EXPECT_NE(study.status().message().find("'unicycle' has no studies yet"), std::string::npos)
+      << study.status();
+  EXPECT_TRUE(RunnableScene("unicycle", "trials").ok());
+  // Every scene builds with its default cost.
   for (const SceneDefinition& s : SceneCatalog()) {
-    if (!s.trials_unavailable.empty()) continue;
     options.scene = s.name;
+    options.cost = s.default_cost;
     EXPECT_TRUE(MakeScene(options).ok()) << s.name;
   }
+}
+
+// The unicycle's real episodes: the plant integrates 12, the learner sees
+// UnicycleGpState of them (true and observed), the cost is loss_unicycle of
+// the true post-step GP state, and the episode ends when it falls.
+TEST(SceneCatalogTest, UnicycleEpisodesShowTheLearnerItsGpState) {
+  SceneOptions options;
+  options.scene = "unicycle";
+  options.cost = "unicycle";
+  options.horizon = 67;
+  absl::StatusOr<Scene> scene = MakeScene(options);
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  EXPECT_EQ(scene->state_dim(), 10);
+  EXPECT_EQ(scene->plant->state_dim(), 12);
+  EXPECT_EQ(scene->plant_mu0.size(), 12);
+  // A constant wheel torque tips it over well within 10 s.
+  const MultiController push = [](const Vector& o) {
+    EXPECT_EQ(o.size(), 10);
+    return (Vector(2) << 0.0, 20.0).finished();
+  };
+  Rng start_rng(7, Stream::kInitialState), noise_rng(7, Stream::kObservationNoise);
+  Episode episode;
+  ASSERT_TRUE(RunEpisode(*scene, push, &start_rng, &noise_rng, &episode).ok());
+  ASSERT_TRUE(episode.ended);
+  ASSERT_LT(episode.steps, 67);
+  EXPECT_EQ(episode.states.rows(), episode.steps + 1);
+  EXPECT_EQ(episode.states.cols(), 10);
+  EXPECT_EQ(episode.forces.size(), 2 * episode.steps);
+  // Replay the plant with the same draws: states, observations and costs
+  // are the map of the plant's.
+  Rng start_again(7, Stream::kInitialState), noise_again(7, Stream::kObservationNoise);
+  Vector x(12);
+  for (int m = 0; m < 12; ++m) x(m) = scene->plant_mu0(m) + scene->plant_initial_std(m) * start_again.Normal();
+  const double rw = scene->definition->unicycle.wheel_radius;
+  for (int t = 0; t <= episode.steps; ++t) {
+    Vector o(12);
+    for (int m = 0; m < 12; ++m) o(m) = x(m) + scene->observation_noise_std(m) * noise_again.Normal();
+    EXPECT_EQ(Vector(episode.states.row(t).transpose()), UnicycleGpState(x, rw)) << t;
+    EXPECT_EQ(Vector(episode.observations.row(t).transpose()), UnicycleGpState(o, rw)) << t;
+    if (t == episode.steps) break;
+    Vector next;
+    ASSERT_TRUE(scene->plant->Step(x, episode.forces.segment(2 * t, 2), &next).ok());
+    x = next;
+    EXPECT_EQ(episode.costs(t), UnicycleCostValue(scene->definition->unicycle_cost, UnicycleGpState(x, rw)));
+  }
+  // The step after the last kept one falls; it and the rest cost 1 each.
+  Vector fallen;
+  ASSERT_TRUE(scene->plant->Step(x, (Vector(2) << 0.0, 20.0).finished(), &fallen).ok());
+  EXPECT_TRUE(scene->EpisodeEnds(fallen));
+  for (int t = episode.steps; t < 67; ++t) EXPECT_EQ(episode.costs(t), 1.0);
+  EXPECT_DOUBLE_EQ(episode.total_cost, episode.costs.sum());
 }
 
 // PILCO's settings as the notes give them (a few of each scene's numbers).

@@ -413,6 +413,48 @@ TEST(UnicycleCostTest, GradientsMatchCentralDifferences) {
   }
 }
 
+// The trial's per-step cost: values are UnicycleCostValue's (two widths,
+// so the mean over widths is exercised), the batch gradient matches central
+// differences of the value, the distance is sqrt(d^2), and its Gaussian form
+// is the closed form above.
+TEST(UnicycleCostTest, StateCostGradientMatchesCentralDifferences) {
+  UnicycleCostParams params;
+  params.widths = {0.5, 1.5};
+  const UnicycleStateCost cost(params);
+  std::mt19937_64 rng(41);
+  std::normal_distribution<double> normal;
+  RowMatrix x(6, 10);
+  for (int r = 0; r < 6; ++r)
+    for (int i = 0; i < 10; ++i) x(r, i) = 0.6 * normal(rng);
+  Vector values;
+  RowMatrix grad;
+  cost.Evaluate(x, &values, &grad);
+  ASSERT_EQ(grad.rows(), 6);
+  ASSERT_EQ(grad.cols(), 10);
+  const double h = 1e-6;
+  for (int r = 0; r < 6; ++r) {
+    const Vector s = x.row(r).transpose();
+    EXPECT_EQ(values(r), UnicycleCostValue(params, s));
+    for (int i = 0; i < 10; ++i) {
+      Vector up = s, down = s;
+      up(i) += h;
+      down(i) -= h;
+      const double fd = (UnicycleCostValue(params, up) - UnicycleCostValue(params, down)) / (2 * h);
+      EXPECT_NEAR(grad(r, i), fd, 1e-8) << "row " << r << " entry " << i;
+    }
+  }
+  // Fallen sideways: d = 1.03 sqrt(8.5) (the hand-computed case above).
+  Vector fallen = Vector::Zero(10);
+  fallen(7) = std::numbers::pi / 2;
+  EXPECT_NEAR(UnicycleUprightDistance({}, fallen), 1.03 * std::sqrt(8.5), 1e-12);
+  EXPECT_EQ(UnicycleUprightDistance({}, Vector::Zero(10)), 0.0);
+  const absl::StatusOr<gaussian::GaussianCost> gaussian = cost.GaussianExpectation();
+  ASSERT_TRUE(gaussian.ok());
+  gaussian::CostMoments moments;
+  ASSERT_TRUE(gaussian->Evaluate(x.row(0).transpose(), Matrix::Zero(10, 10), false, &moments).ok());
+  EXPECT_NEAR(moments.mean, values(0), 1e-12);
+}
+
 TEST(UnicycleCostTest, AMapOfTheWrongShapeIsRefused) {
   const absl::StatusOr<gaussian::GaussianCost> of_y =
       gaussian::GaussianCost::Saturating(3, std::vector<int>{}, Matrix::Identity(3, 3),
