@@ -23,6 +23,13 @@
 namespace totalgrad::sweep {
 namespace {
 
+// One option on the defaults a user's options start from: the scene's
+// where the option is the scene (scene = "unicycle" takes its own cost and
+// policy class; learner::TrialOptionsFromPairs).
+absl::StatusOr<learner::TrialOptions> OptionAlone(const std::string& key, const std::string& value) {
+  return learner::TrialOptionsFromPairs({{key, value}});
+}
+
 // Where a field came from, for error messages.
 std::string Where(const std::string& file, const toml::source_region& source) {
   return absl::StrCat(file, ":", source.begin.line, ":", source.begin.column);
@@ -169,14 +176,14 @@ absl::StatusOr<GridAxis> ParseGridAxis(const toml::node& axis_node, const std::s
         return FieldError(Where(file_name, item.source()), item_field,
                           value.status().message());
       }
-      learner::TrialOptions scratch;
-      absl::Status accepted = learner::SetTrialOption(axis_key, *value, &scratch);
+      absl::StatusOr<learner::TrialOptions> scratch = OptionAlone(axis_key, *value);
+      absl::Status accepted = scratch.status();
       if (accepted.ok()) accepted = CheckServiceLimits(axis_key, *value);
       if (!accepted.ok()) {
         return FieldError(Where(file_name, item.source()), item_field, accepted.message());
       }
       // Checked alone against defaults, so an unknown method is named at its line.
-      const absl::Status valid = scratch.Validate();
+      const absl::Status valid = scratch->Validate();
       if (!valid.ok()) {
         return FieldError(Where(file_name, item.source()), item_field, valid.message());
       }
@@ -222,7 +229,7 @@ absl::Status ParseGrid(const toml::table& grid, const std::string& file_name, Sw
   return absl::OkStatus();
 }
 
-// [protocol]: each option checked on its own, appended to spec->protocol in
+// [protocol]: each option checked on its own (OptionAlone), appended to spec->protocol in
 // file order.
 absl::Status ParseProtocol(const toml::table& protocol, const std::string& file_name,
                            SweepSpec* spec) {
@@ -232,9 +239,9 @@ absl::Status ParseProtocol(const toml::table& protocol, const std::string& file_
     const std::string field = absl::StrCat("protocol.", option_key);
     absl::StatusOr<std::string> value = ScalarText(option_node);
     if (!value.ok()) return FieldError(option_where, field, value.status().message());
-    learner::TrialOptions scratch;
-    absl::Status accepted = learner::SetTrialOption(option_key, *value, &scratch);
-    if (accepted.ok()) accepted = scratch.Validate();
+    absl::StatusOr<learner::TrialOptions> scratch = OptionAlone(option_key, *value);
+    absl::Status accepted = scratch.status();
+    if (accepted.ok()) accepted = scratch->Validate();
     if (accepted.ok()) accepted = CheckServiceLimits(option_key, *value);
     if (!accepted.ok()) return FieldError(option_where, field, accepted.message());
     spec->protocol.emplace_back(option_key, *value);
