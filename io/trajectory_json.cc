@@ -80,9 +80,7 @@ absl::StatusOr<TrajectoryView> ViewTrajectory(const learner::TrialCheckpoint& ch
   view.dt = scene->plant->dt();
   // The learner's state names (the unicycle's GP state; the plant's elsewhere).
   const std::vector<std::string>* state_names =
-      definition == nullptr ? nullptr
-      : definition->learner_state_names.empty() ? &definition->state_names
-                                                : &definition->learner_state_names;
+      definition == nullptr ? nullptr : &definition->LearnerStateNames();
   if (state_names != nullptr && static_cast<Eigen::Index>(state_names->size()) == d &&
       static_cast<Eigen::Index>(definition->control_names.size()) == scene->control_dim()) {
     view.state_names = *state_names;

@@ -48,12 +48,16 @@ struct EvaluateFlags {
 // The rollouts as CSV, one row per (rollout, step t = 0..H): t, time t dt,
 // the true state x_t (columns named as the scene's states), the controls
 // u_t applied from x_t (empty at t = H) and the cost of x_t (empty at t = 0:
-// an episode's cost sums the post-step states x_1..x_H). Numbers are the
+// an episode's cost sums the post-step states x_1..x_H). States are the
+// learner's (the unicycle's 10-entry GP state). A rollout that ended (the
+// unicycle fell after T steps) keeps its rows t > T with empty state and
+// control cells and the cost of each step from the fall on (1), so that
+// the cost column still sums to the episode's cost. Numbers are the
 // shortest round-trip text.
 std::string RolloutsCsv(const tasks::Scene& scene, const learner::PolicyEvaluation& evaluation) {
   const tasks::SceneDefinition& definition = *scene.definition;
   std::vector<std::string> header = {"rollout", "step", "time_s"};
-  for (const std::string& name : definition.state_names) header.push_back(name);
+  for (const std::string& name : definition.LearnerStateNames()) header.push_back(name);
   for (const std::string& name : definition.control_names) header.push_back(name);
   header.push_back("cost");
   std::string csv = io::CsvLine(header) + "\n";
@@ -61,12 +65,14 @@ std::string RolloutsCsv(const tasks::Scene& scene, const learner::PolicyEvaluati
   for (size_t r = 0; r < evaluation.rollouts.size(); ++r) {
     const tasks::Episode& run = evaluation.rollouts[r];
     const int horizon = static_cast<int>(run.costs.size());
+    const int kept = static_cast<int>(run.states.rows()) - 1;  // T: H, or the steps before a fall
     for (int t = 0; t <= horizon; ++t) {
       std::vector<std::string> cells = {std::to_string(r), std::to_string(t),
                                         io::RecordNumberText(t * definition.dt)};
-      for (int i = 0; i < d; ++i) cells.push_back(io::RecordNumberText(run.states(t, i)));
+      for (int i = 0; i < d; ++i)
+        cells.push_back(t <= kept ? io::RecordNumberText(run.states(t, i)) : "");
       for (int j = 0; j < f; ++j) {
-        cells.push_back(t < horizon ? io::RecordNumberText(run.forces(t * f + j)) : "");
+        cells.push_back(t < kept ? io::RecordNumberText(run.forces(t * f + j)) : "");
       }
       cells.push_back(t > 0 ? io::RecordNumberText(run.costs(t - 1)) : "");
       csv += io::CsvLine(cells) + "\n";

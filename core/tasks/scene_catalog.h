@@ -135,6 +135,10 @@ struct SceneDefinition {
   int state_dim() const { return static_cast<int>(mu0.size()); }
   int control_dim() const { return static_cast<int>(max_control.size()); }
   int num_angles() const { return static_cast<int>(angle_indices.size()); }
+  // The names of the learner's state: learner_state_names, else state_names.
+  const std::vector<std::string>& LearnerStateNames() const {
+    return learner_state_names.empty() ? state_names : learner_state_names;
+  }
   // The state the learner sees (its GP's outputs): learner_mu0's, else D.
   int learner_state_dim() const {
     return learner_mu0.size() > 0 ? static_cast<int>(learner_mu0.size()) : state_dim();

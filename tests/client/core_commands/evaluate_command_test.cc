@@ -90,6 +90,47 @@ TEST(EvaluateCommand, StatesFileHoldsEveryStepOfTheReportedRollouts) {
   }
 }
 
+// The unicycle: the rows hold the learner's 10-entry state under its names,
+// and a rollout that fell keeps H + 1 rows: its kept steps, then empty
+// state and control cells with the cost 1 of each step from the fall on,
+// so the cost column still sums to the rollout's cost. (The initial policy
+// of docs/results/scenes/unicycle_unlearned_seed1 falls within a second.)
+TEST(EvaluateCommand, AUnicycleThatFellKeepsItsRowsAndItsCost) {
+  const std::string dir = Dir("evaluate_unicycle");
+  const std::string policy =
+      std::string(TOTALGRAD_SOURCE_DIR) + "/docs/results/scenes/unicycle_unlearned_seed1.snapshots.json";
+  const std::string states = dir + "/states.csv";
+  const CommandRun run = RunCommand(
+      {"evaluate", "--policy", policy, "--rollouts", "2", "--json", "--states", states});
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const nlohmann::json report = nlohmann::json::parse(run.out);
+  const std::vector<std::vector<std::string>> rows = ReadCsv(states);
+  const int horizon = 67, state_dim = 10, controls = 2;
+  ASSERT_EQ(rows.size(), 1u + 2u * (horizon + 1));
+  EXPECT_EQ(rows[0], (std::vector<std::string>{"rollout", "step", "time_s", "dtheta", "dphi",
+                                               "dpsiw", "dpsif", "dpsit", "xc", "yc", "theta",
+                                               "phi", "psif", "turntable", "wheel", "cost"}));
+  for (int r = 0; r < 2; ++r) {
+    double cost_sum = 0;
+    int kept = -1;
+    for (int t = 0; t <= horizon; ++t) {
+      const std::vector<std::string>& row = rows[1 + r * (horizon + 1) + t];
+      ASSERT_EQ(row.size(), 3u + state_dim + controls + 1);
+      if (row[3].empty()) {
+        if (kept < 0) kept = t - 1;
+        EXPECT_EQ(row.back(), "1") << "a step after the fall costs the maximum";
+      } else {
+        EXPECT_LT(kept, 0) << "no state after the fall";
+        for (int i = 0; i < state_dim; ++i) EXPECT_TRUE(std::isfinite(std::stod(row[3 + i])));
+      }
+      if (t > 0) cost_sum += std::stod(row.back());
+    }
+    EXPECT_GT(kept, 0) << "rollout " << r << " fell";
+    EXPECT_LT(kept, 20) << "rollout " << r << " fell within 3 s";
+    EXPECT_EQ(cost_sum, report.at("costs").at(r).get<double>()) << "rollout " << r;
+  }
+}
+
 TEST(EvaluateCommand, UnwritableStatesFileIsNamed) {
   const std::string dir = Dir("evaluate_states_unwritable");
   const std::string policy = TrainTinyPolicy(dir);
