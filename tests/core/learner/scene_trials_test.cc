@@ -8,7 +8,11 @@
 #include <string>
 #include <vector>
 
+#include "core/diff/gradient_checker.h"
+#include "core/estimators/rp.h"
+#include "core/gp/training.h"
 #include "core/learner/evaluation.h"
+#include "core/learner/problem_builder.h"
 #include "core/learner/trial.h"
 #include "core/tasks/scene_catalog.h"
 #include "tests/testutil/test_base.h"
@@ -203,6 +207,70 @@ TEST(SceneTrials, PilcoWithTheSaturatingCostOnTwoAngleScenes) {
     EXPECT_EQ(r.eval_cost_mean, b->episodes[1].eval_cost_mean);
     EXPECT_EQ(r.policy_parameters, b->episodes[1].policy_parameters);
   }
+}
+
+// The unicycle's particle problem as a trial builds it (its GP on 9 of the
+// 10 learner-state entries through InputSubsetDynamics, loss_unicycle's
+// gradient, the linear policy, no angle features): RP's gradient against
+// central differences of the fixed-noise objective, on a GP of real
+// unicycle transitions. A wrong Jacobian in any of the three fails it.
+TEST(SceneTrials, UnicycleModelProblemRpGradientMatchesFiniteDifferences) {
+  tasks::SceneOptions scene_options;
+  scene_options.scene = "unicycle";
+  scene_options.cost = "unicycle";
+  scene_options.horizon = 6;
+  absl::StatusOr<tasks::Scene> scene = tasks::MakeScene(scene_options);
+  TG_ASSERT_OK(scene.status());
+  Transitions data;
+  Rng action(4, Stream::kExplorationAction);
+  for (int r = 0; r < 4; ++r) {
+    const tasks::MultiController random = [&](const Vector&) {
+      return Vector((Vector(2) << action.Uniform(-2, 2), action.Uniform(-10, 10)).finished());
+    };
+    Rng start(4, Stream::kInitialState, r), noise(4, Stream::kObservationNoise, r);
+    tasks::Episode episode;
+    TG_ASSERT_OK(tasks::RunEpisode(*scene, random, &start, &noise, &episode));
+    data.Append(episode);
+  }
+  ASSERT_GE(data.size(), 8);
+  const GpTrainingSet set = MakeGpTrainingSet(data, {}, scene->dynamics_inputs);
+  ASSERT_EQ(set.inputs.cols(), 9 + 2);  // dyni and the torques
+  ASSERT_EQ(set.targets.cols(), 10);
+  const gp::GpHyperparameters hyperparameters = gp::InitialHyperparameters(set.inputs, set.targets);
+  TrialPolicy policy(policy::PolicyClass::kLinear, 0, 10, scene->max_control);
+  Rng init(6, Stream::kPolicyInit);
+  policy.linear().Initialize(0.5, &init);
+  absl::StatusOr<ModelProblem> model = ModelProblem::Build(
+      set, hyperparameters, SparseModelFit{}, {}, &policy, *scene, 1.0, nullptr);
+  TG_ASSERT_OK(model.status());
+  const int particles = 4;
+  const Vector theta0 = policy.parameters();
+  const auto objective = [&](const Vector& theta) {
+    policy.set_parameters(theta);
+    Rng rng(11, Stream::kParticleNoise);
+    estimators::Rollout rollout;
+    EXPECT_TRUE(estimators::SimulateParticles(model->problem(), particles, {}, &rng, &rollout).ok());
+    policy.set_parameters(theta0);
+    return rollout.objective;
+  };
+  Rng rng(11, Stream::kParticleNoise);
+  estimators::RpEstimator rp;
+  estimators::EstimateOptions eo;
+  eo.particles = particles;
+  estimators::GradientEstimate estimate;
+  TG_ASSERT_OK(rp.Estimate(model->problem(), eo, &rng, &estimate));
+  ASSERT_EQ(estimate.gradient.size(), 2 * 11);
+  EXPECT_NEAR(estimate.objective, objective(theta0), 1e-12);
+  const diff::VectorFunction f = [&](const Vector& theta, Vector* out) {
+    *out = Vector::Constant(1, objective(theta));
+    return std::isfinite((*out)(0));
+  };
+  diff::CheckOptions check;
+  check.relative_tolerance = 1e-5;
+  check.absolute_tolerance = 1e-8;
+  const diff::CheckResult r = diff::CheckJacobian(f, theta0, estimate.gradient.transpose(), check);
+  EXPECT_TRUE(r.ok) << r.log;
+  EXPECT_GT(estimate.gradient.norm(), 1e-6) << "a zero gradient would pass trivially";
 }
 
 TEST(SceneTrials, CartPoleOptionsAreRefusedOnOtherScenes) {
