@@ -21,6 +21,21 @@ def episodes_of(job):
     return [by_episode[k] for k in sorted(by_episode)]
 
 
+def variant_text(variant):
+    """'learning_rate=0.00050000000000000001' -> 'learning_rate=0.0005'."""
+    if not variant:
+        return "-"
+    out = []
+    for pair in variant.split(","):
+        key, _, value = pair.partition("=")
+        try:
+            value = f"{float(value):g}"
+        except ValueError:
+            pass
+        out.append(f"{key}={value}")
+    return ", ".join(out)
+
+
 def fmt(x, digits=2):
     return "-" if x is None else f"{x:.{digits}f}"
 
@@ -40,7 +55,7 @@ def summary(paths):
             learned = max(eps) if eps else 0
             held = eps[learned]["held_fraction"] if learned in eps else None
             cpu = sum(e["cpu_seconds"] or 0 for e in eps.values())
-            print(f"| {archive['sweep']['name']} | {job['method']} | {job['variant'] or '-'} | " +
+            print(f"| {archive['sweep']['name']} | {job['method']} | {variant_text(job['variant'])} | " +
                   " | ".join(cells) + f" | {fmt(held)} | {learned} of "
                   f"{job['episodes_expected'] - 1} | {cpu:.0f} |")
 
@@ -54,7 +69,7 @@ def main(paths):
         for job in archive["jobs"]:
             eps = episodes_of(job)
             learned = [e for e in eps if e["episode"] > 0]
-            variant = job["variant"] or "-"
+            variant = variant_text(job["variant"])
             cpu = sum(e["cpu_seconds"] or 0 for e in eps)
             last = learned[-1] if learned else None
             print(f"## {archive['sweep']['name']} job {job['job_id']}: {job['method']} seed "
