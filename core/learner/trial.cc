@@ -66,7 +66,7 @@ absl::StatusOr<EpisodeResult> RandomEpisode(const tasks::Scene& scene, uint64_t 
     cost_sum += episode.total_cost;
     if (r == 0) result.trajectories.real = TrajectoryOfEpisode(episode);
   }
-  result.real_cost = scene.random_episodes == 1 ? cost_sum : cost_sum / scene.random_episodes;
+  result.real_cost = cost_sum / scene.random_episodes;  // exact for one rollout
   clock.Lap(&result.timing.real_episode_cpu, &result.timing.real_episode_wall);
   result.cpu_seconds = result.timing.total_cpu();
   return result;

@@ -178,8 +178,8 @@ absl::StatusOr<Scene> MakeScene(const SceneOptions& options) {
     }
   }
   // The real episodes start from the plant's distribution (the learner's
-  // but on the unicycle).
-  const bool learner_state_differs = definition->plant == PlantKind::kUnicycle;
+  // unless the catalog gives the learner a state of its own).
+  const bool learner_state_differs = definition->learner_mu0.size() > 0;
   scene.plant_mu0 = learner_state_differs ? definition->mu0 : scene.mu0;
   scene.plant_initial_std = learner_state_differs ? definition->start_std : scene.initial_std;
   scene.random_episodes = definition->random_episodes;
