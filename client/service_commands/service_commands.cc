@@ -65,8 +65,8 @@ int PrintLocalDryRun(sweep::SweepSpec spec) {
   }
   std::cout << "dry run (no coordinator answered; counted here, so whether it would grow a "
                "stored sweep is unknown): sweep "
-            << prepared->spec.name << " would have " << prepared->jobs.size() << " jobs ("
-            << prepared->spec.studies.size() << " studies) and " << prepared->episodes_expected()
+            << prepared->spec.name << " would have " << prepared->jobs_total << " jobs ("
+            << prepared->spec.studies.size() << " studies) and " << prepared->episodes_expected
             << " episodes (spec " << prepared->spec_hash.substr(0, 12) << ")\n";
   return 0;
 }

@@ -81,8 +81,12 @@ grpc::Status ControlServiceImpl::SubmitSweep(grpc::ServerContext* context,
     preview.max_lost_leases = sweep->max_lost_leases;
     preview.max_concurrent = sweep->max_concurrent;
     preview.source_name = sweep->source_name;
-    preview.jobs_total = preview.jobs_queued = static_cast<int>(sweep->jobs.size());
-    for (const auto& job : sweep->jobs) preview.episodes_expected += job.episodes_expected;
+    preview.jobs_total = preview.jobs_queued = static_cast<int>(sweep->job_count());
+    const absl::Status counted = sweep->ForEachJob([&](const storage::NewJob& job) {
+      preview.episodes_expected += job.episodes_expected;
+      return absl::OkStatus();
+    });
+    if (!counted.ok()) return ToGrpcStatus(counted);
     ToProto(preview, response->mutable_sweep());
     response->set_created(false);
     return grpc::Status::OK;

@@ -1,5 +1,7 @@
 #include "server/service/submission.h"
 
+#include <functional>
+#include <memory>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
@@ -7,6 +9,36 @@
 #include "server/sweep/prepared_sweep.h"
 
 namespace totalgrad::service {
+namespace {
+
+// A prepared sweep's jobs as the store inserts them: expanded again, one at
+// a time, on each walk (sweep::PreparedSweep::ForEachJob).
+class PreparedJobs : public storage::NewJobGenerator {
+ public:
+  explicit PreparedJobs(sweep::PreparedSweep prepared) : prepared_(std::move(prepared)) {}
+
+  int64_t size() const override { return prepared_.jobs_total; }
+
+  absl::Status ForEach(
+      const std::function<absl::Status(const storage::NewJob&)>& visit) const override {
+    return prepared_.ForEachJob([&](sweep::ExpandedJob&& job) {
+      storage::NewJob stored;
+      stored.method = std::move(job.method);
+      stored.seed = std::move(job.seed);
+      stored.variant = std::move(job.variant);
+      stored.options = std::move(job.options);
+      stored.episodes_expected = job.episodes_expected;
+      stored.kind = job.kind;
+      stored.payload = std::move(job.payload);
+      return visit(stored);
+    });
+  }
+
+ private:
+  const sweep::PreparedSweep prepared_;
+};
+
+}  // namespace
 
 absl::StatusOr<storage::NewSweep> PrepareSubmission(const v1::SubmitSweepRequest& request,
                                                     const std::string& coordinator_build) {
@@ -31,17 +63,7 @@ absl::StatusOr<storage::NewSweep> PrepareSubmission(const v1::SubmitSweepRequest
   sweep.max_attempts = prepared->spec.max_attempts;
   sweep.max_lost_leases = prepared->spec.max_lost_leases;
   sweep.max_concurrent = prepared->spec.max_concurrent;
-  for (sweep::ExpandedJob& job : prepared->jobs) {
-    storage::NewJob stored;
-    stored.method = std::move(job.method);
-    stored.seed = std::move(job.seed);
-    stored.variant = std::move(job.variant);
-    stored.options = std::move(job.options);
-    stored.episodes_expected = job.episodes_expected;
-    stored.kind = job.kind;
-    stored.payload = std::move(job.payload);
-    sweep.jobs.push_back(std::move(stored));
-  }
+  sweep.generated_jobs = std::make_shared<const PreparedJobs>(*std::move(prepared));
   return sweep;
 }
 

@@ -1,6 +1,8 @@
 // A submitted sweep (v1::SubmitSweepRequest) turned into what the store
-// keeps (storage::NewSweep): checked, canonical, expanded
+// keeps (storage::NewSweep): checked, canonical and counted
 // (sweep::PrepareSweep), with the source text and the coordinator's build.
+// Its jobs are not held: NewSweep::generated_jobs expands them from the spec
+// while the store inserts them.
 #ifndef TOTALGRAD_SERVER_SERVICE_SUBMISSION_H_
 #define TOTALGRAD_SERVER_SERVICE_SUBMISSION_H_
 

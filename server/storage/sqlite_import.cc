@@ -277,24 +277,24 @@ WHERE sweep_id = ? AND kind = ? AND method = ? AND seed = ? AND variant = ?)sql"
     last.Bind(1, sweep_id);
     ASSIGN_OR_RETURN(bool any, last.Step());
     const int64_t ordinal = any ? last.ColumnInt(0) : -1;
-    std::vector<const NewJob*> new_jobs;
-    for (const NewJob& job : grown.jobs) {
+    // Jobs are inserted as they are met: one the grown spec lists twice
+    // does not exist (a job's identity is unique in a spec), so inserting
+    // early changes no later lookup, and an error rolls them all back.
+    ASSIGN_OR_RETURN(QueuedJobInserter inserter,
+                     QueuedJobInserter::Prepare(db, sweep_id, ordinal + 1));
+    RETURN_IF_ERROR(grown.ForEachJob([&](const NewJob& job) -> absl::Status {
       exists.Bind(1, sweep_id).Bind(2, ToString(job.kind)).Bind(3, job.method);
       exists.Bind(4, job.seed).Bind(5, job.variant);
       ASSIGN_OR_RETURN(bool present, exists.Step());
       const std::string stored_options = present ? exists.ColumnText(0) : std::string();
       exists.Reset();
-      if (present) {
-        // The stored job must be the job this build would run: a default
-        // that changed between builds (e.g. a scene's own horizon) would
-        // otherwise give the new jobs another computation than the old.
-        RETURN_IF_ERROR(SameStoredOptions(grown.name, job, OptionsFromJson(stored_options)));
-        continue;
-      }
-      new_jobs.push_back(&job);
-    }
-    RETURN_IF_ERROR(InsertQueuedJobs(db, sweep_id, ordinal + 1, new_jobs));
-    added = static_cast<int>(new_jobs.size());
+      if (!present) return inserter.Insert(job);
+      // The stored job must be the job this build would run: a default
+      // that changed between builds (e.g. a scene's own horizon) would
+      // otherwise give the new jobs another computation than the old.
+      return SameStoredOptions(grown.name, job, OptionsFromJson(stored_options));
+    }));
+    added = static_cast<int>(inserter.inserted());
     ASSIGN_OR_RETURN(Statement update, Statement::Prepare(db, R"sql(
 UPDATE sweeps SET canonical_spec = ?, spec_hash = ?, description = ?, source_name = ?,
                   source_text = ?

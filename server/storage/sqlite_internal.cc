@@ -402,23 +402,25 @@ WHERE excluded.episode >= checkpoints.episode)sql"));
 
 // CreateSweep inside the caller's transaction: *created tells whether it
 // was inserted (false: a sweep of that name and hash existed).
-absl::Status InsertQueuedJobs(Db& db, int64_t sweep_id, int64_t first_ordinal,
-                              const std::vector<const NewJob*>& jobs) {
+absl::StatusOr<QueuedJobInserter> QueuedJobInserter::Prepare(Db& db, int64_t sweep_id,
+                                                             int64_t first_ordinal) {
   ASSIGN_OR_RETURN(Statement insert, Statement::Prepare(db, R"sql(
 INSERT INTO jobs(sweep_id, ordinal, method, seed, variant, options_json, episodes_expected, state,
                  kind, payload)
 VALUES(?, ?, ?, ?, ?, ?, ?, 'queued', ?, ?))sql"));
-  int64_t ordinal = first_ordinal;
-  for (const NewJob* job : jobs) {
-    insert.Bind(1, sweep_id).Bind(2, ordinal++).Bind(3, job->method).Bind(4, job->seed);
-    insert.Bind(5, job->variant).Bind(6, OptionsToJson(job->options));
-    insert.Bind(7, EpisodesExpectedColumn(KindInfo(job->kind), job->episodes_expected));
-    insert.Bind(8, ToString(job->kind)).Bind(9, job->payload);
-    RETURN_IF_ERROR(insert.Run());
-    insert.Reset();
-    RETURN_IF_ERROR(WriteJobOptions(db, db.LastInsertRowId(), job->method, job->seed,
-                                    job->variant));
-  }
+  return QueuedJobInserter(db, std::move(insert), sweep_id, first_ordinal);
+}
+
+absl::Status QueuedJobInserter::Insert(const NewJob& job) {
+  insert_.Bind(1, sweep_id_).Bind(2, next_ordinal_).Bind(3, job.method).Bind(4, job.seed);
+  insert_.Bind(5, job.variant).Bind(6, OptionsToJson(job.options));
+  insert_.Bind(7, EpisodesExpectedColumn(KindInfo(job.kind), job.episodes_expected));
+  insert_.Bind(8, ToString(job.kind)).Bind(9, job.payload);
+  RETURN_IF_ERROR(insert_.Run());
+  insert_.Reset();
+  RETURN_IF_ERROR(WriteJobOptions(*db_, db_->LastInsertRowId(), job.method, job.seed, job.variant));
+  ++next_ordinal_;
+  ++inserted_;
   return absl::OkStatus();
 }
 
@@ -451,13 +453,12 @@ VALUES(?, ?, 'running', ?, ?, ?, ?, ?, ?, ?, ?, ?))sql"));
   insert.Bind(11, sweep.created_ms > 0 ? sweep.created_ms : now_ms);
   RETURN_IF_ERROR(insert.Run());
   const int64_t sweep_id = db.LastInsertRowId();
-  std::vector<const NewJob*> jobs;
-  for (const NewJob& job : sweep.jobs) jobs.push_back(&job);
-  RETURN_IF_ERROR(InsertQueuedJobs(db, sweep_id, 0, jobs));
+  ASSIGN_OR_RETURN(QueuedJobInserter jobs, QueuedJobInserter::Prepare(db, sweep_id, 0));
+  RETURN_IF_ERROR(sweep.ForEachJob([&](const NewJob& job) { return jobs.Insert(job); }));
   RETURN_IF_ERROR(internal::CreateSweepView(db, sweep_id, sweep.name));
   *created = true;
   return AddEvent(db, now_ms, sweep_id, 0, 0, "sweep_submitted",
-                  absl::StrCat(sweep.jobs.size(), " jobs, spec ", sweep.spec_hash));
+                  absl::StrCat(jobs.inserted(), " jobs, spec ", sweep.spec_hash));
 }
 
 

@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "absl/status/status.h"
@@ -97,11 +98,26 @@ absl::Status UpsertCheckpoint(Db& db, const LeaseKey& key, const OpenAttempt& at
 // CreateSweep inside the caller's transaction: *created tells whether it
 // was inserted (false: a sweep of that name and hash existed).
 absl::Status InsertSweep(Db& db, const NewSweep& sweep, int64_t now_ms, bool* created);
-// Inserts `jobs` as queued jobs of sweep `sweep_id` with ordinals
-// first_ordinal, first_ordinal + 1, ..., each with its job_options rows
-// (sweep creation and growth).
-absl::Status InsertQueuedJobs(Db& db, int64_t sweep_id, int64_t first_ordinal,
-                              const std::vector<const NewJob*>& jobs);
+// Inserts queued jobs of sweep `sweep_id`, one per Insert call, with
+// ordinals first_ordinal, first_ordinal + 1, ..., each with its job_options
+// rows (sweep creation and growth), through one prepared statement; the
+// caller holds the write transaction and `db` outlives the inserter.
+class QueuedJobInserter {
+ public:
+  static absl::StatusOr<QueuedJobInserter> Prepare(Db& db, int64_t sweep_id,
+                                                   int64_t first_ordinal);
+  absl::Status Insert(const NewJob& job);
+  int64_t inserted() const { return inserted_; }
+
+ private:
+  QueuedJobInserter(Db& db, Statement insert, int64_t sweep_id, int64_t first_ordinal)
+      : db_(&db), insert_(std::move(insert)), sweep_id_(sweep_id), next_ordinal_(first_ordinal) {}
+  Db* db_;
+  Statement insert_;
+  int64_t sweep_id_;
+  int64_t next_ordinal_;
+  int64_t inserted_ = 0;
+};
 
 }  // namespace totalgrad::storage::internal
 

@@ -5,6 +5,17 @@
 
 namespace totalgrad::storage {
 
+int64_t NewSweep::job_count() const {
+  return static_cast<int64_t>(jobs.size()) + (generated_jobs ? generated_jobs->size() : 0);
+}
+
+absl::Status NewSweep::ForEachJob(const std::function<absl::Status(const NewJob&)>& visit) const {
+  for (const NewJob& job : jobs) {
+    if (absl::Status status = visit(job); !status.ok()) return status;
+  }
+  return generated_jobs ? generated_jobs->ForEach(visit) : absl::OkStatus();
+}
+
 absl::string_view ToString(SweepState state) {
   switch (state) {
     case SweepState::kRunning: return "running";

@@ -2,23 +2,25 @@
 
 #include <utility>
 
+#include "runtime/status_macros.h"
+
 namespace totalgrad::sweep {
 
-int64_t PreparedSweep::episodes_expected() const {
-  int64_t episodes = 0;
-  for (const ExpandedJob& job : jobs) episodes += job.episodes_expected;
-  return episodes;
+absl::Status PreparedSweep::ForEachJob(
+    const std::function<absl::Status(ExpandedJob&&)>& visit) const {
+  return ForEachExpandedJob(spec, visit);
 }
 
 absl::StatusOr<PreparedSweep> PrepareSweep(SweepSpec spec) {
   std::vector<std::string> protocol_order;
   for (const auto& [key, value] : spec.protocol) protocol_order.push_back(key);
-  absl::Status status = CanonicalizeSpec(&spec);
-  if (!status.ok()) return status;
-  absl::StatusOr<std::vector<ExpandedJob>> jobs = ExpandJobs(spec);
-  if (!jobs.ok()) return jobs.status();
+  RETURN_IF_ERROR(CanonicalizeSpec(&spec));
   PreparedSweep prepared;
-  prepared.jobs = *std::move(jobs);
+  RETURN_IF_ERROR(ForEachExpandedJob(spec, [&](ExpandedJob&& job) {
+    ++prepared.jobs_total;
+    prepared.episodes_expected += job.episodes_expected;
+    return absl::OkStatus();
+  }));
   prepared.canonical_json = CanonicalJson(spec);
   prepared.spec_hash = SpecHash(spec);
   const std::string legacy_hash = LegacySpecHash(spec, protocol_order);

@@ -358,8 +358,8 @@ std::string SpecHash(const SweepSpec& spec) {
   return hex;
 }
 
-absl::StatusOr<std::vector<ExpandedJob>> ExpandJobs(const SweepSpec& spec) {
-  std::vector<ExpandedJob> jobs;
+absl::Status ForEachExpandedJob(const SweepSpec& spec,
+                                const std::function<absl::Status(ExpandedJob&&)>& visit) {
   if (spec.grid.empty() && spec.studies.empty()) return absl::InvalidArgumentError("grid: empty");
   std::vector<size_t> index(spec.grid.size(), 0);
   while (!spec.grid.empty()) {
@@ -388,7 +388,7 @@ absl::StatusOr<std::vector<ExpandedJob>> ExpandJobs(const SweepSpec& spec) {
     job.variant = absl::StrJoin(variant, " ");
     job.options = learner::TrialOptionPairs(*options);
     job.episodes_expected = options->episodes + 1;
-    jobs.push_back(std::move(job));
+    RETURN_IF_ERROR(visit(std::move(job)));
     // Odometer: the last axis varies fastest.
     size_t a = spec.grid.size();
     bool done = false;
@@ -419,8 +419,17 @@ absl::StatusOr<std::vector<ExpandedJob>> ExpandJobs(const SweepSpec& spec) {
     job.seed = std::to_string(parsed->options.seed);
     job.variant = entry.name;
     job.episodes_expected = 0;
-    jobs.push_back(std::move(job));
+    RETURN_IF_ERROR(visit(std::move(job)));
   }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::vector<ExpandedJob>> ExpandJobs(const SweepSpec& spec) {
+  std::vector<ExpandedJob> jobs;
+  RETURN_IF_ERROR(ForEachExpandedJob(spec, [&](ExpandedJob&& job) {
+    jobs.push_back(std::move(job));
+    return absl::OkStatus();
+  }));
   return jobs;
 }
 
@@ -447,22 +456,21 @@ std::string SweepCostEstimate::Text() const {
 absl::StatusOr<SweepCostEstimate> EstimateSweepCost(const SweepSpec& spec) {
   SweepSpec canonical = spec;
   if (absl::Status st = CanonicalizeSpec(&canonical); !st.ok()) return st;
-  absl::StatusOr<std::vector<ExpandedJob>> jobs = ExpandJobs(canonical);
-  if (!jobs.ok()) return jobs.status();
   SweepCostEstimate estimate;
   estimate.reference_machine = learner::kReferenceMachine;
-  for (const ExpandedJob& job : *jobs) {
+  RETURN_IF_ERROR(ForEachExpandedJob(canonical, [&](ExpandedJob&& job) -> absl::Status {
     if (job.kind == JobKind::kStudy) {
       ++estimate.studies;
-      continue;
+      return absl::OkStatus();
     }
     learner::TrialOptions options;
     for (const auto& [key, value] : job.options) {
-      if (absl::Status st = learner::SetTrialOption(key, value, &options); !st.ok()) return st;
+      RETURN_IF_ERROR(learner::SetTrialOption(key, value, &options));
     }
     ++estimate.trials;
     estimate.cpu_seconds += learner::EstimateTrialCost(options).total_cpu();
-  }
+    return absl::OkStatus();
+  }));
   return estimate;
 }
 

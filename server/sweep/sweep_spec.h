@@ -38,6 +38,7 @@
 #ifndef TOTALGRAD_SERVER_SWEEP_SWEEP_SPEC_H_
 #define TOTALGRAD_SERVER_SWEEP_SWEEP_SPEC_H_
 
+#include <functional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -164,8 +165,14 @@ absl::StatusOr<std::string> CanonicalStudySpec(const std::string& spec_json);
 absl::StatusOr<SweepSpec> UnionOfSweeps(const SweepSpec& stored, const SweepSpec& submitted);
 
 // Expands a canonicalized spec into its jobs, in grid order, then one job
-// per study entry. InvalidArgument
-// naming the grid point if the runner's whole-options validation refuses one.
+// per study entry, handing each to `visit` as it is made and keeping none:
+// the memory of expanding a sweep of 100,000 jobs is one job's (issue 28:
+// a coordinator stores a submission while it expands it). Stops at the first
+// error: `visit`'s, or InvalidArgument naming the grid point if the runner's
+// whole-options validation refuses one (the jobs before it were visited).
+absl::Status ForEachExpandedJob(const SweepSpec& spec,
+                                const std::function<absl::Status(ExpandedJob&&)>& visit);
+// The same, collected (errors as ForEachExpandedJob's).
 absl::StatusOr<std::vector<ExpandedJob>> ExpandJobs(const SweepSpec& spec);
 
 // The estimated CPU cost of a sweep's trial jobs (core/learner/cost_model.h),
