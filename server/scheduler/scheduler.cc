@@ -126,6 +126,11 @@ absl::StatusOr<std::optional<storage::CheckpointRecord>> Scheduler::ResumePoint(
   return store_->GetCheckpoint(job_id, 0);
 }
 
+namespace {
+// Candidates read first per lease request (TryAcquireLocked).
+constexpr int kFirstClaimScan = 8;
+}  // namespace
+
 absl::StatusOr<std::optional<Lease>> Scheduler::TryAcquireLocked(const WorkerIdentity& worker) {
   RETURN_IF_ERROR(CheckInstanceLocked(worker));
   const int64_t now = clock_->NowMs();
@@ -148,11 +153,23 @@ absl::StatusOr<std::optional<Lease>> Scheduler::TryAcquireLocked(const WorkerIde
     RETURN_IF_ERROR(store_->SetWorkerDraining(worker.worker_id, false, now));
     if (drained != drained_instance_.end()) drained_instance_.erase(drained);
   }
+  // The first candidate the worker takes is leased, and it is almost always
+  // the first listed: a few are read, and the whole scan only when none of
+  // those suits the worker (each candidate read cost about half of a
+  // lease's CPU; issue 28). The same candidate either way.
+  const int first_scan = std::min(options_.claim_scan_limit, kFirstClaimScan);
   ASSIGN_OR_RETURN(std::vector<storage::ClaimCandidate> candidates,
-                   store_->ListClaimCandidates(options_.claim_scan_limit));
-  for (const storage::ClaimCandidate& candidate : candidates) {
+                   store_->ListClaimCandidates(first_scan));
+  const auto suits = [&](const storage::ClaimCandidate& candidate) {
     // A worker that did not say it runs studies (an older build) gets trials only.
-    if (candidate.kind == storage::JobKind::kStudy && !worker.study_jobs) continue;
+    return candidate.kind != storage::JobKind::kStudy || worker.study_jobs;
+  };
+  if (static_cast<int>(candidates.size()) == first_scan && first_scan < options_.claim_scan_limit &&
+      std::none_of(candidates.begin(), candidates.end(), suits)) {
+    ASSIGN_OR_RETURN(candidates, store_->ListClaimCandidates(options_.claim_scan_limit));
+  }
+  for (const storage::ClaimCandidate& candidate : candidates) {
+    if (!suits(candidate)) continue;
     const LeaseKey key{candidate.job_id, candidate.attempts + 1};
     RETURN_IF_ERROR(store_->StartAttempt(key, worker, now, LeaseExpiryFrom(LeaseNowMs())));
     ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(candidate.job_id));
@@ -228,7 +245,7 @@ absl::StatusOr<HeartbeatResult> Scheduler::Heartbeat(
   ASSIGN_OR_RETURN(result.stored,
                    store_->StoreResults(key, worker_id, results, now, lease_expires));
   if (checkpoint) RETURN_IF_ERROR(store_->StoreCheckpoint(key, worker_id, *checkpoint, now));
-  ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(key.job_id));
+  ASSIGN_OR_RETURN(storage::JobStatus job, store_->GetJobStatus(key.job_id));
   auto worker = store_->GetWorker(worker_id);
   if (worker.ok()) {
     RETURN_IF_ERROR(MaybeTouchWorker(worker->identity, now));
@@ -246,7 +263,7 @@ absl::StatusOr<HeartbeatResult> Scheduler::Heartbeat(
 }
 
 absl::StatusOr<EndOutcome> Scheduler::EndLocked(AttemptEnd end, LeaseBudget budget) {
-  ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(end.key.job_id));
+  ASSIGN_OR_RETURN(storage::JobStatus job, store_->GetJobStatus(end.key.job_id));
   const bool cancelled = job.state == JobState::kCancelled;
   switch (end.attempt_state) {
     case AttemptState::kCompleted:
@@ -317,7 +334,7 @@ absl::Status Scheduler::Complete(const std::string& worker_id, const LeaseKey& k
   end.results = completion.results;
   end.totals = completion.totals;
   end.checkpoint = completion.checkpoint;
-  ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(key.job_id));
+  ASSIGN_OR_RETURN(storage::JobStatus job, store_->GetJobStatus(key.job_id));
   if (storage::KindInfo(job.kind).reports_verdict) {
     if (!std::isfinite(completion.final_eval_cost)) {
       return absl::InvalidArgumentError(
@@ -347,7 +364,7 @@ absl::StatusOr<bool> Scheduler::Fail(const std::string& worker_id, const LeaseKe
   end.results.episodes = episodes;
   end.error = error.empty() ? "(no error text given)" : error.substr(0, kMaxErrorBytes);
   RETURN_IF_ERROR(EndLocked(std::move(end)).status());
-  ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(key.job_id));
+  ASSIGN_OR_RETURN(storage::JobStatus job, store_->GetJobStatus(key.job_id));
   return job.state == JobState::kQueued || job.state == JobState::kRunning;
 }
 
@@ -366,7 +383,7 @@ absl::Status Scheduler::ReturnUndelivered(const std::string& worker_id, const Le
 absl::Status Scheduler::GiveBack(const std::string& worker_id, const LeaseKey& key,
                                  std::string error, LeaseBudget budget) {
   absl::MutexLock lock(&decision_mutex_);
-  ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(key.job_id));
+  ASSIGN_OR_RETURN(storage::JobStatus job, store_->GetJobStatus(key.job_id));
   AttemptEnd end;
   end.key = key;
   end.worker_id = worker_id;

@@ -3,11 +3,60 @@
 #include <sqlite3.h>
 
 #include <cmath>
+#include <unordered_map>
 #include <utility>
+#include <vector>
 
 #include "absl/strings/str_cat.h"
 
 namespace totalgrad::storage::internal {
+
+// Released statements by their SQL text. The keys are never erased, so a
+// Statement may hold a pointer to its key. SQL built with values in it (a
+// view's name) would grow the map without bound: past kMaxTexts distinct
+// texts, a new text is compiled and finalised as before.
+class StatementCache {
+ public:
+  static constexpr size_t kMaxTexts = 256;
+  static constexpr size_t kMaxFreePerText = 4;
+
+  ~StatementCache() {
+    for (auto& [sql, statements] : free_) {
+      for (sqlite3_stmt* stmt : statements) sqlite3_finalize(stmt);
+    }
+  }
+
+  // A released statement of `sql`, or null; *key is the cache's copy of the
+  // text (null when the cache is full and does not know it).
+  sqlite3_stmt* Take(absl::string_view sql, const std::string** key) {
+    auto it = free_.find(std::string(sql));
+    if (it == free_.end()) {
+      if (free_.size() >= kMaxTexts) {
+        *key = nullptr;
+        return nullptr;
+      }
+      it = free_.emplace(std::string(sql), std::vector<sqlite3_stmt*>()).first;
+    }
+    *key = &it->first;
+    if (it->second.empty()) return nullptr;
+    sqlite3_stmt* stmt = it->second.back();
+    it->second.pop_back();
+    return stmt;
+  }
+
+  // Takes back a statement that was reset and cleared.
+  void Give(const std::string& key, sqlite3_stmt* stmt) {
+    std::vector<sqlite3_stmt*>& statements = free_[key];
+    if (statements.size() >= kMaxFreePerText) {
+      sqlite3_finalize(stmt);
+      return;
+    }
+    statements.push_back(stmt);
+  }
+
+ private:
+  std::unordered_map<std::string, std::vector<sqlite3_stmt*>> free_;
+};
 
 absl::Status SqliteError(int code, absl::string_view context, absl::string_view detail) {
   const std::string message = absl::StrCat("sqlite: ", context, ": ", detail, " (code ", code, ")");
@@ -66,17 +115,25 @@ absl::StatusOr<Db> Db::OpenReadOnly(const std::string& path, int busy_timeout_ms
   return Db(raw);
 }
 
-Db::Db(Db&& other) noexcept : db_(std::exchange(other.db_, nullptr)) {}
+Db::Db(sqlite3* db) : db_(db), cache_(std::make_unique<StatementCache>()) {}
+Db::Db(Db&& other) noexcept
+    : db_(std::exchange(other.db_, nullptr)), cache_(std::move(other.cache_)) {}
 Db& Db::operator=(Db&& other) noexcept {
   if (this != &other) {
-    if (db_) sqlite3_close(db_);
+    Close();
     db_ = std::exchange(other.db_, nullptr);
+    cache_ = std::move(other.cache_);
   }
   return *this;
 }
-Db::~Db() {
-  // sqlite3_close fails only with unfinalised statements, which RAII rules out.
+Db::~Db() { Close(); }
+
+void Db::Close() {
+  cache_.reset();  // finalises the cached statements
+  // sqlite3_close fails only with unfinalised statements, which RAII rules
+  // out (Statements do not outlive their Db).
   if (db_) sqlite3_close(db_);
+  db_ = nullptr;
 }
 
 absl::Status Db::Exec(absl::string_view sql) {
@@ -95,28 +152,55 @@ int64_t Db::LastInsertRowId() const { return sqlite3_last_insert_rowid(db_); }
 int Db::Changes() const { return sqlite3_changes(db_); }
 
 absl::StatusOr<Statement> Statement::Prepare(const Db& db, absl::string_view sql) {
+  const std::string* key = nullptr;
+  StatementCache* cache = db.cache_.get();
+  if (cache != nullptr) {
+    if (sqlite3_stmt* cached = cache->Take(sql, &key); cached != nullptr) {
+      return Statement(cached, db.raw(), cache, key);
+    }
+  }
   sqlite3_stmt* stmt = nullptr;
-  const int rc = sqlite3_prepare_v2(db.raw(), sql.data(), static_cast<int>(sql.size()), &stmt, nullptr);
+  const int rc = sqlite3_prepare_v3(db.raw(), sql.data(), static_cast<int>(sql.size()),
+                                    key != nullptr ? SQLITE_PREPARE_PERSISTENT : 0, &stmt,
+                                    nullptr);
   if (rc != SQLITE_OK) {
     sqlite3_finalize(stmt);
     return SqliteError(rc, absl::StrCat("prepare ", sql.substr(0, 60)), sqlite3_errmsg(db.raw()));
   }
-  return Statement(stmt, db.raw());
+  return Statement(stmt, db.raw(), key != nullptr ? cache : nullptr, key);
 }
 
 Statement::Statement(Statement&& other) noexcept
-    : stmt_(std::exchange(other.stmt_, nullptr)), db_(other.db_), bind_error_(other.bind_error_) {}
+    : stmt_(std::exchange(other.stmt_, nullptr)),
+      db_(other.db_),
+      cache_(other.cache_),
+      cached_sql_(other.cached_sql_),
+      bind_error_(other.bind_error_) {}
 Statement& Statement::operator=(Statement&& other) noexcept {
   if (this != &other) {
-    if (stmt_) sqlite3_finalize(stmt_);
+    Release();
     stmt_ = std::exchange(other.stmt_, nullptr);
     db_ = other.db_;
+    cache_ = other.cache_;
+    cached_sql_ = other.cached_sql_;
     bind_error_ = other.bind_error_;
   }
   return *this;
 }
-Statement::~Statement() {
-  if (stmt_) sqlite3_finalize(stmt_);
+Statement::~Statement() { Release(); }
+
+void Statement::Release() {
+  if (stmt_ == nullptr) return;
+  if (cache_ != nullptr && cached_sql_ != nullptr) {
+    // A reset statement holds no lock and no read transaction; its bindings
+    // (checkpoint blobs among them) are freed.
+    sqlite3_reset(stmt_);
+    sqlite3_clear_bindings(stmt_);
+    cache_->Give(*cached_sql_, stmt_);
+  } else {
+    sqlite3_finalize(stmt_);
+  }
+  stmt_ = nullptr;
 }
 
 Statement& Statement::Bind(int index, int64_t value) {

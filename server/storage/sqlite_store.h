@@ -138,6 +138,7 @@ class SqliteStore final : public Store {
   absl::StatusOr<SweepRecord> GetSweep(const std::string& name) override;
   absl::StatusOr<std::vector<SweepRecord>> ListSweeps() override;
   absl::StatusOr<JobRecord> GetJob(int64_t job_id) override;
+  absl::StatusOr<JobStatus> GetJobStatus(int64_t job_id) override;
   absl::StatusOr<std::vector<JobRecord>> ListJobs(const JobFilter& filter) override;
   absl::StatusOr<std::vector<AttemptRecord>> ListAttempts(int64_t job_id) override;
   absl::StatusOr<std::vector<EventRecord>> ListEvents(int64_t job_id) override;

@@ -378,6 +378,32 @@ absl::StatusOr<JobRecord> SqliteStore::GetJob(int64_t job_id) {
   return LoadJob(reader_, job_id);
 }
 
+absl::StatusOr<JobStatus> SqliteStore::GetJobStatus(int64_t job_id) {
+  absl::MutexLock lock(&read_mutex_);
+  ASSIGN_OR_RETURN(Statement query, Statement::Prepare(reader_, R"sql(
+SELECT j.kind, j.state, j.failures, j.lost_leases, s.max_attempts, s.max_lost_leases
+FROM jobs j JOIN sweeps s ON s.id = j.sweep_id WHERE j.id = ?)sql"));
+  query.Bind(1, job_id);
+  ASSIGN_OR_RETURN(bool row, query.Step());
+  if (!row) return absl::NotFoundError(absl::StrCat("no job with id ", job_id));
+  JobStatus status;
+  status.id = job_id;
+  const std::optional<JobKind> kind = ParseJobKind(query.ColumnText(0));
+  const std::optional<JobState> state = ParseJobState(query.ColumnText(1));
+  if (!kind || !state) {
+    return absl::DataLossError(absl::StrCat("job ", job_id, " has kind '", query.ColumnText(0),
+                                            "' and state '", query.ColumnText(1),
+                                            "': not values this build knows"));
+  }
+  status.kind = *kind;
+  status.state = *state;
+  status.failures = static_cast<int>(query.ColumnInt(2));
+  status.lost_leases = static_cast<int>(query.ColumnInt(3));
+  status.max_attempts = static_cast<int>(query.ColumnInt(4));
+  status.max_lost_leases = static_cast<int>(query.ColumnInt(5));
+  return status;
+}
+
 absl::StatusOr<std::vector<JobRecord>> SqliteStore::ListJobs(const JobFilter& filter) {
   absl::MutexLock lock(&read_mutex_);
   // The state filter is one bound parameter: a list ",queued,,running," that

@@ -43,6 +43,12 @@ class LeaseStore {
  public:
   virtual ~LeaseStore() = default;
 
+  // The fields of job `job_id` that the scheduler decides on, without its
+  // options, its episode count or its worker (GetJob reads and parses those:
+  // they were about half of the coordinator's CPU per job when heartbeats
+  // and completions read them; issue 28). NotFound if no such job.
+  virtual absl::StatusOr<JobStatus> GetJobStatus(int64_t job_id) = 0;
+
   // Opens attempt `key.attempt` of a queued job for `worker`: the job becomes
   // running with attempts = key.attempt. FailedPrecondition (nothing changed)
   // unless the job is queued with attempts == key.attempt - 1.

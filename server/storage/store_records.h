@@ -270,6 +270,18 @@ struct SweepRecord {
   bool finished() const { return jobs_queued == 0 && jobs_running == 0; }
 };
 
+// What a job's lease decisions read (Store::GetJobStatus): a subset of
+// JobRecord's fields, the same values.
+struct JobStatus {
+  int64_t id = 0;
+  JobKind kind = JobKind::kTrial;
+  JobState state = JobState::kQueued;
+  int failures = 0;
+  int lost_leases = 0;
+  int max_attempts = 0;      // the sweep's
+  int max_lost_leases = 0;   // the sweep's
+};
+
 struct JobRecord {
   int64_t id = 0;
   JobKind kind = JobKind::kTrial;

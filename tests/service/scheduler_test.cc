@@ -620,6 +620,35 @@ TEST_F(SchedulerTest, BadReportsAreRefusedWithTheFieldNamed) {
   EXPECT_EQ(Job(lease.key.job_id).episodes_stored, 0);
 }
 
+// Issue 28: a lease reads the first few candidates and scans further only
+// when none of them suits the worker: a worker without study_jobs behind
+// more queued studies than that first read still gets the trial after them.
+TEST_F(SchedulerTest, AWorkerWithoutStudiesFindsTheTrialBehindManyStudies) {
+  storage::NewSweep sweep = MakeSweep("studies-first", 1, 2);
+  ASSERT_EQ(sweep.jobs.size(), 1u);
+  const storage::NewJob trial = sweep.jobs.front();
+  sweep.jobs.clear();
+  for (int i = 0; i < 20; ++i) {
+    storage::NewJob study = ::totalgrad::testing::MakeStudyJob();
+    study.variant = absl::StrCat("study-", i);
+    sweep.jobs.push_back(study);
+  }
+  sweep.jobs.push_back(trial);
+  bool created = false;
+  TG_ASSERT_OK(scheduler_->SubmitSweep(sweep, &created).status());
+  const Lease lease = MustAcquire("w1");
+  EXPECT_EQ(lease.job.kind, storage::JobKind::kTrial);
+  EXPECT_EQ(lease.job.ordinal, 20);
+  EXPECT_TRUE(NothingToAcquire("w1")) << "a worker without study_jobs got a study";
+  storage::WorkerIdentity studies = MakeWorker("w2");
+  studies.study_jobs = true;
+  auto leased = scheduler_->TryAcquire(studies);
+  TG_ASSERT_OK(leased.status());
+  ASSERT_TRUE(leased->has_value());
+  EXPECT_EQ((*leased)->job.kind, storage::JobKind::kStudy);
+  EXPECT_EQ((*leased)->job.ordinal, 0);
+}
+
 // One Complete for every kind (job_kinds.h): a trial's verdict is the
 // worker's (a NaN cost is refused above), a study completes as a success with
 // no cost whatever the worker sent, and only a worker that runs studies gets

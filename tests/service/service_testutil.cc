@@ -160,6 +160,9 @@ absl::StatusOr<std::vector<storage::SweepRecord>> FaultyStore::ListSweeps() {
 absl::StatusOr<storage::JobRecord> FaultyStore::GetJob(int64_t job_id) {
   TG_FORWARD("GetJob", target_->GetJob(job_id));
 }
+absl::StatusOr<storage::JobStatus> FaultyStore::GetJobStatus(int64_t job_id) {
+  TG_FORWARD("GetJobStatus", target_->GetJobStatus(job_id));
+}
 absl::StatusOr<std::vector<storage::JobRecord>> FaultyStore::ListJobs(
     const storage::JobFilter& f) {
   TG_FORWARD("ListJobs", target_->ListJobs(f));

@@ -76,6 +76,7 @@ class FaultyStore final : public storage::Store {
   absl::StatusOr<storage::SweepRecord> GetSweep(const std::string& name) override;
   absl::StatusOr<std::vector<storage::SweepRecord>> ListSweeps() override;
   absl::StatusOr<storage::JobRecord> GetJob(int64_t job_id) override;
+  absl::StatusOr<storage::JobStatus> GetJobStatus(int64_t job_id) override;
   absl::StatusOr<std::vector<storage::JobRecord>> ListJobs(const storage::JobFilter& f) override;
   absl::StatusOr<std::vector<storage::AttemptRecord>> ListAttempts(int64_t job_id) override;
   absl::StatusOr<std::vector<storage::EventRecord>> ListEvents(int64_t job_id) override;

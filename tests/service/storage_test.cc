@@ -406,6 +406,43 @@ TEST_F(StorageTest, RetryOnlyFailedOrCancelledJobs) {
   EXPECT_EQ(store_->RetryJob(12345, kNow).code(), absl::StatusCode::kNotFound);
 }
 
+// Issue 28: the scheduler's light read of a job (GetJobStatus) gives the
+// same values as the whole record, through every state a lease passes.
+TEST_F(StorageTest, JobStatusIsTheJobRecordsDecisionFields) {
+  const auto expect_same = [&](int64_t job) {
+    TG_ASSERT_OK_AND_ASSIGN(JobRecord record, store_->GetJob(job));
+    TG_ASSERT_OK_AND_ASSIGN(JobStatus status, store_->GetJobStatus(job));
+    EXPECT_EQ(status.id, record.id);
+    EXPECT_EQ(status.kind, record.kind);
+    EXPECT_EQ(status.state, record.state);
+    EXPECT_EQ(status.failures, record.failures);
+    EXPECT_EQ(status.lost_leases, record.lost_leases);
+    EXPECT_EQ(status.max_attempts, record.max_attempts);
+    EXPECT_EQ(status.max_lost_leases, record.max_lost_leases);
+  };
+  const int64_t job = CreateAndLease("s", 1, 2);
+  expect_same(job);
+  AttemptEnd fail;
+  fail.key = {job, 1};
+  fail.worker_id = "w1";
+  fail.attempt_state = AttemptState::kFailed;
+  fail.job_state = JobState::kQueued;
+  fail.failures_delta = 1;
+  fail.lost_leases_delta = 2;
+  fail.error = "boom";
+  fail.now_ms = kNow;
+  TG_ASSERT_OK(store_->EndAttempt(fail));
+  expect_same(job);
+  TG_ASSERT_OK_AND_ASSIGN(JobStatus queued, store_->GetJobStatus(job));
+  EXPECT_EQ(queued.state, JobState::kQueued);
+  EXPECT_EQ(queued.failures, 1);
+  EXPECT_EQ(queued.lost_leases, 2);
+  EXPECT_GT(queued.max_attempts, 0);
+  TG_ASSERT_OK(store_->SetSweepState("s", SweepState::kCancelled, kNow));
+  expect_same(job);
+  EXPECT_EQ(store_->GetJobStatus(12345).status().code(), absl::StatusCode::kNotFound);
+}
+
 // Issue 12.7: trial checkpoints are fenced like episodes, the latest one of
 // each attempt is kept (a replayed older one does not replace it), and the
 // best of all attempts is what a new attempt resumes from.
