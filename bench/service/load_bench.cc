@@ -164,8 +164,12 @@ int main(int argc, char** argv) {
         acquire.mutable_worker()->set_slots(1);
         acquire.set_wait_ms(0);
         totalgrad::v1::AcquireLeaseResponse lease;
-        if (!stub->AcquireLease(Context().get(), acquire, &lease).ok()) {
-          ++errors;
+        if (const grpc::Status status = stub->AcquireLease(Context().get(), acquire, &lease);
+            !status.ok()) {
+          if (++errors <= 5) {
+            std::cerr << "AcquireLease: " << status.error_code() << " " << status.error_message()
+                      << "\n";
+          }
           continue;
         }
         if (!lease.granted()) {
