@@ -138,6 +138,56 @@ TG_VECTOR_CLONES double ScaledSquareSum(const double* factor, const double* rows
   return simd::CombineLanes(visit.lanes) + visit.tail;
 }
 
+// VisitDeviations for two factors over the same rows: each visitor sees the
+// same deviations in the same order as VisitDeviations gives it alone.
+template <typename VisitorA, typename VisitorB>
+__attribute__((always_inline)) inline void VisitDeviationPairs(
+    const double* factor_a, const double* factor_b, const double* rows, Eigen::Index p,
+    Eigen::Index n, const double* mean_a, const double* mean_b, VisitorA* visit_a,
+    VisitorB* visit_b) {
+  for (Eigen::Index i = 0; i < p; ++i) {
+    const double fa = factor_a[i], fb = factor_b[i];
+    const double* r = rows + i * n;
+    Eigen::Index j = 0;
+    for (; j + simd::kLanes <= n; j += simd::kLanes) {
+      const simd::Doubles x = simd::Load(r + j);
+      visit_a->Lanes(fa * x - simd::Load(mean_a + j));
+      visit_b->Lanes(fb * x - simd::Load(mean_b + j));
+    }
+    for (; j < n; ++j) {
+      visit_a->Tail(fa * r[j] - mean_a[j]);
+      visit_b->Tail(fb * r[j] - mean_b[j]);
+    }
+  }
+}
+
+double LargestLane(const MaxAbsDeviation& visit) {
+  double max = visit.tail;
+  for (int l = 0; l < simd::kLanes; ++l) max = std::max(max, visit.lanes[l]);
+  return max;
+}
+
+TG_VECTOR_CLONES void MaxDeviationPair(const double* factor_a, const double* factor_b,
+                                       const double* rows, Eigen::Index p, Eigen::Index n,
+                                       const double* mean_a, const double* mean_b, double* max_a,
+                                       double* max_b) {
+  MaxAbsDeviation visit_a, visit_b;
+  VisitDeviationPairs(factor_a, factor_b, rows, p, n, mean_a, mean_b, &visit_a, &visit_b);
+  *max_a = LargestLane(visit_a);
+  *max_b = LargestLane(visit_b);
+}
+
+TG_VECTOR_CLONES void ScaledSquareSumPair(const double* factor_a, const double* factor_b,
+                                          const double* rows, Eigen::Index p, Eigen::Index n,
+                                          const double* mean_a, const double* mean_b,
+                                          double inv_a, double inv_b, double* sum_a,
+                                          double* sum_b) {
+  ScaledSquares visit_a{inv_a}, visit_b{inv_b};
+  VisitDeviationPairs(factor_a, factor_b, rows, p, n, mean_a, mean_b, &visit_a, &visit_b);
+  *sum_a = simd::CombineLanes(visit_a.lanes) + visit_a.tail;
+  *sum_b = simd::CombineLanes(visit_b.lanes) + visit_b.tail;
+}
+
 }  // namespace
 
 TraceVariance ScaledRowTraceVariance(const Vector& factor, const RowMatrix& rows, Vector* mean) {
@@ -160,6 +210,52 @@ TraceVariance ScaledRowTraceVariance(const Vector& factor, const RowMatrix& rows
   v.normalized = ScaledSquareSum(factor.data(), rows.data(), p, n, mean->data(), 1.0 / v.scale) /
                  static_cast<double>(p - 1);
   return v;
+}
+
+void ScaledRowTraceVariances(const Vector& factor_a, const Vector& factor_b,
+                             const RowMatrix& rows, Vector* mean_a, Vector* mean_b,
+                             TraceVariance* a, TraceVariance* b) {
+  const Eigen::Index p = rows.rows(), n = rows.cols();
+  TG_CHECK(factor_a.size() == p && factor_b.size() == p);
+  // Where ScaledRowTraceVariance returns early for either branch, or either
+  // reaches its last pass alone, each is computed on its own: the shared
+  // passes below are only for the steps both take.
+  const bool rows_finite = rows.allFinite();
+  if (!rows_finite || !factor_a.allFinite() || !factor_b.allFinite() || p < 2) {
+    *a = ScaledRowTraceVariance(factor_a, rows, mean_a);
+    *b = ScaledRowTraceVariance(factor_b, rows, mean_b);
+    return;
+  }
+  *a = TraceVariance();
+  *b = TraceVariance();
+  // Column means, each summed over i in order, as ScaledRowTraceVariance.
+  mean_a->setZero(n);
+  mean_b->setZero(n);
+  for (Eigen::Index i = 0; i < p; ++i) {
+    mean_a->noalias() += factor_a(i) * rows.row(i).transpose();
+    mean_b->noalias() += factor_b(i) * rows.row(i).transpose();
+  }
+  *mean_a /= static_cast<double>(p);
+  *mean_b /= static_cast<double>(p);
+  MaxDeviationPair(factor_a.data(), factor_b.data(), rows.data(), p, n, mean_a->data(),
+                   mean_b->data(), &a->scale, &b->scale);
+  const bool spread_a = a->scale > 0, spread_b = b->scale > 0;
+  if (spread_a && spread_b) {
+    double sum_a = 0, sum_b = 0;
+    ScaledSquareSumPair(factor_a.data(), factor_b.data(), rows.data(), p, n, mean_a->data(),
+                        mean_b->data(), 1.0 / a->scale, 1.0 / b->scale, &sum_a, &sum_b);
+    a->normalized = sum_a / static_cast<double>(p - 1);
+    b->normalized = sum_b / static_cast<double>(p - 1);
+    return;
+  }
+  if (spread_a) {
+    a->normalized = ScaledSquareSum(factor_a.data(), rows.data(), p, n, mean_a->data(),
+                                    1.0 / a->scale) / static_cast<double>(p - 1);
+  }
+  if (spread_b) {
+    b->normalized = ScaledSquareSum(factor_b.data(), rows.data(), p, n, mean_b->data(),
+                                    1.0 / b->scale) / static_cast<double>(p - 1);
+  }
 }
 
 double CombinationWeight(const TraceVariance& rp, const TraceVariance& lr) {

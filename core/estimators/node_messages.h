@@ -62,6 +62,14 @@ TraceVariance RowTraceVariance(const RowMatrix& rows);
 // scratch (n entries, resized).
 TraceVariance ScaledRowTraceVariance(const Vector& factor, const RowMatrix& rows,
                                      Vector* mean);
+// Both of TP's branches at once: *a and *b are exactly (bit for bit)
+// ScaledRowTraceVariance(factor_a, rows, .) and (factor_b, rows, .), with
+// each pass over `rows` (P x n, read three times per branch) shared by the
+// two; the rows are the step's largest operand, so this halves the memory
+// traffic of the combination weight. `mean_a`, `mean_b` are scratch.
+void ScaledRowTraceVariances(const Vector& factor_a, const Vector& factor_b,
+                             const RowMatrix& rows, Vector* mean_a, Vector* mean_b,
+                             TraceVariance* a, TraceVariance* b);
 
 // Total propagation's weight on the jump (LR) estimate of one node,
 // k_LR = 1 / (1 + var_LR / var_RP), with its limits made explicit:

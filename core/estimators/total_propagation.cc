@@ -212,7 +212,7 @@ absl::Status BackwardPass(const Problem& problem, const Rollout& rollout,
   Vector local(p);
   RowMatrix pair_baseline, rp_cost, gamma_rp, resampled, x_rp, x_jump, x_bar, state_bar, log_weights, weights;
   RowMatrix dforce_dtheta, dforce_dx, rows_rp, rows_jump;
-  Vector f_rp, f_jump, baseline, row_mean;
+  Vector f_rp, f_jump, baseline, row_mean, row_mean_jump;
   const Vector ones = Vector::Ones(p);
   ZetaCotangent zeta_rp, zeta_jump;
   GaussianFit fit;
@@ -259,8 +259,9 @@ absl::Status BackwardPass(const Problem& problem, const Rollout& rollout,
       // variances and the combined rows.
       dforce_dtheta.setZero(p, n);
       policy.Backward(step.policy_cache, ones, &dforce_dx, &dforce_dtheta, nullptr);
-      const TraceVariance v_rp = ScaledRowTraceVariance(f_rp, dforce_dtheta, &row_mean);
-      const TraceVariance v_jump = ScaledRowTraceVariance(f_jump, dforce_dtheta, &row_mean);
+      TraceVariance v_rp, v_jump;
+      ScaledRowTraceVariances(f_rp, f_jump, dforce_dtheta, &row_mean, &row_mean_jump, &v_rp,
+                              &v_jump);
       const double k = CombinationWeight(v_rp, v_jump);
       result->k_lr[t] = k;
       result->var_pathwise[t] = v_rp;

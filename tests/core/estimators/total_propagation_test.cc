@@ -100,6 +100,57 @@ TEST(RowTraceVariance, SurvivesHugeRows) {
   EXPECT_TRUE(RowTraceVariance(small.topRows(1)).zero());
 }
 
+// Both branches' trace variances in shared passes are the single-branch
+// function's, bit for bit: vector lanes and tails (n = 23), scaled rows, one
+// branch constant (zero spread), a NaN in one factor, one particle, rows of
+// 1e200. A changed order of any sum or a dropped special case fails it.
+TEST(ScaledRowTraceVariances, AreEachBranchsOwnBitForBit) {
+  Rng rng(7, Stream::kParticleNoise);
+  const auto random = [&](Eigen::Index rows, Eigen::Index cols) {
+    RowMatrix m(rows, cols);
+    for (Eigen::Index i = 0; i < rows; ++i)
+      for (Eigen::Index j = 0; j < cols; ++j) m(i, j) = rng.Normal();
+    return m;
+  };
+  const auto expect_same = [](const TraceVariance& x, const TraceVariance& y) {
+    EXPECT_EQ(x.non_finite, y.non_finite);
+    EXPECT_TRUE(x.scale == y.scale || (std::isnan(x.scale) && std::isnan(y.scale)));
+    EXPECT_TRUE(x.normalized == y.normalized ||
+                (std::isnan(x.normalized) && std::isnan(y.normalized)));
+  };
+  const RowMatrix rows = random(37, 23);
+  const Vector fa = random(37, 1).col(0), fb = 3.0 * random(37, 1).col(0);
+  Vector constant = Vector::Zero(37);
+  Vector with_nan = fb;
+  with_nan(5) = kNaN;
+  const RowMatrix huge = 1e200 * rows;
+  struct Case {
+    const char* name;
+    const Vector* a;
+    const Vector* b;
+    const RowMatrix* m;
+  };
+  for (const Case& c : {Case{"random", &fa, &fb, &rows}, Case{"zero spread", &fa, &constant, &rows},
+                        Case{"zero spread first", &constant, &fb, &rows},
+                        Case{"nan", &fa, &with_nan, &rows}, Case{"huge", &fa, &fb, &huge}}) {
+    SCOPED_TRACE(c.name);
+    Vector scratch, scratch_a, scratch_b;
+    TraceVariance a, b;
+    ScaledRowTraceVariances(*c.a, *c.b, *c.m, &scratch_a, &scratch_b, &a, &b);
+    expect_same(a, ScaledRowTraceVariance(*c.a, *c.m, &scratch));
+    expect_same(b, ScaledRowTraceVariance(*c.b, *c.m, &scratch));
+    // The cases are what they say: a constant factor has no spread.
+    EXPECT_EQ(a.scale > 0, c.a != &constant);
+    EXPECT_EQ(b.scale > 0 || b.non_finite, c.b != &constant);
+  }
+  TraceVariance a, b;
+  Vector scratch, scratch_a, scratch_b;
+  const RowMatrix one = rows.topRows(1);
+  ScaledRowTraceVariances(fa.head(1), fb.head(1), one, &scratch_a, &scratch_b, &a, &b);
+  expect_same(a, ScaledRowTraceVariance(fa.head(1), one, &scratch));
+  EXPECT_TRUE(a.zero());
+}
+
 // TP with k_LR forced to 0 is RP, forced to 1 is LR: the same numbers, bit
 // for bit, from the same random numbers (RP's dedicated pass is the reference).
 TEST(TotalPropagation, ForcedWeightsReproduceRpAndLr) {
