@@ -1,4 +1,5 @@
-// The names of the store's enums (store.h), as stored in the database.
+// The names of the store's enums (store.h), as stored in the database, and
+// NewSweep's walk over its listed and generated jobs.
 #include "server/storage/store.h"
 
 #include "server/storage/job_kinds.h"
