@@ -104,6 +104,11 @@ struct MaxAbsDeviation {
     lanes = simd::Select(d > lanes, d, lanes);
   }
   __attribute__((always_inline)) void Tail(double d) { tail = std::max(tail, std::abs(d)); }
+  __attribute__((always_inline)) double Result() const {
+    double max = tail;
+    for (int l = 0; l < simd::kLanes; ++l) max = std::max(max, lanes[l]);
+    return max;
+  }
 };
 
 // sum over i, j of ((factor_i rows_ij - mean_j) * inv)^2: lanes over j, rows
@@ -120,22 +125,21 @@ struct ScaledSquares {
     const double scaled = d * inv;
     tail += scaled * scaled;
   }
+  __attribute__((always_inline)) double Result() const { return simd::CombineLanes(lanes) + tail; }
 };
 
 TG_VECTOR_CLONES double MaxDeviation(const double* factor, const double* rows, Eigen::Index p,
                                      Eigen::Index n, const double* mean) {
   MaxAbsDeviation visit;
   VisitDeviations(factor, rows, p, n, mean, &visit);
-  double max = visit.tail;
-  for (int l = 0; l < simd::kLanes; ++l) max = std::max(max, visit.lanes[l]);
-  return max;
+  return visit.Result();
 }
 
 TG_VECTOR_CLONES double ScaledSquareSum(const double* factor, const double* rows, Eigen::Index p,
                                         Eigen::Index n, const double* mean, double inv) {
   ScaledSquares visit{inv};
   VisitDeviations(factor, rows, p, n, mean, &visit);
-  return simd::CombineLanes(visit.lanes) + visit.tail;
+  return visit.Result();
 }
 
 // VisitDeviations for two factors over the same rows: each visitor sees the
@@ -161,20 +165,14 @@ __attribute__((always_inline)) inline void VisitDeviationPairs(
   }
 }
 
-double LargestLane(const MaxAbsDeviation& visit) {
-  double max = visit.tail;
-  for (int l = 0; l < simd::kLanes; ++l) max = std::max(max, visit.lanes[l]);
-  return max;
-}
-
 TG_VECTOR_CLONES void MaxDeviationPair(const double* factor_a, const double* factor_b,
                                        const double* rows, Eigen::Index p, Eigen::Index n,
                                        const double* mean_a, const double* mean_b, double* max_a,
                                        double* max_b) {
   MaxAbsDeviation visit_a, visit_b;
   VisitDeviationPairs(factor_a, factor_b, rows, p, n, mean_a, mean_b, &visit_a, &visit_b);
-  *max_a = LargestLane(visit_a);
-  *max_b = LargestLane(visit_b);
+  *max_a = visit_a.Result();
+  *max_b = visit_b.Result();
 }
 
 TG_VECTOR_CLONES void ScaledSquareSumPair(const double* factor_a, const double* factor_b,
@@ -184,8 +182,8 @@ TG_VECTOR_CLONES void ScaledSquareSumPair(const double* factor_a, const double* 
                                           double* sum_b) {
   ScaledSquares visit_a{inv_a}, visit_b{inv_b};
   VisitDeviationPairs(factor_a, factor_b, rows, p, n, mean_a, mean_b, &visit_a, &visit_b);
-  *sum_a = simd::CombineLanes(visit_a.lanes) + visit_a.tail;
-  *sum_b = simd::CombineLanes(visit_b.lanes) + visit_b.tail;
+  *sum_a = visit_a.Result();
+  *sum_b = visit_b.Result();
 }
 
 }  // namespace

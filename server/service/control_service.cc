@@ -82,11 +82,8 @@ grpc::Status ControlServiceImpl::SubmitSweep(grpc::ServerContext* context,
     preview.max_concurrent = sweep->max_concurrent;
     preview.source_name = sweep->source_name;
     preview.jobs_total = preview.jobs_queued = static_cast<int>(sweep->job_count());
-    const absl::Status counted = sweep->ForEachJob([&](const storage::NewJob& job) {
-      preview.episodes_expected += job.episodes_expected;
-      return absl::OkStatus();
-    });
-    if (!counted.ok()) return ToGrpcStatus(counted);
+    // Counted when the submission was checked: no third expansion of its jobs.
+    preview.episodes_expected = sweep->episodes_expected();
     ToProto(preview, response->mutable_sweep());
     response->set_created(false);
     return grpc::Status::OK;

@@ -18,6 +18,7 @@ class PreparedJobs : public storage::NewJobGenerator {
   explicit PreparedJobs(sweep::PreparedSweep prepared) : prepared_(std::move(prepared)) {}
 
   int64_t size() const override { return prepared_.jobs_total; }
+  int64_t episodes_expected() const override { return prepared_.episodes_expected; }
 
   absl::Status ForEach(
       const std::function<absl::Status(const storage::NewJob&)>& visit) const override {

@@ -10,6 +10,12 @@ int64_t NewSweep::job_count() const {
   return static_cast<int64_t>(jobs.size()) + (generated_jobs ? generated_jobs->size() : 0);
 }
 
+int64_t NewSweep::episodes_expected() const {
+  int64_t episodes = generated_jobs ? generated_jobs->episodes_expected() : 0;
+  for (const NewJob& job : jobs) episodes += job.episodes_expected;
+  return episodes;
+}
+
 absl::Status NewSweep::ForEachJob(const std::function<absl::Status(const NewJob&)>& visit) const {
   for (const NewJob& job : jobs) {
     if (absl::Status status = visit(job); !status.ok()) return status;

@@ -139,6 +139,7 @@ class NewJobGenerator {
  public:
   virtual ~NewJobGenerator() = default;
   virtual int64_t size() const = 0;
+  virtual int64_t episodes_expected() const = 0;  // summed over the jobs
   // Calls `visit` on each job in order; returns the first error (`visit`'s,
   // or one from making a job) and visits nothing after it.
   virtual absl::Status ForEach(const std::function<absl::Status(const NewJob&)>& visit) const = 0;
@@ -241,6 +242,7 @@ struct NewSweep {
   int64_t created_ms = 0;
 
   int64_t job_count() const;
+  int64_t episodes_expected() const;  // summed over every job
   // Calls `visit` on every job in ordinal order; the first error, `visit`'s
   // or the generator's, stops it and is returned.
   absl::Status ForEachJob(const std::function<absl::Status(const NewJob&)>& visit) const;
