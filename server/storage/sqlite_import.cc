@@ -269,9 +269,9 @@ absl::StatusOr<int> SqliteStore::GrowSweep(const NewSweep& grown, int64_t now_ms
     if (!found) return absl::NotFoundError(absl::StrCat("no sweep named '", grown.name, "'"));
     const int64_t sweep_id = sweep_query.ColumnInt(0);
     const std::string previous_hash = sweep_query.ColumnText(1);
-    ASSIGN_OR_RETURN(Statement exists, Statement::Prepare(db, R"sql(
-SELECT options_json FROM jobs
-WHERE sweep_id = ? AND kind = ? AND method = ? AND seed = ? AND variant = ?)sql"));
+    ASSIGN_OR_RETURN(Statement exists, Statement::Prepare(db, absl::StrCat(
+        "SELECT ", JobOptionsJsonSql(), R"sql( FROM jobs j
+WHERE j.sweep_id = ? AND j.kind = ? AND j.method = ? AND j.seed = ? AND j.variant = ?)sql")));
     ASSIGN_OR_RETURN(Statement last, Statement::Prepare(
         db, "SELECT COALESCE(MAX(ordinal), -1) FROM jobs WHERE sweep_id = ?"));
     last.Bind(1, sweep_id);

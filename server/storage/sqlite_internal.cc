@@ -49,6 +49,29 @@ OptionPairs OptionsFromJson(const std::string& text) {
   return options;
 }
 
+OptionPairs WithJobValues(const OptionPairs& shared, const OptionPairs& job_values) {
+  OptionPairs options = shared;
+  for (auto& [key, value] : options) {
+    for (const auto& [job_key, job_value] : job_values) {
+      if (job_key == key) value = job_value;
+    }
+  }
+  return options;
+}
+
+const char* JobOptionsJsonSql() {
+  // json_each walks the shared list in its order (b.key is the index); the
+  // ordered subquery keeps that order into json_group_array, and json()
+  // keeps each pair an array rather than its text.
+  return R"sql((CASE WHEN j.options_json = '' AND j.kind = 'trial' THEN
+  (SELECT json_group_array(json(pair)) FROM
+    (SELECT json_array(b.value ->> 0, COALESCE(o.value, b.value ->> 1)) AS pair
+     FROM json_each((SELECT s2.trial_options_json FROM sweeps s2 WHERE s2.id = j.sweep_id)) b
+     LEFT JOIN job_options o ON o.job_id = j.id AND o.key = b.value ->> 0
+     ORDER BY b.key))
+  ELSE j.options_json END))sql";
+}
+
 absl::Status AddEvent(Db& db, int64_t ms, int64_t sweep_id, int64_t job_id, int attempt,
                       absl::string_view kind, absl::string_view message) {
   ASSIGN_OR_RETURN(Statement insert,
@@ -114,7 +137,7 @@ const SqlView<JobRecord>& JobView() {
        {"method", "j.method"},
        {"seed", "j.seed"},
        {"variant", "j.variant"},
-       {"options", "j.options_json"},
+       {"options", JobOptionsJsonSql()},
        {"state", "j.state"},
        {"attempts", "j.attempts"},
        {"failures", "j.failures"},
@@ -408,12 +431,39 @@ absl::StatusOr<QueuedJobInserter> QueuedJobInserter::Prepare(Db& db, int64_t swe
 INSERT INTO jobs(sweep_id, ordinal, method, seed, variant, options_json, episodes_expected, state,
                  kind, payload)
 VALUES(?, ?, ?, ?, ?, ?, ?, 'queued', ?, ?))sql"));
-  return QueuedJobInserter(db, std::move(insert), sweep_id, first_ordinal);
+  ASSIGN_OR_RETURN(Statement shared, Statement::Prepare(
+      db, "SELECT trial_options_json FROM sweeps WHERE id = ? AND trial_options_json IS NOT NULL"));
+  shared.Bind(1, sweep_id);
+  ASSIGN_OR_RETURN(bool has_shared, shared.Step());
+  std::optional<OptionPairs> shared_options;
+  if (has_shared) shared_options = OptionsFromJson(shared.ColumnText(0));
+  return QueuedJobInserter(db, std::move(insert), sweep_id, first_ordinal,
+                           std::move(shared_options));
+}
+
+absl::StatusOr<std::string> QueuedJobInserter::StoredOptions(const NewJob& job) {
+  if (job.kind != JobKind::kTrial || job.options.empty()) return OptionsToJson(job.options);
+  if (!shared_options_) {
+    ASSIGN_OR_RETURN(Statement set, Statement::Prepare(
+        *db_, "UPDATE sweeps SET trial_options_json = ? WHERE id = ?"));
+    set.Bind(1, OptionsToJson(job.options)).Bind(2, sweep_id_);
+    RETURN_IF_ERROR(set.Run());
+    shared_options_ = job.options;
+  }
+  // Stored compactly only where the read (JobOptionsJsonSql) gives back
+  // exactly this list: the same keys in the same order, differing at most
+  // in the job's own keys.
+  if (WithJobValues(*shared_options_, JobOptionPairs(job.method, job.seed, job.variant)) ==
+      job.options) {
+    return std::string();
+  }
+  return OptionsToJson(job.options);
 }
 
 absl::Status QueuedJobInserter::Insert(const NewJob& job) {
+  ASSIGN_OR_RETURN(const std::string stored_options, StoredOptions(job));
   insert_.Bind(1, sweep_id_).Bind(2, next_ordinal_).Bind(3, job.method).Bind(4, job.seed);
-  insert_.Bind(5, job.variant).Bind(6, OptionsToJson(job.options));
+  insert_.Bind(5, job.variant).Bind(6, stored_options);
   insert_.Bind(7, EpisodesExpectedColumn(KindInfo(job.kind), job.episodes_expected));
   insert_.Bind(8, ToString(job.kind)).Bind(9, job.payload);
   RETURN_IF_ERROR(insert_.Run());

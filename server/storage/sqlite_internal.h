@@ -31,6 +31,16 @@ std::vector<double> DoublesFromJson(const std::string& text);
 std::string OptionsToJson(const OptionPairs& options);
 OptionPairs OptionsFromJson(const std::string& text);
 
+// A trial job's options from its sweep's shared list (sweeps.
+// trial_options_json): the shared pairs in their order, each key the job
+// has in job_options (JobOptionPairs) with the job's value.
+OptionPairs WithJobValues(const OptionPairs& shared, const OptionPairs& job_values);
+// An SQL expression for the whole options list ([[key, value], ...]) of the
+// job row aliased `j`: jobs.options_json, or for a trial job that stores ''
+// WithJobValues of its sweep's trial_options_json and its job_options rows,
+// computed in SQL (the view job_option_lists and every read of a job use it).
+const char* JobOptionsJsonSql();
+
 // The queries behind SqliteStore::ListClaimCandidates: the running sweeps
 // with their running counts (no parameter), then one sweep's first queued
 // jobs (parameters: sweep id, limit). Their plans read only the rows they
@@ -101,7 +111,9 @@ absl::Status InsertSweep(Db& db, const NewSweep& sweep, int64_t now_ms, bool* cr
 // Inserts queued jobs of sweep `sweep_id`, one per Insert call, with
 // ordinals first_ordinal, first_ordinal + 1, ..., each with its job_options
 // rows (sweep creation and growth), through one prepared statement; the
-// caller holds the write transaction and `db` outlives the inserter.
+// caller holds the write transaction and `db` outlives the inserter. A
+// trial job's options are stored once per sweep where they can be
+// (schema version 10, JobOptionsJsonSql).
 class QueuedJobInserter {
  public:
   static absl::StatusOr<QueuedJobInserter> Prepare(Db& db, int64_t sweep_id,
@@ -110,12 +122,19 @@ class QueuedJobInserter {
   int64_t inserted() const { return inserted_; }
 
  private:
-  QueuedJobInserter(Db& db, Statement insert, int64_t sweep_id, int64_t first_ordinal)
-      : db_(&db), insert_(std::move(insert)), sweep_id_(sweep_id), next_ordinal_(first_ordinal) {}
+  QueuedJobInserter(Db& db, Statement insert, int64_t sweep_id, int64_t first_ordinal,
+                    std::optional<OptionPairs> shared_options)
+      : db_(&db), insert_(std::move(insert)), sweep_id_(sweep_id), next_ordinal_(first_ordinal),
+        shared_options_(std::move(shared_options)) {}
+  // The options_json column for `job`: '' when its options are the sweep's
+  // shared ones with its own values (set from the first trial job if the
+  // sweep has none yet), else the whole list.
+  absl::StatusOr<std::string> StoredOptions(const NewJob& job);
   Db* db_;
   Statement insert_;
   int64_t sweep_id_;
   int64_t next_ordinal_;
+  std::optional<OptionPairs> shared_options_;  // sweeps.trial_options_json, once set
   int64_t inserted_ = 0;
 };
 

@@ -10,8 +10,6 @@
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
-#include "absl/strings/str_format.h"
-#include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
 #include "runtime/status_macros.h"
 #include "server/storage/sqlite_internal.h"
@@ -315,62 +313,16 @@ ALTER TABLE episodes ADD COLUMN ess_low_fraction REAL;
 ALTER TABLE episodes ADD COLUMN lr_share_json TEXT;
 )sql";
 
-// One row per stored episode of every sweep, under the names of `results
-// export -f csv` (version 9): the job's coordinates and outcome, the
-// episode's record, the worker's build, and `wall_seconds`, the old name of
-// optimisation_seconds, kept for one schema version. final_attempt is 1 for
-// the attempt that completed the job, as in the exports (until version 8 it
-// was also 1 for a running job's latest attempt).
-constexpr char kEpisodeRowsView[] = R"sql(
-CREATE VIEW episode_rows AS
-  SELECT s.name AS sweep, j.id AS job_id, e.attempt AS attempt,
-         (e.attempt = COALESCE(j.completed_attempt, 0)) AS final_attempt,
-         j.method AS method, j.seed AS seed, j.variant AS variant,
-         j.state AS job_state, j.success AS success, j.final_eval_cost AS final_eval_cost,
-         e.episode AS episode, e.real_cost AS real_cost, e.eval_cost_mean AS eval_cost_mean,
-         e.eval_cost_std AS eval_cost_std, e.predicted_cost AS predicted_cost,
-         e.optimisation_seconds AS optimisation_seconds, e.cpu_seconds AS cpu_seconds,
-         e.held_fraction AS held_fraction,
-         e.gradient_norm_first AS gradient_norm_first, e.gradient_norm_middle AS gradient_norm_middle,
-         e.gradient_norm_last AS gradient_norm_last, e.gradient_norm_mean AS gradient_norm_mean,
-         e.gradient_snr_first AS gradient_snr_first, e.gradient_snr_middle AS gradient_snr_middle,
-         e.gradient_snr_last AS gradient_snr_last, e.gradient_snr_mean AS gradient_snr_mean,
-         e.step_norm_first AS step_norm_first, e.step_norm_middle AS step_norm_middle,
-         e.step_norm_last AS step_norm_last, e.step_norm_mean AS step_norm_mean,
-         e.ess_min AS ess_min, e.ess_median AS ess_median, e.ess_low_fraction AS ess_low_fraction,
-         e.reported_ms AS reported_unix_ms, e.details_json AS details_json,
-         a.worker_build AS worker_build, e.optimisation_seconds AS wall_seconds
-  FROM episodes e JOIN jobs j ON j.id = e.job_id JOIN sweeps s ON s.id = j.sweep_id
-       JOIN attempts a ON a.job_id = e.job_id AND a.attempt = e.attempt;
+// Version 9 -> 10 (issue 28): a trial job's options are mostly its sweep's
+// protocol, the same ~55 pairs in every job (1.46 of the 2.05 KB a job took).
+// sweeps.trial_options_json keeps them once per sweep; a trial job whose
+// options are those with its own job_options values put in stores '' in
+// jobs.options_json (the store checks that when it inserts the job, and
+// stores the whole list otherwise). Rows stored before keep their lists.
+// The view job_option_lists gives every job's whole list either way.
+constexpr char kMigration10[] = R"sql(
+ALTER TABLE sweeps ADD COLUMN trial_options_json TEXT;
 )sql";
-
-// episode_rows' columns after the job's and before the episode's: where a
-// sweep's view puts the trial options.
-constexpr char kJobColumns[] =
-    "r.sweep, r.job_id, r.attempt, r.final_attempt, r.method, r.seed, r.variant, r.job_state, "
-    "r.success, r.final_eval_cost";
-constexpr char kEpisodeColumns[] =
-    "r.episode, r.real_cost, r.eval_cost_mean, r.eval_cost_std, r.predicted_cost, "
-    "r.optimisation_seconds, r.cpu_seconds, r.held_fraction, r.gradient_norm_first, "
-    "r.gradient_norm_middle, r.gradient_norm_last, r.gradient_norm_mean, r.gradient_snr_first, "
-    "r.gradient_snr_middle, r.gradient_snr_last, r.gradient_snr_mean, r.step_norm_first, "
-    "r.step_norm_middle, r.step_norm_last, r.step_norm_mean, r.ess_min, r.ess_median, "
-    "r.ess_low_fraction, r.reported_unix_ms, r.details_json, r.worker_build, r.wall_seconds";
-
-// A value's number, when its canonical text is one: integers (seeds,
-// counts) as INTEGER, finite others as REAL; otherwise neither is set.
-// The one typing rule of job_options.number and the views' protocol columns.
-struct TextNumber {
-  std::optional<int64_t> integer;
-  std::optional<double> real;
-};
-TextNumber ParseTextNumber(const std::string& text) {
-  int64_t integer;
-  double real;
-  if (absl::SimpleAtoi(text, &integer)) return {integer, std::nullopt};
-  if (absl::SimpleAtod(text, &real) && std::isfinite(real)) return {std::nullopt, real};
-  return {};
-}
 
 void BindNumber(Statement& statement, int index, const std::string& text) {
   const TextNumber number = ParseTextNumber(text);
@@ -394,29 +346,31 @@ std::vector<std::pair<std::string, std::string>> VariantPairs(const std::string&
   return pairs;
 }
 
-// An SQL identifier in double quotes (a sweep name is A-Z a-z 0-9 . _ -, so
-// it never contains a quote; doubling them keeps that true regardless).
-std::string QuoteIdentifier(const std::string& name) {
-  std::string quoted = "\"";
-  for (char c : name) {
-    if (c == '"') quoted += '"';
-    quoted += c;
-  }
-  return quoted + "\"";
-}
-
 }  // namespace
 
 const char* SchemaText() { return kSchema; }
+
+TextNumber ParseTextNumber(const std::string& text) {
+  int64_t integer;
+  double real;
+  if (absl::SimpleAtoi(text, &integer)) return {integer, std::nullopt};
+  if (absl::SimpleAtod(text, &real) && std::isfinite(real)) return {std::nullopt, real};
+  return {};
+}
+
+OptionPairs JobOptionPairs(const std::string& method, const std::string& seed,
+                           const std::string& variant) {
+  OptionPairs pairs = {{"method", method}, {"seed", seed}};
+  for (auto& pair : VariantPairs(variant)) pairs.push_back(std::move(pair));
+  return pairs;
+}
 
 absl::Status WriteJobOptions(Db& db, int64_t job_id, const std::string& method,
                              const std::string& seed, const std::string& variant) {
   ASSIGN_OR_RETURN(Statement insert,
                    Statement::Prepare(db, "INSERT OR REPLACE INTO job_options(job_id, key, value, "
                                           "number) VALUES(?, ?, ?, ?)"));
-  std::vector<std::pair<std::string, std::string>> pairs = {{"method", method}, {"seed", seed}};
-  for (auto& pair : VariantPairs(variant)) pairs.push_back(std::move(pair));
-  for (const auto& [key, value] : pairs) {
+  for (const auto& [key, value] : JobOptionPairs(method, seed, variant)) {
     insert.Bind(1, job_id).Bind(2, key).Bind(3, value);
     BindNumber(insert, 4, value);
     RETURN_IF_ERROR(insert.Run());
@@ -424,111 +378,6 @@ absl::Status WriteJobOptions(Db& db, int64_t job_id, const std::string& method,
   }
   return absl::OkStatus();
 }
-
-std::string SweepViewName(const std::string& sweep_name) { return "episodes/" + sweep_name; }
-
-// An option's text as an SQL literal of its type (ParseTextNumber, as
-// job_options.number types it): a number, or the text quoted.
-std::string OptionLiteral(const std::string& text) {
-  const TextNumber number = ParseTextNumber(text);
-  if (number.integer) return std::to_string(*number.integer);
-  if (number.real) return absl::StrFormat("%.17g", *number.real);
-  std::string quoted = "'";
-  for (char c : text) {
-    if (c == '\'') quoted += '\'';
-    quoted += c;
-  }
-  return quoted + "'";
-}
-
-absl::Status CreateSweepView(Db& db, int64_t sweep_id, const std::string& sweep_name) {
-  // The swept keys other than method and seed: typed per row from job_options.
-  ASSIGN_OR_RETURN(Statement keys, Statement::Prepare(db, R"sql(
-SELECT o.key FROM job_options o JOIN jobs j ON j.id = o.job_id
-WHERE j.sweep_id = ? AND o.key NOT IN ('method', 'seed')
-GROUP BY o.key ORDER BY MIN(j.ordinal), o.key)sql"));
-  keys.Bind(1, sweep_id);
-  std::vector<std::string> swept;
-  for (;;) {
-    ASSIGN_OR_RETURN(bool row, keys.Step());
-    if (!row) break;
-    swept.push_back(keys.ColumnText(0));
-  }
-  // Every other option is the sweep's protocol, the same in every trial job
-  // (SqliteStore::GrowSweep refuses jobs that would differ): a constant
-  // column from the first trial job. A key that job lacks (added to the
-  // options after it ran) is left out.
-  ASSIGN_OR_RETURN(Statement first, Statement::Prepare(db, R"sql(
-SELECT options_json FROM jobs WHERE sweep_id = ? AND kind = 'trial' ORDER BY ordinal LIMIT 1)sql"));
-  first.Bind(1, sweep_id);
-  ASSIGN_OR_RETURN(bool has_trial, first.Step());
-  const OptionPairs options = has_trial ? OptionsFromJson(first.ColumnText(0)) : OptionPairs();
-  std::vector<std::string> columns;
-  const auto swept_column = [](const std::string& key) {
-    // Keys are trial option names ([a-z_0-9]): safe as identifiers; the
-    // value is bound per row by the subquery, never built from data.
-    return absl::StrCat("(SELECT COALESCE(o.number, o.value) FROM job_options o WHERE "
-                        "o.job_id = r.job_id AND o.key = '", key, "') AS ", QuoteIdentifier(key));
-  };
-  std::vector<std::string> placed;
-  for (const auto& [key, value] : options) {
-    if (key == "method" || key == "seed") continue;
-    const bool is_swept = std::find(swept.begin(), swept.end(), key) != swept.end();
-    columns.push_back(is_swept ? swept_column(key)
-                               : absl::StrCat(OptionLiteral(value), " AS ", QuoteIdentifier(key)));
-    placed.push_back(key);
-  }
-  for (const std::string& key : swept) {
-    if (std::find(placed.begin(), placed.end(), key) == placed.end()) columns.push_back(swept_column(key));
-  }
-  const std::string select = absl::StrCat(
-      "SELECT ", kJobColumns, columns.empty() ? "" : ", ", absl::StrJoin(columns, ", "), ", ",
-      kEpisodeColumns, " FROM episode_rows r WHERE r.sweep = (SELECT name FROM sweeps WHERE id = ",
-      sweep_id, ")");
-  const std::string view = QuoteIdentifier(SweepViewName(sweep_name));
-  RETURN_IF_ERROR(db.Exec(absl::StrCat("DROP VIEW IF EXISTS ", view)));
-  return db.Exec(absl::StrCat("CREATE VIEW ", view, " AS ", select));
-}
-
-absl::Status DropSweepView(Db& db, const std::string& sweep_name) {
-  return db.Exec(
-      absl::StrCat("DROP VIEW IF EXISTS ", QuoteIdentifier(SweepViewName(sweep_name))));
-}
-
-namespace {
-
-// Drops every sweep's view ("episodes/<name>") and episode_rows.
-absl::Status DropViews(Db& db) {
-  std::vector<std::string> views;
-  {
-    ASSIGN_OR_RETURN(Statement list, Statement::Prepare(
-        db, "SELECT name FROM sqlite_schema WHERE type = 'view' AND name LIKE 'episodes/%'"));
-    for (;;) {
-      ASSIGN_OR_RETURN(bool row, list.Step());
-      if (!row) break;
-      views.push_back(list.ColumnText(0));
-    }
-  }
-  for (const std::string& view : views)
-    RETURN_IF_ERROR(db.Exec(absl::StrCat("DROP VIEW ", QuoteIdentifier(view))));
-  return db.Exec("DROP VIEW IF EXISTS episode_rows");
-}
-
-// Drops the views and creates them again (after a column of theirs was
-// added, or the tables they read were rebuilt).
-absl::Status RecreateViews(Db& db) {
-  RETURN_IF_ERROR(DropViews(db));
-  RETURN_IF_ERROR(db.Exec(kEpisodeRowsView));
-  ASSIGN_OR_RETURN(Statement sweeps, Statement::Prepare(db, "SELECT id, name FROM sweeps"));
-  for (;;) {
-    ASSIGN_OR_RETURN(bool row, sweeps.Step());
-    if (!row) break;
-    RETURN_IF_ERROR(CreateSweepView(db, sweeps.ColumnInt(0), sweeps.ColumnText(1)));
-  }
-  return absl::OkStatus();
-}
-
-}  // namespace
 
 absl::Status Migrate(Db& db, int64_t from) {
   if (from < 2) RETURN_IF_ERROR(db.Exec(kMigration2));
@@ -575,9 +424,11 @@ absl::Status Migrate(Db& db, int64_t from) {
   if (from < 6) RETURN_IF_ERROR(db.Exec(kMigration6));
   if (from < 7) RETURN_IF_ERROR(db.Exec(kMigration7));
   if (from < 8) RETURN_IF_ERROR(db.Exec(kMigration8));
-  // Version 9 changes only the views (every option and the export's names):
+  if (from < 10) RETURN_IF_ERROR(db.Exec(kMigration10));
+  // Version 9 changed only the views (every option and the export's names),
+  // version 10 adds job_option_lists and drops the views' wall_seconds:
   // they are created again from the tables of the latest version.
-  if (from < 9) RETURN_IF_ERROR(RecreateViews(db));
+  if (from < 10) RETURN_IF_ERROR(RecreateViews(db));
   RETURN_IF_ERROR(db.Exec(absl::StrCat(
       "INSERT OR REPLACE INTO meta(key, value) VALUES ('format', 'totalgrad coordinator database'), "
       "('schema_version', '", kSchemaVersion, "'), ('documentation', 'docs/results_schema.md')")));

@@ -52,8 +52,9 @@ def main():
     args = parser.parse_args()
 
     db = sqlite3.connect(f"file:{args.db}?mode=ro", uri=True)
-    jobs = db.execute("SELECT id, seed, state, completed_attempt, episodes_expected, options_json, "
-                      "lost_leases FROM jobs ORDER BY id").fetchall()
+    jobs = db.execute("SELECT j.id, j.seed, j.state, j.completed_attempt, j.episodes_expected, "
+                      "l.options_json, j.lost_leases FROM jobs j "
+                      "JOIN job_option_lists l ON l.job_id = j.id ORDER BY j.id").fetchall()
     rows = read_jsonl(args.rows)
     all_rows = read_jsonl(args.all_rows)
     print(f"{len(jobs)} jobs, {len(rows)} result rows, {len(all_rows)} rows of all attempts")

@@ -11,12 +11,15 @@
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
 #include "server/storage/sqlite_db.h"
+#include "server/storage/sqlite_internal.h"
 
 namespace totalgrad::testing {
 
 // Drops every view (they read the columns; Migrate recreates them) and the
 // columns that schema versions after `version` added (version 7: the rollout
-// verdict and attempt origins; version 8: the optimisation diagnostics).
+// verdict and attempt origins; version 8: the optimisation diagnostics;
+// version 10: a sweep's shared trial options, each job's whole list written
+// back first, as an older coordinator stored it).
 inline absl::Status DropColumnsAddedAfter(storage::internal::Db& db, int version) {
   std::vector<std::string> views;
   {
@@ -52,6 +55,10 @@ inline absl::Status DropColumnsAddedAfter(storage::internal::Db& db, int version
       {8, "ALTER TABLE episodes DROP COLUMN ess_median"},
       {8, "ALTER TABLE episodes DROP COLUMN ess_low_fraction"},
       {8, "ALTER TABLE episodes DROP COLUMN lr_share_json"},
+      {10, absl::StrCat("UPDATE jobs AS j SET options_json = ",
+                        storage::internal::JobOptionsJsonSql(),
+                        " WHERE j.options_json = '' AND j.kind = 'trial'")},
+      {10, "ALTER TABLE sweeps DROP COLUMN trial_options_json"},
   };
   for (const auto& [since, sql] : added) {
     if (since <= version) continue;

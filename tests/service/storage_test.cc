@@ -1181,6 +1181,103 @@ TEST_F(StorageTest, StudyCompletionNamesMissingRowsAndRowsOfTheWrongKindAreRefus
 // Schema 4 (issue 15): the file answers questions without the coordinator. The
 // view "episodes/<sweep>" has one typed column per swept key, numbers as
 // numbers (seeds as integers), and each episode's CPU seconds.
+// A sweep of `methods` x `seeds` trial jobs, variant "noise_k=K", whose
+// options are a protocol of `protocol_keys` shared options plus the job's
+// method, seed and noise_k, in the order a sweep expands them.
+NewSweep SweepWithAProtocol(const std::string& name, const std::vector<std::string>& methods,
+                            int seeds, int protocol_keys) {
+  NewSweep sweep = MakeSweep(name, 0, 3);
+  for (int seed = 1; seed <= seeds; ++seed) {
+    for (const std::string& method : methods) {
+      NewJob job;
+      job.method = method;
+      job.seed = absl::StrCat(seed);
+      job.variant = seed % 2 ? "noise_k=1" : "noise_k=0.01";
+      job.options = {{"method", method}, {"seed", job.seed}};
+      for (int k = 0; k < protocol_keys; ++k) {
+        job.options.emplace_back(absl::StrCat("option_", k), absl::StrCat("value \"", k, "\""));
+      }
+      job.options.emplace_back("noise_k", seed % 2 ? "1" : "0.01");
+      job.episodes_expected = 3;
+      sweep.jobs.push_back(job);
+    }
+  }
+  return sweep;
+}
+
+// Schema 10: a trial job's options are its sweep's shared list with its own
+// swept values; the store keeps the list once per sweep and every read of a
+// job, the view job_option_lists and a grown sweep give each job's whole list.
+TEST_F(StorageTest, TrialJobsStoreTheirSweepsSharedOptionsOnceAndReadThemWhole) {
+  NewSweep sweep = SweepWithAProtocol("shared", {"RP", "TP", "GTP+sn"}, 4, 40);
+  // A job whose options differ outside its swept keys is stored whole.
+  sweep.jobs[5].options[7].second = "not the protocol's";
+  bool created = false;
+  TG_ASSERT_OK(store_->CreateSweep(sweep, kNow, &created).status());
+  TG_ASSERT_OK_AND_ASSIGN(std::vector<JobRecord> jobs, store_->ListJobs({"shared", {}, 0, 100}));
+  ASSERT_EQ(jobs.size(), sweep.jobs.size());
+  for (size_t i = 0; i < jobs.size(); ++i) {
+    EXPECT_EQ(jobs[i].options, sweep.jobs[i].options) << "job " << i;
+    TG_ASSERT_OK_AND_ASSIGN(JobRecord one, store_->GetJob(jobs[i].id));
+    EXPECT_EQ(one.options, sweep.jobs[i].options) << "job " << i;
+  }
+  auto db = internal::Db::OpenReadOnly(path_, 1000);
+  ASSERT_TRUE(db.ok()) << db.status();
+  TG_ASSERT_OK_AND_ASSIGN(internal::Statement stored, internal::Statement::Prepare(*db, R"sql(
+SELECT j.ordinal, j.options_json, l.options_json FROM jobs j
+JOIN job_option_lists l ON l.job_id = j.id ORDER BY j.ordinal)sql"));
+  for (size_t i = 0; i < jobs.size(); ++i) {
+    TG_ASSERT_OK_AND_ASSIGN(bool row, stored.Step());
+    ASSERT_TRUE(row);
+    EXPECT_EQ(stored.ColumnText(1).empty(), i != 5) << "job " << i << ": " << stored.ColumnText(1);
+    EXPECT_EQ(internal::OptionsFromJson(stored.ColumnText(2)), sweep.jobs[i].options) << "job " << i;
+  }
+  // Growing the sweep compares each existing job's whole list: the same
+  // spec grown by a seed adds its jobs, compactly again.
+  NewSweep bigger = SweepWithAProtocol("shared", {"RP", "TP", "GTP+sn"}, 5, 40);
+  bigger.jobs[5].options[7].second = "not the protocol's";
+  bigger.spec_hash = "hash-2";
+  TG_ASSERT_OK_AND_ASSIGN(int added, store_->GrowSweep(bigger, kNow));
+  EXPECT_EQ(added, 3);
+  TG_ASSERT_OK_AND_ASSIGN(jobs, store_->ListJobs({"shared", {}, 0, 100}));
+  ASSERT_EQ(jobs.size(), bigger.jobs.size());
+  for (size_t i = 0; i < jobs.size(); ++i) EXPECT_EQ(jobs[i].options, bigger.jobs[i].options);
+  // A grown job whose protocol differs from the stored one is refused.
+  NewSweep changed = SweepWithAProtocol("shared", {"RP", "TP", "GTP+sn"}, 5, 40);
+  changed.jobs[0].options[9].second = "another value";
+  changed.spec_hash = "hash-3";
+  EXPECT_EQ(store_->GrowSweep(changed, kNow).status().code(),
+            absl::StatusCode::kFailedPrecondition);
+}
+
+// What the shared list saves: 2,000 jobs with a protocol of 55 options took
+// about 2.1 KB each in the file (schema 9: every job held the whole list).
+TEST_F(StorageTest, AJobsRowDoesNotHoldItsSweepsProtocol) {
+  NewSweep sweep = SweepWithAProtocol("bytes", {"PILCO", "RP", "TP", "GTP"}, 500, 55);
+  for (NewJob& job : sweep.jobs) {
+    for (auto& [key, value] : job.options) {
+      if (key.rfind("option_", 0) == 0) value = "1e-08";  // ~ a real option's length
+    }
+  }
+  bool created = false;
+  TG_ASSERT_OK(store_->CreateSweep(sweep, kNow, &created).status());
+  auto db = internal::Db::OpenReadOnly(path_, 1000);
+  ASSERT_TRUE(db.ok()) << db.status();
+  TG_ASSERT_OK_AND_ASSIGN(internal::Statement bytes, internal::Statement::Prepare(*db, R"sql(
+SELECT SUM(LENGTH(options_json)), COUNT(*) FROM jobs)sql"));
+  TG_ASSERT_OK_AND_ASSIGN(bool row, bytes.Step());
+  ASSERT_TRUE(row);
+  EXPECT_EQ(bytes.ColumnInt(1), 2000);
+  EXPECT_EQ(bytes.ColumnInt(0), 0);  // schema 9: about 1.4 KB a job
+  TG_ASSERT_OK_AND_ASSIGN(internal::Statement pages, internal::Statement::Prepare(
+      *db, "SELECT page_count * page_size FROM pragma_page_count(), pragma_page_size()"));
+  TG_ASSERT_OK_AND_ASSIGN(row, pages.Step());
+  ASSERT_TRUE(row);
+  // The whole file, WAL checkpointed or not: the jobs, their job_options and indexes.
+  const int64_t file_bytes = pages.ColumnInt(0);
+  EXPECT_LT(file_bytes / 2000, 400) << file_bytes << " bytes for 2,000 jobs";
+}
+
 TEST_F(StorageTest, SweepViewHasOneTypedColumnPerSweptKey) {
   NewSweep sweep = MakeSweep("typed", 2, 3);
   sweep.jobs[0].variant = "cost=tip noise_k=0.01";
@@ -1204,7 +1301,7 @@ TEST_F(StorageTest, SweepViewHasOneTypedColumnPerSweptKey) {
   TG_ASSERT_OK_AND_ASSIGN(internal::Statement query, internal::Statement::Prepare(*db, R"sql(
 SELECT method, seed, typeof(seed), cost, typeof(cost), noise_k, typeof(noise_k), cpu_seconds,
        final_attempt, worker_build, particles, typeof(particles), scene, epsilon, typeof(epsilon),
-       optimisation_seconds, wall_seconds, variant FROM "episodes/typed")sql"));
+       optimisation_seconds, variant FROM "episodes/typed")sql"));
   TG_ASSERT_OK_AND_ASSIGN(bool row, query.Step());
   ASSERT_TRUE(row);
   EXPECT_EQ(query.ColumnText(0), "RP");
@@ -1222,8 +1319,8 @@ SELECT method, seed, typeof(seed), cost, typeof(cost), noise_k, typeof(noise_k),
   EXPECT_EQ(query.ColumnText(12), "cart'pole");  // quoted as a literal
   EXPECT_EQ(query.ColumnDouble(13), 1e-08);
   EXPECT_EQ(query.ColumnText(14), "real");
-  EXPECT_EQ(query.ColumnDouble(15), query.ColumnDouble(16));  // wall_seconds: the old name
-  EXPECT_EQ(query.ColumnText(17), "cost=tip noise_k=0.01");
+  EXPECT_EQ(query.ColumnDouble(15), MakeEpisode(0).optimisation_seconds);
+  EXPECT_EQ(query.ColumnText(16), "cost=tip noise_k=0.01");
   TG_ASSERT_OK_AND_ASSIGN(bool more, query.Step());
   EXPECT_FALSE(more);
   TG_ASSERT_OK_AND_ASSIGN(internal::Statement meta, internal::Statement::Prepare(
