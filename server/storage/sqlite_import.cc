@@ -269,9 +269,10 @@ absl::StatusOr<int> SqliteStore::GrowSweep(const NewSweep& grown, int64_t now_ms
     if (!found) return absl::NotFoundError(absl::StrCat("no sweep named '", grown.name, "'"));
     const int64_t sweep_id = sweep_query.ColumnInt(0);
     const std::string previous_hash = sweep_query.ColumnText(1);
-    ASSIGN_OR_RETURN(Statement exists, Statement::Prepare(db, absl::StrCat(
-        "SELECT ", JobOptionsJsonSql(), R"sql( FROM jobs j
-WHERE j.sweep_id = ? AND j.kind = ? AND j.method = ? AND j.seed = ? AND j.variant = ?)sql")));
+    ASSIGN_OR_RETURN(Statement exists, Statement::Prepare(db, R"sql(
+SELECT j.options_json, j.seed, s.trial_options_json FROM jobs j JOIN sweeps s ON s.id = j.sweep_id
+WHERE j.sweep_id = ? AND j.kind = ? AND j.method = ? AND j.seed = ? AND j.variant = ?)sql"));
+    SharedOptionsCache shared_options;
     ASSIGN_OR_RETURN(Statement last, Statement::Prepare(
         db, "SELECT COALESCE(MAX(ordinal), -1) FROM jobs WHERE sweep_id = ?"));
     last.Bind(1, sweep_id);
@@ -286,13 +287,20 @@ WHERE j.sweep_id = ? AND j.kind = ? AND j.method = ? AND j.seed = ? AND j.varian
       exists.Bind(1, sweep_id).Bind(2, ToString(job.kind)).Bind(3, job.method);
       exists.Bind(4, job.seed).Bind(5, job.variant);
       ASSIGN_OR_RETURN(bool present, exists.Step());
-      const std::string stored_options = present ? exists.ColumnText(0) : std::string();
+      if (!present) {
+        exists.Reset();
+        return inserter.Insert(job);
+      }
+      std::optional<std::string> shared;
+      if (!exists.ColumnIsNull(2)) shared = exists.ColumnText(2);
+      const OptionPairs stored_options =
+          StoredJobOptions(exists.ColumnText(0), job.kind, job.method, exists.ColumnText(1),
+                           job.variant, shared, &shared_options);
       exists.Reset();
-      if (!present) return inserter.Insert(job);
       // The stored job must be the job this build would run: a default
       // that changed between builds (e.g. a scene's own horizon) would
       // otherwise give the new jobs another computation than the old.
-      return SameStoredOptions(grown.name, job, OptionsFromJson(stored_options));
+      return SameStoredOptions(grown.name, job, stored_options);
     }));
     added = static_cast<int>(inserter.inserted());
     ASSIGN_OR_RETURN(Statement update, Statement::Prepare(db, R"sql(

@@ -8,6 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "runtime/status_macros.h"
@@ -57,6 +58,19 @@ OptionPairs WithJobValues(const OptionPairs& shared, const OptionPairs& job_valu
     }
   }
   return options;
+}
+
+OptionPairs StoredJobOptions(const std::string& stored, JobKind kind, const std::string& method,
+                             const std::string& seed, const std::string& variant,
+                             const std::optional<std::string>& shared, SharedOptionsCache* cache) {
+  if (!stored.empty() || kind != JobKind::kTrial || !shared) return OptionsFromJson(stored);
+  SharedOptionsCache local;
+  if (cache == nullptr) cache = &local;
+  if (cache->text != *shared || cache->options.empty()) {
+    cache->text = *shared;
+    cache->options = OptionsFromJson(*shared);
+  }
+  return WithJobValues(cache->options, JobOptionPairs(method, seed, variant));
 }
 
 const char* JobOptionsJsonSql() {
@@ -137,7 +151,7 @@ const SqlView<JobRecord>& JobView() {
        {"method", "j.method"},
        {"seed", "j.seed"},
        {"variant", "j.variant"},
-       {"options", JobOptionsJsonSql()},
+       {"options", "j.options_json"},  // '' for most trial jobs: ReadJobRow
        {"state", "j.state"},
        {"attempts", "j.attempts"},
        {"failures", "j.failures"},
@@ -210,15 +224,23 @@ absl::StatusOr<SweepRecord> LoadSweep(Db& db, const std::string& name) {
 }
 
 
+// After the view's columns: the sweep's shared trial options (StoredJobOptions).
 const std::string& JobSelectSql() {
-  static const std::string sql = absl::StrCat("SELECT ", JobView().select_list,
-                                              " FROM jobs j JOIN sweeps s ON s.id = j.sweep_id");
+  static const std::string sql =
+      absl::StrCat("SELECT ", JobView().select_list,
+                   ", s.trial_options_json FROM jobs j JOIN sweeps s ON s.id = j.sweep_id");
   return sql;
 }
 
-JobRecord ReadJobRow(const Statement& row) {
+JobRecord ReadJobRow(const Statement& row, SharedOptionsCache* cache) {
   JobRecord job;
-  ReadRecord(row, 0, JobView().fields, &job);
+  const int shared_column = ReadRecord(row, 0, JobView().fields, &job);
+  if (job.options.empty()) {
+    std::optional<std::string> shared;
+    if (!row.ColumnIsNull(shared_column)) shared = row.ColumnText(shared_column);
+    job.options = StoredJobOptions(std::string(), job.kind, job.method, job.seed, job.variant,
+                                   shared, cache);
+  }
   job.episodes_expected =
       static_cast<int>(ExpectedEpisodes(KindInfo(job.kind), job.episodes_expected));
   return job;
@@ -450,14 +472,19 @@ absl::StatusOr<std::string> QueuedJobInserter::StoredOptions(const NewJob& job) 
     RETURN_IF_ERROR(set.Run());
     shared_options_ = job.options;
   }
-  // Stored compactly only where the read (JobOptionsJsonSql) gives back
-  // exactly this list: the same keys in the same order, differing at most
-  // in the job's own keys.
-  if (WithJobValues(*shared_options_, JobOptionPairs(job.method, job.seed, job.variant)) ==
-      job.options) {
-    return std::string();
-  }
-  return OptionsToJson(job.options);
+  // Stored compactly only where both reads give back exactly this list: the
+  // same keys in the same order, differing at most in the job's own keys.
+  // StoredJobOptions takes the seed as the INTEGER column reads back,
+  // JobOptionsJsonSql the job_options value (the text as submitted).
+  int64_t seed = 0;
+  if (!absl::SimpleAtoi(job.seed, &seed)) return OptionsToJson(job.options);
+  const bool from_columns =
+      WithJobValues(*shared_options_, JobOptionPairs(job.method, std::to_string(seed),
+                                                     job.variant)) == job.options;
+  const bool from_job_options =
+      WithJobValues(*shared_options_, JobOptionPairs(job.method, job.seed, job.variant)) ==
+      job.options;
+  return from_columns && from_job_options ? std::string() : OptionsToJson(job.options);
 }
 
 absl::Status QueuedJobInserter::Insert(const NewJob& job) {

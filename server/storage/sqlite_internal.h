@@ -35,10 +35,24 @@ OptionPairs OptionsFromJson(const std::string& text);
 // trial_options_json): the shared pairs in their order, each key the job
 // has in job_options (JobOptionPairs) with the job's value.
 OptionPairs WithJobValues(const OptionPairs& shared, const OptionPairs& job_values);
-// An SQL expression for the whole options list ([[key, value], ...]) of the
-// job row aliased `j`: jobs.options_json, or for a trial job that stores ''
-// WithJobValues of its sweep's trial_options_json and its job_options rows,
-// computed in SQL (the view job_option_lists and every read of a job use it).
+
+// The last shared list parsed, so that reading many jobs of a sweep parses
+// it once. Keyed by the list's text, never by a sweep id (a deleted sweep's
+// id can be taken again).
+struct SharedOptionsCache {
+  std::string text;
+  OptionPairs options;
+};
+// A job's whole option list from its row: `stored` (jobs.options_json) as
+// it is, or for a trial job that stores '' (schema 10) WithJobValues of its
+// sweep's `shared` list and its own method, seed and variant.
+OptionPairs StoredJobOptions(const std::string& stored, JobKind kind, const std::string& method,
+                             const std::string& seed, const std::string& variant,
+                             const std::optional<std::string>& shared, SharedOptionsCache* cache);
+// The same in SQL, for the job row aliased `j` (the view job_option_lists,
+// the per-sweep views' protocol columns): WithJobValues of the sweep's list
+// and the job's job_options rows. QueuedJobInserter stores '' only where
+// both give back the job's list.
 const char* JobOptionsJsonSql();
 
 // The queries behind SqliteStore::ListClaimCandidates: the running sweeps
@@ -69,9 +83,10 @@ absl::StatusOr<SweepRecord> ReadSweepRow(Db& db, const Statement& row);
 absl::StatusOr<SweepRecord> LoadSweep(Db& db, const std::string& name);
 
 // "SELECT <a job's values> FROM jobs j JOIN sweeps s ON s.id = j.sweep_id"
-// (append WHERE / ORDER BY); ReadJobRow reads its rows.
+// (append WHERE / ORDER BY); ReadJobRow reads its rows (`cache`: for many
+// rows of one query; may be null).
 const std::string& JobSelectSql();
-JobRecord ReadJobRow(const Statement& row);
+JobRecord ReadJobRow(const Statement& row, SharedOptionsCache* cache = nullptr);
 absl::StatusOr<JobRecord> LoadJob(Db& db, int64_t job_id);
 
 struct OpenAttempt {

@@ -416,10 +416,11 @@ ORDER BY j.id LIMIT ?)sql")));
   query.Bind(1, filter.sweep_name).Bind(2, filter.sweep_name).Bind(3, states).Bind(4, states);
   query.Bind(5, filter.after_job_id).Bind(6, filter.limit);
   std::vector<JobRecord> jobs;
+  internal::SharedOptionsCache shared_options;
   while (true) {
     ASSIGN_OR_RETURN(bool row, query.Step());
     if (!row) break;
-    jobs.push_back(ReadJobRow(query));
+    jobs.push_back(ReadJobRow(query, &shared_options));
   }
   if (jobs.empty() && !filter.sweep_name.empty()) {
     ASSIGN_OR_RETURN(Statement check,
