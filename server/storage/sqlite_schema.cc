@@ -320,8 +320,38 @@ ALTER TABLE episodes ADD COLUMN lr_share_json TEXT;
 // jobs.options_json (the store checks that when it inserts the job, and
 // stores the whole list otherwise). Rows stored before keep their lists.
 // The view job_option_lists gives every job's whole list either way.
+// sweeps is rebuilt with its numbers and short texts first and the texts
+// that grow with a spec last: SQLite reads a column by walking the row, so a
+// lease's read of a sweep's budgets (max_attempts after canonical_spec and
+// source_text) walked every overflow page of a spec that lists 100,000
+// seeds: half of a heartbeat's instructions at 100,000 queued. The caller
+// runs this with foreign_keys OFF (jobs refer to sweeps) and the views
+// dropped (they read sweeps); Migrate checks the keys after.
 constexpr char kMigration10[] = R"sql(
-ALTER TABLE sweeps ADD COLUMN trial_options_json TEXT;
+CREATE TABLE sweeps_v10(
+  id INTEGER PRIMARY KEY,
+  name TEXT NOT NULL UNIQUE,
+  state TEXT NOT NULL CHECK(state IN ('running', 'paused', 'cancelled')),
+  max_attempts INTEGER NOT NULL CHECK(max_attempts >= 1),
+  max_lost_leases INTEGER NOT NULL CHECK(max_lost_leases >= 1),
+  max_concurrent INTEGER NOT NULL CHECK(max_concurrent >= 0),
+  created_ms INTEGER NOT NULL,
+  spec_hash TEXT NOT NULL,
+  coordinator_build TEXT NOT NULL,
+  source_name TEXT NOT NULL DEFAULT '',
+  description TEXT NOT NULL DEFAULT '',
+  trial_options_json TEXT,
+  canonical_spec TEXT NOT NULL,
+  source_text TEXT NOT NULL DEFAULT ''
+);
+INSERT INTO sweeps_v10(id, name, state, max_attempts, max_lost_leases, max_concurrent, created_ms,
+                       spec_hash, coordinator_build, source_name, description, trial_options_json,
+                       canonical_spec, source_text)
+  SELECT id, name, state, max_attempts, max_lost_leases, max_concurrent, created_ms, spec_hash,
+         coordinator_build, source_name, description, NULL, canonical_spec, source_text
+  FROM sweeps;
+DROP TABLE sweeps;
+ALTER TABLE sweeps_v10 RENAME TO sweeps;
 )sql";
 
 void BindNumber(Statement& statement, int index, const std::string& text) {
@@ -424,7 +454,17 @@ absl::Status Migrate(Db& db, int64_t from) {
   if (from < 6) RETURN_IF_ERROR(db.Exec(kMigration6));
   if (from < 7) RETURN_IF_ERROR(db.Exec(kMigration7));
   if (from < 8) RETURN_IF_ERROR(db.Exec(kMigration8));
-  if (from < 10) RETURN_IF_ERROR(db.Exec(kMigration10));
+  if (from < 10) {
+    RETURN_IF_ERROR(DropViews(db));
+    RETURN_IF_ERROR(db.Exec(kMigration10));
+    ASSIGN_OR_RETURN(Statement keys, Statement::Prepare(db, "PRAGMA foreign_key_check"));
+    ASSIGN_OR_RETURN(bool violation, keys.Step());
+    if (violation) {
+      return absl::DataLossError(absl::StrCat(
+          "after rebuilding sweeps, table ", keys.ColumnText(0), " row ", keys.ColumnInt(1),
+          " refers to a missing row of ", keys.ColumnText(2)));
+    }
+  }
   // Version 9 changed only the views (every option and the export's names),
   // version 10 adds job_option_lists and drops the views' wall_seconds:
   // they are created again from the tables of the latest version.

@@ -11,6 +11,7 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <map>
 #include <fstream>
 #include <thread>
 
@@ -1248,6 +1249,33 @@ JOIN job_option_lists l ON l.job_id = j.id ORDER BY j.ordinal)sql"));
   changed.spec_hash = "hash-3";
   EXPECT_EQ(store_->GrowSweep(changed, kNow).status().code(),
             absl::StatusCode::kFailedPrecondition);
+}
+
+// SQLite reads a column by walking the row: a sweep's budgets, which every
+// heartbeat and completion reads, come before the texts that grow with its
+// spec, or each read walks the spec's overflow pages (schema 10; at 100,000
+// queued jobs of one explicit seed list that was half of a heartbeat).
+TEST_F(StorageTest, ASweepsBudgetsComeBeforeItsSpecTexts) {
+  auto db = internal::Db::OpenReadOnly(path_, 1000);
+  ASSERT_TRUE(db.ok()) << db.status();
+  TG_ASSERT_OK_AND_ASSIGN(internal::Statement columns, internal::Statement::Prepare(
+      *db, "SELECT name, cid FROM pragma_table_info('sweeps')"));
+  std::map<std::string, int64_t> position;
+  for (;;) {
+    TG_ASSERT_OK_AND_ASSIGN(bool row, columns.Step());
+    if (!row) break;
+    position[columns.ColumnText(0)] = columns.ColumnInt(1);
+  }
+  for (const char* text : {"canonical_spec", "source_text", "description", "trial_options_json"}) {
+    ASSERT_EQ(position.count(text), 1u) << text;
+    for (const char* small : {"state", "max_attempts", "max_lost_leases", "max_concurrent"}) {
+      ASSERT_EQ(position.count(small), 1u) << small;
+      EXPECT_LT(position[small], position[text]) << small << " after " << text;
+    }
+  }
+  // The shared options, read with every job, before the spec's two texts.
+  EXPECT_LT(position["trial_options_json"], position["canonical_spec"]);
+  EXPECT_LT(position["trial_options_json"], position["source_text"]);
 }
 
 // What the shared list saves: 2,000 jobs with a protocol of 55 options took
