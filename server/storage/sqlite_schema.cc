@@ -376,6 +376,17 @@ std::vector<std::pair<std::string, std::string>> VariantPairs(const std::string&
   return pairs;
 }
 
+// A rebuilt table runs with foreign_keys OFF (Migrate's caller): DataLoss
+// naming the first row that refers to a missing one, if any.
+absl::Status CheckKeysAfterRebuilding(Db& db, absl::string_view table) {
+  ASSIGN_OR_RETURN(Statement keys, Statement::Prepare(db, "PRAGMA foreign_key_check"));
+  ASSIGN_OR_RETURN(bool violation, keys.Step());
+  if (!violation) return absl::OkStatus();
+  return absl::DataLossError(absl::StrCat("after rebuilding ", table, ", table ",
+                                          keys.ColumnText(0), " row ", keys.ColumnInt(1),
+                                          " refers to a missing row of ", keys.ColumnText(2)));
+}
+
 }  // namespace
 
 const char* SchemaText() { return kSchema; }
@@ -443,13 +454,7 @@ absl::Status Migrate(Db& db, int64_t from) {
     RETURN_IF_ERROR(db.Exec(kMigration5));
     // The views are created again after the last migration (RecreateViews),
     // with the columns of the latest version.
-    ASSIGN_OR_RETURN(Statement keys, Statement::Prepare(db, "PRAGMA foreign_key_check"));
-    ASSIGN_OR_RETURN(bool violation, keys.Step());
-    if (violation) {
-      return absl::DataLossError(absl::StrCat(
-          "after rebuilding jobs, table ", keys.ColumnText(0), " row ", keys.ColumnInt(1),
-          " refers to a missing row of ", keys.ColumnText(2)));
-    }
+    RETURN_IF_ERROR(CheckKeysAfterRebuilding(db, "jobs"));
   }
   if (from < 6) RETURN_IF_ERROR(db.Exec(kMigration6));
   if (from < 7) RETURN_IF_ERROR(db.Exec(kMigration7));
@@ -457,13 +462,7 @@ absl::Status Migrate(Db& db, int64_t from) {
   if (from < 10) {
     RETURN_IF_ERROR(DropViews(db));
     RETURN_IF_ERROR(db.Exec(kMigration10));
-    ASSIGN_OR_RETURN(Statement keys, Statement::Prepare(db, "PRAGMA foreign_key_check"));
-    ASSIGN_OR_RETURN(bool violation, keys.Step());
-    if (violation) {
-      return absl::DataLossError(absl::StrCat(
-          "after rebuilding sweeps, table ", keys.ColumnText(0), " row ", keys.ColumnInt(1),
-          " refers to a missing row of ", keys.ColumnText(2)));
-    }
+    RETURN_IF_ERROR(CheckKeysAfterRebuilding(db, "sweeps"));
   }
   // Version 9 changed only the views (every option and the export's names),
   // version 10 adds job_option_lists and drops the views' wall_seconds:
