@@ -58,38 +58,33 @@ constexpr char kEpisodeColumns[] =
     "r.step_norm_middle, r.step_norm_last, r.step_norm_mean, r.ess_min, r.ess_median, "
     "r.ess_low_fraction, r.reported_unix_ms, r.details_json, r.worker_build";
 
-// An SQL identifier in double quotes (a sweep name is A-Z a-z 0-9 . _ -, so
-// it never contains a quote; doubling them keeps that true regardless).
-std::string QuoteIdentifier(const std::string& name) {
-  std::string quoted = "\"";
-  for (char c : name) {
-    if (c == '"') quoted += '"';
+// `text` between two `quote`s, each `quote` inside doubled: SQL's quoting
+// of identifiers ('"') and string literals ('\'').
+std::string Quoted(const std::string& text, char quote) {
+  std::string quoted(1, quote);
+  for (char c : text) {
+    if (c == quote) quoted += quote;
     quoted += c;
   }
-  return quoted + "\"";
+  return quoted + quote;
+}
+
+// An SQL identifier in double quotes (a sweep name is A-Z a-z 0-9 . _ -, so
+// it never contains a quote; doubling them keeps that true regardless).
+std::string QuoteIdentifier(const std::string& name) { return Quoted(name, '"'); }
+
+// An option's text as an SQL literal of its type (ParseTextNumber, as
+// job_options.number types it): a number, or the text quoted.
+std::string OptionLiteral(const std::string& text) {
+  const TextNumber number = ParseTextNumber(text);
+  if (number.integer) return std::to_string(*number.integer);
+  if (number.real) return absl::StrFormat("%.17g", *number.real);
+  return Quoted(text, '\'');
 }
 
 }  // namespace
 
 std::string SweepViewName(const std::string& sweep_name) { return "episodes/" + sweep_name; }
-
-// An option's text as an SQL literal of its type (ParseTextNumber, as
-// job_options.number types it): a number, or the text quoted.
-namespace {
-
-std::string OptionLiteral(const std::string& text) {
-  const TextNumber number = ParseTextNumber(text);
-  if (number.integer) return std::to_string(*number.integer);
-  if (number.real) return absl::StrFormat("%.17g", *number.real);
-  std::string quoted = "'";
-  for (char c : text) {
-    if (c == '\'') quoted += '\'';
-    quoted += c;
-  }
-  return quoted + "'";
-}
-
-}  // namespace
 
 absl::Status CreateSweepView(Db& db, int64_t sweep_id, const std::string& sweep_name) {
   // The swept keys other than method and seed: typed per row from job_options.
