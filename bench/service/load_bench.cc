@@ -138,6 +138,7 @@ int main(int argc, char** argv) {
   absl::Mutex cpu_mutex;
   double workers_cpu_seconds = 0;
   const double cpu_before = ProcessCpuSeconds();
+  const totalgrad::storage::WriteCounts writes_before = (*coordinator)->store()->write_counts();
   const auto start = std::chrono::steady_clock::now();
   const auto deadline = start + std::chrono::duration<double>(max_seconds);
   std::vector<std::thread> threads;
@@ -209,6 +210,10 @@ int main(int argc, char** argv) {
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   const double coordinator_cpu_seconds = ProcessCpuSeconds() - cpu_before - workers_cpu_seconds;
+  // Group commit: how many writes each fsynced transaction carried.
+  const totalgrad::storage::WriteCounts writes_after = (*coordinator)->store()->write_counts();
+  const int64_t writes = writes_after.writes - writes_before.writes;
+  const int64_t commits = writes_after.commits - writes_before.commits;
 
   // Every row stored once: export and count distinct (job, episode).
   totalgrad::v1::ExportEpisodesRequest export_request;
@@ -240,6 +245,8 @@ int main(int argc, char** argv) {
             << ", \"lease_complete_per_second\": " << jobs_done / seconds
             << ", \"coordinator_cpu_seconds\": " << coordinator_cpu_seconds
             << ", \"coordinator_cpu_ms_per_job\": " << 1000 * coordinator_cpu_seconds / std::max<int64_t>(jobs_done, 1)
+            << ", \"writes\": " << writes << ", \"commits\": " << commits
+            << ", \"writes_per_commit\": " << static_cast<double>(writes) / std::max<int64_t>(commits, 1)
             << ", \"resident_mb_after_submit\": " << resident_after_submit_mb
             << ", \"settle_seconds\": " << settle_seconds
             << ", \"resident_mb_after_settle\": " << resident_after_settle_mb

@@ -62,22 +62,16 @@ absl::StatusOr<int> Scheduler::Recover() {
   return extended;
 }
 
-absl::Status Scheduler::MaybeTouchWorker(const WorkerIdentity& worker, int64_t now_ms) {
-  auto it = last_touch_ms_.find(worker.worker_id);
-  if (it != last_touch_ms_.end() &&
+bool Scheduler::TouchDueLocked(const std::string& worker_id, int64_t now_ms) {
+  auto [it, inserted] = last_touch_ms_.try_emplace(worker_id, now_ms);
+  if (!inserted &&
       now_ms - it->second < absl::ToInt64Milliseconds(options_.worker_touch_interval)) {
-    return absl::OkStatus();
+    return false;
   }
-  RETURN_IF_ERROR(store_->TouchWorker(worker, now_ms));
-  last_touch_ms_[worker.worker_id] = now_ms;
-  return absl::OkStatus();
+  it->second = now_ms;
+  return true;
 }
 
-absl::StatusOr<std::optional<Lease>> Scheduler::TryAcquire(const WorkerIdentity& worker) {
-  RETURN_IF_ERROR(ValidateWorkerIdentity(worker));
-  absl::MutexLock lock(&decision_mutex_);
-  return TryAcquireLocked(worker);
-}
 
 absl::Status Scheduler::CheckInstanceLocked(const WorkerIdentity& worker) {
   if (worker.instance.empty()) return absl::OkStatus();  // an older worker: cannot tell
@@ -127,63 +121,72 @@ absl::StatusOr<std::optional<storage::CheckpointRecord>> Scheduler::ResumePoint(
 }
 
 namespace {
-// Candidates read first per lease request (TryAcquireLocked).
+// Candidates read first per lease request (TryAcquire).
 constexpr int kFirstClaimScan = 8;
 }  // namespace
 
-absl::StatusOr<std::optional<Lease>> Scheduler::TryAcquireLocked(const WorkerIdentity& worker) {
-  RETURN_IF_ERROR(CheckInstanceLocked(worker));
+absl::StatusOr<bool> Scheduler::StaysDrainedLocked(const WorkerIdentity& worker) {
+  absl::StatusOr<storage::WorkerRecord> record = store_->GetWorker(worker.worker_id);
+  if (absl::IsNotFound(record.status())) return false;  // never seen: never drained
+  if (!record.ok()) return record.status();
+  if (!record->draining) return false;
+  // Workers that send no instance (older builds) stay drained.
+  if (worker.instance.empty()) return true;
+  const auto drained = drained_instance_.find(worker.worker_id);
+  if (drained != drained_instance_.end() && drained->second.empty()) {
+    drained->second = worker.instance;  // drained before it was heard from
+  }
+  if (drained != drained_instance_.end() && drained->second == worker.instance) return true;
+  // A new process under a drained id: the drain was its predecessor's.
+  RETURN_IF_ERROR(store_->SetWorkerDraining(worker.worker_id, false, clock_->NowMs()));
+  if (drained != drained_instance_.end()) drained_instance_.erase(drained);
+  return false;
+}
+
+absl::StatusOr<std::optional<Lease>> Scheduler::TryAcquire(const WorkerIdentity& worker) {
+  RETURN_IF_ERROR(ValidateWorkerIdentity(worker));
   const int64_t now = clock_->NowMs();
-  // A worker asking for work is alive: always record it (not throttled), so
-  // `worker list` shows idle workers too.
-  RETURN_IF_ERROR(store_->TouchWorker(worker, now));
-  last_touch_ms_[worker.worker_id] = now;
-  ASSIGN_OR_RETURN(storage::WorkerRecord record, store_->GetWorker(worker.worker_id));
-  if (record.draining) {
-    // Workers that send no instance (older builds) stay drained.
-    if (worker.instance.empty()) return std::optional<Lease>();
-    const auto drained = drained_instance_.find(worker.worker_id);
-    if (drained != drained_instance_.end() && drained->second.empty()) {
-      drained->second = worker.instance;  // drained before it was heard from
-    }
-    if (drained != drained_instance_.end() && drained->second == worker.instance) {
-      return std::optional<Lease>();
-    }
-    // A new process under a drained id: the drain was its predecessor's.
-    RETURN_IF_ERROR(store_->SetWorkerDraining(worker.worker_id, false, now));
-    if (drained != drained_instance_.end()) drained_instance_.erase(drained);
+  bool drained = false;
+  {
+    // What is decided in memory: the worker's process and its drain.
+    absl::MutexLock lock(&decision_mutex_);
+    RETURN_IF_ERROR(CheckInstanceLocked(worker));
+    ASSIGN_OR_RETURN(drained, StaysDrainedLocked(worker));
+    last_touch_ms_[worker.worker_id] = now;
   }
-  // The first candidate the worker takes is leased, and it is almost always
-  // the first listed: a few are read, and the whole scan only when none of
-  // those suits the worker (each candidate read cost about half of a
-  // lease's CPU; issue 28). The same candidate either way.
-  const int first_scan = std::min(options_.claim_scan_limit, kFirstClaimScan);
-  ASSIGN_OR_RETURN(std::vector<storage::ClaimCandidate> candidates,
-                   store_->ListClaimCandidates(first_scan));
-  const auto suits = [&](const storage::ClaimCandidate& candidate) {
-    // A worker that did not say it runs studies (an older build) gets trials only.
-    return candidate.kind != storage::JobKind::kStudy || worker.study_jobs;
+  // A worker asking for work is alive: it is always recorded (not
+  // throttled), so `worker list` shows idle workers too.
+  if (drained) {
+    RETURN_IF_ERROR(store_->TouchWorker(worker, now));
+    return std::optional<Lease>();
+  }
+  // Which job is the store's decision, inside the lease's own transaction:
+  // leases run beside each other, heartbeats and completions, and share
+  // their commits (group commit, sqlite_write_queue.cc). A few candidates
+  // are read, and the whole scan only when none of those suits the worker
+  // (each candidate read cost about half of a lease's CPU; issue 28).
+  storage::ClaimRequest request;
+  request.worker = worker;
+  // A worker that did not say it runs studies (an older build) gets trials only.
+  request.suits = [study_jobs = worker.study_jobs](const storage::ClaimCandidate& candidate) {
+    return candidate.kind != storage::JobKind::kStudy || study_jobs;
   };
-  if (static_cast<int>(candidates.size()) == first_scan && first_scan < options_.claim_scan_limit &&
-      std::none_of(candidates.begin(), candidates.end(), suits)) {
-    ASSIGN_OR_RETURN(candidates, store_->ListClaimCandidates(options_.claim_scan_limit));
+  request.scan_limit = options_.claim_scan_limit;
+  request.first_scan = std::min(options_.claim_scan_limit, kFirstClaimScan);
+  request.now_ms = now;
+  request.lease_expires_ms = LeaseExpiryFrom(LeaseNowMs());
+  ASSIGN_OR_RETURN(std::optional<LeaseKey> key, store_->ClaimJob(request));
+  if (!key.has_value()) return std::optional<Lease>();
+  ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(key->job_id));
+  Lease lease;
+  if (storage::KindInfo(job.kind).checkpoints && key->attempt > 1) {
+    ASSIGN_OR_RETURN(lease.resume_from, ResumePoint(job.id, worker.build));
   }
-  for (const storage::ClaimCandidate& candidate : candidates) {
-    if (!suits(candidate)) continue;
-    const LeaseKey key{candidate.job_id, candidate.attempts + 1};
-    RETURN_IF_ERROR(store_->StartAttempt(key, worker, now, LeaseExpiryFrom(LeaseNowMs())));
-    ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(candidate.job_id));
-    Lease lease;
-    if (storage::KindInfo(job.kind).checkpoints && key.attempt > 1) {
-      ASSIGN_OR_RETURN(lease.resume_from, ResumePoint(job.id, worker.build));
-    }
-    lease.job = std::move(job);
-    lease.key = key;
-    lease.heartbeat_interval_ms = absl::ToInt64Milliseconds(options_.heartbeat_interval);
-    lease.lease_timeout_ms = absl::ToInt64Milliseconds(options_.lease_timeout);
-    return std::optional<Lease>(std::move(lease));
-  }
-  return std::optional<Lease>();
+  lease.job = std::move(job);
+  lease.key = *key;
+  lease.heartbeat_interval_ms = absl::ToInt64Milliseconds(options_.heartbeat_interval);
+  lease.lease_timeout_ms = absl::ToInt64Milliseconds(options_.lease_timeout);
+  return std::optional<Lease>(std::move(lease));
 }
 
 absl::StatusOr<std::optional<Lease>> Scheduler::Acquire(const WorkerIdentity& worker,
@@ -237,7 +240,11 @@ absl::StatusOr<HeartbeatResult> Scheduler::Heartbeat(
     const std::optional<storage::Checkpoint>& checkpoint) {
   RETURN_IF_ERROR(ValidateResults(results));
   RETURN_IF_ERROR(ValidateCheckpoint(checkpoint));
-  absl::MutexLock lock(&decision_mutex_);
+  // Heartbeats decide nothing, so they do not take decision_mutex_: each
+  // store call is fenced inside its own transaction (the attempt must be
+  // open and this worker's), which lets the beats of many workers share
+  // commits (group commit, sqlite_write_queue.cc). The lease expiry re-checks
+  // in its transaction that a lease it ends was not extended meanwhile.
   const int64_t now = clock_->NowMs();
   HeartbeatResult result;
   const int64_t lease_expires = LeaseExpiryFrom(LeaseNowMs());
@@ -247,12 +254,21 @@ absl::StatusOr<HeartbeatResult> Scheduler::Heartbeat(
   if (checkpoint) RETURN_IF_ERROR(store_->StoreCheckpoint(key, worker_id, *checkpoint, now));
   ASSIGN_OR_RETURN(storage::JobStatus job, store_->GetJobStatus(key.job_id));
   auto worker = store_->GetWorker(worker_id);
-  if (worker.ok()) {
-    RETURN_IF_ERROR(MaybeTouchWorker(worker->identity, now));
+  bool touch = false;
+  {
+    absl::MutexLock lock(&decision_mutex_);
+    if (worker.ok()) touch = TouchDueLocked(worker_id, now);
+    // A beat shows the id's current process is alive (only it holds leases).
+    if (auto known = instances_.find(worker_id); known != instances_.end()) {
+      known->second.last_heard_monotonic_ms = clock_->MonotonicMs();
+    }
   }
-  // A beat shows the id's current process is alive (only it holds leases).
-  if (auto known = instances_.find(worker_id); known != instances_.end()) {
-    known->second.last_heard_monotonic_ms = clock_->MonotonicMs();
+  if (touch) {
+    if (absl::Status touched = store_->TouchWorker(worker->identity, now); !touched.ok()) {
+      absl::MutexLock lock(&decision_mutex_);
+      last_touch_ms_.erase(worker_id);  // not written: the next beat tries again
+      return touched;
+    }
   }
   if (job.state == JobState::kCancelled) {
     result.directive = Directive::kCancel;
@@ -262,52 +278,58 @@ absl::StatusOr<HeartbeatResult> Scheduler::Heartbeat(
   return result;
 }
 
-absl::StatusOr<EndOutcome> Scheduler::EndLocked(AttemptEnd end, LeaseBudget budget) {
-  ASSIGN_OR_RETURN(storage::JobStatus job, store_->GetJobStatus(end.key.job_id));
-  const bool cancelled = job.state == JobState::kCancelled;
-  switch (end.attempt_state) {
-    case AttemptState::kCompleted:
-      // A trial that finishes after its job was cancelled keeps its episodes
-      // (the attempt is recorded as completed) but the cancel stands: only
-      // the user takes a job out of cancelled (resuming its sweep).
-      end.job_state = cancelled ? JobState::kCancelled : JobState::kCompleted;
-      break;
-    case AttemptState::kFailed:
-      end.failures_delta = 1;
-      if (cancelled) {
-        end.job_state = JobState::kCancelled;
-      } else if (job.failures + 1 >= job.max_attempts) {
-        end.job_state = JobState::kFailed;
-      } else {
-        end.job_state = JobState::kQueued;
-      }
-      break;
-    case AttemptState::kLeaseLost:
-    case AttemptState::kReleased:
-    case AttemptState::kCancelled:
-      if (cancelled) {
-        end.attempt_state = end.attempt_state == AttemptState::kLeaseLost
-                                ? AttemptState::kLeaseLost
-                                : AttemptState::kCancelled;
-        end.job_state = JobState::kCancelled;
+absl::StatusOr<EndOutcome> Scheduler::End(AttemptEnd end, LeaseBudget budget) {
+  // Decided inside the end's own transaction, on the job as it is there (not
+  // under decision_mutex_): ends run beside leases and heartbeats and share
+  // their commits, and a cancel or another end that commits first is seen.
+  end.decide = [budget](const storage::JobStatus& job, AttemptEnd* end) -> absl::Status {
+    const bool cancelled = job.state == JobState::kCancelled;
+    switch (end->attempt_state) {
+      case AttemptState::kCompleted:
+        // A trial that finishes after its job was cancelled keeps its episodes
+        // (the attempt is recorded as completed) but the cancel stands: only
+        // the user takes a job out of cancelled (resuming its sweep).
+        end->job_state = cancelled ? JobState::kCancelled : JobState::kCompleted;
         break;
-      }
-      if (budget == LeaseBudget::kFree) {
-        end.job_state = JobState::kQueued;
+      case AttemptState::kFailed:
+        end->failures_delta = 1;
+        if (cancelled) {
+          end->job_state = JobState::kCancelled;
+        } else if (job.failures + 1 >= job.max_attempts) {
+          end->job_state = JobState::kFailed;
+        } else {
+          end->job_state = JobState::kQueued;
+        }
         break;
-      }
-      end.lost_leases_delta = 1;
-      if (job.lost_leases + 1 >= job.max_lost_leases) {
-        end.job_state = JobState::kFailed;
-        end.error = absl::StrCat("gave up after ", job.lost_leases + 1,
-                                 " lost or released leases (max_lost_leases); last: ", end.error);
-      } else {
-        end.job_state = JobState::kQueued;
-      }
-      break;
-    case AttemptState::kRunning:
-      return absl::InvalidArgumentError("an attempt cannot end as running");
-  }
+      case AttemptState::kLeaseLost:
+      case AttemptState::kReleased:
+      case AttemptState::kCancelled:
+        if (cancelled) {
+          end->attempt_state = end->attempt_state == AttemptState::kLeaseLost
+                                   ? AttemptState::kLeaseLost
+                                   : AttemptState::kCancelled;
+          end->job_state = JobState::kCancelled;
+          break;
+        }
+        if (budget == LeaseBudget::kFree) {
+          end->job_state = JobState::kQueued;
+          break;
+        }
+        end->lost_leases_delta = 1;
+        if (job.lost_leases + 1 >= job.max_lost_leases) {
+          end->job_state = JobState::kFailed;
+          end->error = absl::StrCat("gave up after ", job.lost_leases + 1,
+                                    " lost or released leases (max_lost_leases); last: ",
+                                    end->error);
+        } else {
+          end->job_state = JobState::kQueued;
+        }
+        break;
+      case AttemptState::kRunning:
+        return absl::InvalidArgumentError("an attempt cannot end as running");
+    }
+    return absl::OkStatus();
+  };
   end.now_ms = clock_->NowMs();
   ASSIGN_OR_RETURN(EndOutcome outcome, store_->EndAttempt(end));
   if (outcome == EndOutcome::kApplied) NotifyWork();
@@ -326,7 +348,6 @@ absl::Status Scheduler::Complete(const std::string& worker_id, const LeaseKey& k
           storage::kMaxRowsPerTable));
     }
   }
-  absl::MutexLock lock(&decision_mutex_);
   AttemptEnd end;
   end.key = key;
   end.worker_id = worker_id;
@@ -334,6 +355,7 @@ absl::Status Scheduler::Complete(const std::string& worker_id, const LeaseKey& k
   end.results = completion.results;
   end.totals = completion.totals;
   end.checkpoint = completion.checkpoint;
+  // The kind never changes: read outside the end's transaction.
   ASSIGN_OR_RETURN(storage::JobStatus job, store_->GetJobStatus(key.job_id));
   if (storage::KindInfo(job.kind).reports_verdict) {
     if (!std::isfinite(completion.final_eval_cost)) {
@@ -349,21 +371,20 @@ absl::Status Scheduler::Complete(const std::string& worker_id, const LeaseKey& k
     end.success = true;
     end.final_eval_cost = storage::kNaN;
   }
-  return EndLocked(std::move(end)).status();
+  return End(std::move(end)).status();
 }
 
 absl::StatusOr<bool> Scheduler::Fail(const std::string& worker_id, const LeaseKey& key,
                                      const std::vector<Episode>& episodes,
                                      const std::string& error) {
   RETURN_IF_ERROR(ValidateEpisodes(episodes));
-  absl::MutexLock lock(&decision_mutex_);
   AttemptEnd end;
   end.key = key;
   end.worker_id = worker_id;
   end.attempt_state = AttemptState::kFailed;
   end.results.episodes = episodes;
   end.error = error.empty() ? "(no error text given)" : error.substr(0, kMaxErrorBytes);
-  RETURN_IF_ERROR(EndLocked(std::move(end)).status());
+  RETURN_IF_ERROR(End(std::move(end)).status());
   ASSIGN_OR_RETURN(storage::JobStatus job, store_->GetJobStatus(key.job_id));
   return job.state == JobState::kQueued || job.state == JobState::kRunning;
 }
@@ -382,16 +403,14 @@ absl::Status Scheduler::ReturnUndelivered(const std::string& worker_id, const Le
 
 absl::Status Scheduler::GiveBack(const std::string& worker_id, const LeaseKey& key,
                                  std::string error, LeaseBudget budget) {
-  absl::MutexLock lock(&decision_mutex_);
-  ASSIGN_OR_RETURN(storage::JobStatus job, store_->GetJobStatus(key.job_id));
   AttemptEnd end;
   end.key = key;
   end.worker_id = worker_id;
-  // Given back after CANCEL: recorded as cancelled; any other time as released.
-  end.attempt_state =
-      job.state == JobState::kCancelled ? AttemptState::kCancelled : AttemptState::kReleased;
+  // Given back after CANCEL, End's decision records it as cancelled; any
+  // other time it is released.
+  end.attempt_state = AttemptState::kReleased;
   end.error = std::move(error);
-  return EndLocked(std::move(end), budget).status();
+  return End(std::move(end), budget).status();
 }
 
 absl::StatusOr<int> Scheduler::ExpireLeases(ExpiryReport* report) {
@@ -414,7 +433,8 @@ absl::StatusOr<int> Scheduler::ExpireLeases(ExpiryReport* report) {
     last_expiry_end_monotonic_ms_ = clock_->MonotonicMs();
     return 0;
   }
-  ASSIGN_OR_RETURN(std::vector<LeaseKey> expired, store_->ListExpiredLeases(LeaseNowMs()));
+  const int64_t lease_now = LeaseNowMs();
+  ASSIGN_OR_RETURN(std::vector<LeaseKey> expired, store_->ListExpiredLeases(lease_now));
   int count = 0;
   for (const LeaseKey& key : expired) {
     ASSIGN_OR_RETURN(JobRecord job, store_->GetJob(key.job_id));
@@ -422,9 +442,11 @@ absl::StatusOr<int> Scheduler::ExpireLeases(ExpiryReport* report) {
     end.key = key;
     end.worker_id = job.worker_id;
     end.attempt_state = AttemptState::kLeaseLost;
+    // Heartbeats run beside this loop: one may have extended the lease since.
+    end.only_if_lease_expires_before_ms = lease_now;
     end.error = absl::StrCat("no heartbeat for ", absl::FormatDuration(options_.lease_timeout),
                              " from worker ", job.worker_id);
-    ASSIGN_OR_RETURN(EndOutcome outcome, EndLocked(std::move(end)));
+    ASSIGN_OR_RETURN(EndOutcome outcome, End(std::move(end)));
     if (outcome == EndOutcome::kApplied) ++count;
   }
   last_expiry_end_monotonic_ms_ = clock_->MonotonicMs();

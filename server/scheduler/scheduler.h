@@ -201,8 +201,9 @@ class Scheduler {
   // The duplicate-worker-id rule of TryAcquire; records the instance.
   absl::Status CheckInstanceLocked(const storage::WorkerIdentity& worker)
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(decision_mutex_);
-  // Writes the worker's last-seen time unless it was written recently.
-  absl::Status MaybeTouchWorker(const storage::WorkerIdentity& worker, int64_t now_ms)
+  // Whether the worker's last-seen time is due to be written (it was not
+  // written within worker_touch_interval); if so, records `now_ms` as written.
+  bool TouchDueLocked(const std::string& worker_id, int64_t now_ms)
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(decision_mutex_);
   // The checkpoint a new attempt of job `job_id` resumes from: the furthest
   // (highest episode, then attempt) written by `worker_build`, since a worker
@@ -210,16 +211,17 @@ class Scheduler {
   // none of that build, the furthest of any (the worker says why it starts
   // over). nullopt: the job has no checkpoint.
   absl::StatusOr<std::optional<storage::CheckpointRecord>> ResumePoint(
-      int64_t job_id, const std::string& worker_build)
-      ABSL_EXCLUSIVE_LOCKS_REQUIRED(decision_mutex_);
-  absl::StatusOr<std::optional<Lease>> TryAcquireLocked(const storage::WorkerIdentity& worker)
+      int64_t job_id, const std::string& worker_build);
+  // Whether a worker whose row says draining stays drained (the drain was
+  // meant for this process); undrains a new process under a drained id.
+  absl::StatusOr<bool> StaysDrainedLocked(const storage::WorkerIdentity& worker)
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(decision_mutex_);
   // Whether a released or lost lease counts against the job's max_lost_leases.
   enum class LeaseBudget { kCharge, kFree };
-  // Ends the attempt with the job's next state decided by the budgets.
-  absl::StatusOr<storage::EndOutcome> EndLocked(storage::AttemptEnd end,
-                                                LeaseBudget budget = LeaseBudget::kCharge)
-      ABSL_EXCLUSIVE_LOCKS_REQUIRED(decision_mutex_);
+  // Ends the attempt with the job's next state decided by the budgets, in
+  // the end's own transaction (AttemptEnd::decide).
+  absl::StatusOr<storage::EndOutcome> End(storage::AttemptEnd end,
+                                          LeaseBudget budget = LeaseBudget::kCharge);
   // Release and ReturnUndelivered: ends the attempt as released (cancelled
   // if the job was cancelled) with `error` recorded.
   absl::Status GiveBack(const std::string& worker_id, const storage::LeaseKey& key,
@@ -234,7 +236,12 @@ class Scheduler {
   const int64_t lease_origin_wall_ms_;
   const int64_t lease_origin_monotonic_ms_;
 
-  // Serialises read-decide-write sequences.
+  // Serialises the read-decide-write sequences of sweep and worker
+  // administration and the lease expiry loop, and guards the in-memory
+  // worker maps. Leases, heartbeats and the ends of attempts decide inside
+  // their own store transactions (ClaimJob, fenced writes, AttemptEnd::decide)
+  // and take it only for those maps, never across a store write, so that
+  // many workers' writes share commits (group commit).
   absl::Mutex decision_mutex_;
   std::map<std::string, int64_t> last_touch_ms_ ABSL_GUARDED_BY(decision_mutex_);
   // The live process behind each worker id (in memory: after a restart the
@@ -250,7 +257,7 @@ class Scheduler {
   // drain was asked ("" when none had been heard from: then the next one to
   // ask for work). A drain stops that process; another process with the id
   // (the drained one exited, or this coordinator restarted since: a draining
-  // process never asks for work) is undrained when it asks (TryAcquireLocked).
+  // process never asks for work) is undrained when it asks (StaysDrainedLocked).
   std::map<std::string, std::string> drained_instance_ ABSL_GUARDED_BY(decision_mutex_);
   // Monotonic time at which the last ExpireLeases() (or Recover()) ended; -1
   // before the first.

@@ -261,7 +261,8 @@ absl::StatusOr<JobRecord> LoadJob(Db& db, int64_t job_id) {
 absl::StatusOr<OpenAttempt> LoadAttempt(Db& db, const LeaseKey& key) {
   ASSIGN_OR_RETURN(Statement query,
                    Statement::Prepare(db, "SELECT j.attempts, j.episodes_expected, j.sweep_id, "
-                                          "a.state, a.worker_id, j.kind FROM jobs j LEFT JOIN "
+                                          "a.state, a.worker_id, j.kind, a.lease_expires_ms "
+                                          "FROM jobs j LEFT JOIN "
                                           "attempts a ON a.job_id = j.id AND a.attempt = ? "
                                           "WHERE j.id = ?"));
   query.Bind(1, key.attempt).Bind(2, key.job_id);
@@ -279,6 +280,7 @@ absl::StatusOr<OpenAttempt> LoadAttempt(Db& db, const LeaseKey& key) {
   }
   attempt.state = ParseAttemptState(query.ColumnText(3)).value_or(AttemptState::kRunning);
   attempt.worker_id = query.ColumnText(4);
+  attempt.lease_expires_ms = query.ColumnInt(6);
   return attempt;
 }
 

@@ -2,7 +2,8 @@
 // per job: sqlite_store.cc opens and guards the file, sqlite_sweeps.cc
 // sweeps, jobs and workers, sqlite_attempts.cc attempts and their results,
 // sqlite_results.cc the results reads, sqlite_import.cc archives and grown
-// sweeps). Internal to server/storage.
+// sweeps, sqlite_write_queue.cc the group commit of writes). Internal to
+// server/storage.
 //
 // Threading: as internal::Db; every function runs inside the caller's
 // transaction on the connection it is given.
@@ -23,6 +24,11 @@
 #include "server/storage/store.h"
 
 namespace totalgrad::storage::internal {
+
+// Milliseconds of the steady clock (for intervals within this process).
+int64_t SteadyMs();
+// Storage failures (as opposed to a refusal of the request itself).
+bool IsDatabaseFailure(const absl::Status& status);
 
 // Doubles as JSON arrays: round-trip precision; NaN and +-Inf as null.
 std::string DoublesToJson(const std::vector<double>& values);
@@ -70,6 +76,12 @@ std::string EpisodeInsertSql();
 void BindEpisode(Statement& insert, const LeaseKey& key, const Episode& episode,
                  int64_t reported_ms);
 
+// GetJobStatus on `db` (the reader, or the writer inside a transaction).
+absl::StatusOr<JobStatus> ReadJobStatus(Db& db, int64_t job_id);
+
+// Inserts or refreshes a worker's row (TouchWorker's body).
+absl::Status UpsertWorker(Db& db, const WorkerIdentity& worker, int64_t now_ms);
+
 // Appends to the event log (sweep_id, job_id 0: none).
 absl::Status AddEvent(Db& db, int64_t ms, int64_t sweep_id, int64_t job_id, int attempt,
                       absl::string_view kind, absl::string_view message);
@@ -96,6 +108,7 @@ struct OpenAttempt {
   int job_attempts = 0;
   int episodes_expected = 0;
   int64_t sweep_id = 0;
+  int64_t lease_expires_ms = 0;
 };
 
 // Loads the attempt and the job's latest attempt number. NotFound if the job

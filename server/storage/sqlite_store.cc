@@ -26,17 +26,14 @@
 namespace totalgrad::storage {
 
 using internal::Db;
+using internal::IsDatabaseFailure;
+using internal::SteadyMs;
 using internal::kSchemaVersion;
 using internal::Migrate;
 using internal::Statement;
 
 namespace {
 
-int64_t SteadyMs() {
-  return std::chrono::duration_cast<std::chrono::milliseconds>(
-             std::chrono::steady_clock::now().time_since_epoch())
-      .count();
-}
 
 std::string HostName() {
   char buffer[256] = {};
@@ -186,18 +183,6 @@ absl::StatusOr<int64_t> CopyDatabase(Db& source, const std::string& target, int 
   return error ? int64_t{0} : static_cast<int64_t>(size);
 }
 
-// Storage failures (as opposed to a refusal of the request itself).
-bool IsDatabaseFailure(const absl::Status& status) {
-  switch (status.code()) {
-    case absl::StatusCode::kUnavailable:
-    case absl::StatusCode::kDataLoss:
-    case absl::StatusCode::kInternal:
-    case absl::StatusCode::kResourceExhausted:
-      return true;
-    default:
-      return false;
-  }
-}
 
 }  // namespace
 
@@ -483,43 +468,6 @@ absl::Status SqliteStore::Ping() {
   return absl::OkStatus();
 }
 
-absl::Status SqliteStore::InWriteTransaction(const std::function<absl::Status(Db&)>& body) {
-  if (lock_fd_ < 0) {
-    return absl::FailedPreconditionError(
-        absl::StrCat(path_, " is open read-only here; writes go through its coordinator"));
-  }
-  absl::MutexLock lock(&write_mutex_);
-  RETURN_IF_ERROR(CheckFileIdentityLocked());
-  // IMMEDIATE takes the write lock up front: a deferred transaction that reads
-  // then writes can fail with SQLITE_BUSY without the busy handler being used.
-  lock_wait_since_ms_.store(SteadyMs());
-  absl::Status status = writer_.Exec("BEGIN IMMEDIATE");
-  lock_wait_since_ms_.store(0);
-  // Busy is another connection's lock, not a failure of the disk: the next
-  // write may succeed, so it is not remembered for CheckWritable.
-  const bool lock_busy = !status.ok() && sqlite3_errcode(writer_.raw()) == SQLITE_BUSY;
-  if (lock_busy) {
-    status = absl::UnavailableError(
-        absl::StrCat("the database's write lock on ", path_,
-                     " is held by another process or connection; gave up after ",
-                     options_.busy_timeout_ms, " ms (", status.message(), ")"));
-  }
-  if (status.ok()) {
-    status = body(writer_);
-    if (status.ok()) status = writer_.Exec("COMMIT");
-    if (!status.ok()) {
-      (void)writer_.Exec("ROLLBACK");  // fails harmlessly if COMMIT already ended it
-    }
-  }
-  if (status.ok()) {
-    last_write_error_ = absl::OkStatus();
-    last_commit_ms_ = SteadyMs();
-  } else if (IsDatabaseFailure(status) && !lock_busy) {
-    last_write_error_ = status;
-    last_failure_or_probe_ms_ = SteadyMs();
-  }
-  return status;
-}
 
 
 absl::StatusOr<StoreCounts> SqliteStore::Counts() {

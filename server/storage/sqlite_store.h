@@ -2,10 +2,15 @@
 //
 // On open: journal_mode=WAL, synchronous=FULL (a commit survives power loss),
 // foreign_keys=ON, busy_timeout; the schema is created or checked
-// (PRAGMA user_version). Every write is one BEGIN IMMEDIATE transaction on
-// the single writer connection; reads use a separate connection and see the
-// last committed state (WAL readers never block the writer). Every SQL value
-// is a bound parameter.
+// (PRAGMA user_version). Writes go through the single writer connection
+// with group commit: writes that arrive while one commits queue, and the
+// next transaction (BEGIN IMMEDIATE ... COMMIT, one fsync) carries all of
+// them, each inside a savepoint of its own, so one write's failure undoes
+// only that write. No write returns before the COMMIT that holds it is
+// durable, so an acknowledged write survives kill -9 and power loss as
+// before; a write that fails is not stored. Reads use a separate connection
+// and see the last committed state (WAL readers never block the writer).
+// Every SQL value is a bound parameter.
 //
 // The file must be on a local disk (SQLite's WAL needs shared memory between
 // the connections of one host; never NFS).
@@ -35,8 +40,11 @@
 
 #include <atomic>
 #include <cstdint>
+#include <deque>
+#include <functional>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "absl/base/thread_annotations.h"
 #include "absl/synchronization/mutex.h"
@@ -64,8 +72,19 @@ struct SqliteStoreOptions {
   int64_t max_page_count = 0;
 };
 
+// What the writer has committed since the store was opened: `writes`
+// bodies in `commits` transactions (writes / commits is the mean group).
+struct WriteCounts {
+  int64_t writes = 0;
+  int64_t commits = 0;
+};
+
 class SqliteStore final : public Store {
  public:
+  // Writes that one transaction carries at the most: bounds how long a
+  // queued write waits behind others in the same commit.
+  static constexpr int kMaxWritesPerCommit = 256;
+
   // Opens or creates the database at `path` (see the rules above).
   // FailedPrecondition naming the problem: another store holds the lock (its
   // pid and host named), the file is missing/empty without init, foreign, or
@@ -105,6 +124,8 @@ class SqliteStore final : public Store {
   // holds SQLite's write lock (a write waiting that long for it, or the
   // probe's own wait). For the coordinator's health endpoint.
   absl::Status CheckWritable() ABSL_LOCKS_EXCLUDED(write_mutex_);
+  // Counts of committed writes and transactions (benchmarks and tests).
+  WriteCounts write_counts() ABSL_LOCKS_EXCLUDED(write_mutex_);
 
   absl::StatusOr<SweepRecord> CreateSweep(const NewSweep& sweep, int64_t now_ms,
                                           bool* created) override;
@@ -116,6 +137,7 @@ class SqliteStore final : public Store {
                                             int64_t now_ms) override;
   absl::Status StartAttempt(const LeaseKey& key, const WorkerIdentity& worker, int64_t now_ms,
                             int64_t lease_expires_ms) override;
+  absl::StatusOr<std::optional<LeaseKey>> ClaimJob(const ClaimRequest& request) override;
   absl::StatusOr<ResultTotals> StoreResults(const LeaseKey& key, const std::string& worker_id,
                                             const JobResults& results, int64_t now_ms,
                                             std::optional<int64_t> lease_expires_ms) override;
@@ -162,11 +184,24 @@ class SqliteStore final : public Store {
  private:
   SqliteStore(std::string path, SqliteStoreOptions options, internal::Db writer,
               internal::Db reader, int lock_fd, uint64_t device, uint64_t inode);
-  // Runs `body` inside BEGIN IMMEDIATE ... COMMIT on the writer; rolls back
-  // if `body` or the commit fails. Refuses at once once the file was deleted
-  // or replaced; records database failures for CheckWritable.
+  friend class SqliteStoreTestPeer;
+  struct QueuedWrite;
+  // Runs `body` on the writer inside a write transaction and returns once
+  // that transaction committed (OK) or `body`'s changes were undone (the
+  // error). The transaction may carry other queued writes (group commit,
+  // above); `body` runs on whichever thread commits the group, so it must
+  // not depend on its thread, and it may see earlier writes of its group.
+  // Refuses at once once the file was deleted or replaced; records database
+  // failures for CheckWritable.
   absl::Status InWriteTransaction(const std::function<absl::Status(internal::Db&)>& body)
-      ABSL_LOCKS_EXCLUDED(write_mutex_);
+      ABSL_LOCKS_EXCLUDED(write_mutex_, queue_mutex_);
+  // Runs `group` (the front of write_queue_) in one transaction and sets each
+  // write's status.
+  void CommitGroupLocked(const std::vector<QueuedWrite*>& group)
+      ABSL_EXCLUSIVE_LOCKS_REQUIRED(write_mutex_);
+  // BEGIN IMMEDIATE, timed for CheckWritable; SQLite's busy answer becomes
+  // Unavailable naming the lock holder's role (*lock_busy true).
+  absl::Status BeginLocked(bool* lock_busy) ABSL_EXCLUSIVE_LOCKS_REQUIRED(write_mutex_);
   absl::Status CheckWritableLocked() ABSL_EXCLUSIVE_LOCKS_REQUIRED(write_mutex_);
   // Unavailable (and remembered) if `path_` no longer names the opened file.
   absl::Status CheckFileIdentityLocked() ABSL_EXCLUSIVE_LOCKS_REQUIRED(write_mutex_);
@@ -189,6 +224,11 @@ class SqliteStore final : public Store {
   // lock (steady clock, ms); 0 when none is waiting. Read without the mutex
   // by CheckWritable, which must not queue behind that wait.
   std::atomic<int64_t> lock_wait_since_ms_{0};
+  WriteCounts write_counts_ ABSL_GUARDED_BY(write_mutex_);
+  // Writes waiting for a transaction, oldest first; the front one's thread
+  // commits the group (leveldb's writer queue).
+  absl::Mutex queue_mutex_ ABSL_ACQUIRED_BEFORE(write_mutex_);
+  std::deque<QueuedWrite*> write_queue_ ABSL_GUARDED_BY(queue_mutex_);
   absl::Mutex read_mutex_;
   internal::Db reader_ ABSL_GUARDED_BY(read_mutex_);
 };

@@ -320,17 +320,20 @@ WHERE id = ?)sql"));
   return attempt;
 }
 
-absl::Status SqliteStore::TouchWorker(const WorkerIdentity& worker, int64_t now_ms) {
-  return InWriteTransaction([&](Db& db) -> absl::Status {
-    ASSIGN_OR_RETURN(Statement upsert, Statement::Prepare(db, R"sql(
+absl::Status internal::UpsertWorker(Db& db, const WorkerIdentity& worker, int64_t now_ms) {
+  ASSIGN_OR_RETURN(Statement upsert, Statement::Prepare(db, R"sql(
 INSERT INTO workers(worker_id, host, build, slots, first_seen_ms, last_seen_ms)
 VALUES(?, ?, ?, ?, ?, ?)
 ON CONFLICT(worker_id) DO UPDATE SET host = excluded.host, build = excluded.build,
     slots = excluded.slots, last_seen_ms = excluded.last_seen_ms)sql"));
-    upsert.Bind(1, worker.worker_id).Bind(2, worker.host).Bind(3, worker.build);
-    upsert.Bind(4, worker.slots).Bind(5, now_ms).Bind(6, now_ms);
-    return upsert.Run();
-  });
+  upsert.Bind(1, worker.worker_id).Bind(2, worker.host).Bind(3, worker.build);
+  upsert.Bind(4, worker.slots).Bind(5, now_ms).Bind(6, now_ms);
+  return upsert.Run();
+}
+
+absl::Status SqliteStore::TouchWorker(const WorkerIdentity& worker, int64_t now_ms) {
+  return InWriteTransaction(
+      [&](Db& db) -> absl::Status { return internal::UpsertWorker(db, worker, now_ms); });
 }
 
 absl::Status SqliteStore::SetWorkerDraining(const std::string& worker_id, bool draining,
@@ -380,7 +383,11 @@ absl::StatusOr<JobRecord> SqliteStore::GetJob(int64_t job_id) {
 
 absl::StatusOr<JobStatus> SqliteStore::GetJobStatus(int64_t job_id) {
   absl::MutexLock lock(&read_mutex_);
-  ASSIGN_OR_RETURN(Statement query, Statement::Prepare(reader_, R"sql(
+  return internal::ReadJobStatus(reader_, job_id);
+}
+
+absl::StatusOr<JobStatus> internal::ReadJobStatus(Db& db, int64_t job_id) {
+  ASSIGN_OR_RETURN(Statement query, Statement::Prepare(db, R"sql(
 SELECT j.kind, j.state, j.failures, j.lost_leases, s.max_attempts, s.max_lost_leases
 FROM jobs j JOIN sweeps s ON s.id = j.sweep_id WHERE j.id = ?)sql"));
   query.Bind(1, job_id);
@@ -453,46 +460,6 @@ ORDER BY ordinal LIMIT ?)sql";
 }
 }  // namespace internal
 
-absl::StatusOr<std::vector<ClaimCandidate>> SqliteStore::ListClaimCandidates(int limit) {
-  absl::MutexLock lock(&read_mutex_);
-  struct RunningSweep {
-    int64_t id;
-    int max_concurrent;
-    int running;
-  };
-  std::vector<RunningSweep> sweeps;
-  {
-    ASSIGN_OR_RETURN(Statement query, Statement::Prepare(reader_, internal::ClaimSweepsSql()));
-    while (true) {
-      ASSIGN_OR_RETURN(bool row, query.Step());
-      if (!row) break;
-      sweeps.push_back({query.ColumnInt(0), static_cast<int>(query.ColumnInt(1)),
-                        static_cast<int>(query.ColumnInt(2))});
-    }
-  }
-  ASSIGN_OR_RETURN(Statement jobs, Statement::Prepare(reader_, internal::ClaimJobsSql()));
-  std::vector<ClaimCandidate> candidates;
-  for (const RunningSweep& sweep : sweeps) {
-    if (static_cast<int>(candidates.size()) >= limit) break;
-    // A sweep at its max_concurrent offers nothing: its queued jobs would
-    // only fill the scan and hide the next sweep's.
-    if (sweep.max_concurrent > 0 && sweep.running >= sweep.max_concurrent) continue;
-    jobs.Reset();
-    jobs.Bind(1, sweep.id);
-    jobs.Bind(2, limit - static_cast<int>(candidates.size()));
-    while (true) {
-      ASSIGN_OR_RETURN(bool row, jobs.Step());
-      if (!row) break;
-      ClaimCandidate c;
-      c.job_id = jobs.ColumnInt(0);
-      c.attempts = static_cast<int>(jobs.ColumnInt(1));
-      c.kind = ParseJobKind(jobs.ColumnText(2)).value_or(JobKind::kTrial);
-      c.sweep_id = sweep.id;
-      candidates.push_back(c);
-    }
-  }
-  return candidates;
-}
 
 
 namespace {

@@ -98,6 +98,13 @@ class LeaseStore {
   virtual absl::Status SetWorkerDraining(const std::string& worker_id, bool draining,
                                          int64_t now_ms) = 0;
 
+  // The lease as one transaction: refreshes the worker (TouchWorker) and
+  // opens the next attempt (StartAttempt) of the first claimable job that
+  // suits it (ListClaimCandidates' order; request.suits). The candidates are read inside the transaction, so leases
+  // that run beside each other never take the same job nor skip one.
+  // nullopt: nothing claimable suits the worker (it is still refreshed).
+  virtual absl::StatusOr<std::optional<LeaseKey>> ClaimJob(const ClaimRequest& request) = 0;
+
   // Queued jobs of running sweeps, oldest sweep first then ordinal; at most
   // `limit`. A sweep already running max_concurrent jobs contributes none.
   virtual absl::StatusOr<std::vector<ClaimCandidate>> ListClaimCandidates(int limit) = 0;

@@ -368,6 +368,18 @@ struct ClaimCandidate {
   int64_t sweep_id = 0;
 };
 
+// A lease request as the store decides it in one transaction (ClaimJob).
+struct ClaimRequest {
+  WorkerIdentity worker;
+  // Which candidates the worker can run (the scheduler's rule); empty: all.
+  std::function<bool(const ClaimCandidate&)> suits;
+  // Candidates read first; all `scan_limit` only when none of those suits.
+  int first_scan = 8;
+  int scan_limit = 256;
+  int64_t now_ms = 0;
+  int64_t lease_expires_ms = 0;
+};
+
 struct JobFilter {
   std::string sweep_name;        // empty: all
   std::vector<JobState> states;  // empty: all
@@ -404,6 +416,19 @@ struct AttemptEnd {
   // Stored with the rows (as StoreCheckpoint), e.g. the final state.
   std::optional<Checkpoint> checkpoint;
   int64_t now_ms = 0;
+  // Decides the fields above from the job as it is inside the end's own
+  // transaction (its state, failure and lost-lease counts, the sweep's
+  // budgets), so that a decision is never taken on a state that changed
+  // before it was written (a cancel, another end). May change
+  // attempt_state, job_state, the deltas and error; an error refuses the end
+  // (nothing changes). Empty: the fields are taken as they are.
+  std::function<absl::Status(const JobStatus& job, AttemptEnd* end)> decide;
+  // The lease expiry's condition (kLeaseLost), 0 for none: end the attempt
+  // only if its lease still expires before this time (lease clock, ms). The
+  // expiry reads expired leases outside the write transaction, and a
+  // heartbeat may extend one before the end is written: then nothing
+  // changes and the outcome is kLeaseRenewed.
+  int64_t only_if_lease_expires_before_ms = 0;
 };
 
 // One attempt of a job as a sweep archive carries it (`results export` on
@@ -452,6 +477,9 @@ enum class EndOutcome {
   kApplied,
   // The attempt had already ended the same way; nothing changed.
   kAlreadyEnded,
+  // only_if_lease_expires_before_ms: a heartbeat extended the lease since
+  // it was found expired; nothing changed.
+  kLeaseRenewed,
 };
 
 }  // namespace totalgrad::storage

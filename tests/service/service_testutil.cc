@@ -112,6 +112,10 @@ absl::Status FaultyStore::StartAttempt(const storage::LeaseKey& key,
                                        int64_t lease_expires_ms) {
   TG_FORWARD("StartAttempt", target_->StartAttempt(key, worker, now_ms, lease_expires_ms));
 }
+absl::StatusOr<std::optional<storage::LeaseKey>> FaultyStore::ClaimJob(
+    const storage::ClaimRequest& request) {
+  TG_FORWARD("ClaimJob", target_->ClaimJob(request));
+}
 absl::StatusOr<storage::ResultTotals> FaultyStore::StoreResults(
     const storage::LeaseKey& key, const std::string& worker_id,
     const storage::JobResults& results, int64_t now_ms, std::optional<int64_t> lease_expires_ms) {

@@ -53,6 +53,8 @@ class FaultyStore final : public storage::Store {
                                                      int64_t now_ms) override;
   absl::Status StartAttempt(const storage::LeaseKey& key, const storage::WorkerIdentity& worker,
                             int64_t now_ms, int64_t lease_expires_ms) override;
+  absl::StatusOr<std::optional<storage::LeaseKey>> ClaimJob(
+      const storage::ClaimRequest& request) override;
   absl::StatusOr<storage::ResultTotals> StoreResults(
       const storage::LeaseKey& key, const std::string& worker_id,
       const storage::JobResults& results, int64_t now_ms,
