@@ -11,7 +11,9 @@
 // the per-sweep limit) and the workers run --jobs of them, so the cost of a
 // lease and a completion can be measured against the queue's length
 // (issue 28 item 2). The coordinator runs in this process; its CPU time is
-// the process's less the fake workers' own threads'.
+// the process's less the fake workers' own threads'. Every worker connects
+// first (connect_seconds); the clock and the CPU count start once all are
+// connected, since real workers connect once and then run for hours.
 //
 // Prints one JSON object.
 #include <grpcpp/create_channel.h>
@@ -137,10 +139,12 @@ int main(int argc, char** argv) {
   std::atomic<int64_t> reports{0}, errors{0}, leased{0}, completed{0};
   absl::Mutex cpu_mutex;
   double workers_cpu_seconds = 0;
-  const double cpu_before = ProcessCpuSeconds();
-  const totalgrad::storage::WriteCounts writes_before = (*coordinator)->store()->write_counts();
-  const auto start = std::chrono::steady_clock::now();
-  const auto deadline = start + std::chrono::duration<double>(max_seconds);
+  // The start line: workers connect, then wait until all have.
+  absl::Mutex start_mutex;
+  int connected = 0;
+  bool go = false;
+  std::chrono::steady_clock::time_point deadline;
+  const auto connect_start = std::chrono::steady_clock::now();
   std::vector<std::thread> threads;
   for (int w = 0; w < workers; ++w) {
     threads.emplace_back([&, w] {
@@ -148,12 +152,21 @@ int main(int argc, char** argv) {
       grpc::ChannelArguments arguments;
       arguments.SetInt(GRPC_ARG_USE_LOCAL_SUBCHANNEL_POOL, 1);
       arguments.SetInt("totalgrad.bench.worker", w);
-      auto stub = totalgrad::v1::WorkerService::NewStub(grpc::CreateCustomChannel(
-          address, grpc::InsecureChannelCredentials(), arguments));
+      auto channel =
+          grpc::CreateCustomChannel(address, grpc::InsecureChannelCredentials(), arguments);
+      channel->WaitForConnected(
+          gpr_time_add(gpr_now(GPR_CLOCK_MONOTONIC), gpr_time_from_seconds(120, GPR_TIMESPAN)));
+      auto stub = totalgrad::v1::WorkerService::NewStub(channel);
+      {
+        absl::MutexLock lock(&start_mutex);
+        ++connected;
+        start_mutex.Await(absl::Condition(&go));
+      }
+      const double cpu_at_start = ThreadCpuSeconds();
       const std::string id = absl::StrCat("bench-", w);
       const auto account = [&] {
         absl::MutexLock lock(&cpu_mutex);
-        workers_cpu_seconds += ThreadCpuSeconds();
+        workers_cpu_seconds += ThreadCpuSeconds() - cpu_at_start;
       };
       while (true) {
         if (leased.fetch_add(1) >= jobs || std::chrono::steady_clock::now() > deadline) {
@@ -206,6 +219,22 @@ int main(int argc, char** argv) {
       }
     });
   }
+  double connect_seconds = 0, cpu_before = 0;
+  totalgrad::storage::WriteCounts writes_before;
+  std::chrono::steady_clock::time_point start;
+  {
+    absl::MutexLock lock(&start_mutex);
+    const auto all_connected = [&] { return connected == workers; };
+    start_mutex.Await(absl::Condition(&all_connected));
+    connect_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() -
+                                                    connect_start).count();
+    cpu_before = ProcessCpuSeconds();
+    writes_before = (*coordinator)->store()->write_counts();
+    start = std::chrono::steady_clock::now();
+    deadline = start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                           std::chrono::duration<double>(max_seconds));
+    go = true;
+  }
   for (auto& t : threads) t.join();
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -245,6 +274,7 @@ int main(int argc, char** argv) {
             << ", \"lease_complete_per_second\": " << jobs_done / seconds
             << ", \"coordinator_cpu_seconds\": " << coordinator_cpu_seconds
             << ", \"coordinator_cpu_ms_per_job\": " << 1000 * coordinator_cpu_seconds / std::max<int64_t>(jobs_done, 1)
+            << ", \"connect_seconds\": " << connect_seconds
             << ", \"writes\": " << writes << ", \"commits\": " << commits
             << ", \"writes_per_commit\": " << static_cast<double>(writes) / std::max<int64_t>(commits, 1)
             << ", \"resident_mb_after_submit\": " << resident_after_submit_mb
