@@ -88,6 +88,8 @@ int main(int argc, char** argv) {
                  "wait this long after submitting and report the resident memory then")
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
+  // As totalgrad-coordinator's main does (server/main.cc).
+  absl::SetMutexDeadlockDetectionMode(absl::OnDeadlockCycle::kIgnore);
 
   const std::string db = absl::StrCat(dir, "/totalgrad_load_bench_", getpid(), ".db");
   totalgrad::service::CoordinatorOptions options;
