@@ -14,6 +14,7 @@
 #include "absl/strings/str_cat.h"
 #include "server/storage/sqlite_store.h"
 #include "tests/service/service_testutil.h"
+#include "tests/service/store_fixture.h"
 
 namespace totalgrad::storage {
 namespace job_kinds_test {
@@ -21,7 +22,6 @@ namespace job_kinds_test {
 using ::totalgrad::testing::MakeEpisode;
 using ::totalgrad::testing::MakeStudyJob;
 using ::totalgrad::testing::MakeSweep;
-using ::totalgrad::testing::MakeTempDir;
 using ::totalgrad::testing::MakeWorker;
 
 constexpr int64_t kNow = 1'000'000;
@@ -155,18 +155,8 @@ TEST(JobKindsTest, RowsOfAnotherKindsTableAreRefusedNamingKindAndTable) {
 // holding every row but one of that table cannot complete, and the error
 // names that table's row. The (kind, table) pairs are listed here, so a
 // completion check that skipped a table fails.
-class JobKindsStoreTest : public ::testing::Test {
+class JobKindsStoreTest : public ::totalgrad::testing::FreshStoreTest {
  protected:
-  void SetUp() override {
-    dir_ = MakeTempDir();
-    auto store = SqliteStore::Open(dir_ + "/store.db");
-    ASSERT_TRUE(store.ok()) << store.status();
-    store_ = std::move(*store);
-  }
-  void TearDown() override {
-    store_.reset();
-    if (!HasFailure()) std::filesystem::remove_all(dir_);
-  }
   // A sweep with one trial (3 episodes) and one study job, both leased to "w1".
   void CreateAndLeaseBoth(const std::string& name) {
     NewSweep sweep = MakeSweep(name, 1, 3);
@@ -193,8 +183,6 @@ class JobKindsStoreTest : public ::testing::Test {
     return end;
   }
 
-  std::string dir_;
-  std::unique_ptr<SqliteStore> store_;
   int64_t trial_ = 0;
   int64_t study_ = 0;
 };

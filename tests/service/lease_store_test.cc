@@ -15,30 +15,20 @@
 
 #include "server/storage/sqlite_store.h"
 #include "tests/service/service_testutil.h"
+#include "tests/service/store_fixture.h"
 
 namespace totalgrad::storage {
 namespace {
 
 using ::totalgrad::testing::MakeEpisode;
 using ::totalgrad::testing::MakeSweep;
-using ::totalgrad::testing::MakeTempDir;
 using ::totalgrad::testing::MakeWorker;
 
 constexpr int64_t kNow = 1'000'000;
 constexpr int64_t kLeaseEnd = kNow + 90'000;
 
-class LeaseStoreTest : public ::testing::Test {
+class LeaseStoreTest : public ::totalgrad::testing::FreshStoreTest {
  protected:
-  void SetUp() override {
-    dir_ = MakeTempDir();
-    auto store = SqliteStore::Open(dir_ + "/store.db");
-    ASSERT_TRUE(store.ok()) << store.status();
-    store_ = std::move(*store);
-  }
-  void TearDown() override {
-    store_.reset();
-    if (!HasFailure()) std::filesystem::remove_all(dir_);
-  }
   void Submit(const std::string& name, int jobs, int episodes) {
     bool created = false;
     TG_ASSERT_OK(store_->CreateSweep(MakeSweep(name, jobs, episodes), kNow, &created).status());
@@ -66,9 +56,6 @@ class LeaseStoreTest : public ::testing::Test {
     };
     return end;
   }
-
-  std::string dir_;
-  std::unique_ptr<SqliteStore> store_;
 };
 
 TEST_F(LeaseStoreTest, AClaimOpensTheFirstQueuedJobAndRecordsTheWorker) {

@@ -16,7 +16,7 @@
 #include "absl/synchronization/mutex.h"
 #include "server/storage/sqlite_internal.h"
 #include "server/storage/sqlite_store.h"
-#include "tests/service/service_testutil.h"
+#include "tests/service/store_fixture.h"
 
 namespace totalgrad::storage {
 
@@ -35,24 +35,15 @@ class SqliteStoreTestPeer {
 
 namespace {
 
-using ::totalgrad::testing::MakeTempDir;
-
 absl::Status InsertMeta(internal::Db& db, const std::string& key) {
   return db.Exec(absl::StrCat("INSERT INTO meta(key, value) VALUES('", key, "', 'x')"));
 }
 
-class WriteQueueTest : public ::testing::Test {
+class WriteQueueTest : public ::totalgrad::testing::FreshStoreTest {
  protected:
-  void SetUp() override {
-    dir_ = MakeTempDir();
-    auto store = SqliteStore::Open(dir_ + "/store.db");
-    ASSERT_TRUE(store.ok()) << store.status();
-    store_ = std::move(*store);
-  }
   void TearDown() override {
     for (std::thread& thread : threads_) thread.join();
-    store_.reset();
-    if (!HasFailure()) std::filesystem::remove_all(dir_);
+    FreshStoreTest::TearDown();
   }
 
   // Starts a write whose body blocks until ReleaseBlocker(): the writes
@@ -97,8 +88,6 @@ class WriteQueueTest : public ::testing::Test {
     return count == 1;
   }
 
-  std::string dir_;
-  std::unique_ptr<SqliteStore> store_;
   std::vector<std::thread> threads_;
   std::atomic<bool> blocker_running_{false};
   std::atomic<bool> release_blocker_{false};
