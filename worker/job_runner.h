@@ -18,6 +18,7 @@
 #define TOTALGRAD_WORKER_JOB_RUNNER_H_
 
 #include <limits>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -87,6 +88,13 @@ class JobRunner {
   // (ShouldCancel), or the job's own failure (Internal, FailedPrecondition,
   // ...), named.
   virtual absl::StatusOr<JobOutcome> Run(const JobInput& job, JobProgress* progress) = 0;
+  // CPU seconds the job is expected to take on the cost model's reference
+  // machine (core/learner/cost_model.h), from its options alone; nullopt
+  // where the kind has no model (or the options cannot be read: Run will
+  // say why). A worker with a walltime gives back a job it cannot finish.
+  virtual std::optional<double> EstimateCpuSeconds(const JobInput& job) const {
+    return std::nullopt;
+  }
 };
 
 }  // namespace totalgrad::worker

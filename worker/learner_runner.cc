@@ -2,6 +2,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "core/learner/checkpoint.h"
+#include "core/learner/cost_model.h"
 #include "core/learner/trial.h"
 #include "io/episode_json.h"
 
@@ -52,6 +53,12 @@ absl::StatusOr<JobOutcome> RunFrom(const learner::TrialOptions& options,
 }
 
 }  // namespace
+
+std::optional<double> LearnerTrialRunner::EstimateCpuSeconds(const JobInput& job) const {
+  absl::StatusOr<learner::TrialOptions> trial_options = ApplyOptions(job.options);
+  if (!trial_options.ok() || !trial_options->Validate().ok()) return std::nullopt;
+  return learner::EstimateTrialCost(*trial_options).total_cpu();
+}
 
 absl::StatusOr<JobOutcome> LearnerTrialRunner::Run(const JobInput& job, JobProgress* progress) {
   absl::StatusOr<learner::TrialOptions> trial_options = ApplyOptions(job.options);

@@ -17,6 +17,9 @@ class LearnerTrialRunner final : public JobRunner {
   // every episode (JobProgress::OnCheckpoint). Thread-safe (RunTrial keeps no
   // shared state).
   absl::StatusOr<JobOutcome> Run(const JobInput& job, JobProgress* progress) override;
+  // learner::EstimateTrialCost of the whole trial (a resumed one too: an
+  // upper bound), on one thread.
+  std::optional<double> EstimateCpuSeconds(const JobInput& job) const override;
 
  private:
   int threads_;

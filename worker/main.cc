@@ -149,6 +149,12 @@ void AddFlags(CLI::App& app, Flags& flags) {
                  "longest expected trial, seconds (with --walltime)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
+  app.add_option("--speed-factor", flags.options.speed_factor,
+                 "this machine's seconds per second of the trial cost model's reference machine "
+                 "(with --walltime: a leased trial whose estimate times this exceeds the time "
+                 "left is given back unstarted)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
 }
 
 // Reads the token file and turns the flags' seconds into the worker's
@@ -172,6 +178,7 @@ bool ApplyFlags(Flags& flags) {
     flags.options.max_idle = absl::Seconds(flags.max_idle_seconds);
   }
   flags.options.max_unreachable = absl::Seconds(flags.max_unreachable_seconds);
+  if (flags.walltime_seconds >= 0) flags.options.walltime = absl::Seconds(flags.walltime_seconds);
   return true;
 }
 

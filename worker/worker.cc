@@ -124,7 +124,32 @@ Worker::Worker(WorkerOptions options, std::shared_ptr<grpc::Channel> channel, Jo
       stub_(v1::WorkerService::NewStub(std::move(channel))),
       runners_(WithoutNull(std::move(runners))),
       own_clock_(clock == nullptr ? std::make_unique<SystemClock>() : nullptr),
-      clock_(clock == nullptr ? own_clock_.get() : clock) {}
+      clock_(clock == nullptr ? own_clock_.get() : clock) {
+  if (options_.walltime != absl::InfiniteDuration()) {
+    walltime_end_ms_ = clock_->MonotonicMs() + absl::ToInt64Milliseconds(options_.walltime);
+  }
+}
+
+std::optional<std::string> Worker::OutlastsWalltime(const v1::Lease& lease) {
+  if (walltime_end_ms_ < 0) return std::nullopt;
+  const v1::JobKind kind =
+      lease.kind() == v1::JOB_KIND_UNSPECIFIED ? v1::JOB_KIND_TRIAL : lease.kind();
+  const auto runner = runners_.find(kind);
+  if (runner == runners_.end()) return std::nullopt;
+  JobInput job;
+  for (const auto& option : lease.options()) job.options.emplace_back(option.key(), option.value());
+  job.spec_json = lease.study_spec_json();
+  const std::optional<double> estimate = runner->second->EstimateCpuSeconds(job);
+  if (!estimate.has_value()) return std::nullopt;
+  const double needed_seconds = *estimate * options_.speed_factor;
+  const double left_seconds = (walltime_end_ms_ - clock_->MonotonicMs()) / 1000.0;
+  if (needed_seconds <= left_seconds) return std::nullopt;
+  return absl::StrCat(Describe(lease.key()), ": its cost-model estimate, ",
+                      absl::SixDigits(needed_seconds), " s here (speed factor ",
+                      options_.speed_factor, "), is more than the ",
+                      absl::SixDigits(std::max(0.0, left_seconds)),
+                      " s left of --walltime; giving it back unstarted and taking no new job");
+}
 
 Worker::~Worker() = default;
 
@@ -325,6 +350,16 @@ void Worker::SlotLoop(int slot) {
         break;
       }
       continue;
+    }
+    if (std::optional<std::string> too_long = OutlastsWalltime(response.lease())) {
+      spdlog::info("{}", *too_long);
+      auto active = std::make_shared<ActiveLease>();
+      active->lease = response.lease();
+      active->never_started = true;
+      active->cancel_reason = "walltime";
+      Finish(active, absl::CancelledError("walltime: the job's estimate exceeds the time left"));
+      Drain();
+      break;
     }
     RunLease(response.lease());
     last_work_ms = clock_->MonotonicMs();

@@ -124,6 +124,15 @@ struct WorkerOptions {
   // answered a lease request for this long while no trial runs: a batch job
   // must not spend its allocation waiting for a coordinator that is gone.
   absl::Duration max_unreachable = absl::Minutes(10);
+  // How long this worker may run from its construction (a batch
+  // allocation's time left; InfiniteDuration: no limit). A granted job whose
+  // cost-model estimate (JobRunner::EstimateCpuSeconds x speed_factor) is
+  // more than the time left is given back unstarted (its lease budget is not
+  // charged) and the worker drains: it would not finish in time.
+  absl::Duration walltime = absl::InfiniteDuration();
+  // This machine's seconds per cost-model second (1: as fast as the cost
+  // model's reference machine, one core per trial; 2: half as fast).
+  double speed_factor = 1.0;
 };
 
 // Why Run() returned.
@@ -194,6 +203,9 @@ class Worker {
   };
 
   void SlotLoop(int slot) ABSL_LOCKS_EXCLUDED(mutex_);
+  // Why `lease` cannot finish within options_.walltime (its estimate and
+  // the time left, for the log); nullopt if it can or nothing is known.
+  std::optional<std::string> OutlastsWalltime(const v1::Lease& lease);
   // Runs the job of `lease` and reports how it ended.
   void RunLease(const v1::Lease& lease) ABSL_LOCKS_EXCLUDED(mutex_);
   void HeartbeatLoop() ABSL_LOCKS_EXCLUDED(mutex_);
@@ -259,6 +271,8 @@ class Worker {
   const WorkerOptions options_;
   std::unique_ptr<v1::WorkerService::Stub> stub_;
   const JobRunners runners_;
+  // End of options_.walltime on clock_ (ms); -1: none.
+  int64_t walltime_end_ms_ = -1;
   const std::unique_ptr<SystemClock> own_clock_;  // set when no clock was given
   Clock* const clock_;
 

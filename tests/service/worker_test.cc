@@ -14,6 +14,7 @@
 
 #include <atomic>
 #include <limits>
+#include <optional>
 #include <filesystem>
 #include <functional>
 #include <thread>
@@ -98,7 +99,11 @@ class FakeRunner final : public JobRunner {
     outcome.episodes = episodes + 1;
     return outcome;
   }
+  std::optional<double> EstimateCpuSeconds(const JobInput&) const override {
+    return estimate_seconds;
+  }
   Clock* clock = nullptr;  // paces seed 16 if set (before the worker starts)
+  std::optional<double> estimate_seconds;  // what EstimateCpuSeconds says of every trial
   std::atomic<int> started{0};    // trials that ran past the seed checks
   std::atomic<int> produced{0};
   std::atomic<int> cancelled{0};  // trials that saw ShouldCancel()
@@ -191,6 +196,7 @@ class WorkerTest : public ::testing::Test {
     options.drain_timeout = drain_timeout;
     options.report_grace = report_grace_;
     options.max_idle = max_idle_;
+    options.walltime = walltime_;
     options.state_dir = state_dir_;
     JobRunners runners{{v1::JOB_KIND_TRIAL, &runner_}};
     if (studies) runners[v1::JOB_KIND_STUDY] = &study_runner_;
@@ -299,6 +305,7 @@ class WorkerTest : public ::testing::Test {
   std::string state_dir_;  // the worker's --state-dir; empty: none
   absl::Duration report_grace_ = absl::Milliseconds(500);
   absl::Duration max_idle_ = absl::InfiniteDuration();
+  absl::Duration walltime_ = absl::InfiniteDuration();
   // The clock of the workers StartWorker makes; null: the system clock. A
   // test that sets it to &clock_ moves the workers' time itself. With the
   // clock at rest a worker beats only when an episode is new, so such a test
@@ -639,6 +646,32 @@ TEST_F(WorkerTest, IdleWorkerExitsOnceItsClockPassesMaxIdle) {
   worker_thread_.join();
   EXPECT_EQ(summary_.exit, WorkerExit::kDone);
   EXPECT_EQ(summary_.completed + summary_.failed + summary_.released, 0);
+}
+
+// Issue 28 item 6: with a walltime (a batch allocation's time left), a
+// granted trial whose cost-model estimate is more than the time left is
+// given back unstarted, charging no lease budget, and the worker drains;
+// given time enough, the same trial runs.
+TEST_F(WorkerTest, ATrialThatCannotFinishBeforeTheWalltimeIsGivenBackUnstarted) {
+  Submit("long", {1});
+  runner_.estimate_seconds = 7200;
+  walltime_ = absl::Hours(1);
+  StartWorker(1);
+  ASSERT_TRUE(WaitFor([&] { return worker_done_.load(); }, seconds(30)))
+      << "the worker did not drain after giving the trial back";
+  worker_thread_.join();
+  EXPECT_EQ(runner_.started.load(), 0);
+  EXPECT_EQ(summary_.exit, WorkerExit::kDone);
+  v1::JobInfo job = JobsBySeed("long")["1"];
+  EXPECT_EQ(job.state(), v1::JOB_STATE_QUEUED);
+  EXPECT_EQ(job.lost_leases(), 0);
+  EXPECT_EQ(job.failures(), 0);
+
+  walltime_ = absl::Hours(3);
+  StartWorker(1);
+  ASSERT_TRUE(WaitFor([&] { return Finished("long"); }, seconds(30)));
+  EXPECT_EQ(runner_.started.load(), 1);
+  EXPECT_EQ(JobsBySeed("long")["1"].state(), v1::JOB_STATE_COMPLETED);
 }
 
 // ---- study jobs ----
