@@ -3,8 +3,11 @@
 #include <algorithm>
 #include <map>
 #include <set>
+#include <string>
+#include <tuple>
 #include <utility>
 
+#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "runtime/status_macros.h"
@@ -155,9 +158,24 @@ absl::StatusOr<ImportResult> SqliteStore::ImportJobs(const std::optional<NewSwee
     ASSIGN_OR_RETURN(bool found, sweep_query.Step());
     if (!found) return absl::NotFoundError(absl::StrCat("no sweep named '", sweep_name, "'"));
     const int64_t sweep_id = sweep_query.ColumnInt(0);
+    // The sweep's jobs by (kind, method, seed, variant), read once: no index
+    // covers that lookup, so a query per imported job scanned the whole
+    // sweep each time (100,000 jobs: over ten minutes; issue 28).
+    std::map<std::tuple<std::string, std::string, std::string, std::string>, int64_t> job_ids;
+    {
+      ASSIGN_OR_RETURN(Statement all, Statement::Prepare(db, R"sql(
+SELECT id, kind, method, CAST(seed AS TEXT), variant FROM jobs WHERE sweep_id = ?)sql"));
+      all.Bind(1, sweep_id);
+      while (true) {
+        ASSIGN_OR_RETURN(bool row, all.Step());
+        if (!row) break;
+        job_ids.emplace(std::make_tuple(all.ColumnText(1), all.ColumnText(2), all.ColumnText(3),
+                                        all.ColumnText(4)),
+                        all.ColumnInt(0));
+      }
+    }
     ASSIGN_OR_RETURN(Statement job_query, Statement::Prepare(db, R"sql(
-SELECT id, state, attempts, episodes_expected FROM jobs
-WHERE sweep_id = ? AND kind = ? AND method = ? AND seed = ? AND variant = ?)sql"));
+SELECT state, attempts, episodes_expected FROM jobs WHERE id = ?)sql"));
     ASSIGN_OR_RETURN(Statement attempt_insert, Statement::Prepare(db, R"sql(
 INSERT INTO attempts(job_id, attempt, state, worker_id, worker_host, worker_build, started_ms,
                      lease_expires_ms, ended_ms, error, origin)
@@ -174,18 +192,27 @@ UPDATE jobs SET state = 'completed', attempts = ?, completed_attempt = ?, succes
                 last_error = ?
 WHERE id = ?)sql"));
     for (const ImportedJob& job : jobs) {
-      job_query.Bind(1, sweep_id).Bind(2, ToString(job.record.kind)).Bind(3, job.record.method);
-      job_query.Bind(4, job.record.seed).Bind(5, job.record.variant);
-      ASSIGN_OR_RETURN(bool match, job_query.Step());
-      const int64_t job_id = match ? job_query.ColumnInt(0) : 0;
-      const std::string state = match ? job_query.ColumnText(1) : "";
-      const int attempts_here = match ? static_cast<int>(job_query.ColumnInt(2)) : 0;
-      const int episodes_expected = match ? static_cast<int>(job_query.ColumnInt(3)) : 0;
-      job_query.Reset();
-      if (!match) {
+      // Seeds are stored as integers: "07" names seed 7, as SQLite's
+      // comparison of the text with the integer column did.
+      int64_t seed_number = 0;
+      const std::string seed = absl::SimpleAtoi(job.record.seed, &seed_number)
+                                   ? std::to_string(seed_number)
+                                   : job.record.seed;
+      const auto known = job_ids.find(std::make_tuple(std::string(ToString(job.record.kind)),
+                                                      job.record.method, seed,
+                                                      job.record.variant));
+      if (known == job_ids.end()) {
         ++result.jobs_unknown;
         continue;
       }
+      const int64_t job_id = known->second;
+      job_query.Bind(1, job_id);
+      ASSIGN_OR_RETURN(bool match, job_query.Step());
+      if (!match) return absl::InternalError(absl::StrCat("job ", job_id, " vanished"));
+      const std::string state = job_query.ColumnText(0);
+      const int attempts_here = static_cast<int>(job_query.ColumnInt(1));
+      const int episodes_expected = static_cast<int>(job_query.ColumnInt(2));
+      job_query.Reset();
       if (state == ToString(JobState::kCompleted)) {
         ++result.jobs_already_complete;
         continue;
