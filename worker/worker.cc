@@ -130,16 +130,28 @@ Worker::Worker(WorkerOptions options, std::shared_ptr<grpc::Channel> channel, Jo
   }
 }
 
-std::optional<std::string> Worker::OutlastsWalltime(const v1::Lease& lease) {
-  if (walltime_end_ms_ < 0) return std::nullopt;
-  const v1::JobKind kind =
-      lease.kind() == v1::JOB_KIND_UNSPECIFIED ? v1::JOB_KIND_TRIAL : lease.kind();
-  const auto runner = runners_.find(kind);
-  if (runner == runners_.end()) return std::nullopt;
+namespace {
+
+// UNSPECIFIED comes from a coordinator older than job kinds: a trial.
+v1::JobKind KindOf(const v1::Lease& lease) {
+  return lease.kind() == v1::JOB_KIND_UNSPECIFIED ? v1::JOB_KIND_TRIAL : lease.kind();
+}
+
+// What a runner reads of a lease (without the checkpoint to resume from).
+JobInput InputOf(const v1::Lease& lease) {
   JobInput job;
   for (const auto& option : lease.options()) job.options.emplace_back(option.key(), option.value());
   job.spec_json = lease.study_spec_json();
-  const std::optional<double> estimate = runner->second->EstimateCpuSeconds(job);
+  return job;
+}
+
+}  // namespace
+
+std::optional<std::string> Worker::OutlastsWalltime(const v1::Lease& lease) {
+  if (walltime_end_ms_ < 0) return std::nullopt;
+  const auto runner = runners_.find(KindOf(lease));
+  if (runner == runners_.end()) return std::nullopt;
+  const std::optional<double> estimate = runner->second->EstimateCpuSeconds(InputOf(lease));
   if (!estimate.has_value()) return std::nullopt;
   const double needed_seconds = *estimate * options_.speed_factor;
   const double left_seconds = (walltime_end_ms_ - clock_->MonotonicMs()) / 1000.0;
@@ -391,17 +403,13 @@ void Worker::RunLease(const v1::Lease& lease) {
       active->cancel_reason = "drain timeout";
     }
   }
-  // UNSPECIFIED comes from a coordinator older than job kinds: a trial.
-  const v1::JobKind kind =
-      lease.kind() == v1::JOB_KIND_UNSPECIFIED ? v1::JOB_KIND_TRIAL : lease.kind();
+  const v1::JobKind kind = KindOf(lease);
   // "trial", "study": as the coordinator's job kinds name them.
   const std::string kind_name =
       absl::AsciiStrToLower(absl::StripPrefix(v1::JobKind_Name(kind), "JOB_KIND_"));
   spdlog::info("{}: {} seed {} {}", Describe(lease.key()), lease.method(), lease.seed(),
                lease.variant());
-  JobInput job;
-  for (const auto& option : lease.options()) job.options.emplace_back(option.key(), option.value());
-  job.spec_json = lease.study_spec_json();
+  JobInput job = InputOf(lease);
   // The coordinator sends a checkpoint only for kinds that keep them.
   if (lease.has_resume_from() && !lease.resume_from().data().empty()) {
     if (lease.resume_from_build() == options_.build) {
