@@ -151,30 +151,30 @@ absl::Status ValidateResults(const storage::JobResults& results) {
   return ValidateStudyRows(results.study);
 }
 
-absl::Status CheckImportedJobs(const std::vector<storage::ImportedJob>& jobs) {
-  for (const storage::ImportedJob& job : jobs) {
-    // Only a completed job is taken over; the others bring nothing.
-    if (job.record.state != storage::JobState::kCompleted || job.completed_attempt <= 0) continue;
-    const std::string name = ArchivedJobName(job);
-    if (storage::KindInfo(job.record.kind).reports_verdict &&
-        !std::isfinite(job.record.final_eval_cost)) {
-      return absl::InvalidArgumentError(absl::StrCat(
-          name, " is completed with a final_eval_cost that is not finite (",
-          job.record.final_eval_cost, "); Complete refuses that"));
+absl::Status CheckImportedJob(const storage::ImportedJob& job) {
+  // Only a completed job is taken over; the others bring nothing.
+  if (job.record.state != storage::JobState::kCompleted || job.completed_attempt <= 0) {
+    return absl::OkStatus();
+  }
+  const std::string name = ArchivedJobName(job);
+  if (storage::KindInfo(job.record.kind).reports_verdict &&
+      !std::isfinite(job.record.final_eval_cost)) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        name, " is completed with a final_eval_cost that is not finite (",
+        job.record.final_eval_cost, "); Complete refuses that"));
+  }
+  for (const storage::ImportedAttempt& attempt : job.attempts) {
+    const std::string where = absl::StrCat(name, " attempt ", attempt.attempt, ": ");
+    for (const auto& [episode, reported_ms] : attempt.episodes) {
+      if (absl::Status bad = ValidateEpisode(episode); !bad.ok()) {
+        return absl::InvalidArgumentError(absl::StrCat(where, bad.message()));
+      }
     }
-    for (const storage::ImportedAttempt& attempt : job.attempts) {
-      const std::string where = absl::StrCat(name, " attempt ", attempt.attempt, ": ");
-      for (const auto& [episode, reported_ms] : attempt.episodes) {
-        if (absl::Status bad = ValidateEpisode(episode); !bad.ok()) {
-          return absl::InvalidArgumentError(absl::StrCat(where, bad.message()));
-        }
-      }
-      if (absl::Status bad = ValidateStudyRowValues(attempt.study); !bad.ok()) {
-        return absl::InvalidArgumentError(absl::StrCat(where, bad.message()));
-      }
-      if (absl::Status bad = ValidateCheckpoint(attempt.checkpoint); !bad.ok()) {
-        return absl::InvalidArgumentError(absl::StrCat(where, bad.message()));
-      }
+    if (absl::Status bad = ValidateStudyRowValues(attempt.study); !bad.ok()) {
+      return absl::InvalidArgumentError(absl::StrCat(where, bad.message()));
+    }
+    if (absl::Status bad = ValidateCheckpoint(attempt.checkpoint); !bad.ok()) {
+      return absl::InvalidArgumentError(absl::StrCat(where, bad.message()));
     }
   }
   return absl::OkStatus();

@@ -50,7 +50,7 @@ absl::Status ValidateCheckpoint(const std::optional<storage::Checkpoint>& checkp
 // whose verdict is the worker's. InvalidArgument naming the job, attempt and
 // value. The rows themselves (every expected one, nothing of a table the
 // kind does not own) are checked by Store::ImportJobs, as by EndAttempt.
-absl::Status CheckImportedJobs(const std::vector<storage::ImportedJob>& jobs);
+absl::Status CheckImportedJob(const storage::ImportedJob& job);
 
 }  // namespace totalgrad::scheduler
 

@@ -472,11 +472,17 @@ absl::StatusOr<int> Scheduler::GrowSweep(const storage::NewSweep& grown) {
 
 absl::StatusOr<storage::ImportResult> Scheduler::ImportSweep(
     const std::optional<storage::NewSweep>& create, const std::string& sweep_name,
-    const std::vector<storage::ImportedJob>& jobs, const std::string& source) {
-  RETURN_IF_ERROR(CheckImportedJobs(jobs));
+    const storage::ImportedJobProducer& jobs, const std::string& source) {
+  const storage::ImportedJobProducer checked =
+      [&jobs](const std::function<absl::Status(const storage::ImportedJob&)>& each) {
+        return jobs([&each](const storage::ImportedJob& job) -> absl::Status {
+          RETURN_IF_ERROR(CheckImportedJob(job));
+          return each(job);
+        });
+      };
   absl::MutexLock lock(&decision_mutex_);
   ASSIGN_OR_RETURN(storage::ImportResult result,
-                   store_->ImportJobs(create, sweep_name, jobs, source, clock_->NowMs()));
+                   store_->ImportJobStream(create, sweep_name, checked, source, clock_->NowMs()));
   NotifyWork();
   return result;
 }

@@ -166,12 +166,19 @@ class Scheduler {
   absl::StatusOr<storage::SweepRecord> SubmitSweep(const storage::NewSweep& sweep, bool* created);
   // Store::GrowSweep, then wakes waiting workers.
   absl::StatusOr<int> GrowSweep(const storage::NewSweep& grown);
-  // CheckImportedJobs (the values Complete would check), Store::ImportJobs
-  // (the rows), then wakes waiting workers (a created sweep has queued jobs).
+  // Store::ImportJobStream with CheckImportedJob (the values Complete would
+  // check) on each job before the store takes it (the rows), then wakes
+  // waiting workers (a created sweep has queued jobs).
+  absl::StatusOr<storage::ImportResult> ImportSweep(const std::optional<storage::NewSweep>& create,
+                                                    const std::string& sweep_name,
+                                                    const storage::ImportedJobProducer& jobs,
+                                                    const std::string& source);
   absl::StatusOr<storage::ImportResult> ImportSweep(const std::optional<storage::NewSweep>& create,
                                                     const std::string& sweep_name,
                                                     const std::vector<storage::ImportedJob>& jobs,
-                                                    const std::string& source);
+                                                    const std::string& source) {
+    return ImportSweep(create, sweep_name, storage::ProduceEach(jobs), source);
+  }
   // Pause/resume/cancel with the transition rules of the proto: no-op when
   // already there; cancelling cancels queued and running jobs; resuming a
   // cancelled sweep (the only way out of a cancel) re-queues its cancelled

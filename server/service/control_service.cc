@@ -1,13 +1,14 @@
 #include "server/service/control_service.h"
 
 #include <algorithm>
-
-#include "server/service/message_budget.h"
-#include "server/service/sweep_archive.h"
-
 #include <filesystem>
+#include <fstream>
 
 #include "absl/strings/str_cat.h"
+#include "runtime/status_macros.h"
+#include "server/service/archive_spool.h"
+#include "server/service/message_budget.h"
+#include "server/service/sweep_archive.h"
 #include "server/service/convert.h"
 #include "server/sweep/sweep_spec.h"
 #include "core/learner/trial_options.h"
@@ -499,18 +500,32 @@ grpc::Status ControlServiceImpl::ImportSweep(grpc::ServerContext* context,
                                              grpc::ServerReader<v1::ImportSweepChunk>* reader,
                                              v1::ImportSweepResponse* response) {
   TG_AUTHORIZE(context);
-  constexpr size_t kMaxArchiveBytes = size_t{1} << 30;
-  std::string text, source = "an archive";
+  // The archive is kept on disk, not in memory (ArchiveSpool); the bound
+  // is on that disk use (16 GiB: a 100,000-job sweep is ~250 MB, with each
+  // trial's checkpoint a few GB).
+  constexpr size_t kMaxArchiveBytes = size_t{16} << 30;
+  std::string source = "an archive";
+  ArchiveSpool spool;
+  if (absl::Status opened = spool.Open(options_.database); !opened.ok()) {
+    return ToGrpcStatus(opened);
+  }
   v1::ImportSweepChunk chunk;
   while (reader->Read(&chunk)) {
     if (!chunk.source_name().empty()) source = chunk.source_name();
-    if (text.size() + chunk.data().size() > kMaxArchiveBytes) {
+    if (spool.bytes() + chunk.data().size() > kMaxArchiveBytes) {
       return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
                           absl::StrCat("the archive exceeds ", kMaxArchiveBytes, " bytes"));
     }
-    text += chunk.data();
+    if (absl::Status kept = spool.Append(chunk.data()); !kept.ok()) return ToGrpcStatus(kept);
   }
-  absl::StatusOr<ParsedSweepArchive> archive = ParseSweepArchive(text);
+  if (context->IsCancelled()) return ClientWentAway();
+  if (absl::Status kept = spool.Close(); !kept.ok()) return ToGrpcStatus(kept);
+  absl::StatusOr<SweepArchiveOpening> archive;
+  {
+    absl::StatusOr<std::ifstream> in = spool.Read();
+    if (!in.ok()) return ToGrpcStatus(in.status());
+    archive = ReadSweepArchiveOpening(*in);
+  }
   if (!archive.ok()) return ToGrpcStatus(archive.status());
   // A sweep of that name here must be this one; otherwise it is created from
   // the canonical spec, and this build must expand it to the same jobs.
@@ -547,8 +562,17 @@ grpc::Status ControlServiceImpl::ImportSweep(grpc::ServerContext* context,
   } else {
     return ToGrpcStatus(existing.status());
   }
+  // The jobs, read from the kept archive one at a time inside the import's
+  // transaction (a job that does not read rolls it back).
+  const int version = archive->version;
+  const storage::ImportedJobProducer jobs =
+      [&spool, version](const std::function<absl::Status(const storage::ImportedJob&)>& each) {
+        ASSIGN_OR_RETURN(std::ifstream in, spool.Read());
+        return ForEachArchivedJob(in, version,
+                                  [&each](storage::ImportedJob& job) { return each(job); });
+      };
   absl::StatusOr<storage::ImportResult> result =
-      scheduler_->ImportSweep(create, archive->name, archive->jobs, source);
+      scheduler_->ImportSweep(create, archive->name, jobs, source);
   if (!result.ok()) return ToGrpcStatus(result.status());
   if (result->sweep_created && archive->state != storage::SweepState::kRunning) {
     absl::StatusOr<storage::SweepRecord> state = scheduler_->SetSweepState(archive->name, archive->state);

@@ -2,7 +2,10 @@
 
 #include <google/protobuf/util/json_util.h>
 
+#include <functional>
 #include <initializer_list>
+#include <istream>
+#include <sstream>
 #include <limits>
 #include <optional>
 
@@ -170,46 +173,46 @@ absl::Status ReadAttempt(const nlohmann::json& object, const std::string& where,
 // its own jobs); of a job's record its identity (kind, method, seed,
 // variant) and verdict; the other fields (job_id, ordinal, the counts,
 // worker_id, ...) are informative: checked for their type, then ignored.
-absl::StatusOr<ParsedSweepArchive> ParseVersion3(const nlohmann::json& doc, int version) {
-  ParsedSweepArchive archive;
+absl::Status ReadVersion3Opening(const nlohmann::json& doc, int version,
+                                 SweepArchiveOpening* opening) {
   if (!doc.contains("sweep")) return Malformed("sweep", "missing");
   const nlohmann::json& sweep_object = doc["sweep"];
   storage::SweepRecord sweep;
   RETURN_IF_ERROR(ReadRecord(storage::SweepFields(), sweep_object, "sweep", &sweep));
   RETURN_IF_ERROR(Require(sweep_object, "sweep", {"name", "canonical_spec", "spec_hash", "state"}));
-  archive.name = sweep.name;
-  archive.canonical_spec = sweep.canonical_spec;
-  archive.spec_hash = sweep.spec_hash;
-  archive.state = sweep.state;
+  opening->name = sweep.name;
+  opening->canonical_spec = sweep.canonical_spec;
+  opening->spec_hash = sweep.spec_hash;
+  opening->state = sweep.state;
   // Version 4: the sweep keeps its first submission's time.
   if (version >= 4) {
     RETURN_IF_ERROR(Require(sweep_object, "sweep", {"created_unix_ms"}));
-    archive.created_ms = sweep.created_ms;
+    opening->created_ms = sweep.created_ms;
   }
-  ASSIGN_OR_RETURN(const nlohmann::json* jobs, Array(doc, "", "jobs", true));
-  for (size_t i = 0; i < jobs->size(); ++i) {
-    const nlohmann::json& j = (*jobs)[i];
-    const std::string where = absl::StrCat("jobs[", i, "]");
-    storage::JobRecord record;
-    RETURN_IF_ERROR(ReadRecord(storage::JobFields(), j, where, &record));
-    RETURN_IF_ERROR(Require(j, where,
-                            {"kind", "method", "seed", "variant", "state", "failures",
-                             "lost_leases", "last_error", "success", "final_eval_cost"}));
-    storage::ImportedJob job;
-    job.record = std::move(record);
-    // (The job's options are read with its table and not used: the variant
-    // identifies the job.) The archive's own keys: the completed attempt
-    // and the attempt log.
-    ASSIGN_OR_RETURN(const int64_t completed, Integer(j, where, "completed_attempt"));
-    job.completed_attempt = static_cast<int>(completed);
-    ASSIGN_OR_RETURN(const nlohmann::json* log, Array(j, where, "attempt_log", true));
-    for (size_t k = 0; k < log->size(); ++k) {
-      RETURN_IF_ERROR(ReadAttempt((*log)[k], absl::StrCat(where, ".attempt_log[", k, "]"),
-                                  version, &job.attempts.emplace_back()));
-    }
-    archive.jobs.push_back(std::move(job));
+  return Array(doc, "", "jobs", true).status();
+}
+
+absl::StatusOr<storage::ImportedJob> ParseVersion3Job(const nlohmann::json& j, size_t index,
+                                                      int version) {
+  const std::string where = absl::StrCat("jobs[", index, "]");
+  storage::JobRecord record;
+  RETURN_IF_ERROR(ReadRecord(storage::JobFields(), j, where, &record));
+  RETURN_IF_ERROR(Require(j, where,
+                          {"kind", "method", "seed", "variant", "state", "failures",
+                           "lost_leases", "last_error", "success", "final_eval_cost"}));
+  storage::ImportedJob job;
+  job.record = std::move(record);
+  // (The job's options are read with its table and not used: the variant
+  // identifies the job.) The archive's own keys: the completed attempt
+  // and the attempt log.
+  ASSIGN_OR_RETURN(const int64_t completed, Integer(j, where, "completed_attempt"));
+  job.completed_attempt = static_cast<int>(completed);
+  ASSIGN_OR_RETURN(const nlohmann::json* log, Array(j, where, "attempt_log", true));
+  for (size_t k = 0; k < log->size(); ++k) {
+    RETURN_IF_ERROR(ReadAttempt((*log)[k], absl::StrCat(where, ".attempt_log[", k, "]"),
+                                version, &job.attempts.emplace_back()));
   }
-  return archive;
+  return job;
 }
 
 // ---- Reading versions 1 and 2: a frozen exchange format, read as it was ----
@@ -332,66 +335,107 @@ absl::StatusOr<storage::ImportedAttempt> ParseVersion1Or2Attempt(const nlohmann:
   return attempt;
 }
 
-absl::StatusOr<ParsedSweepArchive> ParseVersion1Or2(const nlohmann::json& doc, int64_t version) {
+absl::Status ReadVersion1Or2Opening(const nlohmann::json& doc, SweepArchiveOpening* opening) {
   const Reader top("");
   if (!doc.contains("sweep") || !doc["sweep"].is_object()) return top.Error("sweep");
   const nlohmann::json& sweep = doc["sweep"];
   const Reader sr("sweep: ");
-  ParsedSweepArchive archive;
   TG_READ(name, sr.String(sweep, "name"));
   TG_READ(spec, sr.String(sweep, "canonical_spec"));
   TG_READ(hash, sr.String(sweep, "spec_hash"));
   TG_READ(state, sr.String(sweep, "state"));
-  archive.name = name;
-  archive.canonical_spec = spec;
-  archive.spec_hash = hash;
+  opening->name = name;
+  opening->canonical_spec = spec;
+  opening->spec_hash = hash;
   const std::optional<storage::SweepState> sweep_state = storage::ParseSweepState(state);
   if (!sweep_state) return sr.Error("state");
-  archive.state = *sweep_state;
+  opening->state = *sweep_state;
   if (!doc.contains("jobs") || !doc["jobs"].is_array()) return top.Error("jobs");
-  int index = 0;
-  for (const nlohmann::json& j : doc["jobs"]) {
-    const Reader jr(absl::StrCat("jobs[", index++, "]: "));
-    if (!j.is_object()) return jr.Error("{}");
-    storage::ImportedJob job;
-    TG_READ(kind, jr.String(j, "kind"));
-    // The kinds' names are the job-kind table's (server/storage/job_kinds.h).
-    const std::optional<storage::JobKind> parsed_kind = storage::ParseJobKind(kind);
-    if (!parsed_kind) return jr.Error("kind");
-    job.record.kind = *parsed_kind;
-    TG_READ(method, jr.String(j, "method"));
-    job.record.method = method;
-    if (!j.contains("seed")) return jr.Error("seed");
-    if (j["seed"].is_number_integer()) job.record.seed = std::to_string(j["seed"].get<int64_t>());
-    else if (j["seed"].is_string()) job.record.seed = j["seed"].get<std::string>();
-    else return jr.Error("seed");
-    TG_READ(variant, jr.String(j, "variant"));
-    job.record.variant = variant;
-    TG_READ(job_state, jr.String(j, "state"));
-    const std::optional<storage::JobState> parsed_state = storage::ParseJobState(job_state);
-    if (!parsed_state) return jr.Error("state");
-    job.record.state = *parsed_state;
-    TG_READ(failures, jr.Integer(j, "failures"));
-    TG_READ(lost, jr.Integer(j, "lost_leases"));
-    TG_READ(last_error, jr.String(j, "last_error"));
-    TG_READ(final_cost, jr.Real(j, "final_eval_cost"));
-    TG_READ(completed, jr.Integer(j, "completed_attempt"));
-    if (!j.contains("success") || !j["success"].is_boolean()) return jr.Error("success");
-    job.record.failures = static_cast<int>(failures);
-    job.record.lost_leases = static_cast<int>(lost);
-    job.record.last_error = last_error;
-    job.record.final_eval_cost = final_cost;
-    job.completed_attempt = static_cast<int>(completed);
-    job.record.success = j["success"].get<bool>();
-    if (!j.contains("attempt_log") || !j["attempt_log"].is_array()) return jr.Error("attempt_log");
-    for (const nlohmann::json& a : j["attempt_log"]) {
-      absl::StatusOr<storage::ImportedAttempt> attempt = ParseVersion1Or2Attempt(a, jr, version);
-      if (!attempt.ok()) return attempt.status();
-      job.attempts.push_back(*std::move(attempt));
-    }
-    archive.jobs.push_back(std::move(job));
+  return absl::OkStatus();
+}
+
+absl::StatusOr<storage::ImportedJob> ParseVersion1Or2Job(const nlohmann::json& j, size_t index,
+                                                         int64_t version) {
+  const Reader jr(absl::StrCat("jobs[", index, "]: "));
+  if (!j.is_object()) return jr.Error("{}");
+  storage::ImportedJob job;
+  TG_READ(kind, jr.String(j, "kind"));
+  // The kinds' names are the job-kind table's (server/storage/job_kinds.h).
+  const std::optional<storage::JobKind> parsed_kind = storage::ParseJobKind(kind);
+  if (!parsed_kind) return jr.Error("kind");
+  job.record.kind = *parsed_kind;
+  TG_READ(method, jr.String(j, "method"));
+  job.record.method = method;
+  if (!j.contains("seed")) return jr.Error("seed");
+  if (j["seed"].is_number_integer()) job.record.seed = std::to_string(j["seed"].get<int64_t>());
+  else if (j["seed"].is_string()) job.record.seed = j["seed"].get<std::string>();
+  else return jr.Error("seed");
+  TG_READ(variant, jr.String(j, "variant"));
+  job.record.variant = variant;
+  TG_READ(job_state, jr.String(j, "state"));
+  const std::optional<storage::JobState> parsed_state = storage::ParseJobState(job_state);
+  if (!parsed_state) return jr.Error("state");
+  job.record.state = *parsed_state;
+  TG_READ(failures, jr.Integer(j, "failures"));
+  TG_READ(lost, jr.Integer(j, "lost_leases"));
+  TG_READ(last_error, jr.String(j, "last_error"));
+  TG_READ(final_cost, jr.Real(j, "final_eval_cost"));
+  TG_READ(completed, jr.Integer(j, "completed_attempt"));
+  if (!j.contains("success") || !j["success"].is_boolean()) return jr.Error("success");
+  job.record.failures = static_cast<int>(failures);
+  job.record.lost_leases = static_cast<int>(lost);
+  job.record.last_error = last_error;
+  job.record.final_eval_cost = final_cost;
+  job.completed_attempt = static_cast<int>(completed);
+  job.record.success = j["success"].get<bool>();
+  if (!j.contains("attempt_log") || !j["attempt_log"].is_array()) return jr.Error("attempt_log");
+  for (const nlohmann::json& a : j["attempt_log"]) {
+    absl::StatusOr<storage::ImportedAttempt> attempt = ParseVersion1Or2Attempt(a, jr, version);
+    if (!attempt.ok()) return attempt.status();
+    job.attempts.push_back(*std::move(attempt));
   }
-  return archive;
+  return job;
+}
+
+// ---- Reading an archive as a stream: one job in memory at a time ----
+
+// Parses `in` with nlohmann's callback parser, handing each element of the
+// top-level "jobs" array to `job` as it ends and then dropping it from the
+// document (the callback returns false), so the document holds everything
+// but the jobs. `job` returns false to stop: the rest of the input is then
+// skipped (the stream is moved to its end, so the parse ends there) and the
+// parse's own verdict is ignored. Returns the document (jobs: an empty array)
+// or nullopt when the text is not JSON.
+std::optional<nlohmann::json> ParseDroppingJobs(
+    std::istream& in, const std::function<bool(nlohmann::json&)>& job) {
+  std::string key_at_top;
+  bool in_jobs = false, stopped = false;
+  const nlohmann::json::parser_callback_t callback =
+      [&](int depth, nlohmann::json::parse_event_t event, nlohmann::json& parsed) -> bool {
+    using Event = nlohmann::json::parse_event_t;
+    if (stopped) return false;
+    if (depth == 1) {
+      if (event == Event::key) key_at_top = parsed.get<std::string>();
+      if (event == Event::array_start) in_jobs = key_at_top == "jobs";
+      if (event == Event::array_end) in_jobs = false;
+      return true;
+    }
+    // An element of "jobs" ends: an object or array closing at depth 2, or
+    // a scalar (a value event at depth 2).
+    const bool element_ends =
+        depth == 2 && in_jobs &&
+        (event == Event::object_end || event == Event::array_end || event == Event::value);
+    if (!element_ends) return true;
+    if (!job(parsed)) {
+      stopped = true;
+      in.rdbuf()->pubseekoff(0, std::ios::end, std::ios::in);
+    }
+    return false;
+  };
+  nlohmann::json doc = nlohmann::json::parse(in, callback, /*allow_exceptions=*/false);
+  if (stopped) return nlohmann::json::object();
+  if (doc.is_discarded()) return std::nullopt;
+  return doc;
 }
 
 }  // namespace
@@ -463,22 +507,59 @@ nlohmann::ordered_json SweepArchiveToJson(const v1::SweepInfo& sweep,
   return doc;
 }
 
-absl::StatusOr<ParsedSweepArchive> ParseSweepArchive(const std::string& text) {
-  const nlohmann::json doc = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
-  if (doc.is_discarded() || !doc.is_object())
+absl::StatusOr<SweepArchiveOpening> ReadSweepArchiveOpening(std::istream& in) {
+  const std::optional<nlohmann::json> doc =
+      ParseDroppingJobs(in, [](nlohmann::json&) { return true; });
+  if (!doc.has_value() || !doc->is_object())
     return absl::InvalidArgumentError("archive: not a JSON document");
   const Reader top("");
-  TG_READ(format, top.String(doc, "format"));
+  TG_READ(format, top.String(*doc, "format"));
   if (format != kSweepArchiveFormat)
     return absl::InvalidArgumentError(absl::StrCat("archive: format '", format, "' is not '",
                                                    kSweepArchiveFormat, "'"));
-  TG_READ(version, top.Integer(doc, "version"));
+  TG_READ(version, top.Integer(*doc, "version"));
   if (version < 1 || version > kSweepArchiveVersion)
     return absl::InvalidArgumentError(absl::StrCat("archive: version ", version,
                                                    "; this build reads versions 1 to ",
                                                    kSweepArchiveVersion));
-  if (version >= 3) return ParseVersion3(doc, static_cast<int>(version));
-  return ParseVersion1Or2(doc, version);
+  SweepArchiveOpening opening;
+  opening.version = static_cast<int>(version);
+  if (version >= 3) {
+    RETURN_IF_ERROR(ReadVersion3Opening(*doc, opening.version, &opening));
+  } else {
+    RETURN_IF_ERROR(ReadVersion1Or2Opening(*doc, &opening));
+  }
+  return opening;
+}
+
+absl::Status ForEachArchivedJob(std::istream& in, int version,
+                                const std::function<absl::Status(storage::ImportedJob&)>& visit) {
+  absl::Status status;
+  size_t index = 0;
+  const std::optional<nlohmann::json> doc = ParseDroppingJobs(in, [&](nlohmann::json& j) {
+    absl::StatusOr<storage::ImportedJob> job =
+        version >= 3 ? ParseVersion3Job(j, index, version) : ParseVersion1Or2Job(j, index, version);
+    ++index;
+    status = job.ok() ? visit(*job) : job.status();
+    return status.ok();
+  });
+  RETURN_IF_ERROR(status);
+  if (!doc.has_value()) return absl::InvalidArgumentError("archive: not a JSON document");
+  return absl::OkStatus();
+}
+
+absl::StatusOr<ParsedSweepArchive> ParseSweepArchive(const std::string& text) {
+  std::istringstream in(text);
+  ASSIGN_OR_RETURN(SweepArchiveOpening opening, ReadSweepArchiveOpening(in));
+  ParsedSweepArchive archive;
+  static_cast<SweepArchiveOpening&>(archive) = std::move(opening);
+  in.clear();
+  in.seekg(0);
+  RETURN_IF_ERROR(ForEachArchivedJob(in, archive.version, [&](storage::ImportedJob& job) {
+    archive.jobs.push_back(std::move(job));
+    return absl::OkStatus();
+  }));
+  return archive;
 }
 
 #undef TG_READ

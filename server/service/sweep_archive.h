@@ -49,6 +49,8 @@
 #define TOTALGRAD_SERVER_SERVICE_SWEEP_ARCHIVE_H_
 
 #include <cstdint>
+#include <functional>
+#include <istream>
 #include <map>
 #include <string>
 #include <vector>
@@ -100,21 +102,48 @@ nlohmann::ordered_json SweepArchiveToJson(const v1::SweepInfo& sweep,
                                           const std::vector<ArchiveJobInput>& jobs,
                                           const std::string& exported_by, int64_t exported_ms);
 
-struct ParsedSweepArchive {
+// What an archive says before its jobs: its version and the sweep.
+struct SweepArchiveOpening {
+  int version = kSweepArchiveVersion;
   std::string name;
   std::string canonical_spec;
   std::string spec_hash;
   storage::SweepState state = storage::SweepState::kRunning;
   int64_t created_ms = 0;  // version 4: the sweep's submission time; 0: unknown
+};
+
+// Reading an archive as a stream, so that its size does not bound what can
+// be imported (issue 28: a 100,000-job archive is ~250 MB of JSON, several
+// GB as one parsed document). JSON does not order an object's members, so
+// the opening is read in a pass of its own (the jobs parsed and dropped one
+// by one), and the jobs in a second pass over the same bytes.
+//
+// Reads `in` to its end: InvalidArgument for text that is not one JSON
+// document, another format or version, or naming the value of the opening
+// (sweep) that is missing or mistyped. Needs nothing of the jobs but that
+// "jobs" is an array.
+absl::StatusOr<SweepArchiveOpening> ReadSweepArchiveOpening(std::istream& in);
+
+// Calls `visit` with each job of the archive in `in` (of `version`, as
+// ReadSweepArchiveOpening read it), in order, holding one job in memory at a
+// time. Stops at the first job that does not read (InvalidArgument naming
+// where, as ParseSweepArchive) or that `visit` refuses, and returns that
+// error; the rest of `in` is then skipped.
+absl::Status ForEachArchivedJob(std::istream& in, int version,
+                                const std::function<absl::Status(storage::ImportedJob&)>& visit);
+
+// The whole archive in memory (tests and small archives).
+struct ParsedSweepArchive : SweepArchiveOpening {
   std::vector<storage::ImportedJob> jobs;
 };
 
-// Reads an archive of version 1 to 4. InvalidArgument for another format
-// or version, or naming the value that is missing or mistyped: in versions 3 and 4
-// by its path and why ("archive: jobs[3].state: 'x' is not one of its
-// names", "archive: jobs[0].attempt_log[1].episodes[2].real_cost: not a
-// number or null", "archive: sweep.spec_hash: missing"); in versions 1 and 2
-// as before ("archive: jobs[3]: 'state' is missing or mistyped").
+// Reads an archive of version 1 to 4 (ReadSweepArchiveOpening, then
+// ForEachArchivedJob). InvalidArgument for another format or version, or
+// naming the value that is missing or mistyped: in versions 3 and 4 by its
+// path and why ("archive: jobs[3].state: 'x' is not one of its names",
+// "archive: jobs[0].attempt_log[1].episodes[2].real_cost: not a number or
+// null", "archive: sweep.spec_hash: missing"); in versions 1 and 2 as before
+// ("archive: jobs[3]: 'state' is missing or mistyped").
 absl::StatusOr<ParsedSweepArchive> ParseSweepArchive(const std::string& text);
 
 }  // namespace totalgrad::service

@@ -140,12 +140,34 @@ absl::Status ImportAttempt(Db& db, ImportStatements& statements, const ImportedJ
   return absl::OkStatus();
 }
 
+// The sweep's jobs by (kind, method, seed, variant), read once: no index
+// covers that lookup, so a query per imported job scanned the whole sweep
+// each time (100,000 jobs: over ten minutes; issue 28).
+using SweepJobIds =
+    std::map<std::tuple<std::string, std::string, std::string, std::string>, int64_t>;
+
+absl::StatusOr<SweepJobIds> ReadSweepJobIds(Db& db, int64_t sweep_id) {
+  SweepJobIds job_ids;
+  ASSIGN_OR_RETURN(Statement all, Statement::Prepare(db, R"sql(
+SELECT id, kind, method, CAST(seed AS TEXT), variant FROM jobs WHERE sweep_id = ?)sql"));
+  all.Bind(1, sweep_id);
+  while (true) {
+    ASSIGN_OR_RETURN(bool row, all.Step());
+    if (!row) break;
+    job_ids.emplace(std::make_tuple(all.ColumnText(1), all.ColumnText(2), all.ColumnText(3),
+                                    all.ColumnText(4)),
+                    all.ColumnInt(0));
+  }
+  return job_ids;
+}
+
 }  // namespace
 
-absl::StatusOr<ImportResult> SqliteStore::ImportJobs(const std::optional<NewSweep>& create,
-                                                    const std::string& sweep_name,
-                                                    const std::vector<ImportedJob>& jobs,
-                                                    const std::string& source, int64_t now_ms) {
+absl::StatusOr<ImportResult> SqliteStore::ImportJobStream(const std::optional<NewSweep>& create,
+                                                         const std::string& sweep_name,
+                                                         const ImportedJobProducer& jobs,
+                                                         const std::string& source,
+                                                         int64_t now_ms) {
   ImportResult result;
   const absl::Status status = InWriteTransaction([&](Db& db) -> absl::Status {
     result = ImportResult();
@@ -158,22 +180,7 @@ absl::StatusOr<ImportResult> SqliteStore::ImportJobs(const std::optional<NewSwee
     ASSIGN_OR_RETURN(bool found, sweep_query.Step());
     if (!found) return absl::NotFoundError(absl::StrCat("no sweep named '", sweep_name, "'"));
     const int64_t sweep_id = sweep_query.ColumnInt(0);
-    // The sweep's jobs by (kind, method, seed, variant), read once: no index
-    // covers that lookup, so a query per imported job scanned the whole
-    // sweep each time (100,000 jobs: over ten minutes; issue 28).
-    std::map<std::tuple<std::string, std::string, std::string, std::string>, int64_t> job_ids;
-    {
-      ASSIGN_OR_RETURN(Statement all, Statement::Prepare(db, R"sql(
-SELECT id, kind, method, CAST(seed AS TEXT), variant FROM jobs WHERE sweep_id = ?)sql"));
-      all.Bind(1, sweep_id);
-      while (true) {
-        ASSIGN_OR_RETURN(bool row, all.Step());
-        if (!row) break;
-        job_ids.emplace(std::make_tuple(all.ColumnText(1), all.ColumnText(2), all.ColumnText(3),
-                                        all.ColumnText(4)),
-                        all.ColumnInt(0));
-      }
-    }
+    ASSIGN_OR_RETURN(const SweepJobIds job_ids, ReadSweepJobIds(db, sweep_id));
     ASSIGN_OR_RETURN(Statement job_query, Statement::Prepare(db, R"sql(
 SELECT state, attempts, episodes_expected FROM jobs WHERE id = ?)sql"));
     ASSIGN_OR_RETURN(Statement attempt_insert, Statement::Prepare(db, R"sql(
@@ -191,7 +198,7 @@ UPDATE jobs SET state = 'completed', attempts = ?, completed_attempt = ?, succes
                 final_eval_cost = ?, failures = failures + ?, lost_leases = lost_leases + ?,
                 last_error = ?
 WHERE id = ?)sql"));
-    for (const ImportedJob& job : jobs) {
+    RETURN_IF_ERROR(jobs([&](const ImportedJob& job) -> absl::Status {
       // Seeds are stored as integers: "07" names seed 7, as SQLite's
       // comparison of the text with the integer column did.
       int64_t seed_number = 0;
@@ -203,7 +210,7 @@ WHERE id = ?)sql"));
                                                       job.record.variant));
       if (known == job_ids.end()) {
         ++result.jobs_unknown;
-        continue;
+        return absl::OkStatus();
       }
       const int64_t job_id = known->second;
       job_query.Bind(1, job_id);
@@ -215,15 +222,15 @@ WHERE id = ?)sql"));
       job_query.Reset();
       if (state == ToString(JobState::kCompleted)) {
         ++result.jobs_already_complete;
-        continue;
+        return absl::OkStatus();
       }
       if (job.record.state != JobState::kCompleted || job.completed_attempt <= 0) {
         ++result.jobs_not_completed;
-        continue;
+        return absl::OkStatus();
       }
       if (state == ToString(JobState::kRunning)) {
         ++result.jobs_running_here;
-        continue;
+        return absl::OkStatus();
       }
       int completed_here = 0;
       for (size_t i = 0; i < job.attempts.size(); ++i) {
@@ -252,7 +259,8 @@ WHERE id = ?)sql"));
                                absl::StrCat("completed attempt ", job.completed_attempt, " of ",
                                             source, " (now attempt ", completed_here, ")")));
       ++result.jobs_imported;
-    }
+      return absl::OkStatus();
+    }));
     return AddEvent(db, now_ms, sweep_id, 0, 0, "sweep_imported",
                     absl::StrCat(source, ": ", result.jobs_imported, " jobs taken over, ",
                                  result.jobs_already_complete, " already complete here, ",

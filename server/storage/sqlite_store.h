@@ -145,10 +145,11 @@ class SqliteStore final : public Store {
                                const Checkpoint& checkpoint, int64_t now_ms) override;
   absl::StatusOr<EndOutcome> EndAttempt(const AttemptEnd& end) override;
   absl::StatusOr<int> GrowSweep(const NewSweep& grown, int64_t now_ms) override;
-  absl::StatusOr<ImportResult> ImportJobs(const std::optional<NewSweep>& create,
-                                          const std::string& sweep_name,
-                                          const std::vector<ImportedJob>& jobs,
-                                          const std::string& source, int64_t now_ms) override;
+  absl::StatusOr<ImportResult> ImportJobStream(const std::optional<NewSweep>& create,
+                                               const std::string& sweep_name,
+                                               const ImportedJobProducer& jobs,
+                                               const std::string& source,
+                                               int64_t now_ms) override;
   absl::Status RetryJob(int64_t job_id, int64_t now_ms) override;
   absl::StatusOr<int> SupersedeJob(int64_t job_id, int64_t by_job_id, int64_t now_ms) override;
   absl::StatusOr<int> ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms,

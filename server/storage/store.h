@@ -174,10 +174,22 @@ class SweepAdministration {
   // other job is left alone and counted in the result. A duplicate is thus
   // refused by its key: an episode row never exists twice. NotFound if the
   // sweep does not exist and `create` is null.
-  virtual absl::StatusOr<ImportResult> ImportJobs(const std::optional<NewSweep>& create,
-                                                  const std::string& sweep_name,
-                                                  const std::vector<ImportedJob>& jobs,
-                                                  const std::string& source, int64_t now_ms) = 0;
+  // The jobs come from `jobs`, which hands each to the store's callback in
+  // turn (an archive read as a stream: ForEachArchivedJob), so the store
+  // holds one archived job at a time; an error `jobs` returns (its own or
+  // the callback's) rolls the whole import back.
+  virtual absl::StatusOr<ImportResult> ImportJobStream(const std::optional<NewSweep>& create,
+                                                       const std::string& sweep_name,
+                                                       const ImportedJobProducer& jobs,
+                                                       const std::string& source,
+                                                       int64_t now_ms) = 0;
+  // ImportJobStream of jobs in memory.
+  absl::StatusOr<ImportResult> ImportJobs(const std::optional<NewSweep>& create,
+                                          const std::string& sweep_name,
+                                          const std::vector<ImportedJob>& jobs,
+                                          const std::string& source, int64_t now_ms) {
+    return ImportJobStream(create, sweep_name, ProduceEach(jobs), source, now_ms);
+  }
 
   // Puts a failed or cancelled job back in the queue with zeroed failure and
   // lost-lease counts. A job of a cancelled sweep runs alone: the sweep

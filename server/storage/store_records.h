@@ -461,6 +461,21 @@ struct ImportedJob {
   std::vector<ImportedAttempt> attempts;
 };
 
+// Hands each job of an import to `each`, in order, and returns the first
+// error, its own or `each`'s (Store::ImportJobStream).
+using ImportedJobProducer =
+    std::function<absl::Status(const std::function<absl::Status(const ImportedJob&)>& each)>;
+
+// A producer of `jobs` (which must outlive it).
+inline ImportedJobProducer ProduceEach(const std::vector<ImportedJob>& jobs) {
+  return [&jobs](const std::function<absl::Status(const ImportedJob&)>& each) {
+    for (const ImportedJob& job : jobs) {
+      if (absl::Status status = each(job); !status.ok()) return status;
+    }
+    return absl::OkStatus();
+  };
+}
+
 struct ImportResult {
   bool sweep_created = false;
   int jobs_imported = 0;           // completed in the archive, not yet here: taken over

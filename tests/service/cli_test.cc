@@ -317,6 +317,23 @@ TEST_F(CliTest, ExportImportMovesASweepAndDatabasesReadWithoutACoordinator) {
   WriteFile(dir_ + "/broken.json", "{\"format\": \"totalgrad-sweep-archive\", \"version\": 7}");
   EXPECT_EQ(Cli({"results", "import", dir_ + "/broken.json"}, &out, &err), 2);
   EXPECT_NE(err.find("version 7"), std::string::npos) << err;
+  // An archive whose last job does not read (the jobs are read one at a time,
+  // inside the import's transaction: issue 28) creates nothing, not even
+  // the sweep, and the copy the coordinator kept while reading it is gone.
+  {
+    nlohmann::json late = nlohmann::json::parse(ReadFile(archive));
+    late["jobs"].back()["state"] = "sleeping";
+    WriteFile(dir_ + "/late.json", late.dump());
+    const std::string fresh = dir_ + "/fresh.db";
+    EXPECT_EQ(Cli({"results", "import", dir_ + "/late.json", "--db", fresh}, &out, &err, false), 2);
+    EXPECT_NE(err.find("jobs[2].state: 'sleeping'"), std::string::npos) << err;
+    ASSERT_EQ(Cli({"sweep", "list", "--db", fresh}, &out, &err, false), 0) << err;
+    EXPECT_EQ(out.find("cli"), std::string::npos) << out;
+    for (const auto& entry : std::filesystem::directory_iterator(dir_)) {
+      EXPECT_EQ(entry.path().filename().string().find(".totalgrad-import-"), std::string::npos)
+          << entry.path();
+    }
+  }
   // Into a database file without a coordinator: a new file reads as the
   // sweep did; the file a coordinator holds is refused, naming the holder.
   const std::string third = dir_ + "/third.db";

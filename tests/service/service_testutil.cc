@@ -133,10 +133,10 @@ absl::StatusOr<storage::EndOutcome> FaultyStore::EndAttempt(const storage::Attem
 absl::StatusOr<int> FaultyStore::GrowSweep(const storage::NewSweep& grown, int64_t now_ms) {
   TG_FORWARD("GrowSweep", target_->GrowSweep(grown, now_ms));
 }
-absl::StatusOr<storage::ImportResult> FaultyStore::ImportJobs(
+absl::StatusOr<storage::ImportResult> FaultyStore::ImportJobStream(
     const std::optional<storage::NewSweep>& create, const std::string& sweep_name,
-    const std::vector<storage::ImportedJob>& jobs, const std::string& source, int64_t now_ms) {
-  TG_FORWARD("ImportJobs", target_->ImportJobs(create, sweep_name, jobs, source, now_ms));
+    const storage::ImportedJobProducer& jobs, const std::string& source, int64_t now_ms) {
+  TG_FORWARD("ImportJobs", target_->ImportJobStream(create, sweep_name, jobs, source, now_ms));
 }
 absl::Status FaultyStore::RetryJob(int64_t job_id, int64_t now_ms) {
   TG_FORWARD("RetryJob", target_->RetryJob(job_id, now_ms));

@@ -63,11 +63,10 @@ class FaultyStore final : public storage::Store {
                                const storage::Checkpoint& checkpoint, int64_t now_ms) override;
   absl::StatusOr<storage::EndOutcome> EndAttempt(const storage::AttemptEnd& end) override;
   absl::StatusOr<int> GrowSweep(const storage::NewSweep& grown, int64_t now_ms) override;
-  absl::StatusOr<storage::ImportResult> ImportJobs(const std::optional<storage::NewSweep>& create,
-                                                   const std::string& sweep_name,
-                                                   const std::vector<storage::ImportedJob>& jobs,
-                                                   const std::string& source,
-                                                   int64_t now_ms) override;
+  absl::StatusOr<storage::ImportResult> ImportJobStream(
+      const std::optional<storage::NewSweep>& create, const std::string& sweep_name,
+      const storage::ImportedJobProducer& jobs, const std::string& source,
+      int64_t now_ms) override;
   absl::Status RetryJob(int64_t job_id, int64_t now_ms) override;
   absl::StatusOr<int> SupersedeJob(int64_t job_id, int64_t by_job_id, int64_t now_ms) override;
   absl::StatusOr<int> ExtendOpenLeases(int64_t lease_expires_ms, int64_t now_ms,
