@@ -78,15 +78,16 @@ def main():
         settled = status_mb("VmRSS")
         size = os.path.getsize(path) if path else None
         size_text = f", {size / 2**20:.1f} MiB" if path else ""
+        when = f"{args.settle_seconds:.0f} s after" if settle else "at its end"
         print(f"{step}: {seconds:.1f} s{size_text}; coordinator RSS peak {peak:.0f} MB, "
-              f"{settled:.0f} MB {args.settle_seconds:.0f} s after", flush=True)
+              f"{settled:.0f} MB {when}", flush=True)
         if args.json_out:
             with open(args.json_out, "a") as out:
                 out.write(json.dumps({
                     "step": step, "seconds": round(seconds, 1), "bytes_written": size,
                     "jobs_in_store": jobs_in_store, "peak_rss_mb": round(peak, 1),
                     "rss_mb_after_settle": round(settled, 1),
-                    "settle_seconds": args.settle_seconds,
+                    "settle_seconds": args.settle_seconds if settle else 0,
                     "database_bytes": os.path.getsize(db)}) + "\n")
         reset_peak()
 

@@ -140,22 +140,32 @@ absl::Status ImportAttempt(Db& db, ImportStatements& statements, const ImportedJ
   return absl::OkStatus();
 }
 
-// The sweep's jobs by (kind, method, seed, variant), read once: no index
-// covers that lookup, so a query per imported job scanned the whole sweep
-// each time (100,000 jobs: over ten minutes; issue 28).
-using SweepJobIds =
-    std::map<std::tuple<std::string, std::string, std::string, std::string>, int64_t>;
+// A job's identity in its sweep, as the job ids below are keyed. Seeds are
+// stored as integers: "07" names seed 7, as SQLite's comparison of the text
+// with the integer column did.
+using JobIdentity = std::tuple<std::string, std::string, std::string, std::string>;
+
+JobIdentity IdentityOf(JobKind kind, const std::string& method, const std::string& seed,
+                       const std::string& variant) {
+  int64_t seed_number = 0;
+  return {std::string(ToString(kind)), method,
+          absl::SimpleAtoi(seed, &seed_number) ? std::to_string(seed_number) : seed, variant};
+}
+
+// The sweep's jobs by identity, read once (internal::SweepJobIdsSql): no
+// index covers a lookup by identity, so a query per imported (or grown) job
+// scanned the whole sweep each time (100,000 jobs: over ten minutes; issue 28).
+using SweepJobIds = std::map<JobIdentity, int64_t>;
 
 absl::StatusOr<SweepJobIds> ReadSweepJobIds(Db& db, int64_t sweep_id) {
   SweepJobIds job_ids;
-  ASSIGN_OR_RETURN(Statement all, Statement::Prepare(db, R"sql(
-SELECT id, kind, method, CAST(seed AS TEXT), variant FROM jobs WHERE sweep_id = ?)sql"));
+  ASSIGN_OR_RETURN(Statement all, Statement::Prepare(db, internal::SweepJobIdsSql()));
   all.Bind(1, sweep_id);
   while (true) {
     ASSIGN_OR_RETURN(bool row, all.Step());
     if (!row) break;
-    job_ids.emplace(std::make_tuple(all.ColumnText(1), all.ColumnText(2), all.ColumnText(3),
-                                    all.ColumnText(4)),
+    job_ids.emplace(JobIdentity(all.ColumnText(1), all.ColumnText(2), all.ColumnText(3),
+                                all.ColumnText(4)),
                     all.ColumnInt(0));
   }
   return job_ids;
@@ -181,8 +191,7 @@ absl::StatusOr<ImportResult> SqliteStore::ImportJobStream(const std::optional<Ne
     if (!found) return absl::NotFoundError(absl::StrCat("no sweep named '", sweep_name, "'"));
     const int64_t sweep_id = sweep_query.ColumnInt(0);
     ASSIGN_OR_RETURN(const SweepJobIds job_ids, ReadSweepJobIds(db, sweep_id));
-    ASSIGN_OR_RETURN(Statement job_query, Statement::Prepare(db, R"sql(
-SELECT state, attempts, episodes_expected FROM jobs WHERE id = ?)sql"));
+    ASSIGN_OR_RETURN(Statement job_query, Statement::Prepare(db, internal::ImportedJobStateSql()));
     ASSIGN_OR_RETURN(Statement attempt_insert, Statement::Prepare(db, R"sql(
 INSERT INTO attempts(job_id, attempt, state, worker_id, worker_host, worker_build, started_ms,
                      lease_expires_ms, ended_ms, error, origin)
@@ -199,15 +208,8 @@ UPDATE jobs SET state = 'completed', attempts = ?, completed_attempt = ?, succes
                 last_error = ?
 WHERE id = ?)sql"));
     RETURN_IF_ERROR(jobs([&](const ImportedJob& job) -> absl::Status {
-      // Seeds are stored as integers: "07" names seed 7, as SQLite's
-      // comparison of the text with the integer column did.
-      int64_t seed_number = 0;
-      const std::string seed = absl::SimpleAtoi(job.record.seed, &seed_number)
-                                   ? std::to_string(seed_number)
-                                   : job.record.seed;
-      const auto known = job_ids.find(std::make_tuple(std::string(ToString(job.record.kind)),
-                                                      job.record.method, seed,
-                                                      job.record.variant));
+      const auto known = job_ids.find(IdentityOf(job.record.kind, job.record.method,
+                                                  job.record.seed, job.record.variant));
       if (known == job_ids.end()) {
         ++result.jobs_unknown;
         return absl::OkStatus();
@@ -304,9 +306,8 @@ absl::StatusOr<int> SqliteStore::GrowSweep(const NewSweep& grown, int64_t now_ms
     if (!found) return absl::NotFoundError(absl::StrCat("no sweep named '", grown.name, "'"));
     const int64_t sweep_id = sweep_query.ColumnInt(0);
     const std::string previous_hash = sweep_query.ColumnText(1);
-    ASSIGN_OR_RETURN(Statement exists, Statement::Prepare(db, R"sql(
-SELECT j.options_json, j.seed, s.trial_options_json FROM jobs j JOIN sweeps s ON s.id = j.sweep_id
-WHERE j.sweep_id = ? AND j.kind = ? AND j.method = ? AND j.seed = ? AND j.variant = ?)sql"));
+    ASSIGN_OR_RETURN(const SweepJobIds job_ids, ReadSweepJobIds(db, sweep_id));
+    ASSIGN_OR_RETURN(Statement exists, Statement::Prepare(db, internal::StoredJobOptionsSql()));
     SharedOptionsCache shared_options;
     ASSIGN_OR_RETURN(Statement last, Statement::Prepare(
         db, "SELECT COALESCE(MAX(ordinal), -1) FROM jobs WHERE sweep_id = ?"));
@@ -314,18 +315,16 @@ WHERE j.sweep_id = ? AND j.kind = ? AND j.method = ? AND j.seed = ? AND j.varian
     ASSIGN_OR_RETURN(bool any, last.Step());
     const int64_t ordinal = any ? last.ColumnInt(0) : -1;
     // Jobs are inserted as they are met: one the grown spec lists twice
-    // does not exist (a job's identity is unique in a spec), so inserting
-    // early changes no later lookup, and an error rolls them all back.
+    // does not exist (a job's identity is unique in a spec), so the ids read
+    // before need no update, and an error rolls them all back.
     ASSIGN_OR_RETURN(QueuedJobInserter inserter,
                      QueuedJobInserter::Prepare(db, sweep_id, ordinal + 1));
     RETURN_IF_ERROR(grown.ForEachJob([&](const NewJob& job) -> absl::Status {
-      exists.Bind(1, sweep_id).Bind(2, ToString(job.kind)).Bind(3, job.method);
-      exists.Bind(4, job.seed).Bind(5, job.variant);
+      const auto known = job_ids.find(IdentityOf(job.kind, job.method, job.seed, job.variant));
+      if (known == job_ids.end()) return inserter.Insert(job);
+      exists.Bind(1, known->second);
       ASSIGN_OR_RETURN(bool present, exists.Step());
-      if (!present) {
-        exists.Reset();
-        return inserter.Insert(job);
-      }
+      if (!present) return absl::InternalError(absl::StrCat("job ", known->second, " vanished"));
       std::optional<std::string> shared;
       if (!exists.ColumnIsNull(2)) shared = exists.ColumnText(2);
       const OptionPairs stored_options =
@@ -354,5 +353,22 @@ WHERE id = ?)sql"));
   return added;
 }
 
+
+namespace internal {
+// Both read a sweep's jobs through the unique index on (sweep_id, ordinal),
+// or one job by its id; storage_test checks the plans.
+const char* SweepJobIdsSql() {
+  return R"sql(
+SELECT id, kind, method, CAST(seed AS TEXT), variant FROM jobs WHERE sweep_id = ?)sql";
+}
+const char* ImportedJobStateSql() {
+  return "SELECT state, attempts, episodes_expected FROM jobs WHERE id = ?";
+}
+const char* StoredJobOptionsSql() {
+  return R"sql(
+SELECT j.options_json, j.seed, s.trial_options_json FROM jobs j JOIN sweeps s ON s.id = j.sweep_id
+WHERE j.id = ?)sql";
+}
+}  // namespace internal
 
 }  // namespace totalgrad::storage

@@ -68,6 +68,15 @@ const char* JobOptionsJsonSql();
 const char* ClaimSweepsSql();
 const char* ClaimJobsSql();
 
+// The queries an import (ImportJobStream) and a grown sweep (GrowSweep) run:
+// a sweep's jobs with their identities, read once (parameter: sweep id),
+// then per job by its id: its state, attempts and episodes expected; its
+// stored options (options_json, seed, the sweep's trial_options_json). No
+// plan scans a sweep per job (storage_test checks the plans).
+const char* SweepJobIdsSql();
+const char* ImportedJobStateSql();
+const char* StoredJobOptionsSql();
+
 // One row of `episodes`: the key, the episode's record (its columns from
 // learner::EpisodeFields(), sqlite_records.h), details_json and
 // reported_ms; a stored (job, attempt, episode) is kept (ON CONFLICT DO

@@ -16,6 +16,7 @@
 #include <limits>
 #include <optional>
 #include <filesystem>
+#include <fstream>
 #include <functional>
 #include <thread>
 
@@ -563,8 +564,17 @@ TEST_F(WorkerTest, SpooledResultsOfAnExpiredLeaseAreDropped) {
 TEST_F(WorkerTest, SecondProcessWithTheSameIdOnThisHostIsRefused) {
   state_dir_ = dir_ + "/state";
   StartWorker(1);
-  ASSERT_TRUE(WaitFor([&] { return std::filesystem::exists(state_dir_ + "/id-fake/lock"); },
-                      seconds(10)));
+  // The lock file exists before its lock is taken and names its holder only
+  // after: wait for the holder (a twin started between the two would win
+  // the lock, or find no holder to name).
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        std::ifstream lock(state_dir_ + "/id-fake/lock");
+        std::string holder;
+        std::getline(lock, holder);
+        return holder.find("pid ") != std::string::npos;
+      },
+      seconds(10)));
   WorkerOptions options;
   options.worker_id = "fake";
   options.host = "testhost";
