@@ -11,6 +11,8 @@
 #include <algorithm>
 #include <chrono>
 #include <filesystem>
+#include <fstream>
+#include <iostream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -75,12 +77,18 @@ class ScaleExportTest : public ServiceFixture {
     }
   }
 
-  // An archive in which every job of `sweep` completed attempt 1 with every
-  // expected episode (episode k costs k + job id / 10^4, so rows differ).
-  std::string CompletedArchive(const v1::SweepInfo& sweep, const std::vector<v1::JobInfo>& jobs) {
-    std::vector<service::ArchiveJobInput> inputs;
+  // Writes to `path` an archive in which every job of `sweep` completed
+  // attempt 1 with every expected episode (episode k costs k + job id /
+  // 10^4, so rows differ), one job at a time. Returns its size in bytes.
+  size_t WriteCompletedArchive(const std::string& path, const v1::SweepInfo& sweep,
+                               const std::vector<v1::JobInfo>& jobs) {
+    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    std::string opening = service::SweepArchiveOpeningJson(sweep, "test", 3000).dump();
+    opening.pop_back();  // the closing brace: the jobs follow
+    out << opening << ",\"jobs\":[";
+    bool first = true;
     for (const v1::JobInfo& listed : jobs) {
-      service::ArchiveJobInput& input = inputs.emplace_back();
+      service::ArchiveJobInput input;
       input.job = listed;
       input.job.set_state(v1::JOB_STATE_COMPLETED);
       input.job.set_success(true);
@@ -108,8 +116,13 @@ class ScaleExportTest : public ServiceFixture {
         report->set_optimisation_seconds(0.01);
         report->set_details_json("{\"n\":1}");
       }
+      out << (first ? "" : ",") << service::ArchiveJobJson(input).dump();
+      first = false;
     }
-    return service::SweepArchiveToJson(sweep, inputs, "test", 3000).dump();
+    out << "]}";
+    out.close();
+    EXPECT_TRUE(out.good()) << path;
+    return std::filesystem::file_size(path);
   }
 
   // Files in the test's directory whose name starts with `prefix`.
@@ -148,7 +161,7 @@ TEST_F(ScaleExportTest, FourThousandJobsExportDeleteAndImportBackThroughCoordina
   const int expected_episodes = queued.front().episodes_expected();
   ASSERT_GT(expected_episodes, 0);
   const int64_t episodes = int64_t{kJobs} * expected_episodes;
-  WriteFile(dir_ + "/completed.json", CompletedArchive(Sweep("s4000"), queued));
+  WriteCompletedArchive(dir_ + "/completed.json", Sweep("s4000"), queued);
   ASSERT_EQ(Cli({"results", "import", dir_ + "/completed.json"}, &out, &err), 0) << out << err;
   ASSERT_NE(out.find(absl::StrCat("4000 jobs taken over (", episodes, " episodes")),
             std::string::npos) << out;
@@ -247,6 +260,26 @@ TEST_F(ScaleExportTest, ASubmissionsMemoryDoesNotGrowWithItsJobs) {
   }
   EXPECT_LT(resident, resident_before_list + 6)
       << resident_before_list << " MB before the listing, peak " << peak_after_list;
+
+  // An import reads its archive as a stream, one job in memory at a time:
+  // this archive of 20,000 completed jobs (about 50 MB) raised the
+  // coordinator's peak by several times its size when it was parsed whole.
+  const size_t archive_bytes =
+      WriteCompletedArchive(dir_ + "/s20k.archive.json", Sweep("s20k"), ListAllJobs("s20k"));
+  ASSERT_GT(archive_bytes, size_t{40} << 20);
+  {
+    std::ofstream reset_peak(absl::StrCat("/proc/", pid, "/clear_refs"));
+    reset_peak << "5";  // the peak (VmHWM) starts again from the resident size
+  }
+  const double resident_before_import = ProcStatusMb(pid, "VmRSS");
+  ASSERT_EQ(Cli({"results", "import", dir_ + "/s20k.archive.json"}, &out, &err), 0) << err;
+  ASSERT_NE(out.find("20000 jobs taken over"), std::string::npos) << out;
+  const double import_rise = ProcStatusMb(pid, "VmHWM") - resident_before_import;
+  EXPECT_LT(import_rise, archive_bytes / double{1 << 20} / 2)
+      << "the import raised the coordinator's peak by " << import_rise << " MB over "
+      << resident_before_import << " MB (archive " << (archive_bytes >> 20) << " MB)";
+  std::cerr << "import of " << (archive_bytes >> 20) << " MB raised the peak by " << import_rise
+            << " MB\n";
 }
 
 TEST_F(ScaleExportTest, AFailedExportLeavesNoFileUnderItsName) {
