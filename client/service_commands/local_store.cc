@@ -8,6 +8,7 @@
 #include "runtime/build_info.h"
 #include "server/scheduler/clock.h"
 #include "server/scheduler/scheduler.h"
+#include "server/service/archive_spool.h"
 #include "server/service/auth.h"
 #include "server/service/control_service.h"
 #include "server/storage/store.h"
@@ -39,6 +40,7 @@ absl::StatusOr<std::shared_ptr<LocalCoordinator>> LocalCoordinator::Open(
       writable ? storage::OpenStoreForWriting(database) : storage::OpenStoreReadOnly(database);
   if (!store.ok()) return store.status();
   parts->store = *std::move(store);
+  if (writable) service::ArchiveSpool::RemoveLeftovers(database);
   parts->scheduler = std::make_unique<scheduler::Scheduler>(parts->store.get(), &parts->clock,
                                                             scheduler::SchedulerOptions());
   // No tokens: the channel exists only inside this process.

@@ -15,12 +15,40 @@ ArchiveSpool::~ArchiveSpool() {
   if (!path_.empty()) ::unlink(path_.c_str());
 }
 
-absl::Status ArchiveSpool::Open(const std::string& database) {
-  std::filesystem::path directory = std::filesystem::temp_directory_path();
-  if (!database.empty() && database != ":memory:") {
-    directory = std::filesystem::absolute(database).parent_path();
+namespace {
+
+bool InMemory(const std::string& database) {
+  return database.empty() || database == ":memory:";
+}
+
+// Where the spool of `database` goes, and how its name starts.
+std::filesystem::path SpoolDirectory(const std::string& database) {
+  if (InMemory(database)) return std::filesystem::temp_directory_path();
+  return std::filesystem::absolute(database).parent_path();
+}
+std::string SpoolPrefix(const std::string& database) {
+  const std::string file =
+      InMemory(database) ? "memory" : std::filesystem::path(database).filename().string();
+  return absl::StrCat(".", file, ".import-");
+}
+
+}  // namespace
+
+int ArchiveSpool::RemoveLeftovers(const std::string& database) {
+  if (InMemory(database)) return 0;  // the temporary directory is shared
+  const std::string prefix = SpoolPrefix(database);
+  int removed = 0;
+  std::error_code error;
+  for (const auto& entry : std::filesystem::directory_iterator(SpoolDirectory(database), error)) {
+    if (entry.path().filename().string().rfind(prefix, 0) != 0) continue;
+    if (std::filesystem::remove(entry.path(), error)) ++removed;
   }
-  std::string name = (directory / ".totalgrad-import-XXXXXX").string();
+  return removed;
+}
+
+absl::Status ArchiveSpool::Open(const std::string& database) {
+  const std::filesystem::path directory = SpoolDirectory(database);
+  std::string name = (directory / (SpoolPrefix(database) + "XXXXXX")).string();
   const int fd = ::mkstemp(name.data());
   if (fd < 0) {
     return absl::InternalError(absl::StrCat("cannot create a file in ", directory.string(),

@@ -17,13 +17,21 @@ namespace totalgrad::service {
 // takes, not the coordinator's memory. The file lives beside the database
 // (the coordinator's own disk, which the import will fill anyway) or, for an
 // in-memory store, in the temporary directory; it is removed when the spool
-// goes. Not thread-safe.
+// goes. Its name, ".<database file name>.import-XXXXXX", ties it to the
+// store, so that the one process that may write the store can remove what a
+// killed process left (RemoveLeftovers). Not thread-safe.
 class ArchiveSpool {
  public:
   ArchiveSpool() = default;
   ArchiveSpool(const ArchiveSpool&) = delete;
   ArchiveSpool& operator=(const ArchiveSpool&) = delete;
   ~ArchiveSpool();
+
+  // Removes the spools an earlier process left beside the store at
+  // `database` (killed mid-import). Call only while holding the store for
+  // writing (its lock keeps every other writer, hence every other importer,
+  // out). Returns how many it removed.
+  static int RemoveLeftovers(const std::string& database);
 
   // Creates the file for the store at `database` (a path, ":memory:" or "").
   // Internal error naming the directory if it cannot.

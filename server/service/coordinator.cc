@@ -15,6 +15,7 @@
 #include "absl/strings/str_cat.h"
 #include "runtime/address.h"
 #include "runtime/build_info.h"
+#include "server/service/archive_spool.h"
 
 namespace totalgrad::service {
 namespace {
@@ -115,6 +116,9 @@ absl::StatusOr<std::unique_ptr<Coordinator>> Coordinator::Start(const Coordinato
       storage::SqliteStore::Open(options.database, store_options);
   if (!store.ok()) return store.status();
   c->store_ = *std::move(store);
+  if (const int removed = ArchiveSpool::RemoveLeftovers(options.database); removed > 0) {
+    spdlog::info("removed {} archive copies left by an import that did not end", removed);
+  }
   absl::StatusOr<std::string> settings = c->store_->DescribeSettings();
   spdlog::info("database {} ({})", options.database, settings.ok() ? *settings : "?");
 
