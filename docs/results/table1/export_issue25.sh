@@ -23,3 +23,11 @@ for sweep in table1-tip-k001 table1-tip-k1-rest table1-tip-k1-rerun; do
   cli sweep status "$sweep" | head -3
   cli results table "$sweep" || true
 done
+# Issue 27's DEL-against-RP example runs on the same coordinator.
+if cli sweep status diag-balance-del-rp > /dev/null 2>&1; then
+  diag=$here/../diagnostics/diag-balance-del-rp.archive.json
+  rm -f "$diag.partial"
+  cli results export diag-balance-del-rp -f json --checkpoints -o "$diag.partial"
+  mv "$diag.partial" "$diag"
+  cli results table diag-balance-del-rp || true
+fi
