@@ -89,6 +89,14 @@ Flags DefaultFlags() {
   return flags;
 }
 
+// A duration flag in seconds, its default shown in --help, its range
+// checked by `range` (a negative value is an error unless the flag says
+// what it means).
+void AddSeconds(CLI::App& app, const std::string& name, double& seconds,
+                const CLI::Validator& range, const std::string& help) {
+  app.add_option(name, seconds, help)->check(range)->capture_default_str();
+}
+
 // Declares every flag on `app`, bound to `flags`.
 void AddFlags(CLI::App& app, Flags& flags) {
   app.add_option("--coordinator", flags.connection.target, "coordinator host:port")->required();
@@ -110,45 +118,35 @@ void AddFlags(CLI::App& app, Flags& flags) {
                "plaintext; only to a loopback coordinator");
   app.add_option("--worker-id", flags.options.worker_id, "unique id of this worker")
       ->capture_default_str();
-  app.add_option("--drain-timeout", flags.drain_seconds,
-                 "seconds running trials get to finish after SIGTERM (then --report-grace for "
-                 "the final reports)")
-      ->capture_default_str();
-  app.add_option("--report-grace", flags.report_grace_seconds,
-                 "seconds final reports get after --drain-timeout before they are kept in "
-                 "--state-dir instead")
-      ->check(CLI::NonNegativeNumber)
-      ->capture_default_str();
+  AddSeconds(app, "--drain-timeout", flags.drain_seconds, CLI::NonNegativeNumber,
+             "seconds running trials get to finish after SIGTERM (then --report-grace for the "
+             "final reports)");
+  AddSeconds(app, "--report-grace", flags.report_grace_seconds, CLI::NonNegativeNumber,
+             "seconds final reports get after --drain-timeout before they are kept in "
+             "--state-dir instead");
   app.add_option("--state-dir", flags.options.state_dir,
                  "directory for this worker id's lock and its spool of undelivered results "
                  "(replayed by the next worker with the same id on this host)")
       ->capture_default_str();
-  app.add_option("--worker-id-wait", flags.worker_id_wait_seconds,
-                 "seconds to wait while the coordinator says another live worker uses this "
-                 "--worker-id before exiting with code 78")
-      ->check(CLI::NonNegativeNumber)
-      ->capture_default_str();
-  app.add_option("--max-idle", flags.max_idle_seconds,
-                 "exit after this many seconds without work, time without a coordinator "
-                 "included (default: never)");
-  app.add_option("--max-unreachable", flags.max_unreachable_seconds,
-                 "exit with code 69 after this many seconds in which the coordinator never "
-                 "answered and no trial ran (codes: 0 done, 69 no coordinator, 77 token refused, "
-                 "78 worker id in use)")
-      ->check(CLI::PositiveNumber)
-      ->capture_default_str();
-  app.add_option("--acquire-wait", flags.acquire_wait_seconds, "long-poll length, seconds")
-      ->capture_default_str();
+  AddSeconds(app, "--worker-id-wait", flags.worker_id_wait_seconds, CLI::NonNegativeNumber,
+             "seconds to wait while the coordinator says another live worker uses this "
+             "--worker-id before exiting with code 78");
+  AddSeconds(app, "--max-idle", flags.max_idle_seconds, CLI::Number,
+             "exit after this many seconds without work, time without a coordinator included "
+             "(negative: never)");
+  AddSeconds(app, "--max-unreachable", flags.max_unreachable_seconds, CLI::PositiveNumber,
+             "exit with code 69 after this many seconds in which the coordinator never answered "
+             "and no trial ran (codes: 0 done, 69 no coordinator, 77 token refused, 78 worker "
+             "id in use)");
+  AddSeconds(app, "--acquire-wait", flags.acquire_wait_seconds, CLI::NonNegativeNumber,
+             "long-poll length, seconds");
   // Batch allocations (deploy/slurm): drain --trial-time before the end of
   // --walltime, so no trial is taken that cannot finish in time.
-  app.add_option("--walltime", flags.walltime_seconds,
-                 "seconds this worker may run (e.g. what is left of a batch allocation); it "
-                 "drains --trial-time before the end, taking no trial it cannot finish")
-      ->check(CLI::NonNegativeNumber);
-  app.add_option("--trial-time", flags.trial_seconds,
-                 "longest expected trial, seconds (with --walltime)")
-      ->check(CLI::NonNegativeNumber)
-      ->capture_default_str();
+  AddSeconds(app, "--walltime", flags.walltime_seconds, CLI::Number,
+             "seconds this worker may run (e.g. what is left of a batch allocation); it drains "
+             "--trial-time before the end, taking no trial it cannot finish (negative: no end)");
+  AddSeconds(app, "--trial-time", flags.trial_seconds, CLI::NonNegativeNumber,
+             "longest expected trial, seconds (with --walltime)");
   app.add_option("--speed-factor", flags.options.speed_factor,
                  "this machine's seconds per second of the trial cost model's reference machine "
                  "(with --walltime: a leased trial whose estimate times this exceeds the time "

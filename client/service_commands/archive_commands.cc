@@ -111,6 +111,54 @@ std::string DefaultDeleteArchivePath(const std::string& sweep) {
   return absl::StrCat(sweep, ".deleted-", stamp, ".archive.json");
 }
 
+// `results export`'s flags.
+struct ExportFlags {
+  std::string sweep;
+  std::string format = "csv";  // csv, jsonl or json (an archive)
+  std::string output;          // empty: stdout
+  bool all_attempts = false;
+  bool checkpoints = false;
+};
+
+int RunExport(Connection* c, const ExportFlags& flags) {
+  // A file appears under its name only complete (output_file.h);
+  // stdout gets the rows as they arrive.
+  std::unique_ptr<OutputFile> file;
+  if (!flags.output.empty()) {
+    absl::StatusOr<std::unique_ptr<OutputFile>> created =
+        OutputFile::Create(flags.output, OutputFile::Existing::kReplace, 0666);
+    if (!created.ok()) {
+      std::cerr << "error: results export: " << created.status().message() << "\n";
+      return 1;
+    }
+    file = *std::move(created);
+  }
+  std::ostream& out = file ? file->stream() : std::cout;
+  int64_t rows = 0;
+  const int code =
+      flags.format == "json"
+          ? ExportArchive(c, flags.sweep, out, flags.checkpoints, /*counted=*/nullptr)
+          : ExportRows(c, flags.sweep, flags.all_attempts, flags.format == "csv", out, &rows);
+  if (code != 0) return code;
+  if (file) {
+    if (const absl::Status written = file->Commit(); !written.ok()) {
+      std::cerr << "error: results export: " << written.message() << "\n";
+      return 1;
+    }
+  } else if (!out.flush()) {
+    std::cerr << "error: results export: writing stdout failed\n";
+    return 1;
+  }
+  if (!flags.output.empty()) {
+    if (flags.format == "json") {
+      std::cerr << "archive of sweep " << flags.sweep << " written to " << flags.output << "\n";
+    } else {
+      std::cerr << rows << " rows written to " << flags.output << "\n";
+    }
+  }
+  return 0;
+}
+
 }  // namespace
 
 grpc::Status ImportArchive(Connection* c, const std::string& archive,
@@ -201,61 +249,22 @@ void AddSweepDeleteCommand(CLI::App* sweep_cmd, int* exit_code) {
 }
 
 void AddArchiveCommands(CLI::App* results, int* exit_code) {
-  auto sweep = std::make_shared<std::string>();
-  auto all_attempts = std::make_shared<bool>(false);
-  auto output = std::make_shared<std::string>();
-  auto format = std::make_shared<std::string>("csv");
-  auto checkpoints = std::make_shared<bool>(false);
+  auto flags = std::make_shared<ExportFlags>();
   CLI::App* export_cmd = AddCommand(
       results, "export",
       "write a sweep's results: every episode row (-f csv, the default, or -f jsonl: one JSON "
       "object per row) or the whole sweep as an archive for `results import` (-f json: spec, "
       "jobs with their options, attempts with worker builds, episodes, study rows)",
-      exit_code,
-      [sweep, all_attempts, output, format, checkpoints](Connection* c) {
-        // A file appears under its name only complete (output_file.h);
-        // stdout gets the rows as they arrive.
-        std::unique_ptr<OutputFile> file;
-        if (!output->empty()) {
-          absl::StatusOr<std::unique_ptr<OutputFile>> created =
-              OutputFile::Create(*output, OutputFile::Existing::kReplace, 0666);
-          if (!created.ok()) {
-            std::cerr << "error: results export: " << created.status().message() << "\n";
-            return 1;
-          }
-          file = *std::move(created);
-        }
-        std::ostream& out = file ? file->stream() : std::cout;
-        int64_t rows = 0;
-        const int code =
-            *format == "json"
-                ? ExportArchive(c, *sweep, out, *checkpoints, /*counted=*/nullptr)
-                : ExportRows(c, *sweep, *all_attempts, *format == "csv", out, &rows);
-        if (code != 0) return code;
-        if (file) {
-          if (const absl::Status written = file->Commit(); !written.ok()) {
-            std::cerr << "error: results export: " << written.message() << "\n";
-            return 1;
-          }
-        } else if (!out.flush()) {
-          std::cerr << "error: results export: writing stdout failed\n";
-          return 1;
-        }
-        if (!output->empty()) {
-          if (*format == "json") std::cerr << "archive of sweep " << *sweep << " written to " << *output << "\n";
-          else std::cerr << rows << " rows written to " << *output << "\n";
-        }
-        return 0;
-      },
+      exit_code, [flags](Connection* c) { return RunExport(c, *flags); },
       /*with_format=*/false);
-  export_cmd->add_option("SWEEP", *sweep, "sweep name")->required();
-  export_cmd->add_option("-f,--format", *format, "csv (default), jsonl or json (an archive)")
+  export_cmd->add_option("SWEEP", flags->sweep, "sweep name")->required();
+  export_cmd->add_option("-f,--format", flags->format, "csv (default), jsonl or json (an archive)")
       ->check(CLI::IsMember({"csv", "jsonl", "json"}));
-  export_cmd->add_flag("--all-attempts", *all_attempts,
+  export_cmd->add_flag("--all-attempts", flags->all_attempts,
                        "rows of every attempt, not only each job's counting one (csv, jsonl; an "
                        "archive always has all)");
-  export_cmd->add_option("-o,--output", *output, "write to FILE instead of stdout");
-  export_cmd->add_flag("--checkpoints", *checkpoints,
+  export_cmd->add_option("-o,--output", flags->output, "write to FILE instead of stdout");
+  export_cmd->add_flag("--checkpoints", flags->checkpoints,
                        "json: keep each completed trial's final checkpoint (its final policy and "
                        "GP data) in the archive, so that an import can re-evaluate it (`job "
                        "artifacts`); sizes on stderr. `sweep delete` always keeps them");

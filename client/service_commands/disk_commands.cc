@@ -54,7 +54,17 @@ v1::PruneScope Scope(bool completed) {
   return completed ? v1::PRUNE_SCOPE_COMPLETED : v1::PRUNE_SCOPE_STALE;
 }
 
-int Prune(Connection* c, const std::string& sweep, bool completed, bool dry_run) {
+// `sweep prune`'s flags.
+struct PruneFlags {
+  std::string sweep;
+  bool completed = false;  // also the completed trials' final states
+  bool dry_run = false;
+};
+
+int Prune(Connection* c, const PruneFlags& flags) {
+  const std::string& sweep = flags.sweep;
+  const bool completed = flags.completed;
+  const bool dry_run = flags.dry_run;
   const std::string what = "sweep prune " + sweep;
   v1::PruneSweepRequest request;
   request.set_name(sweep);
@@ -102,21 +112,19 @@ void AddSweepDiskCommands(CLI::App* sweep_cmd, int* exit_code) {
       });
   size->add_option("NAME", *sweep, "sweep name")->required();
 
-  auto pruned = std::make_shared<std::string>();
-  auto completed = std::make_shared<bool>(false);
-  auto dry_run = std::make_shared<bool>(false);
+  auto prune_flags = std::make_shared<PruneFlags>();
   CLI::App* prune = AddCommand(
       sweep_cmd, "prune",
       "remove the checkpoints of a sweep's completed jobs that nothing reads (their superseded "
       "attempts'); --completed also removes the completed trials' final states, and with them "
       "their trajectories and `job artifacts` (export first: results export NAME --checkpoints)",
       exit_code,
-      [pruned, completed, dry_run](Connection* c) { return Prune(c, *pruned, *completed, *dry_run); },
+      [prune_flags](Connection* c) { return Prune(c, *prune_flags); },
       /*with_format=*/false);
-  prune->add_option("NAME", *pruned, "sweep name")->required();
-  prune->add_flag("--completed", *completed,
+  prune->add_option("NAME", prune_flags->sweep, "sweep name")->required();
+  prune->add_flag("--completed", prune_flags->completed,
                   "also the completed trials' own checkpoints (final states, trajectories)");
-  prune->add_flag("--dry-run", *dry_run, "say what would be removed, remove nothing");
+  prune->add_flag("--dry-run", prune_flags->dry_run, "say what would be removed, remove nothing");
 }
 
 }  // namespace totalgrad::cli

@@ -112,14 +112,21 @@ absl::Status ReadRow(const record::FieldTable<Record>& table, const nlohmann::js
 // One object of a job's attempt_log: the attempt's record
 // (storage::ImportedAttemptFields(), every field of which the import takes,
 // so every one must be there), its episodes and its study rows.
-absl::Status ReadAttempt(const nlohmann::json& object, const std::string& where, int version,
-                         storage::ImportedAttempt* attempt) {
+// The attempt's own fields, named alike in every version (versions before 4
+// have no origin: read as "", it ran where it was stored).
+absl::Status ReadAttemptRecord(const nlohmann::json& object, const std::string& where,
+                               int64_t version, storage::ImportedAttempt* attempt) {
   RETURN_IF_ERROR(ReadRecord(storage::ImportedAttemptFields(), object, where, attempt));
   for (const auto& field : storage::ImportedAttemptFields()) {
-    // Version 3 predates an attempt's origin (read as "": ran where it was stored).
     if (version < 4 && absl::string_view(field.name) == "origin") continue;
     RETURN_IF_ERROR(Require(object, where, {field.name}));
   }
+  return absl::OkStatus();
+}
+
+absl::Status ReadAttempt(const nlohmann::json& object, const std::string& where, int version,
+                         storage::ImportedAttempt* attempt) {
+  RETURN_IF_ERROR(ReadAttemptRecord(object, where, version, attempt));
   // Version 4: the attempt's checkpoint, when the export kept it.
   if (const auto it = object.find("checkpoint"); it != object.end()) {
     const std::string at = Member(where, "checkpoint");
@@ -262,22 +269,13 @@ class Reader {
 
 // One attempt of a version 1 or 2 archive's job, with its episodes and
 // study rows; errors name the job (`jr`).
+// `where` names the attempt ("jobs[3].attempt_log[0]").
 absl::StatusOr<storage::ImportedAttempt> ParseVersion1Or2Attempt(const nlohmann::json& a,
+                                                                const std::string& where,
                                                                 const Reader& jr,
                                                                 int64_t version) {
   storage::ImportedAttempt attempt;
-  TG_READ(number, jr.Integer(a, "attempt"));
-  TG_READ(attempt_state, jr.String(a, "state"));
-  const std::optional<storage::AttemptState> parsed = storage::ParseAttemptState(attempt_state);
-  if (!parsed) return jr.Error("attempt_log[].state");
-  attempt.attempt = static_cast<int>(number);
-  attempt.state = *parsed;
-  ASSIGN_OR_RETURN(attempt.worker_id, jr.String(a, "worker_id"));
-  ASSIGN_OR_RETURN(attempt.worker_host, jr.String(a, "worker_host"));
-  ASSIGN_OR_RETURN(attempt.worker_build, jr.String(a, "worker_build"));
-  ASSIGN_OR_RETURN(attempt.started_ms, jr.Integer(a, "started_unix_ms"));
-  ASSIGN_OR_RETURN(attempt.ended_ms, jr.Integer(a, "ended_unix_ms"));
-  ASSIGN_OR_RETURN(attempt.error, jr.String(a, "error"));
+  RETURN_IF_ERROR(ReadAttemptRecord(a, where, version, &attempt));
   if (!a.contains("episodes") || !a["episodes"].is_array()) return jr.Error("episodes");
   for (const nlohmann::json& e : a["episodes"]) {
     storage::Episode episode;
@@ -389,8 +387,9 @@ absl::StatusOr<storage::ImportedJob> ParseVersion1Or2Job(const nlohmann::json& j
   job.completed_attempt = static_cast<int>(completed);
   job.record.success = j["success"].get<bool>();
   if (!j.contains("attempt_log") || !j["attempt_log"].is_array()) return jr.Error("attempt_log");
-  for (const nlohmann::json& a : j["attempt_log"]) {
-    absl::StatusOr<storage::ImportedAttempt> attempt = ParseVersion1Or2Attempt(a, jr, version);
+  for (size_t k = 0; k < j["attempt_log"].size(); ++k) {
+    absl::StatusOr<storage::ImportedAttempt> attempt = ParseVersion1Or2Attempt(
+        j["attempt_log"][k], absl::StrCat("jobs[", index, "].attempt_log[", k, "]"), jr, version);
     if (!attempt.ok()) return attempt.status();
     job.attempts.push_back(*std::move(attempt));
   }

@@ -578,6 +578,24 @@ TEST_F(RecordsTest, EpisodesThroughEveryPath) {
   EXPECT_EQ(DifferingFields<learner::EpisodeSummary>(
                 learner::EpisodeFields(), record, parsed->jobs[0].attempts[0].episodes[0].first),
             later);
+  // Its attempts are read through the attempt's record: a bad state or a
+  // missing field is refused by its path in the archive.
+  nlohmann::ordered_json bad_state = doc;
+  bad_state["jobs"][0]["attempt_log"][0]["state"] = "finished";
+  absl::StatusOr<service::ParsedSweepArchive> refused =
+      service::ParseSweepArchive(bad_state.dump());
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(std::string(refused.status().message()).find("jobs[0].attempt_log[0].state"),
+            std::string::npos)
+      << refused.status();
+  nlohmann::ordered_json no_build = doc;
+  no_build["jobs"][0]["attempt_log"][0].erase("worker_build");
+  refused = service::ParseSweepArchive(no_build.dump());
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(std::string(refused.status().message()).find("jobs[0].attempt_log[0].worker_build"),
+            std::string::npos)
+      << refused.status();
 }
 
 // An older worker's report has no cpu_seconds: it reads as NaN (no value),
