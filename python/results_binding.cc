@@ -57,12 +57,12 @@ PyConnection::PyConnection(std::optional<std::string> db, std::optional<std::str
   cli::ServiceFlags flags = cli::ServiceFlagsFromEnvironment();
   if (db) flags.db = *db;
   if (coordinator) {
-    flags.coordinator = *coordinator;
+    flags.connection.target = *coordinator;
     if (!db) flags.db.clear();
   }
   if (token_file) flags.token_file = *token_file;
-  if (ca_cert) flags.ca_cert = *ca_cert;
-  if (insecure) flags.insecure = *insecure;
+  if (ca_cert) flags.connection.ca_cert_file = *ca_cert;
+  if (insecure) flags.connection.insecure = *insecure;
   flags.timeout_seconds = timeout_seconds;
   flags.format = "json";
   absl::StatusOr<cli::Connection> connection = [&] {

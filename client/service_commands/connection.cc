@@ -66,33 +66,31 @@ const char* CodeName(grpc::StatusCode code) {
 
 ServiceFlags ServiceFlagsFromEnvironment() {
   ServiceFlags flags;
-  flags.coordinator = Env("TOTALGRAD_COORDINATOR", "127.0.0.1:7070");
+  flags.connection.target = Env("TOTALGRAD_COORDINATOR", "127.0.0.1:7070");
   flags.token_file = Env("TOTALGRAD_TOKEN_FILE", "");
-  flags.ca_cert = Env("TOTALGRAD_CA_CERT", "");
-  flags.insecure = Env("TOTALGRAD_INSECURE", "") == "1";
+  flags.connection.ca_cert_file = Env("TOTALGRAD_CA_CERT", "");
+  flags.connection.insecure = Env("TOTALGRAD_INSECURE", "") == "1";
   flags.db = Env("TOTALGRAD_DB", "");
   return flags;
 }
 
 void AddConnectionFlags(CLI::App* command, ServiceFlags* flags, bool with_format) {
   const ServiceFlags environment = ServiceFlagsFromEnvironment();
-  flags->coordinator = environment.coordinator;
+  flags->connection = environment.connection;
   flags->token_file = environment.token_file;
-  flags->ca_cert = environment.ca_cert;
-  flags->insecure = environment.insecure;
   flags->db = environment.db;
-  command->add_option("--coordinator", flags->coordinator,
+  command->add_option("--coordinator", flags->connection.target,
                       "coordinator host:port [env TOTALGRAD_COORDINATOR]")
       ->capture_default_str();
   command->add_option("--token-file", flags->token_file,
                       "file holding the user token [env TOTALGRAD_TOKEN_FILE]");
-  command->add_option("--ca-cert", flags->ca_cert, "CA certificate to trust [env TOTALGRAD_CA_CERT]");
-  command->add_option("--tls-server-name", flags->tls_server_name,
+  command->add_option("--ca-cert", flags->connection.ca_cert_file, "CA certificate to trust [env TOTALGRAD_CA_CERT]");
+  command->add_option("--tls-server-name", flags->connection.tls_server_name,
                       "expected name in the server certificate");
-  command->add_option("--client-cert", flags->client_cert,
+  command->add_option("--client-cert", flags->connection.client_cert_file,
                       "client certificate (PEM), for coordinators that require one");
-  command->add_option("--client-key", flags->client_key, "client key (PEM)");
-  command->add_flag("--insecure", flags->insecure,
+  command->add_option("--client-key", flags->connection.client_key_file, "client key (PEM)");
+  command->add_flag("--insecure", flags->connection.insecure,
                     "plaintext; only to a loopback coordinator [env TOTALGRAD_INSECURE=1]");
   command->add_option("--timeout", flags->timeout_seconds, "seconds per call")
       ->capture_default_str();
@@ -126,20 +124,13 @@ absl::StatusOr<Connection> Connection::Open(const ServiceFlags& flags) {
     connection.stub_ = v1::ControlService::NewStub(connection.local_->channel());
     return connection;
   }
-  rpc::ConnectionOptions options;
-  options.target = flags.coordinator;
-  options.insecure = flags.insecure;
-  options.ca_cert_file = flags.ca_cert;
-  options.tls_server_name = flags.tls_server_name;
-  options.client_cert_file = flags.client_cert;
-  options.client_key_file = flags.client_key;
   if (!flags.token_file.empty()) {
     absl::StatusOr<TokenFile> token = ReadTokenFile(flags.token_file);
     if (!token.ok()) return token.status();
     if (!token->warning.empty()) std::cerr << "warning: " << token->warning << "\n";
     connection.token_ = token->token;
   }
-  absl::StatusOr<std::shared_ptr<grpc::Channel>> channel = rpc::MakeChannel(options);
+  absl::StatusOr<std::shared_ptr<grpc::Channel>> channel = rpc::MakeChannel(flags.connection);
   if (!channel.ok()) return channel.status();
   // Fail fast, with what to do, when nothing usable answers: retrying for the
   // whole call timeout only hides the cause.
@@ -148,15 +139,15 @@ absl::StatusOr<Connection> Connection::Open(const ServiceFlags& flags) {
                             1000 * std::max(0.1, flags.connect_timeout_seconds)));
   if (!(*channel)->WaitForConnected(deadline)) {
     const std::string security =
-        flags.insecure ? "plaintext, --insecure" : "TLS";
+        flags.connection.insecure ? "plaintext, --insecure" : "TLS";
     return absl::UnavailableError(absl::StrCat(
-        "no coordinator answered at ", flags.coordinator, " within ",
+        "no coordinator answered at ", flags.connection.target, " within ",
         flags.connect_timeout_seconds, " s (", security,
         "). Start one (`totalgrad-coordinator --db FILE ...`, or `totalgrad run SWEEP.toml` on "
         "this machine), or point to it with --coordinator / TOTALGRAD_COORDINATOR, or read a "
         "database file without a coordinator with --db FILE. If a coordinator does run there, "
         "check that both sides use ",
-        flags.insecure ? "plaintext (the coordinator was started with --insecure)"
+        flags.connection.insecure ? "plaintext (the coordinator was started with --insecure)"
                        : "TLS (--ca-cert here, --tls-cert/--tls-key there; or --insecure on both "
                          "for loopback)"));
   }
@@ -467,7 +458,9 @@ int PrintCurves(Connection* connection, const std::string& sweep_name, Format fo
                 << ": no completed trial has evaluation costs yet; nothing to plot\n";
       return 1;
     }
-    CurvesPlotInput plot{sweep_name, curves, {}};
+    CurvesPlotInput plot;
+    plot.sweep_name = sweep_name;
+    plot.curves = curves;
     if (top > 0) {
       plot.top = top;
       plot.best_curves = results::Curves(results::BestRuns(*values, top));

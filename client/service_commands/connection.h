@@ -31,13 +31,11 @@ struct ServiceFlags {
   // Open `db` for writing (created when missing, locked as a coordinator
   // locks it): `results import --db` only; every other command reads.
   bool db_writable = false;
-  std::string coordinator;
+  // The coordinator's address and security (--coordinator, --insecure,
+  // --ca-cert, --tls-server-name, --client-cert, --client-key); its token is
+  // read from `token_file` when the connection opens.
+  rpc::ConnectionOptions connection;
   std::string token_file;
-  std::string ca_cert;
-  std::string tls_server_name;
-  std::string client_cert;
-  std::string client_key;
-  bool insecure = false;
   std::string format = "table";
   double timeout_seconds = 60;
   // How long to wait for a connection to the coordinator before giving up

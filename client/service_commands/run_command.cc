@@ -278,8 +278,8 @@ int PrintRunResults(Connection* connection, const sweep::SweepSpec& spec, Format
 int SubmitAndReport(const RunFlags& flags, const sweep::SweepSpec& spec, const std::string& source,
                     Format format, const LocalService& service) {
   ServiceFlags service_flags;
-  service_flags.coordinator = service.address;
-  service_flags.insecure = true;
+  service_flags.connection.target = service.address;
+  service_flags.connection.insecure = true;
   service_flags.token_file = service.user_token_file;
   service_flags.format = flags.format;
   absl::StatusOr<Connection> connection = Connection::Open(service_flags);
