@@ -15,6 +15,7 @@
 #include "absl/status/status.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
 #include "client/service_commands/archive_export.h"
 #include "client/service_commands/connection.h"
 #include "client/service_commands/output_file.h"
@@ -185,7 +186,7 @@ grpc::Status ImportArchive(Connection* c, const std::string& archive,
 }
 
 std::string ImportSummary(const v1::ImportSweepResponse& response) {
-  return absl::StrCat(
+  std::string summary = absl::StrCat(
       response.sweep_created() ? "created" : "into existing", " sweep ", response.sweep().name(),
       ": ", response.jobs_imported(), " jobs taken over (", response.episodes_imported(),
       " episodes, ", response.study_rows_imported(), " study rows, ",
@@ -193,6 +194,12 @@ std::string ImportSummary(const v1::ImportSweepResponse& response) {
       " already complete here, ", response.jobs_not_completed(), " not completed in the archive, ",
       response.jobs_running_here(), " running here, ", response.jobs_unknown(),
       " not in this sweep");
+  if (response.jobs_keeping_options() > 0) {
+    absl::StrAppend(&summary, "; ", response.jobs_keeping_options(),
+                    " keep the options their trials ran with (this build's defaults differ in ",
+                    absl::StrJoin(response.options_kept(), ", "), ")");
+  }
+  return summary;
 }
 
 void AddSweepDeleteCommand(CLI::App* sweep_cmd, int* exit_code) {

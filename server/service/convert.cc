@@ -353,6 +353,8 @@ void ToProto(const storage::SweepRecord& sweep, const storage::ImportResult& res
   out->set_episodes_imported(result.episodes_imported);
   out->set_study_rows_imported(result.study_rows_imported);
   out->set_checkpoints_imported(result.checkpoints_imported);
+  out->set_jobs_keeping_options(result.jobs_keeping_options);
+  for (const std::string& key : result.options_kept) out->add_options_kept(key);
 }
 
 }  // namespace totalgrad::service

@@ -17,6 +17,7 @@
 #include "runtime/record_proto.h"
 #include "runtime/status_macros.h"
 #include "server/service/convert.h"
+#include "server/service/options_as_run.h"
 #include "server/storage/job_kinds.h"
 #include "server/storage/service_records.h"
 
@@ -209,9 +210,9 @@ absl::StatusOr<storage::ImportedJob> ParseVersion3Job(const nlohmann::json& j, s
                            "lost_leases", "last_error", "success", "final_eval_cost"}));
   storage::ImportedJob job;
   job.record = std::move(record);
-  // (The job's options are read with its table and not used: the variant
-  // identifies the job.) The archive's own keys: the completed attempt
-  // and the attempt log.
+  // (The variant identifies the job; its options, read with its table, say
+  // what its trial ran: ImportedJob::options_as_run.) The archive's own
+  // keys: the completed attempt and the attempt log.
   ASSIGN_OR_RETURN(const int64_t completed, Integer(j, where, "completed_attempt"));
   job.completed_attempt = static_cast<int>(completed);
   ASSIGN_OR_RETURN(const nlohmann::json* log, Array(j, where, "attempt_log", true));
@@ -386,6 +387,23 @@ absl::StatusOr<storage::ImportedJob> ParseVersion1Or2Job(const nlohmann::json& j
   job.record.final_eval_cost = final_cost;
   job.completed_attempt = static_cast<int>(completed);
   job.record.success = j["success"].get<bool>();
+  // The job's options: an object of texts, or [key, text] pairs.
+  if (const auto options = j.find("options"); options != j.end()) {
+    if (options->is_object()) {
+      for (const auto& [key, value] : options->items()) {
+        if (!value.is_string()) return jr.Error("options");
+        job.record.options.emplace_back(key, value.get<std::string>());
+      }
+    } else if (options->is_array()) {
+      for (const nlohmann::json& pair : *options) {
+        if (!pair.is_array() || pair.size() != 2 || !pair[0].is_string() || !pair[1].is_string())
+          return jr.Error("options");
+        job.record.options.emplace_back(pair[0].get<std::string>(), pair[1].get<std::string>());
+      }
+    } else {
+      return jr.Error("options");
+    }
+  }
   if (!j.contains("attempt_log") || !j["attempt_log"].is_array()) return jr.Error("attempt_log");
   for (size_t k = 0; k < j["attempt_log"].size(); ++k) {
     absl::StatusOr<storage::ImportedAttempt> attempt = ParseVersion1Or2Attempt(
@@ -539,7 +557,8 @@ absl::Status ForEachArchivedJob(std::istream& in, int version,
     absl::StatusOr<storage::ImportedJob> job =
         version >= 3 ? ParseVersion3Job(j, index, version) : ParseVersion1Or2Job(j, index, version);
     ++index;
-    status = job.ok() ? visit(*job) : job.status();
+    status = job.ok() ? SetOptionsAsRun(&*job) : job.status();
+    if (status.ok()) status = visit(*job);
     return status.ok();
   });
   RETURN_IF_ERROR(status);

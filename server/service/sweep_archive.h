@@ -35,9 +35,11 @@
 // takes from the sweep its name, canonical_spec, spec_hash and state; from a
 // job its kind, method, seed, variant, state, failures, lost_leases,
 // last_error, success, final_eval_cost (these must be present),
-// completed_attempt and attempt_log; every field of an attempt; the rest
-// (counts, finished, ids, ordinal, episodes_stored/expected, worker_id,
-// options) is informative: type-checked, then ignored, as the importing
+// completed_attempt and attempt_log; every field of an attempt; a completed
+// trial's options, as what it ran (storage::ImportedJob::options_as_run,
+// options_as_run.h; in every version, an object of texts in 1 and 2); the
+// rest (counts, finished, ids, ordinal, episodes_stored/expected,
+// worker_id) is informative: type-checked, then ignored, as the importing
 // coordinator has its own. Unknown keys are ignored.
 // Versions 2 (the same objects with their own hand-named keys: the sweep's
 // limits, build and source but no counts; a job without job_id, sweep_name,

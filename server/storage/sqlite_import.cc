@@ -68,6 +68,8 @@ struct ImportStatements {
   Statement attempt_insert;
   Statement checkpoint_insert;
   Statement episode_insert;
+  Statement stored_options;  // internal::StoredJobOptionsSql()
+  Statement options_update;
 };
 
 // Stores archived attempt `a` of `job` as attempt `key` here: the attempt
@@ -171,6 +173,50 @@ absl::StatusOr<SweepJobIds> ReadSweepJobIds(Db& db, int64_t sweep_id) {
   return job_ids;
 }
 
+// The keys whose values differ between two option lists (a key one list
+// lacks differs), sorted.
+std::set<std::string> DifferingKeys(const OptionPairs& a, const OptionPairs& b) {
+  const std::map<std::string, std::string> in_a(a.begin(), a.end());
+  const std::map<std::string, std::string> in_b(b.begin(), b.end());
+  std::set<std::string> keys;
+  for (const auto& [key, value] : in_a) {
+    const auto found = in_b.find(key);
+    if (found == in_b.end() || found->second != value) keys.insert(key);
+  }
+  for (const auto& [key, value] : in_b) {
+    if (!in_a.count(key)) keys.insert(key);
+  }
+  return keys;
+}
+
+// The stored options must say what ran: this sweep's list for the job,
+// unless the archive's trial ran others (ImportedJob::options_as_run), which
+// are then stored as the job's own list and counted; the keys that differ
+// are added to `kept`.
+absl::Status KeepOptionsAsRun(ImportStatements& statements, SharedOptionsCache* cache,
+                              const ImportedJob& job, int64_t job_id, std::set<std::string>* kept,
+                              ImportResult* result) {
+  if (!job.options_as_run.has_value()) return absl::OkStatus();
+  Statement& stored = statements.stored_options;
+  stored.Bind(1, job_id);
+  ASSIGN_OR_RETURN(bool present, stored.Step());
+  if (!present) return absl::InternalError(absl::StrCat("job ", job_id, " vanished"));
+  std::optional<std::string> shared;
+  if (!stored.ColumnIsNull(2)) shared = stored.ColumnText(2);
+  const OptionPairs here = StoredJobOptions(stored.ColumnText(0), job.record.kind,
+                                            job.record.method, stored.ColumnText(1),
+                                            job.record.variant, shared, cache);
+  stored.Reset();
+  const std::set<std::string> differing = DifferingKeys(here, *job.options_as_run);
+  if (differing.empty()) return absl::OkStatus();
+  statements.options_update.Bind(1, OptionsToJson(*job.options_as_run)).Bind(2, job_id);
+  RETURN_IF_ERROR(statements.options_update.Run());
+  statements.options_update.Reset();
+  kept->insert(differing.begin(), differing.end());
+  ++result->jobs_keeping_options;
+  return absl::OkStatus();
+}
+
 }  // namespace
 
 absl::StatusOr<ImportResult> SqliteStore::ImportJobStream(const std::optional<NewSweep>& create,
@@ -200,13 +246,19 @@ VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?))sql"));
 INSERT INTO checkpoints(job_id, attempt, episode, format_version, data, reported_ms)
 VALUES(?, ?, ?, ?, ?, ?))sql"));
     ASSIGN_OR_RETURN(Statement episode_insert, Statement::Prepare(db, EpisodeInsertSql()));
+    ASSIGN_OR_RETURN(Statement stored_options, Statement::Prepare(db, internal::StoredJobOptionsSql()));
+    ASSIGN_OR_RETURN(Statement options_update,
+                     Statement::Prepare(db, "UPDATE jobs SET options_json = ? WHERE id = ?"));
     ImportStatements statements{std::move(attempt_insert), std::move(checkpoint_insert),
-                                std::move(episode_insert)};
+                                std::move(episode_insert), std::move(stored_options),
+                                std::move(options_update)};
     ASSIGN_OR_RETURN(Statement job_update, Statement::Prepare(db, R"sql(
 UPDATE jobs SET state = 'completed', attempts = ?, completed_attempt = ?, success = ?,
                 final_eval_cost = ?, failures = failures + ?, lost_leases = lost_leases + ?,
                 last_error = ?
 WHERE id = ?)sql"));
+    SharedOptionsCache shared_options;
+    std::set<std::string> options_kept;
     RETURN_IF_ERROR(jobs([&](const ImportedJob& job) -> absl::Status {
       const auto known = job_ids.find(IdentityOf(job.record.kind, job.record.method,
                                                   job.record.seed, job.record.variant));
@@ -257,12 +309,15 @@ WHERE id = ?)sql"));
       job_update.Bind(7, job.record.last_error).Bind(8, job_id);
       RETURN_IF_ERROR(job_update.Run());
       job_update.Reset();
+      RETURN_IF_ERROR(KeepOptionsAsRun(statements, &shared_options, job, job_id, &options_kept,
+                                       &result));
       RETURN_IF_ERROR(AddEvent(db, now_ms, sweep_id, job_id, completed_here, "imported",
                                absl::StrCat("completed attempt ", job.completed_attempt, " of ",
                                             source, " (now attempt ", completed_here, ")")));
       ++result.jobs_imported;
       return absl::OkStatus();
     }));
+    result.options_kept.assign(options_kept.begin(), options_kept.end());
     return AddEvent(db, now_ms, sweep_id, 0, 0, "sweep_imported",
                     absl::StrCat(source, ": ", result.jobs_imported, " jobs taken over, ",
                                  result.jobs_already_complete, " already complete here, ",

@@ -459,6 +459,14 @@ struct ImportedJob {
   JobRecord record;
   int completed_attempt = 0;  // archive numbering; 0 unless completed
   std::vector<ImportedAttempt> attempts;
+  // A trial's options as its completed attempt ran them, every key of this
+  // build's option table (the reader of the archive fills the keys the
+  // archive's build did not have with the value they had before they
+  // existed: learner::TrialOptionsFromStoredPairs). When they differ from
+  // what this sweep gives the job here, the import stores them as the job's
+  // own list, so that the stored options say what ran; unset: the job keeps
+  // this sweep's.
+  std::optional<OptionPairs> options_as_run;
 };
 
 // Hands each job of an import to `each`, in order, and returns the first
@@ -486,6 +494,10 @@ struct ImportResult {
   int64_t episodes_imported = 0;
   int64_t study_rows_imported = 0;
   int checkpoints_imported = 0;
+  // Jobs taken over whose options_as_run differ from this sweep's and are
+  // stored as their own, and the keys that differ (sorted).
+  int jobs_keeping_options = 0;
+  std::vector<std::string> options_kept;
 };
 
 enum class EndOutcome {

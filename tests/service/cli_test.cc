@@ -281,6 +281,8 @@ TEST_F(CliTest, ExportImportMovesASweepAndDatabasesReadWithoutACoordinator) {
   EXPECT_NE(out.find("created sweep cli: 3 jobs taken over (9 episodes, 0 study rows, 3 checkpoints)"),
             std::string::npos)
       << out;
+  // Same build: the trials' options are the sweep's own, nothing kept apart.
+  EXPECT_EQ(out.find("keep the options"), std::string::npos) << out;
   // The imported trial's final policy and model are there, as they were.
   ASSERT_EQ(Cli({"job", "artifacts", "1", "--out", dir_ + "/artifacts-b"}, &out, &err), 0) << err;
   EXPECT_EQ(ReadFile(dir_ + "/artifacts-b/snapshot.json"), artifacts_a);
@@ -471,6 +473,27 @@ TEST_F(CliTest, Table1LaysSweepsOutInThePapersGridAndRefusesASeedCountedTwice) {
     const std::string archive =
         absl::StrCat(TOTALGRAD_SOURCE_DIR, "/docs/results/table1/", sweep, ".archive.json");
     ASSERT_EQ(Cli({"results", "import", archive}, &out, &err), 0) << err;
+    if (std::string(sweep) == "table1-tip-k1") {
+      // Its trials ran before gp_variance_tolerance (default 0.01 since) and
+      // the rollout verdict existed: they keep the exact variance and no
+      // verdict rollouts in their stored options, and the import says so.
+      EXPECT_NE(out.find("40 keep the options their trials ran with (this build's defaults "
+                         "differ in gp_variance_tolerance, verdict_rollouts)"),
+                std::string::npos)
+          << out;
+    }
+  }
+  {
+    ASSERT_EQ(Cli({"job", "list", "--sweep", "table1-tip-k1", "-f", "json"}, &out, &err), 0) << err;
+    const nlohmann::json jobs = nlohmann::json::parse(out);
+    ASSERT_EQ(jobs.size(), 40u);
+    for (const nlohmann::json& job : jobs) {
+      std::map<std::string, std::string> options;
+      for (const nlohmann::json& pair : job["options"]) options[pair[0]] = pair[1];
+      EXPECT_EQ(options["gp_variance_tolerance"], "0") << job.dump();
+      EXPECT_EQ(options["verdict_rollouts"], "0") << job.dump();
+      EXPECT_EQ(options["particles"], "300");
+    }
   }
 
   ASSERT_EQ(Cli({"results", "table1", "table1-tip-k1", "balance-del", "-f", "json"}, &out, &err), 0)

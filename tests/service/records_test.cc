@@ -20,6 +20,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <map>
 #include <set>
 #include <sstream>
 #include <type_traits>
@@ -28,12 +29,14 @@
 #include "client/core_commands/study_format.h"
 #include "core/learner/episode_record.h"
 #include "core/learner/trial.h"
+#include "core/learner/trial_options.h"
 #include "core/study/study.h"
 #include "io/episode_json.h"
 #include "io/record_format.h"
 #include "io/study_results.h"
 #include "runtime/record_proto.h"
 #include "server/service/convert.h"
+#include "server/service/options_as_run.h"
 #include "server/service/sweep_archive.h"
 #include "server/storage/sqlite_db.h"
 #include "server/storage/sqlite_records.h"
@@ -1121,6 +1124,40 @@ TEST_F(RecordsTest, VersionFiveStudyRowsAreMigratedAfterABackup) {
   EXPECT_EQ(DifferingFields<study::ReferenceGradient>(study::ReferenceFields(), expected,
                                                       refs[0].reference),
             std::vector<std::string>{});
+}
+
+// What an archived trial ran with, in this build's terms: every key of the
+// trial option table, the archive's values where it has them, and where it
+// lacks a key added since, the value the computation had before it existed.
+TEST(OptionsAsRun, KeysAddedSinceTheArchiveTakeTheirEarlierValues) {
+  storage::ImportedJob job;
+  job.record.kind = storage::JobKind::kTrial;
+  job.record.state = storage::JobState::kCompleted;
+  job.record.method = "RP";
+  job.record.seed = "10";
+  job.record.options = {{"method", "RP"}, {"seed", "10"}, {"particles", "300"}};
+  TG_ASSERT_OK(service::SetOptionsAsRun(&job));
+  ASSERT_TRUE(job.options_as_run.has_value());
+  const std::map<std::string, std::string> ran(job.options_as_run->begin(),
+                                               job.options_as_run->end());
+  EXPECT_EQ(ran.size(), learner::TrialOptionKeys().size());
+  EXPECT_EQ(ran.at("particles"), "300");
+  EXPECT_EQ(ran.at("gp_variance_tolerance"), "0");  // today's default is 0.01
+  EXPECT_EQ(ran.at("verdict_rollouts"), "0");       // no verdict before it existed
+  // A job that did not complete, or a study, keeps this sweep's options.
+  storage::ImportedJob queued = job;
+  queued.options_as_run.reset();
+  queued.record.state = storage::JobState::kQueued;
+  TG_ASSERT_OK(service::SetOptionsAsRun(&queued));
+  EXPECT_FALSE(queued.options_as_run.has_value());
+  // A key this build does not know: an archive of a newer build, refused by name.
+  storage::ImportedJob newer = job;
+  newer.options_as_run.reset();
+  newer.record.options.emplace_back("warp_drive", "1");
+  const absl::Status refused = service::SetOptionsAsRun(&newer);
+  EXPECT_EQ(refused.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(std::string(refused.message()).find("job RP seed 10"), std::string::npos) << refused;
+  EXPECT_NE(std::string(refused.message()).find("warp_drive"), std::string::npos) << refused;
 }
 
 }  // namespace
