@@ -285,9 +285,19 @@ absl::StatusOr<int> SqliteStore::SupersedeJob(int64_t job_id, int64_t by_job_id,
           "job ", job_id, " is ", job.method, " seed ", job.seed, ", job ", by_job_id, " is ",
           by.method, " seed ", by.seed, ": not a re-run of the same trial"));
     }
-    attempt = job.attempts + 1;
     const std::string origin = absl::StrCat("job ", by_job_id, " attempt ", by.completed_attempt,
                                             " of sweep ", by.sweep_name);
+    // Superseding again by the same re-run changes nothing (a restart script
+    // may say it twice, or an archive already carry it).
+    ASSIGN_OR_RETURN(Statement counting, Statement::Prepare(
+        db, "SELECT origin FROM attempts WHERE job_id = ? AND attempt = ?"));
+    counting.Bind(1, job_id).Bind(2, job.completed_attempt);
+    ASSIGN_OR_RETURN(bool found, counting.Step());
+    if (found && counting.ColumnText(0) == origin) {
+      attempt = job.completed_attempt;
+      return absl::OkStatus();
+    }
+    attempt = job.attempts + 1;
     ASSIGN_OR_RETURN(const std::string attempt_columns,
                      ColumnsExcept(db, "attempts", {"job_id", "attempt", "origin"}));
     ASSIGN_OR_RETURN(Statement copy_attempt, Statement::Prepare(db, absl::StrCat(

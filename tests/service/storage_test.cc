@@ -658,6 +658,15 @@ TEST_F(StorageTest, SupersedeCopiesTheRerunsCompletedAttemptAndRefusesOthers) {
   EXPECT_EQ(rows[0].episode.real_cost, 12);
   TG_ASSERT_OK_AND_ASSIGN(auto events, store_->ListEvents(original));
   EXPECT_EQ(events.back().kind, "superseded");
+  // Said again (a restart script, an archive that already carries it): no
+  // second copy, the same attempt counts.
+  TG_ASSERT_OK_AND_ASSIGN(const int again, store_->SupersedeJob(original, rerun, kNow + 6));
+  EXPECT_EQ(again, 2);
+  TG_ASSERT_OK_AND_ASSIGN(JobRecord unchanged, store_->GetJob(original));
+  EXPECT_EQ(unchanged.attempts, 2);
+  EXPECT_EQ(unchanged.completed_attempt, 2);
+  TG_ASSERT_OK_AND_ASSIGN(auto events_again, store_->ListEvents(original));
+  EXPECT_EQ(events_again.size(), events.size());
   // The re-run itself is unchanged.
   TG_ASSERT_OK_AND_ASSIGN(JobRecord source, store_->GetJob(rerun));
   EXPECT_EQ(source.attempts, 1);
