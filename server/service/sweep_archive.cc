@@ -192,11 +192,10 @@ absl::Status ReadVersion3Opening(const nlohmann::json& doc, int version,
   opening->canonical_spec = sweep.canonical_spec;
   opening->spec_hash = sweep.spec_hash;
   opening->state = sweep.state;
-  // Version 4: the sweep keeps its first submission's time.
-  if (version >= 4) {
-    RETURN_IF_ERROR(Require(sweep_object, "sweep", {"created_unix_ms"}));
-    opening->created_ms = sweep.created_ms;
-  }
+  // The sweep keeps its first submission's time (version 4 must say it;
+  // version 3 wrote it too, but its imports took their own time).
+  if (version >= 4) RETURN_IF_ERROR(Require(sweep_object, "sweep", {"created_unix_ms"}));
+  if (sweep_object.contains("created_unix_ms")) opening->created_ms = sweep.created_ms;
   return Array(doc, "", "jobs", true).status();
 }
 
@@ -349,6 +348,9 @@ absl::Status ReadVersion1Or2Opening(const nlohmann::json& doc, SweepArchiveOpeni
   const std::optional<storage::SweepState> sweep_state = storage::ParseSweepState(state);
   if (!sweep_state) return sr.Error("state");
   opening->state = *sweep_state;
+  if (sweep.contains("created_unix_ms")) {  // the first submission's time
+    ASSIGN_OR_RETURN(opening->created_ms, sr.Integer(sweep, "created_unix_ms"));
+  }
   if (!doc.contains("jobs") || !doc["jobs"].is_array()) return top.Error("jobs");
   return absl::OkStatus();
 }

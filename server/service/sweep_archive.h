@@ -111,7 +111,7 @@ struct SweepArchiveOpening {
   std::string canonical_spec;
   std::string spec_hash;
   storage::SweepState state = storage::SweepState::kRunning;
-  int64_t created_ms = 0;  // version 4: the sweep's submission time; 0: unknown
+  int64_t created_ms = 0;  // the sweep's first submission time when the archive says it; 0: unknown
 };
 
 // Reading an archive as a stream, so that its size does not bound what can

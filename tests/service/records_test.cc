@@ -782,7 +782,8 @@ TEST(RecordsArchive, EveryFieldOfTheSweepJobAndAttemptTablesIsCarried) {
   EXPECT_EQ(read.attempts[1].checkpoint->format_version, 2);
   EXPECT_EQ(read.attempts[1].checkpoint->data, kept.data());
 
-  // Version 3 had no origin, no checkpoints and no kept submission time.
+  // Version 3 had no origin and no checkpoints; it wrote the sweep's
+  // submission time, which its imports now keep too (0 where it lacks it).
   nlohmann::json v3 = nlohmann::json::parse(doc.dump());
   v3["version"] = 3;
   for (auto& attempt : v3["jobs"][0]["attempt_log"]) {
@@ -791,7 +792,14 @@ TEST(RecordsArchive, EveryFieldOfTheSweepJobAndAttemptTablesIsCarried) {
   }
   const absl::StatusOr<service::ParsedSweepArchive> old = service::ParseSweepArchive(v3.dump());
   TG_ASSERT_OK(old.status());
-  EXPECT_EQ(old->created_ms, 0);
+  EXPECT_EQ(old->created_ms, doc["sweep"]["created_unix_ms"].get<int64_t>());
+  EXPECT_GT(old->created_ms, 0);
+  nlohmann::json v3_untimed = v3;
+  v3_untimed["sweep"].erase("created_unix_ms");
+  const absl::StatusOr<service::ParsedSweepArchive> untimed =
+      service::ParseSweepArchive(v3_untimed.dump());
+  TG_ASSERT_OK(untimed.status());
+  EXPECT_EQ(untimed->created_ms, 0);
   EXPECT_EQ(old->jobs[0].attempts[1].origin, "");
   EXPECT_FALSE(old->jobs[0].attempts[1].checkpoint.has_value());
   // In version 4 the origin is required, and a checkpoint must be base64.
