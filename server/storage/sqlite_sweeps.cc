@@ -288,12 +288,19 @@ absl::StatusOr<int> SqliteStore::SupersedeJob(int64_t job_id, int64_t by_job_id,
     const std::string origin = absl::StrCat("job ", by_job_id, " attempt ", by.completed_attempt,
                                             " of sweep ", by.sweep_name);
     // Superseding again by the same re-run changes nothing (a restart script
-    // may say it twice, or an archive already carry it).
-    ASSIGN_OR_RETURN(Statement counting, Statement::Prepare(
-        db, "SELECT origin FROM attempts WHERE job_id = ? AND attempt = ?"));
-    counting.Bind(1, job_id).Bind(2, job.completed_attempt);
-    ASSIGN_OR_RETURN(bool found, counting.Step());
-    if (found && counting.ColumnText(0) == origin) {
+    // may say it twice, or an imported archive already carry it, under
+    // other job ids): the counting attempt is already a copy of that
+    // attempt when it names that sweep and ran on the same worker at the
+    // same times.
+    ASSIGN_OR_RETURN(Statement counting, Statement::Prepare(db, R"sql(
+SELECT 1 FROM attempts c JOIN attempts r ON r.job_id = ? AND r.attempt = ?
+WHERE c.job_id = ? AND c.attempt = ? AND c.origin LIKE '% of sweep ' || ?
+  AND c.worker_id = r.worker_id AND c.worker_build = r.worker_build
+  AND c.started_ms = r.started_ms AND c.ended_ms IS r.ended_ms)sql"));
+    counting.Bind(1, by_job_id).Bind(2, by.completed_attempt);
+    counting.Bind(3, job_id).Bind(4, job.completed_attempt).Bind(5, by.sweep_name);
+    ASSIGN_OR_RETURN(bool already, counting.Step());
+    if (already) {
       attempt = job.completed_attempt;
       return absl::OkStatus();
     }

@@ -205,9 +205,10 @@ class SweepAdministration {
   // times, episodes and checkpoint), names it in its `origin`, and becomes
   // the job's completed attempt with its success and final cost; the job's
   // earlier attempts stay as they were, and an event records it. Returns the
-  // new attempt's number; if the job already counts that same attempt of
-  // `by_job_id` (superseded by it before), nothing changes and that
-  // attempt's number is returned. FailedPrecondition unless both are
+  // new attempt's number; if the job already counts a copy of that attempt
+  // of `by_job_id` (superseded by it before, here or where an imported
+  // archive was written: same sweep named, same worker, build and times),
+  // nothing changes and that attempt's number is returned. FailedPrecondition unless both are
   // completed trial jobs of different sweeps with the same method and seed;
   // NotFound if either does not exist.
   virtual absl::StatusOr<int> SupersedeJob(int64_t job_id, int64_t by_job_id, int64_t now_ms) = 0;

@@ -1012,12 +1012,15 @@ std::string ReadText(const std::string& path) {
 }
 
 // Archives written before version 3 still read as they were written: the
-// committed results of table 1 (version 1, docs/results/table1/) and an
+// results of table 1 as first committed (version 1, kept in
+// tests/service/testdata/; docs/results/table1/ holds their version-4
+// export with PILCO's re-runs superseding seeds 10 and 11) and an
 // archive written by the version-2 exporter (`results export -f json` of
 // tests/service/cli_test.cc's tiny sweep, tests/service/testdata/).
 TEST(RecordsArchive, ArchivesOfVersions1And2StillRead) {
   const std::string v1_text =
-      ReadText(std::string(TOTALGRAD_SOURCE_DIR) + "/docs/results/table1/table1-tip-k1.archive.json");
+      ReadText(std::string(TOTALGRAD_SOURCE_DIR) +
+               "/tests/service/testdata/table1-tip-k1.v1.archive.json");
   ASSERT_EQ(nlohmann::json::parse(v1_text).at("version"), 1);
   absl::StatusOr<service::ParsedSweepArchive> v1 = service::ParseSweepArchive(v1_text);
   TG_ASSERT_OK(v1.status());

@@ -71,17 +71,24 @@ done
 [ -f "$repo/docs/results/diagnostics/diag-balance-del-rp.archive.json" ] &&
   cli results import "$repo/docs/results/diagnostics/diag-balance-del-rp.archive.json"
 
-# table1-tip-k1's PILCO seeds 10 and 11 count their re-runs (table1.md).
-job_id() {  # SWEEP METHOD SEED -> the job's id
+# table1-tip-k1's PILCO seeds 10 and 11 count their re-runs (table1.md). The
+# archive exported since 2026-11-30 carries the supersessions already; a
+# coordinator of 8abc303 would add a second copy if told again, so only a job
+# whose final cost is not yet its re-run's is superseded.
+job_field() {  # SWEEP METHOD SEED FIELD -> the job's FIELD
   cli job list --sweep "$1" -f json | /usr/bin/python3 -c '
 import json, sys
-method, seed = sys.argv[1], sys.argv[2]
-ids = [j["job_id"] for j in json.load(sys.stdin) if j["method"] == method and str(j["seed"]) == seed]
-if len(ids) != 1: sys.exit(f"expected one {method} seed {seed}, found {len(ids)}")
-print(ids[0])' "$2" "$3"
+method, seed, field = sys.argv[1], sys.argv[2], sys.argv[3]
+jobs = [j for j in json.load(sys.stdin) if j["method"] == method and str(j["seed"]) == seed]
+if len(jobs) != 1: sys.exit(f"expected one {method} seed {seed}, found {len(jobs)}")
+print(jobs[0][field])' "$2" "$3" "$4"
 }
 for seed in 10 11; do
-  cli job supersede "$(job_id table1-tip-k1 PILCO $seed)" --by "$(job_id table1-tip-k1-pilco-rerun PILCO $seed)"
+  if [ "$(job_field table1-tip-k1 PILCO $seed final_eval_cost)" != \
+       "$(job_field table1-tip-k1-pilco-rerun PILCO $seed final_eval_cost)" ]; then
+    cli job supersede "$(job_field table1-tip-k1 PILCO $seed job_id)" \
+        --by "$(job_field table1-tip-k1-pilco-rerun PILCO $seed job_id)"
+  fi
 done
 
 for n in $(seq "$workers"); do
