@@ -217,14 +217,7 @@ absl::StatusOr<std::unique_ptr<FrozenProblem>> FrozenProblemFromSynthetic(
   absl::StatusOr<tasks::Scene> scene =
       tasks::MakeScene(options.scene, options.cost, options.horizon);
   if (!scene.ok()) return scene.status();
-  SceneSyntheticOptions scene_synthetic;
-  scene_synthetic.data = options.data;
-  scene_synthetic.horizon = options.horizon;
-  scene_synthetic.basis_functions = options.basis_functions;
-  scene_synthetic.seed = options.seed;
-  scene_synthetic.train_iterations = options.train_iterations;
-  scene_synthetic.angle_features = angle_features;
-  scene_synthetic.noise_variance_multiplier = options.noise_variance_multiplier;
+  const SceneSyntheticOptions scene_synthetic{options, angle_features};
   absl::StatusOr<std::unique_ptr<FrozenProblem>> out = FrozenProblemFromScene(*scene, scene_synthetic);
   if (out.ok()) absl::StrAppend(&(*out)->source, ", cost ", options.cost);
   return out;

@@ -94,16 +94,12 @@ absl::StatusOr<std::unique_ptr<FrozenProblem>> FrozenProblemFromSnapshot(
 // an RBF policy of basis_functions centres ~ N(mu0, I) mapped to features,
 // unit length-scales, random weights. Draws: data from (seed,
 // Stream::kStudy, 1), the policy from (seed, Stream::kPolicyInit).
-struct SceneSyntheticOptions {
-  int data = 450;             // N transitions, >= 2
-  int horizon = 30;
-  int basis_functions = 50;
-  uint64_t seed = 1;
-  int train_iterations = 0;
+// The synthetic problem's options (data >= 2 transitions, horizon, basis
+// functions, seed, train_iterations, noise_variance_multiplier,
+// variance_rank_tolerance) are a study file's; their `scene` and `cost` are
+// not read here (the scene argument is the problem's).
+struct SceneSyntheticOptions : estimators::SyntheticProblemOptions {
   learner::AngleFeatures angle_features = learner::AngleFeatures::kAuto;
-  double noise_variance_multiplier = 1.0;
-  // gp::GpModelOptions::variance_rank_tolerance of the model (0 = exact).
-  double variance_rank_tolerance = 0;
 };
 
 // What MakeSceneSyntheticProblem builds: the policy and the model problem

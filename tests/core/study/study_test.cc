@@ -552,6 +552,15 @@ TEST(SceneSynthetic, CartPoleKeepsThePapersRawProblem) {
   TG_ASSERT_OK(sincos.status());
   EXPECT_EQ((*sincos)->angle_indices, std::vector<int>{1});
   EXPECT_EQ((*sincos)->policy->state_dim(), 5);
+  // The scene path takes every option of the synthetic problem, the GP's
+  // variance tolerance included (it was dropped there once).
+  estimators::SyntheticProblemOptions low_rank = synthetic;
+  low_rank.variance_rank_tolerance = 0.01;
+  absl::StatusOr<std::unique_ptr<FrozenProblem>> scene_path =
+      FrozenProblemFromSynthetic(low_rank, learner::AngleFeatures::kSinCos);
+  TG_ASSERT_OK(scene_path.status());
+  EXPECT_EQ((*scene_path)->model->options().variance_rank_tolerance, 0.01);
+  EXPECT_EQ((*sincos)->model->options().variance_rank_tolerance, 0);
 }
 
 // A scene without angles (here the cart-double-pendulum with its angle set
