@@ -25,26 +25,16 @@ Comparison Compare(const std::string& variant, const std::string& method,
   c.variant = variant;
   c.method = method;
   c.other = other;
+  PairedOutcomes outcomes;
   std::vector<double> cost_differences;
   for (const auto& [seed, trial] : first) {
     auto partner = second.find(seed);
     if (partner == second.end()) continue;
-    ++c.pairs;
-    const bool a = trial->success, b = partner->second->success;
-    if (a && b) ++c.both_succeeded;
-    else if (a) ++c.method_only;
-    else if (b) ++c.other_only;
-    else ++c.neither;
+    outcomes.Add(trial->success, partner->second->success);
     const double difference = trial->final_eval_cost - partner->second->final_eval_cost;
     if (!std::isnan(difference)) cost_differences.push_back(difference);
   }
-  c.success_difference =
-      c.pairs == 0 ? std::nan("") : static_cast<double>(c.method_only - c.other_only) / c.pairs;
-  c.mcnemar_p = McNemarExactP(c.method_only, c.other_only);
-  c.mcnemar_power =
-      c.pairs == 0 ? std::nan("")
-                   : McNemarExactPower(c.pairs, static_cast<double>(c.method_only) / c.pairs,
-                                       static_cast<double>(c.other_only) / c.pairs, alpha);
+  c.success = ComparePairedSuccess(outcomes, alpha);
 
   c.cost_pairs = static_cast<int>(cost_differences.size());
   c.wilcoxon = WilcoxonSignedRank(cost_differences);
@@ -124,7 +114,7 @@ absl::StatusOr<ComparisonReport> CompareMethods(const std::vector<CompletedTrial
     // Holm over this variant's comparisons, one family per test.
     std::vector<double> mcnemar, wilcoxon, fisher;
     for (size_t k = first_of_variant; k < report.comparisons.size(); ++k) {
-      mcnemar.push_back(report.comparisons[k].mcnemar_p);
+      mcnemar.push_back(report.comparisons[k].success.mcnemar_p);
       wilcoxon.push_back(report.comparisons[k].wilcoxon.p);
       fisher.push_back(report.comparisons[k].fisher_p);
     }
@@ -133,7 +123,7 @@ absl::StatusOr<ComparisonReport> CompareMethods(const std::vector<CompletedTrial
     fisher = HolmAdjust(fisher);
     for (size_t k = first_of_variant; k < report.comparisons.size(); ++k) {
       Comparison& c = report.comparisons[k];
-      c.mcnemar_p_holm = mcnemar[k - first_of_variant];
+      c.success.mcnemar_p_holm = mcnemar[k - first_of_variant];
       c.wilcoxon_p_holm = wilcoxon[k - first_of_variant];
       c.fisher_p_holm = fisher[k - first_of_variant];
     }
@@ -149,7 +139,7 @@ std::string Verdict(double p_holm, double direction, const Comparison& c, double
 }  // namespace
 
 std::string SuccessVerdict(const Comparison& c, double alpha) {
-  return Verdict(c.mcnemar_p_holm, c.success_difference, c, alpha);
+  return Verdict(c.success.mcnemar_p_holm, c.success.difference, c, alpha);
 }
 
 // A negative rank-biserial correlation means the method's costs are lower.

@@ -15,6 +15,7 @@
 #include "absl/status/statusor.h"
 #include "results/completed_trial.h"
 #include "results/hypothesis_tests.h"
+#include "results/paired_success.h"
 
 namespace totalgrad::results {
 
@@ -32,16 +33,9 @@ struct Comparison {
   std::string method;
   std::string other;
 
-  // Paired by seed.
-  int pairs = 0;          // seeds where both completed
-  int both_succeeded = 0;
-  int method_only = 0;    // discordant: only `method` succeeded
-  int other_only = 0;     // discordant: only `other` succeeded
-  int neither = 0;
-  double success_difference = 0;  // (method_only - other_only) / pairs: paired rate difference
-  double mcnemar_p = 1;
-  double mcnemar_p_holm = 1;
-  double mcnemar_power = 0;  // at the observed discordant rates and this number of pairs
+  // Success paired by seed, over the seeds where both completed (power at
+  // the comparison's alpha).
+  PairedSuccess success;
 
   int cost_pairs = 0;  // pairs where both final costs are numbers
   WilcoxonResult wilcoxon;

@@ -44,7 +44,8 @@ RateDifferenceInterval NewcombePairedInterval(const PairedOutcomes& outcomes, do
   const auto [l2, u2] = WilsonInterval(outcomes.both + outcomes.second_only, interval.pairs, z);
   const double margins = (a + b) * (c + d) * (a + c) * (b + d);
   const double phi = margins > 0 ? (a * d - b * c) / std::sqrt(margins) : 0.0;
-  interval.difference = p1 - p2;
+  // p1 - p2, as one correctly rounded quotient of the exact count difference.
+  interval.difference = (b - c) / n;
   const double below = (p1 - l1) * (p1 - l1) - 2 * phi * (p1 - l1) * (u2 - p2) +
                        (u2 - p2) * (u2 - p2);
   const double above = (p2 - l2) * (p2 - l2) - 2 * phi * (p2 - l2) * (u1 - p1) +

@@ -20,6 +20,10 @@ struct PairedOutcomes {
   int second_only = 0;  // only the second succeeded
   int neither = 0;
   int pairs() const { return both + first_only + second_only + neither; }
+  // Counts one pair by whether each succeeded.
+  void Add(bool first, bool second) {
+    ++(first ? (second ? both : first_only) : (second ? second_only : neither));
+  }
 };
 
 struct RateDifferenceInterval {

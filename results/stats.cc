@@ -18,6 +18,13 @@ std::pair<double, double> WilsonInterval(int successes, int trials, double z) {
   return {std::max(0.0, centre - half), std::min(1.0, centre + half)};
 }
 
+void WilsonRate::Add(bool succeeded) {
+  ++trials;
+  if (succeeded) ++successes;
+  rate = static_cast<double>(successes) / trials;
+  std::tie(low, high) = WilsonInterval(successes, trials);
+}
+
 double Quantile(std::vector<double> values, double q) {
   if (values.empty()) return std::numeric_limits<double>::quiet_NaN();
   std::sort(values.begin(), values.end());
@@ -51,45 +58,28 @@ std::vector<TableCell> SuccessTable(const std::vector<CompletedTrial>& rows) {
     auto& [cell, costs] = cells[{methods.Of(row.method), variants.Of(row.variant)}];
     cell.method = row.method;
     cell.variant = row.variant;
-    ++cell.trials;
-    if (row.success) ++cell.successes;
+    cell.success.Add(row.success);
     if (!std::isnan(row.final_eval_cost)) costs.push_back(row.final_eval_cost);
-    if (!std::isnan(row.held_fraction)) {
-      ++cell.classified;
-      if (row.held_fraction >= 0.5) ++cell.held;
-    }
+    if (!std::isnan(row.held_fraction)) cell.held.Add(row.held_fraction >= 0.5);
   }
   std::vector<TableCell> table;
   for (auto& [order, entry] : cells) {
     TableCell cell = entry.first;
-    cell.rate = static_cast<double>(cell.successes) / cell.trials;
-    std::tie(cell.low, cell.high) = WilsonInterval(cell.successes, cell.trials);
     cell.median_final_cost = Quantile(entry.second, 0.5);
-    if (cell.classified > 0) {
-      cell.held_rate = static_cast<double>(cell.held) / cell.classified;
-      std::tie(cell.held_low, cell.held_high) = WilsonInterval(cell.held, cell.classified);
-    }
     table.push_back(cell);
   }
   return table;
 }
 
 const record::FieldTable<TableCell>& TableCellFields() {
-  static const record::FieldTable<TableCell> table = {
-      {"method", &TableCell::method},
-      {"variant", &TableCell::variant},
-      {"trials", &TableCell::trials},
-      {"successes", &TableCell::successes},
-      {"success_rate", &TableCell::rate},
-      {"wilson95_low", &TableCell::low},
-      {"wilson95_high", &TableCell::high},
-      {"median_final_cost", &TableCell::median_final_cost},
-      {"classified", &TableCell::classified},
-      {"held", &TableCell::held},
-      {"held_rate", &TableCell::held_rate},
-      {"held_wilson95_low", &TableCell::held_low},
-      {"held_wilson95_high", &TableCell::held_high},
-  };
+  static const record::FieldTable<TableCell> table = [] {
+    record::FieldTable<TableCell> fields = {{"method", &TableCell::method},
+                                            {"variant", &TableCell::variant}};
+    AppendWilsonRateFields<&TableCell::success>(kSuccessRateNames, &fields);
+    fields.push_back({"median_final_cost", &TableCell::median_final_cost});
+    AppendWilsonRateFields<&TableCell::held>(kHeldRateNames, &fields);
+    return fields;
+  }();
   return table;
 }
 

@@ -24,23 +24,62 @@ std::pair<double, double> WilsonInterval(int successes, int trials, double z = 1
 // statistics (Hyndman & Fan type 7, as R and NumPy default). NaN if empty.
 double Quantile(std::vector<double> values, double q);
 
+// Successes among trials, their rate and its 95% Wilson interval: the one
+// success statistic of the success table, the Table-1 grid and the threshold
+// sensitivity. With no trial the rate and both bounds are NaN (not the
+// interval {0, 1}: no trial is no evidence, and a reader sees a blank).
+struct WilsonRate {
+  int trials = 0;
+  int successes = 0;
+  double rate = std::numeric_limits<double>::quiet_NaN();
+  double low = std::numeric_limits<double>::quiet_NaN();
+  double high = std::numeric_limits<double>::quiet_NaN();
+
+  // Counts one more trial and keeps rate, low and high those of the counts.
+  void Add(bool succeeded);
+};
+
+// The names a WilsonRate's five values have in every results record (CSV
+// column, JSON key, proto field), in the order trials, successes, rate,
+// low, high: one name per statistic wherever it is shown.
+struct WilsonRateNames {
+  const char* trials;
+  const char* successes;
+  const char* rate;
+  const char* low;
+  const char* high;
+};
+// Success by the final-cost threshold: trials, successes, success_rate,
+// wilson95_low, wilson95_high.
+inline constexpr WilsonRateNames kSuccessRateNames = {"trials", "successes", "success_rate",
+                                                      "wilson95_low", "wilson95_high"};
+// The rollout verdict: classified, held, held_rate, held_wilson95_low,
+// held_wilson95_high.
+inline constexpr WilsonRateNames kHeldRateNames = {"classified", "held", "held_rate",
+                                                   "held_wilson95_low", "held_wilson95_high"};
+
+// Appends to `table` the five fields of the WilsonRate at member kRate of
+// the table's record, under `names`.
+template <auto kRate>
+void AppendWilsonRateFields(const WilsonRateNames& names,
+                            record::FieldTable<typename record::MemberOf<decltype(kRate)>::Class>*
+                                table) {
+  table->insert(table->end(), {{names.trials, record::Nested<kRate, &WilsonRate::trials>()},
+                               {names.successes, record::Nested<kRate, &WilsonRate::successes>()},
+                               {names.rate, record::Nested<kRate, &WilsonRate::rate>()},
+                               {names.low, record::Nested<kRate, &WilsonRate::low>()},
+                               {names.high, record::Nested<kRate, &WilsonRate::high>()}});
+}
+
 struct TableCell {
   std::string method;
   std::string variant;
-  int trials = 0;
-  int successes = 0;
-  double rate = 0;
-  double low = 0;   // Wilson 95%
-  double high = 0;
+  WilsonRate success;  // the trials' own verdicts (final cost below the threshold)
   double median_final_cost = 0;  // over the trials with a cost; NaN when none has one
-  // The rollout verdict over the trials that have one (`classified` of
-  // `trials`): trials whose final policy held in at least half of its
-  // rollouts, their rate and its 95% Wilson interval (NaN rate when none).
-  int classified = 0;
-  int held = 0;
-  double held_rate = std::numeric_limits<double>::quiet_NaN();
-  double held_low = 0;
-  double held_high = 1;
+  // The rollout verdict over the trials that have one (held.trials of
+  // success.trials): trials whose final policy held in at least half of
+  // its rollouts.
+  WilsonRate held;
 };
 
 // One cell per (method, variant), methods in first-appearance order, then

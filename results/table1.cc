@@ -125,33 +125,27 @@ std::vector<std::string> ProtocolDifferences(const record::TextPairs& options) {
 }
 
 std::string PaperInInterval(const Table1Cell& cell) {
-  if (cell.trials == 0 || std::isnan(cell.paper_success_rate)) return "";
-  const bool inside = cell.paper_success_rate >= cell.wilson95_low &&
-                      cell.paper_success_rate <= cell.wilson95_high;
+  if (cell.success.trials == 0 || std::isnan(cell.paper_success_rate)) return "";
+  const bool inside = cell.paper_success_rate >= cell.success.low &&
+                      cell.paper_success_rate <= cell.success.high;
   return inside ? "yes" : "no";
 }
 
 const record::FieldTable<Table1Cell>& Table1CellFields() {
-  static const record::FieldTable<Table1Cell> table = {
-      {"cost", &Table1Cell::cost},
-      {"noise_k", &Table1Cell::noise_k},
-      {"method", &Table1Cell::method},
-      {"trials", &Table1Cell::trials},
-      {"successes", &Table1Cell::successes},
-      {"success_rate", &Table1Cell::success_rate},
-      {"wilson95_low", &Table1Cell::wilson95_low},
-      {"wilson95_high", &Table1Cell::wilson95_high},
-      {"classified", &Table1Cell::classified},
-      {"held", &Table1Cell::held},
-      {"held_rate", &Table1Cell::held_rate},
-      {"held_wilson95_low", &Table1Cell::held_wilson95_low},
-      {"held_wilson95_high", &Table1Cell::held_wilson95_high},
-      {"paper_success_rate", &Table1Cell::paper_success_rate},
-      {"paper_in_interval", &PaperInInterval},
-      {"off_protocol_trials", &Table1Cell::off_protocol_trials},
-      {"protocol_differences", &Table1Cell::protocol_differences},
-      {"sweeps", &Table1Cell::sweeps},
-  };
+  static const record::FieldTable<Table1Cell> table = [] {
+    record::FieldTable<Table1Cell> fields = {{"cost", &Table1Cell::cost},
+                                             {"noise_k", &Table1Cell::noise_k},
+                                             {"method", &Table1Cell::method}};
+    AppendWilsonRateFields<&Table1Cell::success>(kSuccessRateNames, &fields);
+    AppendWilsonRateFields<&Table1Cell::held>(kHeldRateNames, &fields);
+    fields.insert(fields.end(),
+                  {{"paper_success_rate", &Table1Cell::paper_success_rate},
+                   {"paper_in_interval", &PaperInInterval},
+                   {"off_protocol_trials", &Table1Cell::off_protocol_trials},
+                   {"protocol_differences", &Table1Cell::protocol_differences},
+                   {"sweeps", &Table1Cell::sweeps}});
+    return fields;
+  }();
   return table;
 }
 
@@ -229,18 +223,8 @@ absl::StatusOr<Table1> ComputeTable1(const std::vector<CompletedTrial>& trials) 
     // The statistics are SuccessTable's, as in `results table`: one
     // (method, variant) here, so one cell.
     const TableCell counted = SuccessTable(cell_rows).front();
-    cell.trials = counted.trials;
-    cell.successes = counted.successes;
-    cell.success_rate = counted.rate;
-    cell.wilson95_low = counted.low;
-    cell.wilson95_high = counted.high;
-    cell.classified = counted.classified;
+    cell.success = counted.success;
     cell.held = counted.held;
-    if (counted.classified > 0) {
-      cell.held_rate = counted.held_rate;
-      cell.held_wilson95_low = counted.held_low;
-      cell.held_wilson95_high = counted.held_high;
-    }
   }
   return table;
 }

@@ -26,6 +26,7 @@
 #include "absl/status/statusor.h"
 #include "core/common/record.h"
 #include "results/completed_trial.h"
+#include "results/stats.h"
 
 namespace totalgrad::results {
 
@@ -65,17 +66,9 @@ struct Table1Cell {
   std::string cost;
   double noise_k = 0;
   std::string method;
-  int trials = 0;
-  int successes = 0;
-  double success_rate = std::numeric_limits<double>::quiet_NaN();
-  double wilson95_low = std::numeric_limits<double>::quiet_NaN();
-  double wilson95_high = std::numeric_limits<double>::quiet_NaN();
-  // The rollout verdict, over the `classified` trials that have one.
-  int classified = 0;
-  int held = 0;
-  double held_rate = std::numeric_limits<double>::quiet_NaN();
-  double held_wilson95_low = std::numeric_limits<double>::quiet_NaN();
-  double held_wilson95_high = std::numeric_limits<double>::quiet_NaN();
+  WilsonRate success;
+  // The rollout verdict, over the held.trials trials that have one.
+  WilsonRate held;
   // The paper's number (PaperSuccessRate); NaN where it has none.
   double paper_success_rate = std::numeric_limits<double>::quiet_NaN();
   // Trials of this cell that did not run the paper's protocol, and the
@@ -87,7 +80,7 @@ struct Table1Cell {
   std::vector<std::string> sweeps;
 };
 
-// "yes" when the paper's number lies inside [wilson95_low, wilson95_high]
+// "yes" when the paper's number lies inside [success.low, success.high]
 // (ends included), "no" when outside, "" when the cell has no trial or the
 // paper no number.
 std::string PaperInInterval(const Table1Cell& cell);

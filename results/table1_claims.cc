@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <tuple>
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
@@ -61,9 +62,8 @@ std::vector<ThresholdRate> ThresholdSensitivity(const Table1& table,
       std::vector<std::string> changed;
       for (const CompletedTrial& trial : trials) {
         if (!std::isfinite(trial.final_eval_cost)) continue;
-        ++rate.trials;
         const bool succeeds = trial.final_eval_cost < threshold;
-        if (succeeds) ++rate.successes;
+        rate.success.Add(succeeds);
         if (succeeds != trial.success) {
           changed.push_back(absl::StrFormat("seed %s: %.2f %s", trial.seed, trial.final_eval_cost,
                                             succeeds ? "fails -> succeeds" : "succeeds -> fails"));
@@ -71,13 +71,6 @@ std::vector<ThresholdRate> ThresholdSensitivity(const Table1& table,
       }
       rate.changed = static_cast<int>(changed.size());
       rate.changed_trials = absl::StrJoin(changed, "; ");
-      if (rate.trials == 0) {
-        rate.success_rate = rate.wilson95_low = rate.wilson95_high = kNaN;
-      } else {
-        rate.success_rate = static_cast<double>(rate.successes) / rate.trials;
-        std::tie(rate.wilson95_low, rate.wilson95_high) =
-            WilsonInterval(rate.successes, rate.trials);
-      }
       rates.push_back(std::move(rate));
     }
   }
@@ -85,19 +78,16 @@ std::vector<ThresholdRate> ThresholdSensitivity(const Table1& table,
 }
 
 const record::FieldTable<ThresholdRate>& ThresholdRateFields() {
-  static const record::FieldTable<ThresholdRate> table = {
-      {"cost", &ThresholdRate::cost},
-      {"noise_k", &ThresholdRate::noise_k},
-      {"method", &ThresholdRate::method},
-      {"threshold", &ThresholdRate::threshold},
-      {"trials", &ThresholdRate::trials},
-      {"successes", &ThresholdRate::successes},
-      {"success_rate", &ThresholdRate::success_rate},
-      {"wilson95_low", &ThresholdRate::wilson95_low},
-      {"wilson95_high", &ThresholdRate::wilson95_high},
-      {"changed", &ThresholdRate::changed},
-      {"changed_trials", &ThresholdRate::changed_trials},
-  };
+  static const record::FieldTable<ThresholdRate> table = [] {
+    record::FieldTable<ThresholdRate> fields = {{"cost", &ThresholdRate::cost},
+                                                {"noise_k", &ThresholdRate::noise_k},
+                                                {"method", &ThresholdRate::method},
+                                                {"threshold", &ThresholdRate::threshold}};
+    AppendWilsonRateFields<&ThresholdRate::success>(kSuccessRateNames, &fields);
+    fields.insert(fields.end(), {{"changed", &ThresholdRate::changed},
+                                 {"changed_trials", &ThresholdRate::changed_trials}});
+    return fields;
+  }();
   return table;
 }
 
@@ -136,43 +126,16 @@ ClaimComparison Compare(const Table1& table, const PlannedComparison& planned) {
     const auto partner = other_by_seed.find(mine.seed);
     if (partner == other_by_seed.end()) continue;
     const CompletedTrial& theirs = *partner->second;
-    ++comparison.pairs;
-    int* success_cell = mine.success ? (theirs.success ? &success.both : &success.first_only)
-                                     : (theirs.success ? &success.second_only : &success.neither);
-    ++*success_cell;
+    success.Add(mine.success, theirs.success);
     if (!std::isnan(mine.held_fraction) && !std::isnan(theirs.held_fraction)) {
-      int* cell = Held(mine) ? (Held(theirs) ? &verdict.both : &verdict.first_only)
-                             : (Held(theirs) ? &verdict.second_only : &verdict.neither);
-      ++*cell;
+      verdict.Add(Held(mine), Held(theirs));
     }
     if (std::isfinite(mine.final_eval_cost) && std::isfinite(theirs.final_eval_cost)) {
       cost_differences.push_back(mine.final_eval_cost - theirs.final_eval_cost);
     }
   }
-  comparison.both_succeeded = success.both;
-  comparison.method_only = success.first_only;
-  comparison.other_only = success.second_only;
-  comparison.neither = success.neither;
-  const RateDifferenceInterval success_interval = NewcombePairedInterval(success);
-  comparison.success_difference = success_interval.difference;
-  comparison.success_difference95_low = success_interval.low;
-  comparison.success_difference95_high = success_interval.high;
-  comparison.mcnemar_p = McNemarExactP(success.first_only, success.second_only);
-  comparison.mcnemar_power =
-      comparison.pairs == 0
-          ? kNaN
-          : McNemarExactPower(comparison.pairs,
-                              static_cast<double>(success.first_only) / comparison.pairs,
-                              static_cast<double>(success.second_only) / comparison.pairs);
-
-  comparison.verdict_pairs = verdict.pairs();
-  comparison.verdict_method_only = verdict.first_only;
-  comparison.verdict_other_only = verdict.second_only;
-  const RateDifferenceInterval verdict_interval = NewcombePairedInterval(verdict);
-  comparison.verdict_difference = verdict_interval.difference;
-  comparison.verdict_difference95_low = verdict_interval.low;
-  comparison.verdict_difference95_high = verdict_interval.high;
-  comparison.verdict_mcnemar_p = McNemarExactP(verdict.first_only, verdict.second_only);
+  comparison.success = ComparePairedSuccess(success);
+  comparison.verdict = ComparePairedSuccess(verdict);
 
   comparison.cost_pairs = static_cast<int>(cost_differences.size());
   const ShiftInterval shift = HodgesLehmannInterval(cost_differences);
@@ -187,27 +150,27 @@ ClaimComparison Compare(const Table1& table, const PlannedComparison& planned) {
   return comparison;
 }
 
-// Holm over the comparisons of one row that have pairs; `p` and `holm`
-// select the test.
-void AdjustWithinRows(std::vector<ClaimComparison>* comparisons,
-                      double ClaimComparison::*p, double ClaimComparison::*holm,
-                      int ClaimComparison::*pairs) {
+// Holm over the comparisons of one row that have pairs, one test at a time:
+// `test` gives a comparison's pairs, its p-value and where its adjusted
+// p-value goes (NaN for a comparison without pairs).
+template <typename Test>
+void AdjustWithinRows(std::vector<ClaimComparison>* comparisons, Test test) {
   const std::vector<PlannedComparison>& planned = Table1PlannedComparisons();
   for (size_t row = 0; row < Table1Rows().size(); ++row) {
-    std::vector<size_t> members;
+    std::vector<double*> adjusted_of;
     std::vector<double> p_values;
     for (size_t i = 0; i < planned.size(); ++i) {
       if (planned[i].row != row) continue;
-      ClaimComparison& comparison = (*comparisons)[i];
-      if (comparison.*pairs == 0) {
-        comparison.*holm = kNaN;
+      const auto [pairs, p, holm] = test((*comparisons)[i]);
+      if (pairs == 0) {
+        *holm = kNaN;
         continue;
       }
-      members.push_back(i);
-      p_values.push_back(comparison.*p);
+      adjusted_of.push_back(holm);
+      p_values.push_back(p);
     }
     const std::vector<double> adjusted = HolmAdjust(p_values);
-    for (size_t k = 0; k < members.size(); ++k) (*comparisons)[members[k]].*holm = adjusted[k];
+    for (size_t k = 0; k < adjusted_of.size(); ++k) *adjusted_of[k] = adjusted[k];
   }
 }
 
@@ -218,50 +181,36 @@ std::vector<ClaimComparison> CompareClaims(const Table1& table) {
   for (const PlannedComparison& planned : Table1PlannedComparisons()) {
     comparisons.push_back(Compare(table, planned));
   }
-  AdjustWithinRows(&comparisons, &ClaimComparison::mcnemar_p, &ClaimComparison::mcnemar_p_holm,
-                   &ClaimComparison::pairs);
-  AdjustWithinRows(&comparisons, &ClaimComparison::verdict_mcnemar_p,
-                   &ClaimComparison::verdict_mcnemar_p_holm, &ClaimComparison::verdict_pairs);
-  AdjustWithinRows(&comparisons, &ClaimComparison::wilcoxon_p, &ClaimComparison::wilcoxon_p_holm,
-                   &ClaimComparison::cost_pairs);
+  for (PairedSuccess ClaimComparison::*paired : {&ClaimComparison::success,
+                                                 &ClaimComparison::verdict}) {
+    AdjustWithinRows(&comparisons, [paired](ClaimComparison& c) {
+      PairedSuccess& s = c.*paired;
+      return std::tuple{s.pairs, s.mcnemar_p, &s.mcnemar_p_holm};
+    });
+  }
+  AdjustWithinRows(&comparisons, [](ClaimComparison& c) {
+    return std::tuple{c.cost_pairs, c.wilcoxon_p, &c.wilcoxon_p_holm};
+  });
   return comparisons;
 }
 
 const record::FieldTable<ClaimComparison>& ClaimComparisonFields() {
   using C = ClaimComparison;
-  static const record::FieldTable<C> table = {
-      {"cost", &C::cost},
-      {"noise_k", &C::noise_k},
-      {"method", &C::method},
-      {"other", &C::other},
-      {"claim", &C::claim},
-      {"pairs", &C::pairs},
-      {"both_succeeded", &C::both_succeeded},
-      {"method_only", &C::method_only},
-      {"other_only", &C::other_only},
-      {"neither", &C::neither},
-      {"success_difference", &C::success_difference},
-      {"success_difference95_low", &C::success_difference95_low},
-      {"success_difference95_high", &C::success_difference95_high},
-      {"mcnemar_p", &C::mcnemar_p},
-      {"mcnemar_p_holm", &C::mcnemar_p_holm},
-      {"mcnemar_power", &C::mcnemar_power},
-      {"verdict_pairs", &C::verdict_pairs},
-      {"verdict_method_only", &C::verdict_method_only},
-      {"verdict_other_only", &C::verdict_other_only},
-      {"verdict_difference", &C::verdict_difference},
-      {"verdict_difference95_low", &C::verdict_difference95_low},
-      {"verdict_difference95_high", &C::verdict_difference95_high},
-      {"verdict_mcnemar_p", &C::verdict_mcnemar_p},
-      {"verdict_mcnemar_p_holm", &C::verdict_mcnemar_p_holm},
-      {"cost_pairs", &C::cost_pairs},
-      {"cost_shift", &C::cost_shift},
-      {"cost_shift95_low", &C::cost_shift95_low},
-      {"cost_shift95_high", &C::cost_shift95_high},
-      {"wilcoxon_p", &C::wilcoxon_p},
-      {"wilcoxon_p_holm", &C::wilcoxon_p_holm},
-      {"wilcoxon_power", &C::wilcoxon_power},
-  };
+  static const record::FieldTable<C> table = [] {
+    record::FieldTable<C> fields = {{"cost", &C::cost},     {"noise_k", &C::noise_k},
+                                    {"method", &C::method}, {"other", &C::other},
+                                    {"claim", &C::claim}};
+    AppendPairedSuccessFields<&C::success>(kPairedSuccessNames, &fields);
+    AppendPairedSuccessFields<&C::verdict>(kPairedVerdictNames, &fields);
+    fields.insert(fields.end(), {{"cost_pairs", &C::cost_pairs},
+                                 {"cost_shift", &C::cost_shift},
+                                 {"cost_shift95_low", &C::cost_shift95_low},
+                                 {"cost_shift95_high", &C::cost_shift95_high},
+                                 {"wilcoxon_p", &C::wilcoxon_p},
+                                 {"wilcoxon_p_holm", &C::wilcoxon_p_holm},
+                                 {"wilcoxon_power", &C::wilcoxon_power}});
+    return fields;
+  }();
   return table;
 }
 

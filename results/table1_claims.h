@@ -17,6 +17,7 @@
 
 #include "core/common/record.h"
 #include "results/hypothesis_tests.h"
+#include "results/paired_success.h"
 #include "results/table1.h"
 
 namespace totalgrad::results {
@@ -26,17 +27,13 @@ const std::vector<double>& DefaultSensitivityThresholds();
 
 // One cell of the grid at one threshold. A trial succeeds at threshold t
 // when its final cost is below t (the rule of the trial itself); trials
-// without a finite final cost are left out of `trials`.
+// without a finite final cost are left out of `success.trials`.
 struct ThresholdRate {
   std::string cost;
   double noise_k = 0;
   std::string method;
   double threshold = 0;
-  int trials = 0;
-  int successes = 0;
-  double success_rate = 0;  // NaN with no trial
-  double wilson95_low = 0;
-  double wilson95_high = 0;
+  WilsonRate success;  // of the trials with a finite final cost
   // Trials whose verdict at this threshold differs from their stored one,
   // as "seed 14: 15.53 fails -> succeeds", joined by "; " in seed order.
   int changed = 0;
@@ -76,30 +73,12 @@ struct ClaimComparison {
   std::string method;
   std::string other;
   std::string claim;
-  int pairs = 0;  // seeds with a completed trial of both methods
-
-  // Success by the threshold (each trial's stored verdict).
-  int both_succeeded = 0;
-  int method_only = 0;
-  int other_only = 0;
-  int neither = 0;
-  double success_difference = 0;  // NaN without pairs; Newcombe's 95% interval:
-  double success_difference95_low = 0;
-  double success_difference95_high = 0;
-  double mcnemar_p = 1;
-  double mcnemar_p_holm = 1;
-  double mcnemar_power = 0;  // at the observed discordant rates, unadjusted
-
+  // Success by the threshold (each trial's stored verdict), over the seeds
+  // with a completed trial of both methods (success.pairs).
+  PairedSuccess success;
   // The rollout verdict (held in at least half of the rollouts), over the
   // pairs where both trials were classified.
-  int verdict_pairs = 0;
-  int verdict_method_only = 0;
-  int verdict_other_only = 0;
-  double verdict_difference = 0;  // NaN without verdict pairs
-  double verdict_difference95_low = 0;
-  double verdict_difference95_high = 0;
-  double verdict_mcnemar_p = 1;
-  double verdict_mcnemar_p_holm = 1;
+  PairedSuccess verdict;
 
   // Final costs, over the pairs where both are finite: the Hodges-Lehmann
   // shift with the signed-rank test's interval (paired_intervals.h).

@@ -41,7 +41,8 @@ std::string Number(double value, Format format, int decimals) {
 Listing ComparisonListing(const ComparisonReport& report, double alpha) {
   Listing listing;
   listing.columns = {"variant", "method", "vs", "pairs", "both_succeeded", "method_only",
-                     "vs_only", "neither", "success_difference", "mcnemar_p",
+                     "vs_only", "neither", "success_difference", "success_difference95_low",
+                     "success_difference95_high", "mcnemar_p",
                      "mcnemar_p_holm", "mcnemar_power", "cost_pairs", "cost_shift_hl",
                      "rank_biserial", "wilcoxon_w_plus", "wilcoxon_exact", "wilcoxon_p",
                      "wilcoxon_p_holm", "wilcoxon_power", "method_trials",
@@ -55,12 +56,13 @@ Listing ComparisonListing(const ComparisonReport& report, double alpha) {
     }
   }
   for (const Comparison& c : report.comparisons) {
+    const results::PairedSuccess& s = c.success;
     listing.rows.push_back(
-        {c.variant, c.method, c.other, std::to_string(c.pairs),
-         std::to_string(c.both_succeeded), std::to_string(c.method_only),
-         std::to_string(c.other_only), std::to_string(c.neither),
-         FormatNumber(c.success_difference), FormatNumber(c.mcnemar_p),
-         FormatNumber(c.mcnemar_p_holm), FormatNumber(c.mcnemar_power),
+        {c.variant, c.method, c.other, std::to_string(s.pairs), std::to_string(s.both),
+         std::to_string(s.method_only), std::to_string(s.other_only), std::to_string(s.neither),
+         FormatNumber(s.difference), FormatNumber(s.difference95_low),
+         FormatNumber(s.difference95_high), FormatNumber(s.mcnemar_p),
+         FormatNumber(s.mcnemar_p_holm), FormatNumber(s.mcnemar_power),
          std::to_string(c.cost_pairs), FormatNumber(c.wilcoxon.hodges_lehmann),
          FormatNumber(c.wilcoxon.rank_biserial), FormatNumber(c.wilcoxon.w_plus),
          c.wilcoxon.exact ? "1" : "0", FormatNumber(c.wilcoxon.p),
@@ -117,10 +119,11 @@ int PrintComparison(Connection* connection, const std::string& sweep_name,
                   "Wilcoxon p", "Holm", "power", "verdict"};
   for (const Comparison& c : report->comparisons) {
     const std::string variant = c.variant.empty() ? "-" : c.variant;
+    const results::PairedSuccess& s = c.success;
     success.rows.push_back(
-        {variant, c.method, c.other, std::to_string(c.pairs), std::to_string(c.method_only),
-         std::to_string(c.other_only), Signed(c.success_difference, 2), PValue(c.mcnemar_p),
-         PValue(c.mcnemar_p_holm), Number(c.mcnemar_power, Format::kTable, 2),
+        {variant, c.method, c.other, std::to_string(s.pairs), std::to_string(s.method_only),
+         std::to_string(s.other_only), Signed(s.difference, 2), PValue(s.mcnemar_p),
+         PValue(s.mcnemar_p_holm), Number(s.mcnemar_power, Format::kTable, 2),
          absl::StrCat(c.method_successes, "/", c.method_trials, " vs ", c.other_successes, "/",
                       c.other_trials),
          std::isinf(c.odds_ratio) ? "inf" : Number(c.odds_ratio, Format::kTable, 2),

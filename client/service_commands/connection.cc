@@ -343,7 +343,7 @@ int PlotResultsTable(Connection* connection, const std::string& sweep_name,
   plot.title = absl::StrCat("sweep ", sweep_name,
                             ": success rate per method with its 95% Wilson interval (successes/trials)");
   for (const TableCell& c : cells) {
-    plot.points.push_back({c.variant, c.method, c.trials, c.successes, c.rate, c.low, c.high});
+    plot.points.push_back({c.variant, c.method, c.success});
   }
   std::vector<results::CurvePanel> panels;
   std::string problem = FetchCurvePanels(connection, sweep_name, &panels);
@@ -390,9 +390,8 @@ int PrintResultsTable(Connection* connection, const std::string& sweep_name, For
         continue;
       }
       const TableCell& c = *it->second;
-      std::string text = absl::StrCat(FormatFixed(c.rate, 2), " [", FormatFixed(c.low, 2), ", ",
-                                      FormatFixed(c.high, 2), "] n=", c.trials);
-      if (c.classified > 0) absl::StrAppend(&text, "; held ", c.held, "/", c.classified);
+      std::string text = absl::StrCat(FormatRate(c.success), " n=", c.success.trials);
+      if (c.held.trials > 0) absl::StrAppend(&text, "; held ", c.held.successes, "/", c.held.trials);
       row.push_back(std::move(text));
     }
     listing.rows.push_back(row);

@@ -6,6 +6,8 @@
 #include <cstdio>
 #include <nlohmann/json.hpp>
 
+#include "absl/strings/str_cat.h"
+
 namespace totalgrad::cli {
 
 bool ParseFormat(const std::string& text, Format* format) {
@@ -38,6 +40,11 @@ std::string FormatFixed(double value, int decimals) {
   char buffer[64];
   std::snprintf(buffer, sizeof(buffer), "%.*f", decimals, value);
   return buffer;
+}
+
+std::string FormatRate(const results::WilsonRate& rate) {
+  return absl::StrCat(FormatFixed(rate.rate, 2), " [", FormatFixed(rate.low, 2), ", ",
+                      FormatFixed(rate.high, 2), "]");
 }
 
 void Print(const Listing& listing, Format format, std::ostream& out) {

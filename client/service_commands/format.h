@@ -11,6 +11,7 @@
 
 #include "core/common/record.h"
 #include "io/record_format.h"
+#include "results/stats.h"
 
 namespace totalgrad::cli {
 
@@ -90,6 +91,8 @@ std::string CsvField(const std::string& text);
 std::string FormatNumber(double value);
 // Fixed decimals (for tables).
 std::string FormatFixed(double value, int decimals);
+// A rate with its interval for tables: "0.90 [0.60, 0.98]".
+std::string FormatRate(const results::WilsonRate& rate);
 
 }  // namespace totalgrad::cli
 

@@ -27,7 +27,7 @@ std::string WriteSuccessPlot(const SuccessPlotInput& input, const std::string& p
   const std::string extension = std::filesystem::path(path).extension().string();
   if (!IsPlotExtension(extension)) return "--plot: " + PlotExtensionHint();
   if (std::none_of(input.points.begin(), input.points.end(),
-                   [](const SuccessPoint& p) { return p.trials > 0; })) {
+                   [](const SuccessPoint& p) { return p.success.trials > 0; })) {
     return "no completed trial yet; nothing to plot";
   }
   std::error_code error;
@@ -58,9 +58,10 @@ std::string WriteSuccessPlot(const SuccessPlotInput& input, const std::string& p
         data << "# " << p.method << " | " << variant
              << "\n# x rate wilson95_low wilson95_high successes trials paper_rate\n";
         const auto number = [](double v) { return std::isfinite(v) ? FormatNumber(v) : "NaN"; };
-        data << x_of(p.method) << " " << (p.trials > 0 ? number(p.rate) : "NaN") << " "
-             << (p.trials > 0 ? number(p.low) : "NaN") << " "
-             << (p.trials > 0 ? number(p.high) : "NaN") << " " << p.successes << " " << p.trials
+        const results::WilsonRate& s = p.success;
+        data << x_of(p.method) << " " << (s.trials > 0 ? number(s.rate) : "NaN") << " "
+             << (s.trials > 0 ? number(s.low) : "NaN") << " "
+             << (s.trials > 0 ? number(s.high) : "NaN") << " " << s.successes << " " << s.trials
              << " " << number(p.paper_rate) << "\n\n\n";
         block[{variant, p.method}] = index++;
       }

@@ -12,16 +12,15 @@
 #include <string>
 #include <vector>
 
+#include "results/stats.h"
+
 namespace totalgrad::cli {
 
 // One point: a method's success rate on one task variant.
 struct SuccessPoint {
   std::string variant;      // the panel
   std::string method;
-  int trials = 0;           // 0: drawn as "0/0" without a point
-  int successes = 0;
-  double rate = 0;          // successes / trials
-  double low = 0, high = 0; // 95% Wilson interval
+  results::WilsonRate success;  // no trial: drawn as "0/0" without a point
   double paper_rate = std::numeric_limits<double>::quiet_NaN();  // NaN: no marker
 };
 

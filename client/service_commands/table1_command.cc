@@ -21,11 +21,6 @@ namespace {
 
 using results::Table1Cell;
 
-std::string Rate(double rate, double low, double high) {
-  return absl::StrCat(FormatFixed(rate, 2), " [", FormatFixed(low, 2), ", ", FormatFixed(high, 2),
-                      "]");
-}
-
 // The grid as text: three lines per task (our success rate, the rollout
 // verdict's rate, the paper's number), one column per method, then the
 // cells whose trials left the paper's protocol (marked '*') and the trials
@@ -35,7 +30,7 @@ void PrintGrid(const results::Table1& table, const std::vector<std::string>& swe
   const std::vector<std::string>& methods = results::Table1Methods();
   const std::vector<results::Table1Row>& rows = results::Table1Rows();
   int in_grid = 0;
-  for (const Table1Cell& cell : table.cells) in_grid += cell.trials;
+  for (const Table1Cell& cell : table.cells) in_grid += cell.success.trials;
   out << "Table 1 (Parmas et al. 2018) from sweep" << (sweeps.size() == 1 ? " " : "s ")
       << absl::StrJoin(sweeps, ", ") << ": " << in_grid << " completed trials in the grid\n"
       << "success: success rate [95% Wilson interval] n=trials, '*' = not all on the paper's "
@@ -51,18 +46,16 @@ void PrintGrid(const results::Table1& table, const std::vector<std::string>& swe
     std::vector<std::string> success = {rows[r].Label()}, held = {"  held"}, paper = {"  paper"};
     for (size_t m = 0; m < methods.size(); ++m) {
       const Table1Cell& cell = table.cells[r * methods.size() + m];
-      if (cell.trials == 0) {
+      if (cell.success.trials == 0) {
         success.push_back("-");
       } else {
-        success.push_back(absl::StrCat(
-            Rate(cell.success_rate, cell.wilson95_low, cell.wilson95_high), " n=", cell.trials,
-            cell.off_protocol_trials > 0 ? "*" : ""));
+        success.push_back(absl::StrCat(FormatRate(cell.success), " n=", cell.success.trials,
+                                       cell.off_protocol_trials > 0 ? "*" : ""));
       }
-      held.push_back(cell.classified == 0
+      held.push_back(cell.held.trials == 0
                          ? "-"
-                         : absl::StrCat(Rate(cell.held_rate, cell.held_wilson95_low,
-                                             cell.held_wilson95_high),
-                                        " ", cell.held, "/", cell.classified));
+                         : absl::StrCat(FormatRate(cell.held), " ", cell.held.successes, "/",
+                                        cell.held.trials));
       const std::string inside = results::PaperInInterval(cell);
       paper.push_back(std::isnan(cell.paper_success_rate)
                           ? "none"
@@ -70,7 +63,7 @@ void PrintGrid(const results::Table1& table, const std::vector<std::string>& swe
                                          inside == "yes" ? " in" : inside == "no" ? " OUT" : ""));
       if (cell.off_protocol_trials > 0) {
         marked.push_back(absl::StrCat("  ", rows[r].Label(), ", ", cell.method, ": ",
-                                      cell.off_protocol_trials, " of ", cell.trials,
+                                      cell.off_protocol_trials, " of ", cell.success.trials,
                                       " trials: ", cell.protocol_differences));
       }
     }
@@ -109,7 +102,7 @@ void PrintSensitivity(const std::vector<results::ThresholdRate>& rates,
         results::Table1Row{first.cost, first.noise_k}.Label(), first.method};
     for (size_t t = 0; t < thresholds.size(); ++t) {
       const results::ThresholdRate& rate = rates[start + t];
-      row.push_back(absl::StrCat(rate.successes, "/", rate.trials));
+      row.push_back(absl::StrCat(rate.success.successes, "/", rate.success.trials));
       if (rate.changed > 0) {
         changes.push_back(absl::StrCat("  ", row[0], ", ", first.method, " at ", rate.threshold,
                                        ": ", rate.changed_trials));
@@ -125,6 +118,10 @@ std::string Interval(double estimate, double low, double high, int decimals) {
   if (std::isnan(estimate)) return "-";
   return absl::StrCat(FormatFixed(estimate, decimals), " [", FormatFixed(low, decimals), ", ",
                       FormatFixed(high, decimals), "]");
+}
+
+std::string DifferenceInterval(const results::PairedSuccess& paired) {
+  return Interval(paired.difference, paired.difference95_low, paired.difference95_high, 2);
 }
 
 std::string PValue(double p, double holm) {
@@ -146,16 +143,12 @@ void PrintClaims(const std::vector<results::ClaimComparison>& claims, std::ostre
     const std::string comparison = absl::StrCat(claim.method, " - ", claim.other);
     listing.rows.push_back(
         {results::Table1Row{claim.cost, claim.noise_k}.Label(), comparison,
-         absl::StrCat(claim.pairs),
-         Interval(claim.success_difference, claim.success_difference95_low,
-                  claim.success_difference95_high, 2),
-         PValue(claim.mcnemar_p, claim.mcnemar_p_holm),
-         claim.verdict_pairs == 0
+         absl::StrCat(claim.success.pairs), DifferenceInterval(claim.success),
+         PValue(claim.success.mcnemar_p, claim.success.mcnemar_p_holm),
+         claim.verdict.pairs == 0
              ? "-"
-             : absl::StrCat(Interval(claim.verdict_difference, claim.verdict_difference95_low,
-                                     claim.verdict_difference95_high, 2),
-                            " n=", claim.verdict_pairs),
-         PValue(claim.verdict_mcnemar_p, claim.verdict_mcnemar_p_holm),
+             : absl::StrCat(DifferenceInterval(claim.verdict), " n=", claim.verdict.pairs),
+         PValue(claim.verdict.mcnemar_p, claim.verdict.mcnemar_p_holm),
          Interval(claim.cost_shift, claim.cost_shift95_low, claim.cost_shift95_high, 2),
          PValue(claim.wilcoxon_p, claim.wilcoxon_p_holm)});
     claims_text.push_back(absl::StrCat("  ", comparison, ": ", claim.claim));
@@ -202,12 +195,11 @@ int PlotTable1(const results::Table1& table, const std::vector<std::string>& swe
                             ": success rate, 95% Wilson interval, successes/trials; diamond: the paper");
   for (size_t r = 0; r < rows.size(); ++r) {
     int trials = 0;
-    for (size_t m = 0; m < methods.size(); ++m) trials += table.cells[r * methods.size() + m].trials;
+    for (size_t m = 0; m < methods.size(); ++m) trials += table.cells[r * methods.size() + m].success.trials;
     if (trials == 0) continue;
     for (size_t m = 0; m < methods.size(); ++m) {
       const Table1Cell& c = table.cells[r * methods.size() + m];
-      plot.points.push_back({rows[r].Label(), c.method, c.trials, c.successes, c.success_rate,
-                             c.wilson95_low, c.wilson95_high, c.paper_success_rate});
+      plot.points.push_back({rows[r].Label(), c.method, c.success, c.paper_success_rate});
     }
     plot.panel_variants.push_back(rows[r].Label());
     plot.panel_titles.push_back(absl::StrCat("cart-pole swing-up, ", rows[r].Label()));

@@ -26,6 +26,7 @@
 
 #include <cstdint>
 #include <string>
+#include <type_traits>
 #include <utility>
 #include <variant>
 #include <vector>
@@ -63,14 +64,56 @@ struct EnumText {
   bool (*parse)(const std::string& text, R* r);
 };
 
+// Where a field's value of type T lives in a record R: a data member of R
+// (a table line writes `&R::name`, converted implicitly), or a member of a
+// record that R holds by value (Nested<&R::outer, &Inner::name>()), so that
+// records can share a small record (a rate with its interval) and still be
+// written flat, one column per value.
+template <typename R, typename T>
+class Slot {
+ public:
+  Slot(T R::*member) : member_(member) {}  // NOLINT(runtime/explicit): see above
+  Slot(T& (*mutable_at)(R&), const T& (*at)(const R&)) : mutable_at_(mutable_at), at_(at) {}
+
+  const T& Of(const R& r) const { return member_ != nullptr ? r.*member_ : at_(r); }
+  T& Of(R& r) const { return member_ != nullptr ? r.*member_ : mutable_at_(r); }
+
+ private:
+  T R::*member_ = nullptr;
+  T& (*mutable_at_)(R&) = nullptr;
+  const T& (*at_)(const R&) = nullptr;
+};
+
+template <typename M>
+struct MemberOf;
+template <typename C, typename V>
+struct MemberOf<V C::*> {
+  using Class = C;
+  using Value = V;
+};
+
+// The slot of member kInner of the record at member kOuter:
+// Nested<&TableCell::success, &WilsonRate::rate>() is cell.success.rate.
+template <auto kOuter, auto kInner>
+Slot<typename MemberOf<decltype(kOuter)>::Class, typename MemberOf<decltype(kInner)>::Value>
+Nested() {
+  using R = typename MemberOf<decltype(kOuter)>::Class;
+  using T = typename MemberOf<decltype(kInner)>::Value;
+  static_assert(std::is_same_v<typename MemberOf<decltype(kOuter)>::Value,
+                               typename MemberOf<decltype(kInner)>::Class>,
+                "kInner must be a member of the record kOuter holds");
+  return Slot<R, T>(+[](R& r) -> T& { return (r.*kOuter).*kInner; },
+                    +[](const R& r) -> const T& { return (r.*kOuter).*kInner; });
+}
+
 template <typename R>
 struct Field {
   // The alternatives are in FieldType's order (type() is the index).
-  using Member = std::variant<int R::*, double R::*, bool R::*, std::string R::*,
-                              std::vector<double> R::*, std::vector<int> R::*,
-                              std::vector<std::string> R::*, Vector R::*,
-                              std::string (*)(const R&), int64_t R::*, EnumText<R>,
-                              bool (*)(const R&), TextPairs R::*>;
+  using Member = std::variant<Slot<R, int>, Slot<R, double>, Slot<R, bool>, Slot<R, std::string>,
+                              Slot<R, std::vector<double>>, Slot<R, std::vector<int>>,
+                              Slot<R, std::vector<std::string>>, Slot<R, Vector>,
+                              std::string (*)(const R&), Slot<R, int64_t>, EnumText<R>,
+                              bool (*)(const R&), Slot<R, TextPairs>>;
   const char* name;
   Member member;
   // A column of the record's CSV (long lists and free-text details that a
@@ -83,9 +126,9 @@ struct Field {
   }
   // The value of a field of type T (the caller switched on type()).
   template <typename T>
-  const T& Get(const R& r) const { return r.*std::get<T R::*>(member); }
+  const T& Get(const R& r) const { return std::get<Slot<R, T>>(member).Of(r); }
   template <typename T>
-  T& Get(R& r) const { return r.*std::get<T R::*>(member); }
+  T& Get(R& r) const { return std::get<Slot<R, T>>(member).Of(r); }
   // A derived field's value (kDerivedText, kDerivedBool).
   std::string Derive(const R& r) const { return std::get<std::string (*)(const R&)>(member)(r); }
   bool DeriveBool(const R& r) const { return std::get<bool (*)(const R&)>(member)(r); }

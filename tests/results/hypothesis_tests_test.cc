@@ -207,14 +207,14 @@ TEST(CompareMethodsTest, PairsBySeedAndTestsEachWay) {
   const Comparison& c = report->comparisons[0];
   EXPECT_EQ(c.method, "A");
   EXPECT_EQ(c.other, "B");
-  EXPECT_EQ(c.pairs, 8);             // seed 9 has no partner
-  EXPECT_EQ(c.both_succeeded, 2);
-  EXPECT_EQ(c.method_only, 5);
-  EXPECT_EQ(c.other_only, 0);
-  EXPECT_EQ(c.neither, 1);
-  EXPECT_DOUBLE_EQ(c.success_difference, 5.0 / 8);
-  EXPECT_DOUBLE_EQ(c.mcnemar_p, 2.0 / 32);
-  EXPECT_DOUBLE_EQ(c.mcnemar_p_holm, c.mcnemar_p);  // a family of one
+  EXPECT_EQ(c.success.pairs, 8);             // seed 9 has no partner
+  EXPECT_EQ(c.success.both, 2);
+  EXPECT_EQ(c.success.method_only, 5);
+  EXPECT_EQ(c.success.other_only, 0);
+  EXPECT_EQ(c.success.neither, 1);
+  EXPECT_DOUBLE_EQ(c.success.difference, 5.0 / 8);
+  EXPECT_DOUBLE_EQ(c.success.mcnemar_p, 2.0 / 32);
+  EXPECT_DOUBLE_EQ(c.success.mcnemar_p_holm, c.success.mcnemar_p);  // a family of one
   // Differences -1..-8: all negative, W+ = 0, p = 2/256.
   EXPECT_EQ(c.cost_pairs, 8);
   EXPECT_DOUBLE_EQ(c.wilcoxon.w_plus, 0);
@@ -225,7 +225,7 @@ TEST(CompareMethodsTest, PairsBySeedAndTestsEachWay) {
   EXPECT_EQ(c.method_trials, 8);
   EXPECT_EQ(c.other_trials, 9);
   EXPECT_DOUBLE_EQ(c.fisher_p, FisherExactP(7, 1, 2, 7));
-  EXPECT_GT(c.mcnemar_power, 0.0);
+  EXPECT_GT(c.success.mcnemar_power, 0.0);
 }
 
 TEST(CompareMethodsTest, BaselineAndHolmPerVariant) {
@@ -248,10 +248,10 @@ TEST(CompareMethodsTest, BaselineAndHolmPerVariant) {
   // Holm over k=1's two comparisons: A's McNemar p doubled (the smaller).
   const Comparison& a = report->comparisons[0];
   const Comparison& cc = report->comparisons[1];
-  EXPECT_DOUBLE_EQ(a.mcnemar_p_holm, std::min(1.0, 2 * a.mcnemar_p));
-  EXPECT_DOUBLE_EQ(cc.mcnemar_p_holm, std::max(a.mcnemar_p_holm, cc.mcnemar_p));
+  EXPECT_DOUBLE_EQ(a.success.mcnemar_p_holm, std::min(1.0, 2 * a.success.mcnemar_p));
+  EXPECT_DOUBLE_EQ(cc.success.mcnemar_p_holm, std::max(a.success.mcnemar_p_holm, cc.success.mcnemar_p));
   // k=2 is its own family: identical outcomes, p = 1 unadjusted and adjusted.
-  EXPECT_DOUBLE_EQ(report->comparisons[2].mcnemar_p_holm, 1.0);
+  EXPECT_DOUBLE_EQ(report->comparisons[2].success.mcnemar_p_holm, 1.0);
   EXPECT_DOUBLE_EQ(report->comparisons[2].wilcoxon.p, 1.0);
   EXPECT_EQ(report->comparisons[2].wilcoxon.zeros, 8);
 }
@@ -283,13 +283,13 @@ TEST(CompareMethodsTest, VerdictsNameTheFavouredMethodOnlyWhenSignificant) {
   Comparison c;
   c.method = "RP";
   c.other = "TP";
-  c.mcnemar_p_holm = 0.01;
-  c.success_difference = 0.3;  // RP succeeded more often
+  c.success.mcnemar_p_holm = 0.01;
+  c.success.difference = 0.3;  // RP succeeded more often
   EXPECT_EQ(SuccessVerdict(c, 0.05), "RP better");
-  c.success_difference = -0.3;
+  c.success.difference = -0.3;
   EXPECT_EQ(SuccessVerdict(c, 0.05), "TP better");
   EXPECT_EQ(SuccessVerdict(c, 0.01), "no evidence");  // p must be below alpha
-  c.mcnemar_p_holm = std::nan("");
+  c.success.mcnemar_p_holm = std::nan("");
   EXPECT_EQ(SuccessVerdict(c, 0.05), "no evidence");
   c.wilcoxon_p_holm = 0.02;
   c.wilcoxon.rank_biserial = -0.8;  // RP's costs lower

@@ -5,6 +5,12 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "io/record_format.h"
 
 namespace totalgrad::results {
 namespace stats_test {
@@ -31,6 +37,59 @@ TEST(WilsonIntervalTest, StaysInsideTheUnitIntervalAtTheEdges) {
   EXPECT_EQ(high, 1.0);
 }
 
+TEST(WilsonRateTest, KeepsRateAndIntervalThoseOfItsCounts) {
+  WilsonRate rate;
+  EXPECT_EQ(rate.trials, 0);
+  EXPECT_TRUE(std::isnan(rate.rate) && std::isnan(rate.low) && std::isnan(rate.high));
+  for (bool succeeded : {true, false, true, true, false, true, false, true, false, false}) {
+    rate.Add(succeeded);
+  }
+  EXPECT_EQ(rate.trials, 10);
+  EXPECT_EQ(rate.successes, 5);
+  EXPECT_EQ(rate.rate, 0.5);
+  EXPECT_NEAR(rate.low, 0.2366, 1e-4);  // statsmodels, as above
+  EXPECT_NEAR(rate.high, 0.7634, 1e-4);
+}
+
+// A record that holds WilsonRates is written flat, under the names every
+// results record uses, and read back into its nested members.
+TEST(WilsonRateTest, ItsFieldsAreWrittenAndReadFlat) {
+  TableCell cell;
+  cell.method = "GTP";
+  cell.variant = "k=1";
+  cell.success.Add(true);
+  cell.success.Add(false);
+  cell.median_final_cost = 14.5;
+  cell.held.Add(true);
+  const nlohmann::ordered_json json = io::RecordToJson(TableCellFields(), cell);
+  std::vector<std::string> keys;
+  for (const auto& [key, value] : json.items()) keys.push_back(key);
+  EXPECT_EQ(keys, (std::vector<std::string>{"method", "variant", "trials", "successes",
+                                            "success_rate", "wilson95_low", "wilson95_high",
+                                            "median_final_cost", "classified", "held", "held_rate",
+                                            "held_wilson95_low", "held_wilson95_high"}));
+  EXPECT_EQ(json["trials"], 2);
+  EXPECT_EQ(json["successes"], 1);
+  EXPECT_EQ(json["success_rate"], 0.5);
+  // Wilson at 1 of 2: 0.5 -+ z/(1 + z^2/2) sqrt(1/8 + z^2/16); 1 of 1: low
+  // 1/(1 + z^2).
+  EXPECT_NEAR(json["wilson95_low"].get<double>(), 0.0945312, 1e-6);
+  EXPECT_NEAR(json["wilson95_high"].get<double>(), 0.9054688, 1e-6);
+  EXPECT_EQ(json["classified"], 1);
+  EXPECT_EQ(json["held"], 1);
+  EXPECT_EQ(json["held_rate"], 1.0);
+  EXPECT_NEAR(json["held_wilson95_low"].get<double>(), 0.2065493, 1e-6);
+  EXPECT_EQ(json["held_wilson95_high"], 1.0);
+  TableCell read;
+  ASSERT_TRUE(io::RecordFromJson(TableCellFields(), json, "", &read).ok());
+  EXPECT_EQ(read.success.trials, 2);
+  EXPECT_EQ(read.success.successes, 1);
+  EXPECT_EQ(read.success.low, cell.success.low);
+  EXPECT_EQ(read.held.trials, 1);
+  EXPECT_EQ(read.held.high, 1.0);
+  EXPECT_EQ(read.median_final_cost, 14.5);
+}
+
 TEST(QuantileTest, InterpolatesLinearlyBetweenOrderStatistics) {
   EXPECT_EQ(Quantile({3, 1, 2, 4}, 0.5), 2.5);
   EXPECT_EQ(Quantile({3, 1, 2, 4}, 0.25), 1.75);
@@ -48,9 +107,14 @@ TEST(SuccessTableTest, GroupsByMethodAndVariantInFirstAppearanceOrder) {
   ASSERT_EQ(table.size(), 3u);
   EXPECT_EQ(table[0].method, "RP");
   EXPECT_EQ(table[0].variant, "k=1");
-  EXPECT_EQ(table[0].trials, 3);
-  EXPECT_EQ(table[0].successes, 2);
-  EXPECT_NEAR(table[0].rate, 2.0 / 3, 1e-12);
+  EXPECT_EQ(table[0].success.trials, 3);
+  EXPECT_EQ(table[0].success.successes, 2);
+  EXPECT_NEAR(table[0].success.rate, 2.0 / 3, 1e-12);
+  // No trial has a rollout verdict: the held rate and its bounds are blank,
+  // not the interval [0, 1].
+  EXPECT_EQ(table[0].held.trials, 0);
+  EXPECT_TRUE(std::isnan(table[0].held.rate) && std::isnan(table[0].held.low) &&
+              std::isnan(table[0].held.high));
   EXPECT_EQ(table[0].median_final_cost, 12);
   EXPECT_EQ(table[1].variant, "k=0.01");
   EXPECT_EQ(table[2].method, "LR");

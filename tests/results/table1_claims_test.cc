@@ -54,9 +54,9 @@ TEST(ThresholdSensitivityTest, CountsEachThresholdAndNamesTheVerdictsThatChange)
     EXPECT_EQ(rates[i].cost, "tip");
     EXPECT_EQ(rates[i].noise_k, 1);
     EXPECT_EQ(rates[i].threshold, DefaultSensitivityThresholds()[i]);
-    EXPECT_EQ(rates[i].trials, 6) << "the trial without a cost is left out";
-    EXPECT_EQ(rates[i].successes, expected_successes[i]);
-    EXPECT_DOUBLE_EQ(rates[i].success_rate, expected_successes[i] / 6.0);
+    EXPECT_EQ(rates[i].success.trials, 6) << "the trial without a cost is left out";
+    EXPECT_EQ(rates[i].success.successes, expected_successes[i]);
+    EXPECT_DOUBLE_EQ(rates[i].success.rate, expected_successes[i] / 6.0);
   }
   EXPECT_EQ(rates[2].changed, 0);
   EXPECT_EQ(rates[2].changed_trials, "");
@@ -67,8 +67,8 @@ TEST(ThresholdSensitivityTest, CountsEachThresholdAndNamesTheVerdictsThatChange)
             "seed 13: 16.90 fails -> succeeds; seed 14: 15.53 fails -> succeeds");
   // Wilson 95% of 3/6 (z = 1.959964): centre (0.5 + z^2/12) / (1 + z^2/6) = 0.5,
   // half-width z sqrt(0.25/6 + z^2/144) / (1 + z^2/6) = 0.312384.
-  EXPECT_NEAR(rates[2].wilson95_low, 0.18761631, 1e-8);
-  EXPECT_NEAR(rates[2].wilson95_high, 0.81238369, 1e-8);
+  EXPECT_NEAR(rates[2].success.low, 0.18761631, 1e-8);
+  EXPECT_NEAR(rates[2].success.high, 0.81238369, 1e-8);
 }
 
 TEST(CompareClaimsTest, PairsBySeedWithinARowAndHolmAdjustsWithinIt) {
@@ -104,23 +104,23 @@ TEST(CompareClaimsTest, PairsBySeedWithinARowAndHolmAdjustsWithinIt) {
   ASSERT_NE(low_noise_gtp_pilco, nullptr);
 
   EXPECT_EQ(gtp_pilco->cost, "tip");
-  EXPECT_EQ(gtp_pilco->pairs, 5);
-  EXPECT_EQ(gtp_pilco->both_succeeded, 3);
-  EXPECT_EQ(gtp_pilco->method_only, 1);
-  EXPECT_EQ(gtp_pilco->other_only, 1);
-  EXPECT_EQ(gtp_pilco->neither, 0);
+  EXPECT_EQ(gtp_pilco->success.pairs, 5);
+  EXPECT_EQ(gtp_pilco->success.both, 3);
+  EXPECT_EQ(gtp_pilco->success.method_only, 1);
+  EXPECT_EQ(gtp_pilco->success.other_only, 1);
+  EXPECT_EQ(gtp_pilco->success.neither, 0);
   const RateDifferenceInterval expected = NewcombePairedInterval({3, 1, 1, 0});
-  EXPECT_DOUBLE_EQ(gtp_pilco->success_difference, 0);
-  EXPECT_DOUBLE_EQ(gtp_pilco->success_difference95_low, expected.low);
-  EXPECT_DOUBLE_EQ(gtp_pilco->success_difference95_high, expected.high);
-  EXPECT_DOUBLE_EQ(gtp_pilco->mcnemar_p, 1.0);
+  EXPECT_DOUBLE_EQ(gtp_pilco->success.difference, 0);
+  EXPECT_DOUBLE_EQ(gtp_pilco->success.difference95_low, expected.low);
+  EXPECT_DOUBLE_EQ(gtp_pilco->success.difference95_high, expected.high);
+  EXPECT_DOUBLE_EQ(gtp_pilco->success.mcnemar_p, 1.0);
 
   // Verdicts (held >= 0.5) where both were classified: seeds 10 (y, y),
   // 11 (y, n), 12 (n, y), 14 (y, n): 4 pairs, GTP only 2, PILCO only 1.
-  EXPECT_EQ(gtp_pilco->verdict_pairs, 4);
-  EXPECT_EQ(gtp_pilco->verdict_method_only, 2);
-  EXPECT_EQ(gtp_pilco->verdict_other_only, 1);
-  EXPECT_DOUBLE_EQ(gtp_pilco->verdict_difference, 0.25);
+  EXPECT_EQ(gtp_pilco->verdict.pairs, 4);
+  EXPECT_EQ(gtp_pilco->verdict.method_only, 2);
+  EXPECT_EQ(gtp_pilco->verdict.other_only, 1);
+  EXPECT_DOUBLE_EQ(gtp_pilco->verdict.difference, 0.25);
 
   // Walsh averages of (1.0, -2.5, 2.0, -0.5, -1.0), 15 of them; the median
   // (8th smallest) is -0.25. n = 5 reaches no 95% rank: [min, max].
@@ -132,21 +132,21 @@ TEST(CompareClaimsTest, PairsBySeedWithinARowAndHolmAdjustsWithinIt) {
                    WilcoxonSignedRank({1.0, -2.5, 2.0, -0.5, -1.0}).p);
 
   // TP vs GTP: seeds 10-12: TP y n y, GTP y y n: one discordant pair each way.
-  EXPECT_EQ(tp_gtp->pairs, 3);
-  EXPECT_EQ(tp_gtp->method_only, 1);
-  EXPECT_EQ(tp_gtp->other_only, 1);
-  EXPECT_EQ(tp_gtp->verdict_pairs, 0) << "TP's trials were not classified";
-  EXPECT_TRUE(std::isnan(tp_gtp->verdict_difference));
-  EXPECT_TRUE(std::isnan(tp_gtp->verdict_mcnemar_p_holm));
+  EXPECT_EQ(tp_gtp->success.pairs, 3);
+  EXPECT_EQ(tp_gtp->success.method_only, 1);
+  EXPECT_EQ(tp_gtp->success.other_only, 1);
+  EXPECT_EQ(tp_gtp->verdict.pairs, 0) << "TP's trials were not classified";
+  EXPECT_TRUE(std::isnan(tp_gtp->verdict.difference));
+  EXPECT_TRUE(std::isnan(tp_gtp->verdict.mcnemar_p_holm));
 
   // Holm within the tip, k = 1 row: two comparisons, each test its own family.
   const std::vector<double> wilcoxon_holm = HolmAdjust({gtp_pilco->wilcoxon_p, tp_gtp->wilcoxon_p});
   EXPECT_DOUBLE_EQ(gtp_pilco->wilcoxon_p_holm, wilcoxon_holm[0]);
   EXPECT_DOUBLE_EQ(tp_gtp->wilcoxon_p_holm, wilcoxon_holm[1]);
   // The k = 0.01 row is its own family: one pair, GTP failed, PILCO did not.
-  EXPECT_EQ(low_noise_gtp_pilco->pairs, 1);
-  EXPECT_EQ(low_noise_gtp_pilco->other_only, 1);
-  EXPECT_DOUBLE_EQ(low_noise_gtp_pilco->mcnemar_p_holm, 1.0);
+  EXPECT_EQ(low_noise_gtp_pilco->success.pairs, 1);
+  EXPECT_EQ(low_noise_gtp_pilco->success.other_only, 1);
+  EXPECT_DOUBLE_EQ(low_noise_gtp_pilco->success.mcnemar_p_holm, 1.0);
   EXPECT_DOUBLE_EQ(low_noise_gtp_pilco->cost_shift, 20.0);
 }
 
@@ -154,9 +154,9 @@ TEST(CompareClaimsTest, AComparisonWithoutPairsIsNaNAndOutOfTheFamily) {
   const std::vector<ClaimComparison> claims =
       CompareClaims(Compute({Trial("GTP", 10, 12.0), Trial("PILCO", 11, 12.0)}));
   for (const ClaimComparison& claim : claims) {
-    EXPECT_EQ(claim.pairs, 0);
-    EXPECT_TRUE(std::isnan(claim.success_difference));
-    EXPECT_TRUE(std::isnan(claim.mcnemar_p_holm));
+    EXPECT_EQ(claim.success.pairs, 0);
+    EXPECT_TRUE(std::isnan(claim.success.difference));
+    EXPECT_TRUE(std::isnan(claim.success.mcnemar_p_holm));
     EXPECT_TRUE(std::isnan(claim.cost_shift));
   }
 }

@@ -83,22 +83,22 @@ TEST(Table1Test, ACellsRatesAndWilsonIntervalsAreTheHandComputedOnes) {
   absl::StatusOr<Table1> table = ComputeTable1(trials);
   ASSERT_TRUE(table.ok()) << table.status();
   const Table1Cell& cell = Cell(*table, kTip1, "PILCO");
-  EXPECT_EQ(cell.trials, 10);
-  EXPECT_EQ(cell.successes, 8);
-  EXPECT_EQ(cell.success_rate, 0.8);
+  EXPECT_EQ(cell.success.trials, 10);
+  EXPECT_EQ(cell.success.successes, 8);
+  EXPECT_EQ(cell.success.rate, 0.8);
   // Wilson, z = 1.959964, z^2 = 3.841459, n = 10, p = 0.8:
   //   centre = (p + z^2 / 2n) / (1 + z^2 / n) = 0.992073 / 1.384146 = 0.716740
   //   half   = z / (1 + z^2 / n) * sqrt(p (1 - p) / n + z^2 / 4n^2)
   //          = 1.416010 * sqrt(0.016 + 0.009604) = 1.416010 * 0.160011 = 0.226578
-  EXPECT_NEAR(cell.wilson95_low, 0.716740 - 0.226578, 2e-6);
-  EXPECT_NEAR(cell.wilson95_high, 0.716740 + 0.226578, 2e-6);
-  EXPECT_EQ(cell.classified, 6);
-  EXPECT_EQ(cell.held, 3);
-  EXPECT_EQ(cell.held_rate, 0.5);
+  EXPECT_NEAR(cell.success.low, 0.716740 - 0.226578, 2e-6);
+  EXPECT_NEAR(cell.success.high, 0.716740 + 0.226578, 2e-6);
+  EXPECT_EQ(cell.held.trials, 6);
+  EXPECT_EQ(cell.held.successes, 3);
+  EXPECT_EQ(cell.held.rate, 0.5);
   // n = 6, p = 1/2: centre 1/2; half = z / (1 + z^2/6) * sqrt(1/24 + z^2/144)
   //   = 1.959964 / 1.640243 * sqrt(0.041667 + 0.026677) = 1.194923 * 0.261426 = 0.312384
-  EXPECT_NEAR(cell.held_wilson95_low, 0.5 - 0.312384, 2e-6);
-  EXPECT_NEAR(cell.held_wilson95_high, 0.5 + 0.312384, 2e-6);
+  EXPECT_NEAR(cell.held.low, 0.5 - 0.312384, 2e-6);
+  EXPECT_NEAR(cell.held.high, 0.5 + 0.312384, 2e-6);
   EXPECT_EQ(cell.paper_success_rate, 0.73);
   EXPECT_EQ(PaperInInterval(cell), "yes");  // 0.73 in [0.490, 0.943]
   EXPECT_EQ(cell.off_protocol_trials, 0);
@@ -107,9 +107,9 @@ TEST(Table1Test, ACellsRatesAndWilsonIntervalsAreTheHandComputedOnes) {
 
   // Every other cell is there, empty: NaN rates, no verdict on the paper.
   const Table1Cell& empty = Cell(*table, kAngle001, "GTP");
-  EXPECT_EQ(empty.trials, 0);
-  EXPECT_TRUE(std::isnan(empty.success_rate) && std::isnan(empty.wilson95_low) &&
-              std::isnan(empty.wilson95_high) && std::isnan(empty.held_rate));
+  EXPECT_EQ(empty.success.trials, 0);
+  EXPECT_TRUE(std::isnan(empty.success.rate) && std::isnan(empty.success.low) &&
+              std::isnan(empty.success.high) && std::isnan(empty.held.rate));
   EXPECT_EQ(empty.paper_success_rate, 0.65);
   EXPECT_EQ(PaperInInterval(empty), "");
   EXPECT_EQ(table->cells.size(), 32u);
@@ -129,21 +129,21 @@ TEST(Table1Test, ThePapersNumberIsInsideOrOutsideOurInterval) {
   absl::StatusOr<Table1> table = ComputeTable1(trials);
   ASSERT_TRUE(table.ok()) << table.status();
   const Table1Cell& gtp = Cell(*table, kTip1, "GTP");
-  EXPECT_NEAR(gtp.wilson95_high, 0.687326, 1e-6);
+  EXPECT_NEAR(gtp.success.high, 0.687326, 1e-6);
   EXPECT_EQ(PaperInInterval(gtp), "no");
   const Table1Cell& tp = Cell(*table, kTip1, "TP");
-  EXPECT_NEAR(tp.wilson95_low, 0.236593, 1e-6);
-  EXPECT_NEAR(tp.wilson95_high, 0.763407, 1e-6);
+  EXPECT_NEAR(tp.success.low, 0.236593, 1e-6);
+  EXPECT_NEAR(tp.success.high, 0.763407, 1e-6);
   EXPECT_EQ(PaperInInterval(tp), "yes");
   const Table1Cell& sn = Cell(*table, kTip1, "GTP+sn");
-  EXPECT_EQ(sn.trials, 10);
+  EXPECT_EQ(sn.success.trials, 10);
   EXPECT_EQ(PaperInInterval(sn), "");
 
   // The ends of the interval count as inside.
   Table1Cell edge;
-  edge.trials = 1;
-  edge.wilson95_low = 0.25;
-  edge.wilson95_high = 0.5;
+  edge.success.trials = 1;
+  edge.success.low = 0.25;
+  edge.success.high = 0.5;
   edge.paper_success_rate = 0.5;
   EXPECT_EQ(PaperInInterval(edge), "yes");
   edge.paper_success_rate = 0.25;
@@ -190,7 +190,7 @@ TEST(Table1Test, TheProtocolMarkNamesEachOptionThatDiffers) {
   absl::StatusOr<Table1> table = ComputeTable1(trials);
   ASSERT_TRUE(table.ok()) << table.status();
   const Table1Cell& cell = Cell(*table, kAngle001, "RP");
-  EXPECT_EQ(cell.trials, 4);
+  EXPECT_EQ(cell.success.trials, 4);
   EXPECT_EQ(cell.off_protocol_trials, 3);
   EXPECT_EQ(cell.protocol_differences, "particles = 50 (paper 300); episodes = 5 (paper 15)");
 }
@@ -215,7 +215,7 @@ TEST(Table1Test, TrialsOutsideTheGridAreCountedByReason) {
                                       "1 trial with cost 'saturating' (Table 1 has angle and tip)",
                                       "1 trial with noise_k 0.1 (Table 1 has 0.01 and 1)",
                                       "1 trial without the option 'noise_k'"}));
-  EXPECT_EQ(Cell(*table, kAngle1, "RP").trials, 1);
+  EXPECT_EQ(Cell(*table, kAngle1, "RP").success.trials, 1);
 }
 
 TEST(Table1Test, CellsPoolTheirSweepsButASeedInTwoSweepsIsRefusedNamingBoth) {
@@ -230,10 +230,10 @@ TEST(Table1Test, CellsPoolTheirSweepsButASeedInTwoSweepsIsRefusedNamingBoth) {
   absl::StatusOr<Table1> table = ComputeTable1(trials);
   ASSERT_TRUE(table.ok()) << table.status();
   const Table1Cell& pooled = Cell(*table, kTip1, "PILCO");
-  EXPECT_EQ(pooled.trials, 3);
-  EXPECT_EQ(pooled.successes, 2);
+  EXPECT_EQ(pooled.success.trials, 3);
+  EXPECT_EQ(pooled.success.successes, 2);
   EXPECT_EQ(pooled.sweeps, (std::vector<std::string>{"first", "second"}));
-  EXPECT_EQ(Cell(*table, kTip001, "PILCO").trials, 1);
+  EXPECT_EQ(Cell(*table, kTip001, "PILCO").success.trials, 1);
 
   // Seed 11 of PILCO on (tip, k = 1) re-run in a second sweep.
   trials.push_back(Trial("rerun", 41, "PILCO", 11, true, "tip", "1"));

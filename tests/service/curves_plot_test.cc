@@ -149,11 +149,11 @@ SuccessPlotInput TwoTasks() {
     SuccessPoint p;
     p.variant = variant;
     p.method = method;
-    p.trials = trials;
-    p.successes = successes;
-    p.rate = trials > 0 ? static_cast<double>(successes) / trials : std::nan("");
-    p.low = trials > 0 ? p.rate / 2 : std::nan("");
-    p.high = trials > 0 ? (1 + p.rate) / 2 : std::nan("");
+    p.success.trials = trials;
+    p.success.successes = successes;
+    p.success.rate = trials > 0 ? static_cast<double>(successes) / trials : std::nan("");
+    p.success.low = trials > 0 ? p.success.rate / 2 : std::nan("");
+    p.success.high = trials > 0 ? (1 + p.success.rate) / 2 : std::nan("");
     p.paper_rate = paper;
     return p;
   };
@@ -189,7 +189,7 @@ TEST(SuccessPlotTest, OnePanelPerTaskWilsonBarsCountsAndThePapersRate) {
 TEST(SuccessPlotTest, RefusesBadExtensionsAndATableWithoutTrials) {
   EXPECT_NE(WriteSuccessPlot(TwoTasks(), "/tmp/x.gif").find(".svg, .pdf or .png"), std::string::npos);
   SuccessPlotInput none = TwoTasks();
-  for (SuccessPoint& p : none.points) p.trials = 0;
+  for (SuccessPoint& p : none.points) p.success.trials = 0;
   EXPECT_NE(WriteSuccessPlot(none, "/tmp/x.svg").find("no completed trial"), std::string::npos);
 }
 
