@@ -42,18 +42,27 @@ struct LineSearchResult {
   Point best;       // lowest value seen, the start included
 };
 
-// Line search along r from `start` (slope d0 = g.r < 0) with initial step x3.
+// A point on the search line: step x along r, value f, slope d = g.r.
+// minimize.m keeps its points as triples (x1, f1, d1) ... (x4, f4, d4) that
+// move together; here each triple is one Probe, so "the point 2 becomes
+// point 1" is one assignment.
+struct Probe {
+  double x;
+  double f;
+  double d;
+};
+
+// Line search along r from `start` (slope d0 = g.r < 0) with initial step
+// `first_step`. The arithmetic is minimize.m's, operation for operation.
 LineSearchResult LineSearch(Evaluator& eval, const BfgsOptions& o, const Point& start,
-                            const Vector& r, double d0, double x3) {
+                            const Vector& r, double d0, double first_step) {
   LineSearchResult res;
   res.best = start;
   const double f0 = start.f;
   int budget = o.max_evaluations_per_line_search;
-  double x1 = 0, f1 = f0, d1 = d0;
-  double x2 = 0, f2 = f0, d2 = d0;
-  double f3 = f0, d3 = d0;
+  Probe p1{0, f0, d0}, p2{0, f0, d0}, p3{first_step, f0, d0};
   Vector g3 = start.g;
-  bool have_x3 = false;
+  bool have_p3 = false;
   auto consider = [&](double step, double f, const Vector& g) {
     if (f < res.best.f) {
       res.best.x = start.x + step * r;
@@ -63,85 +72,78 @@ LineSearchResult LineSearch(Evaluator& eval, const BfgsOptions& o, const Point& 
   };
   // Extrapolation.
   while (true) {
-    have_x3 = false;
-    while (!have_x3 && budget > 0) {
+    have_p3 = false;
+    while (!have_p3 && budget > 0) {
       --budget;
       double f;
       Vector g;
-      if (eval(start.x + x3 * r, &f, &g)) {
-        have_x3 = true;
-        f3 = f;
+      if (eval(start.x + p3.x * r, &f, &g)) {
+        have_p3 = true;
+        p3.f = f;
         g3 = std::move(g);
       } else {
-        x3 = 0.5 * (x2 + x3);  // back towards the last good point
+        p3.x = 0.5 * (p2.x + p3.x);  // back towards the last good point
       }
     }
-    if (!have_x3) return res;  // nothing evaluable: failure, best = start or earlier
-    d3 = g3.dot(r);
-    consider(x3, f3, g3);
-    if (d3 > o.sig * d0 || f3 > f0 + x3 * o.rho * d0 || budget == 0) break;
+    if (!have_p3) return res;  // nothing evaluable: failure, best = start or earlier
+    p3.d = g3.dot(r);
+    consider(p3.x, p3.f, g3);
+    if (p3.d > o.sig * d0 || p3.f > f0 + p3.x * o.rho * d0 || budget == 0) break;
     // Still descending steeply: extrapolate by a cubic fit.
-    x1 = x2;
-    f1 = f2;
-    d1 = d2;
-    x2 = x3;
-    f2 = f3;
-    d2 = d3;
-    const double a = 6.0 * (f1 - f2) + 3.0 * (d2 + d1) * (x2 - x1);
-    const double b = 3.0 * (f2 - f1) - (2.0 * d1 + d2) * (x2 - x1);
-    const double disc = b * b - a * d1 * (x2 - x1);
+    p1 = p2;
+    p2 = p3;
+    const double a = 6.0 * (p1.f - p2.f) + 3.0 * (p2.d + p1.d) * (p2.x - p1.x);
+    const double b = 3.0 * (p2.f - p1.f) - (2.0 * p1.d + p2.d) * (p2.x - p1.x);
+    const double disc = b * b - a * p1.d * (p2.x - p1.x);
     double next = kInf;
-    if (disc >= 0) next = x1 - d1 * (x2 - x1) * (x2 - x1) / (b + std::sqrt(disc));
-    if (!std::isfinite(next) || next < 0 || next > x2 * o.max_extrapolation) {
-      next = x2 * o.max_extrapolation;
-    } else if (next < x2 + o.interpolation_margin * (x2 - x1)) {
-      next = x2 + o.interpolation_margin * (x2 - x1);
+    if (disc >= 0) next = p1.x - p1.d * (p2.x - p1.x) * (p2.x - p1.x) / (b + std::sqrt(disc));
+    if (!std::isfinite(next) || next < 0 || next > p2.x * o.max_extrapolation) {
+      next = p2.x * o.max_extrapolation;
+    } else if (next < p2.x + o.interpolation_margin * (p2.x - p1.x)) {
+      next = p2.x + o.interpolation_margin * (p2.x - p1.x);
     }
-    x3 = next;
+    p3.x = next;
   }
   // Interpolation (sectioning) until the Wolfe-Powell conditions hold.
-  double x4 = x3, f4 = f3, d4 = d3;
-  while ((std::abs(d3) > -o.sig * d0 || f3 > f0 + x3 * o.rho * d0) && budget > 0) {
-    if (d3 > 0 || f3 > f0 + x3 * o.rho * d0) {
-      x4 = x3;
-      f4 = f3;
-      d4 = d3;
+  Probe p4 = p3;
+  while ((std::abs(p3.d) > -o.sig * d0 || p3.f > f0 + p3.x * o.rho * d0) && budget > 0) {
+    if (p3.d > 0 || p3.f > f0 + p3.x * o.rho * d0) {
+      p4 = p3;
     } else {
-      x2 = x3;
-      f2 = f3;
-      d2 = d3;
+      p2 = p3;
     }
     double next;
-    if (f4 > f0) {
-      next = x2 - (0.5 * d2 * (x4 - x2) * (x4 - x2)) / (f4 - f2 - d2 * (x4 - x2));
+    if (p4.f > f0) {
+      next = p2.x - (0.5 * p2.d * (p4.x - p2.x) * (p4.x - p2.x)) /
+                        (p4.f - p2.f - p2.d * (p4.x - p2.x));
     } else {
-      const double a = 6.0 * (f2 - f4) / (x4 - x2) + 3.0 * (d4 + d2);
-      const double b = 3.0 * (f4 - f2) - (2.0 * d2 + d4) * (x4 - x2);
-      next = x2 + (std::sqrt(b * b - a * d2 * (x4 - x2) * (x4 - x2)) - b) / a;
+      const double a = 6.0 * (p2.f - p4.f) / (p4.x - p2.x) + 3.0 * (p4.d + p2.d);
+      const double b = 3.0 * (p4.f - p2.f) - (2.0 * p2.d + p4.d) * (p4.x - p2.x);
+      next = p2.x + (std::sqrt(b * b - a * p2.d * (p4.x - p2.x) * (p4.x - p2.x)) - b) / a;
     }
-    if (!std::isfinite(next)) next = 0.5 * (x2 + x4);
-    next = std::max(std::min(next, x4 - o.interpolation_margin * (x4 - x2)),
-                    x2 + o.interpolation_margin * (x4 - x2));
-    x3 = next;
+    if (!std::isfinite(next)) next = 0.5 * (p2.x + p4.x);
+    next = std::max(std::min(next, p4.x - o.interpolation_margin * (p4.x - p2.x)),
+                    p2.x + o.interpolation_margin * (p4.x - p2.x));
+    p3.x = next;
     --budget;
     double f;
     Vector g;
-    if (eval(start.x + x3 * r, &f, &g)) {
-      f3 = f;
+    if (eval(start.x + p3.x * r, &f, &g)) {
+      p3.f = f;
       g3 = std::move(g);
-      d3 = g3.dot(r);
-      consider(x3, f3, g3);
+      p3.d = g3.dot(r);
+      consider(p3.x, p3.f, g3);
     } else {
       // Treat as "too far": a new upper bracket with an infinite value.
-      f3 = kInf;
-      d3 = kInf;
+      p3.f = kInf;
+      p3.d = kInf;
     }
   }
-  if (std::abs(d3) <= -o.sig * d0 && f3 <= f0 + x3 * o.rho * d0 && std::isfinite(f3)) {
+  if (std::abs(p3.d) <= -o.sig * d0 && p3.f <= f0 + p3.x * o.rho * d0 && std::isfinite(p3.f)) {
     res.success = true;
-    res.step = x3;
-    res.accepted.x = start.x + x3 * r;
-    res.accepted.f = f3;
+    res.step = p3.x;
+    res.accepted.x = start.x + p3.x * r;
+    res.accepted.f = p3.f;
     res.accepted.g = g3;
   }
   return res;
