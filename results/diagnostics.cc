@@ -64,24 +64,22 @@ std::vector<DiagnosticPoint> DiagnosticCurves(const std::vector<EpisodeStatistic
       else if (statistic == "lr_share_last") value = LrShareLast(row.episode);
       values.push_back({row.method, row.variant, row.episode.episode, value});
     }
-    for (const CurvePoint& p : Curves(values)) {
-      points.push_back({statistic, p.method, p.variant, p.episode, p.trials, p.q25, p.median, p.q75});
-    }
+    for (CurvePoint& curve : Curves(values)) points.push_back({statistic, std::move(curve)});
   }
   return points;
 }
 
 const record::FieldTable<DiagnosticPoint>& DiagnosticPointFields() {
-  static const record::FieldTable<DiagnosticPoint> table = {
-      {"statistic", &DiagnosticPoint::statistic},
-      {"method", &DiagnosticPoint::method},
-      {"variant", &DiagnosticPoint::variant},
-      {"episode", &DiagnosticPoint::episode},
-      {"trials", &DiagnosticPoint::trials},
-      {"q25", &DiagnosticPoint::q25},
-      {"median", &DiagnosticPoint::median},
-      {"q75", &DiagnosticPoint::q75},
-  };
+  using P = DiagnosticPoint;
+  static const record::FieldTable<P> table = [] {
+    record::FieldTable<P> fields = {
+        {"statistic", &P::statistic},
+        {"method", record::Nested<&P::curve, &CurvePoint::method>()},
+        {"variant", record::Nested<&P::curve, &CurvePoint::variant>()},
+        {"episode", record::Nested<&P::curve, &CurvePoint::episode>()}};
+    AppendSampleSummaryFields<&P::curve, &CurvePoint::values>(&fields);
+    return fields;
+  }();
   return table;
 }
 

@@ -20,6 +20,7 @@
 
 #include "core/common/record.h"
 #include "core/learner/episode_record.h"
+#include "results/stats.h"
 
 namespace totalgrad::results {
 
@@ -32,13 +33,7 @@ struct EpisodeStatistics {
 
 struct DiagnosticPoint {
   std::string statistic;
-  std::string method;
-  std::string variant;
-  int episode = 0;
-  int trials = 0;  // trials with a value
-  double q25 = 0;
-  double median = 0;
-  double q75 = 0;
+  CurvePoint curve;  // of the statistic's values (trials: those with a value)
 };
 
 // The statistics' names, in the order of the points.
@@ -50,8 +45,9 @@ const std::vector<std::string>& DiagnosticStatistics();
 std::vector<DiagnosticPoint> DiagnosticCurves(const std::vector<EpisodeStatistics>& rows,
                                               const std::string& only = "");
 
-// statistic, method, variant, episode, trials, q25, median, q75: the CSV
-// columns and JSON keys of `results diagnostics` and /api/diagnostics.
+// statistic, then CurvePointFields()' (method, variant, episode, trials,
+// q25, median, q75, mean, standard_error): the CSV columns and JSON keys of
+// `results diagnostics` and /api/diagnostics.
 const record::FieldTable<DiagnosticPoint>& DiagnosticPointFields();
 
 }  // namespace totalgrad::results

@@ -70,23 +70,23 @@ inline constexpr PairedSuccessNames kPairedVerdictNames = {
 
 // Appends to `table` the fields of the PairedSuccess at member kMember of
 // the table's record, under `names`.
-template <auto kMember>
+template <auto... kMember>
 void AppendPairedSuccessFields(
     const PairedSuccessNames& names,
-    record::FieldTable<typename record::MemberOf<decltype(kMember)>::Class>* table) {
+    record::FieldTable<typename record::PathOf<kMember...>::Record>* table) {
   using S = PairedSuccess;
   table->insert(table->end(),
-                {{names.pairs, record::Nested<kMember, &S::pairs>()},
-                 {names.both, record::Nested<kMember, &S::both>()},
-                 {names.method_only, record::Nested<kMember, &S::method_only>()},
-                 {names.other_only, record::Nested<kMember, &S::other_only>()},
-                 {names.neither, record::Nested<kMember, &S::neither>()},
-                 {names.difference, record::Nested<kMember, &S::difference>()},
-                 {names.difference95_low, record::Nested<kMember, &S::difference95_low>()},
-                 {names.difference95_high, record::Nested<kMember, &S::difference95_high>()},
-                 {names.mcnemar_p, record::Nested<kMember, &S::mcnemar_p>()},
-                 {names.mcnemar_p_holm, record::Nested<kMember, &S::mcnemar_p_holm>()},
-                 {names.mcnemar_power, record::Nested<kMember, &S::mcnemar_power>()}});
+                {{names.pairs, record::Nested<kMember..., &S::pairs>()},
+                 {names.both, record::Nested<kMember..., &S::both>()},
+                 {names.method_only, record::Nested<kMember..., &S::method_only>()},
+                 {names.other_only, record::Nested<kMember..., &S::other_only>()},
+                 {names.neither, record::Nested<kMember..., &S::neither>()},
+                 {names.difference, record::Nested<kMember..., &S::difference>()},
+                 {names.difference95_low, record::Nested<kMember..., &S::difference95_low>()},
+                 {names.difference95_high, record::Nested<kMember..., &S::difference95_high>()},
+                 {names.mcnemar_p, record::Nested<kMember..., &S::mcnemar_p>()},
+                 {names.mcnemar_p_holm, record::Nested<kMember..., &S::mcnemar_p_holm>()},
+                 {names.mcnemar_power, record::Nested<kMember..., &S::mcnemar_power>()}});
 }
 
 }  // namespace totalgrad::results

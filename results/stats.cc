@@ -35,6 +35,25 @@ double Quantile(std::vector<double> values, double q) {
   return values[below] + fraction * (values[above] - values[below]);
 }
 
+SampleSummary Summarize(const std::vector<double>& values) {
+  SampleSummary summary;
+  summary.trials = static_cast<int>(values.size());
+  if (values.empty()) return summary;
+  summary.q25 = Quantile(values, 0.25);
+  summary.median = Quantile(values, 0.5);
+  summary.q75 = Quantile(values, 0.75);
+  const double n = static_cast<double>(values.size());
+  double sum = 0;
+  for (double v : values) sum += v;
+  summary.mean = sum / n;
+  if (values.size() >= 2) {
+    double squares = 0;
+    for (double v : values) squares += (v - summary.mean) * (v - summary.mean);
+    summary.standard_error = std::sqrt(squares / (n - 1) / n);
+  }
+  return summary;
+}
+
 namespace {
 
 // First-appearance order of keys.
@@ -97,22 +116,21 @@ std::vector<CurvePoint> Curves(const std::vector<EpisodeValue>& values) {
   std::vector<CurvePoint> curves;
   for (auto& [key, entry] : points) {
     CurvePoint point = entry.first;
-    point.trials = static_cast<int>(entry.second.size());
-    point.q25 = Quantile(entry.second, 0.25);
-    point.median = Quantile(entry.second, 0.5);
-    point.q75 = Quantile(entry.second, 0.75);
-    const double n = static_cast<double>(entry.second.size());
-    double sum = 0;
-    for (double v : entry.second) sum += v;
-    point.mean = sum / n;
-    if (entry.second.size() >= 2) {
-      double squares = 0;
-      for (double v : entry.second) squares += (v - point.mean) * (v - point.mean);
-      point.standard_error = std::sqrt(squares / (n - 1) / n);
-    }
+    point.values = Summarize(entry.second);
     curves.push_back(point);
   }
   return curves;
+}
+
+const record::FieldTable<CurvePoint>& CurvePointFields() {
+  static const record::FieldTable<CurvePoint> table = [] {
+    record::FieldTable<CurvePoint> fields = {{"method", &CurvePoint::method},
+                                             {"variant", &CurvePoint::variant},
+                                             {"episode", &CurvePoint::episode}};
+    AppendSampleSummaryFields<&CurvePoint::values>(&fields);
+    return fields;
+  }();
+  return table;
 }
 
 std::vector<EpisodeValue> BestRuns(const std::vector<EpisodeValue>& values, int k) {

@@ -60,15 +60,15 @@ inline constexpr WilsonRateNames kHeldRateNames = {"classified", "held", "held_r
 
 // Appends to `table` the five fields of the WilsonRate at member kRate of
 // the table's record, under `names`.
-template <auto kRate>
+template <auto... kRate>
 void AppendWilsonRateFields(const WilsonRateNames& names,
-                            record::FieldTable<typename record::MemberOf<decltype(kRate)>::Class>*
+                            record::FieldTable<typename record::PathOf<kRate...>::Record>*
                                 table) {
-  table->insert(table->end(), {{names.trials, record::Nested<kRate, &WilsonRate::trials>()},
-                               {names.successes, record::Nested<kRate, &WilsonRate::successes>()},
-                               {names.rate, record::Nested<kRate, &WilsonRate::rate>()},
-                               {names.low, record::Nested<kRate, &WilsonRate::low>()},
-                               {names.high, record::Nested<kRate, &WilsonRate::high>()}});
+  table->insert(table->end(), {{names.trials, record::Nested<kRate..., &WilsonRate::trials>()},
+                               {names.successes, record::Nested<kRate..., &WilsonRate::successes>()},
+                               {names.rate, record::Nested<kRate..., &WilsonRate::rate>()},
+                               {names.low, record::Nested<kRate..., &WilsonRate::low>()},
+                               {names.high, record::Nested<kRate..., &WilsonRate::high>()}});
 }
 
 struct TableCell {
@@ -101,22 +101,51 @@ struct EpisodeValue {
   int64_t trial = 0; // the trial (its job id): which values are one run, for BestRuns
 };
 
+// A sample of per-trial values at one point of a curve: how many, their
+// quartiles (Quantile), their mean and its standard error. Every number is
+// NaN for an empty sample; the standard error also for a single value.
+struct SampleSummary {
+  int trials = 0;
+  double q25 = std::numeric_limits<double>::quiet_NaN();
+  double median = std::numeric_limits<double>::quiet_NaN();
+  double q75 = std::numeric_limits<double>::quiet_NaN();
+  double mean = std::numeric_limits<double>::quiet_NaN();
+  // The sample standard deviation over sqrt(trials).
+  double standard_error = std::numeric_limits<double>::quiet_NaN();
+};
+
+// The summary of `values` (none of them NaN).
+SampleSummary Summarize(const std::vector<double>& values);
+
+// Appends to `table` the fields of the SampleSummary at member kSummary of
+// the table's record: trials, q25, median, q75, mean, standard_error (the
+// names of `results curves`, `results diagnostics` and the dashboard's
+// curves).
+template <auto... kSummary>
+void AppendSampleSummaryFields(
+    record::FieldTable<typename record::PathOf<kSummary...>::Record>* table) {
+  using S = SampleSummary;
+  table->insert(table->end(), {{"trials", record::Nested<kSummary..., &S::trials>()},
+                               {"q25", record::Nested<kSummary..., &S::q25>()},
+                               {"median", record::Nested<kSummary..., &S::median>()},
+                               {"q75", record::Nested<kSummary..., &S::q75>()},
+                               {"mean", record::Nested<kSummary..., &S::mean>()},
+                               {"standard_error", record::Nested<kSummary..., &S::standard_error>()}});
+}
+
 struct CurvePoint {
   std::string method;
   std::string variant;
   int episode = 0;
-  int trials = 0;
-  double q25 = 0;
-  double median = 0;
-  double q75 = 0;
-  double mean = 0;
-  // The sample standard deviation over sqrt(trials); NaN for one trial.
-  double standard_error = std::numeric_limits<double>::quiet_NaN();
+  SampleSummary values;  // over the trials with a value at this episode
 };
 
-// Median, quartiles, mean and its standard error over trials, per (method,
-// variant, episode).
+// One point per (method, variant, episode) with a value, methods in
+// first-appearance order, then variants, then episodes.
 std::vector<CurvePoint> Curves(const std::vector<EpisodeValue>& values);
+
+// method, variant, episode, then the SampleSummary's fields.
+const record::FieldTable<CurvePoint>& CurvePointFields();
 
 // The values of the k best runs of each (method, variant): the paper's
 // Figure 3 "top runs" panel. A run (EpisodeValue::trial) is ranked by its

@@ -438,9 +438,10 @@ Listing CurvesListing(const std::vector<CurvePoint>& curves, Format format) {
     return format == Format::kTable ? FormatFixed(value, 2) : FormatNumber(value);
   };
   for (const CurvePoint& p : curves) {
+    const results::SampleSummary& v = p.values;
     listing.rows.push_back({p.method, p.variant, std::to_string(p.episode),
-                            std::to_string(p.trials), number(p.q25), number(p.median),
-                            number(p.q75), number(p.mean), number(p.standard_error)});
+                            std::to_string(v.trials), number(v.q25), number(v.median),
+                            number(v.q75), number(v.mean), number(v.standard_error)});
   }
   return listing;
 }

@@ -44,9 +44,10 @@ std::string WriteCurveBlocks(const std::string& data_path, const std::vector<std
     data << "# " << method << " | " << variant << what
          << "\n# episode q25 median q75 trials mean standard_error\n";
     for (const CurvePoint* p : rows) {
-      data << p->episode << " " << FormatNumber(p->q25) << " " << FormatNumber(p->median) << " "
-           << FormatNumber(p->q75) << " " << p->trials << " " << FormatNumber(p->mean) << " "
-           << (std::isnan(p->standard_error) ? std::string("0") : FormatNumber(p->standard_error))
+      const results::SampleSummary& v = p->values;
+      data << p->episode << " " << FormatNumber(v.q25) << " " << FormatNumber(v.median) << " "
+           << FormatNumber(v.q75) << " " << v.trials << " " << FormatNumber(v.mean) << " "
+           << (std::isnan(v.standard_error) ? std::string("0") : FormatNumber(v.standard_error))
            << "\n";
     }
     if (rows.empty()) data << "NaN NaN NaN NaN 0 NaN NaN\n";
@@ -142,7 +143,7 @@ std::string WriteCurvesPlot(const CurvesPlotInput& input, const std::string& pat
         int trials = 0;
         const auto rows_found = rows_of.find({variant, method});
         if (rows_found != rows_of.end()) {
-          for (const CurvePoint* p : rows_found->second) trials = std::max(trials, p->trials);
+          for (const CurvePoint* p : rows_found->second) trials = std::max(trials, p->values.trials);
         }
         const std::string colour = "lc rgb " + GnuplotQuote(MethodColour(method));
         const std::string source = GnuplotQuote(data_path) + " index " +

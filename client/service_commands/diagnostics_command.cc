@@ -74,10 +74,12 @@ int PrintDiagnostics(Connection* connection, const std::string& sweep_name,
   }
   Listing listing;
   listing.columns = {"statistic", "method", "variant", "episode", "trials", "q25", "median", "q75"};
-  for (const results::DiagnosticPoint& p : points) {
-    listing.rows.push_back({p.statistic, p.method, p.variant, std::to_string(p.episode),
-                            std::to_string(p.trials), absl::StrFormat("%.4g", p.q25),
-                            absl::StrFormat("%.4g", p.median), absl::StrFormat("%.4g", p.q75)});
+  for (const results::DiagnosticPoint& point : points) {
+    const results::CurvePoint& p = point.curve;
+    listing.rows.push_back({point.statistic, p.method, p.variant, std::to_string(p.episode),
+                            std::to_string(p.values.trials), absl::StrFormat("%.4g", p.values.q25),
+                            absl::StrFormat("%.4g", p.values.median),
+                            absl::StrFormat("%.4g", p.values.q75)});
   }
   std::cout << "sweep " << sweep_name
             << ": estimator statistics of the completed trials, median and quartiles over "

@@ -10,6 +10,9 @@
 // not a silent copy that drifted.
 //
 // Contract of a table:
+//   * a value lives in a member of the record or of a record it holds by
+//     value (Nested: a small record such as a rate with its interval,
+//     shared by several records), and is written flat under its own name;
 //   * names are unique and are, verbatim, the CSV column, the JSON key, the
 //     proto field's name and (lists with the suffix "_json") the SQL column;
 //   * the order is the CSV's column order and the JSON's key order;
@@ -26,7 +29,6 @@
 
 #include <cstdint>
 #include <string>
-#include <type_traits>
 #include <utility>
 #include <variant>
 #include <vector>
@@ -92,18 +94,35 @@ struct MemberOf<V C::*> {
   using Value = V;
 };
 
-// The slot of member kInner of the record at member kOuter:
+// The member at the end of a path of members: At<&A::b, &B::c>(a) is a.b.c.
+template <auto kFirst, auto... kRest, typename Object>
+decltype(auto) At(Object& object) {
+  if constexpr (sizeof...(kRest) == 0) {
+    return (object.*kFirst);
+  } else {
+    return At<kRest...>(object.*kFirst);
+  }
+}
+
+template <auto kFirst, auto... kRest>
+struct PathOf {
+  using Record = typename MemberOf<decltype(kFirst)>::Class;
+  using Value = typename PathOf<kRest...>::Value;
+};
+template <auto kLast>
+struct PathOf<kLast> {
+  using Record = typename MemberOf<decltype(kLast)>::Class;
+  using Value = typename MemberOf<decltype(kLast)>::Value;
+};
+
+// The slot of the member at the end of a path that starts in the record:
 // Nested<&TableCell::success, &WilsonRate::rate>() is cell.success.rate.
-template <auto kOuter, auto kInner>
-Slot<typename MemberOf<decltype(kOuter)>::Class, typename MemberOf<decltype(kInner)>::Value>
-Nested() {
-  using R = typename MemberOf<decltype(kOuter)>::Class;
-  using T = typename MemberOf<decltype(kInner)>::Value;
-  static_assert(std::is_same_v<typename MemberOf<decltype(kOuter)>::Value,
-                               typename MemberOf<decltype(kInner)>::Class>,
-                "kInner must be a member of the record kOuter holds");
-  return Slot<R, T>(+[](R& r) -> T& { return (r.*kOuter).*kInner; },
-                    +[](const R& r) -> const T& { return (r.*kOuter).*kInner; });
+template <auto... kPath>
+Slot<typename PathOf<kPath...>::Record, typename PathOf<kPath...>::Value> Nested() {
+  using R = typename PathOf<kPath...>::Record;
+  using T = typename PathOf<kPath...>::Value;
+  return Slot<R, T>(+[](R& r) -> T& { return At<kPath...>(r); },
+                    +[](const R& r) -> const T& { return At<kPath...>(r); });
 }
 
 template <typename R>

@@ -359,12 +359,12 @@ absl::StatusOr<json> DashboardData::Curves(const std::string& name, bool include
       panel = {{"variant", p.variant}, {"title", described_panel.title},
                {"threshold", nullptr}, {"methods", json::array()}};
     }
-    json& method = MethodCurve(panel, p.variant, p.method, p.trials, &method_slot);
+    json& method = MethodCurve(panel, p.variant, p.method, p.values.trials, &method_slot);
     method["points"].push_back({{"episode", p.episode},
-                                {"n", p.trials},
-                                {"q25", Number(p.q25)},
-                                {"median", Number(p.median)},
-                                {"q75", Number(p.q75)}});
+                                {"n", p.values.trials},
+                                {"q25", Number(p.values.q25)},
+                                {"median", Number(p.values.median)},
+                                {"q75", Number(p.values.q75)}});
   }
   for (const results::CurvePanel& panel : panels) out["panels"].push_back(by_variant[panel.variant]);
   for (auto& [variant, panel] : by_variant) {

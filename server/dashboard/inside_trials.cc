@@ -154,7 +154,8 @@ absl::StatusOr<json> DashboardData::Diagnostics(const std::string& name,
   json out = {{"statistic", statistic}, {"statistics", known}, {"panels", json::array()}};
   std::map<std::string, size_t> panel_of;
   std::map<std::pair<std::string, std::string>, size_t> method_slot;
-  for (const results::DiagnosticPoint& p : results::DiagnosticCurves(rows, statistic)) {
+  for (const results::DiagnosticPoint& diagnostic : results::DiagnosticCurves(rows, statistic)) {
+    const results::CurvePoint& p = diagnostic.curve;
     auto [panel_slot, new_panel] = panel_of.emplace(p.variant, out["panels"].size());
     if (new_panel) {
       out["panels"].push_back({{"variant", p.variant},
@@ -163,11 +164,11 @@ absl::StatusOr<json> DashboardData::Diagnostics(const std::string& name,
                                {"y_label", statistic},
                                {"methods", json::array()}});
     }
-    json& method = MethodCurve(out["panels"][panel_slot->second], p.variant, p.method, p.trials,
-                               &method_slot);
+    json& method = MethodCurve(out["panels"][panel_slot->second], p.variant, p.method,
+                               p.values.trials, &method_slot);
     json point = json::object();
-    io::AppendRecordJson(results::DiagnosticPointFields(), p, &point);
-    point["n"] = p.trials;
+    io::AppendRecordJson(results::DiagnosticPointFields(), diagnostic, &point);
+    point["n"] = p.values.trials;
     method["points"].push_back(std::move(point));
   }
   return out;

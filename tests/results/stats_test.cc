@@ -127,16 +127,16 @@ TEST(CurvesTest, MedianAndQuartilesPerEpisodeSkippingMissingValues) {
   const std::vector<CurvePoint> curves = Curves(values);
   ASSERT_EQ(curves.size(), 2u);
   EXPECT_EQ(curves[0].episode, 1);
-  EXPECT_EQ(curves[0].trials, 3);
-  EXPECT_EQ(curves[0].q25, 15);
-  EXPECT_EQ(curves[0].median, 20);
-  EXPECT_EQ(curves[0].q75, 25);
+  EXPECT_EQ(curves[0].values.trials, 3);
+  EXPECT_EQ(curves[0].values.q25, 15);
+  EXPECT_EQ(curves[0].values.median, 20);
+  EXPECT_EQ(curves[0].values.q75, 25);
   // Mean 20; sample variance ((-10)^2 + 0 + 10^2) / 2 = 100; SE sqrt(100 / 3).
-  EXPECT_EQ(curves[0].mean, 20);
-  EXPECT_DOUBLE_EQ(curves[0].standard_error, std::sqrt(100.0 / 3.0));
+  EXPECT_EQ(curves[0].values.mean, 20);
+  EXPECT_DOUBLE_EQ(curves[0].values.standard_error, std::sqrt(100.0 / 3.0));
   // One trial: a mean, no standard error.
-  EXPECT_EQ(curves[1].mean, 5);
-  EXPECT_TRUE(std::isnan(curves[1].standard_error));
+  EXPECT_EQ(curves[1].values.mean, 5);
+  EXPECT_TRUE(std::isnan(curves[1].values.standard_error));
 }
 
 // The paper's Figure 3 "top runs": per method and variant, the k runs with
@@ -165,7 +165,7 @@ TEST(CurvesTest, BestRunsKeepsTheKRunsOfLowestFinalValuePerMethodAndVariant) {
   const std::vector<CurvePoint> curves = Curves(best);
   // RP k=1 episode 2 over runs 1 and 3: median of {12, 9}.
   for (const CurvePoint& p : curves)
-    if (p.method == "RP" && p.variant == "k=1" && p.episode == 2) EXPECT_EQ(p.median, 10.5);
+    if (p.method == "RP" && p.variant == "k=1" && p.episode == 2) EXPECT_EQ(p.values.median, 10.5);
   EXPECT_EQ(BestRuns(values, 10).size(), values.size() - 2);  // all but run 7's two NaNs
 }
 

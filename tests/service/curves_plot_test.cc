@@ -28,8 +28,8 @@ CurvesPlotInput TwoVariants() {
     for (const std::string method : {"RP", "TP"}) {
       for (int episode = 1; episode <= 4; ++episode) {
         const double level = (method == "RP" ? 30.0 : 20.0) / episode;
-        input.curves.push_back({method, variant, episode, method == "RP" ? 3 : 5, level - 2,
-                                level, level + 2});
+        input.curves.push_back(
+            {method, variant, episode, {method == "RP" ? 3 : 5, level - 2, level, level + 2, level}});
       }
     }
   }
@@ -110,14 +110,14 @@ TEST(CurvesPlotTest, WritesAPdf) {
 TEST(CurvesPlotTest, FigureThreeHasThreePanelsPerVariant) {
   CurvesPlotInput input = TwoVariants();
   for (CurvePoint& p : input.curves) {
-    p.mean = p.median + 1;
-    p.standard_error = 0.5;
+    p.values.mean = p.values.median + 1;
+    p.values.standard_error = 0.5;
   }
   input.top = 2;
   for (const CurvePoint& p : input.curves) {
     CurvePoint best = p;
-    best.trials = 2;
-    best.median = p.median - 3;
+    best.values.trials = 2;
+    best.values.median = p.values.median - 3;
     input.best_curves.push_back(best);
   }
   const std::string dir = testing::MakeTempDir();
