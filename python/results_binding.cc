@@ -202,9 +202,7 @@ std::string Curves(PyConnection& self, const std::string& sweep, int top) {
   if (!values.ok()) Raise(values.status(), "curves " + sweep);
   const std::vector<results::CurvePoint> curves =
       results::Curves(top > 0 ? results::BestRuns(*values, top) : *values);
-  std::ostringstream out;
-  cli::Print(cli::CurvesListing(curves, cli::Format::kJson), cli::Format::kJson, out);
-  return out.str();
+  return RecordsJson(results::CurvePointFields(), curves);
 }
 
 // `totalgrad results import ARCHIVE --db DB`: the summary line it prints.

@@ -428,20 +428,18 @@ absl::StatusOr<std::vector<EpisodeValue>> ReadEvaluationCosts(Connection* connec
   return values;
 }
 
-Listing CurvesListing(const std::vector<CurvePoint>& curves, Format format) {
+Listing CurvesListing(const std::vector<CurvePoint>& curves) {
   Listing listing;
-  listing.columns = {"method", "variant", "episode", "trials", "q25", "median", "q75",
-                     "mean", "standard_error"};
-  listing.numeric_columns = {"episode", "trials", "q25", "median", "q75", "mean",
-                             "standard_error"};
-  const auto number = [format](double value) {
-    return format == Format::kTable ? FormatFixed(value, 2) : FormatNumber(value);
-  };
+  for (const auto& field : results::CurvePointFields()) {
+    listing.columns.push_back(field.name);
+    if (field.type() != record::FieldType::kText) listing.numeric_columns.push_back(field.name);
+  }
   for (const CurvePoint& p : curves) {
     const results::SampleSummary& v = p.values;
     listing.rows.push_back({p.method, p.variant, std::to_string(p.episode),
-                            std::to_string(v.trials), number(v.q25), number(v.median),
-                            number(v.q75), number(v.mean), number(v.standard_error)});
+                            std::to_string(v.trials), FormatFixed(v.q25, 2),
+                            FormatFixed(v.median, 2), FormatFixed(v.q75, 2), FormatFixed(v.mean, 2),
+                            FormatFixed(v.standard_error, 2)});
   }
   return listing;
 }
@@ -451,7 +449,13 @@ int PrintCurves(Connection* connection, const std::string& sweep_name, Format fo
   const absl::StatusOr<std::vector<EpisodeValue>> values = ReadEvaluationCosts(connection, sweep_name);
   if (!values.ok()) return ReportError(values.status(), "results curves " + sweep_name);
   const std::vector<CurvePoint> curves = results::Curves(*values);
-  if (print_table) Print(CurvesListing(curves, format), format, std::cout);
+  if (print_table) {
+    if (format == Format::kTable) {
+      Print(CurvesListing(curves), format, std::cout);
+    } else {
+      PrintRecords(results::CurvePointFields(), curves, format, std::cout);
+    }
+  }
   if (!plot_path.empty()) {
     if (curves.empty()) {
       std::cerr << "error: results curves " << sweep_name

@@ -177,9 +177,10 @@ Listing ComparisonListing(const results::ComparisonReport& report, double alpha)
 // job's counting attempt), in export order, with its job id as the run.
 absl::StatusOr<std::vector<results::EpisodeValue>> ReadEvaluationCosts(Connection* connection,
                                                                        const std::string& sweep_name);
-// `results curves`' rows: method, variant, episode, trials, q25, median,
-// q75, mean, standard_error (numbers to 2 decimals in the table format).
-Listing CurvesListing(const std::vector<results::CurvePoint>& curves, Format format);
+// `results curves`' table: method, variant, episode, trials, q25, median,
+// q75, mean, standard_error, numbers to 2 decimals. (-f csv|json write the
+// points through results::CurvePointFields(), as the Python module does.)
+Listing CurvesListing(const std::vector<results::CurvePoint>& curves);
 // Per-method curves (median, quartiles, mean and its standard error over
 // the completed trials); optionally a gnuplot picture at `plot_path` (.svg,
 // .pdf or .png; curves_plot.h). With `top` > 0 the picture is the paper's
