@@ -42,9 +42,14 @@ std::string FormatFixed(double value, int decimals) {
   return buffer;
 }
 
+std::string FormatInterval(double estimate, double low, double high, int decimals) {
+  if (std::isnan(estimate)) return "-";
+  return absl::StrCat(FormatFixed(estimate, decimals), " [", FormatFixed(low, decimals), ", ",
+                      FormatFixed(high, decimals), "]");
+}
+
 std::string FormatRate(const results::WilsonRate& rate) {
-  return absl::StrCat(FormatFixed(rate.rate, 2), " [", FormatFixed(rate.low, 2), ", ",
-                      FormatFixed(rate.high, 2), "]");
+  return FormatInterval(rate.rate, rate.low, rate.high, 2);
 }
 
 void Print(const Listing& listing, Format format, std::ostream& out) {

@@ -91,7 +91,10 @@ std::string CsvField(const std::string& text);
 std::string FormatNumber(double value);
 // Fixed decimals (for tables).
 std::string FormatFixed(double value, int decimals);
-// A rate with its interval for tables: "0.90 [0.60, 0.98]".
+// An estimate with its interval for tables, fixed decimals:
+// "0.90 [0.60, 0.98]"; "-" when the estimate is NaN (nothing to estimate from).
+std::string FormatInterval(double estimate, double low, double high, int decimals);
+// A rate with its Wilson interval, two decimals: FormatInterval of its three values.
 std::string FormatRate(const results::WilsonRate& rate);
 
 }  // namespace totalgrad::cli

@@ -114,14 +114,8 @@ void PrintSensitivity(const std::vector<results::ThresholdRate>& rates,
   if (!changes.empty()) out << "\nverdicts that change:\n" << absl::StrJoin(changes, "\n") << "\n";
 }
 
-std::string Interval(double estimate, double low, double high, int decimals) {
-  if (std::isnan(estimate)) return "-";
-  return absl::StrCat(FormatFixed(estimate, decimals), " [", FormatFixed(low, decimals), ", ",
-                      FormatFixed(high, decimals), "]");
-}
-
 std::string DifferenceInterval(const results::PairedSuccess& paired) {
-  return Interval(paired.difference, paired.difference95_low, paired.difference95_high, 2);
+  return FormatInterval(paired.difference, paired.difference95_low, paired.difference95_high, 2);
 }
 
 std::string PValue(double p, double holm) {
@@ -149,7 +143,7 @@ void PrintClaims(const std::vector<results::ClaimComparison>& claims, std::ostre
              ? "-"
              : absl::StrCat(DifferenceInterval(claim.verdict), " n=", claim.verdict.pairs),
          PValue(claim.verdict.mcnemar_p, claim.verdict.mcnemar_p_holm),
-         Interval(claim.cost_shift, claim.cost_shift95_low, claim.cost_shift95_high, 2),
+         FormatInterval(claim.cost_shift, claim.cost_shift95_low, claim.cost_shift95_high, 2),
          PValue(claim.wilcoxon_p, claim.wilcoxon_p_holm)});
     claims_text.push_back(absl::StrCat("  ", comparison, ": ", claim.claim));
   }

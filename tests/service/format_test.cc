@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <sstream>
 
 namespace totalgrad::cli {
@@ -35,6 +36,15 @@ TEST(FormatTest, TableAlignsColumns) {
   std::ostringstream out;
   Print(listing, Format::kTable, out);
   EXPECT_EQ(out.str(), "a           bbb\nlong value  1\n");
+}
+
+TEST(FormatTest, IntervalsRoundToFixedDecimalsAndShowNothingForNaN) {
+  EXPECT_EQ(FormatInterval(-0.5, -0.7249, -0.1351, 2), "-0.50 [-0.72, -0.14]");
+  EXPECT_EQ(FormatInterval(std::nan(""), 0, 1, 2), "-");
+  results::WilsonRate rate;  // 9 of 10: Wilson's 95% interval is [0.596, 0.982]
+  for (int i = 0; i < 10; ++i) rate.Add(i != 3);
+  EXPECT_EQ(FormatRate(rate), "0.90 [0.60, 0.98]");
+  EXPECT_EQ(FormatRate(results::WilsonRate{}), "-");
 }
 
 }  // namespace
