@@ -517,8 +517,11 @@ TEST_F(CliTest, Table1LaysSweepsOutInThePapersGridAndRefusesASeedCountedTwice) {
   EXPECT_EQ(pilco["paper_success_rate"], 0.73);
   EXPECT_EQ(pilco["paper_in_interval"], "yes");
   EXPECT_EQ(pilco["off_protocol_trials"], 0);
-  EXPECT_EQ(pilco["classified"], 0);  // these trials predate the rollout verdict
-  EXPECT_TRUE(pilco["held_rate"].is_null());
+  // All ten count their table1-tip-k1-rerun runs (same costs) since the
+  // export of 2026-11-30 13:33, with their rollout verdicts: 3 held.
+  EXPECT_EQ(pilco["classified"], 10);
+  EXPECT_EQ(pilco["held"], 3);
+  EXPECT_DOUBLE_EQ(pilco["held_rate"].get<double>(), 0.3);
   EXPECT_EQ(pilco["sweeps"], nlohmann::json::array({"table1-tip-k1"}));
   // 4 of 10: [0.168180, 0.687326], just below the paper's 0.69.
   EXPECT_EQ(cell("tip", 1, "GTP")["successes"], 4);
@@ -640,7 +643,10 @@ TEST_F(CliTest, Table1LaysSweepsOutInThePapersGridAndRefusesASeedCountedTwice) {
   EXPECT_NEAR(tp_gtp["cost_shift95_low"].get<double>(), -7.010961, 1e-6);
   EXPECT_NEAR(tp_gtp["cost_shift95_high"].get<double>(), 0.963506, 1e-6);
   EXPECT_DOUBLE_EQ(tp_gtp["wilcoxon_p"].get<double>(), 198.0 / 1024);  // exact, n = 10
-  EXPECT_TRUE(tp_gtp["verdict_difference"].is_null()) << "the archived trials have no verdict";
+  // By the rollout verdict, seeds 10-17 (both classified): both held at 11
+  // and 12, TP alone at 10 and 14, GTP alone never: (2 - 0) / 8.
+  EXPECT_EQ(tp_gtp["verdict_pairs"], 8);
+  EXPECT_DOUBLE_EQ(tp_gtp["verdict_difference"].get<double>(), 0.25);
 
   // What 10 pairs can settle needs no coordinator.
   ASSERT_EQ(Cli({"results", "power", "--pairs", "10", "-f", "csv"}, &out, &err, false), 0) << err;
