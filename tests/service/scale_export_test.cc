@@ -229,7 +229,10 @@ TEST_F(ScaleExportTest, FourThousandJobsExportDeleteAndImportBackThroughCoordina
 // of 100,000, and these 20,000 raised its peak by about 98 MB, to 125 MB).
 // Then a big listing: the memory it needed goes back to the system within
 // seconds (the coordinator gives freed memory back every 5 s; glibc kept it
-// before). Resident memory is read from /proc (ProcStatusMb).
+// all before), and no more than 3 MB of it stays (it keeps to two malloc
+// arenas: with one per thread, 2-7 MB stayed in the tops of per-thread
+// heaps, which malloc_trim does not shrink). Resident memory is read from
+// /proc (ProcStatusMb).
 TEST_F(ScaleExportTest, ASubmissionsMemoryDoesNotGrowWithItsJobs) {
   StartCoordinator();
   std::string big = kBigSweep;
@@ -247,19 +250,24 @@ TEST_F(ScaleExportTest, ASubmissionsMemoryDoesNotGrowWithItsJobs) {
 
   // The listing pages through the store; its pages' memory (about 24 MB
   // here) is freed, and given back within 10 s.
+  // Measured from where the coordinator settles after the submission: its
+  // freed memory given back (one 5 s period of the trim), its peak reset.
+  std::this_thread::sleep_for(std::chrono::milliseconds(6000));
+  ResetPeakResidentMemory(pid);
   const double resident_before_list = ProcStatusMb(pid, "VmRSS");
-  const double peak_before_list = ProcStatusMb(pid, "VmHWM");
   ASSERT_EQ(Cli({"job", "list", "--sweep", "s20k", "-f", "json"}, &out, &err), 0) << err;
   ASSERT_GT(out.size(), 20000u * 1000u) << "every job listed";
   const double peak_after_list = ProcStatusMb(pid, "VmHWM");
-  EXPECT_GT(peak_after_list - peak_before_list, 12) << "the premise: the listing needed memory";
+  EXPECT_GT(peak_after_list - resident_before_list, 8) << "the premise: the listing needs memory";
   double resident = ProcStatusMb(pid, "VmRSS");
-  for (int i = 0; i < 20 && resident >= resident_before_list + 6; ++i) {
+  for (int i = 0; i < 20 && resident >= resident_before_list + 3; ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(500));
     resident = ProcStatusMb(pid, "VmRSS");
   }
-  EXPECT_LT(resident, resident_before_list + 6)
+  EXPECT_LT(resident, resident_before_list + 3)
       << resident_before_list << " MB before the listing, peak " << peak_after_list;
+  std::cerr << "the listing needed " << peak_after_list - resident_before_list << " MB and kept "
+            << resident - resident_before_list << " MB\n";
 
   // An import reads its archive as a stream, one job in memory at a time:
   // this archive of 20,000 completed jobs (about 50 MB) raised the
@@ -267,10 +275,7 @@ TEST_F(ScaleExportTest, ASubmissionsMemoryDoesNotGrowWithItsJobs) {
   const size_t archive_bytes =
       WriteCompletedArchive(dir_ + "/s20k.archive.json", Sweep("s20k"), ListAllJobs("s20k"));
   ASSERT_GT(archive_bytes, size_t{40} << 20);
-  {
-    std::ofstream reset_peak(absl::StrCat("/proc/", pid, "/clear_refs"));
-    reset_peak << "5";  // the peak (VmHWM) starts again from the resident size
-  }
+  ResetPeakResidentMemory(pid);
   const double resident_before_import = ProcStatusMb(pid, "VmRSS");
   ASSERT_EQ(Cli({"results", "import", dir_ + "/s20k.archive.json"}, &out, &err), 0) << err;
   ASSERT_NE(out.find("20000 jobs taken over"), std::string::npos) << out;

@@ -26,6 +26,15 @@ inline double ProcStatusMb(pid_t pid, const std::string& field) {
   return -1;
 }
 
+// Starts the process's peak (VmHWM) again from its resident size now, so
+// that a later VmHWM is the peak of what came after (Linux's clear_refs "5";
+// the process must be this user's).
+inline void ResetPeakResidentMemory(pid_t pid) {
+  std::ofstream(pid == kThisProcess ? std::string("/proc/self/clear_refs")
+                                    : "/proc/" + std::to_string(pid) + "/clear_refs")
+      << "5";
+}
+
 }  // namespace totalgrad::testing
 
 #endif  // TOTALGRAD_TESTS_TESTUTIL_PROC_MEMORY_H_
