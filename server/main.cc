@@ -13,9 +13,6 @@
 #include <CLI/CLI.hpp>
 #include <fstream>
 #include <thread>
-#ifdef __GLIBC__
-#include <malloc.h>
-#endif
 
 #include "absl/synchronization/mutex.h"
 #include "runtime/build_info.h"
@@ -27,19 +24,6 @@
 
 namespace {
 
-// glibc gives each thread that meets a busy heap an arena of its own (up to
-// 8 per core), and malloc_trim, which the coordinator calls every 5 s, does
-// not shrink the top of those per-thread heaps: after listing 20,000 jobs,
-// 2 to 7 MB of freed memory stayed resident in whichever arena the call's
-// gRPC thread had used (scale_export_test; 0.2-0.6 MB with two arenas). The
-// coordinator's threads mostly wait on SQLite and the network, so two
-// arenas are enough for them. Set before any thread starts.
-void LimitMallocArenas() {
-#ifdef __GLIBC__
-  mallopt(M_ARENA_MAX, 2);
-#endif
-}
-
 int Fail(const std::string& message) {
   spdlog::error("{}", message);
   return 1;
@@ -49,7 +33,7 @@ int Fail(const std::string& message) {
 
 int main(int argc, char** argv) {
   using totalgrad::service::CoordinatorOptions;
-  LimitMallocArenas();
+  totalgrad::service::LimitMallocArenas(totalgrad::service::kCoordinatorMallocArenas);
   // abseil's lock-order (deadlock) check runs on every Mutex acquisition,
   // gRPC's own included, where abseil was built without NDEBUG (Debian's):
   // about 6 % of the coordinator's CPU with 1,000 workers (perf, issue 28).

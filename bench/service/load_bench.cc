@@ -87,8 +87,13 @@ int main(int argc, char** argv) {
   app.add_option("--settle-seconds", settle_seconds,
                  "wait this long after submitting and report the resident memory then")
       ->capture_default_str();
+  int malloc_arenas = totalgrad::service::kCoordinatorMallocArenas;
+  app.add_option("--malloc-arenas", malloc_arenas,
+                 "glibc malloc arenas at most (0: glibc's default of 8 per core)")
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   // As totalgrad-coordinator's main does (server/main.cc).
+  totalgrad::service::LimitMallocArenas(malloc_arenas);
   absl::SetMutexDeadlockDetectionMode(absl::OnDeadlockCycle::kIgnore);
 
   const std::string db = absl::StrCat(dir, "/totalgrad_load_bench_", getpid(), ".db");
@@ -270,7 +275,8 @@ int main(int argc, char** argv) {
   const bool every_row_once = status.ok() && rows == jobs_done * episodes &&
                               static_cast<int64_t>(distinct.size()) == rows &&
                               sweep.jobs_completed() == jobs_done;
-  std::cout << "{\"workers\": " << workers << ", \"jobs_queued\": " << queued
+  std::cout << "{\"workers\": " << workers << ", \"malloc_arenas\": " << malloc_arenas
+            << ", \"jobs_queued\": " << queued
             << ", \"submit_seconds\": " << submit_seconds << ", \"jobs\": " << jobs
             << ", \"jobs_completed_by_workers\": " << jobs_done
             << ", \"lease_complete_per_second\": " << jobs_done / seconds

@@ -66,6 +66,14 @@ absl::StatusOr<std::shared_ptr<grpc::ServerCredentials>> ServerCredentials(
 
 }  // namespace
 
+void LimitMallocArenas(int max_arenas) {
+#ifdef __GLIBC__
+  if (max_arenas > 0) mallopt(M_ARENA_MAX, max_arenas);
+#else
+  (void)max_arenas;
+#endif
+}
+
 absl::Status CoordinatorOptions::Validate() const {
   if (database.empty()) return absl::InvalidArgumentError("--db: a database file is required");
   if (listen.empty()) return absl::InvalidArgumentError("--listen: an address is required");

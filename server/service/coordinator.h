@@ -73,6 +73,18 @@ struct CoordinatorOptions {
   absl::Status Validate() const;
 };
 
+// glibc gives each thread that meets a busy heap an arena of its own (up to
+// 8 per core), and malloc_trim, which the coordinator calls every 5 s, does
+// not shrink the top of those per-thread heaps: after listing 20,000 jobs,
+// 2 to 7 MB of freed memory stayed resident in whichever arena the call's
+// gRPC thread had used (scale_export_test; 0.2-0.3 MB with two arenas,
+// docs/results/scale/listing-retention-arenas.txt). A process that runs a
+// coordinator calls LimitMallocArenas(kCoordinatorMallocArenas) before it
+// starts any thread (totalgrad-coordinator's main, the load bench); 0 keeps
+// glibc's default. A no-op without glibc.
+inline constexpr int kCoordinatorMallocArenas = 2;
+void LimitMallocArenas(int max_arenas);
+
 class Coordinator {
  public:
   // Opens the database, runs recovery, starts serving. `clock` is not owned
