@@ -643,10 +643,10 @@ TEST_F(CliTest, Table1LaysSweepsOutInThePapersGridAndRefusesASeedCountedTwice) {
   EXPECT_NEAR(tp_gtp["cost_shift95_low"].get<double>(), -7.010961, 1e-6);
   EXPECT_NEAR(tp_gtp["cost_shift95_high"].get<double>(), 0.963506, 1e-6);
   EXPECT_DOUBLE_EQ(tp_gtp["wilcoxon_p"].get<double>(), 198.0 / 1024);  // exact, n = 10
-  // By the rollout verdict, seeds 10-17 (both classified): both held at 11
-  // and 12, TP alone at 10 and 14, GTP alone never: (2 - 0) / 8.
-  EXPECT_EQ(tp_gtp["verdict_pairs"], 8);
-  EXPECT_DOUBLE_EQ(tp_gtp["verdict_difference"].get<double>(), 0.25);
+  // By the rollout verdict, seeds 10-19 (all classified): both held at 11,
+  // 12 and 19, TP alone at 10 and 14, GTP alone at 18: (2 - 1) / 10.
+  EXPECT_EQ(tp_gtp["verdict_pairs"], 10);
+  EXPECT_DOUBLE_EQ(tp_gtp["verdict_difference"].get<double>(), 0.1);
 
   // What 10 pairs can settle needs no coordinator.
   ASSERT_EQ(Cli({"results", "power", "--pairs", "10", "-f", "csv"}, &out, &err, false), 0) << err;
