@@ -21,6 +21,24 @@ namespace {
 
 using results::Table1Cell;
 
+// The paper's line of a cell: its rate, "in" or "OUT" of our interval, and,
+// where the rate and a bound of the interval print alike at two decimals,
+// that bound at three ("0.69 OUT (high 0.687)" beside "[0.17, 0.69]" would
+// otherwise read as a contradiction).
+std::string PaperCellText(const Table1Cell& cell) {
+  if (std::isnan(cell.paper_success_rate)) return "none";
+  const std::string paper = FormatFixed(cell.paper_success_rate, 2);
+  const std::string inside = results::PaperInInterval(cell);
+  if (inside.empty()) return paper;
+  std::string text = absl::StrCat(paper, inside == "yes" ? " in" : " OUT");
+  if (FormatFixed(cell.success.low, 2) == paper) {
+    absl::StrAppend(&text, " (low ", FormatFixed(cell.success.low, 3), ")");
+  } else if (FormatFixed(cell.success.high, 2) == paper) {
+    absl::StrAppend(&text, " (high ", FormatFixed(cell.success.high, 3), ")");
+  }
+  return text;
+}
+
 // The grid as text: three lines per task (our success rate, the rollout
 // verdict's rate, the paper's number), one column per method, then the
 // cells whose trials left the paper's protocol (marked '*') and the trials
@@ -37,7 +55,8 @@ void PrintGrid(const results::Table1& table, const std::vector<std::string>& swe
          "protocol (below)\n"
       << "held: trials whose final policy held in at least half of its verdict rollouts "
          "[95% Wilson interval] held/classified\n"
-      << "paper: the paper's success rate, 'in' or 'OUT' of our interval\n\n";
+      << "paper: the paper's success rate, 'in' or 'OUT' of our interval (the bound at three "
+         "decimals where the two print alike)\n\n";
   Listing listing;
   listing.columns.push_back("task");
   for (const std::string& method : methods) listing.columns.push_back(method);
@@ -56,11 +75,7 @@ void PrintGrid(const results::Table1& table, const std::vector<std::string>& swe
                          ? "-"
                          : absl::StrCat(FormatRate(cell.held), " ", cell.held.successes, "/",
                                         cell.held.trials));
-      const std::string inside = results::PaperInInterval(cell);
-      paper.push_back(std::isnan(cell.paper_success_rate)
-                          ? "none"
-                          : absl::StrCat(FormatFixed(cell.paper_success_rate, 2),
-                                         inside == "yes" ? " in" : inside == "no" ? " OUT" : ""));
+      paper.push_back(PaperCellText(cell));
       if (cell.off_protocol_trials > 0) {
         marked.push_back(absl::StrCat("  ", rows[r].Label(), ", ", cell.method, ": ",
                                       cell.off_protocol_trials, " of ", cell.success.trials,
