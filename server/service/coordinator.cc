@@ -23,6 +23,15 @@ namespace {
 // Threads of the gRPC server kept waiting for calls between bursts.
 constexpr int kIdleServerThreads = 64;
 
+// What a client may send on one stream before the coordinator reads it.
+// gRPC grows this window by its bandwidth-delay estimate, which a CPU-starved
+// coordinator inflates (its pings are answered late): an import of 60 MB
+// beside four busy loops on two cores held 11-22 MB of not-yet-read chunks
+// (docs/results/scale/import-receive-window.txt). A fixed window bounds that
+// per stream; 4 MiB keeps an import's upload at 40 MB/s over a 100 ms round
+// trip. Every other request is far smaller than either window.
+constexpr int kStreamReceiveWindowBytes = 4 << 20;
+
 // A big request (submitting or listing 100,000 jobs) leaves its freed memory
 // in glibc's heap, which keeps it: 480 MB resident after one submission of
 // 100,000 jobs. Giving it back every few seconds bounds the coordinator's
@@ -157,6 +166,8 @@ absl::StatusOr<std::unique_ptr<Coordinator>> Coordinator::Start(const Coordinato
   // client keepalive pings down to 20 s without a GOAWAY.
   builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, 20000);
   builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
+  builder.AddChannelArgument(GRPC_ARG_HTTP2_BDP_PROBE, 0);
+  builder.AddChannelArgument(GRPC_ARG_HTTP2_STREAM_LOOKAHEAD_BYTES, kStreamReceiveWindowBytes);
   // The synchronous server's threads: one that finishes a call exits when
   // MAX_POLLERS others are already waiting for calls (gRPC's default: 2), so
   // with hundreds of workers calling at once each burst created and
