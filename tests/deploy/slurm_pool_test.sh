@@ -11,6 +11,8 @@
 #   B. No time limit known (squeue says UNLIMITED): SIGTERM to the batch
 #      script (what --signal=B:TERM@300 and `scancel --signal=TERM --batch`
 #      send) reaches the worker, which drains and exits 0.
+#   C. SIGTERM before srun (Slurm sends --signal=B:TERM@300 at once to a job
+#      with less than 300 s left): no worker starts, the script exits 0.
 # Plus the script's duration parser on Slurm's time formats.
 #
 #   slurm_pool_test.sh COORDINATOR_BIN WORKER_BIN CLI_BIN SOURCE_DIR
@@ -92,12 +94,14 @@ exit "$status"
 EOF
 cat >"$work/bin/squeue" <<'EOF'
 #!/bin/bash
+touch "$FAKE_SLURM_DIR/squeue.called"
+sleep "${FAKE_SQUEUE_DELAY:-0}"
 echo "$FAKE_TIME_LEFT"
 EOF
 chmod +x "$work/bin/srun" "$work/bin/squeue"
 
-run_sbatch() {  # run_sbatch TIME_LEFT OUTPUT: the batch script in the background
-  env PATH="$work/bin:$PATH" FAKE_SLURM_DIR="$work" FAKE_TIME_LEFT="$1" \
+run_sbatch() {  # run_sbatch TIME_LEFT OUTPUT [SQUEUE_DELAY]: the batch script in the background
+  env PATH="$work/bin:$PATH" FAKE_SLURM_DIR="$work" FAKE_TIME_LEFT="$1" FAKE_SQUEUE_DELAY="${3:-0}" \
     SLURM_JOB_ID=4242 SLURM_JOB_NUM_NODES=1 SLURM_CPUS_PER_TASK=1 \
     TOTALGRAD_WORKER_BIN="$worker_bin" TOTALGRAD_WORKER_TOKEN_FILE="$work/certs/worker.token" \
     TOTALGRAD_TRIAL_TIME=6 \
@@ -188,4 +192,22 @@ grep -q "SIGTERM: draining the workers" "$work/signal.out" || fail "the script d
 grep -q "signal 15: draining" "$work/signal.out" || fail "the worker did not get SIGTERM"
 log "B: SIGTERM to the batch script: worker drained, script exited 0 after $(( ($(date +%s%N) - signalled) / 1000000 )) ms"
 check_after_drain B "$work/signal.out"
+
+# ---- C: SIGTERM before the workers start --------------------------------------------------
+# What Slurm does with --signal=B:TERM@300 when the job starts with less than
+# 300 s left: the signal arrives while the script is still reading its time
+# left (here: squeue takes 3 s). The script starts no worker and exits 0.
+rm -f "$work/srun.args" "$work/squeue.called"
+run_sbatch 1:00 "$work/early.out" 3
+sbatch_pid=${pids[-1]}
+wait_for 10 "the batch script to ask squeue for its time left" test -e "$work/squeue.called"
+kill -TERM "$sbatch_pid"
+wait_for 30 "the batch script to end (SIGTERM before srun)" exited "$sbatch_pid"
+status=0
+wait "$sbatch_pid" || status=$?
+[ "$status" -eq 0 ] || fail "the batch script exited $status after an early SIGTERM: $(cat "$work/early.out")"
+grep -q "SIGTERM before the workers started: starting none" "$work/early.out" \
+  || fail "the script did not report the early SIGTERM: $(cat "$work/early.out")"
+[ ! -e "$work/srun.args" ] || fail "srun ran after an early SIGTERM"
+log "C: SIGTERM while the script read its time left: no worker started, exit 0"
 log "PASS"
