@@ -2,8 +2,8 @@
 # docs/results/table1/issue25-{grid,sensitivity,comparisons}.txt are what
 # `results table1` prints from the committed archives alone (issue 25:
 # importing the archives reproduces table1.md's grid): imports
-# table1-tip-k1 and table1-tip-k001 into a new database file and compares
-# each view with the committed file, byte for byte.
+# table1-tip-k1, table1-tip-k001 and table1-tip-k1-rest into a new database
+# file and compares each view with the committed file, byte for byte.
 #
 #   table1_views_test.sh TOTALGRAD_CLI [--write]
 #
@@ -15,12 +15,13 @@ write=${2:-}
 here=$(cd "$(dirname "$0")/../../docs/results/table1" && pwd)
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
-for sweep in table1-tip-k1 table1-tip-k001; do
+sweeps=(table1-tip-k1 table1-tip-k001 table1-tip-k1-rest)
+for sweep in "${sweeps[@]}"; do
   "$cli" results import "$here/$sweep.archive.json" --db "$work/t1.db" > /dev/null
 done
 status=0
 for view in grid sensitivity comparisons; do
-  "$cli" results table1 table1-tip-k1 table1-tip-k001 --view "$view" --db "$work/t1.db" \
+  "$cli" results table1 "${sweeps[@]}" --view "$view" --db "$work/t1.db" \
       > "$work/$view.txt"
   if [ "$write" = --write ]; then
     cp "$work/$view.txt" "$here/issue25-$view.txt"
